@@ -1,0 +1,39 @@
+//! Geometry: every motion block is a NURBS curve.
+//!
+//! A line is a degree-1 curve and a circular arc an exact rational quadratic ([`circular_arc`]),
+//! so the rest of edmd knows one kind of path: [`NurbsCurve`], validated once on construction and
+//! then evaluated (point, first and second derivative, curvature radius, length) without
+//! allocating. Coordinates are millimetres in the machine's axis order; a curve has `dim` axes
+//! and the unused tail of a [`Point`] stays zero.
+//!
+//! The formulas follow The NURBS Book (Piegl & Tiller) with the corrections in
+//! `shared/notes/seed-errata.md`: the Cox–de Boor recursion with the right denominators, and the
+//! quotient rule for the rational derivatives.
+
+mod arc;
+mod basis;
+mod nurbs;
+
+pub use arc::circular_arc;
+pub use nurbs::{CurveDerivs, CurveEnd, NurbsCurve, NurbsError};
+
+/// Highest curve degree accepted (order 10).
+pub const MAX_DEGREE: usize = 9;
+
+/// Most axes a machine (and so a curve) can have.
+pub const MAX_AXES: usize = 6;
+
+/// A point or vector in machine space (mm); components past the curve's `dim` are zero.
+pub type Point = nalgebra::SVector<f64, MAX_AXES>;
+
+/// Builds a [`Point`] from up to [`MAX_AXES`] coordinates.
+pub fn point(coords: &[f64]) -> Point {
+    let mut p = Point::zeros();
+    for (slot, c) in p.iter_mut().zip(coords) {
+        *slot = *c;
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests;
