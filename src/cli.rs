@@ -1,0 +1,159 @@
+//! The `edmd` command line: argument parsing, logging set-up, and the exit codes of
+//! `design.md` (0 success, 1 runtime failure, 2 bad input).
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::check;
+use crate::config::{self, Config, LogFormat, LogLevel};
+use crate::gcode;
+
+/// Exit code for bad input: program, configuration or usage.
+pub const EXIT_BAD_INPUT: u8 = 2;
+/// Exit code for a runtime failure: alarm, device error.
+pub const EXIT_RUNTIME: u8 = 1;
+
+#[derive(Parser, Debug)]
+#[command(name = "edmd", version, about = "Real-time NURBS interpolation daemon for EDM controllers")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Parse and validate a program; print what it contains. Exit 2 on errors.
+    Check(CheckArgs),
+}
+
+/// Options shared by every command that reads the configuration.
+#[derive(Args, Debug)]
+struct ConfigArgs {
+    /// Configuration file [default: config/edmd.toml if present, else the built-in default]
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Override one key, e.g. --set buffer.capacity=64 (TOML value; repeatable)
+    #[arg(long = "set", value_name = "SECTION.KEY=VALUE")]
+    set: Vec<String>,
+}
+
+impl ConfigArgs {
+    fn load(&self) -> Result<Config, config::ConfigError> {
+        match &self.config {
+            Some(path) => Config::load(Some(path), &self.set),
+            None => {
+                let default = Path::new(config::DEFAULT_CONFIG_PATH);
+                Config::load(default.exists().then_some(default), &self.set)
+            }
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+struct CheckArgs {
+    /// G-code program
+    program: PathBuf,
+    #[command(flatten)]
+    config: ConfigArgs,
+    /// Print only the totals, not one line per block
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Entry point of the binary.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Check(args) => run_check(&args),
+    }
+}
+
+fn init_logging(cfg: &config::LogConfig) {
+    let level = match cfg.level {
+        LogLevel::Error => "error",
+        LogLevel::Warn => "warn",
+        LogLevel::Info => "info",
+        LogLevel::Debug => "debug",
+        LogLevel::Trace => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    let terminal = std::io::stderr().is_terminal();
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    // A second initialisation (tests calling twice) is harmless, so its error is ignored.
+    let _ = match cfg.format {
+        LogFormat::Json => builder.json().try_init(),
+        LogFormat::Human => builder.with_ansi(terminal).try_init(),
+        LogFormat::Plain => builder.with_ansi(false).try_init(),
+        LogFormat::Auto => builder.with_ansi(terminal).try_init(),
+    };
+}
+
+fn load_config(args: &ConfigArgs) -> Result<Config, ExitCode> {
+    args.load().map_err(|e| {
+        eprintln!("edmd: error: {e}");
+        ExitCode::from(EXIT_BAD_INPUT)
+    })
+}
+
+fn run_check(args: &CheckArgs) -> ExitCode {
+    let cfg = match load_config(&args.config) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    init_logging(&cfg.log);
+    let axes = &cfg.machine.axes;
+    let mut reader = match gcode::open_program(&args.program, axes) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let name = args.program.display().to_string();
+    let mut totals = check::Totals::default();
+    if !args.quiet {
+        println!("{name}");
+        println!("{}", check::BLOCK_TABLE_HEADER);
+    }
+    let mut failed = None;
+    for item in reader.by_ref() {
+        match item {
+            Ok(block) => {
+                let length = block.curve.length();
+                if !args.quiet {
+                    println!("{}", check::describe_block(&block, length, axes));
+                }
+                totals.add(&block, length);
+            }
+            Err(e) => {
+                failed = Some(e);
+                break;
+            }
+        }
+    }
+    for w in reader.take_warnings() {
+        if w.line == 0 {
+            eprintln!("{name}: warning: {}", w.message);
+        } else {
+            eprintln!("{name}:{}:{}: warning: {}", w.line, w.col, w.message);
+        }
+    }
+    if let Some(e) = failed {
+        eprintln!("edmd: error: {e}");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    println!(
+        "{}",
+        check::describe_totals(&totals, axes, cfg.machine.max_feed_mm_per_min)
+    );
+    if let Some(line) = reader.program_end_line() {
+        println!("program end: line {line}");
+    }
+    ExitCode::SUCCESS
+}

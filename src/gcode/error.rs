@@ -1,0 +1,221 @@
+//! Errors and warnings for programs: where (`file:line:col`), what, and the offending text.
+
+use std::fmt;
+use std::sync::Arc;
+
+use crate::geometry::NurbsError;
+
+/// What is wrong with a program. The location and text are in [`GcodeError`].
+#[derive(Debug, thiserror::Error)]
+pub enum GcodeErrorKind {
+    #[error("cannot read the program: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("empty program: no G-code in the file")]
+    EmptyProgram,
+    #[error("line is longer than {limit} bytes")]
+    LineTooLong { limit: usize },
+    #[error("invalid UTF-8")]
+    InvalidUtf8,
+    #[error("comment opened here is never closed with `)`")]
+    UnterminatedComment,
+    #[error("`(` inside a comment: comments do not nest")]
+    NestedComment,
+    #[error("unexpected character {ch:?}{hint}")]
+    UnexpectedChar { ch: char, hint: &'static str },
+    #[error("`%` must stand alone on its line")]
+    MisplacedPercent,
+    #[error("{letter} must be followed by a number")]
+    MissingNumber { letter: char },
+    #[error("`{text}` is not a number (after {letter})")]
+    BadNumber { letter: char, text: String },
+    #[error("{letter}{text}: number out of range")]
+    NumberOutOfRange { letter: char, text: String },
+    #[error("{letter}{text}: {letter} needs a whole number")]
+    NotAWholeNumber { letter: char, text: String },
+    #[error("unknown G word G{code}")]
+    UnknownG { code: String },
+    #[error("G{code} is not supported: {why}")]
+    UnsupportedG { code: String, why: &'static str },
+    #[error("unknown M word M{code}")]
+    UnknownM { code: String },
+    #[error("word {letter} is not used {context}")]
+    UnexpectedWord { letter: char, context: String },
+    #[error("{letter} given twice in one block")]
+    RepeatedWord { letter: char },
+    #[error("G{a} and G{b} in one block: they set the same mode")]
+    ConflictingG { a: String, b: String },
+    #[error("axis {axis} is not on this machine (machine.axes = [{axes}])")]
+    AxisNotOnMachine { axis: char, axes: String },
+    #[error("axis words without a motion mode: program G0, G1, G2 or G3 first")]
+    NoMotionMode,
+    #[error("feed F must be greater than 0")]
+    BadFeed,
+    #[error("missing coordinate: {what}")]
+    MissingCoordinate { what: String },
+    #[error("arc with both R and I/J/K: give the radius or the centre, not both")]
+    ArcRAndCentre,
+    #[error("arc needs its centre (I/J/K) or its radius (R)")]
+    ArcMissingCentre,
+    #[error(
+        "arc radius inconsistent with its centre: {start:.6} mm to the start, {end:.6} mm to the end"
+    )]
+    ArcRadiusMismatch { start: f64, end: f64 },
+    #[error("arc radius {radius} mm is less than half the chord ({half_chord:.6} mm)")]
+    ArcRadiusTooSmall { radius: f64, half_chord: f64 },
+    #[error("arc centre coincides with its start point (zero radius)")]
+    ArcZeroRadius,
+    #[error("a full circle cannot be given with R: use I/J/K for the centre")]
+    ArcFullCircleWithR,
+    #[error("helical arc: axis {axis} moves during a circular arc, which edmd does not support")]
+    HelicalArc { axis: char },
+    #[error("{plane} arc needs axes {a} and {b} on the machine (machine.axes = [{axes}])")]
+    ArcPlaneNotOnMachine {
+        plane: &'static str,
+        a: char,
+        b: char,
+        axes: String,
+    },
+    #[error("{what} out of range: {value} (allowed {min} to {max})")]
+    OutOfRange {
+        what: &'static str,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
+    #[error("weight {letter}{value} must be greater than 0")]
+    BadWeight { letter: char, value: f64 },
+    #[error("knots decrease: K{value} is less than the previous knot {previous}")]
+    KnotsDecreasing { value: f64, previous: f64 },
+    #[error("wrong knot count: {0}")]
+    KnotCount(String),
+    #[error("{form} block without K: every block of a {form} curve carries a knot")]
+    MissingKnot { form: &'static str },
+    #[error("control point after the closing knot-only blocks of the {form} curve")]
+    PointAfterClosingKnots { form: &'static str },
+    #[error("{form} curve started at line {start_line} is interrupted by {by}{hint}")]
+    NurbsInterrupted {
+        form: &'static str,
+        start_line: u64,
+        by: String,
+        hint: &'static str,
+    },
+    #[error("{form} curve started at line {start_line} is never finished{hint}")]
+    NurbsUnterminated {
+        form: &'static str,
+        start_line: u64,
+        hint: &'static str,
+    },
+    #[error("G5.3 without G5.2: no NURBS curve is open")]
+    NurbsEndWithoutStart,
+    #[error(
+        "curve starts at {first} but the tool is at {current}: the first control point must be the current position"
+    )]
+    NurbsStartMismatch { first: String, current: String },
+    #[error("curve has more than {limit} control points: split it into several curves")]
+    TooManyPoints { limit: usize },
+    #[error("invalid NURBS curve: {0}")]
+    Nurbs(#[from] NurbsError),
+}
+
+/// A program error with its place: `source:line:col: message`, then the line with a caret.
+#[derive(Debug)]
+pub struct GcodeError {
+    pub source_name: Arc<str>,
+    /// 1-based line number.
+    pub line: u64,
+    /// 1-based column, in characters.
+    pub col: usize,
+    pub kind: GcodeErrorKind,
+    /// The offending line (or a window of it around the column), for the excerpt.
+    pub text: String,
+}
+
+impl std::error::Error for GcodeError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.kind)
+    }
+}
+
+impl fmt::Display for GcodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            return write!(f, "{}: {}", self.source_name, self.kind);
+        }
+        write!(
+            f,
+            "{}:{}:{}: {}",
+            self.source_name, self.line, self.col, self.kind
+        )?;
+        if !self.text.is_empty() {
+            let (excerpt, caret) = excerpt(&self.text, self.col);
+            let gutter = self.line.to_string();
+            let pad = " ".repeat(gutter.len());
+            write!(
+                f,
+                "\n {gutter} | {excerpt}\n {pad} | {}^",
+                " ".repeat(caret)
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// At most [`EXCERPT_CHARS`] characters of `text` around 1-based `col`, with control characters
+/// made visible; returns the excerpt and the caret's 0-based offset in it.
+fn excerpt(text: &str, col: usize) -> (String, usize) {
+    const EXCERPT_CHARS: usize = 100;
+    let chars: Vec<char> = text.chars().collect();
+    let at = col.saturating_sub(1).min(chars.len());
+    let start = at.saturating_sub(EXCERPT_CHARS / 2);
+    let end = (start + EXCERPT_CHARS).min(chars.len());
+    let mut out: String = chars[start..end]
+        .iter()
+        .map(|&c| if c.is_control() { '\u{fffd}' } else { c })
+        .collect();
+    let mut caret = at - start;
+    if start > 0 {
+        out.insert_str(0, "...");
+        caret += 3;
+    }
+    if end < chars.len() {
+        out.push_str("...");
+    }
+    (out, caret)
+}
+
+/// Something edmd accepts but wants the operator to know (an ignored spindle word, text after M30).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    pub line: u64,
+    pub col: usize,
+    pub message: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_has_location_excerpt_and_caret() {
+        let e = GcodeError {
+            source_name: "p.nc".into(),
+            line: 12,
+            col: 8,
+            kind: GcodeErrorKind::UnknownG { code: "7".into() },
+            text: "G01 X1 G7 Y2".into(),
+        };
+        assert_eq!(
+            e.to_string(),
+            "p.nc:12:8: unknown G word G7\n 12 | G01 X1 G7 Y2\n    |        ^"
+        );
+    }
+
+    #[test]
+    fn long_lines_are_windowed_around_the_column() {
+        let text = "X".repeat(500);
+        let (ex, caret) = excerpt(&text, 300);
+        assert_eq!(ex.chars().count(), 106);
+        assert_eq!(ex.chars().nth(caret), Some('X'));
+        assert_eq!(caret, 53);
+    }
+}

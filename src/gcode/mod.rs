@@ -1,0 +1,193 @@
+//! G-code: program text in, motion [`Block`]s out, streamed.
+//!
+//! [`BlockReader`] pulls lines from any `BufRead`, so a program of hundreds of megabytes is read
+//! in constant memory (one line, plus the control points of a NURBS curve until it closes). Each
+//! line goes through the lexer ([`lexer`]: words, comments, columns) and then a modal
+//! interpreter ([`parser`]) that keeps the state an RS274 controller keeps (units, distance
+//! mode, plane, motion mode, feed, position) and turns every motion into a [`Block`] whose path
+//! is a [`NurbsCurve`] in millimetres and machine axis order:
+//!
+//! - `G0`/`G1`: degree-1 curves; `G2`/`G3` (I J K or R, full circles, G17/G18/G19): exact
+//!   rational quadratics;
+//! - NURBS in three dialects: `G38` (seed 000: `O` degree, `C` point count, `W` weight, knots
+//!   clamped uniform on [0, 1] unless every line carries `K`), `G06.2`/`G6.2` (Fanuc: `P` order,
+//!   `K` knot, `R` weight, closed by `P` knot-only blocks; LinuxCNC's `Q` ignored), and
+//!   `G5.2`…`G5.3` (LinuxCNC: the current position is the first control point, `P` weight, `L`
+//!   order defaulting to 3, knots clamped uniform in whole numbers).
+//!
+//! Anything edmd cannot do exactly is an error with `file:line:col`, never a silent skip. Words
+//! that mean nothing on an EDM (`S`, `T`, `M3`–`M9`) are accepted with a [`Warning`].
+
+mod error;
+mod lexer;
+mod lines;
+mod parser;
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+pub use error::{GcodeError, GcodeErrorKind, Warning};
+pub use lines::MAX_LINE_BYTES;
+pub use parser::{
+    ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CURVE_POINTS,
+};
+
+use crate::config::Axis;
+use crate::geometry::{NurbsCurve, Point};
+
+/// The three NURBS block forms.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NurbsForm {
+    /// Seed 000's `G38 O<degree> C<count> X Y [W]`.
+    G38,
+    /// Fanuc's `G06.2 P<order> K<knot> X Y [R<weight>]`.
+    Fanuc,
+    /// LinuxCNC's `G5.2 [X Y] [P<weight>] [L<order>]` … `G5.3`.
+    LinuxCnc,
+}
+
+impl NurbsForm {
+    pub fn name(self) -> &'static str {
+        match self {
+            NurbsForm::G38 => "G38",
+            NurbsForm::Fanuc => "G06.2",
+            NurbsForm::LinuxCnc => "G5.2",
+        }
+    }
+
+    fn inside_name(self) -> &'static str {
+        match self {
+            NurbsForm::G38 => "inside a G38 curve",
+            NurbsForm::Fanuc => "inside a G06.2 curve",
+            NurbsForm::LinuxCnc => "inside a G5.2 curve",
+        }
+    }
+
+    fn weight_letter(self) -> char {
+        match self {
+            NurbsForm::G38 => 'W',
+            NurbsForm::Fanuc => 'R',
+            NurbsForm::LinuxCnc => 'P',
+        }
+    }
+}
+
+/// Arc plane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plane {
+    /// G17
+    XY,
+    /// G18 (Z then X, so that G2 is clockwise seen from +Y)
+    ZX,
+    /// G19
+    YZ,
+}
+
+impl Plane {
+    /// The plane's two axes in the order that makes G3 counter-clockwise.
+    pub fn axis_letters(self) -> [char; 2] {
+        match self {
+            Plane::XY => ['X', 'Y'],
+            Plane::ZX => ['Z', 'X'],
+            Plane::YZ => ['Y', 'Z'],
+        }
+    }
+
+    /// The centre-offset words for those axes.
+    pub fn offset_letters(self) -> [char; 2] {
+        match self {
+            Plane::XY => ['I', 'J'],
+            Plane::ZX => ['K', 'I'],
+            Plane::YZ => ['J', 'K'],
+        }
+    }
+
+    pub fn g_code(self) -> &'static str {
+        match self {
+            Plane::XY => "G17",
+            Plane::ZX => "G18",
+            Plane::YZ => "G19",
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Plane::XY => "XY",
+            Plane::ZX => "ZX",
+            Plane::YZ => "YZ",
+        }
+    }
+}
+
+/// What a block is, with what a report needs to describe it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BlockKind {
+    Rapid,
+    Line,
+    Arc {
+        center: Point,
+        radius: f64,
+        /// Radians; positive is counter-clockwise in the plane's axis order.
+        sweep: f64,
+        plane: Plane,
+    },
+    Nurbs {
+        form: NurbsForm,
+    },
+}
+
+impl BlockKind {
+    /// `rapid`, `line`, `arc` or `nurbs`, as in the trace CSV.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BlockKind::Rapid => "rapid",
+            BlockKind::Line => "line",
+            BlockKind::Arc { .. } => "arc",
+            BlockKind::Nurbs { .. } => "nurbs",
+        }
+    }
+}
+
+/// One motion of the program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Block {
+    /// Source line where the block starts (a NURBS curve's first line).
+    pub line: u64,
+    pub kind: BlockKind,
+    /// The path, in mm and machine axis order.
+    pub curve: NurbsCurve,
+    /// Programmed feed limit in mm/min: `None` for rapids and for feed moves before any `F`
+    /// (both run at up to the machine's maximum; feed moves as the gap servo allows).
+    pub feed_mm_per_min: Option<f64>,
+}
+
+impl Block {
+    pub fn start(&self) -> Point {
+        self.curve.start_point()
+    }
+
+    pub fn end(&self) -> Point {
+        self.curve.end_point()
+    }
+}
+
+/// Opens `path` for streaming. Errors name the path as given.
+pub fn open_program(
+    path: &Path,
+    axes: &[Axis],
+) -> Result<BlockReader<BufReader<File>>, GcodeError> {
+    let name = path.display().to_string();
+    let file = File::open(path).map_err(|e| GcodeError {
+        source_name: name.as_str().into(),
+        line: 0,
+        col: 0,
+        kind: GcodeErrorKind::Io(e),
+        text: String::new(),
+    })?;
+    Ok(BlockReader::new(
+        BufReader::with_capacity(64 * 1024, file),
+        &name,
+        axes,
+    ))
+}

@@ -1,0 +1,5 @@
+//! `edmd`: see the library crate and README.md.
+
+fn main() -> std::process::ExitCode {
+    edmd::cli::main()
+}
