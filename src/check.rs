@@ -63,7 +63,9 @@ pub fn format_point(p: &Point, axes: &[Axis]) -> String {
         if i > 0 {
             s.push(' ');
         }
-        let _ = write!(s, "{a}{:.4}", p[i]);
+        // Rounding can leave -0.0000; a machinist reads that as a sign error.
+        let v = if p[i].abs() < 5e-5 { 0.0 } else { p[i] };
+        let _ = write!(s, "{a}{v:.4}");
     }
     s
 }

@@ -474,6 +474,24 @@ impl<R: BufRead> BlockReader<R> {
                 }
             }
         }
+        if let Some(o) = letters.get('O')
+            && !matches!(motion_word, Some((GCode::Curve(NurbsForm::G38), _)))
+        {
+            // Fanuc's program number (`O1000`) stands alone on its line.
+            if words.iter().all(|w| matches!(w.letter, 'O' | 'N')) {
+                whole(o, 0.0, 99_999.0)?;
+                return Ok(None);
+            }
+            return Err((
+                o.col,
+                GcodeErrorKind::UnexpectedWord {
+                    letter: 'O',
+                    context: "here: O is a program number alone on its line, or G38's degree"
+                        .into(),
+                },
+            )
+                .into());
+        }
         let mut program_end = false;
         for w in words.iter().filter(|w| w.letter == 'M') {
             let code = whole(w, 0.0, 9999.0)? as u32;
@@ -535,10 +553,21 @@ impl<R: BufRead> BlockReader<R> {
             }
             Some((GCode::Motion(m), w)) => {
                 self.modal.motion = Some(m);
-                self.motion_block(m, line_no, letters, w.col)?
+                if self.moves(m, letters)? {
+                    self.motion_block(m, line_no, letters, w.col)?
+                } else {
+                    self.check_letters(letters, false, "", "without axis words")?;
+                    None
+                }
             }
             _ => match self.modal.motion {
-                Some(m) => self.motion_block(m, line_no, letters, first_col(words))?,
+                Some(m) if self.moves(m, letters)? => {
+                    self.motion_block(m, line_no, letters, first_col(words))?
+                }
+                Some(_) => {
+                    self.check_letters(letters, false, "", "without axis words")?;
+                    None
+                }
                 None => {
                     if let Some(w) = self.first_axis_word(letters)? {
                         return Err((w.col, GcodeErrorKind::NoMotionMode).into());
@@ -552,6 +581,17 @@ impl<R: BufRead> BlockReader<R> {
             self.ended_at = Some(line_no);
         }
         Ok(block)
+    }
+
+    /// Whether a block in motion mode `m` moves: it has axis words, or, for an arc, a centre
+    /// or radius (a full circle needs no axis words). A bare `G1` only sets the mode.
+    fn moves(&self, m: Motion, letters: &Letters) -> Step<bool> {
+        if self.first_axis_word(letters)?.is_some() {
+            return Ok(true);
+        }
+        let arc_words = matches!(m, Motion::Cw | Motion::Ccw)
+            && ['I', 'J', 'K', 'R'].iter().any(|&l| letters.get(l).is_some());
+        Ok(arc_words)
     }
 
     fn warn_once(&mut self, line: u64, w: &Word, message: &str) {
