@@ -88,21 +88,32 @@ pub(crate) fn lex(line: &str, words: &mut Vec<Word>) -> Result<LineInfo, LexErro
                     it.next();
                     col += 1;
                 }
+                if text.is_empty()
+                    && let Some(hint) = it.peek().and_then(|&c| unsupported_syntax(c))
+                {
+                    let ch = it.peek().copied().unwrap_or(' ');
+                    return Err((col + 1, GcodeErrorKind::UnexpectedChar { ch, hint }));
+                }
                 words.push(number_word(letter, letter_col, text)?);
             }
             other => {
-                let hint = match other {
-                    '#' => " (parameters are not supported)",
-                    '[' | ']' => " (expressions are not supported)",
-                    '/' => " (block delete is not supported)",
-                    '<' | '>' => " (named parameters are not supported)",
-                    _ => "",
-                };
+                let hint = unsupported_syntax(other).unwrap_or("");
                 return Err((col, GcodeErrorKind::UnexpectedChar { ch: other, hint }));
             }
         }
     }
     Ok(info)
+}
+
+/// Why a character that other controllers accept is not G-code edmd reads.
+fn unsupported_syntax(c: char) -> Option<&'static str> {
+    match c {
+        '#' => Some(" (parameters are not supported)"),
+        '[' | ']' => Some(" (expressions are not supported)"),
+        '/' => Some(" (block delete is not supported)"),
+        '<' | '>' => Some(" (named parameters are not supported)"),
+        _ => None,
+    }
 }
 
 fn number_word(letter: char, col: usize, text: String) -> Result<Word, LexError> {
