@@ -17,7 +17,11 @@ pub const EXIT_BAD_INPUT: u8 = 2;
 pub const EXIT_RUNTIME: u8 = 1;
 
 #[derive(Parser, Debug)]
-#[command(name = "edmd", version, about = "Real-time NURBS interpolation daemon for EDM controllers")]
+#[command(
+    name = "edmd",
+    version,
+    about = "Real-time NURBS interpolation daemon for EDM controllers"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

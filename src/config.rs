@@ -256,10 +256,11 @@ impl Config {
                     message: format!("{key}: {}", err.inner().message()),
                 }
             })?;
-        raw.validate().map_err(|(key, message)| ConfigError::Invalid {
-            origin: origins.describe(key, source),
-            message: format!("{key}: {message}"),
-        })
+        raw.validate()
+            .map_err(|(key, message)| ConfigError::Invalid {
+                origin: origins.describe(key, source),
+                message: format!("{key}: {message}"),
+            })
     }
 }
 
@@ -355,7 +356,10 @@ fn positive(key: &'static str, value: f64) -> Result<f64, Invalid> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err((key, format!("must be a finite number greater than 0, got {value}")))
+        Err((
+            key,
+            format!("must be a finite number greater than 0, got {value}"),
+        ))
     }
 }
 
@@ -749,9 +753,15 @@ mod tests {
     #[test]
     fn unknown_key_is_named_with_its_line() {
         let err = load("[buffer]\ncapacity = 64\ncapcity = 3\n", &[]).unwrap_err();
-        assert!(err.starts_with("edmd.toml:3:1: unknown key `capcity` in [buffer]"), "{err}");
+        assert!(
+            err.starts_with("edmd.toml:3:1: unknown key `capcity` in [buffer]"),
+            "{err}"
+        );
         let err = load("\n[bufer]\n", &[]).unwrap_err();
-        assert!(err.starts_with("edmd.toml:2:2: unknown section [bufer]"), "{err}");
+        assert!(
+            err.starts_with("edmd.toml:2:2: unknown section [bufer]"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -762,21 +772,38 @@ mod tests {
             "{err}"
         );
         let err = load("[machine]\nstep_mm = [0.001, 0.0]\n", &[]).unwrap_err();
-        assert!(err.starts_with("edmd.toml:2:1: machine.step_mm: must be a finite number greater than 0"), "{err}");
+        assert!(
+            err.starts_with(
+                "edmd.toml:2:1: machine.step_mm: must be a finite number greater than 0"
+            ),
+            "{err}"
+        );
         let err = load("[interpolation]\nchord_tolerance_mm = -1\n", &[]).unwrap_err();
-        assert!(err.contains("edmd.toml:2:1: interpolation.chord_tolerance_mm"), "{err}");
+        assert!(
+            err.contains("edmd.toml:2:1: interpolation.chord_tolerance_mm"),
+            "{err}"
+        );
         let err = load("[machine]\naxes = [\"X\", \"Q\"]\nstep_mm = [1, 1]\n", &[]).unwrap_err();
         assert!(err.contains("\"Q\" is not an axis"), "{err}");
         let err = load("[machine]\naxes = [\"X\", \"Y\", \"Z\"]\n", &[]).unwrap_err();
-        assert!(err.contains("machine.step_mm: has 2 values but machine.axes has 3"), "{err}");
+        assert!(
+            err.contains("machine.step_mm: has 2 values but machine.axes has 3"),
+            "{err}"
+        );
     }
 
     #[test]
     fn type_errors_and_bad_enum_values_are_located() {
         let err = load("[buffer]\ncapacity = \"big\"\n", &[]).unwrap_err();
-        assert!(err.starts_with("edmd.toml:2:1: buffer.capacity: invalid type"), "{err}");
+        assert!(
+            err.starts_with("edmd.toml:2:1: buffer.capacity: invalid type"),
+            "{err}"
+        );
         let err = load("[interpolation]\npredictor = \"adams\"\n", &[]).unwrap_err();
-        assert!(err.contains("edmd.toml:2:1: interpolation.predictor: unknown variant `adams`"), "{err}");
+        assert!(
+            err.contains("edmd.toml:2:1: interpolation.predictor: unknown variant `adams`"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -803,13 +830,19 @@ mod tests {
         assert_eq!(c.output.kind, OutputKind::File);
         assert_eq!(c.machine.axes.len(), 3);
         let err = load("", &["buffer.reserved=5000"]).unwrap_err();
-        assert!(err.starts_with("--set buffer.reserved=5000: buffer.reserved"), "{err}");
+        assert!(
+            err.starts_with("--set buffer.reserved=5000: buffer.reserved"),
+            "{err}"
+        );
         let err = load("", &["buffer.size=5"]).unwrap_err();
         assert!(err.contains("unknown key `size` in [buffer]"), "{err}");
         let err = load("", &["capacity=5"]).unwrap_err();
         assert!(err.contains("not of the form section.key"), "{err}");
         let err = load("", &["fine.tick_us=fast"]).unwrap_err();
-        assert!(err.starts_with("--set fine.tick_us=fast: fine.tick_us: invalid type"), "{err}");
+        assert!(
+            err.starts_with("--set fine.tick_us=fast: fine.tick_us: invalid type"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -81,7 +81,12 @@ fn huang_table1_is_the_papers_clamped_uniform_cubic() {
     .unwrap();
     assert_eq!(c, &want);
     assert_eq!(curves[0].line, 5);
-    assert_eq!(curves[0].kind, BlockKind::Nurbs { form: NurbsForm::G38 });
+    assert_eq!(
+        curves[0].kind,
+        BlockKind::Nurbs {
+            form: NurbsForm::G38
+        }
+    );
     // No F in the paper's program: accepted, with one warning.
     assert_eq!(curves[0].feed_mm_per_min, None);
     assert_eq!(warnings.len(), 1, "{warnings:?}");
@@ -200,8 +205,7 @@ fn inch_program_is_converted_to_millimetres() {
 #[test]
 fn incremental_mode_applies_to_nurbs_control_points() {
     let absolute = "G0 X5 Y5\nF100\nG06.2 P3 K0 X5 Y5 R1\nK0 X7 Y9 R2\nK0 X10 Y9\nK1 X12 Y5\nK2\nK2\nK2\nM30\n";
-    let incremental =
-        "G0 X5 Y5\nF100\nG91\nG06.2 P3 K0 X0 Y0 R1\nK0 X2 Y4 R2\nK0 X3 Y0\nK1 X2 Y-4\nK2\nK2\nK2\nM30\n";
+    let incremental = "G0 X5 Y5\nF100\nG91\nG06.2 P3 K0 X0 Y0 R1\nK0 X2 Y4 R2\nK0 X3 Y0\nK1 X2 Y-4\nK2\nK2\nK2\nM30\n";
     let (a, _) = parse(absolute, XY);
     let (b, _) = parse(incremental, XY);
     assert_eq!(a[1].curve, b[1].curve);
@@ -219,7 +223,10 @@ fn incremental_mode_applies_to_nurbs_control_points() {
 fn g38_with_explicit_knots_uses_them() {
     let program = "G0 X0 Y0\nG38 O2 C4 X0 Y0 K0 F60\nG38 X1 Y2 K0\nG38 X3 Y2 K0\nG38 X4 Y0 K2\nG38 K5\nG38 K5\nG38 K5\nM30\n";
     let (blocks, _) = parse(program, XY);
-    assert_eq!(blocks[0].curve.knots(), &[0.0, 0.0, 0.0, 2.0, 5.0, 5.0, 5.0]);
+    assert_eq!(
+        blocks[0].curve.knots(),
+        &[0.0, 0.0, 0.0, 2.0, 5.0, 5.0, 5.0]
+    );
     assert_eq!(blocks[0].end(), point(&[4.0, 0.0]));
 }
 
@@ -307,8 +314,13 @@ fn a_large_program_streams_block_by_block() {
                     return Ok(0);
                 }
                 self.line += 1;
-                self.buf = format!("G1 X{}.{:03} Y{} F600\n", self.line / 1000, self.line % 1000, self.line % 2)
-                    .into_bytes();
+                self.buf = format!(
+                    "G1 X{}.{:03} Y{} F600\n",
+                    self.line / 1000,
+                    self.line % 1000,
+                    self.line % 2
+                )
+                .into_bytes();
                 self.pos = 0;
             }
             let n = out.len().min(self.buf.len() - self.pos);
@@ -338,7 +350,10 @@ fn a_large_program_streams_block_by_block() {
 #[test]
 fn the_default_config_axes_read_the_shipped_programs() {
     let cfg = Config::default();
-    for p in ["programs/huang-table1-g38.nc", "programs/jin-table1-g06_2.nc"] {
+    for p in [
+        "programs/huang-table1-g38.nc",
+        "programs/jin-table1-g06_2.nc",
+    ] {
         assert!(!parse_file(p, &cfg.machine.axes).0.is_empty());
     }
 }

@@ -129,13 +129,23 @@ fn number_word(letter: char, col: usize, text: String) -> Result<Word, LexError>
     if unsigned.matches('.').count() > 1 {
         return Err((col, GcodeErrorKind::BadNumber { letter, text }));
     }
-    let int_digits = unsigned.split('.').next().unwrap_or("").trim_start_matches('0');
+    let int_digits = unsigned
+        .split('.')
+        .next()
+        .unwrap_or("")
+        .trim_start_matches('0');
     if int_digits.len() > MAX_INT_DIGITS || text.len() > MAX_NUMBER_CHARS {
         return Err((col, GcodeErrorKind::NumberOutOfRange { letter, text }));
     }
-    let value: f64 = text
-        .parse()
-        .map_err(|_| (col, GcodeErrorKind::BadNumber { letter, text: text.clone() }))?;
+    let value: f64 = text.parse().map_err(|_| {
+        (
+            col,
+            GcodeErrorKind::BadNumber {
+                letter,
+                text: text.clone(),
+            },
+        )
+    })?;
     Ok(Word {
         letter,
         value,

@@ -123,6 +123,9 @@ mod tests {
 
     #[test]
     fn invalid_utf8_reports_the_valid_prefix() {
-        assert_eq!(collect(b"G1 \xff X\nok"), ["1:<utf8 after \"G1 \">", "2:ok"]);
+        assert_eq!(
+            collect(b"G1 \xff X\nok"),
+            ["1:<utf8 after \"G1 \">", "2:ok"]
+        );
     }
 }

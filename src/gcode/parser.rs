@@ -96,7 +96,7 @@ fn g_code_tenths(w: &Word) -> Step<u32> {
 }
 
 fn g_name(tenths: u32) -> String {
-    if tenths % 10 == 0 {
+    if tenths.is_multiple_of(10) {
         format!("{}", tenths / 10)
     } else {
         format!("{}.{}", tenths / 10, tenths % 10)
@@ -139,7 +139,9 @@ fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         610 | 611 | 640 => GCode::Accepted(13),
         940 => GCode::Accepted(6),
         410 | 411 | 420 | 421 => {
-            return unsupported("cutter compensation; post the program with the offset applied (G40)");
+            return unsupported(
+                "cutter compensation; post the program with the offset applied (G40)",
+            );
         }
         430..=439 => return unsupported("tool length offsets"),
         930 => return unsupported("inverse time feed; use G94 (units per minute)"),
@@ -149,11 +151,15 @@ fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
         70 | 80 => return unsupported("lathe modes"),
         100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 | 550..=590 | 591..=593 => {
-            return unsupported("coordinate offsets and homing; edmd works in machine coordinates (G54)");
+            return unsupported(
+                "coordinate offsets and homing; edmd works in machine coordinates (G54)",
+            );
         }
         330 | 331 | 760 => return unsupported("threading"),
         382..=385 => {
-            return unsupported("probing (edmd's G38 without a decimal is the seed-000 NURBS block)");
+            return unsupported(
+                "probing (edmd's G38 without a decimal is the seed-000 NURBS block)",
+            );
         }
         730 | 740 | 810..=890 => return unsupported("canned cycles"),
         960 | 970 => return unsupported("spindle speed modes"),
@@ -532,7 +538,8 @@ impl<R: BufRead> BlockReader<R> {
             }
         }
         if let Some(f) = letters.get('F') {
-            if !(f.value > 0.0) {
+            // The lexer only yields finite numbers, so this also covers the sign.
+            if f.value <= 0.0 {
                 return Err((f.col, GcodeErrorKind::BadFeed).into());
             }
             self.modal.feed = Some(f.value * self.scale());
@@ -540,7 +547,12 @@ impl<R: BufRead> BlockReader<R> {
 
         let block = match motion_word {
             Some((GCode::Curve(form), w)) => {
-                self.check_letters(letters, true, curve_letters(form, true), &format!("with {}", form.name()))?;
+                self.check_letters(
+                    letters,
+                    true,
+                    curve_letters(form, true),
+                    &format!("with {}", form.name()),
+                )?;
                 self.open_curve(form, line_no, text, w, letters)?
             }
             Some((GCode::CurveEnd, w)) => {
@@ -590,7 +602,9 @@ impl<R: BufRead> BlockReader<R> {
             return Ok(true);
         }
         let arc_words = matches!(m, Motion::Cw | Motion::Ccw)
-            && ['I', 'J', 'K', 'R'].iter().any(|&l| letters.get(l).is_some());
+            && ['I', 'J', 'K', 'R']
+                .iter()
+                .any(|&l| letters.get(l).is_some());
         Ok(arc_words)
     }
 
@@ -693,7 +707,11 @@ impl<R: BufRead> BlockReader<R> {
             }
             if let Some(w) = letters.get(axis.letter()) {
                 let v = w.value * self.scale();
-                p[i] = if self.modal.incremental { base[i] + v } else { v };
+                p[i] = if self.modal.incremental {
+                    base[i] + v
+                } else {
+                    v
+                };
                 if p[i].abs() > MAX_COORD_MM {
                     return Err((
                         w.col,
@@ -740,7 +758,11 @@ impl<R: BufRead> BlockReader<R> {
                     letters,
                     true,
                     "",
-                    if motion == Motion::Rapid { "with G0" } else { "with G1" },
+                    if motion == Motion::Rapid {
+                        "with G0"
+                    } else {
+                        "with G1"
+                    },
                 )?;
                 let (target, _) = self.target(&self.position, letters, "")?;
                 let feed = match motion {
@@ -764,7 +786,9 @@ impl<R: BufRead> BlockReader<R> {
                     feed_mm_per_min: feed,
                 }))
             }
-            Motion::Cw | Motion::Ccw => self.arc_block(motion == Motion::Ccw, line_no, letters, col),
+            Motion::Cw | Motion::Ccw => {
+                self.arc_block(motion == Motion::Ccw, line_no, letters, col)
+            }
         }
     }
 
@@ -1027,12 +1051,7 @@ impl<R: BufRead> BlockReader<R> {
     }
 
     /// Adds the block's control point (and its weight and knot) to `curve`; returns the point.
-    fn add_point(
-        &self,
-        curve: &mut PendingCurve,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<Point> {
+    fn add_point(&self, curve: &mut PendingCurve, letters: &Letters, col: usize) -> Step<Point> {
         if curve.points.len() >= MAX_CURVE_POINTS {
             return Err((
                 col,
@@ -1083,12 +1102,11 @@ impl<R: BufRead> BlockReader<R> {
         Ok(p)
     }
 
-    fn continue_curve(
-        &mut self,
-        letters: &Letters,
-        words: &[Word],
-    ) -> Step<Option<Block>> {
-        let mut curve = self.pending.take().expect("continue_curve with a pending curve");
+    fn continue_curve(&mut self, letters: &Letters, words: &[Word]) -> Step<Option<Block>> {
+        let mut curve = self
+            .pending
+            .take()
+            .expect("continue_curve with a pending curve");
         let result = self.continue_curve_inner(&mut curve, letters, words);
         match result {
             Ok(true) => self.close_curve(curve).map(Some),
@@ -1120,8 +1138,7 @@ impl<R: BufRead> BlockReader<R> {
                         continue;
                     }
                     (NurbsForm::LinuxCnc, GCode::CurveEnd) => {
-                        if let Some(other) = letters.present().find(|o| !"GN".contains(o.letter))
-                        {
+                        if let Some(other) = letters.present().find(|o| !"GN".contains(o.letter)) {
                             return Err((
                                 other.col,
                                 GcodeErrorKind::UnexpectedWord {
@@ -1253,7 +1270,11 @@ impl<R: BufRead> BlockReader<R> {
 fn clamped_uniform_knots(points: usize, degree: usize, form: NurbsForm) -> Vec<f64> {
     let interior = points.saturating_sub(degree + 1);
     let spans = (interior + 1) as f64;
-    let scale = if form == NurbsForm::LinuxCnc { 1.0 } else { 1.0 / spans };
+    let scale = if form == NurbsForm::LinuxCnc {
+        1.0
+    } else {
+        1.0 / spans
+    };
     let mut knots = vec![0.0; degree + 1];
     knots.extend((1..=interior).map(|j| j as f64 * scale));
     knots.extend(std::iter::repeat_n(spans * scale, degree + 1));

@@ -238,10 +238,13 @@ impl NurbsCurve {
     }
 
     /// `C(u)`, `C'(u)`, `C''(u)` of the rational curve, clamped to the parameter range.
+    ///
+    /// Index loops on purpose: this is the numeric kernel, and the formulas read as written.
     /// Allocation-free: the basis and the homogeneous sums live on the stack.
     ///
     /// With `A(u) = sum N_i w_i P_i` and `w(u) = sum N_i w_i`:
     /// `C = A/w`, `C' = (A' - w' C)/w`, `C'' = (A'' - 2 w' C' - w'' C)/w` (errata, seed 000).
+    #[allow(clippy::needless_range_loop)]
     pub fn derivs(&self, u: f64) -> CurveDerivs {
         let u = u.clamp(self.u_min(), self.u_max());
         let p = self.degree;

@@ -330,7 +330,11 @@ fn length_of_a_nontrivial_curve_matches_dense_polyline() {
         prev = p;
     }
     // A dense inscribed polyline is shorter by O(h^2); 1e-7 relative is well above that here.
-    assert!(((c.length() - poly) / poly).abs() < 1e-7, "{} vs {poly}", c.length());
+    assert!(
+        ((c.length() - poly) / poly).abs() < 1e-7,
+        "{} vs {poly}",
+        c.length()
+    );
 }
 
 // ---- validation -----------------------------------------------------------------------------
@@ -445,7 +449,10 @@ fn every_validation_rule_has_its_own_error() {
     ];
     for (result, want) in cases {
         let err = result.expect_err(want);
-        assert!(format!("{err:?}").starts_with(want), "{err:?} is not {want}");
+        assert!(
+            format!("{err:?}").starts_with(want),
+            "{err:?} is not {want}"
+        );
         assert!(!err.to_string().is_empty());
     }
 }
