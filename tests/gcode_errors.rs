@@ -41,6 +41,7 @@ const fn case(
     }
 }
 
+/// A case for a three-axis machine.
 const fn case3(
     name: &'static str,
     program: &'static str,
@@ -49,12 +50,8 @@ const fn case3(
     gist: &'static str,
 ) -> Case {
     Case {
-        name,
-        program,
         axes: XYZ,
-        line,
-        col,
-        gist,
+        ..case(name, program, line, col, gist)
     }
 }
 

@@ -631,24 +631,28 @@ impl<R: BufRead> BlockReader<R> {
             .join(", ")
     }
 
+    /// The axis a word names: `Some` for one of the machine's axes, `None` for a letter that is
+    /// no axis, an error for an axis letter the machine does not have.
+    fn machine_axis(&self, w: &Word) -> Step<Option<Axis>> {
+        match Axis::from_letter(w.letter) {
+            Some(axis) if !self.axes.contains(&axis) => Err((
+                w.col,
+                GcodeErrorKind::AxisNotOnMachine {
+                    axis: w.letter,
+                    axes: self.axes_list(),
+                },
+            )
+                .into()),
+            found => Ok(found),
+        }
+    }
+
     /// The first axis word of the block, checking that every axis word names a machine axis.
     fn first_axis_word<'w>(&self, letters: &Letters<'w>) -> Step<Option<&'w Word>> {
         let mut first: Option<&Word> = None;
         for w in letters.present() {
-            if let Some(axis) = Axis::from_letter(w.letter) {
-                if !self.axes.contains(&axis) {
-                    return Err((
-                        w.col,
-                        GcodeErrorKind::AxisNotOnMachine {
-                            axis: w.letter,
-                            axes: self.axes_list(),
-                        },
-                    )
-                        .into());
-                }
-                if first.is_none_or(|f| w.col < f.col) {
-                    first = Some(w);
-                }
+            if self.machine_axis(w)?.is_some() && first.is_none_or(|f| w.col < f.col) {
+                first = Some(w);
             }
         }
         Ok(first)
@@ -664,24 +668,10 @@ impl<R: BufRead> BlockReader<R> {
         context: &str,
     ) -> Step<()> {
         for w in letters.present() {
-            if extra.contains(w.letter) {
+            if extra.contains(w.letter) || "GMNFST".contains(w.letter) {
                 continue; // a form's own word (G38's C) wins over an axis letter
             }
-            let is_axis = match Axis::from_letter(w.letter) {
-                Some(axis) if !self.axes.contains(&axis) => {
-                    return Err((
-                        w.col,
-                        GcodeErrorKind::AxisNotOnMachine {
-                            axis: w.letter,
-                            axes: self.axes_list(),
-                        },
-                    )
-                        .into());
-                }
-                Some(_) => true,
-                None => false,
-            };
-            if (is_axis && allow_axes) || "GMNFST".contains(w.letter) || extra.contains(w.letter) {
+            if self.machine_axis(w)?.is_some() && allow_axes {
                 continue;
             }
             return Err((
