@@ -1070,13 +1070,7 @@ impl<R: BufRead> BlockReader<R> {
         }
         let w = weight(letters.get(curve.form.weight_letter()))?;
         if curve.form == NurbsForm::Fanuc || curve.knots_given {
-            let k = letters.get('K').ok_or((
-                col,
-                GcodeErrorKind::MissingKnot {
-                    form: curve.form.name(),
-                },
-            ))?;
-            push_knot(curve, k)?;
+            push_knot(curve, letters, col)?;
         } else if let Some(k) = letters.get('K') {
             return Err((
                 k.col,
@@ -1214,13 +1208,7 @@ impl<R: BufRead> BlockReader<R> {
             )
                 .into());
         }
-        let k = letters.get('K').ok_or((
-            col,
-            GcodeErrorKind::MissingKnot {
-                form: curve.form.name(),
-            },
-        ))?;
-        push_knot(curve, k)?;
+        push_knot(curve, letters, col)?;
         curve.closing_knots += 1;
         Ok(curve.closing_knots == curve.order())
     }
@@ -1271,7 +1259,14 @@ fn clamped_uniform_knots(points: usize, degree: usize, form: NurbsForm) -> Vec<f
     knots
 }
 
-fn push_knot(curve: &mut PendingCurve, k: &Word) -> Step<()> {
+/// Appends the block's `K` (which must be there) to the curve's knots, refusing a decrease.
+fn push_knot(curve: &mut PendingCurve, letters: &Letters, col: usize) -> Step<()> {
+    let k = letters.get('K').ok_or((
+        col,
+        GcodeErrorKind::MissingKnot {
+            form: curve.form.name(),
+        },
+    ))?;
     if let Some(&previous) = curve.knots.last()
         && k.value < previous
     {
