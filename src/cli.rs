@@ -10,6 +10,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::check;
 use crate::config::{self, Config, LogFormat, LogLevel};
 use crate::gcode;
+use crate::plan;
 
 /// Exit code for bad input: program, configuration or usage.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -31,6 +32,8 @@ struct Cli {
 enum Command {
     /// Parse and validate a program; print what it contains. Exit 2 on errors.
     Check(CheckArgs),
+    /// Run the preprocessor alone, offline: trace CSV, summary (text and JSON) and SVG plots.
+    Plan(PlanArgs),
 }
 
 /// Options shared by every command that reads the configuration.
@@ -67,11 +70,26 @@ struct CheckArgs {
     quiet: bool,
 }
 
+#[derive(Args, Debug)]
+struct PlanArgs {
+    /// G-code program
+    program: PathBuf,
+    /// Output directory (created if needed): trace.csv, summary.json, summary.txt, *.svg
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    #[command(flatten)]
+    config: ConfigArgs,
+    /// No progress bar, even on a terminal
+    #[arg(short, long)]
+    quiet: bool,
+}
+
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Check(args) => run_check(&args),
+        Command::Plan(args) => run_plan(&args),
     }
 }
 
@@ -160,4 +178,27 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         println!("program end: line {line}");
     }
     ExitCode::SUCCESS
+}
+
+fn run_plan(args: &PlanArgs) -> ExitCode {
+    let cfg = match load_config(&args.config) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    init_logging(&cfg.log);
+    match plan::plan_program(&args.program, &cfg, &args.out, !args.quiet) {
+        Ok(summary) => {
+            print!("{}", summary.text());
+            println!("written to {}", args.out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e @ plan::PlanError::Program(_)) => {
+            eprintln!("edmd: error: {e}");
+            ExitCode::from(EXIT_BAD_INPUT)
+        }
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            ExitCode::from(EXIT_RUNTIME)
+        }
+    }
 }

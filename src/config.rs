@@ -151,6 +151,10 @@ pub struct InterpolationConfig {
     pub segmentation: Segmentation,
     pub chord_tolerance_mm: f64,
     pub period_ms: f64,
+    pub max_segment_mm: f64,
+    pub lookahead_segments: usize,
+    pub fluctuation_tolerance: f64,
+    pub max_corrections: u32,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -297,6 +301,10 @@ struct RawInterpolation {
     segmentation: Segmentation,
     chord_tolerance_mm: f64,
     period_ms: f64,
+    max_segment_mm: f64,
+    lookahead_segments: i64,
+    fluctuation_tolerance: f64,
+    max_corrections: i64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -360,6 +368,14 @@ fn positive(key: &'static str, value: f64) -> Result<f64, Invalid> {
             key,
             format!("must be a finite number greater than 0, got {value}"),
         ))
+    }
+}
+
+fn in_range(key: &'static str, value: i64, lo: i64, hi: i64) -> Result<i64, Invalid> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err((key, format!("must be {lo} to {hi}, got {value}")))
     }
 }
 
@@ -434,6 +450,19 @@ impl RawConfig {
             segmentation: i.segmentation,
             chord_tolerance_mm: positive("interpolation.chord_tolerance_mm", i.chord_tolerance_mm)?,
             period_ms: positive("interpolation.period_ms", i.period_ms)?,
+            max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm)?,
+            lookahead_segments: in_range(
+                "interpolation.lookahead_segments",
+                i.lookahead_segments,
+                2,
+                1 << 20,
+            )? as usize,
+            fluctuation_tolerance: positive(
+                "interpolation.fluctuation_tolerance",
+                i.fluctuation_tolerance,
+            )?,
+            max_corrections: in_range("interpolation.max_corrections", i.max_corrections, 1, 64)?
+                as u32,
         };
 
         let b = self.buffer;

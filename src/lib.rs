@@ -7,3 +7,6 @@ pub mod cli;
 pub mod config;
 pub mod gcode;
 pub mod geometry;
+pub mod plan;
+pub mod plot;
+pub mod preprocess;

@@ -37,11 +37,18 @@ pub(crate) fn find_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize
 }
 
 /// Values and first two derivatives of the `degree + 1` basis functions that are non-zero on
-/// span `span` at `u` (A2.3 specialised to two derivatives).
+/// span `span` at `u`.
 ///
 /// On return `ders[k][j]` is the k-th derivative of `N_{span-degree+j, degree}(u)`. Rows above
 /// the degree (the second derivative of a degree-1 basis) are zero.
-#[inline]
+///
+/// The values come from the triangular recurrence of A2.2. The derivatives use the degree-lowering
+/// identity `N'_{i,p} = p (N_{i,p-1} / (u_{i+p} - u_i) - N_{i+1,p-1} / (u_{i+p+1} - u_{i+1}))`
+/// applied once on the degree `p - 1` values and twice on the degree `p - 2` values, which are
+/// byproducts of the same recurrence. This is A2.3 specialised to two derivatives without its
+/// general coefficient table: same numbers, a fraction of the work. Every denominator spans the
+/// non-empty span `[u_span, u_{span+1})`, so none is zero.
+#[inline(always)]
 pub(crate) fn basis_derivs(
     span: usize,
     u: f64,
@@ -50,81 +57,63 @@ pub(crate) fn basis_derivs(
     ders: &mut [[f64; MAX_ORDER]; 3],
 ) {
     let p = degree;
-    // ndu holds the basis functions (upper triangle) and the knot differences (lower triangle).
-    let mut ndu = [[0.0f64; MAX_ORDER]; MAX_ORDER];
     let mut left = [0.0f64; MAX_ORDER];
     let mut right = [0.0f64; MAX_ORDER];
-    ndu[0][0] = 1.0;
+    // `values[r]` = N_{span-j+r, j} after step j; `lower1`/`lower2` keep degrees p-1 and p-2.
+    let mut values = [0.0f64; MAX_ORDER];
+    let mut lower1 = [0.0f64; MAX_ORDER];
+    let mut lower2 = [0.0f64; MAX_ORDER];
+    values[0] = 1.0;
     for j in 1..=p {
+        if j + 1 == p {
+            lower2 = values;
+        }
+        if j == p {
+            lower1 = values;
+        }
         left[j] = u - knots[span + 1 - j];
         right[j] = knots[span + j] - u;
         let mut saved = 0.0;
         for r in 0..j {
-            ndu[j][r] = right[r + 1] + left[j - r];
-            let temp = ndu[r][j - 1] / ndu[j][r];
-            ndu[r][j] = saved + right[r + 1] * temp;
+            let temp = values[r] / (right[r + 1] + left[j - r]);
+            values[r] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }
-        ndu[j][j] = saved;
+        values[j] = saved;
     }
+    ders[0][..=p].copy_from_slice(&values[..=p]);
+
+    // Degree p-1 basis over its knot span length: c[r] = N_{span-p+1+r, p-1} / D[r],
+    // D[r] = u_{span+r+1} - u_{span-p+1+r}.
+    let pf = p as f64;
+    let mut inv_d = [0.0f64; MAX_ORDER];
+    let mut c = [0.0f64; MAX_ORDER + 1];
+    for r in 0..p {
+        inv_d[r] = 1.0 / (knots[span + r + 1] - knots[span + 1 + r - p]);
+        c[r + 1] = lower1[r] * inv_d[r];
+    }
+    // c[0] and c[p + 1] stand for the zero neighbours outside the support.
     for j in 0..=p {
-        ders[0][j] = ndu[j][p];
+        ders[1][j] = pf * (c[j] - c[j + 1]);
     }
-    let nd = p.min(2);
-    for row in ders.iter_mut().skip(nd + 1) {
-        row[..=p].fill(0.0);
-    }
-    if nd == 0 {
+    if p < 2 {
+        ders[2][..=p].fill(0.0);
         return;
     }
-    // Derivatives: a[s][j] are the coefficients of the k-th difference (two alternating rows).
-    let mut a = [[0.0f64; MAX_ORDER]; 2];
-    for r in 0..=p {
-        let (mut s1, mut s2) = (0usize, 1usize);
-        a[0][0] = 1.0;
-        for k in 1..=nd {
-            let mut d = 0.0;
-            let rk = r as isize - k as isize;
-            let pk = p - k;
-            if r >= k {
-                let rk = rk as usize;
-                a[s2][0] = safe_div(a[s1][0], ndu[pk + 1][rk]);
-                d = a[s2][0] * ndu[rk][pk];
-            }
-            let j1 = if rk >= -1 { 1 } else { (-rk) as usize };
-            let j2 = if r as isize - 1 <= pk as isize {
-                k - 1
-            } else {
-                p - r
-            };
-            for j in j1..=j2 {
-                let idx = (rk + j as isize) as usize;
-                a[s2][j] = safe_div(a[s1][j] - a[s1][j - 1], ndu[pk + 1][idx]);
-                d += a[s2][j] * ndu[idx][pk];
-            }
-            if r <= pk {
-                a[s2][k] = safe_div(-a[s1][k - 1], ndu[pk + 1][r]);
-                d += a[s2][k] * ndu[r][pk];
-            }
-            ders[k][r] = d;
-            std::mem::swap(&mut s1, &mut s2);
-        }
+    // First derivatives of the degree p-1 basis, from the degree p-2 values.
+    let mut c2 = [0.0f64; MAX_ORDER + 1];
+    for q in 0..p - 1 {
+        c2[q + 1] = lower2[q] / (knots[span + q + 1] - knots[span + 2 + q - p]);
     }
-    // Multiply by p!/(p-k)!.
-    let mut factor = p as f64;
-    for row in ders.iter_mut().take(nd + 1).skip(1) {
-        for v in row.iter_mut().take(p + 1) {
-            *v *= factor;
-        }
-        factor *= (p - 1) as f64;
+    // e[r + 1] = N'_{span-p+1+r, p-1} / D[r], with zero neighbours at e[0] and e[p + 1].
+    let mut e = [0.0f64; MAX_ORDER + 1];
+    let pm1 = (p - 1) as f64;
+    for r in 0..p {
+        e[r + 1] = pm1 * (c2[r] - c2[r + 1]) * inv_d[r];
     }
-}
-
-/// Division with the Cox–de Boor convention `x / 0 := 0` (a zero-length knot interval
-/// contributes nothing).
-#[inline]
-fn safe_div(num: f64, den: f64) -> f64 {
-    if den == 0.0 { 0.0 } else { num / den }
+    for j in 0..=p {
+        ders[2][j] = pf * (e[j] - e[j + 1]);
+    }
 }
 
 #[cfg(test)]

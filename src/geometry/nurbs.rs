@@ -52,6 +52,12 @@ pub enum NurbsError {
     Degenerate,
 }
 
+/// Width of a stored homogeneous control point: up to [`MAX_AXES`] coordinates, the weight,
+/// one slot of padding.
+const HOMOGENEOUS_WIDTH: usize = 8;
+/// Where the weight sits in a stored homogeneous control point.
+const WEIGHT_SLOT: usize = MAX_AXES;
+
 /// Which end of a knot vector a [`NurbsError::NotClamped`] refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CurveEnd {
@@ -82,39 +88,38 @@ impl CurveDerivs {
         self.d1.norm()
     }
 
-    /// Radius of curvature `rho = |C'|^3 / |C' x C''|`; infinite where the curve is straight.
-    ///
-    /// `|C' x C''|` is computed in any dimension from the sum of squared 2x2 minors (Lagrange's
-    /// identity without the cancellation of `|a|^2 |b|^2 - (a.b)^2`).
+    /// Radius of curvature `rho = |C'|^3 / |C' x C''|` in any dimension; infinite where the
+    /// curve is straight, zero where it has no speed (a cusp of the parametrisation, which the
+    /// planner must treat like a corner).
     pub fn curvature_radius(&self) -> f64 {
+        // |C' x C''| = |C'| |C''_perp|, with C''_perp the part of C'' normal to C'.
         let (a, b) = (&self.d1, &self.d2);
-        let mut cross_sq = 0.0;
-        for i in 0..MAX_AXES {
-            for j in (i + 1)..MAX_AXES {
-                let m = a[i] * b[j] - a[j] * b[i];
-                cross_sq += m * m;
-            }
+        let speed_sq = a.norm_squared();
+        if speed_sq == 0.0 {
+            return 0.0;
         }
-        let speed = a.norm();
-        if cross_sq == 0.0 {
+        let normal = b - a * (a.dot(b) / speed_sq);
+        let normal_norm = normal.norm();
+        if normal_norm == 0.0 {
             f64::INFINITY
         } else {
-            speed * speed * speed / cross_sq.sqrt()
+            speed_sq / normal_norm
         }
     }
 }
 
 /// A validated, clamped NURBS curve of degree 1 to [`MAX_DEGREE`] in 1 to [`MAX_AXES`] axes.
 ///
-/// Control points are stored in homogeneous form `(w x, w)`, `dim + 1` numbers per point, which
-/// is what evaluation needs. Coordinates are millimetres; the parameter is in the program's own
-/// knot units. Construction enforces every rule the evaluator relies on, so evaluation cannot fail.
+/// Control points are stored in homogeneous form `(w x, w)`, padded to a fixed width of eight
+/// numbers (coordinates, zeros, the weight in slot [`WEIGHT_SLOT`]) so the evaluator's inner loop
+/// has a fixed length the compiler vectorises, whatever the number of axes. Coordinates are
+/// millimetres; the parameter is in the program's own knot units. Construction enforces every rule the evaluator relies on, so evaluation cannot fail.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NurbsCurve {
     degree: usize,
     dim: usize,
     knots: Vec<f64>,
-    homogeneous: Vec<f64>,
+    homogeneous: Vec<[f64; HOMOGENEOUS_WIDTH]>,
 }
 
 impl NurbsCurve {
@@ -151,13 +156,17 @@ impl NurbsCurve {
                 return Err(NurbsError::BadWeight { index, value: w });
             }
         }
-        let mut homogeneous = Vec::with_capacity(points.len() * (dim + 1));
+        let mut homogeneous = Vec::with_capacity(points.len());
         for (index, (p, &w)) in points.iter().zip(weights).enumerate() {
             if p.iter().take(dim).any(|c| !c.is_finite()) {
                 return Err(NurbsError::NonFiniteCoordinate { index });
             }
-            homogeneous.extend(p.iter().take(dim).map(|c| c * w));
-            homogeneous.push(w);
+            let mut h = [0.0; HOMOGENEOUS_WIDTH];
+            for axis in 0..dim {
+                h[axis] = p[axis] * w;
+            }
+            h[WEIGHT_SLOT] = w;
+            homogeneous.push(h);
         }
         let first = points[0];
         if points
@@ -193,14 +202,13 @@ impl NurbsCurve {
     }
 
     pub fn num_points(&self) -> usize {
-        self.homogeneous.len() / (self.dim + 1)
+        self.homogeneous.len()
     }
 
     /// Control point `i` in Cartesian coordinates (mm).
     pub fn control_point(&self, i: usize) -> Point {
-        let stride = self.dim + 1;
-        let h = &self.homogeneous[i * stride..(i + 1) * stride];
-        let w = h[self.dim];
+        let h = &self.homogeneous[i];
+        let w = h[WEIGHT_SLOT];
         let mut p = Point::zeros();
         for axis in 0..self.dim {
             p[axis] = h[axis] / w;
@@ -209,7 +217,7 @@ impl NurbsCurve {
     }
 
     pub fn weight(&self, i: usize) -> f64 {
-        self.homogeneous[i * (self.dim + 1) + self.dim]
+        self.homogeneous[i][WEIGHT_SLOT]
     }
 
     /// First parameter value of the curve.
@@ -247,34 +255,82 @@ impl NurbsCurve {
     #[allow(clippy::needless_range_loop)]
     pub fn derivs(&self, u: f64) -> CurveDerivs {
         let u = u.clamp(self.u_min(), self.u_max());
+        let span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
+        self.derivs_on_span(span, u)
+    }
+
+    /// Like [`derivs`](Self::derivs), but at a knot takes the span that ends there: the
+    /// derivatives of the piece arriving at `u`. They differ from the right-hand ones only at a
+    /// knot where the curve is not C2 (a multiple knot); at a corner knot (multiplicity equal to
+    /// the degree) this is the incoming tangent.
+    pub fn derivs_from_left(&self, u: f64) -> CurveDerivs {
+        let u = u.clamp(self.u_min(), self.u_max());
+        let mut span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
+        while span > self.degree && self.knots[span] >= u {
+            span -= 1;
+        }
+        self.derivs_on_span(span, u)
+    }
+
+    /// Interior parameters where the curve may have a corner: knots of multiplicity at least
+    /// the degree (every interior knot of a degree-1 polyline). Between two of them (and the
+    /// ends) the curve is at least C1.
+    pub fn corner_knots(&self) -> impl Iterator<Item = f64> + '_ {
         let p = self.degree;
-        let n = self.num_points() - 1;
-        let span = find_span(n, p, &self.knots, u);
+        let interior = &self.knots[p + 1..self.num_points()];
+        interior.iter().enumerate().filter_map(move |(i, &k)| {
+            let first = i == 0 || interior[i - 1] != k;
+            let multiplicity = interior[i..].iter().take_while(|&&x| x == k).count();
+            (first && multiplicity >= p).then_some(k)
+        })
+    }
+
+    /// Dispatches on the degree so that each common degree gets its own copy of the kernel with
+    /// the loop bounds known at compile time (unrolled, no dead table work).
+    fn derivs_on_span(&self, span: usize, u: f64) -> CurveDerivs {
+        match self.degree {
+            1 => self.kernel(span, u, 1),
+            2 => self.kernel(span, u, 2),
+            3 => self.kernel(span, u, 3),
+            4 => self.kernel(span, u, 4),
+            5 => self.kernel(span, u, 5),
+            p => self.kernel(span, u, p),
+        }
+    }
+
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn kernel(&self, span: usize, u: f64, p: usize) -> CurveDerivs {
         let mut ders = [[0.0f64; MAX_ORDER]; 3];
         basis_derivs(span, u, p, &self.knots, &mut ders);
 
-        let stride = self.dim + 1;
-        let mut sums = [[0.0f64; MAX_AXES + 1]; 3];
-        let first = (span - p) * stride;
+        let mut sums = [[0.0f64; HOMOGENEOUS_WIDTH]; 3];
+        let first = span - p;
         for j in 0..=p {
-            let hp = &self.homogeneous[first + j * stride..first + (j + 1) * stride];
-            for (k, sum) in sums.iter_mut().enumerate() {
+            let hp = &self.homogeneous[first + j];
+            for k in 0..3 {
                 let b = ders[k][j];
-                for (s, h) in sum.iter_mut().zip(hp) {
-                    *s += b * h;
+                for c in 0..HOMOGENEOUS_WIDTH {
+                    sums[k][c] += b * hp[c];
                 }
             }
         }
-        let (w, w1, w2) = (sums[0][self.dim], sums[1][self.dim], sums[2][self.dim]);
+        let (w, w1, w2) = (
+            sums[0][WEIGHT_SLOT],
+            sums[1][WEIGHT_SLOT],
+            sums[2][WEIGHT_SLOT],
+        );
+        let inv_w = 1.0 / w;
         let mut out = CurveDerivs {
             point: Point::zeros(),
             d1: Point::zeros(),
             d2: Point::zeros(),
         };
-        for axis in 0..self.dim {
-            let c = sums[0][axis] / w;
-            let c1 = (sums[1][axis] - w1 * c) / w;
-            let c2 = (sums[2][axis] - 2.0 * w1 * c1 - w2 * c) / w;
+        // Slots past `dim` hold zeros, so they produce zeros: no need to stop at `dim`.
+        for axis in 0..MAX_AXES {
+            let c = sums[0][axis] * inv_w;
+            let c1 = (sums[1][axis] - w1 * c) * inv_w;
+            let c2 = (sums[2][axis] - 2.0 * w1 * c1 - w2 * c) * inv_w;
             out.point[axis] = c;
             out.d1[axis] = c1;
             out.d2[axis] = c2;

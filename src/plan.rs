@@ -1,0 +1,620 @@
+//! `edmd plan`: the preprocessor alone, offline, with everything written down — the trace CSV
+//! of `design.md`, a summary (text and JSON) and SVG plots.
+//!
+//! It streams: blocks are read, segmented, planned and written as they come, so the memory used
+//! is the planner's window plus the bounded plot series, whatever the program's length. The one
+//! exception is the time-optimal bound, which needs the whole path; it is computed for programs
+//! of up to [`BOUND_MAX_BLOCKS`] blocks and reported as skipped beyond.
+
+use std::fs::File;
+use std::io::{self, BufReader, BufWriter, IsTerminal, Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use crate::config::{Axis, Config, Predictor, Segmentation};
+use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
+use crate::plot::{Chart, Decimated, Series, Style};
+use crate::preprocess::{PlanSettings, Preprocessor, Segment, bound};
+
+/// Largest program (in blocks) for which the time-optimal bound is computed.
+pub const BOUND_MAX_BLOCKS: usize = 10_000;
+/// Sample spacing of the time-optimal bound (mm).
+pub const BOUND_SPACING_MM: f64 = 0.005;
+/// Points kept per plotted series.
+const PLOT_POINTS: usize = 20_000;
+
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    #[error("{0}")]
+    Program(#[from] GcodeError),
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: io::Error },
+}
+
+fn io_err(path: &Path) -> impl FnOnce(io::Error) -> PlanError + '_ {
+    move |source| PlanError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// The numbers of a plan, as written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlanSummary {
+    pub program: String,
+    pub segmentation: String,
+    pub predictor: String,
+    pub chord_tolerance_mm: f64,
+    pub period_ms: f64,
+    pub blocks: u64,
+    pub segments: u64,
+    pub length_mm: f64,
+    pub planned_time_s: f64,
+    /// Dense forward/backward pass under the same limits; `None` when skipped (long programs).
+    pub time_optimal_bound_s: Option<f64>,
+    /// `planned / bound - 1`.
+    pub time_over_bound: Option<f64>,
+    /// Largest true chord error (mm).
+    pub max_chord_error_mm: f64,
+    pub segments_over_tolerance: u64,
+    pub max_feed_mm_per_s: f64,
+    /// Period mode: `|step - planned| / planned` (seed 001 eq. 16).
+    pub max_fluctuation: Option<f64>,
+    pub mean_fluctuation: Option<f64>,
+    /// Largest tangential acceleration: between consecutive periods in period mode, over each
+    /// segment in chord mode (mm/s²).
+    pub max_tangential_accel_mm_per_s2: f64,
+    /// Largest `v² / rho` at segment ends (mm/s²).
+    pub max_normal_accel_mm_per_s2: f64,
+    /// Curve evaluations per output segment, everything included (segmentation, chord-error
+    /// measurement, period steps and their corrections).
+    pub curve_evals_per_segment: f64,
+    /// Period mode: evaluations of the period stepper alone per period step.
+    pub step_evals_per_segment: Option<f64>,
+    pub wall_time_s: f64,
+    pub segments_per_second: f64,
+    /// Peak resident memory of the process (KiB, from `/proc/self/status`).
+    pub peak_rss_kib: Option<u64>,
+}
+
+impl PlanSummary {
+    /// The human-readable summary (`summary.txt`, and stdout).
+    pub fn text(&self) -> String {
+        let opt = |v: Option<f64>, unit: &str, scale: f64, digits: usize| match v {
+            Some(v) => format!("{:.*}{unit}", digits, v * scale),
+            None => "-".to_string(),
+        };
+        let mut s = String::new();
+        s += &format!("program            {}\n", self.program);
+        s += &format!(
+            "mode               {} ({} predictor), tolerance {} mm, period {} ms\n",
+            self.segmentation, self.predictor, self.chord_tolerance_mm, self.period_ms
+        );
+        s += &format!("blocks             {}\n", self.blocks);
+        s += &format!("segments           {}\n", self.segments);
+        s += &format!("length             {:.4} mm\n", self.length_mm);
+        s += &format!("planned time       {:.4} s\n", self.planned_time_s);
+        s += &format!(
+            "time-optimal bound {}{}\n",
+            opt(self.time_optimal_bound_s, " s", 1.0, 4),
+            match self.time_over_bound {
+                Some(r) => format!(" (planned is {:+.3} % over)", 100.0 * r),
+                None => " (skipped: program too long)".into(),
+            }
+        );
+        s += &format!(
+            "max chord error    {:.6} mm ({} over tolerance)\n",
+            self.max_chord_error_mm, self.segments_over_tolerance
+        );
+        s += &format!("max feed           {:.3} mm/s\n", self.max_feed_mm_per_s);
+        s += &format!(
+            "fluctuation        max {}  mean {}\n",
+            opt(self.max_fluctuation, "", 1.0, 9),
+            opt(self.mean_fluctuation, "", 1.0, 9)
+        );
+        s += &format!(
+            "max |a_T|          {:.1} mm/s²\n",
+            self.max_tangential_accel_mm_per_s2
+        );
+        s += &format!(
+            "max a_N            {:.1} mm/s²\n",
+            self.max_normal_accel_mm_per_s2
+        );
+        s += &format!(
+            "evals per segment  {:.3}{}\n",
+            self.curve_evals_per_segment,
+            match self.step_evals_per_segment {
+                Some(v) => format!(" (period stepper alone {v:.3})"),
+                None => String::new(),
+            }
+        );
+        s += &format!(
+            "wall time          {:.3} s ({:.0} segments/s)\n",
+            self.wall_time_s, self.segments_per_second
+        );
+        if let Some(kib) = self.peak_rss_kib {
+            s += &format!("peak RSS           {:.1} MiB\n", kib as f64 / 1024.0);
+        }
+        s
+    }
+}
+
+/// Peak resident set size of this process, KiB (Linux).
+pub fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// A reader that counts the bytes it hands out (for the progress bar).
+struct Counting<R> {
+    inner: R,
+    count: Arc<AtomicU64>,
+}
+
+impl<R: Read> Read for Counting<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.count.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+/// A one-line progress bar on stderr, redrawn at most every 200 ms, shown only after the job
+/// has run for a second (short jobs print nothing).
+struct Progress {
+    enabled: bool,
+    total: u64,
+    started: Instant,
+    last: Instant,
+    shown: bool,
+}
+
+impl Progress {
+    fn new(enabled: bool, total: u64) -> Progress {
+        let now = Instant::now();
+        Progress {
+            enabled,
+            total: total.max(1),
+            started: now,
+            last: now,
+            shown: false,
+        }
+    }
+
+    fn tick(&mut self, done: u64, blocks: u64) {
+        if !self.enabled {
+            return;
+        }
+        let now = Instant::now();
+        if now.duration_since(self.started) < Duration::from_secs(1)
+            || now.duration_since(self.last) < Duration::from_millis(200)
+        {
+            return;
+        }
+        self.last = now;
+        self.shown = true;
+        let frac = (done as f64 / self.total as f64).min(1.0);
+        let filled = (frac * 30.0) as usize;
+        eprint!(
+            "\r[{}{}] {:5.1} %  {} blocks  {:.1} s ",
+            "#".repeat(filled),
+            "-".repeat(30 - filled),
+            100.0 * frac,
+            blocks,
+            now.duration_since(self.started).as_secs_f64()
+        );
+    }
+
+    fn finish(&mut self) {
+        if self.shown {
+            eprintln!();
+        }
+    }
+}
+
+/// Running figures over the emitted segments, and the plot series.
+struct Collector {
+    trace: BufWriter<File>,
+    trace_path: PathBuf,
+    axis_columns: Vec<(usize, char)>,
+    xyz: [Option<usize>; 3],
+    t: f64,
+    s: f64,
+    segments: u64,
+    length: f64,
+    max_err: f64,
+    over: u64,
+    max_feed: f64,
+    fl_max: f64,
+    fl_sum: f64,
+    fl_count: u64,
+    max_at: f64,
+    max_an: f64,
+    prev: Option<(f64, f64, bool)>,
+    tolerance: f64,
+    period: f64,
+    period_mode: bool,
+    path: Decimated,
+    chord: Decimated,
+    feed: Decimated,
+    accel: Decimated,
+    fluct: Decimated,
+    error: Option<io::Error>,
+}
+
+impl Collector {
+    fn first_row(&mut self, block: &Block) {
+        let p = block.start();
+        let u = match block.kind {
+            BlockKind::Nurbs { .. } => format!("{}", block.curve.u_min()),
+            _ => String::new(),
+        };
+        let row = self.row_text(block, &u, &p, 0.0, 0.0, 0.0, None, f64::INFINITY, 0);
+        self.write(&row);
+        self.path.push(p[0], p[1]);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn row_text(
+        &self,
+        block: &Block,
+        u: &str,
+        p: &crate::geometry::Point,
+        t: f64,
+        feed: f64,
+        err: f64,
+        fluct: Option<f64>,
+        rho: f64,
+        evals: u32,
+    ) -> String {
+        let coord = |i: Option<usize>| i.map_or(String::new(), |i| format!("{:.6}", p[i]));
+        let mut row = format!(
+            "{},{},{},{},{},{},{:.9},{:.6},{:.9},{},{},{}",
+            block.line,
+            block.kind.name(),
+            u,
+            coord(self.xyz[0]),
+            coord(self.xyz[1]),
+            coord(self.xyz[2]),
+            t,
+            feed,
+            err,
+            fluct.map_or(String::new(), |f| format!("{f:.3e}")),
+            if rho.is_finite() {
+                format!("{rho:.6}")
+            } else {
+                String::new()
+            },
+            evals
+        );
+        for &(i, _) in &self.axis_columns {
+            row += &format!(",{:.6}", p[i]);
+        }
+        row.push('\n');
+        row
+    }
+
+    fn write(&mut self, row: &str) {
+        if self.error.is_none()
+            && let Err(e) = self.trace.write_all(row.as_bytes())
+        {
+            self.error = Some(e);
+        }
+    }
+
+    fn add(&mut self, seg: &Segment) {
+        self.t += seg.duration;
+        self.s += seg.length;
+        self.segments += 1;
+        self.length += seg.length;
+        self.max_err = self.max_err.max(seg.chord_error);
+        if seg.chord_error > self.tolerance {
+            self.over += 1;
+        }
+        let v = seg.v_exit;
+        self.max_feed = self.max_feed.max(seg.v_peak);
+        if let Some(f) = seg.fluctuation {
+            self.fl_max = self.fl_max.max(f);
+            self.fl_sum += f;
+            self.fl_count += 1;
+            self.fluct.push(self.t, f);
+        }
+        let full = (seg.duration - self.period).abs() < 1e-9 && seg.fluctuation.is_some();
+        let at = if self.period_mode {
+            match self.prev {
+                Some((_, v_prev, prev_full)) if prev_full && full => {
+                    Some((v - v_prev) / self.period)
+                }
+                _ => None,
+            }
+        } else if seg.length > 0.0 {
+            Some((seg.v_exit * seg.v_exit - seg.v_entry * seg.v_entry) / (2.0 * seg.length))
+        } else {
+            None
+        };
+        if let Some(a) = at {
+            self.max_at = self.max_at.max(a.abs());
+            self.accel.push(self.t, a);
+        }
+        if seg.rho_end > 0.0 {
+            self.max_an = self.max_an.max(v * v / seg.rho_end);
+        }
+        self.prev = Some((self.t, v, full));
+        self.path.push(seg.end[0], seg.end[1]);
+        self.chord.push(self.s, seg.chord_error);
+        self.feed.push(self.t, v);
+        let u = match seg.block.kind {
+            BlockKind::Nurbs { .. } => format!("{}", seg.u_end),
+            _ => String::new(),
+        };
+        let row = self.row_text(
+            &seg.block,
+            &u,
+            &seg.end,
+            self.t,
+            v,
+            seg.chord_error,
+            seg.fluctuation,
+            seg.rho_end,
+            seg.evals,
+        );
+        self.write(&row);
+    }
+}
+
+/// Plans `program` under `config`, writing `trace.csv`, `summary.json`, `summary.txt` and the
+/// plots into `out_dir` (created if needed).
+pub fn plan_program(
+    program: &Path,
+    config: &Config,
+    out_dir: &Path,
+    progress: bool,
+) -> Result<PlanSummary, PlanError> {
+    let started = Instant::now();
+    let file = File::open(program).map_err(io_err(program))?;
+    let total = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let count = Arc::new(AtomicU64::new(0));
+    let reader = BufReader::with_capacity(
+        64 * 1024,
+        Counting {
+            inner: file,
+            count: Arc::clone(&count),
+        },
+    );
+    let name = program.display().to_string();
+    let axes = &config.machine.axes;
+    let mut blocks = BlockReader::new(reader, &name, axes);
+    std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
+    let trace_path = out_dir.join("trace.csv");
+    let trace = BufWriter::new(File::create(&trace_path).map_err(io_err(&trace_path))?);
+
+    let settings = PlanSettings::from_config(config);
+    let index_of = |a: Axis| axes.iter().position(|&x| x == a);
+    let extra: Vec<(usize, char)> = axes
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| !matches!(a, Axis::X | Axis::Y | Axis::Z))
+        .map(|(i, a)| (i, a.letter().to_ascii_lowercase()))
+        .collect();
+    let mut c = Collector {
+        trace,
+        trace_path: trace_path.clone(),
+        axis_columns: extra.clone(),
+        xyz: [index_of(Axis::X), index_of(Axis::Y), index_of(Axis::Z)],
+        t: 0.0,
+        s: 0.0,
+        segments: 0,
+        length: 0.0,
+        max_err: 0.0,
+        over: 0,
+        max_feed: 0.0,
+        fl_max: 0.0,
+        fl_sum: 0.0,
+        fl_count: 0,
+        max_at: 0.0,
+        max_an: 0.0,
+        prev: None,
+        tolerance: settings.tolerance,
+        period: settings.period,
+        period_mode: settings.segmentation == Segmentation::Period,
+        path: Decimated::new(PLOT_POINTS),
+        chord: Decimated::new(PLOT_POINTS),
+        feed: Decimated::new(PLOT_POINTS),
+        accel: Decimated::new(PLOT_POINTS),
+        fluct: Decimated::new(PLOT_POINTS),
+        error: None,
+    };
+    let mut header = "line,kind,u,x,y,z,t,feed,chord_err,fluctuation,rho,evals".to_string();
+    for (_, letter) in &extra {
+        header += &format!(",{letter}");
+    }
+    header.push('\n');
+    c.write(&header);
+
+    let mut pre = Preprocessor::new(settings.clone());
+    let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
+    let mut bar = Progress::new(progress && io::stderr().is_terminal(), total);
+    let mut first = true;
+    for item in blocks.by_ref() {
+        let block = Arc::new(item?);
+        if first {
+            c.first_row(&block);
+            first = false;
+        }
+        if let Some(k) = kept.as_mut() {
+            if k.len() < BOUND_MAX_BLOCKS {
+                k.push(Arc::clone(&block));
+            } else {
+                kept = None;
+            }
+        }
+        pre.push_block(block, |seg| c.add(&seg));
+        bar.tick(count.load(Ordering::Relaxed), pre.stats().blocks);
+    }
+    pre.finish(|seg| c.add(&seg));
+    bar.finish();
+    for w in blocks.take_warnings() {
+        tracing::warn!("{name}:{}:{}: {}", w.line, w.col, w.message);
+    }
+    if let Some(e) = c.error.take() {
+        return Err(PlanError::Io {
+            path: c.trace_path.clone(),
+            source: e,
+        });
+    }
+    c.trace.flush().map_err(io_err(&trace_path))?;
+    let wall = started.elapsed().as_secs_f64();
+
+    let bound = kept.filter(|k| !k.is_empty()).map(|k| {
+        let refs: Vec<&Block> = k.iter().map(|b| b.as_ref()).collect();
+        bound::time_optimal_bound(&refs, &settings, BOUND_SPACING_MM)
+    });
+    let stats = pre.stats();
+    let segments = c.segments.max(1) as f64;
+    let period_mode = c.period_mode;
+    let summary = PlanSummary {
+        program: name,
+        segmentation: match settings.segmentation {
+            Segmentation::Chord => "chord",
+            Segmentation::Period => "period",
+        }
+        .into(),
+        predictor: match settings.predictor {
+            Predictor::Taylor => "taylor",
+            Predictor::Hamming => "hamming",
+        }
+        .into(),
+        chord_tolerance_mm: settings.tolerance,
+        period_ms: settings.period * 1000.0,
+        blocks: stats.blocks,
+        segments: c.segments,
+        length_mm: c.length,
+        planned_time_s: c.t,
+        time_optimal_bound_s: bound,
+        time_over_bound: bound.map(|b| c.t / b - 1.0),
+        max_chord_error_mm: c.max_err,
+        segments_over_tolerance: c.over,
+        max_feed_mm_per_s: c.max_feed,
+        max_fluctuation: (c.fl_count > 0).then_some(c.fl_max),
+        mean_fluctuation: (c.fl_count > 0).then(|| c.fl_sum / c.fl_count as f64),
+        max_tangential_accel_mm_per_s2: c.max_at,
+        max_normal_accel_mm_per_s2: c.max_an,
+        curve_evals_per_segment: (stats.segmenter.evals + stats.step_evals) as f64 / segments,
+        step_evals_per_segment: period_mode.then(|| stats.step_evals as f64 / segments),
+        wall_time_s: wall,
+        segments_per_second: c.segments as f64 / wall.max(1e-9),
+        peak_rss_kib: peak_rss_kib(),
+    };
+    write_reports(out_dir, &summary, &c, &settings)?;
+    Ok(summary)
+}
+
+fn write_reports(
+    out_dir: &Path,
+    summary: &PlanSummary,
+    c: &Collector,
+    settings: &PlanSettings,
+) -> Result<(), PlanError> {
+    let write = |file: &str, text: &str| {
+        let path = out_dir.join(file);
+        std::fs::write(&path, text).map_err(io_err(&path))
+    };
+    let json = serde_json::to_string_pretty(summary).expect("summary serialises");
+    write("summary.json", &(json + "\n"))?;
+    write("summary.txt", &summary.text())?;
+    let series = |name: &str, color: &'static str, style: Style, d: &Decimated| Series {
+        name: name.into(),
+        color,
+        style,
+        points: d.points(),
+    };
+    let path_points = c.path.points();
+    let mode = &summary.segmentation;
+    write(
+        "path.svg",
+        &Chart {
+            title: format!("Path and segment points ({} segments)", summary.segments),
+            x_label: "X (mm)".into(),
+            y_label: "Y (mm)".into(),
+            series: vec![
+                Series {
+                    name: "path".into(),
+                    color: "#999",
+                    style: Style::Line,
+                    points: path_points.clone(),
+                },
+                Series {
+                    name: "segment ends".into(),
+                    color: "#1f5fbf",
+                    style: Style::Dots,
+                    points: path_points,
+                },
+            ],
+            equal_axes: true,
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    write(
+        "chord_error.svg",
+        &Chart {
+            title: format!("True chord error per segment ({mode} mode)"),
+            x_label: "path length (mm)".into(),
+            y_label: "chord error (mm)".into(),
+            series: vec![series("chord error", "#1f5fbf", Style::Dots, &c.chord)],
+            limits: vec![(settings.tolerance, "tolerance".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    write(
+        "feed.svg",
+        &Chart {
+            title: "Planned feed".into(),
+            x_label: "time (s)".into(),
+            y_label: "feed (mm/s)".into(),
+            series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
+            limits: vec![(settings.max_feed, "max feed".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    let a = settings.max_tangential_accel;
+    write(
+        "tangential_accel.svg",
+        &Chart {
+            title: "Tangential acceleration".into(),
+            x_label: "time (s)".into(),
+            y_label: "a_T (mm/s²)".into(),
+            series: vec![series("a_T", "#bf5f1f", Style::Line, &c.accel)],
+            limits: vec![(a, "+a_T limit".into()), (-a, "-a_T limit".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    write(
+        "fluctuation.svg",
+        &Chart {
+            title: if c.period_mode {
+                "Feed fluctuation per period (seed 001 eq. 16)".into()
+            } else {
+                "Feed fluctuation: none in chord mode (segments carry speeds)".into()
+            },
+            x_label: "time (s)".into(),
+            y_label: "|L - ΔL| / ΔL".into(),
+            series: vec![series("fluctuation", "#7f1fbf", Style::Dots, &c.fluct)],
+            limits: vec![(
+                settings.fluctuation_tolerance,
+                "fluctuation tolerance".into(),
+            )],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    Ok(())
+}
