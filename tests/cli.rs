@@ -170,3 +170,95 @@ fn usage_errors_exit_2() {
     let out = edmd(&["frobnicate"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("edmd-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn plan_writes_trace_summary_and_plots() {
+    let out_dir = temp_dir("plan");
+    for mode in ["chord", "period"] {
+        let dir = out_dir.join(mode);
+        let out = edmd(&[
+            "plan",
+            "../shared/cases/jin-table1-g06_2.nc",
+            "--out",
+            dir.to_str().unwrap(),
+            "--set",
+            &format!("interpolation.segmentation={mode}"),
+        ]);
+        let (stdout, stderr) = text(&out);
+        assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+        assert!(stdout.contains("time-optimal bound"), "{stdout}");
+        let trace = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
+        let mut lines = trace.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        for col in ["line", "kind", "u", "x", "y", "z", "t", "feed", "chord_err"] {
+            assert!(header.contains(&col), "missing column {col}: {header:?}");
+        }
+        let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        let segments = json["segments"].as_u64().unwrap() as usize;
+        assert_eq!(
+            rows.len(),
+            segments + 1,
+            "one row for the start, one per segment"
+        );
+        // The first row is the path's start, at rest; the G0 to X0 Y0 is a zero move, so the
+        // first block is the curve on line 5.
+        assert_eq!(rows[0][6], "0.000000000");
+        let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+        let last = rows.last().unwrap();
+        assert_eq!(last[col("kind")], "nurbs");
+        assert_eq!(last[col("u")], "1");
+        assert!(last[col("x")].parse::<f64>().unwrap().abs() < 1e-9);
+        let max_err = rows
+            .iter()
+            .map(|r| r[col("chord_err")].parse::<f64>().unwrap())
+            .fold(0.0, f64::max);
+        assert!(max_err <= 0.001, "{max_err}");
+        assert!(json["max_chord_error_mm"].as_f64().unwrap() <= 0.001);
+        let time = json["planned_time_s"].as_f64().unwrap();
+        let bound = json["time_optimal_bound_s"].as_f64().unwrap();
+        assert!(time >= bound && time <= 1.01 * bound, "{time} vs {bound}");
+        for svg in [
+            "path.svg",
+            "chord_error.svg",
+            "feed.svg",
+            "tangential_accel.svg",
+            "fluctuation.svg",
+        ] {
+            let body = std::fs::read_to_string(dir.join(svg)).unwrap();
+            assert!(body.starts_with("<svg") && body.contains("</svg>"), "{svg}");
+        }
+        assert!(
+            std::fs::read_to_string(dir.join("summary.txt"))
+                .unwrap()
+                .contains("segments")
+        );
+    }
+    let _ = std::fs::remove_dir_all(&out_dir);
+}
+
+#[test]
+fn plan_reports_bad_programs_with_their_location() {
+    let dir = temp_dir("plan-bad");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("bad.nc");
+    std::fs::write(&program, "G21 G90\nG01 X1 Y1 F100\nG01 X2 Q7\n").unwrap();
+    let out = edmd(&[
+        "plan",
+        program.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("bad.nc:3:"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -18,7 +18,7 @@ use super::chord::Sample;
 pub fn taylor_increment(a: &Sample, len: f64) -> Option<f64> {
     let d1 = &a.d.d1;
     let speed_sq = d1.norm_squared();
-    if !(speed_sq > 0.0) || !speed_sq.is_finite() {
+    if speed_sq <= 0.0 || !speed_sq.is_finite() {
         return None;
     }
     let speed = speed_sq.sqrt();

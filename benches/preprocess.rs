@@ -1,0 +1,119 @@
+//! Preprocessor throughput: segments per second per core, chord guarantee included.
+//! Run: `cargo bench --bench preprocess`.
+
+use std::hint::black_box;
+use std::sync::Arc;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use edmd::config::{Config, Predictor, Segmentation};
+use edmd::gcode::{Block, BlockKind, NurbsForm};
+use edmd::geometry::{NurbsCurve, Point, point};
+use edmd::preprocess::{PlanSettings, Preprocessor, Segmenter};
+
+fn cubic(points: &[(f64, f64)], weights: &[f64]) -> Arc<Block> {
+    let n = points.len();
+    let pts: Vec<Point> = points.iter().map(|&(x, y)| point(&[x, y])).collect();
+    let spans = n - 3;
+    let mut knots = vec![0.0; 4];
+    knots.extend((1..spans).map(|i| i as f64 / spans as f64));
+    knots.extend([1.0; 4]);
+    Arc::new(Block {
+        line: 1,
+        kind: BlockKind::Nurbs {
+            form: NurbsForm::Fanuc,
+        },
+        curve: NurbsCurve::new(3, 2, &pts, weights, knots).unwrap(),
+        feed_mm_per_min: Some(18000.0),
+    })
+}
+
+fn curves() -> Vec<(&'static str, Arc<Block>)> {
+    let jin = [
+        (0.0, 0.0),
+        (-150.0, -150.0),
+        (-150.0, 150.0),
+        (0.0, 0.0),
+        (150.0, -150.0),
+        (150.0, 150.0),
+        (0.0, 0.0),
+    ];
+    let zigzag = [
+        (0.0, 0.0),
+        (10.0, 20.0),
+        (20.0, -20.0),
+        (30.0, 20.0),
+        (40.0, -20.0),
+        (50.0, 0.0),
+    ];
+    vec![
+        ("jin", cubic(&jin, &[1.0, 10.0, 10.0, 1.0, 10.0, 10.0, 1.0])),
+        ("zigzag", cubic(&zigzag, &[1.0; 6])),
+    ]
+}
+
+fn settings(segmentation: Segmentation, predictor: Predictor, max_segment: f64) -> PlanSettings {
+    let mut cfg = Config::default();
+    cfg.interpolation.segmentation = segmentation;
+    cfg.interpolation.predictor = predictor;
+    cfg.interpolation.max_segment_mm = max_segment;
+    PlanSettings::from_config(&cfg)
+}
+
+fn count_segments(block: &Arc<Block>, s: &PlanSettings) -> u64 {
+    let mut pre = Preprocessor::new(s.clone());
+    let mut n = 0;
+    pre.push_block(Arc::clone(block), |_| n += 1);
+    pre.finish(|_| n += 1);
+    n
+}
+
+fn bench_segmenter(c: &mut Criterion) {
+    let mut group = c.benchmark_group("segmenter_chord_mode");
+    for (name, block) in curves() {
+        for predictor in [Predictor::Taylor, Predictor::Hamming] {
+            let s = settings(Segmentation::Chord, predictor, 1e6);
+            let n = count_segments(&block, &s);
+            group.throughput(Throughput::Elements(n));
+            group.bench_function(format!("{name}/{predictor:?}/uncapped"), |b| {
+                b.iter(|| {
+                    let mut seg = Segmenter::new(s.clone());
+                    let mut count = 0u64;
+                    seg.segment_block(black_box(&block), |_| count += 1);
+                    count
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+fn bench_pipeline(c: &mut Criterion) {
+    let mut group = c.benchmark_group("preprocessor");
+    for (name, block) in curves() {
+        for (mode, cap) in [
+            (Segmentation::Chord, 1.0),
+            (Segmentation::Chord, 1e6),
+            (Segmentation::Period, 1.0),
+        ] {
+            for predictor in [Predictor::Taylor, Predictor::Hamming] {
+                let s = settings(mode, predictor, cap);
+                let n = count_segments(&block, &s);
+                group.throughput(Throughput::Elements(n));
+                let label = format!("{name}/{mode:?}/{predictor:?}/cap{cap}");
+                group.bench_function(label, |b| {
+                    b.iter(|| {
+                        let mut pre = Preprocessor::new(s.clone());
+                        let mut length = 0.0;
+                        pre.push_block(Arc::clone(black_box(&block)), |seg| length += seg.length);
+                        pre.finish(|seg| length += seg.length);
+                        length
+                    })
+                });
+            }
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_segmenter, bench_pipeline);
+criterion_main!(benches);
