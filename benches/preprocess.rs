@@ -7,16 +7,13 @@ use std::sync::Arc;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use edmd::config::{Config, Predictor, Segmentation};
 use edmd::gcode::{Block, BlockKind, NurbsForm};
-use edmd::geometry::{NurbsCurve, Point, point};
+use edmd::geometry::{NurbsCurve, Point, clamped_uniform_knots, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segmenter};
 
 fn cubic(points: &[(f64, f64)], weights: &[f64]) -> Arc<Block> {
     let n = points.len();
     let pts: Vec<Point> = points.iter().map(|&(x, y)| point(&[x, y])).collect();
-    let spans = n - 3;
-    let mut knots = vec![0.0; 4];
-    knots.extend((1..spans).map(|i| i as f64 / spans as f64));
-    knots.extend([1.0; 4]);
+    let knots = clamped_uniform_knots(n, 3);
     Arc::new(Block {
         line: 1,
         kind: BlockKind::Nurbs {

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use edmd::config::{Config, Predictor, Segmentation};
 use edmd::gcode::{Block, BlockReader};
-use edmd::geometry::{NurbsCurve, Point, point};
+use edmd::geometry::{NurbsCurve, Point, clamped_uniform_knots, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segment, bound};
 
 fn settings(tol: f64, max_segment: f64) -> PlanSettings {
@@ -94,10 +94,7 @@ fn oracle_count(c: &NurbsCurve, tol: f64) -> usize {
 fn cubic(points: &[(f64, f64)], weights: &[f64]) -> NurbsCurve {
     let n = points.len();
     let pts: Vec<Point> = points.iter().map(|&(x, y)| point(&[x, y])).collect();
-    let spans = n - 3;
-    let mut knots = vec![0.0; 4];
-    knots.extend((1..spans).map(|i| i as f64 / spans as f64));
-    knots.extend([1.0; 4]);
+    let knots = clamped_uniform_knots(n, 3);
     NurbsCurve::new(3, 2, &pts, weights, knots).unwrap()
 }
 

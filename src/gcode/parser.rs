@@ -1246,16 +1246,12 @@ impl<R: BufRead> BlockReader<R> {
 /// Knots for a curve whose program gives none: clamped and uniform, on `[0, 1]` for G38 (seed 000,
 /// Table I) and on `[0, n - order + 2]` in whole numbers for G5.2 (LinuxCNC's convention).
 fn clamped_uniform_knots(points: usize, degree: usize, form: NurbsForm) -> Vec<f64> {
-    let interior = points.saturating_sub(degree + 1);
-    let spans = (interior + 1) as f64;
-    let scale = if form == NurbsForm::LinuxCnc {
-        1.0
-    } else {
-        1.0 / spans
-    };
-    let mut knots = vec![0.0; degree + 1];
-    knots.extend((1..=interior).map(|j| j as f64 * scale));
-    knots.extend(std::iter::repeat_n(spans * scale, degree + 1));
+    let mut knots = crate::geometry::clamped_uniform_knots(points, degree);
+    if form == NurbsForm::LinuxCnc {
+        let spans = (points.saturating_sub(degree + 1) + 1) as f64;
+        // Whole numbers: scale, then round away the division's last-bit noise.
+        knots.iter_mut().for_each(|k| *k = (*k * spans).round());
+    }
     knots
 }
 

@@ -26,6 +26,17 @@ pub const MAX_AXES: usize = 6;
 /// A point or vector in machine space (mm); components past the curve's `dim` are zero.
 pub type Point = nalgebra::SVector<f64, MAX_AXES>;
 
+/// A clamped uniform knot vector on `[0, 1]` for `points` control points of degree `degree`:
+/// `degree + 1` zeros, the interior knots evenly spaced, `degree + 1` ones.
+pub fn clamped_uniform_knots(points: usize, degree: usize) -> Vec<f64> {
+    let interior = points.saturating_sub(degree + 1);
+    let spans = (interior + 1) as f64;
+    let mut knots = vec![0.0; degree + 1];
+    knots.extend((1..=interior).map(|j| j as f64 / spans));
+    knots.extend(std::iter::repeat_n(1.0, degree + 1));
+    knots
+}
+
 /// Builds a [`Point`] from up to [`MAX_AXES`] coordinates.
 pub fn point(coords: &[f64]) -> Point {
     let mut p = Point::zeros();

@@ -169,11 +169,6 @@ impl Planner {
         self.prev_cruise = 0.0;
     }
 
-    /// Segments waiting in the window.
-    pub fn pending(&self) -> usize {
-        self.window.len()
-    }
-
     fn release<F: FnMut(PlannedSegment)>(&mut self, emit: &mut F) {
         let Some(e) = self.window.pop_front() else {
             return;
