@@ -11,6 +11,7 @@ use crate::check;
 use crate::config::{self, Config, LogFormat, LogLevel};
 use crate::gcode;
 use crate::plan;
+use crate::runtime::{self, JobError, Outcome};
 
 /// Exit code for bad input: program, configuration or usage.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -34,6 +35,9 @@ enum Command {
     Check(CheckArgs),
     /// Run the preprocessor alone, offline: trace CSV, summary (text and JSON) and SVG plots.
     Plan(PlanArgs),
+    /// Run one job in the foreground through both threads, then print a summary.
+    /// Exit 1 on an alarm or a device error.
+    Run(RunArgs),
 }
 
 /// Options shared by every command that reads the configuration.
@@ -84,12 +88,24 @@ struct PlanArgs {
     quiet: bool,
 }
 
+#[derive(Args, Debug)]
+struct RunArgs {
+    /// G-code program
+    program: PathBuf,
+    #[command(flatten)]
+    config: ConfigArgs,
+    /// Also write the end-of-job summary as JSON to FILE
+    #[arg(long, value_name = "FILE")]
+    summary: Option<PathBuf>,
+}
+
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Check(args) => run_check(&args),
         Command::Plan(args) => run_plan(&args),
+        Command::Run(args) => run_job(&args),
     }
 }
 
@@ -198,6 +214,45 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
         }
         Err(e) => {
             eprintln!("edmd: error: {e}");
+            ExitCode::from(EXIT_RUNTIME)
+        }
+    }
+}
+
+fn run_job(args: &RunArgs) -> ExitCode {
+    let cfg = match load_config(&args.config) {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    init_logging(&cfg.log);
+    let summary = match runtime::run_job(&args.program, &cfg) {
+        Ok(summary) => summary,
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            let code = match e {
+                JobError::Output(_) => EXIT_RUNTIME,
+                _ => EXIT_BAD_INPUT,
+            };
+            return ExitCode::from(code);
+        }
+    };
+    print!("{}", summary.text());
+    if let Some(path) = &args.summary {
+        let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
+        if let Err(e) = std::fs::write(path, json + "\n") {
+            eprintln!(
+                "edmd: error: {}: cannot write the summary: {e}",
+                path.display()
+            );
+            return ExitCode::from(EXIT_RUNTIME);
+        }
+    }
+    match summary.outcome {
+        Outcome::Done => ExitCode::SUCCESS,
+        _ => {
+            if let Some(e) = &summary.error {
+                eprintln!("edmd: error: {}: {e}", summary.outcome.name());
+            }
             ExitCode::from(EXIT_RUNTIME)
         }
     }

@@ -167,6 +167,11 @@ pub struct BufferConfig {
 pub struct FineConfig {
     pub tick_us: u32,
     pub virtual_time: bool,
+    /// SCHED_FIFO priority, 0 for none.
+    pub rt_priority: u8,
+    pub lock_memory: bool,
+    /// CPU to pin the fine interpolation thread to.
+    pub cpu: Option<usize>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -186,6 +191,18 @@ pub struct ServoConfig {
     pub normal_feed_mm_per_min: f64,
     pub open_feed_mm_per_min: f64,
     pub retract_feed_mm_per_min: f64,
+}
+
+/// The simulated gap (`[sim]`), lengths in mm and speeds in mm/s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    pub seed: u64,
+    pub initial_gap_mm: f64,
+    pub short_gap_mm: f64,
+    pub open_gap_mm: f64,
+    pub erosion_mm_per_s: f64,
+    pub debris_shorts_per_s: f64,
+    pub debris_clear_mm: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -211,6 +228,7 @@ pub struct Config {
     pub output: OutputConfig,
     pub gap: GapConfig,
     pub servo: ServoConfig,
+    pub sim: SimConfig,
     pub daemon: DaemonConfig,
     pub log: LogConfig,
 }
@@ -280,6 +298,7 @@ struct RawConfig {
     output: RawOutput,
     gap: RawGap,
     servo: RawServo,
+    sim: RawSim,
     daemon: RawDaemon,
     log: RawLog,
 }
@@ -319,6 +338,9 @@ struct RawBuffer {
 struct RawFine {
     tick_us: i64,
     virtual_time: bool,
+    rt_priority: i64,
+    lock_memory: bool,
+    cpu: i64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -341,6 +363,18 @@ struct RawServo {
     normal_feed_mm_per_min: f64,
     open_feed_mm_per_min: f64,
     retract_feed_mm_per_min: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSim {
+    seed: i64,
+    initial_gap_um: f64,
+    short_gap_um: f64,
+    open_gap_um: f64,
+    erosion_mm_per_min: f64,
+    debris_shorts_per_s: f64,
+    debris_clear_um: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -497,6 +531,18 @@ impl RawConfig {
         let fine = FineConfig {
             tick_us: f.tick_us as u32,
             virtual_time: f.virtual_time,
+            rt_priority: in_range("fine.rt_priority", f.rt_priority, 0, 99)? as u8,
+            lock_memory: f.lock_memory,
+            cpu: match f.cpu {
+                -1 => None,
+                cpu @ 0..=4095 => Some(cpu as usize),
+                cpu => {
+                    return Err((
+                        "fine.cpu",
+                        format!("must be -1 (any CPU) or a CPU number 0 to 4095, got {cpu}"),
+                    ));
+                }
+            },
         };
 
         let output = OutputConfig {
@@ -534,6 +580,32 @@ impl RawConfig {
                 s.retract_feed_mm_per_min,
             )?,
         };
+
+        let m = self.sim;
+        let non_negative = |key: &'static str, value: f64| {
+            if value.is_finite() && value >= 0.0 {
+                Ok(value)
+            } else {
+                Err((key, format!("must be a finite number >= 0, got {value}")))
+            }
+        };
+        let short_gap = positive("sim.short_gap_um", m.short_gap_um)?;
+        let open_gap = positive("sim.open_gap_um", m.open_gap_um)?;
+        if open_gap <= short_gap {
+            return Err((
+                "sim.open_gap_um",
+                format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
+            ));
+        }
+        let sim = SimConfig {
+            seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
+            initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
+            short_gap_mm: short_gap / 1000.0,
+            open_gap_mm: open_gap / 1000.0,
+            erosion_mm_per_s: positive("sim.erosion_mm_per_min", m.erosion_mm_per_min)? / 60.0,
+            debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
+            debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um)? / 1000.0,
+        };
         let d = self.daemon;
         let daemon = DaemonConfig {
             socket: non_empty("daemon.socket", d.socket)?,
@@ -552,6 +624,7 @@ impl RawConfig {
             output,
             gap,
             servo,
+            sim,
             daemon,
             log,
         })

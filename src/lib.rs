@@ -2,11 +2,18 @@
 //!
 //! See `ARCHITECTURE.md` for the module map and the invariants.
 
+pub mod buffer;
 pub mod check;
 pub mod cli;
 pub mod config;
+pub mod fine;
+pub mod gap;
 pub mod gcode;
 pub mod geometry;
+pub mod output;
 pub mod plan;
 pub mod plot;
 pub mod preprocess;
+pub mod runtime;
+pub mod servo;
+pub mod sim;

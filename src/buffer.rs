@@ -1,0 +1,564 @@
+//! The loop buffer: the one place where the producer and the consumer meet.
+//!
+//! Seed 000 Fig. 4 draws it as a ring of blocks split into three areas that move round it:
+//!
+//! ```text
+//!            oldest              cursor                         tail
+//!   ───────────┼── reserved ───────┼──── unprocessed ─────────────┼──── unused ────────┐
+//!              │ executed blocks,  │ the block in hand (being     │ free slots the     │
+//!              │ kept for turn-back│ interpolated) and the ones   │ producer may fill  │
+//!              │ (at most          │ the producer has written     │                    │
+//!              │  `buffer.reserved`)│ ahead of it                 │                    │
+//!   ◄──────────────────────────────── capacity slots, modulo ─────────────────────────┘
+//! ```
+//!
+//! Positions are sequence numbers (`u64`, never wrapping in practice) taken modulo the capacity
+//! to find a slot, so "which area is this block in" is a comparison, not modular arithmetic.
+//!
+//! - The **producer** writes at `tail` and sleeps on a condvar while the ring is full
+//!   (`tail - oldest == capacity`). It is woken when the consumer frees a slot.
+//! - The **consumer** holds a copy of the block at `cursor`. Going forward it completes that
+//!   block (`cursor += 1`), which moves it into the reserved area; once the reserved area holds
+//!   more than `buffer.reserved` blocks its oldest slot is freed (`oldest += 1`). Turning back
+//!   it steps `cursor` down into the reserved area and copies that block out again; nothing is
+//!   freed while it retraces, so re-advancing finds the same blocks.
+//!
+//! **Why a mutex and not a lock-free ring.** Both sides hold the lock for exactly one copy of
+//! one [`StepBlock`] (about 150 bytes) plus a few integer updates; the producer prepares its
+//! block before it locks. The consumer locks once per block, not once per tick. `BENCHMARKS.md`
+//! compares this with a crossbeam `ArrayQueue` hand-off under a contending producer; the
+//! mutex's cost per block is within the noise of the lock-free queue's, and the single ring
+//! keeps the reserved area where seed 000 puts it (a lock-free queue hands a block over once,
+//! so the reserved area would have to live in a second ring on the consumer's side).
+//!
+//! In **virtual time** the consumer waits for the producer when it has run dry (time stands
+//! still while it waits, so the result does not depend on thread scheduling); in real time it
+//! never waits: an empty buffer is a starvation, counted by the fine interpolator.
+
+use parking_lot::{Condvar, Mutex};
+
+use crate::geometry::MAX_AXES;
+
+/// One block of the loop buffer (seed 000 Fig. 4): a straight move between two lattice points.
+///
+/// `start` and `end` are absolute step positions, each rounded once from the segment's end
+/// point in mm; a block's `start` is the previous block's `end` (the same rounding of the same
+/// point), so no rounding error accumulates however long the program is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepBlock {
+    /// Position in the program's sequence of blocks (0-based).
+    pub seq: u64,
+    pub start: [i64; MAX_AXES],
+    pub end: [i64; MAX_AXES],
+    /// Length of the move in mm (the chord between the exact end points).
+    pub length_mm: f64,
+    /// Planned speeds (mm/s): at the start, at the end, and the cruise limit in between.
+    pub v_entry: f64,
+    pub v_exit: f64,
+    pub v_cruise: f64,
+    /// Source line of the G-code block the move belongs to.
+    pub line: u64,
+    pub flags: u8,
+}
+
+impl StepBlock {
+    /// Last move of its G-code block.
+    pub const LAST_OF_BLOCK: u8 = 1;
+    /// Part of a rapid (G0).
+    pub const RAPID: u8 = 2;
+
+    /// An all-zero block (a placeholder for preallocated storage).
+    pub const EMPTY: StepBlock = StepBlock {
+        seq: 0,
+        start: [0; MAX_AXES],
+        end: [0; MAX_AXES],
+        length_mm: 0.0,
+        v_entry: 0.0,
+        v_exit: 0.0,
+        v_cruise: 0.0,
+        line: 0,
+        flags: 0,
+    };
+
+    /// Signed step count of each axis.
+    pub fn delta(&self) -> [i64; MAX_AXES] {
+        std::array::from_fn(|i| self.end[i] - self.start[i])
+    }
+
+    /// Steps of the axis that moves most: the number of Bresenham step events of the block.
+    pub fn events(&self) -> u64 {
+        self.delta()
+            .iter()
+            .map(|d| d.unsigned_abs())
+            .max()
+            .unwrap_or(0)
+    }
+}
+
+/// What the consumer gets when it asks for the next block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fetch {
+    /// The block was copied out.
+    Block,
+    /// The producer has not written it yet (a starvation in real time).
+    Empty,
+    /// The program is over: every block has been handed out and the producer has closed.
+    End,
+}
+
+/// The consumer's view of the loop buffer: the fine interpolator only ever asks for the next
+/// or the previous block. [`Consumer`] is the real one; tests and benches use [`VecSource`].
+pub trait BlockSource {
+    /// Completes the block in hand (if any) and copies the next one into `out`.
+    fn next(&mut self, out: &mut StepBlock) -> Fetch;
+    /// Releases the block in hand (if any) back to the unprocessed area and copies the block
+    /// before it, the newest of the reserved area, into `out`. `false` when the reserved area
+    /// is exhausted: the turn-back can go no further.
+    fn previous(&mut self, out: &mut StepBlock) -> bool;
+}
+
+/// The ring and its three areas, as sequence numbers.
+#[derive(Debug)]
+struct Ring {
+    slots: Box<[StepBlock]>,
+    reserved: u64,
+    /// First block of the reserved area.
+    oldest: u64,
+    /// The block in hand, or the next one to hand out when `in_hand` is false.
+    cursor: u64,
+    in_hand: bool,
+    /// Next slot the producer writes.
+    tail: u64,
+    /// The producer has written its last block.
+    closed: bool,
+    /// The job is being torn down: nobody waits any more.
+    aborted: bool,
+    /// Deepest fill seen (`tail - oldest`), for the summary.
+    high_water: u64,
+}
+
+impl Ring {
+    fn capacity(&self) -> u64 {
+        self.slots.len() as u64
+    }
+
+    fn slot(&self, seq: u64) -> usize {
+        (seq % self.capacity()) as usize
+    }
+
+    fn full(&self) -> bool {
+        self.tail - self.oldest == self.capacity()
+    }
+
+    /// `Some(freed)` after completing the block in hand: frees the oldest reserved slot if the
+    /// reserved area outgrew its size.
+    fn next(&mut self, out: &mut StepBlock) -> (Fetch, bool) {
+        let mut freed = false;
+        if self.in_hand {
+            self.cursor += 1;
+            self.in_hand = false;
+            if self.cursor - self.oldest > self.reserved {
+                self.oldest += 1;
+                freed = true;
+            }
+        }
+        let fetch = if self.cursor < self.tail {
+            *out = self.slots[self.slot(self.cursor)];
+            self.in_hand = true;
+            Fetch::Block
+        } else if self.closed {
+            Fetch::End
+        } else {
+            Fetch::Empty
+        };
+        (fetch, freed)
+    }
+
+    fn previous(&mut self, out: &mut StepBlock) -> bool {
+        if self.cursor == self.oldest {
+            return false;
+        }
+        self.cursor -= 1;
+        *out = self.slots[self.slot(self.cursor)];
+        self.in_hand = true;
+        true
+    }
+}
+
+/// Fill levels of the three areas, for status reports and tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Areas {
+    pub reserved: u64,
+    pub unprocessed: u64,
+    pub unused: u64,
+    pub high_water: u64,
+}
+
+/// The loop buffer shared by the producer and the consumer threads.
+#[derive(Debug)]
+pub struct LoopBuffer {
+    ring: Mutex<Ring>,
+    /// The producer waits here for a free slot.
+    space: Condvar,
+    /// A virtual-time consumer waits here for a block.
+    data: Condvar,
+}
+
+/// The producer gave up because the job was aborted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the job was aborted")]
+pub struct Aborted;
+
+impl LoopBuffer {
+    /// `capacity` slots of which at most `reserved` hold executed blocks (`reserved < capacity`,
+    /// as the configuration guarantees).
+    pub fn new(capacity: usize, reserved: usize) -> LoopBuffer {
+        assert!(
+            capacity >= 2 && reserved < capacity,
+            "buffer: 2 <= capacity and reserved < capacity"
+        );
+        LoopBuffer {
+            ring: Mutex::new(Ring {
+                slots: vec![StepBlock::EMPTY; capacity].into_boxed_slice(),
+                reserved: reserved as u64,
+                oldest: 0,
+                cursor: 0,
+                in_hand: false,
+                tail: 0,
+                closed: false,
+                aborted: false,
+                high_water: 0,
+            }),
+            space: Condvar::new(),
+            data: Condvar::new(),
+        }
+    }
+
+    /// Producer: writes `block` at the tail, sleeping while there is no free slot.
+    pub fn push(&self, block: &StepBlock) -> Result<(), Aborted> {
+        let mut ring = self.ring.lock();
+        while ring.full() && !ring.aborted {
+            self.space.wait(&mut ring);
+        }
+        if ring.aborted {
+            return Err(Aborted);
+        }
+        let slot = ring.slot(ring.tail);
+        ring.slots[slot] = *block;
+        ring.tail += 1;
+        ring.high_water = ring.high_water.max(ring.tail - ring.oldest);
+        drop(ring);
+        self.data.notify_one();
+        Ok(())
+    }
+
+    /// Producer: like [`push`](Self::push) but never sleeps; `false` when the ring is full.
+    pub fn try_push(&self, block: &StepBlock) -> bool {
+        let mut ring = self.ring.lock();
+        if ring.full() || ring.aborted {
+            return false;
+        }
+        let slot = ring.slot(ring.tail);
+        ring.slots[slot] = *block;
+        ring.tail += 1;
+        ring.high_water = ring.high_water.max(ring.tail - ring.oldest);
+        drop(ring);
+        self.data.notify_one();
+        true
+    }
+
+    /// Producer: the program has no more blocks.
+    pub fn close(&self) {
+        self.ring.lock().closed = true;
+        self.data.notify_all();
+    }
+
+    /// Either side: stop waiting, the job is over (error or abort). A producer blocked in
+    /// [`push`](Self::push) returns [`Aborted`].
+    pub fn abort(&self) {
+        let mut ring = self.ring.lock();
+        ring.aborted = true;
+        ring.closed = true;
+        drop(ring);
+        self.space.notify_all();
+        self.data.notify_all();
+    }
+
+    pub fn areas(&self) -> Areas {
+        let ring = self.ring.lock();
+        let unprocessed = ring.tail - ring.cursor;
+        let reserved = ring.cursor - ring.oldest;
+        Areas {
+            reserved,
+            unprocessed,
+            unused: ring.capacity() - reserved - unprocessed,
+            high_water: ring.high_water,
+        }
+    }
+
+    /// The consumer's end. `wait_for_producer`: in virtual time, wait for a block rather than
+    /// report [`Fetch::Empty`].
+    pub fn consumer(&self, wait_for_producer: bool) -> Consumer<'_> {
+        Consumer {
+            buffer: self,
+            wait_for_producer,
+        }
+    }
+}
+
+/// The consumer's end of a [`LoopBuffer`].
+#[derive(Debug)]
+pub struct Consumer<'a> {
+    buffer: &'a LoopBuffer,
+    wait_for_producer: bool,
+}
+
+impl BlockSource for Consumer<'_> {
+    fn next(&mut self, out: &mut StepBlock) -> Fetch {
+        let buffer = self.buffer;
+        let mut ring = buffer.ring.lock();
+        let (mut fetch, freed) = ring.next(out);
+        while fetch == Fetch::Empty && self.wait_for_producer && !ring.aborted {
+            buffer.data.wait(&mut ring);
+            fetch = ring.next(out).0;
+        }
+        drop(ring);
+        if freed {
+            buffer.space.notify_one();
+        }
+        fetch
+    }
+
+    fn previous(&mut self, out: &mut StepBlock) -> bool {
+        self.buffer.ring.lock().previous(out)
+    }
+}
+
+/// A [`BlockSource`] over a vector, with the loop buffer's reserved-area rule: the fine
+/// interpolator without threads, for tests and benches.
+#[derive(Debug, Clone)]
+pub struct VecSource {
+    blocks: Vec<StepBlock>,
+    reserved: usize,
+    oldest: usize,
+    cursor: usize,
+    in_hand: bool,
+}
+
+impl VecSource {
+    pub fn new(blocks: Vec<StepBlock>, reserved: usize) -> VecSource {
+        VecSource {
+            blocks,
+            reserved,
+            oldest: 0,
+            cursor: 0,
+            in_hand: false,
+        }
+    }
+}
+
+impl BlockSource for VecSource {
+    fn next(&mut self, out: &mut StepBlock) -> Fetch {
+        if self.in_hand {
+            self.cursor += 1;
+            self.in_hand = false;
+            if self.cursor - self.oldest > self.reserved {
+                self.oldest += 1;
+            }
+        }
+        match self.blocks.get(self.cursor) {
+            Some(block) => {
+                *out = *block;
+                self.in_hand = true;
+                Fetch::Block
+            }
+            None => Fetch::End,
+        }
+    }
+
+    fn previous(&mut self, out: &mut StepBlock) -> bool {
+        if self.cursor == self.oldest {
+            return false;
+        }
+        self.cursor -= 1;
+        *out = self.blocks[self.cursor];
+        self.in_hand = true;
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::collections::VecDeque;
+
+    fn block(seq: u64) -> StepBlock {
+        StepBlock {
+            seq,
+            ..StepBlock::EMPTY
+        }
+    }
+
+    /// The reference model: executed blocks and pending blocks as two deques.
+    #[derive(Default)]
+    struct Model {
+        reserved: VecDeque<u64>,
+        pending: VecDeque<u64>,
+        in_hand: Option<u64>,
+        closed: bool,
+        next_seq: u64,
+    }
+
+    #[derive(Debug, Clone)]
+    enum Op {
+        Push,
+        Next,
+        Previous,
+        Close,
+    }
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            4 => Just(Op::Push),
+            4 => Just(Op::Next),
+            2 => Just(Op::Previous),
+            1 => Just(Op::Close),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        /// The ring behaves like the two-deque model: the same fetch results, the same blocks
+        /// handed out, the same free space, whatever the interleaving.
+        #[test]
+        fn ring_matches_model(
+            capacity in 2usize..9,
+            reserved_frac in 0.0f64..1.0,
+            ops in proptest::collection::vec(op(), 1..200),
+        ) {
+            let reserved = ((capacity - 1) as f64 * reserved_frac) as usize;
+            let buffer = LoopBuffer::new(capacity, reserved);
+            let mut consumer = buffer.consumer(false);
+            let mut m = Model::default();
+            let mut out = StepBlock::EMPTY;
+            for op in ops {
+                match op {
+                    Op::Push => {
+                        let held = m.reserved.len() + m.pending.len() + usize::from(m.in_hand.is_some());
+                        let expect = held < capacity && !m.closed;
+                        if m.closed {
+                            continue; // the producer never pushes after closing
+                        }
+                        prop_assert_eq!(buffer.try_push(&block(m.next_seq)), expect);
+                        if expect {
+                            m.pending.push_back(m.next_seq);
+                            m.next_seq += 1;
+                        }
+                    }
+                    Op::Next => {
+                        if let Some(done) = m.in_hand.take() {
+                            m.reserved.push_back(done);
+                            if m.reserved.len() > reserved {
+                                m.reserved.pop_front();
+                            }
+                        }
+                        let expect = match m.pending.pop_front() {
+                            Some(seq) => { m.in_hand = Some(seq); Fetch::Block }
+                            None if m.closed => Fetch::End,
+                            None => Fetch::Empty,
+                        };
+                        prop_assert_eq!(consumer.next(&mut out), expect);
+                        if let Some(seq) = m.in_hand {
+                            prop_assert_eq!(out.seq, seq);
+                        }
+                    }
+                    Op::Previous => {
+                        let expect = !m.reserved.is_empty();
+                        prop_assert_eq!(consumer.previous(&mut out), expect);
+                        if expect {
+                            if let Some(back) = m.in_hand.take() {
+                                m.pending.push_front(back);
+                            }
+                            let seq = m.reserved.pop_back().unwrap();
+                            m.in_hand = Some(seq);
+                            prop_assert_eq!(out.seq, seq);
+                        }
+                    }
+                    Op::Close => {
+                        buffer.close();
+                        m.closed = true;
+                    }
+                }
+                let areas = buffer.areas();
+                prop_assert_eq!(areas.reserved as usize, m.reserved.len());
+                prop_assert_eq!(
+                    areas.unprocessed as usize,
+                    m.pending.len() + usize::from(m.in_hand.is_some())
+                );
+                prop_assert!(areas.reserved as usize <= reserved);
+            }
+        }
+
+        /// `VecSource` follows the same rule as the ring (it stands in for it in tests).
+        #[test]
+        fn vec_source_matches_ring(
+            reserved in 0usize..5,
+            moves in proptest::collection::vec(any::<bool>(), 1..100),
+        ) {
+            let blocks: Vec<_> = (0..20).map(block).collect();
+            let buffer = LoopBuffer::new(blocks.len() + 1, reserved);
+            for b in &blocks {
+                prop_assert!(buffer.try_push(b));
+            }
+            buffer.close();
+            let mut ring = buffer.consumer(false);
+            let mut vec = VecSource::new(blocks, reserved);
+            let (mut a, mut b) = (StepBlock::EMPTY, StepBlock::EMPTY);
+            for forward in moves {
+                if forward {
+                    prop_assert_eq!(ring.next(&mut a), vec.next(&mut b));
+                } else {
+                    prop_assert_eq!(ring.previous(&mut a), vec.previous(&mut b));
+                }
+                prop_assert_eq!(a.seq, b.seq);
+            }
+        }
+    }
+
+    #[test]
+    fn producer_sleeps_until_the_consumer_frees_a_slot() {
+        let buffer = LoopBuffer::new(4, 1);
+        std::thread::scope(|s| {
+            let producer = s.spawn(|| {
+                for seq in 0..100 {
+                    buffer.push(&block(seq)).unwrap();
+                }
+                buffer.close();
+            });
+            let mut consumer = buffer.consumer(true);
+            let mut out = StepBlock::EMPTY;
+            let mut seen = Vec::new();
+            while consumer.next(&mut out) == Fetch::Block {
+                seen.push(out.seq);
+                assert!(buffer.areas().high_water <= 4);
+            }
+            producer.join().unwrap();
+            assert_eq!(seen, (0..100).collect::<Vec<_>>());
+        });
+    }
+
+    #[test]
+    fn abort_releases_a_waiting_producer() {
+        let buffer = LoopBuffer::new(2, 0);
+        buffer.push(&block(0)).unwrap();
+        buffer.push(&block(1)).unwrap();
+        std::thread::scope(|s| {
+            let producer = s.spawn(|| buffer.push(&block(2)));
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            buffer.abort();
+            assert_eq!(producer.join().unwrap(), Err(Aborted));
+        });
+    }
+}

@@ -1,0 +1,378 @@
+//! Fine interpolation: the consumer's per-tick core, from loop-buffer blocks to step pulses.
+//!
+//! Every tick (`fine.tick_us`) the thread loop samples the gap, calls
+//! [`Interpolator::tick`] and hands the returned steps to the pulse output. The tick core is
+//! a pure function of its state, the gap state and the blocks its [`BlockSource`] hands out:
+//! it reads no clock, does no I/O, allocates nothing and logs nothing (it returns a
+//! [`ServoEvent`] instead). That is what makes a run in virtual time deterministic and fast,
+//! and the real-time loop boring.
+//!
+//! One tick:
+//!
+//! 1. **Servo** ([`crate::servo`]): the gap state may start a turn-back, end one, or (at the
+//!    end of the reserved area) raise the alarm. The servo gives a direction and a feed.
+//! 2. **Speed**: the path speed `v` moves towards `min(servo feed, planned limit)` by at most
+//!    `a_T · dt` per tick (so acceleration is honoured across block boundaries, since the
+//!    planned limits of consecutive blocks meet at the junction speed). The planned limit at
+//!    distance `s` into a block of length `L` is the planner's trapezoid,
+//!    `min(v_cruise, sqrt(v_entry² + 2 a s), sqrt(v_exit² + 2 a (L − s)))`, mirrored when
+//!    moving backwards, and never below a creep speed `sqrt(a · step)` so the last steps before
+//!    a stop are always taken. Reversing first brakes to zero. A block's speed is capped at one
+//!    event per tick: the pulse outputs take at most one step per axis per tick.
+//! 3. **DDA**: a phase accumulator adds `v · dt / ds` per tick (`ds`: the lattice distance of
+//!    one event); on reaching one it fires one Bresenham event ([`bresenham`]) forward or
+//!    backward, moving every axis by at most one step.
+//! 4. **Blocks**: forward past a block's end it asks the source for the next block (an empty
+//!    buffer is a starvation: hold); backward past a block's start for the previous one (none
+//!    left while shorted: alarm). Blocks of zero steps are passed over in either direction.
+//!
+//! The believed position (the pulse ledger) is updated with every step returned, so it always
+//! equals the sum of everything emitted.
+
+pub mod bresenham;
+
+use crate::buffer::{BlockSource, Fetch, StepBlock};
+use crate::gap::GapState;
+use crate::geometry::MAX_AXES;
+use crate::servo::{Feeds, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
+
+pub use bresenham::Bresenham;
+
+/// The fine interpolator's fixed parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FineSettings {
+    /// Tick period (s).
+    pub dt: f64,
+    /// Tangential acceleration limit (mm/s²).
+    pub accel: f64,
+    pub feeds: Feeds,
+    /// Step size per axis (mm); unused axes 0.
+    pub step_mm: [f64; MAX_AXES],
+}
+
+impl FineSettings {
+    pub fn from_config(config: &crate::config::Config) -> FineSettings {
+        let mut step_mm = [0.0; MAX_AXES];
+        for (slot, &s) in step_mm.iter_mut().zip(&config.machine.step_mm) {
+            *slot = s;
+        }
+        let servo = &config.servo;
+        FineSettings {
+            dt: config.fine.tick_us as f64 * 1e-6,
+            accel: config.machine.max_tangential_accel_mm_per_s2,
+            feeds: Feeds {
+                normal: servo.normal_feed_mm_per_min / 60.0,
+                open: servo.open_feed_mm_per_min / 60.0,
+                retract: servo.retract_feed_mm_per_min / 60.0,
+            },
+            step_mm,
+        }
+    }
+}
+
+/// What one tick produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tick {
+    /// Signed step per axis (-1, 0, 1).
+    pub steps: [i8; MAX_AXES],
+    /// Direction of this tick's Bresenham event: 1 forward along the program, -1 backward
+    /// (turn-back), 0 when no event (no step) happened.
+    pub dir: i8,
+    /// What the servo did this tick, if anything.
+    pub event: Option<ServoEvent>,
+}
+
+/// Counters of the fine interpolator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FineCounters {
+    pub ticks: u64,
+    /// Bresenham events forward and backward.
+    pub events_forward: u64,
+    pub events_backward: u64,
+    /// Pulses emitted per axis (both directions).
+    pub pulses: [u64; MAX_AXES],
+    /// Blocks taken from the source going forward (re-advances included).
+    pub blocks_entered: u64,
+    pub servo: ServoCounters,
+}
+
+/// The consumer's per-tick core.
+#[derive(Debug, Clone)]
+pub struct Interpolator {
+    settings: FineSettings,
+    servo: Servo,
+    block: StepBlock,
+    /// A block is in hand (false before the first block and while starved).
+    has_block: bool,
+    walk: Bresenham,
+    /// Lattice distance of one event of the block in hand (mm).
+    event_mm: f64,
+    /// Lattice length of the block in hand (mm).
+    lattice_mm: f64,
+    /// Believed position in steps: the pulse ledger.
+    position: [i64; MAX_AXES],
+    /// Path speed (mm/s), always >= 0; `dir` gives its sense.
+    speed: f64,
+    dir: i8,
+    /// Fraction of the next event already covered.
+    phase: f64,
+    counters: FineCounters,
+}
+
+impl Interpolator {
+    /// A stopped interpolator at `start` (steps), waiting for its first block.
+    pub fn new(settings: FineSettings, start: [i64; MAX_AXES]) -> Interpolator {
+        Interpolator {
+            settings,
+            servo: Servo::new(settings.feeds),
+            block: StepBlock::EMPTY,
+            has_block: false,
+            walk: Bresenham::new(&[0; MAX_AXES], false),
+            event_mm: 0.0,
+            lattice_mm: 0.0,
+            position: start,
+            speed: 0.0,
+            dir: 1,
+            phase: 0.0,
+            counters: FineCounters::default(),
+        }
+    }
+
+    pub fn state(&self) -> ServoState {
+        self.servo.state()
+    }
+
+    /// The pulse ledger: the believed position in steps.
+    pub fn position(&self) -> [i64; MAX_AXES] {
+        self.position
+    }
+
+    pub fn speed(&self) -> f64 {
+        self.speed
+    }
+
+    /// Source line of the block in hand (or of the last one).
+    pub fn line(&self) -> u64 {
+        self.block.line
+    }
+
+    /// The block in hand, if any.
+    pub fn block(&self) -> Option<&StepBlock> {
+        self.has_block.then_some(&self.block)
+    }
+
+    /// Where along the program the electrode is.
+    pub fn here(&self) -> PathPoint {
+        PathPoint {
+            seq: self.block.seq,
+            event: self.walk.event(),
+        }
+    }
+
+    pub fn counters(&self) -> FineCounters {
+        let mut c = self.counters;
+        c.servo = self.servo.counters;
+        c
+    }
+
+    /// One tick with gap state `gap`.
+    #[inline]
+    pub fn tick<S: BlockSource + ?Sized>(&mut self, gap: GapState, source: &mut S) -> Tick {
+        let mut tick = Tick {
+            steps: [0; MAX_AXES],
+            dir: 0,
+            event: None,
+        };
+        self.counters.ticks += 1;
+        let state = self.servo.state();
+        if state.is_final() {
+            return tick;
+        }
+        if !self.has_block && state != ServoState::TurnBack {
+            // Before the first block, or held by a starvation: try again.
+            match self.fetch_forward(source) {
+                Fetch::Block => self.servo.on_block(),
+                Fetch::Empty => {}
+                Fetch::End => {
+                    tick.event = self.servo.on_end();
+                    return tick;
+                }
+            }
+        }
+        let here = self.here();
+        tick.event = self.servo.on_gap(gap, here);
+        let (want_dir, feed) = self.servo.motion(gap);
+        if want_dir == 0 {
+            self.speed = 0.0;
+            self.phase = 0.0;
+            return tick;
+        }
+        if want_dir != self.dir && self.speed == 0.0 {
+            self.dir = want_dir;
+            self.phase = 0.0;
+        }
+        if self.dir < 0
+            && (!self.has_block || self.walk.at_start())
+            && !self.retreat(&mut tick, source)
+        {
+            return tick;
+        }
+        if !self.has_block {
+            return tick;
+        }
+
+        // Speed: brake before reversing, then follow min(feed, planned limit) under a_T.
+        let dv = self.settings.accel * self.settings.dt;
+        let limit = self.planned_limit();
+        let target = if want_dir != self.dir {
+            0.0
+        } else {
+            feed.min(limit)
+        };
+        self.speed = if self.speed > target {
+            (self.speed - dv).max(target).min(limit)
+        } else {
+            (self.speed + dv).min(target)
+        };
+        if self.speed <= 0.0 {
+            return tick;
+        }
+
+        // DDA: at most one event per tick (the speed is capped at one event per tick).
+        self.phase += self.speed * self.settings.dt / self.event_mm;
+        if self.phase < 1.0 {
+            return tick;
+        }
+        self.phase = (self.phase - 1.0).min(0.999_999);
+        if self.dir > 0 {
+            self.step_forward(&mut tick, source);
+        } else {
+            self.walk.backward(&mut tick.steps);
+            self.apply(&mut tick);
+            self.counters.events_backward += 1;
+        }
+        tick
+    }
+
+    /// The planner's speed limit at the current point, in the current direction, never below
+    /// the creep speed; capped at one event per tick.
+    #[inline]
+    fn planned_limit(&self) -> f64 {
+        if !self.has_block || self.walk.events() == 0 {
+            return 0.0;
+        }
+        let b = &self.block;
+        let a2 = 2.0 * self.settings.accel;
+        let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
+            / self.walk.events() as f64;
+        let s = (done.clamp(0.0, 1.0)) * self.lattice_mm;
+        let (v_behind, v_ahead, to_go, gone) = if self.dir > 0 {
+            (b.v_entry, b.v_exit, self.lattice_mm - s, s)
+        } else {
+            (b.v_exit, b.v_entry, s, self.lattice_mm - s)
+        };
+        let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
+        let creep = (self.settings.accel * self.event_mm).sqrt();
+        let cap = self.event_mm / self.settings.dt;
+        v2.sqrt().min(b.v_cruise).max(creep).min(cap)
+    }
+
+    fn step_forward<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) {
+        self.walk.forward(&mut tick.steps);
+        self.apply(tick);
+        self.counters.events_forward += 1;
+        let mut event = self.servo.on_forward(self.here());
+        if self.walk.at_end() {
+            match self.fetch_forward(source) {
+                Fetch::Block => {
+                    if let Some(e) = self.servo.on_forward(self.here()) {
+                        event = Some(e);
+                    }
+                }
+                Fetch::Empty => {
+                    event = self.servo.on_starved(self.here()).or(event);
+                    self.speed = 0.0;
+                    self.phase = 0.0;
+                }
+                Fetch::End => event = self.servo.on_end().or(event),
+            }
+        }
+        if event.is_some() {
+            tick.event = event;
+        }
+    }
+
+    /// Turning back at the start of the block in hand (or with none in hand): takes the
+    /// previous block from the reserved area, passing over blocks of zero steps. `false` when
+    /// the reserved area is exhausted, which (turn-back only happens while shorted) is the alarm.
+    fn retreat<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
+        loop {
+            if !source.previous(&mut self.block) {
+                self.speed = 0.0;
+                self.phase = 0.0;
+                if let Some(event) = self.servo.on_reserved_exhausted(self.here()) {
+                    tick.event = Some(event);
+                }
+                return false;
+            }
+            self.servo.on_block_back();
+            self.enter_block(true);
+            if self.walk.events() > 0 {
+                return true;
+            }
+        }
+    }
+
+    /// Copies the next block with steps into hand, passing over blocks of zero steps.
+    fn fetch_forward<S: BlockSource + ?Sized>(&mut self, source: &mut S) -> Fetch {
+        loop {
+            let fetch = source.next(&mut self.block);
+            if fetch != Fetch::Block {
+                self.has_block = false;
+                return fetch;
+            }
+            self.counters.blocks_entered += 1;
+            self.enter_block(false);
+            if self.walk.events() > 0 {
+                return Fetch::Block;
+            }
+        }
+    }
+
+    fn enter_block(&mut self, at_end: bool) {
+        self.has_block = true;
+        let delta = self.block.delta();
+        self.walk = Bresenham::new(&delta, at_end);
+        let mut len2 = 0.0;
+        for (d, s) in delta.iter().zip(&self.settings.step_mm) {
+            let mm = *d as f64 * s;
+            len2 += mm * mm;
+        }
+        self.lattice_mm = len2.sqrt();
+        self.event_mm = if self.walk.events() > 0 {
+            self.lattice_mm / self.walk.events() as f64
+        } else {
+            0.0
+        };
+    }
+
+    #[inline]
+    fn apply(&mut self, tick: &mut Tick) {
+        for i in 0..MAX_AXES {
+            let s = tick.steps[i];
+            self.position[i] += s as i64;
+            self.counters.pulses[i] += s.unsigned_abs() as u64;
+        }
+        tick.dir = self.dir;
+    }
+}
+
+impl Tick {
+    /// Some axis stepped.
+    pub fn moved(&self) -> bool {
+        self.dir != 0
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,74 @@
+//! Gap inputs: where the consumer learns whether the electrode is sparking, open or shorted.
+//!
+//! A [`GapSensor`] is sampled once per tick by the consumer's thread loop (never by the tick
+//! core, which gets the state as a value). Sources: [`AlwaysNormal`] (`gap.kind = "none"`) and
+//! [`ScriptGap`] (`gap.kind = "script"`, a file of `TICK STATE` lines). The parallel port's
+//! status pins and the closed-loop simulator are issue [4/6].
+
+mod script;
+
+use crate::geometry::MAX_AXES;
+
+pub use script::{ScriptError, ScriptGap};
+
+/// The state of the spark gap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GapState {
+    /// Discharging: machine at the normal servo feed.
+    Normal,
+    /// No discharge: the electrode is too far; close in at the open feed.
+    Open,
+    /// Short circuit: turn back along the executed path.
+    Short,
+}
+
+impl GapState {
+    /// `normal`, `open` or `short`, as in the pulse log and gap scripts.
+    pub fn name(self) -> &'static str {
+        match self {
+            GapState::Normal => "normal",
+            GapState::Open => "open",
+            GapState::Short => "short",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<GapState> {
+        match name.to_ascii_lowercase().as_str() {
+            "normal" => Some(GapState::Normal),
+            "open" => Some(GapState::Open),
+            "short" => Some(GapState::Short),
+            _ => None,
+        }
+    }
+}
+
+/// A source of gap states, sampled once per tick.
+pub trait GapSensor {
+    /// The gap state for tick `tick` (ticks come in increasing order).
+    fn sample(&mut self, tick: u64) -> GapState;
+
+    /// The steps the tick took (-1, 0, 1 per axis) and the direction of its event along the
+    /// program (1 forward, -1 turn-back, 0 none). A simulated gap moves its electrode here;
+    /// a real sensor ignores it.
+    fn observe(&mut self, _steps: &[i8; MAX_AXES], _dir: i8) {}
+}
+
+/// `gap.kind = "none"`: the gap is always normal (a dry run).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AlwaysNormal;
+
+impl GapSensor for AlwaysNormal {
+    fn sample(&mut self, _tick: u64) -> GapState {
+        GapState::Normal
+    }
+}
+
+impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
+    fn sample(&mut self, tick: u64) -> GapState {
+        (**self).sample(tick)
+    }
+
+    fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
+        (**self).observe(steps, dir)
+    }
+}

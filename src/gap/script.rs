@@ -1,0 +1,196 @@
+//! `gap.kind = "script"`: a schedule of gap states, one `TICK STATE` line per change.
+//!
+//! ```text
+//! # comments and blank lines are ignored
+//! 0      normal
+//! 12000  short      # from tick 12000 on ...
+//! 12400  normal     # ... until tick 12400
+//! ```
+//!
+//! The state holds from its tick until the next line's; before the first line the gap is
+//! normal. Ticks must not decrease. The whole script is read and checked before the job starts,
+//! so a bad line is an error with `file:line:col`, never a surprise mid-job.
+
+use std::path::Path;
+
+use super::{GapSensor, GapState};
+
+/// A gap script that could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ScriptError {
+    #[error("{path}: cannot read the gap script: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}:{col}: {message}")]
+    Invalid {
+        path: String,
+        line: usize,
+        col: usize,
+        message: String,
+    },
+}
+
+/// A parsed gap script, replayed against the tick count.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScriptGap {
+    changes: Vec<(u64, GapState)>,
+    next: usize,
+    state: GapState,
+}
+
+impl ScriptGap {
+    pub fn load(path: &Path) -> Result<ScriptGap, ScriptError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
+            path: name.clone(),
+            source,
+        })?;
+        ScriptGap::parse(&text, &name)
+    }
+
+    /// Parses script text; `name` is used in error messages.
+    pub fn parse(text: &str, name: &str) -> Result<ScriptGap, ScriptError> {
+        let mut changes: Vec<(u64, GapState)> = Vec::new();
+        for (index, raw) in text.lines().enumerate() {
+            let line = index + 1;
+            let content = raw.split('#').next().unwrap_or("");
+            let invalid = |col: usize, message: String| ScriptError::Invalid {
+                path: name.to_string(),
+                line,
+                col,
+                message,
+            };
+            let mut words = Vec::with_capacity(2);
+            let mut chars = content.char_indices().peekable();
+            while let Some(&(at, c)) = chars.peek() {
+                if c.is_whitespace() {
+                    chars.next();
+                    continue;
+                }
+                let start = at;
+                let mut end = at;
+                while let Some(&(i, c)) = chars.peek() {
+                    if c.is_whitespace() {
+                        break;
+                    }
+                    end = i + c.len_utf8();
+                    chars.next();
+                }
+                let col = content[..start].chars().count() + 1;
+                words.push((col, &content[start..end]));
+            }
+            match words.as_slice() {
+                [] => continue,
+                [(col, tick), (state_col, state)] => {
+                    let tick: u64 = tick.parse().map_err(|_| {
+                        invalid(
+                            *col,
+                            format!("\"{tick}\" is not a tick number (a whole number >= 0)"),
+                        )
+                    })?;
+                    let state = GapState::from_name(state).ok_or_else(|| {
+                        invalid(
+                            *state_col,
+                            format!("\"{state}\" is not a gap state; use normal, open or short"),
+                        )
+                    })?;
+                    if let Some(&(last, _)) = changes.last()
+                        && tick < last
+                    {
+                        return Err(invalid(
+                            *col,
+                            format!("tick {tick} comes before the previous line's tick {last}"),
+                        ));
+                    }
+                    changes.push((tick, state));
+                }
+                [(col, _)] => {
+                    return Err(invalid(
+                        *col,
+                        "expected `TICK STATE`, e.g. `1200 short`".to_string(),
+                    ));
+                }
+                [_, _, (col, extra), ..] => {
+                    return Err(invalid(
+                        *col,
+                        format!("unexpected \"{extra}\" after `TICK STATE`"),
+                    ));
+                }
+            }
+        }
+        Ok(ScriptGap {
+            changes,
+            next: 0,
+            state: GapState::Normal,
+        })
+    }
+
+    /// A script from a list of changes (for tests and benches).
+    pub fn from_changes(mut changes: Vec<(u64, GapState)>) -> ScriptGap {
+        changes.sort_by_key(|&(tick, _)| tick);
+        ScriptGap {
+            changes,
+            next: 0,
+            state: GapState::Normal,
+        }
+    }
+}
+
+impl GapSensor for ScriptGap {
+    /// Ticks are expected in increasing order (the consumer's order).
+    fn sample(&mut self, tick: u64) -> GapState {
+        while let Some(&(at, state)) = self.changes.get(self.next) {
+            if at > tick {
+                break;
+            }
+            self.state = state;
+            self.next += 1;
+        }
+        self.state
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn states_hold_until_the_next_line() {
+        let mut gap =
+            ScriptGap::parse("# test\n10 short\n\n20 open # comment\n20 normal\n", "g").unwrap();
+        let states: Vec<_> = [0, 9, 10, 19, 20, 1000]
+            .into_iter()
+            .map(|t| gap.sample(t))
+            .collect();
+        use GapState::*;
+        assert_eq!(states, [Normal, Normal, Short, Short, Normal, Normal]);
+    }
+
+    #[test]
+    fn bad_lines_are_located() {
+        let err = |text: &str| ScriptGap::parse(text, "gap.txt").unwrap_err().to_string();
+        assert_eq!(
+            err("10 short\n  5 normal\n"),
+            "gap.txt:2:3: tick 5 comes before the previous line's tick 10"
+        );
+        assert_eq!(
+            err("10 shorted\n"),
+            "gap.txt:1:4: \"shorted\" is not a gap state; use normal, open or short"
+        );
+        assert_eq!(
+            err("-3 short\n"),
+            "gap.txt:1:1: \"-3\" is not a tick number (a whole number >= 0)"
+        );
+        assert_eq!(
+            err("7\n"),
+            "gap.txt:1:1: expected `TICK STATE`, e.g. `1200 short`"
+        );
+        assert_eq!(
+            err("7 open now\n"),
+            "gap.txt:1:8: unexpected \"now\" after `TICK STATE`"
+        );
+    }
+}

@@ -1,0 +1,117 @@
+//! Wake-up latency histogram of the real-time loop: how late each tick started after its
+//! deadline. Allocated once before the loop; recording is two array writes.
+
+use serde::Serialize;
+
+/// Bucket width (ns).
+const BUCKET_NS: u64 = 100;
+/// Buckets: 0 to 2 ms at 100 ns; later wake-ups go to the last bucket (the maximum is
+/// kept exactly).
+const BUCKETS: usize = 20_000;
+
+#[derive(Debug, Clone)]
+pub struct LatencyHistogram {
+    counts: Box<[u64]>,
+    samples: u64,
+    max_ns: u64,
+    sum_ns: u128,
+}
+
+/// Percentiles of a histogram, in µs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LatencySummary {
+    pub samples: u64,
+    pub p50_us: f64,
+    pub p99_us: f64,
+    pub p999_us: f64,
+    pub max_us: f64,
+    pub mean_us: f64,
+}
+
+impl Default for LatencyHistogram {
+    fn default() -> Self {
+        LatencyHistogram {
+            counts: vec![0; BUCKETS].into_boxed_slice(),
+            samples: 0,
+            max_ns: 0,
+            sum_ns: 0,
+        }
+    }
+}
+
+impl LatencyHistogram {
+    #[inline]
+    pub fn record(&mut self, latency_ns: u64) {
+        let bucket = ((latency_ns / BUCKET_NS) as usize).min(BUCKETS - 1);
+        self.counts[bucket] += 1;
+        self.samples += 1;
+        self.max_ns = self.max_ns.max(latency_ns);
+        self.sum_ns += latency_ns as u128;
+    }
+
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The latency (ns) below which a fraction `q` of the samples fall: the upper edge of
+    /// the bucket holding the `q`-quantile, never above the maximum seen.
+    pub fn quantile_ns(&self, q: f64) -> u64 {
+        if self.samples == 0 {
+            return 0;
+        }
+        let rank = ((q * self.samples as f64).ceil() as u64).clamp(1, self.samples);
+        let mut seen = 0;
+        for (i, &c) in self.counts.iter().enumerate() {
+            seen += c;
+            if seen >= rank {
+                return ((i as u64 + 1) * BUCKET_NS).min(self.max_ns);
+            }
+        }
+        self.max_ns
+    }
+
+    pub fn summary(&self) -> LatencySummary {
+        let us = |ns: u64| ns as f64 / 1000.0;
+        LatencySummary {
+            samples: self.samples,
+            p50_us: us(self.quantile_ns(0.50)),
+            p99_us: us(self.quantile_ns(0.99)),
+            p999_us: us(self.quantile_ns(0.999)),
+            max_us: us(self.max_ns),
+            mean_us: if self.samples == 0 {
+                0.0
+            } else {
+                self.sum_ns as f64 / self.samples as f64 / 1000.0
+            },
+        }
+    }
+
+    /// Non-empty buckets as `(upper edge in µs, count)`, for printing a histogram.
+    pub fn buckets_us(&self) -> impl Iterator<Item = (f64, u64)> + '_ {
+        self.counts
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c > 0)
+            .map(|(i, &c)| ((i as u64 + 1) as f64 * BUCKET_NS as f64 / 1000.0, c))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_come_from_the_buckets() {
+        let mut h = LatencyHistogram::default();
+        for i in 0..1000u64 {
+            h.record(i * 10); // 0 .. 9.99 µs, uniform
+        }
+        h.record(5_000_000); // one 5 ms outlier, beyond the last bucket
+        let s = h.summary();
+        assert_eq!(s.samples, 1001);
+        assert!((s.p50_us - 5.0).abs() <= 0.1, "{}", s.p50_us);
+        assert!((s.p99_us - 9.9).abs() <= 0.1, "{}", s.p99_us);
+        assert_eq!(s.max_us, 5000.0);
+        assert_eq!(h.quantile_ns(1.0), 5_000_000);
+    }
+}

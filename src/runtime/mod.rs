@@ -1,0 +1,457 @@
+//! The runtime: one job through the two threads (seed 000 §III.B–D).
+//!
+//! ```text
+//!  program ─► [precheck: parse it all, exit 2 on any error, before anything moves]
+//!
+//!  producer thread                loop buffer                 consumer thread ("edmd-fine")
+//!  parse ─► preprocess ─► round ─► push ──► reserved|unprocessed|unused ──► next/previous
+//!  (sleeps while full)                                         tick core ─► output, gap
+//!                                                                  │ events (lock-free queue)
+//!  main thread: drains and logs servo events, joins, builds the summary ◄┘
+//! ```
+//!
+//! [`run_job`] checks the whole program first: a CNC control must not start cutting a
+//! program whose line 10,000 is bad. Then the producer ([`producer`]) streams it again into
+//! the loop buffer while the consumer ([`consumer`]) runs the tick core in real or virtual
+//! time. The main thread only logs and waits. The summary ([`JobSummary`]) is what
+//! `edmd run` prints and writes as JSON.
+
+pub mod consumer;
+pub mod latency;
+pub mod producer;
+pub mod sys;
+
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::buffer::LoopBuffer;
+use crate::config::{Config, GapKind, OutputKind};
+use crate::fine::{FineSettings, Interpolator};
+use crate::gap::{AlwaysNormal, GapSensor, ScriptError, ScriptGap};
+use crate::gcode::{self, GcodeError};
+use crate::geometry::MAX_AXES;
+use crate::output::{NullOutput, OutputError, PulseLog, PulseLogHeader, PulseOutput};
+use crate::servo::{ServoEvent, ServoState};
+
+pub use consumer::{EventRecord, LoopReport, LoopSettings, Published};
+pub use latency::{LatencyHistogram, LatencySummary};
+pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
+
+/// A job that could not start: bad program, gap script or output. Nothing has moved.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    #[error(transparent)]
+    Program(#[from] GcodeError),
+    #[error(transparent)]
+    Producer(#[from] ProducerError),
+    #[error(transparent)]
+    GapScript(#[from] ScriptError),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+/// How a job ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Outcome {
+    /// The whole program was executed.
+    Done,
+    /// Shorted after the whole reserved area: stopped, position kept.
+    Alarm,
+    /// The pulse output failed: stopped at once.
+    OutputError,
+    /// The producer failed part-way (the program changed after the check, or a position out of
+    /// range): the consumer executed what it had and stopped.
+    ProducerError,
+    /// Stopped on request.
+    Stopped,
+}
+
+impl Outcome {
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Done => "done",
+            Outcome::Alarm => "alarm",
+            Outcome::OutputError => "output error",
+            Outcome::ProducerError => "producer error",
+            Outcome::Stopped => "stopped",
+        }
+    }
+}
+
+/// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JobSummary {
+    pub program: String,
+    pub outcome: Outcome,
+    pub error: Option<String>,
+    pub axes: Vec<String>,
+    /// G-code blocks of the program.
+    pub blocks: u64,
+    /// Loop-buffer blocks (segments) produced.
+    pub segments: u64,
+    /// Pulses emitted per axis, both directions.
+    pub steps_per_axis: Vec<u64>,
+    /// The pulse ledger at the end, per axis (steps).
+    pub end_steps: Vec<i64>,
+    /// The program's end point, per axis (steps).
+    pub program_end_steps: Vec<i64>,
+    pub end_mm: Vec<f64>,
+    pub events_forward: u64,
+    pub events_backward: u64,
+    pub shorts: u64,
+    pub turn_backs: u64,
+    pub deepest_turn_back_blocks: u64,
+    pub alarms: u64,
+    pub starvations: u64,
+    pub overruns: u64,
+    pub missed_deadlines: u64,
+    /// Real time only.
+    pub latency_us: Option<LatencySummary>,
+    pub tick_us: u32,
+    pub ticks: u64,
+    pub virtual_time: bool,
+    /// Machine time: ticks × tick period (s).
+    pub virtual_time_s: f64,
+    pub wall_time_s: f64,
+    pub buffer_capacity: u64,
+    pub buffer_high_water: u64,
+    pub events_dropped: u64,
+    /// Real-time features the system refused.
+    pub rt_refused: Vec<String>,
+}
+
+impl JobSummary {
+    /// The human-readable summary.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut t = String::new();
+        let list = |v: &[i64]| {
+            v.iter()
+                .zip(&self.axes)
+                .map(|(s, a)| format!("{a} {s}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let _ = writeln!(t, "{}: {}", self.program, self.outcome.name());
+        if let Some(e) = &self.error {
+            let _ = writeln!(t, "  error:            {e}");
+        }
+        let _ = writeln!(
+            t,
+            "  blocks:           {} G-code blocks, {} segments",
+            self.blocks, self.segments
+        );
+        let pulses: Vec<i64> = self.steps_per_axis.iter().map(|&p| p as i64).collect();
+        let _ = writeln!(t, "  steps per axis:   {}", list(&pulses));
+        let _ = writeln!(
+            t,
+            "  end position:     {} steps (program end {})",
+            list(&self.end_steps),
+            list(&self.program_end_steps)
+        );
+        let _ = writeln!(
+            t,
+            "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
+            self.shorts,
+            self.turn_backs,
+            self.deepest_turn_back_blocks,
+            self.alarms,
+            self.starvations
+        );
+        let _ = writeln!(
+            t,
+            "  events:           {} forward, {} backward",
+            self.events_forward, self.events_backward
+        );
+        match &self.latency_us {
+            Some(l) => {
+                let _ = writeln!(
+                    t,
+                    "  latency:          p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} ticks; {} overruns",
+                    l.p50_us, l.p99_us, l.max_us, l.samples, self.overruns
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    t,
+                    "  latency:          none measured (virtual time); {} overruns",
+                    self.overruns
+                );
+            }
+        }
+        let _ = writeln!(
+            t,
+            "  time:             {:.3} s machine ({} ticks of {} µs), {:.3} s wall",
+            self.virtual_time_s, self.ticks, self.tick_us, self.wall_time_s
+        );
+        let _ = writeln!(
+            t,
+            "  loop buffer:      high water {} of {} blocks",
+            self.buffer_high_water, self.buffer_capacity
+        );
+        for r in &self.rt_refused {
+            let _ = writeln!(t, "  warning:          {r}");
+        }
+        t
+    }
+}
+
+/// What the check before the job found.
+#[derive(Debug, Clone, Copy)]
+struct Precheck {
+    blocks: u64,
+    end_steps: [i64; MAX_AXES],
+}
+
+/// Parses the whole program and checks every end point fits a step counter.
+fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
+    let mut reader = gcode::open_program(program, &config.machine.axes)?;
+    let mut blocks = 0;
+    let mut end_steps = [0; MAX_AXES];
+    for item in reader.by_ref() {
+        let block = item?;
+        blocks += 1;
+        end_steps =
+            to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
+                ProducerError::OutOfRange {
+                    program: program.display().to_string(),
+                    line: block.line,
+                    axis: config.machine.axes[axis].letter(),
+                    mm,
+                    steps,
+                }
+            })?;
+    }
+    for w in reader.take_warnings() {
+        if w.line == 0 {
+            tracing::warn!("{}: {}", program.display(), w.message);
+        } else {
+            tracing::warn!("{}:{}:{}: {}", program.display(), w.line, w.col, w.message);
+        }
+    }
+    Ok(Precheck { blocks, end_steps })
+}
+
+type BoxedOutput = Box<dyn PulseOutput + Send>;
+type BoxedGap = Box<dyn GapSensor + Send>;
+
+fn open_output(config: &Config) -> Result<BoxedOutput, JobError> {
+    Ok(match config.output.kind {
+        OutputKind::Null => Box::new(NullOutput),
+        OutputKind::File => Box::new(PulseLog::create(
+            &config.output.path,
+            &PulseLogHeader {
+                axes: config.machine.axes.clone(),
+                step_mm: config.machine.step_mm.clone(),
+                tick_us: config.fine.tick_us,
+                start: vec![0; config.machine.axes.len()],
+            },
+        )?),
+        OutputKind::Sim => Box::new(crate::sim::SimOutput),
+        OutputKind::Parport => {
+            return Err(JobError::Unsupported(
+                "output.kind = \"parport\": the parallel port output is not built yet \
+                 (issue [4/6]); use \"sim\", \"file\" or \"null\""
+                    .to_string(),
+            ));
+        }
+    })
+}
+
+fn open_gap(config: &Config) -> Result<BoxedGap, JobError> {
+    Ok(match config.gap.kind {
+        GapKind::None => Box::new(AlwaysNormal),
+        GapKind::Script => Box::new(ScriptGap::load(&config.gap.script)?),
+        GapKind::Sim => Box::new(crate::sim::SimGap::from_config(config)),
+        GapKind::Parport => {
+            return Err(JobError::Unsupported(
+                "gap.kind = \"parport\": the parallel port input is not built yet (issue [4/6]); \
+                 use \"sim\", \"script\" or \"none\""
+                    .to_string(),
+            ));
+        }
+    })
+}
+
+/// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
+/// axis per tick.
+pub fn fine_speed_cap(config: &Config) -> f64 {
+    let coarsest = config.machine.step_mm.iter().cloned().fold(0.0, f64::max);
+    coarsest / (config.fine.tick_us as f64 * 1e-6)
+}
+
+/// Logs one servo event (from the main thread, never the consumer).
+fn log_event(program: &str, record: &EventRecord, tick_s: f64) {
+    let t = record.tick as f64 * tick_s;
+    let line = record.line;
+    match record.event {
+        ServoEvent::Short { at } => tracing::info!(
+            "{program}:{line}: short circuit at t={t:.4} s (segment {}, step {}): turning back",
+            at.seq,
+            at.event
+        ),
+        ServoEvent::Cleared { depth } => tracing::info!(
+            "{program}:{line}: gap cleared at t={t:.4} s after turning back over {depth} blocks: re-advancing"
+        ),
+        ServoEvent::Resumed { .. } => {
+            tracing::debug!("{program}:{line}: back at the short at t={t:.4} s: machining on")
+        }
+        ServoEvent::Starved { at } => tracing::warn!(
+            "{program}:{line}: loop buffer empty at t={t:.4} s (segment {}): holding",
+            at.seq
+        ),
+        ServoEvent::Alarm { at, depth } => tracing::error!(
+            "{program}:{line}: ALARM at t={t:.4} s: still shorted after turning back over the whole \
+             reserved area ({depth} blocks, segment {}); motion stopped, position kept",
+            at.seq
+        ),
+        ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+    }
+}
+
+/// Runs `program` through both threads with the output and gap source of `config`.
+pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
+    let check = precheck(program, config)?;
+    let mut output = open_output(config)?;
+    let mut gap = open_gap(config)?;
+    run_job_with(program, config, check, &mut output, &mut gap)
+}
+
+fn run_job_with(
+    program: &Path,
+    config: &Config,
+    check: Precheck,
+    output: &mut BoxedOutput,
+    gap: &mut BoxedGap,
+) -> Result<JobSummary, JobError> {
+    let name = program.display().to_string();
+    let cap = fine_speed_cap(config);
+    if config.machine.max_feed_mm_per_min / 60.0 > cap {
+        tracing::info!(
+            "fine.tick_us = {} allows at most one step per axis per tick: path speeds above \
+             about {:.0} mm/min (machine.max_feed_mm_per_min = {}) are not reachable",
+            config.fine.tick_us,
+            cap * 60.0,
+            config.machine.max_feed_mm_per_min
+        );
+    }
+    tracing::info!(
+        "{name}: {} blocks; {} time, tick {} µs",
+        check.blocks,
+        if config.fine.virtual_time {
+            "virtual"
+        } else {
+            "real"
+        },
+        config.fine.tick_us
+    );
+    let buffer = LoopBuffer::new(config.buffer.capacity, config.buffer.reserved);
+    let published = Published::new(4096);
+    let settings = FineSettings::from_config(config);
+    let loop_settings = LoopSettings::from_config(config);
+    let tick_s = config.fine.tick_us as f64 * 1e-6;
+
+    let (producer, (fine, report, finished)) = std::thread::scope(|s| {
+        let producer = s.spawn(|| producer::produce(program, config, &buffer));
+        let consumer = std::thread::Builder::new()
+            .name("edmd-fine".to_string())
+            .spawn_scoped(s, || {
+                let mut source = buffer.consumer(loop_settings.virtual_time);
+                let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
+                let report = consumer::run_loop(
+                    &mut fine,
+                    &mut source,
+                    output,
+                    gap,
+                    &loop_settings,
+                    &published,
+                );
+                let finished = output.finish();
+                // Releases a producer still waiting for space (after an alarm or a stop).
+                buffer.abort();
+                (fine, report, finished)
+            })
+            .expect("spawning the fine interpolation thread");
+        while !consumer.is_finished() {
+            while let Some(record) = published.events.pop() {
+                log_event(&name, &record, tick_s);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        while let Some(record) = published.events.pop() {
+            log_event(&name, &record, tick_s);
+        }
+        let consumer = consumer
+            .join()
+            .expect("the fine interpolation thread panicked");
+        let producer = producer.join().expect("the producer thread panicked");
+        (producer, consumer)
+    });
+
+    let counters = fine.counters();
+    let position = fine.position();
+    let axes = config.machine.axes.len();
+    let (outcome, error) = if let Some(e) = report.output_error.as_ref() {
+        (Outcome::OutputError, Some(e.to_string()))
+    } else if let Err(e) = finished {
+        (Outcome::OutputError, Some(e.to_string()))
+    } else if fine.state() == ServoState::Alarm {
+        (
+            Outcome::Alarm,
+            Some("shorted after turning back over the whole reserved area".to_string()),
+        )
+    } else if let Err(e) = &producer {
+        (Outcome::ProducerError, Some(e.to_string()))
+    } else if report.stopped || fine.state() != ServoState::Done {
+        (Outcome::Stopped, None)
+    } else {
+        (Outcome::Done, None)
+    };
+    let producer = producer.unwrap_or_default();
+    Ok(JobSummary {
+        program: name,
+        outcome,
+        error,
+        axes: config
+            .machine
+            .axes
+            .iter()
+            .map(|a| a.letter().to_string())
+            .collect(),
+        blocks: check.blocks,
+        segments: producer.pushed,
+        steps_per_axis: counters.pulses[..axes].to_vec(),
+        end_steps: position[..axes].to_vec(),
+        program_end_steps: check.end_steps[..axes].to_vec(),
+        end_mm: position[..axes]
+            .iter()
+            .zip(&config.machine.step_mm)
+            .map(|(p, s)| *p as f64 * s)
+            .collect(),
+        events_forward: counters.events_forward,
+        events_backward: counters.events_backward,
+        shorts: counters.servo.shorts,
+        turn_backs: counters.servo.turn_backs,
+        deepest_turn_back_blocks: counters.servo.deepest_turn_back_blocks,
+        alarms: counters.servo.alarms,
+        starvations: counters.servo.starvations,
+        overruns: report.overruns,
+        missed_deadlines: report.missed_deadlines,
+        latency_us: report.latency.as_ref().map(|h| h.summary()),
+        tick_us: config.fine.tick_us,
+        ticks: report.ticks,
+        virtual_time: loop_settings.virtual_time,
+        virtual_time_s: report.ticks as f64 * tick_s,
+        wall_time_s: report.wall_ns as f64 * 1e-9,
+        buffer_capacity: config.buffer.capacity as u64,
+        buffer_high_water: buffer.areas().high_water,
+        events_dropped: published.events_dropped.load(Ordering::Relaxed),
+        rt_refused: report.rt_refused,
+    })
+}

@@ -1,0 +1,165 @@
+//! The producer thread: program text to loop-buffer blocks.
+//!
+//! It streams the program through the parser and the [`Preprocessor`], turns every planned
+//! segment into a [`StepBlock`] and pushes it into the loop buffer, sleeping whenever the
+//! buffer is full. Step positions are rounded once per segment end point, absolutely, from mm
+//! (never accumulated), so a block's start is bit-for-bit the previous block's end.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::buffer::{LoopBuffer, StepBlock};
+use crate::config::Config;
+use crate::gcode::{self, BlockKind, GcodeError};
+use crate::geometry::{MAX_AXES, Point};
+use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment};
+
+/// Largest step position accepted: beyond 2^53 an `f64` no longer holds every integer.
+const MAX_STEPS: f64 = 9.0e15;
+
+/// Why the producer stopped early.
+#[derive(Debug, thiserror::Error)]
+pub enum ProducerError {
+    #[error(transparent)]
+    Program(#[from] GcodeError),
+    #[error(
+        "{program}:{line}: position {mm} mm on axis {axis} is {steps:e} steps from zero, beyond \
+         what a step counter holds"
+    )]
+    OutOfRange {
+        program: String,
+        line: u64,
+        axis: char,
+        mm: f64,
+        steps: f64,
+    },
+}
+
+/// What the producer did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ProducerReport {
+    pub stats: PreprocessStats,
+    /// Blocks pushed into the loop buffer.
+    pub pushed: u64,
+    /// The consumer had gone (alarm, stop): the rest of the program was not produced.
+    pub aborted: bool,
+}
+
+/// Rounds a point in mm to absolute step positions.
+pub fn to_steps(point: &Point, step_mm: &[f64]) -> Result<[i64; MAX_AXES], (usize, f64, f64)> {
+    let mut steps = [0i64; MAX_AXES];
+    for (i, &step) in step_mm.iter().enumerate() {
+        let exact = point[i] / step;
+        if !exact.is_finite() || exact.abs() > MAX_STEPS {
+            return Err((i, point[i], exact));
+        }
+        steps[i] = exact.round() as i64;
+    }
+    Ok(steps)
+}
+
+/// Converts planned segments to step blocks with one rounding per end point.
+#[derive(Debug)]
+pub struct BlockMaker {
+    step_mm: Vec<f64>,
+    axes: Vec<char>,
+    program: String,
+    seq: u64,
+    last_end: [i64; MAX_AXES],
+}
+
+impl BlockMaker {
+    pub fn new(config: &Config, program: &str) -> BlockMaker {
+        BlockMaker {
+            step_mm: config.machine.step_mm.clone(),
+            axes: config.machine.axes.iter().map(|a| a.letter()).collect(),
+            program: program.to_string(),
+            seq: 0,
+            last_end: [0; MAX_AXES],
+        }
+    }
+
+    pub fn make(&mut self, segment: &Segment) -> Result<StepBlock, ProducerError> {
+        let end = to_steps(&segment.end, &self.step_mm).map_err(|(axis, mm, steps)| {
+            ProducerError::OutOfRange {
+                program: self.program.clone(),
+                line: segment.block.line,
+                axis: self.axes[axis],
+                mm,
+                steps,
+            }
+        })?;
+        let mut flags = 0;
+        if segment.last_of_block {
+            flags |= StepBlock::LAST_OF_BLOCK;
+        }
+        if segment.block.kind == BlockKind::Rapid {
+            flags |= StepBlock::RAPID;
+        }
+        let block = StepBlock {
+            seq: self.seq,
+            start: self.last_end,
+            end,
+            length_mm: segment.length,
+            v_entry: segment.v_entry,
+            v_exit: segment.v_exit,
+            v_cruise: segment.v_peak,
+            line: segment.block.line,
+            flags,
+        };
+        self.seq += 1;
+        self.last_end = end;
+        Ok(block)
+    }
+}
+
+/// Streams `program` into `buffer`; closes the buffer at the end (also after an error, so the
+/// consumer finishes what it has and stops).
+pub fn produce(
+    program: &Path,
+    config: &Config,
+    buffer: &LoopBuffer,
+) -> Result<ProducerReport, ProducerError> {
+    let result = produce_inner(program, config, buffer);
+    buffer.close();
+    result
+}
+
+fn produce_inner(
+    program: &Path,
+    config: &Config,
+    buffer: &LoopBuffer,
+) -> Result<ProducerReport, ProducerError> {
+    let reader = gcode::open_program(program, &config.machine.axes)?;
+    let mut pre = Preprocessor::new(PlanSettings::from_config(config));
+    let mut maker = BlockMaker::new(config, &program.display().to_string());
+    let mut report = ProducerReport::default();
+    let mut failed: Option<ProducerError> = None;
+    let mut push = |segment: Segment, report: &mut ProducerReport| {
+        if failed.is_some() || report.aborted {
+            return;
+        }
+        match maker.make(&segment) {
+            Ok(block) => match buffer.push(&block) {
+                Ok(()) => report.pushed += 1,
+                Err(_) => report.aborted = true,
+            },
+            Err(e) => failed = Some(e),
+        }
+    };
+    for item in reader {
+        let block = item?;
+        pre.push_block(Arc::new(block), |s| push(s, &mut report));
+        if report.aborted {
+            break;
+        }
+    }
+    if !report.aborted {
+        pre.finish(|s| push(s, &mut report));
+    }
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    report.stats = pre.stats();
+    Ok(report)
+}

@@ -1,0 +1,305 @@
+//! The gap servo and short-circuit turn-back (seed 000 §III.D) as an explicit state machine.
+//!
+//! ```text
+//!                 short                         gap clears
+//!   Forward ─────────────────► TurnBack ─────────────────► ReAdvance
+//!     ▲  │ ▲                    │    ▲          short          │
+//!     │  │ └── block arrives ─┐ │    └─────────────────────────┤
+//!     │  └─ buffer empty ──► Hold│                              │
+//!     │                (short ──┘ too)                          │
+//!     └──────────────── back at the point of the short ────────┘
+//!   Forward ── program end ──► Done          TurnBack ── reserved area exhausted ──► Alarm
+//! ```
+//!
+//! - **Forward**: along the program at min(planned feed, gap feed): the normal feed while
+//!   sparking, the open feed while the gap is open.
+//! - **TurnBack**: backwards along the executed path (the block in hand, then the reserved
+//!   area) at the retract feed, for as long as the gap is shorted.
+//! - **ReAdvance**: forwards again over the same lattice points at the gap feed, to the point
+//!   where the short happened (the *mark*); a new short turns back again, the mark stays.
+//! - **Hold**: forward motion but no block to execute (a starvation in real time).
+//! - **Alarm**: shorted after the whole reserved area; motion stops and the position is kept.
+//! - **Done**: the program's last block is executed.
+//!
+//! The machine only decides; the fine interpolator moves, and reports back where it is
+//! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
+
+use crate::gap::GapState;
+
+/// Where the electrode is along the program: block sequence number and Bresenham event.
+/// Ordered along the path (the end of block `s` and the start of block `s + 1` are the same
+/// lattice point but compare as the order in which they are reached).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub struct PathPoint {
+    pub seq: u64,
+    pub event: i64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ServoState {
+    Forward,
+    Hold,
+    TurnBack,
+    ReAdvance,
+    Alarm,
+    Done,
+}
+
+impl ServoState {
+    pub fn name(self) -> &'static str {
+        match self {
+            ServoState::Forward => "forward",
+            ServoState::Hold => "hold",
+            ServoState::TurnBack => "turn-back",
+            ServoState::ReAdvance => "re-advance",
+            ServoState::Alarm => "alarm",
+            ServoState::Done => "done",
+        }
+    }
+
+    /// No more motion will happen.
+    pub fn is_final(self) -> bool {
+        matches!(self, ServoState::Alarm | ServoState::Done)
+    }
+}
+
+/// Servo feeds in mm/s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feeds {
+    pub normal: f64,
+    pub open: f64,
+    pub retract: f64,
+}
+
+/// Something the servo did that the outside world wants to hear about (logged by a normal
+/// thread, never by the tick core).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ServoEvent {
+    /// A short circuit began (or began again during re-advance).
+    Short { at: PathPoint },
+    /// The gap cleared after turning back over `depth` blocks.
+    Cleared { depth: u64 },
+    /// Back at the point of the short; machining goes on.
+    Resumed { at: PathPoint },
+    /// The buffer ran dry.
+    Starved { at: PathPoint },
+    /// Shorted after the whole reserved area.
+    Alarm { at: PathPoint, depth: u64 },
+    /// The last block is done.
+    Done,
+}
+
+/// Counters kept by the servo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ServoCounters {
+    pub shorts: u64,
+    pub turn_backs: u64,
+    pub deepest_turn_back_blocks: u64,
+    pub alarms: u64,
+    pub starvations: u64,
+}
+
+/// The state machine.
+#[derive(Debug, Clone, Copy)]
+pub struct Servo {
+    state: ServoState,
+    feeds: Feeds,
+    /// The farthest point reached: where a re-advance hands over to forward motion.
+    mark: PathPoint,
+    /// Blocks entered backwards in the current turn-back episode.
+    depth: u64,
+    pub counters: ServoCounters,
+}
+
+impl Servo {
+    pub fn new(feeds: Feeds) -> Servo {
+        Servo {
+            state: ServoState::Hold,
+            feeds,
+            mark: PathPoint::default(),
+            depth: 0,
+            counters: ServoCounters::default(),
+        }
+    }
+
+    pub fn state(&self) -> ServoState {
+        self.state
+    }
+
+    pub fn mark(&self) -> PathPoint {
+        self.mark
+    }
+
+    /// The gap state of this tick at `here`. Returns an event when the state changed.
+    pub fn on_gap(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
+        match (self.state, gap) {
+            (ServoState::Forward | ServoState::Hold, GapState::Short) => {
+                self.mark = here;
+                self.start_turn_back(here)
+            }
+            (ServoState::ReAdvance, GapState::Short) => self.start_turn_back(here),
+            (ServoState::TurnBack, GapState::Normal | GapState::Open) => {
+                self.state = ServoState::ReAdvance;
+                Some(ServoEvent::Cleared { depth: self.depth })
+            }
+            _ => None,
+        }
+    }
+
+    fn start_turn_back(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        self.state = ServoState::TurnBack;
+        self.depth = 0;
+        self.counters.shorts += 1;
+        self.counters.turn_backs += 1;
+        Some(ServoEvent::Short { at: here })
+    }
+
+    /// The interpolator moved forward to `here` (after an event or a block change).
+    pub fn on_forward(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        match self.state {
+            ServoState::ReAdvance if here >= self.mark => {
+                self.state = ServoState::Forward;
+                Some(ServoEvent::Resumed { at: here })
+            }
+            ServoState::Forward => {
+                self.mark = here;
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// The turn-back entered the previous block (from the reserved area).
+    pub fn on_block_back(&mut self) {
+        self.depth += 1;
+        let c = &mut self.counters;
+        c.deepest_turn_back_blocks = c.deepest_turn_back_blocks.max(self.depth);
+    }
+
+    /// The turn-back reached the start of the reserved area with the gap still shorted.
+    pub fn on_reserved_exhausted(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        (self.state == ServoState::TurnBack).then(|| {
+            self.state = ServoState::Alarm;
+            self.counters.alarms += 1;
+            ServoEvent::Alarm {
+                at: here,
+                depth: self.depth,
+            }
+        })
+    }
+
+    /// Forward motion found no block to execute.
+    pub fn on_starved(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        (self.state == ServoState::Forward).then(|| {
+            self.state = ServoState::Hold;
+            self.counters.starvations += 1;
+            ServoEvent::Starved { at: here }
+        })
+    }
+
+    /// A block is in hand again after a hold.
+    pub fn on_block(&mut self) {
+        if self.state == ServoState::Hold {
+            self.state = ServoState::Forward;
+        }
+    }
+
+    /// Forward motion found the end of the program.
+    pub fn on_end(&mut self) -> Option<ServoEvent> {
+        (!self.state.is_final()).then(|| {
+            self.state = ServoState::Done;
+            ServoEvent::Done
+        })
+    }
+
+    /// Direction (+1 forward, -1 backward, 0 still) and feed (mm/s) for this tick's gap state.
+    pub fn motion(&self, gap: GapState) -> (i8, f64) {
+        let gap_feed = match gap {
+            GapState::Open => self.feeds.open,
+            _ => self.feeds.normal,
+        };
+        match self.state {
+            ServoState::Forward | ServoState::ReAdvance => (1, gap_feed),
+            ServoState::TurnBack => (-1, self.feeds.retract),
+            ServoState::Hold | ServoState::Alarm | ServoState::Done => (0, 0.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FEEDS: Feeds = Feeds {
+        normal: 1.0,
+        open: 5.0,
+        retract: 2.0,
+    };
+
+    fn at(seq: u64, event: i64) -> PathPoint {
+        PathPoint { seq, event }
+    }
+
+    #[test]
+    fn short_turn_back_clear_re_advance_resume() {
+        let mut servo = Servo::new(FEEDS);
+        servo.on_block();
+        assert_eq!(servo.state(), ServoState::Forward);
+        assert_eq!(servo.motion(GapState::Open), (1, 5.0));
+        servo.on_forward(at(3, 7));
+        assert_eq!(
+            servo.on_gap(GapState::Short, at(3, 7)),
+            Some(ServoEvent::Short { at: at(3, 7) })
+        );
+        assert_eq!(servo.motion(GapState::Short), (-1, 2.0));
+        servo.on_block_back();
+        servo.on_block_back();
+        assert_eq!(
+            servo.on_gap(GapState::Normal, at(1, 2)),
+            Some(ServoEvent::Cleared { depth: 2 })
+        );
+        assert_eq!(servo.state(), ServoState::ReAdvance);
+        // A second short while re-advancing keeps the original mark.
+        servo.on_forward(at(2, 0));
+        assert!(servo.on_gap(GapState::Short, at(2, 0)).is_some());
+        servo.on_gap(GapState::Normal, at(1, 9));
+        assert_eq!(servo.on_forward(at(3, 6)), None);
+        assert_eq!(
+            servo.on_forward(at(3, 7)),
+            Some(ServoEvent::Resumed { at: at(3, 7) })
+        );
+        assert_eq!(servo.state(), ServoState::Forward);
+        let c = servo.counters;
+        assert_eq!(
+            (c.shorts, c.turn_backs, c.deepest_turn_back_blocks),
+            (2, 2, 2)
+        );
+    }
+
+    #[test]
+    fn exhausted_reserve_is_an_alarm_and_final() {
+        let mut servo = Servo::new(FEEDS);
+        servo.on_block();
+        servo.on_gap(GapState::Short, at(0, 5));
+        assert!(matches!(
+            servo.on_reserved_exhausted(at(0, 0)),
+            Some(ServoEvent::Alarm { .. })
+        ));
+        assert_eq!(servo.motion(GapState::Normal), (0, 0.0));
+        assert_eq!(servo.on_gap(GapState::Normal, at(0, 0)), None);
+        assert_eq!(servo.state(), ServoState::Alarm);
+        assert_eq!(servo.on_end(), None);
+    }
+
+    #[test]
+    fn starvation_holds_until_a_block_arrives() {
+        let mut servo = Servo::new(FEEDS);
+        servo.on_block();
+        assert!(servo.on_starved(at(0, 9)).is_some());
+        assert_eq!(servo.on_starved(at(0, 9)), None, "counted once per episode");
+        assert_eq!(servo.motion(GapState::Normal).0, 0);
+        servo.on_block();
+        assert_eq!(servo.state(), ServoState::Forward);
+        assert_eq!(servo.counters.starvations, 1);
+    }
+}
