@@ -184,7 +184,8 @@ mod tests {
     fn debris_shorts_are_seeded_and_clear_after_turning_back() {
         let run = |seed: u64| {
             let mut g = gap(&[
-                "sim.debris_shorts_per_s=200",
+                // The gap opens after ~80 ticks of sparking without advancing: make them count.
+                "sim.debris_shorts_per_s=2000",
                 &format!("sim.seed={seed}"),
                 "sim.initial_gap_um=5",
             ]);
@@ -196,8 +197,12 @@ mod tests {
         assert!(!a.is_empty());
         assert_eq!(a, run(7), "same seed, same shorts");
         assert_ne!(a, run(8));
-        // A debris short holds until the electrode turns back debris_clear_um (15 µm).
-        let mut g = gap(&["sim.debris_shorts_per_s=1e9", "sim.initial_gap_um=5"]);
+        // A debris short holds until the electrode turns back debris_clear_um.
+        let mut g = gap(&[
+            "sim.debris_shorts_per_s=1e9",
+            "sim.initial_gap_um=5",
+            "sim.debris_clear_um=15",
+        ]);
         assert_eq!(g.sample(0), GapState::Short);
         g.debris_per_tick = 0.0;
         for _ in 0..14 {

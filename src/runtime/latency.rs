@@ -64,6 +64,9 @@ impl LatencyHistogram {
         for (i, &c) in self.counts.iter().enumerate() {
             seen += c;
             if seen >= rank {
+                if i == BUCKETS - 1 {
+                    return self.max_ns;
+                }
                 return ((i as u64 + 1) * BUCKET_NS).min(self.max_ns);
             }
         }
