@@ -118,20 +118,44 @@ pub struct LoopReport {
     pub rt_refused: Vec<String>,
 }
 
+/// Real-time features in force for the loop; dropping it releases them.
+#[derive(Debug, Default)]
+pub struct RealtimeGuard {
+    /// Holds the zero wake-up latency request while open.
+    _cpu_latency: Option<std::fs::File>,
+    /// What the system refused, as operator-facing reasons.
+    pub refused: Vec<String>,
+}
+
 /// Applies the configured real-time features to the calling thread; refusals come back as
-/// human-readable reasons (and are logged as warnings), never as errors.
-pub fn apply_realtime(settings: &LoopSettings) -> Vec<String> {
-    let mut refused = Vec::new();
+/// human-readable reasons (and are logged as warnings), never as errors. In real time the
+/// timer slack is always minimised and, with `lock_memory`, CPUs are kept out of deep idle
+/// states (`/dev/cpu_dma_latency`, as cyclictest does).
+pub fn apply_realtime(settings: &LoopSettings) -> RealtimeGuard {
+    let mut guard = RealtimeGuard::default();
     if settings.virtual_time {
-        return refused;
+        return guard;
     }
-    if settings.lock_memory
-        && let Err(e) = sys::lock_all_memory()
-    {
+    let refused = &mut guard.refused;
+    if let Err(e) = sys::minimise_timer_slack() {
         refused.push(format!(
-            "fine.lock_memory: mlockall refused ({e}); running with pageable memory \
-             (raise RLIMIT_MEMLOCK, e.g. systemd LimitMEMLOCK=infinity)"
+            "timer slack: cannot minimise it ({e}); wake-ups may come up to 50 µs late"
         ));
+    }
+    if settings.lock_memory {
+        if let Err(e) = sys::lock_all_memory() {
+            refused.push(format!(
+                "fine.lock_memory: mlockall refused ({e}); running with pageable memory \
+                 (raise RLIMIT_MEMLOCK, e.g. systemd LimitMEMLOCK=infinity)"
+            ));
+        }
+        match sys::hold_zero_cpu_wakeup_latency() {
+            Ok(file) => guard._cpu_latency = Some(file),
+            Err(e) => refused.push(format!(
+                "fine.lock_memory: cannot hold /dev/cpu_dma_latency at 0 ({e}); CPUs may sleep \
+                 in deep idle states between ticks"
+            )),
+        }
     }
     if let Some(cpu) = settings.cpu
         && let Err(e) = sys::pin_to_cpu(cpu)
@@ -149,10 +173,10 @@ pub fn apply_realtime(settings: &LoopSettings) -> Vec<String> {
             settings.rt_priority, settings.rt_priority
         ));
     }
-    for reason in &refused {
+    for reason in &guard.refused {
         tracing::warn!("{reason}");
     }
-    refused
+    guard
 }
 
 /// Runs the tick core until the program is done, an alarm, an output error or a stop
@@ -170,7 +194,7 @@ where
     O: PulseOutput + ?Sized,
     G: GapSensor + ?Sized,
 {
-    let rt_refused = apply_realtime(settings);
+    let realtime = apply_realtime(settings);
     let mut latency = (!settings.virtual_time).then(LatencyHistogram::default);
     let mut report = LoopReport {
         ticks: 0,
@@ -180,7 +204,7 @@ where
         wall_ns: 0,
         output_error: None,
         stopped: false,
-        rt_refused,
+        rt_refused: realtime.refused.clone(),
     };
     let started = sys::monotonic_ns();
     let period = settings.tick_ns;

@@ -357,6 +357,7 @@ fn run_job_with(
     let loop_settings = LoopSettings::from_config(config);
     let tick_s = config.fine.tick_us as f64 * 1e-6;
 
+    let supervisor = std::thread::current();
     let (producer, (fine, report, finished)) = std::thread::scope(|s| {
         let producer = s.spawn(|| producer::produce(program, config, &buffer));
         let consumer = std::thread::Builder::new()
@@ -375,6 +376,7 @@ fn run_job_with(
                 let finished = output.finish();
                 // Releases a producer still waiting for space (after an alarm or a stop).
                 buffer.abort();
+                supervisor.unpark();
                 (fine, report, finished)
             })
             .expect("spawning the fine interpolation thread");
@@ -382,7 +384,7 @@ fn run_job_with(
             while let Some(record) = published.events.pop() {
                 log_event(&name, &record, tick_s);
             }
-            std::thread::sleep(Duration::from_millis(10));
+            std::thread::park_timeout(Duration::from_millis(10));
         }
         while let Some(record) = published.events.pop() {
             log_event(&name, &record, tick_s);

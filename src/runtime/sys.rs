@@ -1,6 +1,7 @@
 //! The kernel calls of the real-time loop, each behind a tiny safe wrapper (rppal's
 //! `ioctl.rs` pattern): the monotonic clock, absolute-deadline sleep, `SCHED_FIFO`,
-//! `mlockall` and CPU affinity. This is the only module of the runtime with `unsafe`.
+//! `mlockall`, CPU affinity, timer slack and the CPU wake-up latency request. This is the only
+//! module of the runtime with `unsafe`.
 //!
 //! All of them act on the calling thread (Linux: `pid` 0 means "this thread" for the
 //! scheduler calls), so the consumer thread calls them on itself.
@@ -86,6 +87,31 @@ pub fn pin_to_cpu(cpu: usize) -> io::Result<()> {
     } else {
         Err(io::Error::last_os_error())
     }
+}
+
+/// Sets the calling thread's timer slack to 1 ns. A normal thread's default slack of 50 µs
+/// lets the kernel wake it up to 50 µs late, a whole tick at the default period; real-time
+/// threads ignore slack, so this matters when `SCHED_FIFO` was refused.
+pub fn minimise_timer_slack() -> io::Result<()> {
+    // SAFETY: PR_SET_TIMERSLACK takes one integer argument; the rest are ignored.
+    let rc = unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+/// Asks the kernel (PM QoS, `/dev/cpu_dma_latency`) to keep CPUs out of idle states whose
+/// wake-up takes longer than 0 µs, as `cyclictest` does. The request holds while the returned
+/// file stays open.
+pub fn hold_zero_cpu_wakeup_latency() -> io::Result<std::fs::File> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")?;
+    file.write_all(&0i32.to_ne_bytes())?;
+    Ok(file)
 }
 
 #[cfg(test)]

@@ -1,0 +1,235 @@
+//! Runtime benches: the consumer's per-tick core, the loop buffer hand-off under a
+//! contending producer (against a lock-free crossbeam queue), and `run` end to end in
+//! virtual time.
+//!
+//! `cargo bench --bench runtime`
+
+use std::hint::black_box;
+use std::path::Path;
+
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use crossbeam::queue::ArrayQueue;
+
+use edmd::buffer::{BlockSource, Fetch, LoopBuffer, StepBlock, VecSource};
+use edmd::config::Config;
+use edmd::fine::{FineSettings, Interpolator};
+use edmd::gap::GapState;
+use edmd::geometry::MAX_AXES;
+use edmd::servo::Feeds;
+
+/// Ticks per measured batch.
+const TICKS: u64 = 10_000;
+
+fn settings(feed: f64) -> FineSettings {
+    FineSettings {
+        dt: 50e-6,
+        accel: 2400.0,
+        feeds: Feeds {
+            normal: feed,
+            open: feed,
+            retract: feed,
+        },
+        step_mm: [0.001; MAX_AXES],
+    }
+}
+
+/// Blocks of `len` steps along a direction using `axes` axes.
+fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
+    let mut at = [0i64; MAX_AXES];
+    (0..count)
+        .map(|seq| {
+            let mut end = at;
+            for (i, e) in end.iter_mut().enumerate().take(axes) {
+                *e += len * [7, -5, 3, 2, -1, 4][i] / 7;
+            }
+            let b = StepBlock {
+                seq,
+                start: at,
+                end,
+                length_mm: len as f64 * 0.001,
+                v_entry: 1e3,
+                v_exit: 1e3,
+                v_cruise: 1e3,
+                line: 1,
+                flags: 0,
+            };
+            at = end;
+            b
+        })
+        .collect()
+}
+
+/// A tick core warmed up to cruising speed on long blocks.
+fn cruising(feed: f64, axes: usize, block_len: i64) -> (Interpolator, VecSource) {
+    let mut source = VecSource::new(blocks(1000, block_len, axes), 256);
+    let mut fine = Interpolator::new(settings(feed), [0; MAX_AXES]);
+    for _ in 0..2000 {
+        fine.tick(GapState::Normal, &mut source);
+    }
+    (fine, source)
+}
+
+fn tick_core(c: &mut Criterion) {
+    let mut group = c.benchmark_group("tick");
+    group.throughput(Throughput::Elements(TICKS));
+    // 20 mm/s at 1 µm steps and 50 µs: one event (a step on every axis that moves) per tick.
+    for (name, feed, axes, len) in [
+        ("stepping 2 axes", 20.0, 2, 100_000),
+        ("stepping 6 axes", 20.0, 6, 100_000),
+        ("stepping, 20-step blocks", 20.0, 3, 20),
+        ("idle between steps (1 mm/s)", 1.0, 2, 100_000),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter_batched_ref(
+                || cruising(feed, axes, len),
+                |(fine, source)| {
+                    for _ in 0..TICKS {
+                        black_box(fine.tick(GapState::Normal, source));
+                    }
+                },
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    // Turning back over short blocks: the reserved area walked backwards.
+    group.bench_function("turning back, 20-step blocks", |b| {
+        b.iter_batched_ref(
+            || {
+                let (mut fine, mut source) = cruising(20.0, 3, 20);
+                for _ in 0..10 {
+                    fine.tick(GapState::Short, &mut source);
+                }
+                (fine, source)
+            },
+            |(fine, source)| {
+                for _ in 0..TICKS {
+                    black_box(fine.tick(GapState::Short, source));
+                }
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    group.finish();
+}
+
+/// Blocks handed from a producer thread to a consumer thread.
+const HANDOFF: u64 = 100_000;
+
+fn buffer_handoff(c: &mut Criterion) {
+    let mut group = c.benchmark_group("buffer hand-off");
+    group.throughput(Throughput::Elements(HANDOFF));
+    group.sample_size(20);
+    group.bench_function(
+        "LoopBuffer (parking_lot Mutex + Condvar), 1024 slots",
+        |b| {
+            b.iter(|| {
+                let buffer = LoopBuffer::new(1024, 256);
+                std::thread::scope(|s| {
+                    s.spawn(|| {
+                        for seq in 0..HANDOFF {
+                            buffer
+                                .push(&StepBlock {
+                                    seq,
+                                    ..StepBlock::EMPTY
+                                })
+                                .unwrap();
+                        }
+                        buffer.close();
+                    });
+                    let mut consumer = buffer.consumer(true);
+                    let mut out = StepBlock::EMPTY;
+                    let mut n = 0;
+                    while consumer.next(&mut out) == Fetch::Block {
+                        n += 1;
+                    }
+                    assert_eq!(n, HANDOFF);
+                });
+            })
+        },
+    );
+    // (Blocks are built from `StepBlock::EMPTY` inside the closures: capturing a local
+    // `StepBlock` in these nested closures trips an internal compiler error in rustc 1.95.)
+    // The alternative: a lock-free bounded queue for the data (the producer spins with a
+    // yield when full, the consumer when empty). It hands each block over once, so turn-back
+    // would need a second, consumer-side ring for the reserved area.
+    group.bench_function("crossbeam ArrayQueue (lock-free), 1024 slots", |b| {
+        b.iter(|| {
+            let queue = ArrayQueue::new(1024);
+            std::thread::scope(|s| {
+                s.spawn(|| {
+                    for seq in 0..HANDOFF {
+                        let mut item = StepBlock {
+                            seq,
+                            ..StepBlock::EMPTY
+                        };
+                        while let Err(back) = queue.push(item) {
+                            item = back;
+                            std::thread::yield_now();
+                        }
+                    }
+                });
+                let mut n = 0;
+                while n < HANDOFF {
+                    match queue.pop() {
+                        Some(b) => {
+                            black_box(b);
+                            n += 1
+                        }
+                        None => std::thread::yield_now(),
+                    }
+                }
+            });
+        })
+    });
+    // The consumer's cost per block when the buffer is full and the producer waits: one lock,
+    // one copy, one notify.
+    group.bench_function("consumer next() on a full buffer, uncontended", |b| {
+        b.iter_batched_ref(
+            || {
+                let buffer = LoopBuffer::new(HANDOFF as usize + 1, 256);
+                for seq in 0..HANDOFF {
+                    buffer.try_push(&StepBlock {
+                        seq,
+                        ..StepBlock::EMPTY
+                    });
+                }
+                buffer
+            },
+            |buffer| {
+                let mut consumer = buffer.consumer(false);
+                let mut out = StepBlock::EMPTY;
+                while consumer.next(&mut out) == Fetch::Block {}
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    group.finish();
+}
+
+fn end_to_end(c: &mut Criterion) {
+    let program = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/jin-table1-g06_2.nc");
+    let mut group = c.benchmark_group("run, virtual time");
+    group.sample_size(10);
+    for (name, feed) in [
+        ("at the step cap (1200 mm/min)", 1200.0),
+        ("EDM feed (60 mm/min)", 60.0),
+    ] {
+        let overrides: Vec<String> = [
+            "output.kind=null".to_string(),
+            "gap.kind=none".to_string(),
+            format!("servo.normal_feed_mm_per_min={feed}"),
+        ]
+        .into();
+        let config = Config::load(None, &overrides).unwrap();
+        let summary = edmd::runtime::run_job(&program, &config).unwrap();
+        let steps: u64 = summary.steps_per_axis.iter().sum();
+        group.throughput(Throughput::Elements(steps));
+        group.bench_function(format!("jin-table1-g06_2.nc, steps, {name}"), |b| {
+            b.iter(|| black_box(edmd::runtime::run_job(&program, &config).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, tick_core, buffer_handoff, end_to_end);
+criterion_main!(benches);
