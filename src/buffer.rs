@@ -152,8 +152,16 @@ impl Ring {
         self.tail - self.oldest == self.capacity()
     }
 
-    /// `Some(freed)` after completing the block in hand: frees the oldest reserved slot if the
-    /// reserved area outgrew its size.
+    /// Writes `block` at the tail (the caller checked there is a free slot).
+    fn write(&mut self, block: &StepBlock) {
+        let slot = self.slot(self.tail);
+        self.slots[slot] = *block;
+        self.tail += 1;
+        self.high_water = self.high_water.max(self.tail - self.oldest);
+    }
+
+    /// Completes the block in hand (if any) and copies out the next; the flag says whether
+    /// completing it freed the oldest reserved slot (the reserved area outgrew its size).
     fn next(&mut self, out: &mut StepBlock) -> (Fetch, bool) {
         let mut freed = false;
         if self.in_hand {
@@ -245,10 +253,7 @@ impl LoopBuffer {
         if ring.aborted {
             return Err(Aborted);
         }
-        let slot = ring.slot(ring.tail);
-        ring.slots[slot] = *block;
-        ring.tail += 1;
-        ring.high_water = ring.high_water.max(ring.tail - ring.oldest);
+        ring.write(block);
         drop(ring);
         self.data.notify_one();
         Ok(())
@@ -260,10 +265,7 @@ impl LoopBuffer {
         if ring.full() || ring.aborted {
             return false;
         }
-        let slot = ring.slot(ring.tail);
-        ring.slots[slot] = *block;
-        ring.tail += 1;
-        ring.high_water = ring.high_water.max(ring.tail - ring.oldest);
+        ring.write(block);
         drop(ring);
         self.data.notify_one();
         true
