@@ -338,56 +338,39 @@ impl BlockSource for Consumer<'_> {
     }
 }
 
-/// A [`BlockSource`] over a vector, with the loop buffer's reserved-area rule: the fine
-/// interpolator without threads, for tests and benches.
-#[derive(Debug, Clone)]
+/// A [`BlockSource`] over a vector, with the loop buffer's own ring and reserved-area rule:
+/// the fine interpolator without threads, for tests and benches.
+#[derive(Debug)]
 pub struct VecSource {
-    blocks: Vec<StepBlock>,
-    reserved: usize,
-    oldest: usize,
-    cursor: usize,
-    in_hand: bool,
+    ring: Ring,
 }
 
 impl VecSource {
     pub fn new(blocks: Vec<StepBlock>, reserved: usize) -> VecSource {
+        let tail = blocks.len() as u64;
         VecSource {
-            blocks,
-            reserved,
-            oldest: 0,
-            cursor: 0,
-            in_hand: false,
+            ring: Ring {
+                slots: blocks.into_boxed_slice(),
+                reserved: reserved as u64,
+                oldest: 0,
+                cursor: 0,
+                in_hand: false,
+                tail,
+                closed: true,
+                aborted: false,
+                high_water: tail,
+            },
         }
     }
 }
 
 impl BlockSource for VecSource {
     fn next(&mut self, out: &mut StepBlock) -> Fetch {
-        if self.in_hand {
-            self.cursor += 1;
-            self.in_hand = false;
-            if self.cursor - self.oldest > self.reserved {
-                self.oldest += 1;
-            }
-        }
-        match self.blocks.get(self.cursor) {
-            Some(block) => {
-                *out = *block;
-                self.in_hand = true;
-                Fetch::Block
-            }
-            None => Fetch::End,
-        }
+        self.ring.next(out).0
     }
 
     fn previous(&mut self, out: &mut StepBlock) -> bool {
-        if self.cursor == self.oldest {
-            return false;
-        }
-        self.cursor -= 1;
-        *out = self.blocks[self.cursor];
-        self.in_hand = true;
-        true
+        self.ring.previous(out)
     }
 }
 

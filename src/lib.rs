@@ -14,6 +14,7 @@ pub mod output;
 pub mod plan;
 pub mod plot;
 pub mod preprocess;
+pub mod rng;
 pub mod runtime;
 pub mod servo;
 pub mod sim;

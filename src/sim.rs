@@ -1,5 +1,6 @@
-//! The simulated EDM machine (`output.kind = "sim"`, `gap.kind = "sim"`): no hardware, a
-//! believable gap.
+//! The simulated EDM gap (`gap.kind = "sim"`): no hardware, a believable gap. (With
+//! `output.kind = "sim"` the simulated drives take every step: the position is the pulse
+//! ledger, so that output is [`crate::output::NullOutput`].)
 //!
 //! A one-dimensional model along the programmed path, the view the servo has of it:
 //!
@@ -23,42 +24,7 @@
 use crate::config::{Config, SimConfig};
 use crate::gap::{GapSensor, GapState};
 use crate::geometry::MAX_AXES;
-use crate::output::{OutputError, PulseOutput};
-
-/// `output.kind = "sim"`: the simulated machine's drives. They take every step; the position
-/// is the pulse ledger, and the gap model ([`SimGap`]) follows the same steps.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct SimOutput;
-
-impl PulseOutput for SimOutput {
-    fn write(&mut self, _: u64, _: &[i8; MAX_AXES], _: GapState) -> Result<(), OutputError> {
-        Ok(())
-    }
-
-    fn finish(&mut self) -> Result<(), OutputError> {
-        Ok(())
-    }
-}
-
-/// splitmix64: a small, fast, seedable generator; good enough for debris and reproducible
-/// everywhere (no dependency, no platform variation).
-#[derive(Debug, Clone, Copy)]
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use crate::rng::SplitMix64;
 
 /// `gap.kind = "sim"`: the closed-loop gap model.
 #[derive(Debug, Clone)]
@@ -90,7 +56,7 @@ impl SimGap {
         let params = config.sim.clone();
         SimGap {
             debris_per_tick: -(-params.debris_shorts_per_s * dt).exp_m1(),
-            rng: SplitMix64(params.seed),
+            rng: SplitMix64::new(params.seed),
             front: params.initial_gap_mm,
             params,
             step_mm,

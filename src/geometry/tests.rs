@@ -5,23 +5,7 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use super::*;
 
-/// splitmix64: a seeded generator so every random case is reproducible.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-}
+use crate::rng::SplitMix64 as Rng;
 
 fn fanuc_cubic() -> NurbsCurve {
     let pts = [
@@ -158,7 +142,7 @@ fn random_curve(rng: &mut Rng) -> RawCurve {
 
 #[test]
 fn matches_brute_force_cox_de_boor_on_random_curves() {
-    let mut rng = Rng(0xED3D_2026);
+    let mut rng = Rng::new(0xED3D_2026);
     let mut checked = 0;
     for _ in 0..300 {
         let raw = random_curve(&mut rng);
@@ -246,7 +230,7 @@ fn assert_on_circle(c: &NurbsCurve, center: &Point, r: f64, plane: [usize; 2]) {
 
 #[test]
 fn arcs_lie_exactly_on_their_circle_in_every_plane_and_sweep() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     for plane in [[0, 1], [2, 0], [1, 2]] {
         for sweep in [
             FRAC_PI_2,

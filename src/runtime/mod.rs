@@ -243,7 +243,8 @@ type BoxedGap = Box<dyn GapSensor + Send>;
 
 fn open_output(config: &Config) -> Result<BoxedOutput, JobError> {
     Ok(match config.output.kind {
-        OutputKind::Null => Box::new(NullOutput),
+        // The simulated drives take every step and report nothing: the ledger is their position.
+        OutputKind::Null | OutputKind::Sim => Box::new(NullOutput),
         OutputKind::File => Box::new(PulseLog::create(
             &config.output.path,
             &PulseLogHeader {
@@ -253,7 +254,6 @@ fn open_output(config: &Config) -> Result<BoxedOutput, JobError> {
                 start: vec![0; config.machine.axes.len()],
             },
         )?),
-        OutputKind::Sim => Box::new(crate::sim::SimOutput),
         OutputKind::Parport => {
             return Err(JobError::Unsupported(
                 "output.kind = \"parport\": the parallel port output is not built yet \
