@@ -178,12 +178,34 @@ pub struct FineConfig {
 pub struct OutputConfig {
     pub kind: OutputKind,
     pub path: PathBuf,
+    /// Log the output's state changes.
+    pub trace: bool,
+    /// Fail every write from this tick on (testing aid).
+    pub fault_at_tick: Option<u64>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct GapConfig {
     pub kind: GapKind,
     pub script: PathBuf,
+    /// Log the gap state's changes.
+    pub trace: bool,
+}
+
+/// The parallel port (`[parport]`): pins are DB-25 pin numbers, times in ns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParportConfig {
+    pub step_pins: Vec<u8>,
+    pub dir_pins: Vec<u8>,
+    pub enable_pin: Option<u8>,
+    pub invert_pins: Vec<u8>,
+    pub step_length_ns: u64,
+    pub step_space_ns: u64,
+    pub dir_setup_ns: u64,
+    pub dir_hold_ns: u64,
+    pub short_pin: Option<u8>,
+    pub open_pin: Option<u8>,
+    pub gap_filter_ticks: u32,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -201,8 +223,12 @@ pub struct SimConfig {
     pub short_gap_mm: f64,
     pub open_gap_mm: f64,
     pub erosion_mm_per_s: f64,
+    /// Debris shorts placed along the program's path.
+    pub debris_shorts: u32,
     pub debris_shorts_per_s: f64,
     pub debris_clear_mm: f64,
+    /// Scripted events file.
+    pub events: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -227,6 +253,7 @@ pub struct Config {
     pub fine: FineConfig,
     pub output: OutputConfig,
     pub gap: GapConfig,
+    pub parport: ParportConfig,
     pub servo: ServoConfig,
     pub sim: SimConfig,
     pub daemon: DaemonConfig,
@@ -297,6 +324,7 @@ struct RawConfig {
     fine: RawFine,
     output: RawOutput,
     gap: RawGap,
+    parport: RawParport,
     servo: RawServo,
     sim: RawSim,
     daemon: RawDaemon,
@@ -348,6 +376,8 @@ struct RawFine {
 struct RawOutput {
     kind: OutputKind,
     path: String,
+    trace: bool,
+    fault_at_tick: i64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -355,6 +385,23 @@ struct RawOutput {
 struct RawGap {
     kind: GapKind,
     script: String,
+    trace: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawParport {
+    step_pins: Vec<i64>,
+    dir_pins: Vec<i64>,
+    enable_pin: i64,
+    invert_pins: Vec<i64>,
+    step_length_ns: i64,
+    step_space_ns: i64,
+    dir_setup_ns: i64,
+    dir_hold_ns: i64,
+    short_pin: i64,
+    open_pin: i64,
+    gap_filter_ticks: i64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -373,8 +420,10 @@ struct RawSim {
     short_gap_um: f64,
     open_gap_um: f64,
     erosion_mm_per_min: f64,
+    debris_shorts: i64,
     debris_shorts_per_s: f64,
     debris_clear_um: f64,
+    events: String,
 }
 
 #[derive(Debug, Deserialize)]
@@ -548,6 +597,16 @@ impl RawConfig {
         let output = OutputConfig {
             kind: self.output.kind,
             path: non_empty("output.path", self.output.path)?,
+            trace: self.output.trace,
+            fault_at_tick: match in_range(
+                "output.fault_at_tick",
+                self.output.fault_at_tick,
+                0,
+                i64::MAX,
+            )? {
+                0 => None,
+                tick => Some(tick as u64),
+            },
         };
         if output.kind == OutputKind::Parport && fine.virtual_time {
             return Err((
@@ -559,6 +618,7 @@ impl RawConfig {
         let gap = GapConfig {
             kind: self.gap.kind,
             script: non_empty("gap.script", self.gap.script)?,
+            trace: self.gap.trace,
         };
         if gap.kind == GapKind::Parport && output.kind != OutputKind::Parport {
             return Err((
@@ -567,6 +627,8 @@ impl RawConfig {
                     .to_string(),
             ));
         }
+
+        let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
 
         let s = self.servo;
         let servo = ServoConfig {
@@ -603,8 +665,10 @@ impl RawConfig {
             short_gap_mm: short_gap / 1000.0,
             open_gap_mm: open_gap / 1000.0,
             erosion_mm_per_s: positive("sim.erosion_mm_per_min", m.erosion_mm_per_min)? / 60.0,
+            debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
             debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
             debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um)? / 1000.0,
+            events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
         };
         let d = self.daemon;
         let daemon = DaemonConfig {
@@ -623,11 +687,152 @@ impl RawConfig {
             fine,
             output,
             gap,
+            parport,
             servo,
             sim,
             daemon,
             log,
         })
+    }
+}
+
+impl RawParport {
+    /// Pins must exist and be of the right kind, and no pin may carry two signals, whatever
+    /// the output; the number of axes and the timing against the tick only matter when the
+    /// port is in use (a simulation with a short tick must not trip over the port's timing).
+    fn validate(
+        self,
+        machine: &MachineConfig,
+        fine: &FineConfig,
+        output: &OutputConfig,
+        gap: &GapConfig,
+    ) -> Result<ParportConfig, Invalid> {
+        use crate::parport::pins::{is_input_pin, is_output_pin};
+        const OUTPUTS: &str = "an output pin: 1-9, 14, 16 or 17";
+        const INPUTS: &str = "an input pin: 10, 11, 12, 13 or 15";
+        let output_pin = |key: &'static str, pin: i64| {
+            if is_output_pin(pin) {
+                Ok(pin as u8)
+            } else {
+                Err((key, format!("{pin} is not {OUTPUTS}")))
+            }
+        };
+        let optional = |key: &'static str, pin: i64, ok: fn(i64) -> bool, what: &str| match pin {
+            0 => Ok(None),
+            p if ok(p) => Ok(Some(p as u8)),
+            p => Err((key, format!("{p} is not {what} (or 0 for none)"))),
+        };
+        let step_pins = self
+            .step_pins
+            .iter()
+            .map(|&p| output_pin("parport.step_pins", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let dir_pins = self
+            .dir_pins
+            .iter()
+            .map(|&p| output_pin("parport.dir_pins", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let enable_pin = optional(
+            "parport.enable_pin",
+            self.enable_pin,
+            is_output_pin,
+            OUTPUTS,
+        )?;
+        let short_pin = optional("parport.short_pin", self.short_pin, is_input_pin, INPUTS)?;
+        let open_pin = optional("parport.open_pin", self.open_pin, is_input_pin, INPUTS)?;
+        let mut seen: Vec<(u8, &'static str)> = Vec::new();
+        let signals = step_pins
+            .iter()
+            .map(|&p| (p, "parport.step_pins"))
+            .chain(dir_pins.iter().map(|&p| (p, "parport.dir_pins")))
+            .chain(enable_pin.map(|p| (p, "parport.enable_pin")))
+            .chain(short_pin.map(|p| (p, "parport.short_pin")))
+            .chain(open_pin.map(|p| (p, "parport.open_pin")));
+        for (pin, key) in signals {
+            if let Some((_, first)) = seen.iter().find(|(p, _)| *p == pin) {
+                return Err((key, format!("pin {pin} is already used by {first}")));
+            }
+            seen.push((pin, key));
+        }
+        let mut invert_pins = Vec::with_capacity(self.invert_pins.len());
+        for &pin in &self.invert_pins {
+            if !is_output_pin(pin) && !is_input_pin(pin) {
+                return Err((
+                    "parport.invert_pins",
+                    format!("{pin} is not a signal pin (1-17; 18-25 are ground)"),
+                ));
+            }
+            if invert_pins.contains(&(pin as u8)) {
+                return Err(("parport.invert_pins", format!("pin {pin} is listed twice")));
+            }
+            invert_pins.push(pin as u8);
+        }
+        let ns = |key: &'static str, v: i64| in_range(key, v, 0, 1_000_000_000).map(|v| v as u64);
+        let p = ParportConfig {
+            step_pins,
+            dir_pins,
+            enable_pin,
+            invert_pins,
+            step_length_ns: in_range(
+                "parport.step_length_ns",
+                self.step_length_ns,
+                1,
+                1_000_000_000,
+            )? as u64,
+            step_space_ns: ns("parport.step_space_ns", self.step_space_ns)?,
+            dir_setup_ns: ns("parport.dir_setup_ns", self.dir_setup_ns)?,
+            dir_hold_ns: ns("parport.dir_hold_ns", self.dir_hold_ns)?,
+            short_pin,
+            open_pin,
+            gap_filter_ticks: in_range("parport.gap_filter_ticks", self.gap_filter_ticks, 1, 1000)?
+                as u32,
+        };
+        if output.kind == OutputKind::Parport {
+            let axes = machine.axes.len();
+            for (key, pins) in [
+                ("parport.step_pins", &p.step_pins),
+                ("parport.dir_pins", &p.dir_pins),
+            ] {
+                if pins.len() < axes {
+                    return Err((
+                        key,
+                        format!(
+                            "has {} pins but machine.axes has {axes} axes; give one pin per axis",
+                            pins.len()
+                        ),
+                    ));
+                }
+            }
+            let timing = crate::parport::StepTiming {
+                step_length_ns: p.step_length_ns,
+                step_space_ns: p.step_space_ns,
+                dir_setup_ns: p.dir_setup_ns,
+                dir_hold_ns: p.dir_hold_ns,
+            };
+            let tick_ns = fine.tick_us as u64 * 1000;
+            if timing.min_tick_ns() > tick_ns {
+                return Err((
+                    "fine.tick_us",
+                    format!(
+                        "{} µs is too short for the drives' step timing: dir_setup_ns + \
+                         step_length_ns + dir_hold_ns = {} ns and step_length_ns + step_space_ns \
+                         = {} ns must both fit in one tick; raise fine.tick_us to at least {} or \
+                         shorten the [parport] times",
+                        fine.tick_us,
+                        p.dir_setup_ns + p.step_length_ns + p.dir_hold_ns,
+                        p.step_length_ns + p.step_space_ns,
+                        timing.min_tick_ns().div_ceil(1000)
+                    ),
+                ));
+            }
+        }
+        if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
+            return Err((
+                "parport.short_pin",
+                "gap.kind = \"parport\" needs parport.short_pin or parport.open_pin".to_string(),
+            ));
+        }
+        Ok(p)
     }
 }
 

@@ -1,14 +1,17 @@
 //! Gap inputs: where the consumer learns whether the electrode is sparking, open or shorted.
 //!
 //! A [`GapSensor`] is sampled once per tick by the consumer's thread loop (never by the tick
-//! core, which gets the state as a value). Sources: [`AlwaysNormal`] (`gap.kind = "none"`) and
-//! [`ScriptGap`] (`gap.kind = "script"`, a file of `TICK STATE` lines). The parallel port's
-//! status pins and the closed-loop simulator are issue [4/6].
+//! core, which gets the state as a value). Sources: [`AlwaysNormal`] (`gap.kind = "none"`),
+//! [`ScriptGap`] (`gap.kind = "script"`, a file of `TICK STATE` lines), the closed-loop
+//! simulator ([`crate::sim::SimGap`], `"sim"`) and the parallel port's status pins
+//! ([`crate::parport::ParportGap`], `"parport"`). The tracer
+//! ([`crate::trace::TracedGap`]) wraps any of them.
 
 mod script;
 
 use crate::geometry::MAX_AXES;
 
+pub(crate) use script::words;
 pub use script::{ScriptError, ScriptGap};
 
 /// The state of the spark gap.
@@ -42,10 +45,22 @@ impl GapState {
     }
 }
 
+/// A gap input that failed mid-job (a device that stopped answering).
+#[derive(Debug, thiserror::Error)]
+pub enum GapError {
+    #[error("{path}: cannot read the gap input (status pins): {source}")]
+    Device {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
 /// A source of gap states, sampled once per tick.
 pub trait GapSensor {
-    /// The gap state for tick `tick` (ticks come in increasing order).
-    fn sample(&mut self, tick: u64) -> GapState;
+    /// The gap state for tick `tick` (ticks come in increasing order). An error stops the
+    /// job where it is.
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError>;
 
     /// The steps the tick took (-1, 0, 1 per axis) and the direction of its event along the
     /// program (1 forward, -1 turn-back, 0 none). A simulated gap moves its electrode here;
@@ -58,13 +73,13 @@ pub trait GapSensor {
 pub struct AlwaysNormal;
 
 impl GapSensor for AlwaysNormal {
-    fn sample(&mut self, _tick: u64) -> GapState {
-        GapState::Normal
+    fn sample(&mut self, _tick: u64) -> Result<GapState, GapError> {
+        Ok(GapState::Normal)
     }
 }
 
 impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
-    fn sample(&mut self, tick: u64) -> GapState {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
         (**self).sample(tick)
     }
 

@@ -13,14 +13,16 @@
 
 use std::path::Path;
 
-use super::{GapSensor, GapState};
+use super::{GapError, GapSensor, GapState};
 
 /// A gap script that could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum ScriptError {
-    #[error("{path}: cannot read the gap script: {source}")]
+    /// `what`: which file ("gap script", "sim events file").
+    #[error("{path}: cannot read the {what}: {source}")]
     Io {
         path: String,
+        what: &'static str,
         #[source]
         source: std::io::Error,
     },
@@ -31,6 +33,27 @@ pub enum ScriptError {
         col: usize,
         message: String,
     },
+}
+
+/// The whitespace-separated words of a script line (comment already cut), each with its
+/// 1-based column in characters.
+pub(crate) fn words(content: &str) -> Vec<(usize, &str)> {
+    let mut words = Vec::with_capacity(3);
+    let mut start = None;
+    for (at, c) in content
+        .char_indices()
+        .chain(std::iter::once((content.len(), ' ')))
+    {
+        match (c.is_whitespace(), start) {
+            (false, None) => start = Some(at),
+            (true, Some(from)) => {
+                words.push((content[..from].chars().count() + 1, &content[from..at]));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    words
 }
 
 /// A parsed gap script, replayed against the tick count.
@@ -46,6 +69,7 @@ impl ScriptGap {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
             path: name.clone(),
+            what: "gap script",
             source,
         })?;
         ScriptGap::parse(&text, &name)
@@ -63,25 +87,7 @@ impl ScriptGap {
                 col,
                 message,
             };
-            let mut words = Vec::with_capacity(2);
-            let mut chars = content.char_indices().peekable();
-            while let Some(&(at, c)) = chars.peek() {
-                if c.is_whitespace() {
-                    chars.next();
-                    continue;
-                }
-                let start = at;
-                let mut end = at;
-                while let Some(&(i, c)) = chars.peek() {
-                    if c.is_whitespace() {
-                        break;
-                    }
-                    end = i + c.len_utf8();
-                    chars.next();
-                }
-                let col = content[..start].chars().count() + 1;
-                words.push((col, &content[start..end]));
-            }
+            let words = words(content);
             match words.as_slice() {
                 [] => continue,
                 [(col, tick), (state_col, state)] => {
@@ -141,7 +147,7 @@ impl ScriptGap {
 
 impl GapSensor for ScriptGap {
     /// Ticks are expected in increasing order (the consumer's order).
-    fn sample(&mut self, tick: u64) -> GapState {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
         while let Some(&(at, state)) = self.changes.get(self.next) {
             if at > tick {
                 break;
@@ -149,7 +155,7 @@ impl GapSensor for ScriptGap {
             self.state = state;
             self.next += 1;
         }
-        self.state
+        Ok(self.state)
     }
 }
 
@@ -163,7 +169,7 @@ mod tests {
             ScriptGap::parse("# test\n10 short\n\n20 open # comment\n20 normal\n", "g").unwrap();
         let states: Vec<_> = [0, 9, 10, 19, 20, 1000]
             .into_iter()
-            .map(|t| gap.sample(t))
+            .map(|t| gap.sample(t).unwrap())
             .collect();
         use GapState::*;
         assert_eq!(states, [Normal, Normal, Short, Short, Normal, Normal]);

@@ -1,13 +1,23 @@
 //! Pulse outputs: where the consumer's steps go.
 //!
 //! A [`PulseOutput`] receives every tick's signed steps (at most one per axis) with the gap
-//! state of that tick, from the consumer's thread loop. Outputs here: [`PulseLog`]
-//! (`output.kind = "file"`, the CSV pulse log of `design.md`) and [`NullOutput`]
-//! (`"null"`: steps are counted by the ledger and go nowhere). The parallel port and the
-//! closed-loop simulator are issue [4/6].
+//! state of that tick, from the consumer's thread loop. Outputs: [`PulseLog`]
+//! (`output.kind = "file"`, the CSV pulse log of `design.md`), [`NullOutput`] (`"null"`, and
+//! `"sim"`: the simulated drives take every step, so the pulse ledger is their position) and
+//! the parallel port ([`crate::parport::ParportOutput`]).
+//!
+//! Wrappers that work around any output: [`FaultInjector`] (`output.fault_at_tick`, a device
+//! that dies mid-job) and the tracer ([`crate::trace::TracedOutput`]).
+//!
+//! **The contract of a failed write.** A write that returns an error has not taken the tick's
+//! steps, unless the error says so ([`OutputError::step_taken`]): a port that fails after
+//! the step edge went out has moved the drives. The runtime keeps its position ledger equal
+//! to what the drives received on that basis.
 
+mod fault;
 mod pulse_log;
 
+pub use fault::FaultInjector;
 pub use pulse_log::{PulseLog, PulseLogHeader, PulseLogRow, read_pulse_log};
 
 use crate::gap::GapState;
@@ -22,6 +32,33 @@ pub enum OutputError {
         #[source]
         source: std::io::Error,
     },
+    /// A hardware output failed; `phase` says during which write of the tick.
+    #[error("{path}: write failed while {phase}: {source}")]
+    Device {
+        path: String,
+        phase: &'static str,
+        /// The step edge went out before the failure: the drives took the tick's steps.
+        step_taken: bool,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "injected fault at tick {tick} (output.fault_at_tick): the output refuses every write from here on"
+    )]
+    Injected { tick: u64 },
+}
+
+impl OutputError {
+    /// Whether the drives took the failed tick's steps anyway.
+    pub fn step_taken(&self) -> bool {
+        matches!(
+            self,
+            OutputError::Device {
+                step_taken: true,
+                ..
+            }
+        )
+    }
 }
 
 /// A destination for step pulses.

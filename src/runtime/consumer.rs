@@ -27,7 +27,7 @@ use super::latency::LatencyHistogram;
 use super::sys;
 use crate::buffer::BlockSource;
 use crate::fine::Interpolator;
-use crate::gap::GapSensor;
+use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
 use crate::servo::ServoEvent;
@@ -112,6 +112,11 @@ pub struct LoopReport {
     pub wall_ns: u64,
     /// The output failed; the loop stopped at once.
     pub output_error: Option<OutputError>,
+    /// The failed write's tick did not reach the drives: its steps and event direction, to
+    /// take back out of the interpolator's ledger.
+    pub untaken: Option<([i8; MAX_AXES], i8)>,
+    /// The gap input failed; the loop stopped before that tick moved anything.
+    pub gap_error: Option<GapError>,
     /// The supervisor asked the loop to stop.
     pub stopped: bool,
     /// Real-time features the system refused, with the reason.
@@ -203,6 +208,8 @@ where
         missed_deadlines: 0,
         wall_ns: 0,
         output_error: None,
+        untaken: None,
+        gap_error: None,
         stopped: false,
         rt_refused: realtime.refused.clone(),
     };
@@ -216,9 +223,18 @@ where
             let woke = sys::monotonic_ns();
             histogram.record(woke.saturating_sub(deadline));
         }
-        let gap = sensor.sample(tick_no);
+        let gap = match sensor.sample(tick_no) {
+            Ok(gap) => gap,
+            Err(e) => {
+                report.gap_error = Some(e);
+                break;
+            }
+        };
         let tick = fine.tick(gap, source);
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
+            if !e.step_taken() && tick.moved() {
+                report.untaken = Some((tick.steps, tick.dir));
+            }
             report.output_error = Some(e);
             tick_no += 1;
             break;

@@ -22,6 +22,7 @@ pub mod producer;
 pub mod sys;
 
 use std::path::Path;
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
@@ -33,8 +34,12 @@ use crate::fine::{FineSettings, Interpolator};
 use crate::gap::{AlwaysNormal, GapSensor, ScriptError, ScriptGap};
 use crate::gcode::{self, GcodeError};
 use crate::geometry::MAX_AXES;
-use crate::output::{NullOutput, OutputError, PulseLog, PulseLogHeader, PulseOutput};
+use crate::output::{
+    FaultInjector, NullOutput, OutputError, PulseLog, PulseLogHeader, PulseOutput,
+};
+use crate::parport::ParportError;
 use crate::servo::{ServoEvent, ServoState};
+use crate::trace::{TraceEvent, TraceRecord, TracedGap, TracedOutput, Tracer};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published};
 pub use latency::{LatencyHistogram, LatencySummary};
@@ -51,8 +56,8 @@ pub enum JobError {
     GapScript(#[from] ScriptError),
     #[error(transparent)]
     Output(#[from] OutputError),
-    #[error("{0}")]
-    Unsupported(String),
+    #[error(transparent)]
+    Parport(#[from] ParportError),
 }
 
 /// How a job ended.
@@ -65,6 +70,8 @@ pub enum Outcome {
     Alarm,
     /// The pulse output failed: stopped at once.
     OutputError,
+    /// The gap input failed: stopped at once.
+    GapError,
     /// The producer failed part-way (the program changed after the check, or a position out of
     /// range): the consumer executed what it had and stopped.
     ProducerError,
@@ -78,6 +85,7 @@ impl Outcome {
             Outcome::Done => "done",
             Outcome::Alarm => "alarm",
             Outcome::OutputError => "output error",
+            Outcome::GapError => "gap input error",
             Outcome::ProducerError => "producer error",
             Outcome::Stopped => "stopped",
         }
@@ -122,6 +130,8 @@ pub struct JobSummary {
     pub buffer_capacity: u64,
     pub buffer_high_water: u64,
     pub events_dropped: u64,
+    /// Trace records dropped because the logger fell behind (real time only).
+    pub trace_dropped: u64,
     /// Real-time features the system refused.
     pub rt_refused: Vec<String>,
 }
@@ -203,20 +213,33 @@ impl JobSummary {
 }
 
 /// What the check before the job found.
-#[derive(Debug, Clone, Copy)]
-struct Precheck {
-    blocks: u64,
-    end_steps: [i64; MAX_AXES],
+#[derive(Debug, Clone)]
+pub struct Precheck {
+    pub blocks: u64,
+    pub end_steps: [i64; MAX_AXES],
+    /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
+    /// length from the program's start. Measured for the simulated gap only.
+    pub cutting_spans: Vec<(f64, f64)>,
 }
 
 /// Parses the whole program and checks every end point fits a step counter.
-fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
+pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
     let mut reader = gcode::open_program(program, &config.machine.axes)?;
     let mut blocks = 0;
     let mut end_steps = [0; MAX_AXES];
+    let mut path_mm = 0.0;
+    let mut cutting_spans = Vec::new();
+    let measure = config.gap.kind == GapKind::Sim;
     for item in reader.by_ref() {
         let block = item?;
         blocks += 1;
+        if measure {
+            let length = block.curve.length();
+            if block.kind != gcode::BlockKind::Rapid {
+                cutting_spans.push((path_mm, path_mm + length));
+            }
+            path_mm += length;
+        }
         end_steps =
             to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
                 ProducerError::OutOfRange {
@@ -235,48 +258,73 @@ fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
             tracing::warn!("{}:{}:{}: {}", program.display(), w.line, w.col, w.message);
         }
     }
-    Ok(Precheck { blocks, end_steps })
+    Ok(Precheck {
+        blocks,
+        end_steps,
+        cutting_spans,
+    })
 }
 
-type BoxedOutput = Box<dyn PulseOutput + Send>;
-type BoxedGap = Box<dyn GapSensor + Send>;
+pub type BoxedOutput = Box<dyn PulseOutput + Send>;
+pub type BoxedGap = Box<dyn GapSensor + Send>;
 
-fn open_output(config: &Config) -> Result<BoxedOutput, JobError> {
-    Ok(match config.output.kind {
+/// Opens the output and the gap source of `config`, with the fault injector and the tracer
+/// when configured: everything that can fail at startup fails here, before anything moves.
+pub fn open_io(
+    config: &Config,
+    check: &Precheck,
+    tracer: Option<&Arc<Tracer>>,
+) -> Result<(BoxedOutput, BoxedGap), JobError> {
+    let (mut output, mut gap): (BoxedOutput, Option<BoxedGap>) = match config.output.kind {
         // The simulated drives take every step and report nothing: the ledger is their position.
-        OutputKind::Null | OutputKind::Sim => Box::new(NullOutput),
-        OutputKind::File => Box::new(PulseLog::create(
-            &config.output.path,
-            &PulseLogHeader {
-                axes: config.machine.axes.clone(),
-                step_mm: config.machine.step_mm.clone(),
-                tick_us: config.fine.tick_us,
-                start: vec![0; config.machine.axes.len()],
-            },
-        )?),
+        OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
+        OutputKind::File => (
+            Box::new(PulseLog::create(
+                &config.output.path,
+                &PulseLogHeader {
+                    axes: config.machine.axes.clone(),
+                    step_mm: config.machine.step_mm.clone(),
+                    tick_us: config.fine.tick_us,
+                    start: vec![0; config.machine.axes.len()],
+                },
+            )?),
+            None,
+        ),
         OutputKind::Parport => {
-            return Err(JobError::Unsupported(
-                "output.kind = \"parport\": the parallel port output is not built yet \
-                 (issue [4/6]); use \"sim\", \"file\" or \"null\""
-                    .to_string(),
-            ));
+            let (output, gap) = crate::parport::open(config)?;
+            let gap: BoxedGap = Box::new(gap);
+            (
+                Box::new(output),
+                (config.gap.kind == GapKind::Parport).then_some(gap),
+            )
         }
-    })
-}
-
-fn open_gap(config: &Config) -> Result<BoxedGap, JobError> {
-    Ok(match config.gap.kind {
-        GapKind::None => Box::new(AlwaysNormal),
-        GapKind::Script => Box::new(ScriptGap::load(&config.gap.script)?),
-        GapKind::Sim => Box::new(crate::sim::SimGap::from_config(config)),
-        GapKind::Parport => {
-            return Err(JobError::Unsupported(
-                "gap.kind = \"parport\": the parallel port input is not built yet (issue [4/6]); \
-                 use \"sim\", \"script\" or \"none\""
-                    .to_string(),
-            ));
+    };
+    if gap.is_none() {
+        gap = Some(match config.gap.kind {
+            GapKind::None => Box::new(AlwaysNormal),
+            GapKind::Script => Box::new(ScriptGap::load(&config.gap.script)?),
+            GapKind::Sim => Box::new(crate::sim::SimGap::from_config(
+                config,
+                &check.cutting_spans,
+            )?),
+            // The configuration only allows it with the parport output, opened above.
+            GapKind::Parport => unreachable!("gap.kind = parport without output.kind = parport"),
+        });
+    }
+    let mut gap = gap.unwrap_or_else(|| Box::new(AlwaysNormal));
+    if let Some(tick) = config.output.fault_at_tick {
+        tracing::warn!("output.fault_at_tick = {tick}: the output will fail at that tick");
+        output = Box::new(FaultInjector::new(output, tick));
+    }
+    if let Some(tracer) = tracer {
+        if config.output.trace {
+            output = Box::new(TracedOutput::new(output, tracer.clone()));
         }
-    })
+        if config.gap.trace {
+            gap = Box::new(TracedGap::new(gap, tracer.clone()));
+        }
+    }
+    Ok((output, gap))
 }
 
 /// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
@@ -315,21 +363,51 @@ fn log_event(program: &str, record: &EventRecord, tick_s: f64) {
     }
 }
 
+/// Logs one trace record (from the main thread).
+fn log_trace(config: &Config, record: &TraceRecord, tick_s: f64) {
+    let t = record.tick as f64 * tick_s;
+    let tick = record.tick;
+    match record.event {
+        TraceEvent::Gap { from, to } => tracing::info!(
+            target: "edmd::trace",
+            "t={t:.5} s (tick {tick}): gap {} -> {}",
+            from.map_or("(first reading)", |f| f.name()),
+            to.name()
+        ),
+        TraceEvent::Direction { axis, positive } => tracing::info!(
+            target: "edmd::trace",
+            "t={t:.5} s (tick {tick}): axis {} now steps {}",
+            config.machine.axes[axis as usize].letter(),
+            if positive { "+" } else { "-" }
+        ),
+        TraceEvent::WriteFailed => tracing::info!(
+            target: "edmd::trace",
+            "t={t:.5} s (tick {tick}): output write failed"
+        ),
+    }
+}
+
 /// Runs `program` through both threads with the output and gap source of `config`.
 pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
     let check = precheck(program, config)?;
-    let mut output = open_output(config)?;
-    let mut gap = open_gap(config)?;
-    run_job_with(program, config, check, &mut output, &mut gap)
+    let tracer = (config.output.trace || config.gap.trace)
+        .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
+    let (output, gap) = open_io(config, &check, tracer.as_ref())?;
+    run_job_on(program, config, &check, output, gap, tracer)
 }
 
-fn run_job_with(
+/// Runs `program` (already checked: `check`) through both threads with the given output and
+/// gap source; `tracer` is drained and logged while the job runs.
+pub fn run_job_on(
     program: &Path,
     config: &Config,
-    check: Precheck,
-    output: &mut BoxedOutput,
-    gap: &mut BoxedGap,
+    check: &Precheck,
+    mut output: BoxedOutput,
+    mut gap: BoxedGap,
+    tracer: Option<Arc<Tracer>>,
 ) -> Result<JobSummary, JobError> {
+    let output = &mut output;
+    let gap = &mut gap;
     let name = program.display().to_string();
     let cap = fine_speed_cap(config);
     if config.machine.max_feed_mm_per_min / 60.0 > cap {
@@ -380,15 +458,19 @@ fn run_job_with(
                 (fine, report, finished)
             })
             .expect("spawning the fine interpolation thread");
-        while !consumer.is_finished() {
+        let drain = || {
             while let Some(record) = published.events.pop() {
                 log_event(&name, &record, tick_s);
             }
+            if let Some(tracer) = &tracer {
+                tracer.drain(|record| log_trace(config, record, tick_s));
+            }
+        };
+        while !consumer.is_finished() {
+            drain();
             std::thread::park_timeout(Duration::from_millis(10));
         }
-        while let Some(record) = published.events.pop() {
-            log_event(&name, &record, tick_s);
-        }
+        drain();
         let consumer = consumer
             .join()
             .expect("the fine interpolation thread panicked");
@@ -396,10 +478,25 @@ fn run_job_with(
         (producer, consumer)
     });
 
-    let counters = fine.counters();
-    let position = fine.position();
+    let mut counters = fine.counters();
+    let mut position = fine.position();
+    // A tick whose write failed before its step edge never reached the drives: the ledger
+    // is what they received.
+    if let Some((steps, dir)) = report.untaken {
+        for (axis, &s) in steps.iter().enumerate() {
+            position[axis] -= s as i64;
+            counters.pulses[axis] -= s.unsigned_abs() as u64;
+        }
+        if dir > 0 {
+            counters.events_forward -= 1;
+        } else {
+            counters.events_backward -= 1;
+        }
+    }
     let axes = config.machine.axes.len();
-    let (outcome, error) = if let Some(e) = report.output_error.as_ref() {
+    let (outcome, error) = if let Some(e) = report.gap_error.as_ref() {
+        (Outcome::GapError, Some(e.to_string()))
+    } else if let Some(e) = report.output_error.as_ref() {
         (Outcome::OutputError, Some(e.to_string()))
     } else if let Err(e) = finished {
         (Outcome::OutputError, Some(e.to_string()))
@@ -454,6 +551,7 @@ fn run_job_with(
         buffer_capacity: config.buffer.capacity as u64,
         buffer_high_water: buffer.areas().high_water,
         events_dropped: published.events_dropped.load(Ordering::Relaxed),
+        trace_dropped: tracer.as_ref().map_or(0, |t| t.dropped()),
         rt_refused: report.rt_refused,
     })
 }

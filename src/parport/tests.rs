@@ -1,0 +1,314 @@
+//! The port's byte-level behaviour through the recording fake: pin map, inversions, the
+//! order and timing of direction, step and release, writes only on change, the safe state
+//! on drop, and the gap input.
+
+use proptest::prelude::*;
+
+use super::fake::{Bench, RecordingPort, VirtualClock};
+use super::pins::{OUTPUT_PINS, Pin, PinLevels, PinMap, StepTiming};
+use super::*;
+
+const TIMING: StepTiming = StepTiming {
+    step_length_ns: 5_000,
+    step_space_ns: 5_000,
+    dir_setup_ns: 20_000,
+    dir_hold_ns: 20_000,
+};
+const TICK_NS: u64 = 50_000;
+
+fn stepconf_map(axes: usize, inverted: &[Pin]) -> PinMap {
+    PinMap {
+        axes,
+        step: [2, 4, 6, 8, 0, 0],
+        dir: [3, 5, 7, 9, 0, 0],
+        enable: Some(14),
+        inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
+        short: Some(10),
+        open: Some(11),
+    }
+}
+
+type FakeOutput = ParportOutput<RecordingPort, VirtualClock>;
+
+fn output(bench: &Bench, map: PinMap, timing: StepTiming) -> FakeOutput {
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    ParportOutput::new(port, map, timing, bench.clock(), "fake").unwrap()
+}
+
+/// Runs `ticks` through a fresh output; returns the bench and the idle levels.
+fn drive(map: &PinMap, timing: StepTiming, tick_ns: u64, ticks: &[[i8; MAX_AXES]]) -> Bench {
+    let bench = Bench::new();
+    let mut out = output(&bench, map.clone(), timing);
+    for (k, steps) in ticks.iter().enumerate() {
+        bench.set_now(k as u64 * tick_ns);
+        out.write(k as u64, steps, GapState::Normal).unwrap();
+    }
+    bench.set_now(ticks.len() as u64 * tick_ns);
+    drop(out);
+    bench
+}
+
+/// What a drive on each axis sees: its step pulses (start, end, direction level at the edge)
+/// and its direction changes; checked against every timing rule on the way.
+#[derive(Debug, Default)]
+struct AxisTrace {
+    /// Signed steps, in order.
+    steps: Vec<i8>,
+}
+
+fn check_waveform(
+    map: &PinMap,
+    timing: StepTiming,
+    bench: &Bench,
+) -> Result<Vec<AxisTrace>, TestCaseError> {
+    let idle = map.idle();
+    let wave = bench.waveform(idle);
+    // Only changed registers are written.
+    let writes = bench.writes();
+    let (mut data, mut control) = (idle.data_register(), idle.control_register());
+    for w in &writes {
+        let shadow = match w.register {
+            fake::Register::Data => &mut data,
+            fake::Register::Control => &mut control,
+        };
+        prop_assert_ne!(*shadow, w.value, "a write that changes nothing");
+        *shadow = w.value;
+    }
+    let mut traces: Vec<AxisTrace> = (0..map.axes).map(|_| AxisTrace::default()).collect();
+    for (axis, trace) in traces.iter_mut().enumerate() {
+        let (sp, dp) = (map.step[axis], map.dir[axis]);
+        let active = |l: PinLevels| l.is_high(sp) == map.level(sp, true);
+        let positive = |l: PinLevels| l.is_high(dp) == map.level(dp, true);
+        let mut prev = idle;
+        // The enable write comes first; all times below are from then on.
+        let mut last_dir_change: Option<u64> = None;
+        let mut last_release: Option<u64> = None;
+        let mut edge: Option<u64> = None;
+        for &(at, levels) in &wave {
+            if positive(levels) != positive(prev) {
+                prop_assert!(
+                    edge.is_none(),
+                    "axis {axis}: direction changed inside a pulse"
+                );
+                if let Some(r) = last_release {
+                    prop_assert!(at >= r + timing.dir_hold_ns, "axis {axis}: dir hold");
+                }
+                last_dir_change = Some(at);
+            }
+            if active(levels) && !active(prev) {
+                if let Some(d) = last_dir_change {
+                    prop_assert!(at >= d + timing.dir_setup_ns, "axis {axis}: dir setup");
+                }
+                if let Some(r) = last_release {
+                    prop_assert!(at >= r + timing.step_space_ns, "axis {axis}: step space");
+                }
+                edge = Some(at);
+                trace.steps.push(if positive(levels) { 1 } else { -1 });
+            }
+            if !active(levels) && active(prev) {
+                let start = edge.take().expect("a release follows an edge");
+                prop_assert!(
+                    at >= start + timing.step_length_ns,
+                    "axis {axis}: step length"
+                );
+                last_release = Some(at);
+            }
+            prev = levels;
+        }
+        prop_assert!(edge.is_none(), "axis {axis}: a pulse never released");
+    }
+    // Pins outside the map never move; the enable pin is active from the first write until
+    // the drop's last.
+    let used: Vec<Pin> = (0..map.axes)
+        .flat_map(|a| [map.step[a], map.dir[a]])
+        .chain(map.enable)
+        .collect();
+    for &(_, levels) in &wave {
+        for pin in OUTPUT_PINS.iter().filter(|p| !used.contains(p)) {
+            prop_assert!(!levels.is_high(*pin), "unused pin {pin} driven");
+        }
+    }
+    if let Some(&(_, last)) = wave.last() {
+        prop_assert_eq!(last, idle, "the drop leaves every output inactive");
+    }
+    Ok(traces)
+}
+
+#[test]
+fn stepconf_pins_dir_before_step_high_then_low() {
+    let map = stepconf_map(2, &[]);
+    let bench = drive(
+        &map,
+        TIMING,
+        TICK_NS,
+        &[[1, 0, 0, 0, 0, 0], [1, -1, 0, 0, 0, 0], [0; MAX_AXES]],
+    );
+    let w = bench.writes();
+    use fake::Register::*;
+    let seq: Vec<(u64, fake::Register, u8)> =
+        w.iter().map(|w| (w.at_ns, w.register, w.value)).collect();
+    assert_eq!(
+        seq,
+        vec![
+            // Enable (pin 14, C1: the hardware inverts it, so the bit clears).
+            (0, Control, 0b1001),
+            // Tick 0: X positive (pin 3 = D1), X step (pin 2 = D0) 20 µs later, released 5 µs after.
+            (0, Data, 0b0000_0010),
+            (20_000, Data, 0b0000_0011),
+            (25_000, Data, 0b0000_0010),
+            // Tick 1: Y negative is its idle level (pin 5 low): no direction write; X and Y step.
+            (70_000, Data, 0b0000_0111),
+            (75_000, Data, 0b0000_0010),
+            // Drop: idle, drives disabled.
+            (150_000, Data, 0),
+            (150_000, Control, 0b1011),
+        ]
+    );
+    check_waveform(&map, TIMING, &bench).unwrap();
+}
+
+#[test]
+fn inverted_pins_step_low_going_and_idle_high() {
+    // X step and Y direction active low, enable active low.
+    let map = stepconf_map(2, &[2, 5, 14]);
+    let bench = drive(&map, TIMING, TICK_NS, &[[1, 1, 0, 0, 0, 0]]);
+    let wave = bench.waveform(map.idle());
+    let idle = map.idle();
+    assert!(idle.is_high(2) && idle.is_high(5) && idle.is_high(14));
+    // Enable: pin 14 goes low.
+    assert!(!wave[0].1.is_high(14));
+    // Direction write: X positive (pin 3 high), Y positive = pin 5 low.
+    assert_eq!(wave[1].0, 0);
+    assert!(wave[1].1.is_high(3) && !wave[1].1.is_high(5));
+    // Step edge: pin 2 falls, pin 4 rises.
+    assert_eq!(wave[2].0, TIMING.dir_setup_ns);
+    assert!(!wave[2].1.is_high(2) && wave[2].1.is_high(4));
+    let traces = check_waveform(&map, TIMING, &bench).unwrap();
+    assert_eq!(traces[0].steps, [1]);
+    assert_eq!(traces[1].steps, [1]);
+}
+
+#[test]
+fn write_failures_say_whether_the_step_was_taken() {
+    let map = stepconf_map(1, &[]);
+    for (writes_ok, phase, taken) in [
+        (1, "setting the direction pins", false),
+        (2, "raising the step pins", false),
+        (3, "releasing the step pins", true),
+    ] {
+        let bench = Bench::new();
+        let mut out = output(&bench, map.clone(), TIMING);
+        bench.fail_after_writes(writes_ok - 1);
+        let err = out
+            .write(0, &[1, 0, 0, 0, 0, 0], GapState::Normal)
+            .unwrap_err();
+        match &err {
+            OutputError::Device {
+                phase: p,
+                step_taken,
+                ..
+            } => {
+                assert_eq!((*p, *step_taken), (phase, taken), "{err}");
+            }
+            other => panic!("unexpected {other}"),
+        }
+        assert!(
+            err.to_string().starts_with("fake: write failed while"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn gap_pins_decode_with_inversion_priority_and_filter() {
+    let bench = Bench::new();
+    let map = stepconf_map(2, &[11]);
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let mut gap = ParportGap::new(port, map, 3, "fake");
+    let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
+    // Pin 11 is the open input, inverted: high means "not open".
+    bench.set_inputs(levels(&[11]));
+    assert_eq!(
+        gap.sample(0).unwrap(),
+        GapState::Normal,
+        "first reading believed"
+    );
+    bench.set_inputs(levels(&[]));
+    assert_eq!(gap.sample(1).unwrap(), GapState::Normal, "open, 1 of 3");
+    assert_eq!(gap.sample(2).unwrap(), GapState::Normal, "open, 2 of 3");
+    assert_eq!(gap.sample(3).unwrap(), GapState::Open, "open, confirmed");
+    bench.set_inputs(levels(&[10]));
+    for t in 4..6 {
+        assert_eq!(gap.sample(t).unwrap(), GapState::Open);
+    }
+    assert_eq!(
+        gap.sample(6).unwrap(),
+        GapState::Short,
+        "short wins over open"
+    );
+}
+
+fn arb_map() -> impl Strategy<Value = PinMap> {
+    (
+        1usize..=4,
+        Just(OUTPUT_PINS.to_vec()).prop_shuffle(),
+        any::<u32>(),
+        any::<bool>(),
+    )
+        .prop_map(|(axes, pins, invert_bits, enable)| {
+            let mut step = [0; MAX_AXES];
+            let mut dir = [0; MAX_AXES];
+            for a in 0..axes {
+                step[a] = pins[2 * a];
+                dir[a] = pins[2 * a + 1];
+            }
+            PinMap {
+                axes,
+                step,
+                dir,
+                enable: enable.then_some(pins[8]),
+                inverted: invert_bits & 0x3_43fe,
+                short: None,
+                open: None,
+            }
+        })
+}
+
+fn arb_timing() -> impl Strategy<Value = (StepTiming, u64)> {
+    (
+        1u64..20_000,
+        0u64..20_000,
+        0u64..30_000,
+        0u64..30_000,
+        0u64..5_000,
+    )
+        .prop_map(|(len, space, setup, hold, slack)| {
+            let timing = StepTiming {
+                step_length_ns: len,
+                step_space_ns: space,
+                dir_setup_ns: setup,
+                dir_hold_ns: hold,
+            };
+            (timing, timing.min_tick_ns() + slack)
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, rng_seed: proptest::test_runner::RngSeed::Fixed(5), ..ProptestConfig::default() })]
+
+    /// Any pin map, inversions and timing that fit a tick: the drives see exactly the steps
+    /// given, in order, with every timing rule honoured, and the port ends idle.
+    #[test]
+    fn drives_see_exactly_the_steps_with_every_timing_rule(
+        map in arb_map(),
+        (timing, tick_ns) in arb_timing(),
+        ticks in proptest::collection::vec(proptest::array::uniform6(-1i8..=1), 1..120),
+    ) {
+        let bench = drive(&map, timing, tick_ns, &ticks);
+        let traces = check_waveform(&map, timing, &bench)?;
+        for (axis, trace) in traces.iter().enumerate() {
+            let expected: Vec<i8> = ticks.iter().map(|t| t[axis]).filter(|&s| s != 0).collect();
+            prop_assert_eq!(&trace.steps, &expected, "axis {}", axis);
+        }
+    }
+}

@@ -1,0 +1,221 @@
+//! `sim.events`: scripted events for the simulated gap, one `TICK EVENT [VALUE]` per line.
+//!
+//! ```text
+//! # tick    event     value
+//! 200000    debris              # a debris bridge at the next sparking tick (sim.debris_clear_um)
+//! 250000    debris    800       # ... that clears after turning back 800 µm
+//! 300000    erosion   40        # harder material from here: 40 mm/min
+//! 400000    short     20000     # a welded short: the gap reads short for 20000 ticks
+//! 500000    open      2000      # a dielectric failure: the gap reads open for 2000 ticks
+//! ```
+//!
+//! The file is read and checked before the job starts (`file:line:col` on error); ticks must
+//! not decrease.
+
+use std::path::Path;
+
+use crate::gap::ScriptError;
+use crate::gap::{GapState, words};
+
+/// One scripted event.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SimEvent {
+    /// A debris bridge forms at the next sparking tick; it clears after the electrode has
+    /// turned back `clear_mm` (`None`: `sim.debris_clear_um`).
+    Debris { clear_mm: Option<f64> },
+    /// The material's erosion rate changes (mm/s).
+    Erosion { mm_per_s: f64 },
+    /// The gap reads `state` for `ticks` ticks, whatever the electrode does.
+    Hold { state: GapState, ticks: u64 },
+}
+
+/// Reads and checks an events file.
+pub fn load(path: &Path) -> Result<Vec<(u64, SimEvent)>, ScriptError> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
+        path: name.clone(),
+        what: "sim events file",
+        source,
+    })?;
+    parse(&text, &name)
+}
+
+/// Parses events text; `name` is used in error messages.
+pub fn parse(text: &str, name: &str) -> Result<Vec<(u64, SimEvent)>, ScriptError> {
+    let mut events: Vec<(u64, SimEvent)> = Vec::new();
+    for (index, raw) in text.lines().enumerate() {
+        let line = index + 1;
+        let invalid = |col: usize, message: String| ScriptError::Invalid {
+            path: name.to_string(),
+            line,
+            col,
+            message,
+        };
+        let words = words(raw.split('#').next().unwrap_or(""));
+        let Some(&(tick_col, tick)) = words.first() else {
+            continue;
+        };
+        let tick: u64 = tick.parse().map_err(|_| {
+            invalid(
+                tick_col,
+                format!("\"{tick}\" is not a tick number (a whole number >= 0)"),
+            )
+        })?;
+        if let Some(&(last, _)) = events.last()
+            && tick < last
+        {
+            return Err(invalid(
+                tick_col,
+                format!("tick {tick} comes before the previous line's tick {last}"),
+            ));
+        }
+        let Some(&(event_col, event)) = words.get(1) else {
+            return Err(invalid(
+                tick_col,
+                "expected `TICK EVENT [VALUE]`, e.g. `120000 debris`".to_string(),
+            ));
+        };
+        let value = words.get(2).copied();
+        if let Some(&(col, extra)) = words.get(3) {
+            return Err(invalid(
+                col,
+                format!("unexpected \"{extra}\" after the value"),
+            ));
+        }
+        let number = |what: &str| -> Result<f64, ScriptError> {
+            let (col, text) = value
+                .ok_or_else(|| invalid(event_col, format!("`{event}` needs a value: {what}")))?;
+            match text.parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+                _ => Err(invalid(
+                    col,
+                    format!("\"{text}\" is not a positive number ({what})"),
+                )),
+            }
+        };
+        let ticks = || -> Result<u64, ScriptError> {
+            let (col, text) = value.ok_or_else(|| {
+                invalid(
+                    event_col,
+                    format!("`{event}` needs a value: how many ticks"),
+                )
+            })?;
+            text.parse::<u64>().map_err(|_| {
+                invalid(
+                    col,
+                    format!("\"{text}\" is not a number of ticks (a whole number >= 0)"),
+                )
+            })
+        };
+        let parsed = match event.to_ascii_lowercase().as_str() {
+            "debris" => SimEvent::Debris {
+                clear_mm: match value {
+                    None => None,
+                    Some(_) => Some(number("the turn-back that clears it, µm")? / 1000.0),
+                },
+            },
+            "erosion" => SimEvent::Erosion {
+                mm_per_s: number("the erosion rate, mm/min")? / 60.0,
+            },
+            "short" => SimEvent::Hold {
+                state: GapState::Short,
+                ticks: ticks()?,
+            },
+            "open" => SimEvent::Hold {
+                state: GapState::Open,
+                ticks: ticks()?,
+            },
+            _ => {
+                return Err(invalid(
+                    event_col,
+                    format!("\"{event}\" is not an event; use debris, erosion, short or open"),
+                ));
+            }
+        };
+        events.push((tick, parsed));
+    }
+    Ok(events)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_event_parses() {
+        let events = parse(
+            "# header\n10 debris\n20 debris 800 # comment\n30 erosion 40\n40 SHORT 100\n\n50 open 7\n",
+            "ev",
+        )
+        .unwrap();
+        assert_eq!(
+            events,
+            vec![
+                (10, SimEvent::Debris { clear_mm: None }),
+                (
+                    20,
+                    SimEvent::Debris {
+                        clear_mm: Some(0.8)
+                    }
+                ),
+                (
+                    30,
+                    SimEvent::Erosion {
+                        mm_per_s: 40.0 / 60.0
+                    }
+                ),
+                (
+                    40,
+                    SimEvent::Hold {
+                        state: GapState::Short,
+                        ticks: 100
+                    }
+                ),
+                (
+                    50,
+                    SimEvent::Hold {
+                        state: GapState::Open,
+                        ticks: 7
+                    }
+                ),
+            ]
+        );
+    }
+
+    #[test]
+    fn bad_lines_are_located() {
+        let err = |text: &str| parse(text, "ev.txt").unwrap_err().to_string();
+        assert_eq!(
+            err("10 debris\n5 debris\n"),
+            "ev.txt:2:1: tick 5 comes before the previous line's tick 10"
+        );
+        assert_eq!(
+            err("10 spark\n"),
+            "ev.txt:1:4: \"spark\" is not an event; use debris, erosion, short or open"
+        );
+        assert_eq!(
+            err("10 erosion\n"),
+            "ev.txt:1:4: `erosion` needs a value: the erosion rate, mm/min"
+        );
+        assert_eq!(
+            err("10 erosion -4\n"),
+            "ev.txt:1:12: \"-4\" is not a positive number (the erosion rate, mm/min)"
+        );
+        assert_eq!(
+            err("  10 short 1.5\n"),
+            "ev.txt:1:12: \"1.5\" is not a number of ticks (a whole number >= 0)"
+        );
+        assert_eq!(
+            err("x debris\n"),
+            "ev.txt:1:1: \"x\" is not a tick number (a whole number >= 0)"
+        );
+        assert_eq!(
+            err("10\n"),
+            "ev.txt:1:1: expected `TICK EVENT [VALUE]`, e.g. `120000 debris`"
+        );
+        assert_eq!(
+            err("10 open 5 now\n"),
+            "ev.txt:1:11: unexpected \"now\" after the value"
+        );
+    }
+}

@@ -1,0 +1,424 @@
+//! The simulated EDM machine (`gap.kind = "sim"`, with `output.kind = "sim"`): no hardware,
+//! a believable gap, closed around the pulses the consumer emits.
+//!
+//! With `output.kind = "sim"` the simulated drives take every step: their position is the
+//! pulse ledger, so that output is [`crate::output::NullOutput`], and the electrode learns
+//! its motion through [`GapSensor::observe`]: each emitted event's length (from the steps
+//! and the step sizes), signed by its direction along the program.
+//!
+//! A one-dimensional model along the programmed path, the view the servo has of it:
+//!
+//! ```text
+//!   electrode progress σ ──► gap g = φ − σ ◄── workpiece front φ
+//!   (+ one event's length forward,              (+ erosion · dt while sparking)
+//!    − one event's length on turn-back)
+//!
+//!   g < short_gap ─► short      short_gap ≤ g ≤ open_gap ─► normal (sparking)      g > open_gap ─► open
+//! ```
+//!
+//! Four ways to a short circuit, all deterministic for a seed:
+//! - **Proximity**: the electrode closes the gap faster than sparking erodes the front (a
+//!   servo feed above the erosion rate, or harder material from a scripted `erosion` event).
+//!   Turning back opens the gap again after a few µm.
+//! - **Placed debris** (`sim.debris_shorts`): bridges at seeded random points, one in each
+//!   of that many equal stretches of the program's cutting moves (rapids are positioning in
+//!   the open), so a demonstration of any length shows a handful of turn-backs. A bridge holds the gap shorted until the electrode has
+//!   turned back `debris_clear_um` from where it formed (flushing clears it).
+//! - **Random debris** (`sim.debris_shorts_per_s`): the same bridges as a Poisson process in
+//!   time while sparking, from a seeded splitmix64: a stationary process for long runs.
+//! - **Scripted** (`sim.events`, [`events`]): debris at a tick, erosion-rate changes, and
+//!   holds (the gap reads short or open for so many ticks whatever the electrode does: a
+//!   welded short that only an alarm ends, a dielectric failure).
+//!
+//! With the default erosion rate above the normal feed and below the open feed, the servo
+//! alternates between sparking and closing in, and only debris shorts the gap.
+
+pub mod events;
+
+use std::path::Path;
+
+use crate::config::{Config, SimConfig};
+use crate::gap::{GapError, GapSensor, GapState, ScriptError};
+use crate::geometry::MAX_AXES;
+use crate::rng::SplitMix64;
+
+pub use events::SimEvent;
+
+/// What the simulated gap did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SimCounters {
+    /// Shorts from debris (placed, random or scripted).
+    pub debris_shorts: u64,
+    /// Shorts from the electrode reaching the front.
+    pub proximity_shorts: u64,
+    /// Ticks the gap spent sparking.
+    pub sparking_ticks: u64,
+}
+
+/// `gap.kind = "sim"`: the closed-loop gap model.
+#[derive(Debug, Clone)]
+pub struct SimGap {
+    params: SimConfig,
+    step_mm: [f64; MAX_AXES],
+    dt: f64,
+    rng: SplitMix64,
+    /// Electrode progress along the path (mm).
+    progress: f64,
+    /// Workpiece front along the path (mm).
+    front: f64,
+    /// Current erosion rate (mm/s).
+    erosion: f64,
+    /// A debris bridge holds the gap shorted until progress falls to this (mm).
+    debris_until: Option<f64>,
+    /// A scripted bridge waiting for the gap to spark: its clearing distance (mm).
+    debris_pending: Option<f64>,
+    /// Placed debris, by progress along the path (mm), ascending; the next one to form.
+    debris_at: Vec<f64>,
+    next_debris: usize,
+    /// Probability of a random debris short in one sparking tick.
+    debris_per_tick: f64,
+    events: Vec<(u64, SimEvent)>,
+    next_event: usize,
+    /// A scripted hold: this state until (excluding) this tick.
+    hold: Option<(GapState, u64)>,
+    state: GapState,
+    counters: SimCounters,
+}
+
+impl SimGap {
+    /// The model for a program whose cutting moves lie at `cutting_spans` along its path
+    /// (`(from, to)`, mm of path length from the start), with scripted `events`.
+    pub fn new(
+        config: &Config,
+        cutting_spans: &[(f64, f64)],
+        events: Vec<(u64, SimEvent)>,
+    ) -> SimGap {
+        let mut step_mm = [0.0; MAX_AXES];
+        for (slot, s) in step_mm.iter_mut().zip(&config.machine.step_mm) {
+            *slot = *s;
+        }
+        let dt = config.fine.tick_us as f64 * 1e-6;
+        let params = config.sim.clone();
+        let mut rng = SplitMix64::new(params.seed);
+        // One bridge in each of n equal stretches of cutting, away from the stretch ends, so
+        // that they spread over the cut and never form in the first micrometres of approach.
+        let cutting: f64 = cutting_spans.iter().map(|(a, b)| b - a).sum();
+        let n = params.debris_shorts as usize;
+        let debris_at = (0..n)
+            .map(|k| {
+                let mut into = cutting * (k as f64 + rng.uniform(0.1, 0.9)) / n as f64;
+                for &(from, to) in cutting_spans {
+                    if into <= to - from {
+                        return from + into;
+                    }
+                    into -= to - from;
+                }
+                cutting_spans.last().map_or(0.0, |&(_, to)| to)
+            })
+            .collect();
+        SimGap {
+            debris_per_tick: -(-params.debris_shorts_per_s * dt).exp_m1(),
+            rng,
+            front: params.initial_gap_mm,
+            erosion: params.erosion_mm_per_s,
+            params,
+            step_mm,
+            dt,
+            progress: 0.0,
+            debris_until: None,
+            debris_pending: None,
+            debris_at,
+            next_debris: 0,
+            events,
+            next_event: 0,
+            hold: None,
+            state: GapState::Open,
+            counters: SimCounters::default(),
+        }
+    }
+
+    /// The model of `config` for a program with these cutting spans (see [`new`](Self::new)),
+    /// with the scripted events of `sim.events` (read and checked here, before the job).
+    pub fn from_config(
+        config: &Config,
+        cutting_spans: &[(f64, f64)],
+    ) -> Result<SimGap, ScriptError> {
+        let events = match &config.sim.events {
+            Some(path) => events::load(Path::new(path))?,
+            None => Vec::new(),
+        };
+        Ok(SimGap::new(config, cutting_spans, events))
+    }
+
+    /// The gap distance (mm).
+    pub fn gap_mm(&self) -> f64 {
+        self.front - self.progress
+    }
+
+    pub fn counters(&self) -> SimCounters {
+        self.counters
+    }
+
+    /// Where the placed debris bridges form, by progress along the path (mm).
+    pub fn debris_positions(&self) -> &[f64] {
+        &self.debris_at
+    }
+
+    fn apply_events(&mut self, tick: u64) {
+        while let Some(&(at, event)) = self.events.get(self.next_event) {
+            if at > tick {
+                break;
+            }
+            self.next_event += 1;
+            match event {
+                SimEvent::Debris { clear_mm } => {
+                    self.debris_pending = Some(clear_mm.unwrap_or(self.params.debris_clear_mm));
+                }
+                SimEvent::Erosion { mm_per_s } => self.erosion = mm_per_s,
+                SimEvent::Hold { state, ticks } => {
+                    self.hold = Some((state, at.saturating_add(ticks)));
+                }
+            }
+        }
+    }
+
+    /// While sparking: is a debris bridge forming now? Returns its clearing distance.
+    fn debris_forming(&mut self) -> Option<f64> {
+        if let Some(clear) = self.debris_pending.take() {
+            return Some(clear);
+        }
+        if self
+            .debris_at
+            .get(self.next_debris)
+            .is_some_and(|&at| self.progress >= at)
+        {
+            self.next_debris += 1;
+            return Some(self.params.debris_clear_mm);
+        }
+        if self.debris_per_tick > 0.0 && self.rng.next_f64() < self.debris_per_tick {
+            return Some(self.params.debris_clear_mm);
+        }
+        None
+    }
+}
+
+impl GapSensor for SimGap {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        self.apply_events(tick);
+        if let Some((state, until)) = self.hold {
+            if tick < until {
+                self.state = state;
+                return Ok(state);
+            }
+            self.hold = None;
+        }
+        if let Some(until) = self.debris_until {
+            if self.progress > until {
+                self.state = GapState::Short;
+                return Ok(self.state);
+            }
+            self.debris_until = None;
+        }
+        let gap = self.gap_mm();
+        let previous = self.state;
+        self.state = if gap < self.params.short_gap_mm {
+            GapState::Short
+        } else if gap > self.params.open_gap_mm {
+            GapState::Open
+        } else {
+            GapState::Normal
+        };
+        if self.state == GapState::Short && previous != GapState::Short {
+            self.counters.proximity_shorts += 1;
+        }
+        if self.state == GapState::Normal {
+            self.counters.sparking_ticks += 1;
+            self.front += self.erosion * self.dt;
+            if let Some(clear) = self.debris_forming() {
+                self.debris_until = Some(self.progress - clear);
+                self.counters.debris_shorts += 1;
+                self.state = GapState::Short;
+            }
+        }
+        Ok(self.state)
+    }
+
+    fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
+        if dir == 0 {
+            return;
+        }
+        let mut len2 = 0.0;
+        for (s, mm) in steps.iter().zip(&self.step_mm) {
+            let d = *s as f64 * mm;
+            len2 += d * d;
+        }
+        self.progress += dir as f64 * len2.sqrt();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(overrides: &[&str]) -> Config {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        Config::load(None, &overrides).unwrap()
+    }
+
+    fn gap(overrides: &[&str]) -> SimGap {
+        SimGap::new(&config(overrides), &[(0.0, 10.0)], Vec::new())
+    }
+
+    fn sample(g: &mut SimGap, tick: u64) -> GapState {
+        g.sample(tick).unwrap()
+    }
+
+    const X: [i8; MAX_AXES] = [1, 0, 0, 0, 0, 0];
+    const BACK: [i8; MAX_AXES] = [-1, 0, 0, 0, 0, 0];
+
+    #[test]
+    fn the_gap_closes_as_the_electrode_advances_and_erodes_while_sparking() {
+        let mut g = gap(&["sim.debris_shorts=0"]);
+        assert_eq!(sample(&mut g, 0), GapState::Open);
+        for _ in 0..12 {
+            g.observe(&X, 1); // 12 µm: 8 µm left
+        }
+        assert_eq!(sample(&mut g, 1), GapState::Normal);
+        let front = g.front;
+        sample(&mut g, 2);
+        assert!(g.front > front, "sparking erodes");
+        for _ in 0..8 {
+            g.observe(&X, 1);
+        }
+        assert_eq!(sample(&mut g, 3), GapState::Short);
+        assert_eq!(g.counters().proximity_shorts, 1);
+        for _ in 0..3 {
+            g.observe(&BACK, -1); // turning back opens the gap again
+        }
+        assert_eq!(sample(&mut g, 4), GapState::Normal);
+    }
+
+    #[test]
+    fn random_debris_is_seeded_and_clears_after_turning_back() {
+        let run = |seed: u64| {
+            let mut g = gap(&[
+                "sim.debris_shorts=0",
+                // The gap opens after ~80 ticks of sparking without advancing: make them count.
+                "sim.debris_shorts_per_s=2000",
+                &format!("sim.seed={seed}"),
+                "sim.initial_gap_um=5",
+            ]);
+            (0..2000u64)
+                .filter(|&t| sample(&mut g, t) == GapState::Short)
+                .collect::<Vec<_>>()
+        };
+        let a = run(7);
+        assert!(!a.is_empty());
+        assert_eq!(a, run(7), "same seed, same shorts");
+        assert_ne!(a, run(8));
+        let mut g = gap(&[
+            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_s=1e9",
+            "sim.initial_gap_um=5",
+            "sim.debris_clear_um=15",
+        ]);
+        assert_eq!(sample(&mut g, 0), GapState::Short);
+        g.debris_per_tick = 0.0;
+        for _ in 0..14 {
+            g.observe(&BACK, -1);
+        }
+        assert_eq!(sample(&mut g, 1), GapState::Short);
+        g.observe(&BACK, -1);
+        assert_ne!(sample(&mut g, 2), GapState::Short);
+        assert_eq!(g.counters().debris_shorts, 1);
+    }
+
+    #[test]
+    fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
+        let g = gap(&["sim.debris_shorts=5", "sim.seed=3"]);
+        let at = g.debris_positions().to_vec();
+        assert_eq!(at.len(), 5);
+        for (k, p) in at.iter().enumerate() {
+            let stretch = 10.0 / 5.0;
+            assert!(
+                *p >= stretch * (k as f64 + 0.1) && *p <= stretch * (k as f64 + 0.9),
+                "{at:?}"
+            );
+        }
+        assert_ne!(
+            at,
+            gap(&["sim.debris_shorts=5", "sim.seed=4"]).debris_positions()
+        );
+        // Only on cutting moves: a 10 mm rapid, 2 mm cut, 5 mm rapid, 2 mm cut.
+        let spans = [(10.0, 12.0), (17.0, 19.0)];
+        let g = SimGap::new(&config(&["sim.debris_shorts=40"]), &spans, Vec::new());
+        for p in g.debris_positions() {
+            assert!(spans.iter().any(|(a, b)| p >= a && p <= b), "{p}");
+        }
+        assert_eq!(
+            g.debris_positions().iter().filter(|&&p| p < 15.0).count(),
+            20
+        );
+        // Walk the electrode along, keeping the gap sparking: a short exactly past each one.
+        let mut g = gap(&["sim.debris_shorts=5", "sim.seed=3", "sim.initial_gap_um=5"]);
+        let mut formed = Vec::new();
+        for tick in 0..12_000u64 {
+            if sample(&mut g, tick) == GapState::Short {
+                formed.push(g.progress);
+                while sample(&mut g, tick) == GapState::Short {
+                    g.observe(&BACK, -1);
+                }
+            } else {
+                g.observe(&X, 1);
+                g.front = g.progress + 0.005;
+            }
+        }
+        assert_eq!(formed.len(), 5, "{formed:?}");
+        for (f, p) in formed.iter().zip(&at) {
+            assert!(f >= p && f - p < 0.0011, "formed at {f}, placed at {p}");
+        }
+    }
+
+    #[test]
+    fn scripted_events_hold_erode_and_bridge() {
+        let events = events::parse(
+            "0 open 3\n5 erosion 6000\n10 debris 2000\n20 short 4\n",
+            "ev",
+        )
+        .unwrap();
+        let mut g = SimGap::new(
+            &config(&["sim.debris_shorts=0", "sim.initial_gap_um=5"]),
+            &[(0.0, 10.0)],
+            events,
+        );
+        let states: Vec<GapState> = (0..3).map(|t| sample(&mut g, t)).collect();
+        assert_eq!(
+            states,
+            [GapState::Open; 3],
+            "held open although the gap is 5 µm"
+        );
+        assert_eq!(sample(&mut g, 3), GapState::Normal);
+        let front = g.front;
+        sample(&mut g, 5);
+        assert!(
+            (g.front - front - 100.0 * g.dt).abs() < 1e-12,
+            "6000 mm/min"
+        );
+        g.front = g.progress + 0.005;
+        assert_eq!(sample(&mut g, 10), GapState::Short, "scripted debris");
+        for _ in 0..1999 {
+            g.observe(&BACK, -1);
+        }
+        assert_eq!(sample(&mut g, 11), GapState::Short, "clears after 2 mm");
+        g.observe(&BACK, -1);
+        g.observe(&BACK, -1);
+        g.front = g.progress + 0.005;
+        assert_eq!(sample(&mut g, 12), GapState::Normal);
+        for t in 20..24 {
+            assert_eq!(sample(&mut g, t), GapState::Short, "welded");
+            g.observe(&BACK, -1);
+        }
+        g.front = g.progress + 0.005;
+        assert_eq!(sample(&mut g, 24), GapState::Normal);
+    }
+}

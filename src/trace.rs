@@ -1,0 +1,294 @@
+//! The tracer (`output.trace`, `gap.trace`): every change of an output's or a gap input's
+//! state, logged, around any output or gap source.
+//!
+//! ```text
+//!  consumer thread loop                              normal-priority thread
+//!  TracedGap(sensor) ── gap normal → short ──┐
+//!                                            ├─► Tracer queue (lock-free, bounded) ─► log
+//!  TracedOutput(out) ── X direction − ───────┘
+//! ```
+//!
+//! The wrappers sit in the real-time loop, so they never log themselves: they push a small
+//! record into a bounded lock-free queue that the supervisor drains and logs (target
+//! `edmd::trace`). In real time a full queue drops the record and counts it: the tick must
+//! not wait for a logger. In virtual time nothing is lost: the loop yields until the logger
+//! has made room, which only slows a simulation.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::thread::Thread;
+
+use crossbeam::queue::ArrayQueue;
+
+use crate::gap::{GapError, GapSensor, GapState};
+use crate::geometry::MAX_AXES;
+use crate::output::{OutputError, PulseOutput};
+
+/// A change of state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TraceEvent {
+    /// The gap input changed state (`from` is `None` for the first reading).
+    Gap {
+        from: Option<GapState>,
+        to: GapState,
+    },
+    /// An axis stepped in a new direction (its first step included).
+    Direction { axis: u8, positive: bool },
+    /// The output refused a write.
+    WriteFailed,
+}
+
+/// A change with the tick it happened in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TraceRecord {
+    pub tick: u64,
+    pub event: TraceEvent,
+}
+
+/// The queue between the traced wrappers and the thread that logs.
+#[derive(Debug)]
+pub struct Tracer {
+    queue: ArrayQueue<TraceRecord>,
+    dropped: AtomicU64,
+    lossless: bool,
+    /// The draining thread, woken when a lossless tracer is full.
+    drainer: Option<Thread>,
+}
+
+impl Tracer {
+    /// `lossless`: wait for room instead of dropping (virtual time only). `drainer` is the
+    /// thread that calls [`drain`](Self::drain).
+    pub fn new(capacity: usize, lossless: bool, drainer: Option<Thread>) -> Arc<Tracer> {
+        Arc::new(Tracer {
+            queue: ArrayQueue::new(capacity.max(1)),
+            dropped: AtomicU64::new(0),
+            lossless,
+            drainer,
+        })
+    }
+
+    pub fn record(&self, tick: u64, event: TraceEvent) {
+        let mut record = TraceRecord { tick, event };
+        loop {
+            match self.queue.push(record) {
+                Ok(()) => return,
+                Err(back) if self.lossless => {
+                    if let Some(thread) = &self.drainer {
+                        thread.unpark();
+                    }
+                    std::thread::yield_now();
+                    record = back;
+                }
+                Err(_) => {
+                    self.dropped.fetch_add(1, Ordering::Relaxed);
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Hands every queued record to `f`, oldest first.
+    pub fn drain(&self, mut f: impl FnMut(&TraceRecord)) {
+        while let Some(record) = self.queue.pop() {
+            f(&record);
+        }
+    }
+
+    /// Records dropped because the queue was full (real time only).
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+/// Traces an output: direction changes per axis and failed writes.
+#[derive(Debug)]
+pub struct TracedOutput<O> {
+    inner: O,
+    tracer: Arc<Tracer>,
+    dir: [i8; MAX_AXES],
+}
+
+impl<O> TracedOutput<O> {
+    pub fn new(inner: O, tracer: Arc<Tracer>) -> TracedOutput<O> {
+        TracedOutput {
+            inner,
+            tracer,
+            dir: [0; MAX_AXES],
+        }
+    }
+}
+
+impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
+    fn write(
+        &mut self,
+        tick: u64,
+        steps: &[i8; MAX_AXES],
+        gap: GapState,
+    ) -> Result<(), OutputError> {
+        let result = self.inner.write(tick, steps, gap);
+        if result.is_err() {
+            self.tracer.record(tick, TraceEvent::WriteFailed);
+            return result;
+        }
+        for (axis, (&s, dir)) in steps.iter().zip(self.dir.iter_mut()).enumerate() {
+            if s != 0 && s != *dir {
+                *dir = s;
+                self.tracer.record(
+                    tick,
+                    TraceEvent::Direction {
+                        axis: axis as u8,
+                        positive: s > 0,
+                    },
+                );
+            }
+        }
+        result
+    }
+
+    fn finish(&mut self) -> Result<(), OutputError> {
+        self.inner.finish()
+    }
+}
+
+/// Traces a gap input: every change of state.
+#[derive(Debug)]
+pub struct TracedGap<G> {
+    inner: G,
+    tracer: Arc<Tracer>,
+    last: Option<GapState>,
+}
+
+impl<G> TracedGap<G> {
+    pub fn new(inner: G, tracer: Arc<Tracer>) -> TracedGap<G> {
+        TracedGap {
+            inner,
+            tracer,
+            last: None,
+        }
+    }
+}
+
+impl<G: GapSensor> GapSensor for TracedGap<G> {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        let state = self.inner.sample(tick)?;
+        if self.last != Some(state) {
+            self.tracer.record(
+                tick,
+                TraceEvent::Gap {
+                    from: self.last,
+                    to: state,
+                },
+            );
+            self.last = Some(state);
+        }
+        Ok(state)
+    }
+
+    fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
+        self.inner.observe(steps, dir)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::ScriptGap;
+    use crate::output::NullOutput;
+
+    fn records(tracer: &Tracer) -> Vec<TraceRecord> {
+        let mut out = Vec::new();
+        tracer.drain(|r| out.push(*r));
+        out
+    }
+
+    #[test]
+    fn gap_changes_are_traced_once_each() {
+        let tracer = Tracer::new(16, false, None);
+        let script = ScriptGap::from_changes(vec![(2, GapState::Short), (4, GapState::Normal)]);
+        let mut gap = TracedGap::new(script, tracer.clone());
+        for t in 0..6 {
+            gap.sample(t).unwrap();
+        }
+        use GapState::*;
+        let events: Vec<(u64, TraceEvent)> =
+            records(&tracer).iter().map(|r| (r.tick, r.event)).collect();
+        assert_eq!(
+            events,
+            vec![
+                (
+                    0,
+                    TraceEvent::Gap {
+                        from: None,
+                        to: Normal
+                    }
+                ),
+                (
+                    2,
+                    TraceEvent::Gap {
+                        from: Some(Normal),
+                        to: Short
+                    }
+                ),
+                (
+                    4,
+                    TraceEvent::Gap {
+                        from: Some(Short),
+                        to: Normal
+                    }
+                ),
+            ]
+        );
+    }
+
+    #[test]
+    fn direction_changes_and_failures_are_traced() {
+        let tracer = Tracer::new(16, false, None);
+        let inner = crate::output::FaultInjector::new(NullOutput, 4);
+        let mut out = TracedOutput::new(inner, tracer.clone());
+        let g = GapState::Normal;
+        out.write(0, &[1, 0, 0, 0, 0, 0], g).unwrap();
+        out.write(1, &[1, -1, 0, 0, 0, 0], g).unwrap();
+        out.write(2, &[0, -1, 0, 0, 0, 0], g).unwrap();
+        out.write(3, &[-1, 0, 0, 0, 0, 0], g).unwrap();
+        assert!(out.write(4, &[-1, 0, 0, 0, 0, 0], g).is_err());
+        let events: Vec<(u64, TraceEvent)> =
+            records(&tracer).iter().map(|r| (r.tick, r.event)).collect();
+        let dir = |axis, positive| TraceEvent::Direction { axis, positive };
+        assert_eq!(
+            events,
+            vec![
+                (0, dir(0, true)),
+                (1, dir(1, false)),
+                (3, dir(0, false)),
+                (4, TraceEvent::WriteFailed),
+            ]
+        );
+    }
+
+    #[test]
+    fn a_full_queue_drops_in_real_time_and_waits_in_virtual_time() {
+        let lossy = Tracer::new(2, false, None);
+        for t in 0..5 {
+            lossy.record(t, TraceEvent::WriteFailed);
+        }
+        assert_eq!((records(&lossy).len(), lossy.dropped()), (2, 3));
+
+        let lossless = Tracer::new(2, true, Some(std::thread::current()));
+        let writer = {
+            let tracer = lossless.clone();
+            std::thread::spawn(move || {
+                for t in 0..1000 {
+                    tracer.record(t, TraceEvent::WriteFailed);
+                }
+            })
+        };
+        let mut got = Vec::new();
+        while got.len() < 1000 {
+            lossless.drain(|r| got.push(r.tick));
+            std::thread::park_timeout(std::time::Duration::from_millis(1));
+        }
+        writer.join().unwrap();
+        assert_eq!(got, (0..1000).collect::<Vec<_>>());
+        assert_eq!(lossless.dropped(), 0);
+    }
+}
