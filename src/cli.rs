@@ -229,8 +229,10 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Ok(summary) => summary,
         Err(e) => {
             eprintln!("edmd: error: {e}");
+            // A device that cannot be opened is a runtime failure; anything else that stops
+            // a job before it starts is bad input.
             let code = match e {
-                JobError::Output(_) => EXIT_RUNTIME,
+                JobError::Output(_) | JobError::Parport(_) => EXIT_RUNTIME,
                 _ => EXIT_BAD_INPUT,
             };
             return ExitCode::from(code);

@@ -278,6 +278,24 @@ impl Interpolator {
     }
 
     fn step_forward<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) {
+        if self.walk.at_end() {
+            // A turn-back entered this block at its end and the gap cleared before it stepped
+            // back in it: the re-advance starts from the block after it (the one it came from,
+            // which the source hands out again). Same point, so no step is owed here.
+            match self.fetch_forward(source) {
+                Fetch::Block => {}
+                Fetch::Empty => {
+                    tick.event = self.servo.on_starved(self.here());
+                    self.speed = 0.0;
+                    self.phase = 0.0;
+                    return;
+                }
+                Fetch::End => {
+                    tick.event = self.servo.on_end();
+                    return;
+                }
+            }
+        }
         self.walk.forward(&mut tick.steps);
         self.apply(tick);
         self.counters.events_forward += 1;

@@ -207,11 +207,39 @@ fn zero_step_blocks_are_passed_over_both_ways() {
     assert!(assert_retraces(&path) > 0);
 }
 
+#[test]
+fn a_short_that_clears_just_after_turning_into_the_previous_block_re_advances_from_its_end() {
+    // The short's start sweeps over the block boundary (about tick 210 at 1 mm/s) and its
+    // length over the braking time, so that some clear after the turn-back has entered the
+    // previous block but before it stepped back in it: the re-advance then starts at that
+    // block's very end.
+    let lattice = [p2(0, 0), p2(10, 0), p2(20, 0)];
+    for start in 150..300 {
+        for len in [5, 10, 15, 20, 25, 30, 40] {
+            let blocks = chain(&lattice, 5.0);
+            let short = |t: u64| (start..start + len).contains(&t);
+            let gap = |t| {
+                if short(t) {
+                    GapState::Short
+                } else {
+                    GapState::Normal
+                }
+            };
+            let (path, fine) = run(blocks, 4, gap, 1_000_000);
+            assert_eq!(fine.state(), ServoState::Done, "short {start}+{len}");
+            assert_eq!(fine.position(), p2(20, 0), "short {start}+{len}");
+            assert_retraces(&path);
+        }
+    }
+}
+
 fn gap_schedule() -> impl Strategy<Value = Vec<(u64, u64, GapState)>> {
     proptest::collection::vec(
         (
             0u64..60_000,
-            1u64..4_000,
+            // Brief shorts (about a braking time) as often as long ones: they clear at every
+            // stage of a turn-back.
+            prop_oneof![1u64..40, 1u64..4_000],
             prop_oneof![3 => Just(GapState::Short), 1 => Just(GapState::Open)],
         ),
         0..6,

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 
 use parking_lot::Mutex;
 
-use super::pins::{PinLevels, status_register};
+use super::pins::{OUTPUT_PINS, Pin, PinLevels, PinMap, StepTiming, status_register};
 use super::{Clock, Port};
 
 /// Which register a write went to.
@@ -92,6 +92,104 @@ impl Bench {
                 (w.at_ns, PinLevels::from_registers(data, control))
             })
             .collect()
+    }
+}
+
+impl Bench {
+    /// What the drives on each axis counted: at every step edge, +1 or -1 from the level of
+    /// the direction pin. Checks on the way, failing with a description:
+    /// - only registers whose value changes are written;
+    /// - direction setup before each edge, step length, step space and direction hold after
+    ///   each release, per axis, and no direction change inside a pulse;
+    /// - pins outside `map` are never driven, and the last write leaves every output idle.
+    pub fn drive_steps(&self, map: &PinMap, timing: StepTiming) -> Result<Vec<Vec<i8>>, String> {
+        let idle = map.idle();
+        let (mut data, mut control) = (idle.data_register(), idle.control_register());
+        for w in self.writes() {
+            let shadow = match w.register {
+                Register::Data => &mut data,
+                Register::Control => &mut control,
+            };
+            if *shadow == w.value {
+                return Err(format!("{w:?} changes nothing"));
+            }
+            *shadow = w.value;
+        }
+        let wave = self.waveform(idle);
+        let mut axes = Vec::with_capacity(map.axes);
+        for axis in 0..map.axes {
+            axes.push(axis_steps(map, timing, &wave, axis)?);
+        }
+        let used: Vec<Pin> = (0..map.axes)
+            .flat_map(|a| [map.step[a], map.dir[a]])
+            .chain(map.enable)
+            .collect();
+        for &(at, levels) in &wave {
+            if let Some(pin) = OUTPUT_PINS
+                .iter()
+                .find(|p| !used.contains(p) && levels.is_high(**p))
+            {
+                return Err(format!("unused pin {pin} driven at {at} ns"));
+            }
+        }
+        match wave.last() {
+            Some(&(at, last)) if last != idle => Err(format!(
+                "the last write ({at} ns) leaves outputs active: {last:?}"
+            )),
+            _ => Ok(axes),
+        }
+    }
+}
+
+/// One axis of [`Bench::drive_steps`].
+fn axis_steps(
+    map: &PinMap,
+    timing: StepTiming,
+    wave: &[(u64, PinLevels)],
+    axis: usize,
+) -> Result<Vec<i8>, String> {
+    let (sp, dp) = (map.step[axis], map.dir[axis]);
+    let active = |l: PinLevels| l.is_high(sp) == map.level(sp, true);
+    let positive = |l: PinLevels| l.is_high(dp) == map.level(dp, true);
+    let mut steps = Vec::new();
+    let mut prev = map.idle();
+    let mut last_dir_change: Option<u64> = None;
+    let mut last_release: Option<u64> = None;
+    let mut edge: Option<u64> = None;
+    let fail = |rule: &str, at: u64| Err(format!("axis {axis}: {rule} violated at {at} ns"));
+    for &(at, levels) in wave {
+        if positive(levels) != positive(prev) {
+            if edge.is_some() {
+                return fail("no direction change inside a pulse", at);
+            }
+            if last_release.is_some_and(|r| at < r + timing.dir_hold_ns) {
+                return fail("dir hold", at);
+            }
+            last_dir_change = Some(at);
+        }
+        if active(levels) && !active(prev) {
+            if last_dir_change.is_some_and(|d| at < d + timing.dir_setup_ns) {
+                return fail("dir setup", at);
+            }
+            if last_release.is_some_and(|r| at < r + timing.step_space_ns) {
+                return fail("step space", at);
+            }
+            edge = Some(at);
+            steps.push(if positive(levels) { 1 } else { -1 });
+        }
+        if !active(levels) && active(prev) {
+            match edge.take() {
+                Some(start) if at < start + timing.step_length_ns => {
+                    return fail("step length", at);
+                }
+                _ => last_release = Some(at),
+            }
+        }
+        prev = levels;
+    }
+    match edge {
+        Some(at) => fail("every pulse released", at),
+        None => Ok(steps),
     }
 }
 

@@ -1,0 +1,530 @@
+//! Outputs and gap inputs end to end: whole jobs through the parallel port's encoding (on
+//! the recording fake), the port's startup errors through the real binary, the fault
+//! injector and a real full disk, the tracer, and the closed-loop simulator.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Arc;
+
+use edmd::config::Config;
+use edmd::gap::{GapError, GapSensor, GapState, ScriptGap};
+use edmd::geometry::MAX_AXES;
+use edmd::output::{OutputError, PulseOutput, read_pulse_log};
+use edmd::parport::fake::{Bench, RecordingPort, VirtualClock};
+use edmd::parport::{ParportOutput, PinMap, PortWriter, StepTiming};
+use edmd::runtime::{self, Outcome};
+use parking_lot::Mutex;
+
+const PROGRAM: &str = "tests/data/runtime-path.nc";
+/// The program's end in steps (1 µm).
+const PROGRAM_END: [i64; 2] = [7500, 8250];
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("edmd-io-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn config(overrides: &[&str]) -> Config {
+    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    Config::load(None, &overrides).unwrap()
+}
+
+/// `edmd run PROGRAM --summary DIR/summary.json --set ...` in the repository.
+fn edmd_run(program: &str, dir: &Path, sets: &[&str]) -> (Output, serde_json::Value) {
+    let summary = dir.join("summary.json");
+    let _ = std::fs::remove_file(&summary);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_edmd"));
+    cmd.args(["run", program, "--summary"])
+        .arg(&summary)
+        .current_dir(repo());
+    for s in sets {
+        cmd.args(["--set", s]);
+    }
+    let out = cmd.output().expect("edmd runs");
+    let json = std::fs::read_to_string(&summary)
+        .map(|t| serde_json::from_str(&t).expect("summary is JSON"))
+        .unwrap_or(serde_json::Value::Null);
+    (out, json)
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn end_steps(summary: &serde_json::Value) -> Vec<i64> {
+    summary["end_steps"]
+        .as_array()
+        .expect("end_steps")
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect()
+}
+
+// ---- the parallel port's encoding under whole jobs ----------------------------------------
+
+/// Puts the fake's clock at each tick's start before the port output runs, as the real-time
+/// loop's wake-up would.
+struct AtTickTime<O> {
+    inner: O,
+    bench: Bench,
+    tick_ns: u64,
+}
+
+impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
+    fn write(
+        &mut self,
+        tick: u64,
+        steps: &[i8; MAX_AXES],
+        gap: GapState,
+    ) -> Result<(), OutputError> {
+        self.bench.set_now(tick * self.tick_ns);
+        self.inner.write(tick, steps, gap)
+    }
+
+    fn finish(&mut self) -> Result<(), OutputError> {
+        self.inner.finish()
+    }
+}
+
+/// Runs the test program in virtual time through a parport output on the recording fake,
+/// with a gap schedule; returns the summary, the bench, the map and the timing.
+fn parport_job(
+    overrides: &[&str],
+    gap: ScriptGap,
+) -> (runtime::JobSummary, Bench, PinMap, StepTiming) {
+    let config = config(overrides);
+    let program = repo().join(PROGRAM);
+    let check = runtime::precheck(&program, &config).unwrap();
+    let bench = Bench::new();
+    let map = PinMap::from_config(&config);
+    let timing = StepTiming::from_config(&config);
+    let port: Arc<Mutex<PortWriter<RecordingPort>>> =
+        Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let output: ParportOutput<RecordingPort, VirtualClock> =
+        ParportOutput::new(port, map.clone(), timing, bench.clock(), "fake-port").unwrap();
+    let output = AtTickTime {
+        inner: output,
+        bench: bench.clone(),
+        tick_ns: config.fine.tick_us as u64 * 1000,
+    };
+    let summary = runtime::run_job_on(
+        &program,
+        &config,
+        &check,
+        Box::new(output),
+        Box::new(gap),
+        None,
+    )
+    .unwrap();
+    (summary, bench, map, timing)
+}
+
+fn sums(steps: &[Vec<i8>]) -> Vec<i64> {
+    steps
+        .iter()
+        .map(|axis| axis.iter().map(|&s| s as i64).sum())
+        .collect()
+}
+
+#[test]
+fn a_whole_job_on_the_port_reaches_the_program_end_with_every_timing_rule() {
+    // Shorts make the drives reverse: direction changes under the timing rules.
+    let gap = ScriptGap::from_changes(vec![
+        (100_000, GapState::Short),
+        (103_000, GapState::Normal),
+        (300_000, GapState::Short),
+        (301_000, GapState::Normal),
+    ]);
+    let (summary, bench, map, timing) = parport_job(&["gap.kind=script"], gap);
+    assert_eq!(summary.outcome, Outcome::Done, "{summary:?}");
+    assert_eq!(summary.shorts, 2);
+    let seen = bench.drive_steps(&map, timing).unwrap();
+    assert_eq!(sums(&seen), PROGRAM_END.to_vec(), "what the drives counted");
+    assert_eq!(summary.end_steps, PROGRAM_END.to_vec(), "the ledger");
+    let pulses: Vec<u64> = seen.iter().map(|a| a.len() as u64).collect();
+    assert_eq!(
+        pulses, summary.steps_per_axis,
+        "every pulse reached a drive"
+    );
+    assert!(
+        seen.iter().any(|a| a.contains(&-1)),
+        "the turn-backs reversed an axis"
+    );
+}
+
+#[test]
+fn inverted_pins_and_other_pins_carry_the_same_job() {
+    let gap = ScriptGap::from_changes(vec![
+        (150_000, GapState::Short),
+        (152_000, GapState::Normal),
+    ]);
+    let (summary, bench, map, timing) = parport_job(
+        &[
+            "gap.kind=script",
+            "parport.step_pins=[14, 9]",
+            "parport.dir_pins=[1, 16]",
+            "parport.enable_pin=17",
+            "parport.invert_pins=[14, 16, 17]",
+            "parport.dir_setup_ns=1000",
+            "parport.step_length_ns=2000",
+        ],
+        gap,
+    );
+    assert_eq!(summary.outcome, Outcome::Done);
+    assert_eq!(map.step[..2], [14, 9]);
+    assert!(
+        map.idle().is_high(14) && map.idle().is_high(17),
+        "active-low idles high"
+    );
+    let seen = bench.drive_steps(&map, timing).unwrap();
+    assert_eq!(sums(&seen), PROGRAM_END.to_vec());
+}
+
+#[test]
+fn a_port_write_error_mid_job_stops_and_the_ledger_is_what_the_drives_got() {
+    // The fake port dies after 10,000 writes: somewhere in a tick, at some phase.
+    for budget in [10_000u64, 10_001, 10_002] {
+        let config = config(&["gap.kind=none"]);
+        let program = repo().join(PROGRAM);
+        let check = runtime::precheck(&program, &config).unwrap();
+        let bench = Bench::new();
+        let map = PinMap::from_config(&config);
+        let timing = StepTiming::from_config(&config);
+        let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+        let output =
+            ParportOutput::new(port, map.clone(), timing, bench.clock(), "fake-port").unwrap();
+        let output = AtTickTime {
+            inner: output,
+            bench: bench.clone(),
+            tick_ns: 50_000,
+        };
+        bench.fail_after_writes(budget);
+        let summary = runtime::run_job_on(
+            &program,
+            &config,
+            &check,
+            Box::new(output),
+            Box::new(edmd::gap::AlwaysNormal),
+            None,
+        )
+        .unwrap();
+        assert_eq!(summary.outcome, Outcome::OutputError);
+        let error = summary.error.clone().unwrap();
+        assert!(
+            error.starts_with("fake-port: write failed while"),
+            "{error}"
+        );
+        // The drives' count from the pins that did change. A failed release leaves a pulse
+        // open on the wire (the port died): count edges without the release check.
+        let writes = bench.writes();
+        assert_eq!(writes.len() as u64, budget);
+        let wave = bench.waveform(map.idle());
+        let mut seen = [0i64; 2];
+        let mut prev = map.idle();
+        for (_, levels) in wave {
+            for (axis, count) in seen.iter_mut().enumerate() {
+                let (sp, dp) = (map.step[axis], map.dir[axis]);
+                if levels.is_high(sp) && !prev.is_high(sp) {
+                    *count += if levels.is_high(dp) { 1 } else { -1 };
+                }
+            }
+            prev = levels;
+        }
+        assert_eq!(summary.end_steps, seen.to_vec(), "{error}");
+        assert_ne!(summary.end_steps, PROGRAM_END.to_vec());
+    }
+}
+
+/// A gap input that dies at a given tick.
+struct DyingGap(u64);
+
+impl GapSensor for DyingGap {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        if tick >= self.0 {
+            return Err(GapError::Device {
+                path: "fake-status".to_string(),
+                source: std::io::Error::from_raw_os_error(libc::EIO),
+            });
+        }
+        Ok(GapState::Normal)
+    }
+}
+
+#[test]
+fn a_gap_input_error_stops_before_the_tick_moves() {
+    let config = config(&["gap.kind=none"]);
+    let program = repo().join(PROGRAM);
+    let check = runtime::precheck(&program, &config).unwrap();
+    let summary = runtime::run_job_on(
+        &program,
+        &config,
+        &check,
+        Box::new(edmd::output::NullOutput),
+        Box::new(DyingGap(50_000)),
+        None,
+    )
+    .unwrap();
+    assert_eq!(summary.outcome, Outcome::GapError);
+    assert_eq!(summary.ticks, 50_000);
+    assert!(summary.error.unwrap().contains("cannot read the gap input"));
+    assert_eq!(
+        summary.steps_per_axis.iter().sum::<u64>() as i64,
+        summary.end_steps.iter().sum::<i64>(),
+        "forward only: pulses are the position"
+    );
+}
+
+// ---- the port's startup errors through the binary ------------------------------------------
+
+const PARPORT: [&str; 3] = [
+    "output.kind=parport",
+    "gap.kind=parport",
+    "fine.virtual_time=false",
+];
+
+#[test]
+fn dev_null_is_refused_as_not_a_parallel_port_before_anything_moves() {
+    let dir = scratch("devnull");
+    let mut sets = PARPORT.to_vec();
+    sets.push("output.path=/dev/null");
+    let (out, summary) = edmd_run(PROGRAM, &dir, &sets);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(
+        err.contains("edmd: error: /dev/null: not a parallel port"),
+        "{err}"
+    );
+    assert!(err.contains("/dev/parport0"), "{err}");
+    assert!(summary.is_null(), "no job ran");
+}
+
+#[test]
+fn a_missing_port_names_the_modules_to_load() {
+    let dir = scratch("missing");
+    let mut sets = PARPORT.to_vec();
+    sets.push("output.path=/dev/parport-edmd-test-missing");
+    let (out, _) = edmd_run(PROGRAM, &dir, &sets);
+    assert_eq!(out.status.code(), Some(1));
+    let err = stderr(&out);
+    assert!(
+        err.contains("/dev/parport-edmd-test-missing: no such parallel port"),
+        "{err}"
+    );
+    assert!(err.contains("modprobe parport_pc ppdev"), "{err}");
+}
+
+#[test]
+fn port_settings_that_cannot_work_are_config_errors() {
+    let dir = scratch("badport");
+    let mut sets = PARPORT.to_vec();
+    sets.push("parport.dir_hold_ns=40000");
+    let (out, _) = edmd_run(PROGRAM, &dir, &sets);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(err.contains("fine.tick_us"), "{err}");
+    assert!(err.contains("raise fine.tick_us to at least 65"), "{err}");
+
+    let (out, _) = edmd_run(PROGRAM, &dir, &["parport.dir_pins=[2, 5]"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains(
+            "--set parport.dir_pins=[2, 5]: parport.dir_pins: pin 2 is already used by \
+             parport.step_pins"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    let (out, _) = edmd_run(PROGRAM, &dir, &["parport.short_pin=3"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("3 is not an input pin"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+// ---- the fault injector and a real failing device ------------------------------------------
+
+#[test]
+fn an_injected_write_error_stops_keeps_the_position_and_exits_1() {
+    let dir = scratch("fault");
+    let log = dir.join("pulses.csv");
+    let (out, summary) = edmd_run(
+        PROGRAM,
+        &dir,
+        &[
+            "output.kind=file",
+            &format!("output.path={}", log.display()),
+            "gap.kind=none",
+            "output.fault_at_tick=200000",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(
+        err.contains("edmd: error: output error: injected fault at tick 200000"),
+        "{err}"
+    );
+    assert_eq!(summary["outcome"], "output-error");
+    assert_eq!(summary["ticks"], 200_001);
+    // The log has every tick before the fault and none after: its replay is the ledger.
+    let (_, rows) = read_pulse_log(&log).unwrap();
+    assert!(rows.iter().all(|r| r.tick < 200_000));
+    let mut pos = [0i64; 2];
+    for r in &rows {
+        pos[0] += r.steps[0] as i64;
+        pos[1] += r.steps[1] as i64;
+    }
+    assert_eq!(end_steps(&summary), pos.to_vec());
+    assert!(
+        pos != [0, 0] && pos != PROGRAM_END,
+        "stopped mid-job: {pos:?}"
+    );
+}
+
+#[test]
+fn a_full_disk_under_the_pulse_log_is_an_output_error() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let dir = scratch("full");
+    let (out, summary) = edmd_run(
+        PROGRAM,
+        &dir,
+        &["output.kind=file", "output.path=/dev/full", "gap.kind=none"],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(
+        err.contains("/dev/full: cannot write the pulse log"),
+        "{err}"
+    );
+    assert_eq!(summary["outcome"], "output-error");
+    assert!(end_steps(&summary)[0] > 0, "the failure came mid-job");
+}
+
+// ---- the tracer ----------------------------------------------------------------------------
+
+#[test]
+fn the_tracer_logs_gap_and_direction_changes() {
+    let dir = scratch("trace");
+    let script = dir.join("gap.txt");
+    std::fs::write(&script, "100000 short\n103000 normal\n").unwrap();
+    let (out, summary) = edmd_run(
+        PROGRAM,
+        &dir,
+        &[
+            "output.kind=null",
+            "gap.kind=script",
+            &format!("gap.script={}", script.display()),
+            "gap.trace=true",
+            "output.trace=true",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let err = stderr(&out);
+    let traces: Vec<&str> = err.lines().filter(|l| l.contains("edmd::trace")).collect();
+    let has = |needle: &str| traces.iter().any(|l| l.contains(needle));
+    assert!(
+        has("(tick 0): gap (first reading) -> normal"),
+        "{traces:#?}"
+    );
+    assert!(has("(tick 100000): gap normal -> short"), "{traces:#?}");
+    assert!(has("(tick 103000): gap short -> normal"), "{traces:#?}");
+    assert!(has("axis X now steps +"), "{traces:#?}");
+    assert!(has("axis X now steps -"), "{traces:#?}");
+    assert_eq!(summary["trace_dropped"], 0);
+}
+
+// ---- the closed-loop simulator -------------------------------------------------------------
+
+fn without_timing(mut summary: serde_json::Value) -> serde_json::Value {
+    summary["wall_time_s"] = serde_json::Value::Null;
+    summary
+}
+
+#[test]
+fn the_default_sim_shows_a_handful_of_shorts_on_both_papers_curves_deterministically() {
+    let dir = scratch("sim");
+    for program in [
+        "programs/huang-table1-g38.nc",
+        "programs/jin-table1-g06_2.nc",
+    ] {
+        let (out, a) = edmd_run(program, &dir, &[]);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        assert_eq!(a["shorts"], 5, "{program}");
+        assert_eq!(a["turn_backs"], 5, "{program}");
+        assert_eq!(a["end_steps"], a["program_end_steps"], "{program}");
+        let (_, b) = edmd_run(program, &dir, &[]);
+        assert_eq!(
+            without_timing(a.clone()),
+            without_timing(b),
+            "same seed, same job"
+        );
+        let (_, c) = edmd_run(program, &dir, &["sim.seed=2"]);
+        assert_ne!(a["ticks"], c["ticks"], "another seed, other shorts");
+        assert_eq!(c["end_steps"], c["program_end_steps"]);
+    }
+}
+
+#[test]
+fn a_servo_feed_above_the_erosion_rate_gives_proximity_shorts_and_still_ends_exactly() {
+    let dir = scratch("proximity");
+    let (out, s) = edmd_run(
+        "programs/huang-table1-g38.nc",
+        &dir,
+        &["sim.debris_shorts=0", "servo.normal_feed_mm_per_min=90"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(s["shorts"].as_u64().unwrap() > 10, "{s}");
+    assert_eq!(s["end_steps"], s["program_end_steps"]);
+    let (_, none) = edmd_run(
+        "programs/huang-table1-g38.nc",
+        &dir,
+        &["sim.debris_shorts=0"],
+    );
+    assert_eq!(none["shorts"], 0, "erosion outpaces the default feed");
+}
+
+#[test]
+fn scripted_sim_events_reach_the_job_and_bad_ones_are_located() {
+    let dir = scratch("events");
+    let events = dir.join("events.txt");
+    // A debris bridge that needs a 2 mm turn-back, then a welded short: an alarm.
+    std::fs::write(&events, "200000 debris 2000\n400000 short 100000000\n").unwrap();
+    let (out, s) = edmd_run(
+        "programs/huang-table1-g38.nc",
+        &dir,
+        &[
+            "sim.debris_shorts=0",
+            &format!("sim.events={}", events.display()),
+            "buffer.reserved=64",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert_eq!(s["outcome"], "alarm");
+    assert_eq!(s["shorts"], 2);
+    assert!(s["deepest_turn_back_blocks"].as_u64().unwrap() >= 1);
+
+    std::fs::write(&events, "10 debris\n20 erode 5\n").unwrap();
+    let (out, s) = edmd_run(
+        "programs/huang-table1-g38.nc",
+        &dir,
+        &[&format!("sim.events={}", events.display())],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains(&format!(
+            "{}:2:4: \"erode\" is not an event",
+            events.display()
+        )),
+        "{}",
+        stderr(&out)
+    );
+    assert!(s.is_null());
+}
