@@ -1,11 +1,12 @@
 //! Runtime benches: the consumer's per-tick core, the loop buffer hand-off under a
-//! contending producer (against a lock-free crossbeam queue), and `run` end to end in
-//! virtual time.
+//! contending producer (against a lock-free crossbeam queue), `run` end to end in virtual
+//! time, and what the I/O adds per tick (parallel port encoding, gap pins, simulated gap).
 //!
 //! `cargo bench --bench runtime`
 
 use std::hint::black_box;
 use std::path::Path;
+use std::sync::Arc;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use crossbeam::queue::ArrayQueue;
@@ -13,9 +14,15 @@ use crossbeam::queue::ArrayQueue;
 use edmd::buffer::{BlockSource, Fetch, LoopBuffer, StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
-use edmd::gap::GapState;
+use edmd::gap::{GapSensor, GapState};
 use edmd::geometry::MAX_AXES;
+use edmd::output::PulseOutput;
+use edmd::parport::{
+    Clock, ParportGap, ParportOutput, PinMap, Port, PortWriter, SpinClock, StepTiming,
+};
 use edmd::servo::Feeds;
+use edmd::sim::SimGap;
+use parking_lot::Mutex;
 
 /// Ticks per measured batch.
 const TICKS: u64 = 10_000;
@@ -231,5 +238,84 @@ fn end_to_end(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, tick_core, buffer_handoff, end_to_end);
+/// A port that takes every write and reads a quiet gap.
+struct NoopPort;
+
+impl Port for NoopPort {
+    fn write_data(&mut self, value: u8) -> std::io::Result<()> {
+        std::hint::black_box(value);
+        Ok(())
+    }
+    fn write_control(&mut self, value: u8) -> std::io::Result<()> {
+        std::hint::black_box(value);
+        Ok(())
+    }
+    fn read_status(&mut self) -> std::io::Result<u8> {
+        Ok(0b1000_0111)
+    }
+}
+
+/// A clock that never waits: the encoding's own CPU cost, without the step timing.
+struct NoWait;
+
+impl Clock for NoWait {
+    fn now_ns(&mut self) -> u64 {
+        0
+    }
+    fn wait_until_ns(&mut self, _: u64) {}
+}
+
+/// The cost the I/O adds to a tick: the port's encoding and register writes, the gap pins,
+/// the simulated gap.
+fn io_per_tick(c: &mut Criterion) {
+    let mut group = c.benchmark_group("io per tick");
+    let config = Config::default();
+    let map = PinMap::from_config(&config);
+    let timing = StepTiming::from_config(&config);
+    let port = Arc::new(Mutex::new(PortWriter::new(NoopPort, map.idle())));
+    let mut output =
+        ParportOutput::new(port.clone(), map.clone(), timing, NoWait, "bench").unwrap();
+    let steps = [[1, 1, 0, 0, 0, 0], [-1, 1, 0, 0, 0, 0]];
+    let mut k = 0u64;
+    group.bench_function("parport write, 2 axes stepping, X reversing", |b| {
+        b.iter(|| {
+            k += 1;
+            output
+                .write(k, &steps[(k & 1) as usize], GapState::Normal)
+                .unwrap();
+        })
+    });
+    group.bench_function("parport write, no step", |b| {
+        b.iter(|| output.write(k, &[0; 6], GapState::Normal).unwrap())
+    });
+    // The real clock: the deliberate in-tick waits (dir_setup + step_length = 25 µs with
+    // stepconf's timing) plus the spinning's overshoot.
+    let spin_port = Arc::new(Mutex::new(PortWriter::new(NoopPort, map.idle())));
+    let mut spinning =
+        ParportOutput::new(spin_port, map.clone(), timing, SpinClock, "bench").unwrap();
+    group.bench_function("parport write, spin clock, stepconf timing", |b| {
+        b.iter(|| {
+            k += 1;
+            spinning
+                .write(k, &steps[(k & 1) as usize], GapState::Normal)
+                .unwrap();
+        })
+    });
+    let mut gap = ParportGap::new(port, map, 3, "bench");
+    group.bench_function("parport gap sample (status read, filter 3)", |b| {
+        b.iter(|| gap.sample(k).unwrap())
+    });
+    let mut sim = SimGap::new(&config, &[(0.0, 1e9)], Vec::new());
+    let x = [1, 0, 0, 0, 0, 0];
+    group.bench_function("sim gap sample + observe", |b| {
+        b.iter(|| {
+            let state = sim.sample(k).unwrap();
+            sim.observe(&x, 1);
+            state
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, tick_core, buffer_handoff, end_to_end, io_per_tick);
 criterion_main!(benches);
