@@ -1161,6 +1161,55 @@ mod tests {
     }
 
     #[test]
+    fn parport_pins_and_timing_are_checked() {
+        const PORT: &str = "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n";
+        let c = load(PORT, &[]).unwrap();
+        assert_eq!(c.parport.step_pins, [2, 4, 6, 8]);
+        assert_eq!(c.parport.dir_pins, [3, 5, 7, 9]);
+        assert_eq!(
+            (c.parport.short_pin, c.parport.open_pin),
+            (Some(10), Some(11))
+        );
+        assert_eq!(c.parport.enable_pin, None);
+        let err = |text: &str, sets: &[&str]| load(text, sets).unwrap_err();
+        assert!(
+            err("[parport]\ninvert_pins = [20]\n", &[]).contains("20 is not a signal pin"),
+            "ground pins cannot be inverted"
+        );
+        assert!(err("[parport]\ninvert_pins = [2, 2]\n", &[]).contains("pin 2 is listed twice"));
+        assert!(
+            err("[parport]\nenable_pin = 9\n", &[])
+                .contains("parport.enable_pin: pin 9 is already used by parport.dir_pins")
+        );
+        assert!(
+            err("[parport]\nopen_pin = 10\n", &[]).contains("already used by parport.short_pin")
+        );
+        assert!(err("[parport]\nstep_length_ns = 0\n", &[]).contains("parport.step_length_ns"));
+        // Axis count and timing only matter when the port is in use.
+        let four_axes = [
+            "machine.axes=[\"X\",\"Y\",\"Z\",\"A\",\"B\"]",
+            "machine.step_mm=[0.001,0.001,0.001,0.001,0.001]",
+        ];
+        load("", &four_axes).unwrap();
+        let e = err(PORT, &four_axes);
+        assert!(
+            e.contains("parport.step_pins: has 4 pins but machine.axes has 5 axes"),
+            "{e}"
+        );
+        load("", &["fine.tick_us=10"]).unwrap();
+        let e = err(PORT, &["fine.tick_us=40"]);
+        assert!(e.contains("raise fine.tick_us to at least 45"), "{e}");
+        let e = err(
+            "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n[gap]\nkind = \"parport\"\n",
+            &["parport.short_pin=0", "parport.open_pin=0"],
+        );
+        assert!(
+            e.contains("needs parport.short_pin or parport.open_pin"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn line_col_counts_characters() {
         assert_eq!(line_col("ab\ncµd", 6), (2, 3));
         assert_eq!(line_col("ab\ncµd", 5), (2, 2)); // inside µ: rounds down, no panic
