@@ -2,7 +2,11 @@
 //! the recording fake), the port's startup errors through the real binary, the fault
 //! injector and a real full disk, the tracer, and the closed-loop simulator.
 
+mod common;
+
 use std::path::{Path, PathBuf};
+
+use common::repo;
 use std::process::{Command, Output};
 use std::sync::Arc;
 
@@ -19,14 +23,8 @@ const PROGRAM: &str = "tests/data/runtime-path.nc";
 /// The program's end in steps (1 µm).
 const PROGRAM_END: [i64; 2] = [7500, 8250];
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("edmd-io-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("io", name)
 }
 
 fn config(overrides: &[&str]) -> Config {
@@ -91,6 +89,43 @@ impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
     }
 }
 
+type FakePortOutput = AtTickTime<ParportOutput<RecordingPort, VirtualClock>>;
+
+/// A parport output of `config`'s pin map and timing on a fresh recording fake.
+fn fake_port(config: &Config) -> (FakePortOutput, Bench, PinMap, StepTiming) {
+    let bench = Bench::new();
+    let map = PinMap::from_config(config);
+    let timing = StepTiming::from_config(config);
+    let port: Arc<Mutex<PortWriter<RecordingPort>>> =
+        Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let output = ParportOutput::new(port, map.clone(), timing, bench.clock(), "fake-port").unwrap();
+    let output = AtTickTime {
+        inner: output,
+        bench: bench.clone(),
+        tick_ns: config.fine.tick_us as u64 * 1000,
+    };
+    (output, bench, map, timing)
+}
+
+/// Runs the test program in virtual time with this output and gap source.
+fn job_on(
+    config: &Config,
+    output: impl PulseOutput + Send + 'static,
+    gap: impl GapSensor + Send + 'static,
+) -> runtime::JobSummary {
+    let program = repo().join(PROGRAM);
+    let check = runtime::precheck(&program, config).unwrap();
+    runtime::run_job_on(
+        &program,
+        config,
+        &check,
+        Box::new(output),
+        Box::new(gap),
+        None,
+    )
+    .unwrap()
+}
+
 /// Runs the test program in virtual time through a parport output on the recording fake,
 /// with a gap schedule; returns the summary, the bench, the map and the timing.
 fn parport_job(
@@ -98,30 +133,8 @@ fn parport_job(
     gap: ScriptGap,
 ) -> (runtime::JobSummary, Bench, PinMap, StepTiming) {
     let config = config(overrides);
-    let program = repo().join(PROGRAM);
-    let check = runtime::precheck(&program, &config).unwrap();
-    let bench = Bench::new();
-    let map = PinMap::from_config(&config);
-    let timing = StepTiming::from_config(&config);
-    let port: Arc<Mutex<PortWriter<RecordingPort>>> =
-        Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
-    let output: ParportOutput<RecordingPort, VirtualClock> =
-        ParportOutput::new(port, map.clone(), timing, bench.clock(), "fake-port").unwrap();
-    let output = AtTickTime {
-        inner: output,
-        bench: bench.clone(),
-        tick_ns: config.fine.tick_us as u64 * 1000,
-    };
-    let summary = runtime::run_job_on(
-        &program,
-        &config,
-        &check,
-        Box::new(output),
-        Box::new(gap),
-        None,
-    )
-    .unwrap();
-    (summary, bench, map, timing)
+    let (output, bench, map, timing) = fake_port(&config);
+    (job_on(&config, output, gap), bench, map, timing)
 }
 
 fn sums(steps: &[Vec<i8>]) -> Vec<i64> {
@@ -190,29 +203,9 @@ fn a_port_write_error_mid_job_stops_and_the_ledger_is_what_the_drives_got() {
     // The fake port dies after 10,000 writes: somewhere in a tick, at some phase.
     for budget in [10_000u64, 10_001, 10_002] {
         let config = config(&["gap.kind=none"]);
-        let program = repo().join(PROGRAM);
-        let check = runtime::precheck(&program, &config).unwrap();
-        let bench = Bench::new();
-        let map = PinMap::from_config(&config);
-        let timing = StepTiming::from_config(&config);
-        let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
-        let output =
-            ParportOutput::new(port, map.clone(), timing, bench.clock(), "fake-port").unwrap();
-        let output = AtTickTime {
-            inner: output,
-            bench: bench.clone(),
-            tick_ns: 50_000,
-        };
+        let (output, bench, map, _) = fake_port(&config);
         bench.fail_after_writes(budget);
-        let summary = runtime::run_job_on(
-            &program,
-            &config,
-            &check,
-            Box::new(output),
-            Box::new(edmd::gap::AlwaysNormal),
-            None,
-        )
-        .unwrap();
+        let summary = job_on(&config, output, edmd::gap::AlwaysNormal);
         assert_eq!(summary.outcome, Outcome::OutputError);
         let error = summary.error.clone().unwrap();
         assert!(
@@ -257,18 +250,11 @@ impl GapSensor for DyingGap {
 
 #[test]
 fn a_gap_input_error_stops_before_the_tick_moves() {
-    let config = config(&["gap.kind=none"]);
-    let program = repo().join(PROGRAM);
-    let check = runtime::precheck(&program, &config).unwrap();
-    let summary = runtime::run_job_on(
-        &program,
-        &config,
-        &check,
-        Box::new(edmd::output::NullOutput),
-        Box::new(DyingGap(50_000)),
-        None,
-    )
-    .unwrap();
+    let summary = job_on(
+        &config(&["gap.kind=none"]),
+        edmd::output::NullOutput,
+        DyingGap(50_000),
+    );
     assert_eq!(summary.outcome, Outcome::GapError);
     assert_eq!(summary.ticks, 50_000);
     assert!(summary.error.unwrap().contains("cannot read the gap input"));
@@ -281,18 +267,20 @@ fn a_gap_input_error_stops_before_the_tick_moves() {
 
 // ---- the port's startup errors through the binary ------------------------------------------
 
-const PARPORT: [&str; 3] = [
-    "output.kind=parport",
-    "gap.kind=parport",
-    "fine.virtual_time=false",
-];
+/// `edmd run` on the parallel port (real time) with one more override.
+fn run_on_port(name: &str, extra: &str) -> (Output, serde_json::Value) {
+    let sets = [
+        "output.kind=parport",
+        "gap.kind=parport",
+        "fine.virtual_time=false",
+        extra,
+    ];
+    edmd_run(PROGRAM, &scratch(name), &sets)
+}
 
 #[test]
 fn dev_null_is_refused_as_not_a_parallel_port_before_anything_moves() {
-    let dir = scratch("devnull");
-    let mut sets = PARPORT.to_vec();
-    sets.push("output.path=/dev/null");
-    let (out, summary) = edmd_run(PROGRAM, &dir, &sets);
+    let (out, summary) = run_on_port("devnull", "output.path=/dev/null");
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let err = stderr(&out);
     assert!(
@@ -305,10 +293,7 @@ fn dev_null_is_refused_as_not_a_parallel_port_before_anything_moves() {
 
 #[test]
 fn a_missing_port_names_the_modules_to_load() {
-    let dir = scratch("missing");
-    let mut sets = PARPORT.to_vec();
-    sets.push("output.path=/dev/parport-edmd-test-missing");
-    let (out, _) = edmd_run(PROGRAM, &dir, &sets);
+    let (out, _) = run_on_port("missing", "output.path=/dev/parport-edmd-test-missing");
     assert_eq!(out.status.code(), Some(1));
     let err = stderr(&out);
     assert!(
@@ -320,10 +305,8 @@ fn a_missing_port_names_the_modules_to_load() {
 
 #[test]
 fn port_settings_that_cannot_work_are_config_errors() {
+    let (out, _) = run_on_port("badport", "parport.dir_hold_ns=40000");
     let dir = scratch("badport");
-    let mut sets = PARPORT.to_vec();
-    sets.push("parport.dir_hold_ns=40000");
-    let (out, _) = edmd_run(PROGRAM, &dir, &sets);
     assert_eq!(out.status.code(), Some(2));
     let err = stderr(&out);
     assert!(err.contains("fine.tick_us"), "{err}");

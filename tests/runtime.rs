@@ -5,7 +5,11 @@
 //! a move to the point before the current one on the forward path is a turn-back move; any
 //! other move is forward and, after a turn-back, must revisit the retraced points in reverse.
 
+mod common;
+
 use std::path::{Path, PathBuf};
+
+use common::repo;
 use std::process::{Command, Output};
 
 use edmd::config::Axis;
@@ -17,14 +21,8 @@ const PROGRAM: &str = "tests/data/runtime-path.nc";
 const STEP_MM: f64 = 0.001;
 const TOLERANCE_MM: f64 = 0.001;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("edmd-runtime-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("runtime", name)
 }
 
 /// Runs `edmd run PROGRAM` with the pulse log in `dir`, a gap script (if any) and extra

@@ -11,8 +11,8 @@ mod script;
 
 use crate::geometry::MAX_AXES;
 
-pub(crate) use script::words;
 pub use script::{ScriptError, ScriptGap};
+pub(crate) use script::{read_script, words};
 
 /// The state of the spark gap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -35,6 +35,22 @@ pub enum ScriptError {
     },
 }
 
+/// Reads a script file (`what` names it in the error): its text and its name for messages.
+pub(crate) fn read_script(
+    path: &Path,
+    what: &'static str,
+) -> Result<(String, String), ScriptError> {
+    let name = path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok((text, name)),
+        Err(source) => Err(ScriptError::Io {
+            path: name,
+            what,
+            source,
+        }),
+    }
+}
+
 /// The whitespace-separated words of a script line (comment already cut), each with its
 /// 1-based column in characters.
 pub(crate) fn words(content: &str) -> Vec<(usize, &str)> {
@@ -66,12 +82,7 @@ pub struct ScriptGap {
 
 impl ScriptGap {
     pub fn load(path: &Path) -> Result<ScriptGap, ScriptError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
-            path: name.clone(),
-            what: "gap script",
-            source,
-        })?;
+        let (text, name) = read_script(path, "gap script")?;
         ScriptGap::parse(&text, &name)
     }
 

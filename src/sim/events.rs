@@ -15,7 +15,7 @@
 use std::path::Path;
 
 use crate::gap::ScriptError;
-use crate::gap::{GapState, words};
+use crate::gap::{GapState, read_script, words};
 
 /// One scripted event.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,12 +31,7 @@ pub enum SimEvent {
 
 /// Reads and checks an events file.
 pub fn load(path: &Path) -> Result<Vec<(u64, SimEvent)>, ScriptError> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Io {
-        path: name.clone(),
-        what: "sim events file",
-        source,
-    })?;
+    let (text, name) = read_script(path, "sim events file")?;
     parse(&text, &name)
 }
 
