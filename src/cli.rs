@@ -4,6 +4,8 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use clap::{Args, Parser, Subcommand};
 
@@ -219,13 +221,35 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
     }
 }
 
+/// SIGINT and SIGTERM set the returned flag: the job stops where it is, the outputs go
+/// inactive and the summary reports the position. A second signal ends the process at once
+/// (exit 1), in case stopping hangs.
+fn stop_on_signals() -> Arc<AtomicBool> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [SIGINT, SIGTERM] {
+        // The shutdown must be registered first: it acts on the second signal only.
+        let registered = signal_hook::flag::register_conditional_shutdown(
+            signal,
+            EXIT_RUNTIME as i32,
+            stop.clone(),
+        )
+        .and_then(|_| signal_hook::flag::register(signal, stop.clone()));
+        if let Err(e) = registered {
+            tracing::warn!("cannot handle signal {signal} ({e}); it will end the process");
+        }
+    }
+    stop
+}
+
 fn run_job(args: &RunArgs) -> ExitCode {
     let cfg = match load_config(&args.config) {
         Ok(c) => c,
         Err(code) => return code,
     };
     init_logging(&cfg.log);
-    let summary = match runtime::run_job(&args.program, &cfg) {
+    let stop = stop_on_signals();
+    let summary = match runtime::run_job_until(&args.program, &cfg, &stop) {
         Ok(summary) => summary,
         Err(e) => {
             eprintln!("edmd: error: {e}");

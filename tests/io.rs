@@ -122,6 +122,7 @@ fn job_on(
         Box::new(output),
         Box::new(gap),
         None,
+        None,
     )
     .unwrap()
 }
@@ -389,6 +390,58 @@ fn a_full_disk_under_the_pulse_log_is_an_output_error() {
     );
     assert_eq!(summary["outcome"], "output-error");
     assert!(end_steps(&summary)[0] > 0, "the failure came mid-job");
+}
+
+// ---- signals ------------------------------------------------------------------------------
+
+#[test]
+fn sigint_stops_the_job_where_it_is_and_the_log_matches_the_ledger() {
+    let dir = scratch("sigint");
+    let log = dir.join("pulses.csv");
+    let summary = dir.join("summary.json");
+    // A slow feed: tens of seconds of wall time, interrupted after half a second.
+    let child = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["run", "programs/jin-table1-g06_2.nc", "--summary"])
+        .arg(&summary)
+        .args([
+            "--set",
+            "output.kind=file",
+            "--set",
+            &format!("output.path={}", log.display()),
+            "--set",
+            "gap.kind=none",
+            "--set",
+            "servo.normal_feed_mm_per_min=3",
+        ])
+        .current_dir(repo())
+        .stderr(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("edmd: error: stopped: a stop was requested"),
+        "{}",
+        stderr(&out)
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["outcome"], "stopped");
+    let (_, rows) = read_pulse_log(&log).unwrap();
+    let mut pos = [0i64; 2];
+    for r in &rows {
+        pos[0] += r.steps[0] as i64;
+        pos[1] += r.steps[1] as i64;
+    }
+    assert_eq!(end_steps(&s), pos.to_vec(), "the log has every step taken");
+    assert_ne!(s["end_steps"], s["program_end_steps"], "stopped mid-job");
 }
 
 // ---- the tracer ----------------------------------------------------------------------------

@@ -23,7 +23,7 @@ pub mod sys;
 
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use serde::Serialize;
@@ -389,15 +389,26 @@ fn log_trace(config: &Config, record: &TraceRecord, tick_s: f64) {
 
 /// Runs `program` through both threads with the output and gap source of `config`.
 pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
+    run_job_until(program, config, &AtomicBool::new(false))
+}
+
+/// [`run_job`], stopping where it is (position kept, outputs inactive) once `stop` is set,
+/// e.g. by a signal handler.
+pub fn run_job_until(
+    program: &Path,
+    config: &Config,
+    stop: &AtomicBool,
+) -> Result<JobSummary, JobError> {
     let check = precheck(program, config)?;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let (output, gap) = open_io(config, &check, tracer.as_ref())?;
-    run_job_on(program, config, &check, output, gap, tracer)
+    run_job_on(program, config, &check, output, gap, tracer, Some(stop))
 }
 
 /// Runs `program` (already checked: `check`) through both threads with the given output and
-/// gap source; `tracer` is drained and logged while the job runs.
+/// gap source; `tracer` is drained and logged while the job runs; the job stops where it is
+/// once `stop` is set.
 pub fn run_job_on(
     program: &Path,
     config: &Config,
@@ -405,6 +416,7 @@ pub fn run_job_on(
     mut output: BoxedOutput,
     mut gap: BoxedGap,
     tracer: Option<Arc<Tracer>>,
+    stop: Option<&AtomicBool>,
 ) -> Result<JobSummary, JobError> {
     let output = &mut output;
     let gap = &mut gap;
@@ -467,6 +479,9 @@ pub fn run_job_on(
             }
         };
         while !consumer.is_finished() {
+            if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                published.stop.store(true, Ordering::Relaxed);
+            }
             drain();
             std::thread::park_timeout(Duration::from_millis(10));
         }
@@ -507,7 +522,12 @@ pub fn run_job_on(
         )
     } else if let Err(e) = &producer {
         (Outcome::ProducerError, Some(e.to_string()))
-    } else if report.stopped || fine.state() != ServoState::Done {
+    } else if report.stopped {
+        (
+            Outcome::Stopped,
+            Some("a stop was requested: motion stopped where it was, position kept".to_string()),
+        )
+    } else if fine.state() != ServoState::Done {
         (Outcome::Stopped, None)
     } else {
         (Outcome::Done, None)
