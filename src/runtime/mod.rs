@@ -58,6 +58,9 @@ pub enum JobError {
     Output(#[from] OutputError),
     #[error(transparent)]
     Parport(#[from] ParportError),
+    /// A combination of settings that cannot run (the validated configuration refuses it).
+    #[error("{0}")]
+    Config(String),
 }
 
 /// How a job ended.
@@ -275,7 +278,8 @@ pub fn open_io(
     check: &Precheck,
     tracer: Option<&Arc<Tracer>>,
 ) -> Result<(BoxedOutput, BoxedGap), JobError> {
-    let (mut output, mut gap): (BoxedOutput, Option<BoxedGap>) = match config.output.kind {
+    // The port's status pins come with the port: opened together, one claim.
+    let (mut output, port_gap): (BoxedOutput, Option<BoxedGap>) = match config.output.kind {
         // The simulated drives take every step and report nothing: the ledger is their position.
         OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
         OutputKind::File => (
@@ -292,26 +296,26 @@ pub fn open_io(
         ),
         OutputKind::Parport => {
             let (output, gap) = crate::parport::open(config)?;
-            let gap: BoxedGap = Box::new(gap);
-            (
-                Box::new(output),
-                (config.gap.kind == GapKind::Parport).then_some(gap),
-            )
+            (Box::new(output), Some(Box::new(gap)))
         }
     };
-    if gap.is_none() {
-        gap = Some(match config.gap.kind {
-            GapKind::None => Box::new(AlwaysNormal),
-            GapKind::Script => Box::new(ScriptGap::load(&config.gap.script)?),
-            GapKind::Sim => Box::new(crate::sim::SimGap::from_config(
-                config,
-                &check.cutting_spans,
-            )?),
-            // The configuration only allows it with the parport output, opened above.
-            GapKind::Parport => unreachable!("gap.kind = parport without output.kind = parport"),
-        });
-    }
-    let mut gap = gap.unwrap_or_else(|| Box::new(AlwaysNormal));
+    let mut gap: BoxedGap = match (config.gap.kind, port_gap) {
+        (GapKind::Parport, Some(gap)) => gap,
+        // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
+        (GapKind::Parport, None) => {
+            return Err(JobError::Config(
+                "gap.kind = \"parport\" reads the output port's status pins and needs \
+                 output.kind = \"parport\""
+                    .to_string(),
+            ));
+        }
+        (GapKind::None, _) => Box::new(AlwaysNormal),
+        (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
+        (GapKind::Sim, _) => Box::new(crate::sim::SimGap::from_config(
+            config,
+            &check.cutting_spans,
+        )?),
+    };
     if let Some(tick) = config.output.fault_at_tick {
         tracing::warn!("output.fault_at_tick = {tick}: the output will fail at that tick");
         output = Box::new(FaultInjector::new(output, tick));
