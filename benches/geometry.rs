@@ -1,30 +1,16 @@
 //! NURBS evaluation speed: point plus first and second derivative, the operation the segmenter
 //! calls most. Run: `cargo bench --bench geometry`.
 
+mod common;
+
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use edmd::geometry::{NurbsCurve, Point, circular_arc, point};
 
+/// Seed 001's Table 1 cubic (weights 1, 10, 10, 1, 10, 10, 1), from its sample program.
 fn jin_curve() -> NurbsCurve {
-    let pts = [
-        (0.0, 0.0),
-        (-150.0, -150.0),
-        (-150.0, 150.0),
-        (0.0, 0.0),
-        (150.0, -150.0),
-        (150.0, 150.0),
-        (0.0, 0.0),
-    ];
-    let points: Vec<Point> = pts.iter().map(|&(x, y)| point(&[x, y])).collect();
-    NurbsCurve::new(
-        3,
-        2,
-        &points,
-        &[1.0, 10.0, 10.0, 1.0, 10.0, 10.0, 1.0],
-        vec![0.0, 0.0, 0.0, 0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0],
-    )
-    .unwrap()
+    common::program_curve("jin-table1-g06_2.nc").curve
 }
 
 /// A degree-5 curve in 3 axes with 40 control points (many spans: exercises the span search).

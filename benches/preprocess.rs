@@ -1,6 +1,8 @@
 //! Preprocessor throughput: segments per second per core, chord guarantee included.
 //! Run: `cargo bench --bench preprocess`.
 
+mod common;
+
 use std::hint::black_box;
 use std::sync::Arc;
 
@@ -25,15 +27,6 @@ fn cubic(points: &[(f64, f64)], weights: &[f64]) -> Arc<Block> {
 }
 
 fn curves() -> Vec<(&'static str, Arc<Block>)> {
-    let jin = [
-        (0.0, 0.0),
-        (-150.0, -150.0),
-        (-150.0, 150.0),
-        (0.0, 0.0),
-        (150.0, -150.0),
-        (150.0, 150.0),
-        (0.0, 0.0),
-    ];
     let zigzag = [
         (0.0, 0.0),
         (10.0, 20.0),
@@ -43,7 +36,10 @@ fn curves() -> Vec<(&'static str, Arc<Block>)> {
         (50.0, 0.0),
     ];
     vec![
-        ("jin", cubic(&jin, &[1.0, 10.0, 10.0, 1.0, 10.0, 10.0, 1.0])),
+        (
+            "jin",
+            Arc::new(common::program_curve("jin-table1-g06_2.nc")),
+        ),
         ("zigzag", cubic(&zigzag, &[1.0; 6])),
     ]
 }
