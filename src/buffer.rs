@@ -60,6 +60,9 @@ pub struct StepBlock {
     pub v_cruise: f64,
     /// Source line of the G-code block the move belongs to.
     pub line: u64,
+    /// Curve parameter at the move's end, in the program's knot units (NURBS blocks; NaN for
+    /// lines and arcs). Checkpoints report it; motion never uses it.
+    pub u_end: f64,
     pub flags: u8,
 }
 
@@ -79,6 +82,7 @@ impl StepBlock {
         v_exit: 0.0,
         v_cruise: 0.0,
         line: 0,
+        u_end: f64::NAN,
         flags: 0,
     };
 

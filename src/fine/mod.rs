@@ -116,7 +116,31 @@ pub struct Interpolator {
     dir: i8,
     /// Fraction of the next event already covered.
     phase: f64,
+    /// Held by the operator: brake to a standstill under `a_T` and stay there.
+    hold: bool,
     counters: FineCounters,
+}
+
+/// Why a resumed job could not walk to its checkpoint.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SkipError {
+    #[error("the program ends before segment {seq}, step {event} of the checkpoint")]
+    PastEnd { seq: u64, event: i64 },
+    #[error(
+        "segment {seq} of the program has {events} steps, not the checkpoint's step {event}: \
+         the program or the motion settings are not those of the checkpoint"
+    )]
+    NoSuchPoint { seq: u64, event: i64, events: i64 },
+    #[error(
+        "segment {seq}, step {event} of the program is at {found:?} steps, the checkpoint says \
+         {expected:?}: the program or the motion settings are not those of the checkpoint"
+    )]
+    Position {
+        seq: u64,
+        event: i64,
+        found: Vec<i64>,
+        expected: Vec<i64>,
+    },
 }
 
 impl Interpolator {
@@ -134,7 +158,84 @@ impl Interpolator {
             speed: 0.0,
             dir: 1,
             phase: 0.0,
+            hold: false,
             counters: FineCounters::default(),
+        }
+    }
+
+    /// Holds (brakes to a standstill under `a_T`, then stays) or releases the hold. The servo
+    /// keeps watching the gap while held; motion resumes from where it stopped.
+    pub fn set_hold(&mut self, hold: bool) {
+        self.hold = hold;
+    }
+
+    pub fn held(&self) -> bool {
+        self.hold
+    }
+
+    /// Held and at a standstill: nothing moves until the hold is released.
+    pub fn still(&self) -> bool {
+        self.speed == 0.0 && (self.hold || self.servo.state().is_final())
+    }
+
+    /// Before the first tick of a resumed job: walks forward along the program, emitting
+    /// nothing, to `target` and checks that the ledger there is `expected`. The blocks passed
+    /// go through the source as if executed, so the reserved area behind the electrode is
+    /// full again for turn-back. Pulse counters are not touched: nothing was emitted.
+    pub fn skip_to<S: BlockSource + ?Sized>(
+        &mut self,
+        target: PathPoint,
+        expected: &[i64],
+        source: &mut S,
+    ) -> Result<(), SkipError> {
+        let mut scratch = [0i8; MAX_AXES];
+        while !(self.has_block && self.block.seq >= target.seq) {
+            if self.has_block {
+                while !self.walk.at_end() {
+                    self.walk.forward(&mut scratch);
+                    self.add_steps(&scratch);
+                }
+            }
+            // The source waits for the producer, so `Empty` means the job was aborted.
+            if self.fetch_forward(source) != Fetch::Block {
+                return Err(SkipError::PastEnd {
+                    seq: target.seq,
+                    event: target.event,
+                });
+            }
+        }
+        if self.block.seq != target.seq || target.event > self.walk.events() {
+            return Err(SkipError::NoSuchPoint {
+                seq: target.seq,
+                event: target.event,
+                events: if self.block.seq == target.seq {
+                    self.walk.events()
+                } else {
+                    0
+                },
+            });
+        }
+        while self.walk.event() < target.event {
+            self.walk.forward(&mut scratch);
+            self.add_steps(&scratch);
+        }
+        let n = expected.len().min(MAX_AXES);
+        if self.position[..n] != expected[..n] {
+            return Err(SkipError::Position {
+                seq: target.seq,
+                event: target.event,
+                found: self.position[..n].to_vec(),
+                expected: expected[..n].to_vec(),
+            });
+        }
+        self.servo.on_block();
+        self.servo.on_forward(self.here());
+        Ok(())
+    }
+
+    fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
+        for (p, &s) in self.position.iter_mut().zip(steps) {
+            *p += s as i64;
         }
     }
 
@@ -224,7 +325,7 @@ impl Interpolator {
         // Speed: brake before reversing, then follow min(feed, planned limit) under a_T.
         let dv = self.settings.accel * self.settings.dt;
         let limit = self.planned_limit();
-        let target = if want_dir != self.dir {
+        let target = if want_dir != self.dir || self.hold {
             0.0
         } else {
             feed.min(limit)

@@ -36,6 +36,7 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
                 v_exit: if i + 1 == n { 0.0 } else { v },
                 v_cruise: v,
                 line: i as u64 + 1,
+                u_end: f64::NAN,
                 flags: 0,
             }
         })
@@ -274,5 +275,151 @@ proptest! {
             ServoState::Alarm => prop_assert_eq!(fine.position(), path.last().unwrap().0),
             other => prop_assert!(false, "stuck in {:?}", other),
         }
+    }
+}
+
+/// Positions of every moving tick of a run that is held over `hold` ticks, and the run.
+fn run_with_hold(
+    blocks: Vec<StepBlock>,
+    hold: std::ops::Range<u64>,
+) -> (Vec<[i64; MAX_AXES]>, Interpolator) {
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let mut path = Vec::new();
+    let dv = SETTINGS.accel * SETTINGS.dt;
+    let mut last_speed = 0.0;
+    for t in 0..10_000_000 {
+        fine.set_hold(hold.contains(&t));
+        let tick = fine.tick(GapState::Normal, &mut source);
+        if fine.held() {
+            assert!(
+                fine.speed() <= last_speed || fine.speed() == 0.0,
+                "speeding up while held"
+            );
+            assert!(
+                last_speed - fine.speed() <= dv + 1e-12,
+                "braked harder than a_T"
+            );
+            if fine.still() {
+                assert!(!tick.moved(), "moved while still");
+            }
+        }
+        last_speed = fine.speed();
+        if tick.moved() {
+            path.push(fine.position());
+        }
+        if fine.state().is_final() {
+            break;
+        }
+    }
+    (path, fine)
+}
+
+#[test]
+fn a_hold_brakes_to_a_standstill_and_the_release_carries_on_along_the_same_points() {
+    // The normal feed, 1 mm/s, brakes to a standstill in 9 ticks at 2400 mm/s².
+    let points = [p2(0, 0), p2(3000, 1200), p2(2500, 4000)];
+    let (free, _) = run_with_hold(chain(&points, 4.0), 0..0);
+    let (held, fine) = run_with_hold(chain(&points, 4.0), 20_000..300_000);
+    assert_eq!(fine.state(), ServoState::Done);
+    assert_eq!(held, free, "a hold changes when, never where");
+    // And it really stood still: no step during most of the hold.
+    let (part, _) = run_with_hold(chain(&points, 4.0), 20_000..u64::MAX);
+    assert!(
+        part.len() < free.len() / 2,
+        "{} of {}",
+        part.len(),
+        free.len()
+    );
+    assert!(part.len() > 100, "it moved before the hold");
+}
+
+#[test]
+fn skip_to_refuses_a_point_off_the_program() {
+    let blocks = chain(&[p2(0, 0), p2(30, 12), p2(25, 40)], 5.0);
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let at = PathPoint { seq: 1, event: 4 };
+    let err = fine
+        .skip_to(at, &[30, 13], &mut VecSource::new(blocks.clone(), 4))
+        .unwrap_err();
+    assert!(matches!(err, SkipError::Position { .. }), "{err}");
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let at = PathPoint { seq: 5, event: 0 };
+    let err = fine
+        .skip_to(at, &[25, 40], &mut VecSource::new(blocks.clone(), 4))
+        .unwrap_err();
+    assert!(matches!(err, SkipError::PastEnd { .. }), "{err}");
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let at = PathPoint { seq: 1, event: 99 };
+    let err = fine
+        .skip_to(at, &[25, 40], &mut VecSource::new(blocks, 4))
+        .unwrap_err();
+    assert!(matches!(err, SkipError::NoSuchPoint { .. }), "{err}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Stop anywhere (even mid-turn-back), note where the electrode is, start a fresh
+    /// interpolator, skip to that point and run on: the moves before the stop plus the moves
+    /// after the resume are the moves of the uninterrupted run from that point, and the end
+    /// is exact. No step lost, none doubled.
+    #[test]
+    fn stop_anywhere_then_skip_and_resume_loses_and_doubles_nothing(
+        points in proptest::collection::vec((-60i64..60, -60i64..60), 2..10),
+        stop_at in 1u64..40_000,
+        short_from in 0u64..40_000,
+    ) {
+        let lattice: Vec<_> = points.iter().map(|&(x, y)| p2(x, y)).collect();
+        let mut lattice_from_zero = vec![p2(0, 0)];
+        lattice_from_zero.extend(lattice);
+        let blocks = chain(&lattice_from_zero, 5.0);
+        let gap = |t: u64| if (short_from..short_from + 300).contains(&t) {
+            GapState::Short
+        } else {
+            GapState::Normal
+        };
+        // First run: up to the stop.
+        let mut source = VecSource::new(blocks.clone(), 8);
+        let mut first = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+        for t in 0..stop_at {
+            first.tick(gap(t), &mut source);
+            if first.state().is_final() {
+                break;
+            }
+        }
+        prop_assume!(!first.state().is_final());
+        let here = first.here();
+        let ledger = first.position();
+        // Resume: skip, then run to the end with the gap normal.
+        let mut second = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+        let mut source = VecSource::new(blocks.clone(), 8);
+        second.skip_to(here, &ledger[..2], &mut source).unwrap();
+        prop_assert_eq!(second.counters().pulses, [0; MAX_AXES]);
+        for _ in 0..10_000_000 {
+            second.tick(GapState::Normal, &mut source);
+            if second.state().is_final() {
+                break;
+            }
+        }
+        prop_assert_eq!(second.state(), ServoState::Done);
+        prop_assert_eq!(second.position(), *lattice_from_zero.last().unwrap());
+        // The resumed run's pulses are exactly those from the stop point to the end: the
+        // lattice path from `ledger` onwards, which (no turn-back after the resume) is the
+        // Manhattan length of the rest of the path along the blocks.
+        let mut rest = [0u64; MAX_AXES];
+        for b in &blocks {
+            let from = if b.seq < here.seq {
+                continue;
+            } else if b.seq == here.seq {
+                Bresenham::offset_at(&b.delta(), here.event)
+            } else {
+                [0; MAX_AXES]
+            };
+            for i in 0..MAX_AXES {
+                rest[i] += (b.delta()[i] - from[i]).unsigned_abs();
+            }
+        }
+        prop_assert_eq!(second.counters().pulses, rest);
     }
 }

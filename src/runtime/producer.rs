@@ -105,6 +105,10 @@ impl BlockMaker {
             v_exit: segment.v_exit,
             v_cruise: segment.v_peak,
             line: segment.block.line,
+            u_end: match segment.block.kind {
+                BlockKind::Nurbs { .. } => segment.u_end,
+                _ => f64::NAN,
+            },
             flags,
         };
         self.seq += 1;
