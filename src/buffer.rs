@@ -321,6 +321,14 @@ pub struct Consumer<'a> {
     wait_for_producer: bool,
 }
 
+impl Consumer<'_> {
+    /// Switches between waiting for the producer (virtual time) and reporting an empty
+    /// buffer (real time).
+    pub fn set_wait_for_producer(&mut self, wait: bool) {
+        self.wait_for_producer = wait;
+    }
+}
+
 impl BlockSource for Consumer<'_> {
     fn next(&mut self, out: &mut StepBlock) -> Fetch {
         let buffer = self.buffer;

@@ -18,7 +18,7 @@
 //! skipped rather than caught up: catching up would fire several ticks back to back, a burst
 //! of steps faster than the planned speed. Motion simply pauses for the missed periods.
 
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering, fence};
 
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
@@ -30,7 +30,7 @@ use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
-use crate::servo::ServoEvent;
+use crate::servo::{PathPoint, ServoCounters, ServoEvent, ServoState};
 
 /// How the loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,17 +64,27 @@ pub struct EventRecord {
     pub event: ServoEvent,
 }
 
-/// What the consumer publishes while it runs, for status reports and the event logger.
+/// What the consumer publishes while it runs, for status reports, checkpoints, the
+/// watchdog and the event logger, and the flags other threads use to steer it. The consumer
+/// only stores into it (relaxed atomics, a seqlock for the [`Snapshot`]); it never waits on it.
 #[derive(Debug)]
 pub struct Published {
     /// Servo events with their tick, drained by a normal-priority thread.
     pub events: ArrayQueue<EventRecord>,
     /// Events that found the queue full (the logger fell behind).
     pub events_dropped: CachePadded<AtomicU64>,
+    /// Ticks executed so far: the watchdog's proof of progress.
     pub ticks: CachePadded<AtomicU64>,
     pub overruns: CachePadded<AtomicU64>,
-    pub position: [AtomicI64; MAX_AXES],
-    /// Set by the supervisor: stop the loop where it is (the position is kept).
+    /// Real time only: wake-up latency so far (ns): sum, samples and maximum.
+    pub latency_sum_ns: AtomicU64,
+    pub latency_samples: AtomicU64,
+    pub latency_max_ns: AtomicU64,
+    snapshot: SeqLock,
+    /// Set by the supervisor: hold (brake to a standstill and stay) while set.
+    pub hold: AtomicBool,
+    /// Set by the supervisor: end the loop where it is (the position is kept). A controlled
+    /// stop sets `hold` first and this once the snapshot says `still`.
     pub stop: AtomicBool,
     /// Set by the consumer when its loop has ended.
     pub finished: AtomicBool,
@@ -87,14 +97,208 @@ impl Published {
             events_dropped: CachePadded::new(AtomicU64::new(0)),
             ticks: CachePadded::new(AtomicU64::new(0)),
             overruns: CachePadded::new(AtomicU64::new(0)),
-            position: std::array::from_fn(|_| AtomicI64::new(0)),
+            latency_sum_ns: AtomicU64::new(0),
+            latency_samples: AtomicU64::new(0),
+            latency_max_ns: AtomicU64::new(0),
+            snapshot: SeqLock::default(),
+            hold: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             finished: AtomicBool::new(false),
         }
     }
 
+    /// The latest consistent snapshot of the interpolator (a few retries at most).
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot::decode(&self.snapshot.read())
+    }
+
     pub fn position(&self) -> [i64; MAX_AXES] {
-        std::array::from_fn(|i| self.position[i].load(Ordering::Relaxed))
+        self.snapshot().position
+    }
+
+    /// Publishes `fine`'s state (the consumer only).
+    #[inline]
+    pub fn publish(&self, tick: u64, fine: &Interpolator) {
+        self.snapshot.write(&Snapshot::of(tick, fine).encode());
+    }
+}
+
+/// The interpolator's state as the other threads see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Snapshot {
+    pub tick: u64,
+    pub state: ServoState,
+    /// The hold is in force (the operator's, not a starvation).
+    pub held: bool,
+    /// Held (or finished) and at a standstill.
+    pub still: bool,
+    /// The pulse ledger (steps).
+    pub position: [i64; MAX_AXES],
+    /// Where along the program: segment and Bresenham step.
+    pub here: PathPoint,
+    /// Steps of the segment in hand.
+    pub events: i64,
+    /// Source line of the segment in hand.
+    pub line: u64,
+    /// Curve parameter at the end of the segment in hand (NaN outside NURBS).
+    pub u_end: f64,
+    /// Path speed (mm/s).
+    pub speed: f64,
+    pub servo: ServoCounters,
+    /// Pulses emitted per axis.
+    pub pulses: [u64; MAX_AXES],
+}
+
+impl Default for Snapshot {
+    fn default() -> Self {
+        Snapshot {
+            tick: 0,
+            state: ServoState::Hold,
+            held: false,
+            still: true,
+            position: [0; MAX_AXES],
+            here: PathPoint::default(),
+            events: 0,
+            line: 0,
+            u_end: f64::NAN,
+            speed: 0.0,
+            servo: ServoCounters::default(),
+            pulses: [0; MAX_AXES],
+        }
+    }
+}
+
+const WORDS: usize = 2 + MAX_AXES + 6 + 5 + MAX_AXES;
+const STATES: [ServoState; 6] = [
+    ServoState::Forward,
+    ServoState::Hold,
+    ServoState::TurnBack,
+    ServoState::ReAdvance,
+    ServoState::Alarm,
+    ServoState::Done,
+];
+
+impl Snapshot {
+    pub fn of(tick: u64, fine: &Interpolator) -> Snapshot {
+        let c = fine.counters();
+        let (events, u_end) = fine
+            .block()
+            .map_or((0, f64::NAN), |b| (b.events() as i64, b.u_end));
+        Snapshot {
+            tick,
+            state: fine.state(),
+            held: fine.held(),
+            still: fine.still(),
+            position: fine.position(),
+            here: fine.here(),
+            events,
+            line: fine.line(),
+            u_end,
+            speed: fine.speed(),
+            servo: c.servo,
+            pulses: c.pulses,
+        }
+    }
+
+    fn encode(&self) -> [u64; WORDS] {
+        let mut w = [0u64; WORDS];
+        let state = STATES.iter().position(|s| *s == self.state).unwrap_or(1) as u64;
+        w[0] = self.tick;
+        w[1] = state | (self.held as u64) << 8 | (self.still as u64) << 9;
+        for i in 0..MAX_AXES {
+            w[2 + i] = self.position[i] as u64;
+            w[2 + MAX_AXES + 11 + i] = self.pulses[i];
+        }
+        let m = 2 + MAX_AXES;
+        w[m] = self.here.seq;
+        w[m + 1] = self.here.event as u64;
+        w[m + 2] = self.events as u64;
+        w[m + 3] = self.line;
+        w[m + 4] = self.u_end.to_bits();
+        w[m + 5] = self.speed.to_bits();
+        let c = &self.servo;
+        w[m + 6..m + 11].copy_from_slice(&[
+            c.shorts,
+            c.turn_backs,
+            c.deepest_turn_back_blocks,
+            c.alarms,
+            c.starvations,
+        ]);
+        w
+    }
+
+    fn decode(w: &[u64; WORDS]) -> Snapshot {
+        let m = 2 + MAX_AXES;
+        Snapshot {
+            tick: w[0],
+            state: STATES[(w[1] & 0xff) as usize % STATES.len()],
+            held: w[1] & 1 << 8 != 0,
+            still: w[1] & 1 << 9 != 0,
+            position: std::array::from_fn(|i| w[2 + i] as i64),
+            here: PathPoint {
+                seq: w[m],
+                event: w[m + 1] as i64,
+            },
+            events: w[m + 2] as i64,
+            line: w[m + 3],
+            u_end: f64::from_bits(w[m + 4]),
+            speed: f64::from_bits(w[m + 5]),
+            servo: ServoCounters {
+                shorts: w[m + 6],
+                turn_backs: w[m + 7],
+                deepest_turn_back_blocks: w[m + 8],
+                alarms: w[m + 9],
+                starvations: w[m + 10],
+            },
+            pulses: std::array::from_fn(|i| w[m + 11 + i]),
+        }
+    }
+}
+
+/// A single-writer sequence lock over a few words: the writer never waits, a reader retries
+/// while a write is in progress or happened under it.
+#[derive(Debug)]
+struct SeqLock {
+    version: AtomicU64,
+    words: [AtomicU64; WORDS],
+}
+
+impl Default for SeqLock {
+    fn default() -> Self {
+        let lock = SeqLock {
+            version: AtomicU64::new(0),
+            words: std::array::from_fn(|_| AtomicU64::new(0)),
+        };
+        lock.write(&Snapshot::default().encode());
+        lock
+    }
+}
+
+impl SeqLock {
+    #[inline]
+    fn write(&self, data: &[u64; WORDS]) {
+        let v = self.version.load(Ordering::Relaxed);
+        self.version.store(v.wrapping_add(1), Ordering::Relaxed);
+        fence(Ordering::Release);
+        for (slot, &d) in self.words.iter().zip(data) {
+            slot.store(d, Ordering::Relaxed);
+        }
+        self.version.store(v.wrapping_add(2), Ordering::Release);
+    }
+
+    fn read(&self) -> [u64; WORDS] {
+        loop {
+            let before = self.version.load(Ordering::Acquire);
+            if before & 1 == 1 {
+                std::hint::spin_loop();
+                continue;
+            }
+            let data = std::array::from_fn(|i| self.words[i].load(Ordering::Relaxed));
+            fence(Ordering::Acquire);
+            if self.version.load(Ordering::Relaxed) == before {
+                return data;
+            }
+        }
     }
 }
 
@@ -121,6 +325,24 @@ pub struct LoopReport {
     pub stopped: bool,
     /// Real-time features the system refused, with the reason.
     pub rt_refused: Vec<String>,
+}
+
+impl LoopReport {
+    /// The report of a loop that never ran.
+    pub fn empty() -> LoopReport {
+        LoopReport {
+            ticks: 0,
+            latency: None,
+            overruns: 0,
+            missed_deadlines: 0,
+            wall_ns: 0,
+            output_error: None,
+            untaken: None,
+            gap_error: None,
+            stopped: false,
+            rt_refused: Vec::new(),
+        }
+    }
 }
 
 /// Real-time features in force for the loop; dropping it releases them.
@@ -185,7 +407,7 @@ pub fn apply_realtime(settings: &LoopSettings) -> RealtimeGuard {
 }
 
 /// Runs the tick core until the program is done, an alarm, an output error or a stop
-/// request. Call from the consumer thread; applies the real-time settings to it.
+/// request. Call from the consumer thread after [`apply_realtime`].
 pub fn run_loop<S, O, G>(
     fine: &mut Interpolator,
     source: &mut S,
@@ -199,20 +421,8 @@ where
     O: PulseOutput + ?Sized,
     G: GapSensor + ?Sized,
 {
-    let realtime = apply_realtime(settings);
     let mut latency = (!settings.virtual_time).then(LatencyHistogram::default);
-    let mut report = LoopReport {
-        ticks: 0,
-        latency: None,
-        overruns: 0,
-        missed_deadlines: 0,
-        wall_ns: 0,
-        output_error: None,
-        untaken: None,
-        gap_error: None,
-        stopped: false,
-        rt_refused: realtime.refused.clone(),
-    };
+    let mut report = LoopReport::empty();
     let started = sys::monotonic_ns();
     let period = settings.tick_ns;
     let mut deadline = started + period;
@@ -221,8 +431,17 @@ where
         if let Some(histogram) = latency.as_mut() {
             sys::sleep_until_ns(deadline);
             let woke = sys::monotonic_ns();
-            histogram.record(woke.saturating_sub(deadline));
+            let late = woke.saturating_sub(deadline);
+            histogram.record(late);
+            published.latency_sum_ns.fetch_add(late, Ordering::Relaxed);
+            published.latency_samples.fetch_add(1, Ordering::Relaxed);
+            published.latency_max_ns.fetch_max(late, Ordering::Relaxed);
+        } else if fine.held() && fine.still() {
+            // Held in virtual time: nothing can change but the operator's mind, so let the
+            // CPU go rather than spin through ticks.
+            std::thread::sleep(std::time::Duration::from_millis(1));
         }
+        fine.set_hold(published.hold.load(Ordering::Relaxed));
         let gap = match sensor.sample(tick_no) {
             Ok(gap) => gap,
             Err(e) => {
@@ -252,13 +471,12 @@ where
         {
             published.events_dropped.fetch_add(1, Ordering::Relaxed);
         }
-        if tick.moved() {
-            for (i, p) in fine.position().iter().enumerate() {
-                published.position[i].store(*p, Ordering::Relaxed);
-            }
-        }
         tick_no += 1;
-        if tick_no & 0x3ff == 0 {
+        // Every servo event and every held tick (a controlled stop waits for `still`);
+        // otherwise every 64 ticks (3.2 ms at 50 µs): status and periodic checkpoints lag by
+        // that much at most, and the ticks that publish nothing stay as cheap as before.
+        if tick.event.is_some() || fine.held() || tick_no & 0x3f == 0 {
+            published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
         }
         if fine.state().is_final() {
@@ -284,6 +502,7 @@ where
     report.wall_ns = sys::monotonic_ns() - started;
     report.latency = latency;
     published.ticks.store(tick_no, Ordering::Relaxed);
+    published.publish(tick_no, fine);
     published.finished.store(true, Ordering::Release);
     report
 }

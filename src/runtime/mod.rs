@@ -17,6 +17,7 @@
 //! `edmd run` prints and writes as JSON.
 
 pub mod consumer;
+pub mod fine_thread;
 pub mod latency;
 pub mod producer;
 pub mod sys;
@@ -30,7 +31,7 @@ use serde::Serialize;
 
 use crate::buffer::LoopBuffer;
 use crate::config::{Config, GapKind, OutputKind};
-use crate::fine::{FineSettings, Interpolator};
+use crate::fine::FineSettings;
 use crate::gap::{AlwaysNormal, GapSensor, ScriptError, ScriptGap};
 use crate::gcode::{self, GcodeError};
 use crate::geometry::MAX_AXES;
@@ -41,7 +42,8 @@ use crate::parport::ParportError;
 use crate::servo::{ServoEvent, ServoState};
 use crate::trace::{TraceEvent, TraceRecord, TracedGap, TracedOutput, Tracer};
 
-pub use consumer::{EventRecord, LoopReport, LoopSettings, Published};
+pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
+pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
 pub use latency::{LatencyHistogram, LatencySummary};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 
@@ -58,6 +60,8 @@ pub enum JobError {
     Output(#[from] OutputError),
     #[error(transparent)]
     Parport(#[from] ParportError),
+    #[error("cannot start the fine interpolation thread: {0}")]
+    Thread(std::io::Error),
     /// A combination of settings that cannot run (the validated configuration refuses it).
     #[error("{0}")]
     Config(String),
@@ -80,6 +84,8 @@ pub enum Outcome {
     ProducerError,
     /// Stopped on request.
     Stopped,
+    /// A resumed job did not find its checkpoint on the program's path: nothing moved.
+    ResumeRefused,
 }
 
 impl Outcome {
@@ -91,6 +97,7 @@ impl Outcome {
             Outcome::GapError => "gap input error",
             Outcome::ProducerError => "producer error",
             Outcome::Stopped => "stopped",
+            Outcome::ResumeRefused => "resume refused",
         }
     }
 }
@@ -411,19 +418,69 @@ pub fn run_job_until(
 }
 
 /// Runs `program` (already checked: `check`) through both threads with the given output and
-/// gap source; `tracer` is drained and logged while the job runs; the job stops where it is
-/// once `stop` is set.
+/// gap source; `tracer` is drained and logged while the job runs; once `stop` is set the job
+/// brakes to a standstill and ends there (position kept).
 pub fn run_job_on(
     program: &Path,
     config: &Config,
     check: &Precheck,
-    mut output: BoxedOutput,
-    mut gap: BoxedGap,
+    output: BoxedOutput,
+    gap: BoxedGap,
     tracer: Option<Arc<Tracer>>,
     stop: Option<&AtomicBool>,
 ) -> Result<JobSummary, JobError> {
-    let output = &mut output;
-    let gap = &mut gap;
+    let fine_thread =
+        FineThread::start(&LoopSettings::from_config(config)).map_err(JobError::Thread)?;
+    let never = AtomicBool::new(false);
+    let end = run_job_with(
+        &fine_thread,
+        program,
+        config,
+        check,
+        JobIo {
+            output,
+            gap,
+            tracer,
+        },
+        Arc::new(Published::new(4096)),
+        stop.unwrap_or(&never),
+        None,
+    )?;
+    Ok(end.summary)
+}
+
+/// What a job runs on besides the program.
+pub struct JobIo {
+    pub output: BoxedOutput,
+    pub gap: BoxedGap,
+    pub tracer: Option<Arc<Tracer>>,
+}
+
+/// A finished job: the summary, where the electrode stands, and the output and gap source
+/// handed back (a daemon keeps its parallel port claimed across jobs).
+pub struct JobEnd {
+    pub summary: JobSummary,
+    /// The interpolator at the end: the checkpoint's point and ledger.
+    pub stopped_at: Snapshot,
+    pub output: BoxedOutput,
+    pub gap: BoxedGap,
+}
+
+/// One job on a running [`FineThread`]: the producer on a new thread, the tick loop on the
+/// fine thread, this thread supervising (logging events, turning `stop` into a controlled
+/// stop). Other threads watch and steer the job through `published` (status, hold). With
+/// `resume`, the job starts by walking, without emitting, to that point of the program.
+#[allow(clippy::too_many_arguments)]
+pub fn run_job_with(
+    fine_thread: &FineThread,
+    program: &Path,
+    config: &Config,
+    check: &Precheck,
+    io: JobIo,
+    published: Arc<Published>,
+    stop: &AtomicBool,
+    resume: Option<ResumePoint>,
+) -> Result<JobEnd, JobError> {
     let name = program.display().to_string();
     let cap = fine_speed_cap(config);
     if config.machine.max_feed_mm_per_min / 60.0 > cap {
@@ -445,35 +502,30 @@ pub fn run_job_on(
         },
         config.fine.tick_us
     );
-    let buffer = LoopBuffer::new(config.buffer.capacity, config.buffer.reserved);
-    let published = Published::new(4096);
-    let settings = FineSettings::from_config(config);
+    let buffer = Arc::new(LoopBuffer::new(
+        config.buffer.capacity,
+        config.buffer.reserved,
+    ));
     let loop_settings = LoopSettings::from_config(config);
     let tick_s = config.fine.tick_us as f64 * 1e-6;
+    let JobIo {
+        output,
+        gap,
+        tracer,
+    } = io;
 
-    let supervisor = std::thread::current();
-    let (producer, (fine, report, finished)) = std::thread::scope(|s| {
+    let (producer, done) = std::thread::scope(|s| {
         let producer = s.spawn(|| producer::produce(program, config, &buffer));
-        let consumer = std::thread::Builder::new()
-            .name("edmd-fine".to_string())
-            .spawn_scoped(s, || {
-                let mut source = buffer.consumer(loop_settings.virtual_time);
-                let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
-                let report = consumer::run_loop(
-                    &mut fine,
-                    &mut source,
-                    output,
-                    gap,
-                    &loop_settings,
-                    &published,
-                );
-                let finished = output.finish();
-                // Releases a producer still waiting for space (after an alarm or a stop).
-                buffer.abort();
-                supervisor.unpark();
-                (fine, report, finished)
-            })
-            .expect("spawning the fine interpolation thread");
+        let result = fine_thread.submit(FineJob {
+            buffer: buffer.clone(),
+            published: published.clone(),
+            output,
+            gap,
+            settings: FineSettings::from_config(config),
+            loop_settings,
+            resume: resume.clone(),
+            supervisor: std::thread::current(),
+        });
         let drain = || {
             while let Some(record) = published.events.pop() {
                 log_event(&name, &record, tick_s);
@@ -482,20 +534,40 @@ pub fn run_job_on(
                 tracer.drain(|record| log_trace(config, record, tick_s));
             }
         };
-        while !consumer.is_finished() {
-            if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
-                published.stop.store(true, Ordering::Relaxed);
+        let done = loop {
+            // A controlled stop: hold, and end the loop once it stands still.
+            if stop.load(Ordering::Relaxed) {
+                published.hold.store(true, Ordering::Relaxed);
+                if published.snapshot().still {
+                    published.stop.store(true, Ordering::Relaxed);
+                }
             }
             drain();
+            match result.try_recv() {
+                Ok(done) => break Some(done),
+                Err(crossbeam::channel::TryRecvError::Disconnected) => break None,
+                Err(crossbeam::channel::TryRecvError::Empty) => {}
+            }
             std::thread::park_timeout(Duration::from_millis(10));
-        }
+        };
         drain();
-        let consumer = consumer
-            .join()
-            .expect("the fine interpolation thread panicked");
+        if done.is_none() {
+            buffer.abort();
+        }
         let producer = producer.join().expect("the producer thread panicked");
-        (producer, consumer)
+        (producer, done)
     });
+    let Some(FineDone {
+        fine,
+        report,
+        finished,
+        skip,
+        output,
+        gap,
+    }) = done
+    else {
+        panic!("the fine interpolation thread panicked");
+    };
 
     let mut counters = fine.counters();
     let mut position = fine.position();
@@ -513,7 +585,9 @@ pub fn run_job_on(
         }
     }
     let axes = config.machine.axes.len();
-    let (outcome, error) = if let Some(e) = report.gap_error.as_ref() {
+    let (outcome, error) = if let Err(e) = &skip {
+        (Outcome::ResumeRefused, Some(e.to_string()))
+    } else if let Some(e) = report.gap_error.as_ref() {
         (Outcome::GapError, Some(e.to_string()))
     } else if let Some(e) = report.output_error.as_ref() {
         (Outcome::OutputError, Some(e.to_string()))
@@ -537,7 +611,8 @@ pub fn run_job_on(
         (Outcome::Done, None)
     };
     let producer = producer.unwrap_or_default();
-    Ok(JobSummary {
+    let stopped_at = Snapshot::of(report.ticks, &fine);
+    let summary = JobSummary {
         program: name,
         outcome,
         error,
@@ -577,5 +652,11 @@ pub fn run_job_on(
         events_dropped: published.events_dropped.load(Ordering::Relaxed),
         trace_dropped: tracer.as_ref().map_or(0, |t| t.dropped()),
         rt_refused: report.rt_refused,
+    };
+    Ok(JobEnd {
+        summary,
+        stopped_at,
+        output,
+        gap,
     })
 }
