@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 use clap::{Args, Parser, Subcommand};
 
 use crate::check;
-use crate::config::{self, Config, LogFormat, LogLevel};
+use crate::config::{self, Config, LogFormat};
 use crate::gcode;
 use crate::plan;
 use crate::runtime::{self, JobError, Outcome};
@@ -40,6 +40,53 @@ enum Command {
     /// Run one job in the foreground through both threads, then print a summary.
     /// Exit 1 on an alarm or a device error.
     Run(RunArgs),
+    /// The daemon: claim the output, start the real-time thread, take jobs from the control
+    /// socket (daemon.socket). SIGTERM/SIGINT: controlled stop and checkpoint; SIGHUP:
+    /// reload; SIGUSR1: status into the log.
+    Serve(ServeArgs),
+    /// Talk to a running daemon: run, hold, resume, abort, status.
+    Ctl(CtlArgs),
+}
+
+#[derive(Args, Debug)]
+struct ServeArgs {
+    #[command(flatten)]
+    config: ConfigArgs,
+}
+
+#[derive(Args, Debug)]
+struct CtlArgs {
+    /// The daemon's control socket [default: daemon.socket of the configuration]
+    #[arg(long, value_name = "PATH", global = true)]
+    socket: Option<PathBuf>,
+    /// Print the daemon's reply as JSON (one line) instead of text
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(flatten)]
+    config: ConfigArgs,
+    #[command(subcommand)]
+    command: CtlCommand,
+}
+
+#[derive(Subcommand, Debug)]
+enum CtlCommand {
+    /// Run a program (a path inside daemon.program_dir)
+    Run {
+        /// Program path, relative to daemon.program_dir (or absolute inside it)
+        program: String,
+    },
+    /// Brake to a standstill and hold there (checkpoint written)
+    Hold,
+    /// Release a hold; with no job running, resume the checkpoint's job
+    Resume {
+        /// Resume from a checkpoint written while cutting (the electrode may be past it)
+        #[arg(long)]
+        force: bool,
+    },
+    /// Brake to a standstill and end the job (checkpoint kept)
+    Abort,
+    /// Print what the daemon is doing
+    Status,
 }
 
 /// Options shared by every command that reads the configuration.
@@ -54,14 +101,20 @@ struct ConfigArgs {
 }
 
 impl ConfigArgs {
-    fn load(&self) -> Result<Config, config::ConfigError> {
+    /// The file to read: `--config`, else `config/edmd.toml` if present, else none (the
+    /// built-in default).
+    fn path(&self) -> Option<PathBuf> {
         match &self.config {
-            Some(path) => Config::load(Some(path), &self.set),
+            Some(path) => Some(path.clone()),
             None => {
                 let default = Path::new(config::DEFAULT_CONFIG_PATH);
-                Config::load(default.exists().then_some(default), &self.set)
+                default.exists().then(|| default.to_path_buf())
             }
         }
+    }
+
+    fn load(&self) -> Result<Config, config::ConfigError> {
+        Config::load(self.path().as_deref(), &self.set)
     }
 }
 
@@ -108,30 +161,41 @@ pub fn main() -> ExitCode {
         Command::Check(args) => run_check(&args),
         Command::Plan(args) => run_plan(&args),
         Command::Run(args) => run_job(&args),
+        Command::Serve(args) => run_serve(&args),
+        Command::Ctl(args) => run_ctl(&args),
     }
 }
 
-fn init_logging(cfg: &config::LogConfig) {
-    let level = match cfg.level {
-        LogLevel::Error => "error",
-        LogLevel::Warn => "warn",
-        LogLevel::Info => "info",
-        LogLevel::Debug => "debug",
-        LogLevel::Trace => "trace",
-    };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+/// Sets up logging as configured; returns the way to change the level later (SIGHUP).
+fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
+    use tracing_subscriber::{EnvFilter, Layer, Registry, fmt, reload};
+
+    let from_env = std::env::var_os("RUST_LOG").is_some();
+    let filter =
+        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(cfg.level.name()));
+    let (filter, handle) = reload::Layer::<EnvFilter, Registry>::new(filter);
     let terminal = std::io::stderr().is_terminal();
-    let builder = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr);
-    // A second initialisation (tests calling twice) is harmless, so its error is ignored.
-    let _ = match cfg.format {
-        LogFormat::Json => builder.json().try_init(),
-        LogFormat::Human => builder.with_ansi(terminal).try_init(),
-        LogFormat::Plain => builder.with_ansi(false).try_init(),
-        LogFormat::Auto => builder.with_ansi(terminal).try_init(),
+    let layer = fmt::layer().with_writer(std::io::stderr);
+    let layer = match cfg.format {
+        LogFormat::Json => layer.json().boxed(),
+        LogFormat::Plain => layer.with_ansi(false).boxed(),
+        LogFormat::Human | LogFormat::Auto => layer.with_ansi(terminal).boxed(),
     };
+    // A second initialisation (tests calling twice) is harmless, so its error is ignored.
+    let _ = tracing_subscriber::registry()
+        .with(filter)
+        .with(layer)
+        .try_init();
+    Box::new(move |level: &str| {
+        if from_env {
+            return Err("RUST_LOG is set and takes precedence; level unchanged".to_string());
+        }
+        handle
+            .reload(EnvFilter::new(level))
+            .map_err(|e| e.to_string())
+    })
 }
 
 fn load_config(args: &ConfigArgs) -> Result<Config, ExitCode> {
@@ -146,7 +210,7 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    init_logging(&cfg.log);
+    let _ = init_logging(&cfg.log);
     let axes = &cfg.machine.axes;
     let mut reader = match gcode::open_program(&args.program, axes) {
         Ok(r) => r,
@@ -203,7 +267,7 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    init_logging(&cfg.log);
+    let _ = init_logging(&cfg.log);
     match plan::plan_program(&args.program, &cfg, &args.out, !args.quiet) {
         Ok(summary) => {
             print!("{}", summary.text());
@@ -247,7 +311,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    init_logging(&cfg.log);
+    let _ = init_logging(&cfg.log);
     let stop = stop_on_signals();
     let summary = match runtime::run_job_until(&args.program, &cfg, &stop) {
         Ok(summary) => summary,
@@ -279,6 +343,83 @@ fn run_job(args: &RunArgs) -> ExitCode {
             if let Some(e) = &summary.error {
                 eprintln!("edmd: error: {}: {e}", summary.outcome.name());
             }
+            ExitCode::from(EXIT_RUNTIME)
+        }
+    }
+}
+
+fn run_serve(args: &ServeArgs) -> ExitCode {
+    let path = args.config.path();
+    let (cfg, keys) = match Config::load_with_keys(path.as_deref(), &args.config.set) {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let set_level = init_logging(&cfg.log);
+    let source = crate::daemon::ConfigSource {
+        path,
+        overrides: args.config.set.clone(),
+    };
+    match crate::daemon::serve(cfg, keys, source, set_level) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e}");
+            eprintln!("edmd: error: {e}");
+            ExitCode::from(EXIT_RUNTIME)
+        }
+    }
+}
+
+fn run_ctl(args: &CtlArgs) -> ExitCode {
+    use crate::daemon::protocol::Request;
+    let socket = match &args.socket {
+        Some(socket) => socket.clone(),
+        None => match load_config(&args.config) {
+            Ok(cfg) => cfg.daemon.socket,
+            Err(code) => return code,
+        },
+    };
+    let request = match &args.command {
+        CtlCommand::Run { program } => Request::Run {
+            program: program.clone(),
+        },
+        CtlCommand::Hold => Request::Hold,
+        CtlCommand::Resume { force } => Request::Resume { force: *force },
+        CtlCommand::Abort => Request::Abort,
+        CtlCommand::Status => Request::Status,
+    };
+    let reply = match crate::daemon::socket::request(&socket, &request) {
+        Ok(reply) => reply,
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            return ExitCode::from(EXIT_RUNTIME);
+        }
+    };
+    if args.json {
+        print!("{}", reply.to_line());
+    } else {
+        if let Some(message) = reply
+            .message
+            .as_ref()
+            .filter(|_| request != Request::Status)
+        {
+            println!("{message}");
+        }
+        if let Some(status) = &reply.status
+            && (request == Request::Status || !reply.ok)
+        {
+            print!("{}", status.text());
+        }
+    }
+    match (&reply.ok, &reply.error) {
+        (true, _) => ExitCode::SUCCESS,
+        (false, error) => {
+            eprintln!(
+                "edmd: error: {}",
+                error.as_deref().unwrap_or("the daemon refused")
+            );
             ExitCode::from(EXIT_RUNTIME)
         }
     }

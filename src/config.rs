@@ -127,6 +127,19 @@ pub enum LogLevel {
     Trace,
 }
 
+impl LogLevel {
+    /// The level as `tracing`'s filters spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogLevel::Error => "error",
+            LogLevel::Warn => "warn",
+            LogLevel::Info => "info",
+            LogLevel::Debug => "debug",
+            LogLevel::Trace => "trace",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LogFormat {
@@ -234,8 +247,18 @@ pub struct SimConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DaemonConfig {
     pub socket: PathBuf,
+    /// Permission bits of the socket.
+    pub socket_mode: u32,
+    /// Group owning the socket (`None`: the daemon's own).
+    pub socket_group: Option<String>,
     pub program_dir: PathBuf,
     pub checkpoint: PathBuf,
+    /// Checkpoint period while cutting (s); `None`: only at standstills.
+    pub checkpoint_interval_s: Option<f64>,
+    /// Period of the status line in the log (s); `None`: no periodic line.
+    pub status_interval_s: Option<f64>,
+    /// Control connections served at once; more are refused with an error reply.
+    pub max_clients: usize,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -243,6 +266,9 @@ pub struct LogConfig {
     pub level: LogLevel,
     pub format: LogFormat,
 }
+
+/// Every key of a configuration, `section.key` → its value as TOML text, in key order.
+pub type KeyValues = std::collections::BTreeMap<String, String>;
 
 /// A configuration every rule of which has been checked.
 #[derive(Debug, Clone, PartialEq)]
@@ -272,14 +298,23 @@ impl Config {
     /// Loads `path` (or the shipped default when `path` is `None`) and applies `overrides`
     /// (`section.key=value` strings, in order).
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Config, ConfigError> {
+        Config::load_with_keys(path, overrides).map(|(config, _)| config)
+    }
+
+    /// [`load`](Self::load), also returning every key's value (`section.key` → TOML text),
+    /// defaults included: what a reload compares.
+    pub fn load_with_keys(
+        path: Option<&Path>,
+        overrides: &[String],
+    ) -> Result<(Config, KeyValues), ConfigError> {
         match path {
-            None => Config::from_toml_str(DEFAULT_CONFIG_TOML, "<built-in default>", overrides),
+            None => Config::parse(DEFAULT_CONFIG_TOML, "<built-in default>", overrides),
             Some(path) => {
                 let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
                     path: path.to_path_buf(),
                     source,
                 })?;
-                Config::from_toml_str(&text, &path.display().to_string(), overrides)
+                Config::parse(&text, &path.display().to_string(), overrides)
             }
         }
     }
@@ -290,12 +325,28 @@ impl Config {
         source: &str,
         overrides: &[String],
     ) -> Result<Config, ConfigError> {
+        Config::parse(text, source, overrides).map(|(config, _)| config)
+    }
+
+    fn parse(
+        text: &str,
+        source: &str,
+        overrides: &[String],
+    ) -> Result<(Config, KeyValues), ConfigError> {
         let mut origins = Origins::default();
         let user = parse_user_table(text, source, &mut origins)?;
         let mut merged = default_table();
         overlay(&mut merged, user, source, &origins)?;
         for arg in overrides {
             apply_override(&mut merged, arg, &mut origins)?;
+        }
+        let mut keys = KeyValues::new();
+        for (section, table) in &merged {
+            if let Some(table) = table.as_table() {
+                for (key, value) in table {
+                    keys.insert(format!("{section}.{key}"), value.to_string());
+                }
+            }
         }
         let raw: RawConfig =
             serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|err| {
@@ -305,11 +356,13 @@ impl Config {
                     message: format!("{key}: {}", err.inner().message()),
                 }
             })?;
-        raw.validate()
+        let config = raw
+            .validate()
             .map_err(|(key, message)| ConfigError::Invalid {
                 origin: origins.describe(key, source),
                 message: format!("{key}: {message}"),
-            })
+            })?;
+        Ok((config, keys))
     }
 }
 
@@ -430,8 +483,13 @@ struct RawSim {
 #[serde(deny_unknown_fields)]
 struct RawDaemon {
     socket: String,
+    socket_mode: String,
+    socket_group: String,
     program_dir: String,
     checkpoint: String,
+    checkpoint_interval_s: f64,
+    status_interval_s: f64,
+    max_clients: i64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -673,8 +731,28 @@ impl RawConfig {
         let d = self.daemon;
         let daemon = DaemonConfig {
             socket: non_empty("daemon.socket", d.socket)?,
+            socket_mode: u32::from_str_radix(d.socket_mode.trim_start_matches("0o"), 8)
+                .ok()
+                .filter(|m| *m <= 0o777)
+                .ok_or((
+                    "daemon.socket_mode",
+                    format!(
+                        "{:?} is not an octal permission like \"0660\"",
+                        d.socket_mode
+                    ),
+                ))?,
+            socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
             program_dir: non_empty("daemon.program_dir", d.program_dir)?,
             checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
+            checkpoint_interval_s: (non_negative(
+                "daemon.checkpoint_interval_s",
+                d.checkpoint_interval_s,
+            )? > 0.0)
+                .then_some(d.checkpoint_interval_s),
+            status_interval_s: (non_negative("daemon.status_interval_s", d.status_interval_s)?
+                > 0.0)
+                .then_some(d.status_interval_s),
+            max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
         };
         let log = LogConfig {
             level: self.log.level,

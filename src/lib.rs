@@ -4,8 +4,10 @@
 
 pub mod buffer;
 pub mod check;
+pub mod checkpoint;
 pub mod cli;
 pub mod config;
+pub mod daemon;
 pub mod fine;
 pub mod gap;
 pub mod gcode;

@@ -81,6 +81,9 @@ pub struct Published {
     pub latency_samples: AtomicU64,
     pub latency_max_ns: AtomicU64,
     snapshot: SeqLock,
+    /// Loop-buffer fill, refreshed by the job's supervisor (not the consumer).
+    pub buffer_unprocessed: AtomicU64,
+    pub buffer_reserved: AtomicU64,
     /// Set by the supervisor: hold (brake to a standstill and stay) while set.
     pub hold: AtomicBool,
     /// Set by the supervisor: end the loop where it is (the position is kept). A controlled
@@ -101,6 +104,8 @@ impl Published {
             latency_samples: AtomicU64::new(0),
             latency_max_ns: AtomicU64::new(0),
             snapshot: SeqLock::default(),
+            buffer_unprocessed: AtomicU64::new(0),
+            buffer_reserved: AtomicU64::new(0),
             hold: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             finished: AtomicBool::new(false),

@@ -1,7 +1,7 @@
 //! Wake-up latency histogram of the real-time loop: how late each tick started after its
 //! deadline. Allocated once before the loop; recording is two array writes.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Bucket width (ns).
 const BUCKET_NS: u64 = 100;
@@ -18,7 +18,7 @@ pub struct LatencyHistogram {
 }
 
 /// Percentiles of a histogram, in µs.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LatencySummary {
     pub samples: u64,
     pub p50_us: f64,

@@ -27,7 +27,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::buffer::LoopBuffer;
 use crate::config::{Config, GapKind, OutputKind};
@@ -68,7 +68,7 @@ pub enum JobError {
 }
 
 /// How a job ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Outcome {
     /// The whole program was executed.
@@ -103,7 +103,7 @@ impl Outcome {
 }
 
 /// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSummary {
     pub program: String,
     pub outcome: Outcome,
@@ -285,8 +285,20 @@ pub fn open_io(
     check: &Precheck,
     tracer: Option<&Arc<Tracer>>,
 ) -> Result<(BoxedOutput, BoxedGap), JobError> {
-    // The port's status pins come with the port: opened together, one claim.
-    let (mut output, port_gap): (BoxedOutput, Option<BoxedGap>) = match config.output.kind {
+    let (output, port_gap) = open_output(config, &[])?;
+    let gap = open_gap(config, check, port_gap)?;
+    Ok(wrap_io(config, output, gap, tracer))
+}
+
+/// Opens the pulse output of `config`; a parallel port comes with its status pins (the gap
+/// input), opened together under one claim. `start`: the ledger the job starts from (steps
+/// per axis; empty for zero), for the pulse log's header.
+pub fn open_output(
+    config: &Config,
+    start: &[i64],
+) -> Result<(BoxedOutput, Option<BoxedGap>), JobError> {
+    let axes = config.machine.axes.len();
+    Ok(match config.output.kind {
         // The simulated drives take every step and report nothing: the ledger is their position.
         OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
         OutputKind::File => (
@@ -296,7 +308,9 @@ pub fn open_io(
                     axes: config.machine.axes.clone(),
                     step_mm: config.machine.step_mm.clone(),
                     tick_us: config.fine.tick_us,
-                    start: vec![0; config.machine.axes.len()],
+                    start: (0..axes)
+                        .map(|i| start.get(i).copied().unwrap_or(0))
+                        .collect(),
                 },
             )?),
             None,
@@ -305,8 +319,17 @@ pub fn open_io(
             let (output, gap) = crate::parport::open(config)?;
             (Box::new(output), Some(Box::new(gap)))
         }
-    };
-    let mut gap: BoxedGap = match (config.gap.kind, port_gap) {
+    })
+}
+
+/// Opens the gap source of `config`; `port_gap` is the parallel port's status pins when the
+/// port is open.
+pub fn open_gap(
+    config: &Config,
+    check: &Precheck,
+    port_gap: Option<BoxedGap>,
+) -> Result<BoxedGap, JobError> {
+    Ok(match (config.gap.kind, port_gap) {
         (GapKind::Parport, Some(gap)) => gap,
         // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
         (GapKind::Parport, None) => {
@@ -322,7 +345,16 @@ pub fn open_io(
             config,
             &check.cutting_spans,
         )?),
-    };
+    })
+}
+
+/// Wraps the output and the gap source in the fault injector and the tracer, as configured.
+pub fn wrap_io(
+    config: &Config,
+    mut output: BoxedOutput,
+    mut gap: BoxedGap,
+    tracer: Option<&Arc<Tracer>>,
+) -> (BoxedOutput, BoxedGap) {
     if let Some(tick) = config.output.fault_at_tick {
         tracing::warn!("output.fault_at_tick = {tick}: the output will fail at that tick");
         output = Box::new(FaultInjector::new(output, tick));
@@ -335,7 +367,7 @@ pub fn open_io(
             gap = Box::new(TracedGap::new(gap, tracer.clone()));
         }
     }
-    Ok((output, gap))
+    (output, gap)
 }
 
 /// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
@@ -543,6 +575,13 @@ pub fn run_job_with(
                 }
             }
             drain();
+            let areas = buffer.areas();
+            published
+                .buffer_unprocessed
+                .store(areas.unprocessed, Ordering::Relaxed);
+            published
+                .buffer_reserved
+                .store(areas.reserved, Ordering::Relaxed);
             match result.try_recv() {
                 Ok(done) => break Some(done),
                 Err(crossbeam::channel::TryRecvError::Disconnected) => break None,

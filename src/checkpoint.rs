@@ -1,0 +1,337 @@
+//! Checkpoints: where a job stood, written atomically, so a restarted daemon resumes it
+//! exactly.
+//!
+//! A checkpoint names the program (canonical path and SHA-256 of its bytes), the settings that
+//! shape the path (a SHA-256 over `[machine]` and `[interpolation]`), and the electrode's
+//! point on the program: source line, loop-buffer segment, Bresenham step within it, curve
+//! parameter, and the pulse ledger in steps. Resuming replays the program through the same
+//! producer, walks without emitting to that segment and step, checks the ledger there is the
+//! checkpoint's, and carries on: every step before the point was emitted by the first run,
+//! every step after it by the second, none twice.
+//!
+//! **Atomic write**: the JSON goes to `FILE.tmp`, is flushed to disk, renamed over `FILE` and
+//! the directory is synced, so a power cut leaves either the old or the new checkpoint, never
+//! a torn one.
+//!
+//! **Still or moving**: checkpoints written at a standstill (hold, stop, abort, alarm, end of a
+//! failed job) are exact. The periodic ones written while cutting lag the electrode by up to
+//! a status period; after a crash the electrode is somewhere past them, so resuming from one
+//! needs the operator's `--force`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::config::Config;
+
+/// Format version written into every checkpoint.
+pub const VERSION: u32 = 1;
+
+/// Why the checkpoint was written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Reason {
+    /// The operator held the job (and it stands still).
+    Hold,
+    /// SIGTERM/SIGINT: a controlled stop.
+    Stop,
+    /// The operator aborted the job.
+    Abort,
+    /// Shorted after the whole reserved area.
+    Alarm,
+    /// The job ended on an error (device, gap input, producer).
+    Error,
+    /// Written while cutting, every `daemon.checkpoint_interval_s`.
+    Periodic,
+}
+
+impl Reason {
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::Hold => "hold",
+            Reason::Stop => "stop",
+            Reason::Abort => "abort",
+            Reason::Alarm => "alarm",
+            Reason::Error => "error",
+            Reason::Periodic => "periodic",
+        }
+    }
+}
+
+/// The checkpoint file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Checkpoint {
+    pub version: u32,
+    /// Canonical path of the program.
+    pub program: PathBuf,
+    /// SHA-256 of the program's bytes (hex).
+    pub program_sha256: String,
+    /// SHA-256 of the settings that shape the path (hex): see [`motion_hash`].
+    pub motion_sha256: String,
+    pub reason: Reason,
+    /// Written at a standstill: the electrode is exactly here.
+    pub still: bool,
+    /// Source line of the segment in hand.
+    pub line: u64,
+    /// Loop-buffer segment (0-based sequence number along the program).
+    pub segment: u64,
+    /// Bresenham step within the segment (0 = its start).
+    pub step: i64,
+    /// Steps of the segment.
+    pub segment_steps: i64,
+    /// Curve parameter at the end of the segment (NURBS blocks only).
+    pub parameter: Option<f64>,
+    pub axes: Vec<String>,
+    /// The pulse ledger (steps from the job's start), per axis.
+    pub position_steps: Vec<i64>,
+    pub position_mm: Vec<f64>,
+    /// Seconds since the Unix epoch.
+    pub written_unix_s: u64,
+}
+
+/// What stops a checkpoint from being read or resumed.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error("{path}: cannot read the checkpoint: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}:{col}: not a checkpoint: {message}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        col: usize,
+        message: String,
+    },
+    #[error("{path}: checkpoint format {found}, this edmd reads {VERSION}")]
+    Version { path: PathBuf, found: u32 },
+    #[error("{program}: cannot read the program of the checkpoint: {source}")]
+    Program {
+        program: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(
+        "{program}: the program changed since the checkpoint (SHA-256 {found:.12}…, the \
+         checkpoint has {expected:.12}…); refusing to resume a different program"
+    )]
+    ProgramChanged {
+        program: PathBuf,
+        expected: String,
+        found: String,
+    },
+    #[error(
+        "the [machine] or [interpolation] settings changed since the checkpoint; the path \
+         would not be the same, refusing to resume"
+    )]
+    MotionChanged,
+    #[error(
+        "the checkpoint was written while cutting ({reason}), so the electrode may be past it; \
+         check the position and resume with --force"
+    )]
+    Moving { reason: &'static str },
+}
+
+impl Checkpoint {
+    /// Writes the checkpoint atomically (temporary file, fsync, rename, directory fsync).
+    pub fn write_atomic(&self, path: &Path) -> std::io::Result<()> {
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        let tmp = PathBuf::from(tmp);
+        let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
+        {
+            let mut file = std::fs::File::create(&tmp)?;
+            file.write_all(json.as_bytes())?;
+            file.write_all(b"\n")?;
+            file.sync_all()?;
+        }
+        std::fs::rename(&tmp, path)?;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        // Makes the rename itself durable; a directory that cannot be opened (unusual
+        // permissions) still has the rename, just not yet on disk.
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+
+    /// Reads the checkpoint at `path`; `None` when there is none.
+    pub fn load(path: &Path) -> Result<Option<Checkpoint>, CheckpointError> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(source) => {
+                return Err(CheckpointError::Read {
+                    path: path.to_path_buf(),
+                    source,
+                });
+            }
+        };
+        let checkpoint: Checkpoint =
+            serde_json::from_str(&text).map_err(|e| CheckpointError::Parse {
+                path: path.to_path_buf(),
+                line: e.line(),
+                col: e.column(),
+                message: e.to_string(),
+            })?;
+        if checkpoint.version != VERSION {
+            return Err(CheckpointError::Version {
+                path: path.to_path_buf(),
+                found: checkpoint.version,
+            });
+        }
+        Ok(Some(checkpoint))
+    }
+
+    /// Removes the checkpoint (the job it described is finished or replaced).
+    pub fn remove(path: &Path) -> std::io::Result<()> {
+        match std::fs::remove_file(path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+            _ => Ok(()),
+        }
+    }
+
+    /// Checks the program and the settings are those of the checkpoint, and (without
+    /// `force`) that it was written at a standstill.
+    pub fn check_resumable(&self, config: &Config, force: bool) -> Result<(), CheckpointError> {
+        let found = sha256_file(&self.program).map_err(|source| CheckpointError::Program {
+            program: self.program.clone(),
+            source,
+        })?;
+        if found != self.program_sha256 {
+            return Err(CheckpointError::ProgramChanged {
+                program: self.program.clone(),
+                expected: self.program_sha256.clone(),
+                found,
+            });
+        }
+        if motion_hash(config) != self.motion_sha256 {
+            return Err(CheckpointError::MotionChanged);
+        }
+        if !self.still && !force {
+            return Err(CheckpointError::Moving {
+                reason: self.reason.name(),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    bytes.iter().fold(String::new(), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
+}
+
+/// SHA-256 of a file's bytes, hex.
+pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+    Ok(hex(&Sha256::digest(std::fs::read(path)?)))
+}
+
+/// SHA-256 over the settings that decide the step path of a program: the machine (axes, step
+/// sizes, limits) and the interpolation (tolerance, predictor, segmentation). The loop
+/// buffer, the tick, the servo feeds and the outputs change when things happen, never where.
+pub fn motion_hash(config: &Config) -> String {
+    let text = format!("{:?}\n{:?}", config.machine, config.interpolation);
+    hex(&Sha256::digest(text.as_bytes()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(program: PathBuf, config: &Config) -> Checkpoint {
+        Checkpoint {
+            version: VERSION,
+            program_sha256: sha256_file(&program).unwrap(),
+            program,
+            motion_sha256: motion_hash(config),
+            reason: Reason::Stop,
+            still: true,
+            line: 12,
+            segment: 40,
+            step: 3,
+            segment_steps: 9,
+            parameter: Some(0.25),
+            axes: vec!["X".into(), "Y".into()],
+            position_steps: vec![100, -7],
+            position_mm: vec![0.1, -0.007],
+            written_unix_s: 1,
+        }
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("edmd-checkpoint-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn round_trip_and_resumable_checks() {
+        let dir = scratch("trip");
+        let program = dir.join("p.nc");
+        std::fs::write(&program, "G1 X1 F60\n").unwrap();
+        let config = Config::default();
+        let cp = sample(program.clone(), &config);
+        let path = dir.join("checkpoint.json");
+        cp.write_atomic(&path).unwrap();
+        assert!(!dir.join("checkpoint.json.tmp").exists());
+        let back = Checkpoint::load(&path).unwrap().unwrap();
+        assert_eq!(back, cp);
+        back.check_resumable(&config, false).unwrap();
+
+        // A different tolerance gives a different path.
+        let mut other = config.clone();
+        other.interpolation.chord_tolerance_mm *= 2.0;
+        assert!(matches!(
+            back.check_resumable(&other, false),
+            Err(CheckpointError::MotionChanged)
+        ));
+        // A servo feed does not.
+        let mut feeds = config.clone();
+        feeds.servo.normal_feed_mm_per_min *= 2.0;
+        back.check_resumable(&feeds, false).unwrap();
+
+        std::fs::write(&program, "G1 X2 F60\n").unwrap();
+        let err = back.check_resumable(&config, false).unwrap_err();
+        assert!(
+            err.to_string().contains("changed since the checkpoint"),
+            "{err}"
+        );
+
+        Checkpoint::remove(&path).unwrap();
+        assert!(Checkpoint::load(&path).unwrap().is_none());
+        Checkpoint::remove(&path).unwrap();
+    }
+
+    #[test]
+    fn a_moving_checkpoint_needs_force_and_a_bad_file_is_located() {
+        let dir = scratch("moving");
+        let program = dir.join("p.nc");
+        std::fs::write(&program, "G1 X1 F60\n").unwrap();
+        let config = Config::default();
+        let mut cp = sample(program, &config);
+        cp.still = false;
+        cp.reason = Reason::Periodic;
+        assert!(matches!(
+            cp.check_resumable(&config, false),
+            Err(CheckpointError::Moving { .. })
+        ));
+        cp.check_resumable(&config, true).unwrap();
+
+        let path = dir.join("bad.json");
+        std::fs::write(&path, "{\n  \"version\": 1,\n  \"nonsense\": true\n}\n").unwrap();
+        let err = Checkpoint::load(&path).unwrap_err().to_string();
+        assert!(err.contains("bad.json:3:"), "{err}");
+    }
+}

@@ -1,0 +1,974 @@
+//! `edmd serve`: the daemon around the runtime.
+//!
+//! ```text
+//!  signals (edmd-signals) ─┐
+//!  clients (edmd-client) ──┼─► control loop (main thread) ──► job thread (edmd-job)
+//!  job ends (edmd-job) ────┘     │ state, config, port,          run_job_with: producer,
+//!                                │ checkpoint, watchdog,          supervisor ─► FineThread
+//!                                │ status line, sd_notify         (edmd-fine, started once)
+//!                                └─ every 250 ms: periodic work
+//! ```
+//!
+//! One thread owns every decision: the control loop. Clients, signals and finished jobs are
+//! messages to it ([`CoreMsg`]), so there is no state shared between request handlers and no
+//! order in which two commands could interleave. It never waits on the real-time thread: it
+//! steers a job through the job's [`Published`] flags (hold, stop) and reads the job's
+//! seqlocked [`Snapshot`](crate::runtime::Snapshot).
+//!
+//! **Startup** claims the parallel port (when configured), starts the fine thread (real-time
+//! settings applied), binds the socket, then tells systemd `READY=1`. Anything that fails
+//! before that is an exit 1 with an operator message.
+//!
+//! **Jobs**: a program's coordinates start where the electrode stands when the job starts
+//! (the work origin is set there), and the job's ledger counts from zero. A job ends done,
+//! stopped, aborted or in alarm; every end but "done" writes an exact checkpoint (at a
+//! standstill), "done" removes it. `resume` with no job running continues the checkpoint's
+//! job: same program bytes, same `[machine]`/`[interpolation]`, or it refuses.
+//!
+//! **Signals**: SIGTERM/SIGINT brake the job to a standstill, checkpoint it and exit 0 (a
+//! second one stops at once, position kept). SIGHUP reloads the configuration (see
+//! [`reload`]). SIGUSR1 writes the status into the log.
+
+pub mod notify;
+pub mod protocol;
+pub mod reload;
+pub mod socket;
+mod sys;
+
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
+
+use crate::checkpoint::{self, Checkpoint, Reason};
+use crate::config::{Config, GapKind, KeyValues, OutputKind};
+use crate::runtime::{
+    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, LoopSettings,
+    Outcome, Published, ResumePoint, Snapshot,
+};
+use notify::Notifier;
+use protocol::{CheckpointStatus, DaemonState, JobStatus, Reply, Request, Status};
+
+/// How often the control loop does its periodic work when no message arrives.
+const PERIOD: Duration = Duration::from_millis(250);
+/// Overruns are reported at most this often (a loaded machine would flood the log).
+const OVERRUN_REPORT: Duration = Duration::from_secs(5);
+
+/// Why the daemon could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error("{path}: another edmd answers on this socket; stop it first (systemctl stop edmd)")]
+    SocketInUse { path: PathBuf },
+    #[error("{path}: exists and is not a socket; refusing to replace it (daemon.socket)")]
+    NotASocket { path: PathBuf },
+    #[error("{path}: cannot set up the control socket: {source}")]
+    Socket {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("daemon.socket_group = {group:?}: no such group")]
+    NoGroup { group: String },
+    #[error(transparent)]
+    Job(Box<JobError>),
+    #[error("cannot start a daemon thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// A message to the control loop.
+pub enum CoreMsg {
+    Request(Request, Sender<Reply>),
+    Signal(i32),
+    JobDone(Box<Result<JobEnd, JobError>>),
+}
+
+/// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
+pub type SetLogLevel = Box<dyn Fn(&str) -> Result<(), String> + Send>;
+
+/// Where the configuration came from, to reload it the same way.
+pub struct ConfigSource {
+    pub path: Option<PathBuf>,
+    pub overrides: Vec<String>,
+}
+
+/// The running job as the control loop sees it.
+struct Job {
+    program: PathBuf,
+    program_sha256: String,
+    published: Arc<Published>,
+    stop: Arc<AtomicBool>,
+    /// Why the stop was asked for: abort or a signal.
+    stop_reason: Option<Reason>,
+    started: Instant,
+    resumed: bool,
+    /// A checkpoint has been written for the current hold.
+    hold_checkpointed: bool,
+    last_checkpoint: Instant,
+    overruns_seen: u64,
+    last_overrun_report: Instant,
+    /// The config the job runs with (a reload may not change it under the job).
+    config: Config,
+}
+
+/// The daemon's state, owned by the control loop.
+struct Core {
+    config: Config,
+    keys: KeyValues,
+    source: ConfigSource,
+    set_log_level: SetLogLevel,
+    fine: Arc<FineThread>,
+    /// The parallel port, claimed at startup and lent to each job.
+    port_output: Option<BoxedOutput>,
+    port_gap: Option<BoxedGap>,
+    job: Option<Job>,
+    last: Option<JobSummary>,
+    checkpoint: Option<Checkpoint>,
+    notifier: Notifier,
+    watchdog: Option<Duration>,
+    last_ping: Instant,
+    last_progress: u64,
+    stalled_warned: bool,
+    last_status_line: Instant,
+    started: Instant,
+    max_clients: Arc<AtomicUsize>,
+    to_core: Sender<CoreMsg>,
+    shutting_down: bool,
+}
+
+/// Runs the daemon until a signal stops it. `Ok` is exit 0.
+pub fn serve(
+    config: Config,
+    keys: KeyValues,
+    source: ConfigSource,
+    set_log_level: SetLogLevel,
+) -> Result<(), DaemonError> {
+    let started = Instant::now();
+    let checkpoint = match Checkpoint::load(&config.daemon.checkpoint) {
+        Ok(c) => c,
+        Err(e) => {
+            tracing::error!("{e}; ignoring it (it is left in place)");
+            None
+        }
+    };
+    if let Some(c) = &checkpoint {
+        tracing::info!(
+            "checkpoint: {} stopped at line {} ({}); `edmd ctl resume` continues it",
+            c.program.display(),
+            c.line,
+            c.reason.name()
+        );
+    }
+    // The port first: if it cannot be claimed, nothing else should start.
+    let (port_output, port_gap) = if config.output.kind == OutputKind::Parport {
+        let (output, gap) =
+            runtime::open_output(&config, &[]).map_err(|e| DaemonError::Job(Box::new(e)))?;
+        tracing::info!("{}: parallel port claimed", config.output.path.display());
+        (Some(output), gap)
+    } else {
+        (None, None)
+    };
+    let fine = Arc::new(
+        FineThread::start(&LoopSettings::from_config(&config)).map_err(DaemonError::Thread)?,
+    );
+    let listener = socket::bind(&config.daemon)?;
+    let (to_core, inbox) = channel::unbounded();
+    let max_clients = Arc::new(AtomicUsize::new(config.daemon.max_clients));
+    socket::spawn_listener(listener, to_core.clone(), max_clients.clone())
+        .map_err(DaemonError::Thread)?;
+    spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
+    let notifier = Notifier::from_env();
+    let watchdog = notify::watchdog_period();
+    let socket_path = config.daemon.socket.clone();
+    tracing::info!(
+        "listening on {} (programs from {}); {} time, tick {} µs",
+        socket_path.display(),
+        config.daemon.program_dir.display(),
+        if config.fine.virtual_time {
+            "virtual"
+        } else {
+            "real"
+        },
+        config.fine.tick_us
+    );
+    let mut core = Core {
+        config,
+        keys,
+        source,
+        set_log_level,
+        fine,
+        port_output,
+        port_gap,
+        job: None,
+        last: None,
+        checkpoint,
+        notifier,
+        watchdog,
+        last_ping: Instant::now(),
+        last_progress: u64::MAX,
+        stalled_warned: false,
+        last_status_line: Instant::now(),
+        started,
+        max_clients,
+        to_core,
+        shutting_down: false,
+    };
+    core.notifier.send("READY=1");
+    core.notify_status();
+    core.run(&inbox);
+    core.notifier.send("STOPPING=1");
+    socket::remove(&socket_path);
+    tracing::info!("stopped");
+    Ok(())
+}
+
+fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
+    let mut signals = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP, SIGUSR1])?;
+    std::thread::Builder::new()
+        .name("edmd-signals".to_string())
+        .spawn(move || {
+            for signal in signals.forever() {
+                if to_core.send(CoreMsg::Signal(signal)).is_err() {
+                    return;
+                }
+            }
+        })?;
+    Ok(())
+}
+
+/// Resolves a `run` request's path inside `program_dir`: no `..` component, and the real
+/// path (symlinks followed) must lie below the real program directory.
+pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, String> {
+    let path = Path::new(requested);
+    if requested.is_empty() {
+        return Err("an empty program path".to_string());
+    }
+    if path.components().any(|c| c == Component::ParentDir) {
+        return Err(format!(
+            "{requested}: `..` is not allowed in a program path"
+        ));
+    }
+    let dir = program_dir
+        .canonicalize()
+        .map_err(|e| format!("daemon.program_dir = {}: {e}", program_dir.display()))?;
+    let joined = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        dir.join(path)
+    };
+    let real = joined.canonicalize().map_err(|e| {
+        format!(
+            "{requested}: {e} (programs are read from {})",
+            dir.display()
+        )
+    })?;
+    if !real.starts_with(&dir) {
+        return Err(format!(
+            "{requested}: resolves to {}, outside the program directory {}",
+            real.display(),
+            dir.display()
+        ));
+    }
+    if !real.is_file() {
+        return Err(format!("{requested}: not a file"));
+    }
+    Ok(real)
+}
+
+fn unix_now() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}
+
+impl Core {
+    fn run(&mut self, inbox: &Receiver<CoreMsg>) {
+        loop {
+            match inbox.recv_timeout(PERIOD) {
+                Ok(CoreMsg::Request(request, reply)) => {
+                    let answer = self.handle(request);
+                    // A client that went away changes nothing: the command stands or was
+                    // refused either way.
+                    let _ = reply.send(answer);
+                }
+                Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
+                Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return,
+            }
+            self.periodic();
+            if self.shutting_down && self.job.is_none() {
+                return;
+            }
+        }
+    }
+
+    // ---- status ---------------------------------------------------------------------------
+
+    fn state(&self) -> DaemonState {
+        match &self.job {
+            None => DaemonState::Idle,
+            Some(job) => {
+                let snap = job.published.snapshot();
+                if job.stop.load(Ordering::Relaxed) {
+                    DaemonState::Stopping
+                } else if job.published.hold.load(Ordering::Relaxed) {
+                    if snap.still {
+                        DaemonState::Held
+                    } else {
+                        DaemonState::Holding
+                    }
+                } else {
+                    DaemonState::Running
+                }
+            }
+        }
+    }
+
+    fn status(&self) -> Status {
+        let config = &self.config;
+        let job = self.job.as_ref().map(|job| {
+            let p = &job.published;
+            let snap = p.snapshot();
+            let axes = job.config.machine.axes.len();
+            let samples = p.latency_samples.load(Ordering::Relaxed);
+            let tick_s = job.config.fine.tick_us as f64 * 1e-6;
+            JobStatus {
+                program: job.program.display().to_string(),
+                line: snap.line,
+                segment: snap.here.seq,
+                step: snap.here.event,
+                parameter: snap.u_end.is_finite().then_some(snap.u_end),
+                servo: snap.state.name().to_string(),
+                position_steps: snap.position[..axes].to_vec(),
+                position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
+                feed_mm_per_min: snap.speed * 60.0,
+                buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
+                buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
+                buffer_capacity: job.config.buffer.capacity as u64,
+                shorts: snap.servo.shorts,
+                turn_backs: snap.servo.turn_backs,
+                deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
+                alarms: snap.servo.alarms,
+                starvations: snap.servo.starvations,
+                overruns: p.overruns.load(Ordering::Relaxed),
+                pulses: snap.pulses[..axes].to_vec(),
+                ticks: snap.tick,
+                machine_time_s: snap.tick as f64 * tick_s,
+                elapsed_s: job.started.elapsed().as_secs_f64(),
+                latency_mean_us: (samples > 0).then(|| {
+                    p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
+                }),
+                latency_max_us: (samples > 0)
+                    .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
+                resumed: job.resumed,
+            }
+        });
+        Status {
+            state: self.state(),
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            uptime_s: self.started.elapsed().as_secs_f64(),
+            axes: config
+                .machine
+                .axes
+                .iter()
+                .map(|a| a.letter().to_string())
+                .collect(),
+            job,
+            last_job: self.last.clone(),
+            checkpoint: self.checkpoint.as_ref().map(|c| CheckpointStatus {
+                program: c.program.display().to_string(),
+                line: c.line,
+                reason: c.reason.name().to_string(),
+                still: c.still,
+                position_steps: c.position_steps.clone(),
+            }),
+            rt_refused: self.fine.rt_refused().to_vec(),
+        }
+    }
+
+    /// One line for the log and systemd's STATUS=.
+    fn status_line(&self) -> String {
+        let status = self.status();
+        match &status.job {
+            None => match &self.last {
+                Some(last) => format!("idle; last job {}: {}", last.program, last.outcome.name()),
+                None => "idle".to_string(),
+            },
+            Some(j) => {
+                let position = j
+                    .position_mm
+                    .iter()
+                    .zip(&status.axes)
+                    .map(|(x, a)| format!("{a} {x:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                format!(
+                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, buffer {}/{}, {} shorts, \
+                     {} starvations, {} overruns",
+                    status.state.name(),
+                    j.program,
+                    j.line,
+                    j.servo,
+                    j.feed_mm_per_min,
+                    j.buffer_unprocessed,
+                    j.buffer_capacity,
+                    j.shorts,
+                    j.starvations,
+                    j.overruns
+                )
+            }
+        }
+    }
+
+    fn notify_status(&self) {
+        if self.notifier.active() {
+            self.notifier.status(&self.status_line());
+        }
+    }
+
+    // ---- commands -------------------------------------------------------------------------
+
+    fn handle(&mut self, request: Request) -> Reply {
+        let result = match request {
+            Request::Status => Ok("status".to_string()),
+            Request::Run { program } => self.run_program(&program),
+            Request::Hold => self.hold(),
+            Request::Resume { force } => self.resume(force),
+            Request::Abort => self.abort(),
+        };
+        self.notify_status();
+        match result {
+            Ok(message) => Reply::ok(message, self.status()),
+            Err(error) => Reply::error(error, Some(self.status())),
+        }
+    }
+
+    fn refuse_if_busy(&self) -> Result<(), String> {
+        if self.shutting_down {
+            return Err("the daemon is shutting down".to_string());
+        }
+        if let Some(job) = &self.job {
+            return Err(format!(
+                "a job is {}: {}; abort it first",
+                self.state().name(),
+                job.program.display()
+            ));
+        }
+        Ok(())
+    }
+
+    fn run_program(&mut self, requested: &str) -> Result<String, String> {
+        self.refuse_if_busy()?;
+        let program = confine(&self.config.daemon.program_dir, requested)?;
+        let mut message = String::new();
+        if let Some(old) = self.checkpoint.take() {
+            tracing::warn!(
+                "checkpoint of {} (line {}) discarded: a new job starts",
+                old.program.display(),
+                old.line
+            );
+            if let Err(e) = Checkpoint::remove(&self.config.daemon.checkpoint) {
+                tracing::error!("{}: {e}", self.config.daemon.checkpoint.display());
+            }
+            message = format!(
+                "; the checkpoint of {} was discarded",
+                old.program.display()
+            );
+        }
+        let blocks = self.start_job(program.clone(), None)?;
+        Ok(format!(
+            "running {}: {blocks} blocks{message}",
+            program.display()
+        ))
+    }
+
+    /// Checks, opens the I/O and starts the job thread. Returns the program's block count.
+    fn start_job(&mut self, program: PathBuf, resume: Option<ResumePoint>) -> Result<u64, String> {
+        let config = self.config.clone();
+        let program_sha256 =
+            checkpoint::sha256_file(&program).map_err(|e| format!("{}: {e}", program.display()))?;
+        let check = runtime::precheck(&program, &config).map_err(|e| e.to_string())?;
+        let blocks = check.blocks;
+        let start = resume
+            .as_ref()
+            .map(|r| r.position.clone())
+            .unwrap_or_default();
+        let io = self
+            .job_io(&config, &check, &start)
+            .map_err(|e| e.to_string())?;
+        let published = Arc::new(Published::new(4096));
+        let stop = Arc::new(AtomicBool::new(false));
+        let resumed = resume.is_some();
+        let (fine, tx) = (self.fine.clone(), self.to_core.clone());
+        let (job_published, job_stop, job_config, job_program) = (
+            published.clone(),
+            stop.clone(),
+            config.clone(),
+            program.clone(),
+        );
+        std::thread::Builder::new()
+            .name("edmd-job".to_string())
+            .spawn(move || {
+                let end = runtime::run_job_with(
+                    &fine,
+                    &job_program,
+                    &job_config,
+                    &check,
+                    io,
+                    job_published,
+                    &job_stop,
+                    resume,
+                );
+                let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
+            })
+            .map_err(|e| format!("cannot start the job thread: {e}"))?;
+        tracing::info!(
+            "job start: {}{}",
+            program.display(),
+            if resumed { " (resumed)" } else { "" }
+        );
+        self.job = Some(Job {
+            program,
+            program_sha256,
+            published,
+            stop,
+            stop_reason: None,
+            started: Instant::now(),
+            resumed,
+            hold_checkpointed: false,
+            last_checkpoint: Instant::now(),
+            overruns_seen: 0,
+            last_overrun_report: Instant::now(),
+            config,
+        });
+        Ok(blocks)
+    }
+
+    /// The job's output and gap source: the claimed port when there is one, else opened now.
+    fn job_io(
+        &mut self,
+        config: &Config,
+        check: &runtime::Precheck,
+        start: &[i64],
+    ) -> Result<JobIo, JobError> {
+        let tracer = (config.output.trace || config.gap.trace).then(|| {
+            crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
+        });
+        let (output, opened_gap) = match self.port_output.take() {
+            Some(output) => (output, None),
+            None => runtime::open_output(config, start)?,
+        };
+        let port_gap = if config.gap.kind == GapKind::Parport {
+            self.port_gap.take().or(opened_gap)
+        } else {
+            None
+        };
+        let gap = match runtime::open_gap(config, check, port_gap) {
+            Ok(gap) => gap,
+            Err(e) => {
+                if config.output.kind == OutputKind::Parport {
+                    self.port_output = Some(output);
+                }
+                return Err(e);
+            }
+        };
+        // The claimed port is lent as it is: wrappers would stay on it after the job.
+        let (output, gap) = if config.output.kind == OutputKind::Parport {
+            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
+                tracing::warn!(
+                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
+                     daemon's claimed parallel port"
+                );
+            }
+            (output, gap)
+        } else {
+            runtime::wrap_io(config, output, gap, tracer.as_ref())
+        };
+        Ok(JobIo {
+            output,
+            gap,
+            tracer,
+        })
+    }
+
+    fn hold(&mut self) -> Result<String, String> {
+        let Some(job) = &mut self.job else {
+            return Err("no job is running".to_string());
+        };
+        if job.stop.load(Ordering::Relaxed) {
+            return Err("the job is stopping".to_string());
+        }
+        if job.published.hold.swap(true, Ordering::Relaxed) {
+            return Ok("already held".to_string());
+        }
+        job.hold_checkpointed = false;
+        tracing::info!("hold: {} braking to a standstill", job.program.display());
+        Ok("holding: braking to a standstill".to_string())
+    }
+
+    fn resume(&mut self, force: bool) -> Result<String, String> {
+        if let Some(job) = &mut self.job {
+            if job.stop.load(Ordering::Relaxed) {
+                return Err("the job is stopping".to_string());
+            }
+            if !job.published.hold.swap(false, Ordering::Relaxed) {
+                return Err("the job is not held".to_string());
+            }
+            job.hold_checkpointed = false;
+            tracing::info!("resume: {} released", job.program.display());
+            return Ok("resumed".to_string());
+        }
+        self.refuse_if_busy()?;
+        let Some(cp) = self.checkpoint.clone() else {
+            return Err(format!(
+                "nothing to resume: no job and no checkpoint ({})",
+                self.config.daemon.checkpoint.display()
+            ));
+        };
+        let program = confine(
+            &self.config.daemon.program_dir,
+            &cp.program.display().to_string(),
+        )?;
+        cp.check_resumable(&self.config, force)
+            .map_err(|e| e.to_string())?;
+        let axes = self.config.machine.axes.len();
+        if cp.position_steps.len() != axes {
+            return Err(format!(
+                "the checkpoint has {} axes, the machine {axes}",
+                cp.position_steps.len()
+            ));
+        }
+        let point = ResumePoint {
+            here: crate::servo::PathPoint {
+                seq: cp.segment,
+                event: cp.step,
+            },
+            position: cp.position_steps.clone(),
+        };
+        self.start_job(program.clone(), Some(point))?;
+        Ok(format!(
+            "resuming {} from line {} (segment {}, step {})",
+            program.display(),
+            cp.line,
+            cp.segment,
+            cp.step
+        ))
+    }
+
+    fn abort(&mut self) -> Result<String, String> {
+        let Some(job) = &mut self.job else {
+            return Err("no job is running".to_string());
+        };
+        job.stop_reason.get_or_insert(Reason::Abort);
+        job.stop.store(true, Ordering::Relaxed);
+        tracing::info!("abort: {} braking to a standstill", job.program.display());
+        Ok("aborting: braking to a standstill, then the job ends".to_string())
+    }
+
+    // ---- signals --------------------------------------------------------------------------
+
+    fn on_signal(&mut self, signal: i32) {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
+        match signal {
+            SIGTERM | SIGINT => {
+                if self.shutting_down {
+                    if let Some(job) = &self.job {
+                        tracing::warn!("second stop signal: stopping where it is");
+                        job.published.stop.store(true, Ordering::Relaxed);
+                    }
+                    return;
+                }
+                self.shutting_down = true;
+                self.notifier.send("STOPPING=1");
+                match &mut self.job {
+                    Some(job) => {
+                        tracing::info!(
+                            "signal {signal}: controlled stop of {} (braking, then checkpoint)",
+                            job.program.display()
+                        );
+                        job.stop_reason = Some(Reason::Stop);
+                        job.stop.store(true, Ordering::Relaxed);
+                    }
+                    None => tracing::info!("signal {signal}: stopping"),
+                }
+            }
+            SIGHUP => {
+                let running = self.job.is_some();
+                match reload::reload(&self.source, &self.keys, running) {
+                    Ok(None) => tracing::info!("reload: nothing changed"),
+                    Ok(Some((config, keys, changes))) => {
+                        for change in &changes {
+                            tracing::info!("reload: {change}");
+                        }
+                        if config.log.level != self.config.log.level
+                            && let Err(e) = (self.set_log_level)(config.log.level.name())
+                        {
+                            tracing::warn!("reload: log.level: {e}");
+                        }
+                        self.max_clients
+                            .store(config.daemon.max_clients, Ordering::Relaxed);
+                        self.config = config;
+                        self.keys = keys;
+                    }
+                    Err(e) => tracing::error!("reload refused, configuration unchanged: {e}"),
+                }
+                self.notify_status();
+            }
+            SIGUSR1 => {
+                for line in self.status().text().lines() {
+                    tracing::info!("status: {line}");
+                }
+            }
+            _ => {}
+        }
+    }
+
+    // ---- job end and periodic work --------------------------------------------------------
+
+    fn on_job_done(&mut self, end: Result<JobEnd, JobError>) {
+        let Some(job) = self.job.take() else {
+            return;
+        };
+        let end = match end {
+            Ok(end) => end,
+            Err(e) => {
+                tracing::error!("job {}: {e}", job.program.display());
+                return;
+            }
+        };
+        if job.config.output.kind == OutputKind::Parport {
+            self.port_output = Some(end.output);
+        }
+        if job.config.gap.kind == GapKind::Parport {
+            self.port_gap = Some(end.gap);
+        }
+        let summary = end.summary;
+        let reason = match summary.outcome {
+            Outcome::Done => None,
+            Outcome::ResumeRefused => None,
+            Outcome::Alarm => Some(Reason::Alarm),
+            Outcome::Stopped => Some(job.stop_reason.unwrap_or(Reason::Stop)),
+            Outcome::OutputError | Outcome::GapError | Outcome::ProducerError => {
+                Some(Reason::Error)
+            }
+        };
+        let text = summary.text();
+        let mut lines = text.lines();
+        let head = lines.next().unwrap_or_default();
+        let outcome_name = summary.outcome.name();
+        match summary.outcome {
+            Outcome::Done => tracing::info!("job end: {head}"),
+            _ => tracing::error!(
+                "job end: {head}{}",
+                summary
+                    .error
+                    .as_ref()
+                    .map(|e| format!(": {e}"))
+                    .unwrap_or_default()
+            ),
+        }
+        for line in lines {
+            tracing::info!("job end: {line}");
+        }
+        let checkpoint_path = job.config.daemon.checkpoint.clone();
+        match reason {
+            Some(reason) => {
+                let mut at = end.stopped_at;
+                // The ledger the drives received (a failed write's steps taken back out).
+                for (p, s) in at.position.iter_mut().zip(&summary.end_steps) {
+                    *p = *s;
+                }
+                self.write_checkpoint(&job, &at, reason, true);
+            }
+            None if summary.outcome == Outcome::Done => {
+                if let Err(e) = Checkpoint::remove(&checkpoint_path) {
+                    tracing::error!("{}: {e}", checkpoint_path.display());
+                }
+                self.checkpoint = None;
+            }
+            None => {}
+        }
+        tracing::debug!("job outcome {outcome_name}");
+        self.last = Some(summary);
+        self.notify_status();
+    }
+
+    fn write_checkpoint(&mut self, job: &Job, at: &Snapshot, reason: Reason, still: bool) {
+        let machine = &job.config.machine;
+        let axes = machine.axes.len();
+        let cp = Checkpoint {
+            version: checkpoint::VERSION,
+            program: job.program.clone(),
+            program_sha256: job.program_sha256.clone(),
+            motion_sha256: checkpoint::motion_hash(&job.config),
+            reason,
+            still,
+            line: at.line,
+            segment: at.here.seq,
+            step: at.here.event,
+            segment_steps: at.events,
+            parameter: at.u_end.is_finite().then_some(at.u_end),
+            axes: machine
+                .axes
+                .iter()
+                .map(|a| a.letter().to_string())
+                .collect(),
+            position_steps: at.position[..axes].to_vec(),
+            position_mm: mm(&at.position[..axes], &machine.step_mm),
+            written_unix_s: unix_now(),
+        };
+        let path = &job.config.daemon.checkpoint;
+        match cp.write_atomic(path) {
+            Ok(()) => {
+                let log = format!(
+                    "checkpoint ({}): {} line {}, segment {} step {}, at {:?} steps -> {}",
+                    reason.name(),
+                    cp.program.display(),
+                    cp.line,
+                    cp.segment,
+                    cp.step,
+                    cp.position_steps,
+                    path.display()
+                );
+                if reason == Reason::Periodic {
+                    tracing::debug!("{log}");
+                } else {
+                    tracing::info!("{log}");
+                }
+                self.checkpoint = Some(cp);
+            }
+            Err(e) => tracing::error!("{}: cannot write the checkpoint: {e}", path.display()),
+        }
+    }
+
+    fn periodic(&mut self) {
+        self.watchdog();
+        let now = Instant::now();
+        if let Some(mut job) = self.job.take() {
+            let snap = job.published.snapshot();
+            let stopping = job.stop.load(Ordering::Relaxed);
+            if job.published.hold.load(Ordering::Relaxed)
+                && snap.still
+                && !stopping
+                && !job.hold_checkpointed
+            {
+                self.write_checkpoint(&job, &snap, Reason::Hold, true);
+                job.hold_checkpointed = true;
+                job.last_checkpoint = now;
+                tracing::info!(
+                    "held at {}:{} ({:?} steps)",
+                    job.program.display(),
+                    snap.line,
+                    &snap.position[..job.config.machine.axes.len()]
+                );
+                self.notify_status();
+            }
+            if let Some(interval) = self.config.daemon.checkpoint_interval_s
+                && !snap.still
+                && !snap.state.is_final()
+                && now.duration_since(job.last_checkpoint).as_secs_f64() >= interval
+            {
+                self.write_checkpoint(&job, &snap, Reason::Periodic, false);
+                job.last_checkpoint = now;
+            }
+            let overruns = job.published.overruns.load(Ordering::Relaxed);
+            if overruns > job.overruns_seen
+                && now.duration_since(job.last_overrun_report) >= OVERRUN_REPORT
+            {
+                job.last_overrun_report = now;
+                tracing::warn!(
+                    "{} overruns (a tick ended after the next deadline) since the last report; \
+                     {overruns} in this job",
+                    overruns - job.overruns_seen
+                );
+                job.overruns_seen = overruns;
+            }
+            self.job = Some(job);
+        }
+        if let Some(interval) = self.config.daemon.status_interval_s
+            && now.duration_since(self.last_status_line).as_secs_f64() >= interval
+        {
+            self.last_status_line = now;
+            tracing::info!("status: {}", self.status_line());
+            self.notify_status();
+        }
+    }
+
+    /// Pings systemd's watchdog every half period, only if the fine thread made progress
+    /// since the last ping (its idle heartbeat, or the job's ticks).
+    fn watchdog(&mut self) {
+        let Some(period) = self.watchdog else {
+            return;
+        };
+        if self.last_ping.elapsed() < period / 2 {
+            return;
+        }
+        let ticks = self
+            .job
+            .as_ref()
+            .map_or(0, |j| j.published.ticks.load(Ordering::Relaxed));
+        let progress = self.fine.heartbeat().wrapping_add(ticks);
+        if progress != self.last_progress && !self.fine.is_finished() {
+            self.notifier.send("WATCHDOG=1");
+            self.last_progress = progress;
+            self.last_ping = Instant::now();
+            self.stalled_warned = false;
+        } else if !self.stalled_warned {
+            tracing::error!(
+                "the fine interpolation thread made no progress for {:.1} s: not pinging the \
+                 watchdog",
+                self.last_ping.elapsed().as_secs_f64()
+            );
+            self.stalled_warned = true;
+        }
+    }
+}
+
+fn mm(steps: &[i64], step_mm: &[f64]) -> Vec<f64> {
+    steps
+        .iter()
+        .zip(step_mm)
+        .map(|(s, m)| *s as f64 * m)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn confine_keeps_programs_inside_the_directory() {
+        let root = std::env::temp_dir().join(format!("edmd-confine-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let dir = root.join("programs");
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        std::fs::write(dir.join("a.nc"), "G1 X1 F60\n").unwrap();
+        std::fs::write(dir.join("sub/b.nc"), "G1 X1 F60\n").unwrap();
+        std::fs::write(root.join("secret.nc"), "G1 X1 F60\n").unwrap();
+        std::os::unix::fs::symlink(root.join("secret.nc"), dir.join("escape.nc")).unwrap();
+        std::os::unix::fs::symlink(dir.join("a.nc"), dir.join("inside.nc")).unwrap();
+
+        let real = dir.canonicalize().unwrap();
+        assert_eq!(confine(&dir, "a.nc").unwrap(), real.join("a.nc"));
+        assert_eq!(confine(&dir, "sub/b.nc").unwrap(), real.join("sub/b.nc"));
+        assert_eq!(confine(&dir, "inside.nc").unwrap(), real.join("a.nc"));
+        let abs = real.join("a.nc").display().to_string();
+        assert_eq!(confine(&dir, &abs).unwrap(), real.join("a.nc"));
+
+        for (bad, why) in [
+            ("../secret.nc", "`..`"),
+            ("sub/../../secret.nc", "`..`"),
+            ("escape.nc", "outside the program directory"),
+            ("missing.nc", "No such file"),
+            ("sub", "not a file"),
+            ("", "empty"),
+        ] {
+            let e = confine(&dir, bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        let outside = root.join("secret.nc").display().to_string();
+        assert!(confine(&dir, &outside).unwrap_err().contains("outside"));
+    }
+}

@@ -1,0 +1,311 @@
+//! The control protocol: one JSON object per line each way.
+//!
+//! ```text
+//! → {"cmd":"run","program":"part.nc"}          ← {"ok":true,"message":"…","status":{…}}
+//! → {"cmd":"hold"} | {"cmd":"resume","force":false} | {"cmd":"abort"} | {"cmd":"status"}
+//! ← {"ok":false,"error":"request:1:9: unknown command \"fly\", expected one of …"}
+//! ```
+//!
+//! Every reply carries the daemon's status after the command. A request that is not valid
+//! JSON, names an unknown command or field, or lacks a field is answered with an error that
+//! locates it (`request:LINE:COL: what`) and the connection stays usable.
+
+use serde::{Deserialize, Serialize};
+
+use crate::runtime::JobSummary;
+
+/// Longest request line accepted (bytes).
+pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
+
+/// A command from a client.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "cmd", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Request {
+    /// Run a program from the program directory.
+    Run {
+        program: String,
+    },
+    /// Brake to a standstill and stay there.
+    Hold,
+    /// Release a hold, or resume the checkpoint's job when none is running.
+    Resume {
+        /// Resume from a checkpoint written while cutting.
+        #[serde(default)]
+        force: bool,
+    },
+    /// Brake to a standstill and end the job (checkpoint kept).
+    Abort,
+    Status,
+}
+
+impl Request {
+    /// Parses one request line; errors are `request:LINE:COL: what`.
+    pub fn parse(line: &str) -> Result<Request, String> {
+        serde_json::from_str(line).map_err(|e| {
+            format!(
+                "request:{}:{}: {}",
+                e.line(),
+                e.column(),
+                strip_location(&e)
+            )
+        })
+    }
+}
+
+/// serde_json appends " at line L column C" to its messages; the prefix says it already.
+fn strip_location(e: &serde_json::Error) -> String {
+    let text = e.to_string();
+    match text.rfind(" at line ") {
+        Some(i) => text[..i].to_string(),
+        None => text,
+    }
+}
+
+/// A reply.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Reply {
+    pub ok: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub status: Option<Status>,
+}
+
+impl Reply {
+    pub fn ok(message: impl Into<String>, status: Status) -> Reply {
+        Reply {
+            ok: true,
+            message: Some(message.into()),
+            error: None,
+            status: Some(status),
+        }
+    }
+
+    pub fn error(error: impl Into<String>, status: Option<Status>) -> Reply {
+        Reply {
+            ok: false,
+            message: None,
+            error: Some(error.into()),
+            status,
+        }
+    }
+
+    pub fn to_line(&self) -> String {
+        let mut line = serde_json::to_string(self).expect("replies serialise");
+        line.push('\n');
+        line
+    }
+}
+
+/// What the daemon is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DaemonState {
+    /// No job.
+    Idle,
+    /// A job is cutting (or turning back, or starved).
+    Running,
+    /// A hold was asked for; still braking.
+    Holding,
+    /// Held at a standstill.
+    Held,
+    /// Braking to end the job (abort, SIGTERM).
+    Stopping,
+}
+
+impl DaemonState {
+    pub fn name(self) -> &'static str {
+        match self {
+            DaemonState::Idle => "idle",
+            DaemonState::Running => "running",
+            DaemonState::Holding => "holding",
+            DaemonState::Held => "held",
+            DaemonState::Stopping => "stopping",
+        }
+    }
+}
+
+/// The status report (`status`, and every reply).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    pub state: DaemonState,
+    pub version: String,
+    pub uptime_s: f64,
+    pub axes: Vec<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub job: Option<JobStatus>,
+    /// The last job that ended.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_job: Option<JobSummary>,
+    /// The checkpoint on disk: what `resume` would continue.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<CheckpointStatus>,
+    /// Real-time features the system refused.
+    pub rt_refused: Vec<String>,
+}
+
+/// The running job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobStatus {
+    pub program: String,
+    /// Source line of the segment in hand.
+    pub line: u64,
+    pub segment: u64,
+    pub step: i64,
+    pub parameter: Option<f64>,
+    /// The servo's state: forward, turn-back, re-advance, hold (starved), alarm, done.
+    pub servo: String,
+    pub position_steps: Vec<i64>,
+    pub position_mm: Vec<f64>,
+    pub feed_mm_per_min: f64,
+    pub buffer_unprocessed: u64,
+    pub buffer_reserved: u64,
+    pub buffer_capacity: u64,
+    pub shorts: u64,
+    pub turn_backs: u64,
+    pub deepest_turn_back_blocks: u64,
+    pub alarms: u64,
+    pub starvations: u64,
+    pub overruns: u64,
+    pub pulses: Vec<u64>,
+    pub ticks: u64,
+    pub machine_time_s: f64,
+    pub elapsed_s: f64,
+    /// Real time only: wake-up latency so far.
+    pub latency_mean_us: Option<f64>,
+    pub latency_max_us: Option<f64>,
+    /// Started from a checkpoint.
+    pub resumed: bool,
+}
+
+/// The checkpoint on disk, in short.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointStatus {
+    pub program: String,
+    pub line: u64,
+    pub reason: String,
+    pub still: bool,
+    pub position_steps: Vec<i64>,
+}
+
+impl Status {
+    /// The human-readable form `edmd ctl` prints.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut t = String::new();
+        let list = |v: &[f64]| {
+            v.iter()
+                .zip(&self.axes)
+                .map(|(x, a)| format!("{a} {x:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let _ = writeln!(t, "state:        {}", self.state.name());
+        if let Some(j) = &self.job {
+            let _ = writeln!(
+                t,
+                "job:          {} line {} (segment {}, step {}){}",
+                j.program,
+                j.line,
+                j.segment,
+                j.step,
+                if j.resumed { ", resumed" } else { "" }
+            );
+            let _ = writeln!(
+                t,
+                "position:     {} mm; servo {}, feed {:.2} mm/min",
+                list(&j.position_mm),
+                j.servo,
+                j.feed_mm_per_min
+            );
+            let _ = writeln!(
+                t,
+                "buffer:       {} ahead, {} reserved, of {}",
+                j.buffer_unprocessed, j.buffer_reserved, j.buffer_capacity
+            );
+            let _ = writeln!(
+                t,
+                "servo:        {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
+                j.shorts, j.turn_backs, j.deepest_turn_back_blocks, j.alarms, j.starvations
+            );
+            let latency = match (j.latency_mean_us, j.latency_max_us) {
+                (Some(mean), Some(max)) => {
+                    format!("latency mean {mean:.1} µs, max {max:.1} µs")
+                }
+                _ => "virtual time".to_string(),
+            };
+            let _ = writeln!(
+                t,
+                "time:         {:.3} s machine, {:.1} s elapsed; {}; {} overruns",
+                j.machine_time_s, j.elapsed_s, latency, j.overruns
+            );
+        }
+        if let Some(last) = &self.last_job {
+            let _ = writeln!(
+                t,
+                "last job:     {}: {}{}",
+                last.program,
+                last.outcome.name(),
+                last.error
+                    .as_ref()
+                    .map(|e| format!(" ({e})"))
+                    .unwrap_or_default()
+            );
+        }
+        if let Some(c) = &self.checkpoint {
+            let _ = writeln!(
+                t,
+                "checkpoint:   {} line {} ({}{}); `edmd ctl resume` continues it",
+                c.program,
+                c.line,
+                c.reason,
+                if c.still {
+                    ""
+                } else {
+                    ", written while cutting"
+                }
+            );
+        }
+        for r in &self.rt_refused {
+            let _ = writeln!(t, "warning:      {r}");
+        }
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn requests_parse_and_errors_are_located() {
+        assert_eq!(
+            Request::parse(r#"{"cmd":"run","program":"a.nc"}"#).unwrap(),
+            Request::Run {
+                program: "a.nc".into()
+            }
+        );
+        assert_eq!(
+            Request::parse(r#"{"cmd":"resume"}"#).unwrap(),
+            Request::Resume { force: false }
+        );
+        assert_eq!(
+            Request::parse(r#"{"cmd":"status"}"#).unwrap(),
+            Request::Status
+        );
+        let e = Request::parse(r#"{"cmd":"fly"}"#).unwrap_err();
+        assert!(
+            e.starts_with("request:1:") && e.contains("unknown variant"),
+            "{e}"
+        );
+        let e = Request::parse(r#"{"cmd":"run"}"#).unwrap_err();
+        assert!(e.contains("missing field `program`"), "{e}");
+        let e = Request::parse("{\"cmd\":\n\"hold\",}").unwrap_err();
+        assert!(e.starts_with("request:2:"), "{e}");
+        let e = Request::parse(r#"{"cmd":"hold","extra":1}"#).unwrap_err();
+        assert!(e.contains("unknown field"), "{e}");
+        assert!(!e.contains(" at line "), "{e}");
+    }
+}

@@ -1,0 +1,142 @@
+//! SIGHUP: reload the configuration, key by key.
+//!
+//! The file (and the same `--set` overrides) is read and validated again, then every key is
+//! compared with the one in force. Each changed key falls in one class:
+//!
+//! | class | keys | while a job runs | idle |
+//! |---|---|---|---|
+//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.max_clients` | applied | applied |
+//! | job | everything that shapes or times motion: `machine.*`, `interpolation.*`, `buffer.*`, `fine.tick_us`, `servo.*`, `gap.*`, `sim.*`, `output.path`, … | refused | applied (next job) |
+//! | restart | what was set up at startup: `daemon.socket*`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
+//!
+//! A reload is all or nothing: if any change is refused, none is applied, and the log says
+//! which keys and why. What changed is logged as `key: old -> new`.
+
+use super::ConfigSource;
+use crate::config::{Config, KeyValues, OutputKind};
+
+/// When a changed key may take effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KeyClass {
+    Live,
+    Job,
+    Restart,
+}
+
+pub fn classify(key: &str) -> KeyClass {
+    match key {
+        "log.level"
+        | "daemon.program_dir"
+        | "daemon.status_interval_s"
+        | "daemon.checkpoint_interval_s"
+        | "daemon.max_clients" => KeyClass::Live,
+        "daemon.socket"
+        | "daemon.socket_mode"
+        | "daemon.socket_group"
+        | "log.format"
+        | "fine.virtual_time"
+        | "fine.rt_priority"
+        | "fine.lock_memory"
+        | "fine.cpu"
+        | "output.kind" => KeyClass::Restart,
+        k if k.starts_with("parport.") => KeyClass::Restart,
+        _ => KeyClass::Job,
+    }
+}
+
+/// The keys whose values differ, as `key: old -> new` lines.
+pub fn diff(old: &KeyValues, new: &KeyValues) -> Vec<(String, String, String)> {
+    let mut changes = Vec::new();
+    for (key, value) in new {
+        let before = old.get(key).cloned().unwrap_or_default();
+        if &before != value {
+            changes.push((key.clone(), before, value.clone()));
+        }
+    }
+    changes
+}
+
+/// Reads the configuration again and decides. `Ok(None)`: nothing changed; `Ok(Some)`: the
+/// new configuration with the change lines; `Err`: refused, with the reasons.
+pub fn reload(
+    source: &ConfigSource,
+    keys: &KeyValues,
+    job_running: bool,
+) -> Result<Option<(Config, KeyValues, Vec<String>)>, String> {
+    let (config, new_keys) = Config::load_with_keys(source.path.as_deref(), &source.overrides)
+        .map_err(|e| e.to_string())?;
+    decide(keys, config, new_keys, job_running)
+}
+
+fn decide(
+    keys: &KeyValues,
+    config: Config,
+    new_keys: KeyValues,
+    job_running: bool,
+) -> Result<Option<(Config, KeyValues, Vec<String>)>, String> {
+    let changes = diff(keys, &new_keys);
+    if changes.is_empty() {
+        return Ok(None);
+    }
+    let mut refused = Vec::new();
+    for (key, _, _) in &changes {
+        // The port's device path was opened at startup.
+        let parport_device = key == "output.path" && config.output.kind == OutputKind::Parport;
+        let class = if parport_device {
+            KeyClass::Restart
+        } else {
+            classify(key)
+        };
+        match class {
+            KeyClass::Restart => refused.push(format!("{key} needs a restart")),
+            KeyClass::Job if job_running => {
+                refused.push(format!("{key} cannot change while a job runs"))
+            }
+            _ => {}
+        }
+    }
+    if !refused.is_empty() {
+        return Err(refused.join("; "));
+    }
+    let lines = changes
+        .iter()
+        .map(|(k, a, b)| format!("{k}: {a} -> {b}"))
+        .collect();
+    Ok(Some((config, new_keys, lines)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(sets: &[&str]) -> (Config, KeyValues) {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        Config::load_with_keys(None, &sets).unwrap()
+    }
+
+    #[test]
+    fn live_keys_apply_job_keys_wait_restart_keys_never() {
+        let (_, keys) = load(&[]);
+        let (c, k) = load(&["log.level=\"debug\"", "daemon.max_clients=3"]);
+        let (_, _, lines) = decide(&keys, c, k, true).unwrap().unwrap();
+        assert_eq!(
+            lines,
+            vec![
+                "daemon.max_clients: 8 -> 3".to_string(),
+                "log.level: \"info\" -> \"debug\"".to_string()
+            ]
+        );
+
+        let (c, k) = load(&["servo.normal_feed_mm_per_min=9.0"]);
+        let e = decide(&keys, c.clone(), k.clone(), true).unwrap_err();
+        assert!(e.contains("servo.normal_feed_mm_per_min cannot change while a job runs"));
+        assert!(decide(&keys, c, k, false).unwrap().is_some());
+
+        let (c, k) = load(&["daemon.socket=\"/tmp/x.sock\"", "log.level=\"debug\""]);
+        let e = decide(&keys, c, k, false).unwrap_err();
+        assert_eq!(e, "daemon.socket needs a restart");
+
+        let (c, k) = load(&[]);
+        assert!(decide(&keys, c, k, true).unwrap().is_none());
+    }
+}

@@ -1,0 +1,654 @@
+//! The daemon end to end: the real `edmd serve` on a temporary socket, driven by the real
+//! `edmd ctl` (and by raw sockets for what a well-behaved client never sends).
+//!
+//! Jobs run in real time (`fine.virtual_time=false`) at a feed that makes
+//! `tests/data/runtime-path.nc` last a few seconds, so there is time to hold, stop and
+//! resume it; the gap is always normal (`gap.kind="none"`) so runs are comparable pulse by
+//! pulse, and the pulses go to a pulse log that the tests read back.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::{UnixDatagram, UnixStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+use edmd::output::read_pulse_log;
+
+const PROGRAM: &str = "runtime-path.nc";
+/// The program's end in steps (1 µm).
+const PROGRAM_END: [i64; 2] = [7500, 8250];
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = common::scratch("daemon", name);
+    let programs = dir.join("programs");
+    std::fs::create_dir_all(&programs).unwrap();
+    std::fs::copy(
+        common::repo().join("tests/data").join(PROGRAM),
+        programs.join(PROGRAM),
+    )
+    .unwrap();
+    let _ = std::fs::remove_file(dir.join("checkpoint.json"));
+    dir
+}
+
+/// A running `edmd serve`; killed if a test fails before it stops it.
+struct Daemon {
+    child: Child,
+    socket: PathBuf,
+    log: PathBuf,
+}
+
+/// The `--set` arguments every daemon of `dir` runs with.
+fn base_sets(dir: &Path, pulses: &str) -> Vec<String> {
+    vec![
+        format!("daemon.socket=\"{}\"", dir.join("edmd.sock").display()),
+        format!("daemon.program_dir=\"{}\"", dir.join("programs").display()),
+        format!(
+            "daemon.checkpoint=\"{}\"",
+            dir.join("checkpoint.json").display()
+        ),
+        "daemon.status_interval_s=0.5".to_string(),
+        "daemon.checkpoint_interval_s=0.5".to_string(),
+        "fine.virtual_time=false".to_string(),
+        "gap.kind=\"none\"".to_string(),
+        "output.kind=\"file\"".to_string(),
+        format!("output.path=\"{}\"", dir.join(pulses).display()),
+        "servo.normal_feed_mm_per_min=300.0".to_string(),
+        "log.format=\"plain\"".to_string(),
+    ]
+}
+
+static DAEMONS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+impl Daemon {
+    fn start(dir: &Path, sets: &[String], env: &[(&str, String)]) -> Daemon {
+        Daemon::start_args(dir, &[], sets, env)
+    }
+
+    /// `edmd serve ARGS --set SETS...` in `dir` with `env`, its log in `dir/serve-N.log`.
+    fn start_args(dir: &Path, args: &[String], sets: &[String], env: &[(&str, String)]) -> Daemon {
+        let n = DAEMONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let log = dir.join(format!("serve-{n}.log"));
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_edmd"));
+        cmd.arg("serve")
+            .args(args)
+            .current_dir(dir)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .env_remove("NOTIFY_SOCKET")
+            .env_remove("WATCHDOG_USEC")
+            .env_remove("RUST_LOG");
+        for s in sets {
+            cmd.args(["--set", s]);
+        }
+        for (k, v) in env {
+            cmd.env(k, v);
+        }
+        let child = cmd.spawn().expect("edmd serve starts");
+        let daemon = Daemon {
+            child,
+            socket: dir.join("edmd.sock"),
+            log,
+        };
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while UnixStream::connect(&daemon.socket).is_err() {
+            assert!(
+                Instant::now() < deadline,
+                "no socket; log:\n{}",
+                daemon.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        daemon
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// `edmd ctl --socket S --json ARGS`: the reply and the exit code.
+    fn ctl(&self, args: &[&str]) -> (Value, i32) {
+        let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .arg("ctl")
+            .arg("--socket")
+            .arg(&self.socket)
+            .arg("--json")
+            .args(args)
+            .output()
+            .expect("edmd ctl runs");
+        let text = String::from_utf8_lossy(&out.stdout);
+        let reply = serde_json::from_str(text.trim()).unwrap_or_else(|e| {
+            panic!(
+                "ctl {args:?}: {e}: {text:?} {}",
+                String::from_utf8_lossy(&out.stderr)
+            )
+        });
+        (reply, out.status.code().unwrap_or(-1))
+    }
+
+    fn ok(&self, args: &[&str]) -> Value {
+        let (reply, code) = self.ctl(args);
+        assert_eq!(
+            reply["ok"],
+            true,
+            "ctl {args:?}: {reply}\nlog:\n{}",
+            self.log()
+        );
+        assert_eq!(code, 0);
+        reply
+    }
+
+    fn status(&self) -> Value {
+        self.ok(&["status"])["status"].clone()
+    }
+
+    /// Polls the status until `pred` holds.
+    fn wait_for(&self, what: &str, pred: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let status = self.status();
+            if pred(&status) {
+                return status;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "waiting for {what}: {status}\nlog:\n{}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(25));
+        }
+    }
+
+    fn signal(&self, signal: i32) {
+        // SAFETY: kill(2) on our own child's pid.
+        let rc = unsafe { libc::kill(self.child.id() as i32, signal) };
+        assert_eq!(rc, 0);
+    }
+
+    /// Waits for the process to end; its exit code.
+    fn wait(mut self) -> (i32, String) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return (status.code().unwrap_or(-1), self.log());
+            }
+            assert!(
+                Instant::now() < deadline,
+                "daemon did not exit:\n{}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn position(status: &Value) -> Vec<i64> {
+    status["job"]["position_steps"]
+        .as_array()
+        .expect("a job")
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect()
+}
+
+fn ints(v: &Value) -> Vec<i64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|x| x.as_i64().unwrap())
+        .collect()
+}
+
+/// The steps of a pulse log: one vector per moving tick, in order.
+fn moves(path: &Path) -> Vec<Vec<i8>> {
+    let (_, rows) = read_pulse_log(path).unwrap();
+    rows.into_iter()
+        .map(|r| r.steps)
+        .filter(|s| s.iter().any(|&x| x != 0))
+        .collect()
+}
+
+/// The reference: the same program uninterrupted through `edmd run` (virtual time).
+fn uninterrupted(dir: &Path) -> Vec<Vec<i8>> {
+    let pulses = dir.join("reference.csv");
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("run")
+        .arg(dir.join("programs").join(PROGRAM))
+        .args([
+            "--set",
+            "gap.kind=\"none\"",
+            "--set",
+            "output.kind=\"file\"",
+        ])
+        .arg("--set")
+        .arg(format!("output.path=\"{}\"", pulses.display()))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    moves(&pulses)
+}
+
+fn is_moving(s: &Value) -> bool {
+    s["state"] == "running" && s["job"]["position_steps"][0].as_i64().unwrap_or(0) > 300
+}
+
+#[test]
+fn run_hold_resume_abort_and_status() {
+    let dir = scratch("hold");
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let status = daemon.status();
+    assert_eq!(status["state"], "idle");
+    assert!(status.get("job").is_none());
+
+    let reply = daemon.ok(&["run", PROGRAM]);
+    assert!(
+        reply["message"].as_str().unwrap().contains("running"),
+        "{reply}"
+    );
+    // A second job while one runs is refused, the first carries on.
+    let (reply, code) = daemon.ctl(&["run", PROGRAM]);
+    assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
+    assert!(reply["error"].as_str().unwrap().contains("abort it first"));
+
+    let status = daemon.wait_for("cutting", is_moving);
+    let job = &status["job"];
+    assert_eq!(job["servo"], "forward");
+    assert!(job["feed_mm_per_min"].as_f64().unwrap() > 0.0, "{job}");
+    assert!(job["line"].as_u64().unwrap() >= 4, "{job}");
+    assert!(job["buffer_capacity"].as_u64().unwrap() > 0);
+    assert!(job["latency_max_us"].as_f64().is_some(), "real time: {job}");
+
+    // Hold: brakes to a standstill, writes a checkpoint, stays put.
+    daemon.ok(&["hold"]);
+    let held = daemon.wait_for("held", |s| s["state"] == "held");
+    let at = position(&held);
+    std::thread::sleep(Duration::from_millis(300));
+    let still = daemon.status();
+    assert_eq!(still["state"], "held");
+    assert_eq!(position(&still), at, "moved while held");
+    assert_eq!(still["job"]["feed_mm_per_min"], 0.0);
+    let cp = daemon.wait_for("the hold checkpoint", |s| {
+        s["checkpoint"]["reason"] == "hold"
+    });
+    assert_eq!(ints(&cp["checkpoint"]["position_steps"]), at);
+    assert_eq!(cp["checkpoint"]["still"], true);
+
+    // Resume: moves on.
+    daemon.ok(&["resume"]);
+    let (reply, _) = daemon.ctl(&["resume"]);
+    assert_eq!(reply["ok"], false, "not held any more: {reply}");
+    daemon.wait_for("moving again", |s| {
+        s["state"] == "running" && position(s) != at
+    });
+
+    // Abort: brakes, ends the job, keeps a checkpoint where it stopped.
+    daemon.ok(&["abort"]);
+    let idle = daemon.wait_for("idle", |s| s["state"] == "idle");
+    let last = &idle["last_job"];
+    assert_eq!(last["outcome"], "stopped", "{last}");
+    let end = ints(&last["end_steps"]);
+    assert_ne!(
+        end,
+        PROGRAM_END.to_vec(),
+        "the abort came too late to test anything"
+    );
+    assert_eq!(idle["checkpoint"]["reason"], "abort");
+    assert_eq!(ints(&idle["checkpoint"]["position_steps"]), end);
+    // Every pulse in the log is in the ledger.
+    let sum: Vec<i64> = (0..2)
+        .map(|a| {
+            moves(&dir.join("pulses.csv"))
+                .iter()
+                .map(|m| m[a] as i64)
+                .sum()
+        })
+        .collect();
+    assert_eq!(sum, end);
+
+    // Nothing to hold or abort now; a human-readable status says so.
+    let (reply, code) = daemon.ctl(&["hold"]);
+    assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "status", "--socket"])
+        .arg(&daemon.socket)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("state:        idle"), "{text}");
+    assert!(
+        text.contains("checkpoint:") && text.contains("(abort)"),
+        "{text}"
+    );
+
+    daemon.signal(libc::SIGTERM);
+    let (code, log) = daemon.wait();
+    assert_eq!(code, 0, "{log}");
+    assert!(log.contains("status: "), "a periodic status line: {log}");
+    assert!(!dir.join("edmd.sock").exists(), "socket removed on exit");
+}
+
+#[test]
+fn sigterm_mid_job_then_resume_after_a_restart_loses_and_doubles_no_pulse() {
+    let dir = scratch("resume");
+    let reference = uninterrupted(&dir);
+
+    let first = Daemon::start(&dir, &base_sets(&dir, "first.csv"), &[]);
+    first.ok(&["run", PROGRAM]);
+    first.wait_for("cutting", is_moving);
+    first.signal(libc::SIGTERM);
+    let (code, log) = first.wait();
+    assert_eq!(code, 0, "a controlled stop exits 0:\n{log}");
+    assert!(log.contains("controlled stop"), "{log}");
+    let cp: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(cp["reason"], "stop");
+    assert_eq!(cp["still"], true);
+    assert_eq!(cp["program_sha256"].as_str().unwrap().len(), 64);
+    let stopped_at = ints(&cp["position_steps"]);
+    assert_ne!(
+        stopped_at,
+        PROGRAM_END.to_vec(),
+        "stopped too late to test anything"
+    );
+
+    let second = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
+    assert_eq!(second.status()["checkpoint"]["reason"], "stop");
+    let reply = second.ok(&["resume"]);
+    assert!(
+        reply["message"].as_str().unwrap().contains("resuming"),
+        "{reply}"
+    );
+    let idle = second.wait_for("the resumed job's end", |s| s["state"] == "idle");
+    let last = &idle["last_job"];
+    assert_eq!(last["outcome"], "done", "{last}\n{}", second.log());
+    assert_eq!(ints(&last["end_steps"]), PROGRAM_END.to_vec());
+    assert!(
+        idle.get("checkpoint").is_none(),
+        "done removes the checkpoint"
+    );
+    assert!(!dir.join("checkpoint.json").exists());
+
+    // The pulses of the stopped run followed by those of the resumed one are, step for
+    // step, the pulses of the uninterrupted run.
+    let mut joined = moves(&dir.join("first.csv"));
+    let first_len = joined.len();
+    joined.extend(moves(&dir.join("second.csv")));
+    assert!(first_len > 100 && first_len + 100 < reference.len());
+    assert_eq!(joined.len(), reference.len());
+    assert!(joined == reference, "the pulse sequences differ");
+    second.signal(libc::SIGTERM);
+    assert_eq!(second.wait().0, 0);
+}
+
+#[test]
+fn a_changed_program_or_motion_setting_refuses_to_resume() {
+    let dir = scratch("changed");
+    let first = Daemon::start(&dir, &base_sets(&dir, "first.csv"), &[]);
+    first.ok(&["run", PROGRAM]);
+    first.wait_for("cutting", is_moving);
+    first.ok(&["abort"]);
+    first.wait_for("idle", |s| s["state"] == "idle");
+    first.signal(libc::SIGTERM);
+    assert_eq!(first.wait().0, 0);
+
+    // Other motion settings: refused.
+    let mut sets = base_sets(&dir, "second.csv");
+    sets.push("interpolation.chord_tolerance_mm=0.002".to_string());
+    let second = Daemon::start(&dir, &sets, &[]);
+    let (reply, code) = second.ctl(&["resume"]);
+    assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
+    assert!(
+        reply["error"].as_str().unwrap().contains("[interpolation]"),
+        "{reply}"
+    );
+    second.signal(libc::SIGTERM);
+    assert_eq!(second.wait().0, 0);
+
+    // The program edited: refused, and the checkpoint stays for the right program.
+    let program = dir.join("programs").join(PROGRAM);
+    let mut text = std::fs::read_to_string(&program).unwrap();
+    text = text.replace("G1 X10 Y8", "G1 X10 Y8.001");
+    std::fs::write(&program, text).unwrap();
+    let third = Daemon::start(&dir, &base_sets(&dir, "third.csv"), &[]);
+    let (reply, _) = third.ctl(&["resume"]);
+    let error = reply["error"].as_str().unwrap();
+    assert!(
+        error.contains("the program changed since the checkpoint"),
+        "{error}"
+    );
+    assert!(dir.join("checkpoint.json").exists());
+    assert!(!dir.join("third.csv").exists(), "nothing was started");
+    third.signal(libc::SIGTERM);
+    assert_eq!(third.wait().0, 0);
+}
+
+/// Sends raw lines on one connection and reads one reply per line.
+fn raw_exchange(socket: &Path, lines: &[&str]) -> Vec<Value> {
+    let stream = UnixStream::connect(socket).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(30)))
+        .unwrap();
+    let mut writer = stream.try_clone().unwrap();
+    let mut reader = BufReader::new(stream);
+    lines
+        .iter()
+        .map(|line| {
+            writer.write_all(line.as_bytes()).unwrap();
+            writer.write_all(b"\n").unwrap();
+            let mut answer = String::new();
+            reader.read_line(&mut answer).unwrap();
+            serde_json::from_str(&answer).unwrap()
+        })
+        .collect()
+}
+
+#[test]
+fn bad_requests_escapes_vanishing_and_too_many_clients() {
+    let dir = scratch("bad");
+    std::fs::write(dir.join("secret.nc"), "G1 X1 F60\n").unwrap();
+    std::os::unix::fs::symlink(dir.join("secret.nc"), dir.join("programs/escape.nc")).unwrap();
+    std::fs::write(dir.join("programs/broken.nc"), "G1 X1 F60\nG1 Q7\n").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("daemon.max_clients=2".to_string());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+
+    let replies = raw_exchange(
+        &daemon.socket,
+        &[
+            "this is not json",
+            r#"{"cmd":"fly"}"#,
+            r#"{"cmd":"run"}"#,
+            r#"{"cmd":"run","program":"../secret.nc"}"#,
+            r#"{"cmd":"run","program":"escape.nc"}"#,
+            r#"{"cmd":"run","program":"broken.nc"}"#,
+            r#"{"cmd":"status"}"#,
+        ],
+    );
+    let errors: Vec<&str> = replies[..6]
+        .iter()
+        .map(|r| {
+            assert_eq!(r["ok"], false, "{r}");
+            r["error"].as_str().unwrap()
+        })
+        .collect();
+    assert!(errors[0].starts_with("request:1:"), "{}", errors[0]);
+    assert!(errors[1].contains("unknown variant `fly`"), "{}", errors[1]);
+    assert!(
+        errors[2].contains("missing field `program`"),
+        "{}",
+        errors[2]
+    );
+    assert!(errors[3].contains("`..` is not allowed"), "{}", errors[3]);
+    assert!(
+        errors[4].contains("outside the program directory"),
+        "{}",
+        errors[4]
+    );
+    assert!(
+        errors[5].contains("broken.nc:2:"),
+        "file:line:col: {}",
+        errors[5]
+    );
+    assert_eq!(replies[6]["ok"], true, "the connection still works");
+    assert_eq!(replies[6]["status"]["state"], "idle");
+
+    // A client that vanishes mid-request asked for nothing.
+    {
+        let mut s = UnixStream::connect(&daemon.socket).unwrap();
+        s.write_all(br#"{"cmd":"run","program":"runtime"#).unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(daemon.status()["state"], "idle");
+    assert!(!dir.join("pulses.csv").exists());
+
+    // Two idle clients fill the daemon; the third is told so; the first two still work.
+    let a = UnixStream::connect(&daemon.socket).unwrap();
+    let b = UnixStream::connect(&daemon.socket).unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let c = UnixStream::connect(&daemon.socket).unwrap();
+    let mut answer = String::new();
+    BufReader::new(c).read_line(&mut answer).unwrap();
+    assert!(answer.contains("too many clients"), "{answer}");
+    drop(b);
+    let replies = raw_exchange_on(a, &[r#"{"cmd":"status"}"#]);
+    assert_eq!(replies[0]["ok"], true);
+
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}
+
+fn raw_exchange_on(stream: UnixStream, lines: &[&str]) -> Vec<Value> {
+    let mut writer = stream.try_clone().unwrap();
+    let mut reader = BufReader::new(stream);
+    lines
+        .iter()
+        .map(|line| {
+            writeln!(writer, "{line}").unwrap();
+            let mut answer = String::new();
+            reader.read_line(&mut answer).unwrap();
+            serde_json::from_str(&answer).unwrap()
+        })
+        .collect()
+}
+
+#[test]
+fn systemd_notify_watchdog_reload_and_usr1() {
+    let dir = scratch("notify");
+    let notify_path = dir.join("notify.sock");
+    let _ = std::fs::remove_file(&notify_path);
+    let notify = UnixDatagram::bind(&notify_path).unwrap();
+    notify
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    let config = dir.join("edmd.toml");
+    std::fs::write(&config, "[log]\nlevel = \"info\"\n").unwrap();
+    let sets = base_sets(&dir, "pulses.csv");
+    let daemon = Daemon::start_with_config(
+        &dir,
+        &config,
+        &sets,
+        &[
+            ("NOTIFY_SOCKET", notify_path.display().to_string()),
+            ("WATCHDOG_USEC", "400000".to_string()),
+        ],
+    );
+    // systemd reads its socket all the time; so does this thread.
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let reader = {
+        let seen = seen.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = notify.recv(&mut buf) {
+                let message = String::from_utf8_lossy(&buf[..n]).into_owned();
+                let last = message == "STOPPING=1";
+                seen.lock().unwrap().push(message);
+                if last {
+                    return;
+                }
+            }
+        })
+    };
+    let messages = || seen.lock().unwrap().clone();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let m = messages();
+        if m.iter().filter(|m| *m == "WATCHDOG=1").count() >= 2
+            && m.iter().any(|m| m.starts_with("STATUS=idle"))
+        {
+            assert_eq!(m[0], "READY=1", "READY first: {m:?}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "{m:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+
+    // SIGHUP: a live key applies, a job key is refused while a job runs.
+    std::fs::write(&config, "[log]\nlevel = \"debug\"\n").unwrap();
+    daemon.signal(libc::SIGHUP);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    std::fs::write(
+        &config,
+        "[log]\nlevel = \"debug\"\n[servo]\nretract_feed_mm_per_min = 10.0\n",
+    )
+    .unwrap();
+    daemon.signal(libc::SIGHUP);
+    daemon.signal(libc::SIGUSR1);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let log = loop {
+        let log = daemon.log();
+        if log.contains("status: state:") && log.contains("reload refused") {
+            break log;
+        }
+        assert!(Instant::now() < deadline, "{log}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(
+        log.contains("reload: log.level: \"info\" -> \"debug\""),
+        "{log}"
+    );
+    assert!(
+        log.contains("servo.retract_feed_mm_per_min cannot change while a job runs"),
+        "{log}"
+    );
+    assert!(log.contains("status: job:"), "SIGUSR1 status: {log}");
+    daemon.ok(&["abort"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    daemon.signal(libc::SIGTERM);
+    let (code, log) = daemon.wait();
+    assert_eq!(code, 0, "{log}");
+    reader.join().unwrap();
+    let m = messages();
+    assert_eq!(m.last().map(String::as_str), Some("STOPPING=1"), "{m:?}");
+    assert!(
+        m.iter().any(|m| m.starts_with("STATUS=running")),
+        "STATUS= follows the job: {m:?}"
+    );
+}
+
+impl Daemon {
+    fn start_with_config(
+        dir: &Path,
+        config: &Path,
+        sets: &[String],
+        env: &[(&str, String)],
+    ) -> Daemon {
+        Daemon::start_args(dir, &[format!("--config={}", config.display())], sets, env)
+    }
+}
