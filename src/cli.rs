@@ -385,10 +385,10 @@ fn run_ctl(args: &CtlArgs) -> ExitCode {
         CtlCommand::Run { program } => Request::Run {
             program: program.clone(),
         },
-        CtlCommand::Hold => Request::Hold,
+        CtlCommand::Hold => Request::Hold {},
         CtlCommand::Resume { force } => Request::Resume { force: *force },
-        CtlCommand::Abort => Request::Abort,
-        CtlCommand::Status => Request::Status,
+        CtlCommand::Abort => Request::Abort {},
+        CtlCommand::Status => Request::Status {},
     };
     let reply = match crate::daemon::socket::request(&socket, &request) {
         Ok(reply) => reply,
@@ -403,12 +403,12 @@ fn run_ctl(args: &CtlArgs) -> ExitCode {
         if let Some(message) = reply
             .message
             .as_ref()
-            .filter(|_| request != Request::Status)
+            .filter(|_| request != Request::Status {})
         {
             println!("{message}");
         }
         if let Some(status) = &reply.status
-            && (request == Request::Status || !reply.ok)
+            && (request == Request::Status {} || !reply.ok)
         {
             print!("{}", status.text());
         }

@@ -432,11 +432,11 @@ impl Core {
 
     fn handle(&mut self, request: Request) -> Reply {
         let result = match request {
-            Request::Status => Ok("status".to_string()),
+            Request::Status {} => Ok("status".to_string()),
             Request::Run { program } => self.run_program(&program),
-            Request::Hold => self.hold(),
+            Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
-            Request::Abort => self.abort(),
+            Request::Abort {} => self.abort(),
         };
         self.notify_status();
         match result {

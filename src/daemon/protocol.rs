@@ -25,8 +25,9 @@ pub enum Request {
     Run {
         program: String,
     },
-    /// Brake to a standstill and stay there.
-    Hold,
+    /// Brake to a standstill and stay there. (Empty struct variants, not unit ones: serde
+    /// checks unknown fields only on those.)
+    Hold {},
     /// Release a hold, or resume the checkpoint's job when none is running.
     Resume {
         /// Resume from a checkpoint written while cutting.
@@ -34,8 +35,8 @@ pub enum Request {
         force: bool,
     },
     /// Brake to a standstill and end the job (checkpoint kept).
-    Abort,
-    Status,
+    Abort {},
+    Status {},
 }
 
 impl Request {
@@ -293,7 +294,7 @@ mod tests {
         );
         assert_eq!(
             Request::parse(r#"{"cmd":"status"}"#).unwrap(),
-            Request::Status
+            Request::Status {}
         );
         let e = Request::parse(r#"{"cmd":"fly"}"#).unwrap_err();
         assert!(
