@@ -48,7 +48,7 @@ use crate::runtime::{
     self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, LoopSettings,
     Outcome, Published, ResumePoint, Snapshot,
 };
-use notify::Notifier;
+use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{CheckpointStatus, DaemonState, JobStatus, Reply, Request, Status};
 
 /// How often the control loop does its periodic work when no message arrives.
@@ -125,10 +125,7 @@ struct Core {
     last: Option<JobSummary>,
     checkpoint: Option<Checkpoint>,
     notifier: Notifier,
-    watchdog: Option<Duration>,
-    last_ping: Instant,
-    last_progress: u64,
-    stalled_warned: bool,
+    watchdog: Option<WatchdogGate>,
     last_status_line: Instant,
     started: Instant,
     max_clients: Arc<AtomicUsize>,
@@ -203,10 +200,7 @@ pub fn serve(
         last: None,
         checkpoint,
         notifier,
-        watchdog,
-        last_ping: Instant::now(),
-        last_progress: u64::MAX,
-        stalled_warned: false,
+        watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
         last_status_line: Instant::now(),
         started,
         max_clients,
@@ -899,29 +893,23 @@ impl Core {
     /// Pings systemd's watchdog every half period, only if the fine thread made progress
     /// since the last ping (its idle heartbeat, or the job's ticks).
     fn watchdog(&mut self) {
-        let Some(period) = self.watchdog else {
+        let now = self.started.elapsed();
+        let Some(gate) = self.watchdog.as_mut() else {
             return;
         };
-        if self.last_ping.elapsed() < period / 2 {
-            return;
-        }
         let ticks = self
             .job
             .as_ref()
             .map_or(0, |j| j.published.ticks.load(Ordering::Relaxed));
         let progress = self.fine.heartbeat().wrapping_add(ticks);
-        if progress != self.last_progress && !self.fine.is_finished() {
-            self.notifier.send("WATCHDOG=1");
-            self.last_progress = progress;
-            self.last_ping = Instant::now();
-            self.stalled_warned = false;
-        } else if !self.stalled_warned {
-            tracing::error!(
+        match gate.check(now, progress, !self.fine.is_finished()) {
+            Watchdog::Wait | Watchdog::Stalled { first: false } => {}
+            Watchdog::Ping => self.notifier.send("WATCHDOG=1"),
+            Watchdog::Stalled { first: true } => tracing::error!(
                 "the fine interpolation thread made no progress for {:.1} s: not pinging the \
                  watchdog",
-                self.last_ping.elapsed().as_secs_f64()
-            );
-            self.stalled_warned = true;
+                gate.since_ping(now).as_secs_f64()
+            ),
         }
     }
 }

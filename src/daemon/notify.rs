@@ -77,8 +77,90 @@ pub fn watchdog_period() -> Option<Duration> {
     (usec > 0).then(|| Duration::from_micros(usec))
 }
 
+/// When to ping the watchdog: every half period, and only if the real-time side made
+/// progress since the last ping. Time is passed in, so the rule is testable.
+#[derive(Debug, Clone, Copy)]
+pub struct WatchdogGate {
+    period: Duration,
+    last_ping: Duration,
+    last_progress: Option<u64>,
+    stalled: bool,
+}
+
+/// What the gate says at one check.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Watchdog {
+    /// Not yet half a period since the last ping.
+    Wait,
+    /// Send `WATCHDOG=1`.
+    Ping,
+    /// Due, but nothing moved since the last ping: no ping. `first` once per stall.
+    Stalled { first: bool },
+}
+
+impl WatchdogGate {
+    pub fn new(period: Duration, now: Duration) -> WatchdogGate {
+        WatchdogGate {
+            period,
+            last_ping: now,
+            last_progress: None,
+            stalled: false,
+        }
+    }
+
+    /// `progress`: a counter that grows while the real-time side works; `alive`: its thread
+    /// still exists.
+    pub fn check(&mut self, now: Duration, progress: u64, alive: bool) -> Watchdog {
+        if now.saturating_sub(self.last_ping) < self.period / 2 {
+            return Watchdog::Wait;
+        }
+        if alive && self.last_progress != Some(progress) {
+            self.last_progress = Some(progress);
+            self.last_ping = now;
+            self.stalled = false;
+            return Watchdog::Ping;
+        }
+        let first = !self.stalled;
+        self.stalled = true;
+        Watchdog::Stalled { first }
+    }
+
+    /// Time since the last ping.
+    pub fn since_ping(&self, now: Duration) -> Duration {
+        now.saturating_sub(self.last_ping)
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_watchdog_is_pinged_only_on_progress() {
+        use super::{Watchdog, WatchdogGate};
+        let ms = std::time::Duration::from_millis;
+        let mut gate = WatchdogGate::new(ms(1000), ms(0));
+        assert_eq!(gate.check(ms(100), 1, true), Watchdog::Wait);
+        assert_eq!(gate.check(ms(500), 1, true), Watchdog::Ping);
+        assert_eq!(gate.check(ms(700), 2, true), Watchdog::Wait);
+        assert_eq!(gate.check(ms(1000), 2, true), Watchdog::Ping);
+        // The loop stops making progress: no more pings, one report.
+        assert_eq!(
+            gate.check(ms(1500), 2, true),
+            Watchdog::Stalled { first: true }
+        );
+        assert_eq!(
+            gate.check(ms(1750), 2, true),
+            Watchdog::Stalled { first: false }
+        );
+        assert_eq!(gate.since_ping(ms(1750)), ms(750));
+        // It moves again: pings resume.
+        assert_eq!(gate.check(ms(1800), 3, true), Watchdog::Ping);
+        // A dead thread is never pinged for, whatever the counter says.
+        assert_eq!(
+            gate.check(ms(2400), 4, false),
+            Watchdog::Stalled { first: true }
+        );
+    }
+
     use super::*;
 
     #[test]

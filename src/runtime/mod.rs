@@ -3,18 +3,20 @@
 //! ```text
 //!  program ─► [precheck: parse it all, exit 2 on any error, before anything moves]
 //!
-//!  producer thread                loop buffer                 consumer thread ("edmd-fine")
+//!  producer thread                loop buffer                 fine thread ("edmd-fine")
 //!  parse ─► preprocess ─► round ─► push ──► reserved|unprocessed|unused ──► next/previous
 //!  (sleeps while full)                                         tick core ─► output, gap
 //!                                                                  │ events (lock-free queue)
-//!  main thread: drains and logs servo events, joins, builds the summary ◄┘
+//!                                                                  │ snapshot (seqlock)
+//!  supervisor (the caller): logs events, hold/stop flags, joins, builds the summary ◄┘
 //! ```
 //!
 //! [`run_job`] checks the whole program first: a CNC control must not start cutting a
 //! program whose line 10,000 is bad. Then the producer ([`producer`]) streams it again into
-//! the loop buffer while the consumer ([`consumer`]) runs the tick core in real or virtual
-//! time. The main thread only logs and waits. The summary ([`JobSummary`]) is what
-//! `edmd run` prints and writes as JSON.
+//! the loop buffer while the fine thread ([`fine_thread`], looping in [`consumer`]) runs the
+//! tick core in real or virtual time. The supervisor only logs, steers through [`Published`]
+//! and waits. The summary ([`JobSummary`]) is what `edmd run` prints and writes as JSON; the
+//! daemon runs its jobs through [`run_job_with`] on one long-lived [`FineThread`].
 
 pub mod consumer;
 pub mod fine_thread;
