@@ -158,6 +158,13 @@ pub struct MachineConfig {
     pub max_tangential_accel_mm_per_s2: f64,
 }
 
+impl MachineConfig {
+    /// The axis letters as strings, in machine order (for reports).
+    pub fn axis_names(&self) -> Vec<String> {
+        self.axes.iter().map(|a| a.letter().to_string()).collect()
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct InterpolationConfig {
     pub predictor: Predictor,

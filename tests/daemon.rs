@@ -390,6 +390,11 @@ fn sigterm_mid_job_then_resume_after_a_restart_loses_and_doubles_no_pulse() {
     let first_len = joined.len();
     joined.extend(moves(&dir.join("second.csv")));
     assert!(first_len > 100 && first_len + 100 < reference.len());
+    eprintln!(
+        "stopped at {stopped_at:?} steps after {first_len} of {} moving ticks; resumed run: {}",
+        reference.len(),
+        joined.len() - first_len
+    );
     assert_eq!(joined.len(), reference.len());
     assert!(joined == reference, "the pulse sequences differ");
     second.signal(libc::SIGTERM);

@@ -363,12 +363,7 @@ impl Core {
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),
-            axes: config
-                .machine
-                .axes
-                .iter()
-                .map(|a| a.letter().to_string())
-                .collect(),
+            axes: config.machine.axis_names(),
             job,
             last_job: self.last.clone(),
             checkpoint: self.checkpoint.as_ref().map(|c| CheckpointStatus {
@@ -804,11 +799,7 @@ impl Core {
             step: at.here.event,
             segment_steps: at.events,
             parameter: at.u_end.is_finite().then_some(at.u_end),
-            axes: machine
-                .axes
-                .iter()
-                .map(|a| a.letter().to_string())
-                .collect(),
+            axes: machine.axis_names(),
             position_steps: at.position[..axes].to_vec(),
             position_mm: mm(&at.position[..axes], &machine.step_mm),
             written_unix_s: unix_now(),

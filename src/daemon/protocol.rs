@@ -12,7 +12,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::runtime::JobSummary;
+use crate::runtime::{JobSummary, axis_list};
 
 /// Longest request line accepted (bytes).
 pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
@@ -196,13 +196,7 @@ impl Status {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut t = String::new();
-        let list = |v: &[f64]| {
-            v.iter()
-                .zip(&self.axes)
-                .map(|(x, a)| format!("{a} {x:.4}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
+        let list = |v: &[f64]| axis_list(v, &self.axes, |x| format!("{x:.4}"));
         let _ = writeln!(t, "state:        {}", self.state.name());
         if let Some(j) = &self.job {
             let _ = writeln!(

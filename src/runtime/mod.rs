@@ -153,13 +153,7 @@ impl JobSummary {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut t = String::new();
-        let list = |v: &[i64]| {
-            v.iter()
-                .zip(&self.axes)
-                .map(|(s, a)| format!("{a} {s}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
+        let list = |v: &[i64]| axis_list(v, &self.axes, |s| s.to_string());
         let _ = writeln!(t, "{}: {}", self.program, self.outcome.name());
         if let Some(e) = &self.error {
             let _ = writeln!(t, "  error:            {e}");
@@ -222,6 +216,16 @@ impl JobSummary {
         }
         t
     }
+}
+
+/// `X 1, Y 2`: one value per axis, each after its letter.
+pub fn axis_list<T>(values: &[T], axes: &[String], format: impl Fn(&T) -> String) -> String {
+    values
+        .iter()
+        .zip(axes)
+        .map(|(v, a)| format!("{a} {}", format(v)))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// What the check before the job found.
@@ -657,12 +661,7 @@ pub fn run_job_with(
         program: name,
         outcome,
         error,
-        axes: config
-            .machine
-            .axes
-            .iter()
-            .map(|a| a.letter().to_string())
-            .collect(),
+        axes: config.machine.axis_names(),
         blocks: check.blocks,
         segments: producer.pushed,
         steps_per_axis: counters.pulses[..axes].to_vec(),
