@@ -79,7 +79,9 @@ pub fn spawn_listener(
         .spawn(move || {
             for stream in listener.incoming() {
                 let Ok(mut stream) = stream else { continue };
-                if active.load(Ordering::Relaxed) >= max_clients.load(Ordering::Relaxed) {
+                let busy = active.load(Ordering::Relaxed);
+                tracing::debug!("control client connected ({busy} already served)");
+                if busy >= max_clients.load(Ordering::Relaxed) {
                     let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
                     let limit = max_clients.load(Ordering::Relaxed);
                     let reply = Reply::error(
