@@ -337,7 +337,11 @@ fn run_hold_resume_abort_and_status() {
 
     let deadline = Instant::now() + Duration::from_secs(10);
     while !daemon.log().contains("INFO edmd::daemon: status: idle") {
-        assert!(Instant::now() < deadline, "no periodic status line: {}", daemon.log());
+        assert!(
+            Instant::now() < deadline,
+            "no periodic status line: {}",
+            daemon.log()
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
     daemon.signal(libc::SIGTERM);
@@ -541,7 +545,11 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
     c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     let mut answer = String::new();
     let _ = BufReader::new(c).read_line(&mut answer);
-    assert!(answer.contains("too many clients"), "{answer:?}\n{}", daemon.log());
+    assert!(
+        answer.contains("too many clients"),
+        "{answer:?}\n{}",
+        daemon.log()
+    );
     drop(b);
     assert_eq!(exchange(&a, r#"{"cmd":"status"}"#)["ok"], true);
 
