@@ -80,7 +80,7 @@ pub enum DaemonError {
 pub enum CoreMsg {
     Request(Request, Sender<Reply>),
     Signal(i32),
-    JobDone(Box<Result<JobEnd, JobError>>),
+    JobDone(Box<JobEnd>),
 }
 
 /// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
@@ -386,13 +386,8 @@ impl Core {
                 None => "idle".to_string(),
             },
             Some(j) => {
-                let position = j
-                    .position_mm
-                    .iter()
-                    .zip(&status.axes)
-                    .map(|(x, a)| format!("{a} {x:.4}"))
-                    .collect::<Vec<_>>()
-                    .join(" ");
+                let position =
+                    runtime::axis_list(&j.position_mm, &status.axes, |x| format!("{x:.4}"));
                 format!(
                     "{} {}:{} ({}), {position} mm, {:.2} mm/min, buffer {}/{}, {} shorts, \
                      {} starvations, {} overruns",
@@ -716,16 +711,9 @@ impl Core {
 
     // ---- job end and periodic work --------------------------------------------------------
 
-    fn on_job_done(&mut self, end: Result<JobEnd, JobError>) {
+    fn on_job_done(&mut self, end: JobEnd) {
         let Some(job) = self.job.take() else {
             return;
-        };
-        let end = match end {
-            Ok(end) => end,
-            Err(e) => {
-                tracing::error!("job {}: {e}", job.program.display());
-                return;
-            }
         };
         if job.config.output.kind == OutputKind::Parport {
             self.port_output = Some(end.output);
@@ -746,7 +734,6 @@ impl Core {
         let text = summary.text();
         let mut lines = text.lines();
         let head = lines.next().unwrap_or_default();
-        let outcome_name = summary.outcome.name();
         match summary.outcome {
             Outcome::Done => tracing::info!("job end: {head}"),
             _ => tracing::error!(
@@ -779,7 +766,6 @@ impl Core {
             }
             None => {}
         }
-        tracing::debug!("job outcome {outcome_name}");
         self.last = Some(summary);
         self.notify_status();
     }

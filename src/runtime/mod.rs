@@ -483,7 +483,7 @@ pub fn run_job_on(
         Arc::new(Published::new(4096)),
         stop.unwrap_or(&never),
         None,
-    )?;
+    );
     Ok(end.summary)
 }
 
@@ -518,7 +518,7 @@ pub fn run_job_with(
     published: Arc<Published>,
     stop: &AtomicBool,
     resume: Option<ResumePoint>,
-) -> Result<JobEnd, JobError> {
+) -> JobEnd {
     let name = program.display().to_string();
     let cap = fine_speed_cap(config);
     if config.machine.max_feed_mm_per_min / 60.0 > cap {
@@ -693,10 +693,10 @@ pub fn run_job_with(
         trace_dropped: tracer.as_ref().map_or(0, |t| t.dropped()),
         rt_refused: report.rt_refused,
     };
-    Ok(JobEnd {
+    JobEnd {
         summary,
         stopped_at,
         output,
         gap,
-    })
+    }
 }
