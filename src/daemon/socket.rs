@@ -108,9 +108,9 @@ pub fn spawn_listener(
     Ok(())
 }
 
-/// Reads one line of at most [`MAX_REQUEST_BYTES`]. `Ok(None)`: the client is gone (or sent
+/// Reads one request line of at most [`MAX_REQUEST_BYTES`]. `Ok(None)`: the client is gone (or sent
 /// a partial line and went).
-fn read_line(reader: &mut impl BufRead) -> std::io::Result<Option<Result<String, String>>> {
+pub fn read_request_line(reader: &mut impl BufRead) -> std::io::Result<Option<Result<String, String>>> {
     let mut line = Vec::new();
     reader
         .take(MAX_REQUEST_BYTES as u64 + 1)
@@ -138,7 +138,7 @@ fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>) {
     let mut reader = BufReader::new(read_half);
     let mut writer = stream;
     loop {
-        let line = match read_line(&mut reader) {
+        let line = match read_request_line(&mut reader) {
             Ok(Some(line)) => line,
             Ok(None) | Err(_) => return,
         };
@@ -232,18 +232,18 @@ mod tests {
     fn lines_are_bounded_and_partial_lines_are_nothing() {
         let mut r = BufReader::new(&b"{\"cmd\":\"status\"}\n{\"cmd\":\"ho"[..]);
         assert_eq!(
-            read_line(&mut r).unwrap(),
+            read_request_line(&mut r).unwrap(),
             Some(Ok("{\"cmd\":\"status\"}".into()))
         );
         assert_eq!(
-            read_line(&mut r).unwrap(),
+            read_request_line(&mut r).unwrap(),
             None,
             "a partial line is no request"
         );
         let long = vec![b'x'; MAX_REQUEST_BYTES + 10];
         let mut r = BufReader::new(&long[..]);
-        assert!(matches!(read_line(&mut r).unwrap(), Some(Err(_))));
+        assert!(matches!(read_request_line(&mut r).unwrap(), Some(Err(_))));
         let mut r = BufReader::new(&b"\xff\xfe\n"[..]);
-        assert!(matches!(read_line(&mut r).unwrap(), Some(Err(_))));
+        assert!(matches!(read_request_line(&mut r).unwrap(), Some(Err(_))));
     }
 }
