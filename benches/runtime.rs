@@ -1,4 +1,4 @@
-//! Runtime benches: the consumer's per-tick core, the loop buffer hand-off under a
+//! Runtime benches: Bresenham events alone, the consumer's per-tick core, the loop buffer hand-off under a
 //! contending producer (against a lock-free crossbeam queue), `run` end to end in virtual
 //! time, and what the I/O adds per tick (parallel port encoding, gap pins, simulated gap).
 //!
@@ -13,7 +13,7 @@ use crossbeam::queue::ArrayQueue;
 
 use edmd::buffer::{BlockSource, Fetch, LoopBuffer, StepBlock, VecSource};
 use edmd::config::Config;
-use edmd::fine::{FineSettings, Interpolator};
+use edmd::fine::{Bresenham, FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
 use edmd::geometry::MAX_AXES;
 use edmd::output::PulseOutput;
@@ -75,6 +75,59 @@ fn cruising(feed: f64, axes: usize, block_len: i64) -> (Interpolator, VecSource)
         fine.tick(GapState::Normal, &mut source);
     }
     (fine, source)
+}
+
+/// Bresenham alone: events per second walking one long block, forward (cutting) and backward
+/// (turn-back), against recomputing each event's offset from the closed form (what a walk
+/// without the incremental error terms would cost).
+fn bresenham(c: &mut Criterion) {
+    const EVENTS: i64 = 100_000;
+    let mut group = c.benchmark_group("bresenham");
+    group.throughput(Throughput::Elements(EVENTS as u64));
+    for axes in [2usize, 3, 6] {
+        let mut delta = [0i64; MAX_AXES];
+        for (i, d) in delta.iter_mut().enumerate().take(axes) {
+            *d = EVENTS * [7, -5, 3, 2, -1, 4][i] / 7;
+        }
+        group.bench_function(format!("forward, {axes} axes"), |b| {
+            b.iter(|| {
+                let mut walk = Bresenham::new(black_box(&delta), false);
+                let mut steps = [0i8; MAX_AXES];
+                let mut position = [0i64; MAX_AXES];
+                while !walk.at_end() {
+                    walk.forward(&mut steps);
+                    for (p, &s) in position.iter_mut().zip(&steps) {
+                        *p += s as i64;
+                    }
+                }
+                position
+            })
+        });
+        group.bench_function(format!("backward, {axes} axes"), |b| {
+            b.iter(|| {
+                let mut walk = Bresenham::new(black_box(&delta), true);
+                let mut steps = [0i8; MAX_AXES];
+                let mut position = delta;
+                while !walk.at_start() {
+                    walk.backward(&mut steps);
+                    for (p, &s) in position.iter_mut().zip(&steps) {
+                        *p += s as i64;
+                    }
+                }
+                position
+            })
+        });
+        group.bench_function(format!("closed form per event, {axes} axes"), |b| {
+            b.iter(|| {
+                let mut last = [0i64; MAX_AXES];
+                for k in 1..=EVENTS {
+                    last = Bresenham::offset_at(black_box(&delta), k);
+                }
+                last
+            })
+        });
+    }
+    group.finish();
 }
 
 fn tick_core(c: &mut Criterion) {
@@ -318,5 +371,12 @@ fn io_per_tick(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, tick_core, buffer_handoff, end_to_end, io_per_tick);
+criterion_group!(
+    benches,
+    bresenham,
+    tick_core,
+    buffer_handoff,
+    end_to_end,
+    io_per_tick
+);
 criterion_main!(benches);

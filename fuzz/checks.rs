@@ -36,7 +36,11 @@ pub fn gcode(data: &[u8]) {
             Ok(block) => {
                 let curve = &block.curve;
                 assert!(curve.u_min() < curve.u_max(), "empty parameter range");
-                for u in [curve.u_min(), 0.5 * (curve.u_min() + curve.u_max()), curve.u_max()] {
+                for u in [
+                    curve.u_min(),
+                    0.5 * (curve.u_min() + curve.u_max()),
+                    curve.u_max(),
+                ] {
                     let d = curve.derivs(u);
                     for k in 0..axes.len() {
                         assert!(
@@ -113,12 +117,19 @@ pub fn protocol(data: &[u8]) {
         match Request::parse(&line) {
             Ok(request) => {
                 let again = serde_json::to_string(&request).expect("a request serialises");
-                assert_eq!(Request::parse(&again), Ok(request.clone()), "round trip of {line:?}");
+                assert_eq!(
+                    Request::parse(&again),
+                    Ok(request.clone()),
+                    "round trip of {line:?}"
+                );
                 if let Request::Run { program } = &request {
                     let dir = program_dir();
                     if let Ok(path) = edmd::daemon::confine(dir, program) {
                         assert!(path.starts_with(dir), "{program:?} escaped to {path:?}");
-                        assert!(path.is_file(), "{program:?} confined to a non-file {path:?}");
+                        assert!(
+                            path.is_file(),
+                            "{program:?} confined to a non-file {path:?}"
+                        );
                     }
                 }
             }

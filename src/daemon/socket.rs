@@ -110,7 +110,9 @@ pub fn spawn_listener(
 
 /// Reads one request line of at most [`MAX_REQUEST_BYTES`]. `Ok(None)`: the client is gone (or sent
 /// a partial line and went).
-pub fn read_request_line(reader: &mut impl BufRead) -> std::io::Result<Option<Result<String, String>>> {
+pub fn read_request_line(
+    reader: &mut impl BufRead,
+) -> std::io::Result<Option<Result<String, String>>> {
     let mut line = Vec::new();
     reader
         .take(MAX_REQUEST_BYTES as u64 + 1)
