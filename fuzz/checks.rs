@@ -4,8 +4,9 @@
 //! Each check feeds untrusted input to one of edmd's front doors and panics if the door
 //! panics, hangs on its own, or breaks a promise it makes about what it lets through:
 //!
-//! - G-code: every block handed out has finite geometry that starts where the previous one
-//!   ended, and every error carries `source:line:col`.
+//! - G-code: every block handed out has finite geometry and a finite length (what `edmd check`
+//!   and the planner compute first; a slow length is a hang, which libFuzzer's `-timeout`
+//!   reports) and starts where the previous one ended; every error carries `source:line:col`.
 //! - configuration: any TOML text plus any `--set` overrides either loads into a configuration
 //!   whose derived values are usable, or fails with `origin: message`.
 //! - control protocol: any byte stream from a client is cut into bounded lines; each line is a
@@ -53,6 +54,8 @@ pub fn gcode(data: &[u8]) {
                 if let Some(feed) = block.feed_mm_per_min {
                     assert!(feed.is_finite() && feed > 0.0, "feed {feed}");
                 }
+                let length = curve.length();
+                assert!(length.is_finite() && length >= 0.0, "line {}: length {length}", block.line);
                 let start = block.start();
                 if let Some(end) = previous_end {
                     let end: edmd::geometry::Point = end;

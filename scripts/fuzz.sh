@@ -20,7 +20,7 @@ for t in "${targets[@]}"; do
   mkdir -p "corpus/$t"
   echo "== $t: ${seconds} s"
   if ! cargo +nightly fuzz run "$t" "corpus/$t" "seeds/$t" -- \
-      -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1; then
+      -max_total_time="$seconds" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1; then
     echo "== $t: CRASH, see fuzz/artifacts/$t/" >&2
     status=1
   fi

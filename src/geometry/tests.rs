@@ -321,6 +321,29 @@ fn length_of_a_nontrivial_curve_matches_dense_polyline() {
     );
 }
 
+/// Found by the soak: a 20 µm arc far from the origin made the length quadrature chase its
+/// coordinates' rounding noise to the depth limit (seconds per arc, a job of them hung).
+#[test]
+fn length_of_a_tiny_arc_far_from_the_origin_is_exact_and_quick() {
+    for x in [0.0, 200.0, 1500.0, 1.0e5] {
+        let r = 0.02;
+        let center = point(&[x, 0.0]);
+        let sweep: f64 = -1.2;
+        let start = point(&[x + r, 0.0]);
+        let end = point(&[x + r * sweep.cos(), r * sweep.sin()]);
+        let arc = circular_arc(2, [0, 1], &center, &start, &end, sweep).unwrap();
+        let started = std::time::Instant::now();
+        let length = arc.length();
+        let took = started.elapsed();
+        let exact = r * sweep.abs();
+        assert!(
+            (length - exact).abs() <= 1e-9 * exact.max(x * 1e-3),
+            "x = {x}: {length} vs {exact}"
+        );
+        assert!(took.as_millis() < 100, "x = {x}: length took {took:?}");
+    }
+}
+
 // ---- validation -----------------------------------------------------------------------------
 
 fn pts(n: usize) -> Vec<Point> {

@@ -139,6 +139,13 @@ pub struct JobSummary {
     /// Machine time: ticks × tick period (s).
     pub virtual_time_s: f64,
     pub wall_time_s: f64,
+    /// Wall time the producer spent working (not waiting for buffer space), s. Machine time
+    /// over this is how many times faster than real time the producer can feed the loop.
+    #[serde(default)]
+    pub producer_busy_s: f64,
+    /// Peak resident set size of the process at the end of the job, KiB.
+    #[serde(default)]
+    pub peak_rss_kib: u64,
     pub buffer_capacity: u64,
     pub buffer_high_water: u64,
     pub events_dropped: u64,
@@ -208,8 +215,20 @@ impl JobSummary {
         );
         let _ = writeln!(
             t,
+            "  producer:         {:.3} s busy for {:.3} s of machine time ({:.0}x real time)",
+            self.producer_busy_s,
+            self.virtual_time_s,
+            self.virtual_time_s / self.producer_busy_s.max(1e-9)
+        );
+        let _ = writeln!(
+            t,
             "  loop buffer:      high water {} of {} blocks",
             self.buffer_high_water, self.buffer_capacity
+        );
+        let _ = writeln!(
+            t,
+            "  memory:           peak RSS {:.1} MiB",
+            self.peak_rss_kib as f64 / 1024.0
         );
         for r in &self.rt_refused {
             let _ = writeln!(t, "  warning:          {r}");
@@ -687,6 +706,8 @@ pub fn run_job_with(
         virtual_time: loop_settings.virtual_time,
         virtual_time_s: report.ticks as f64 * tick_s,
         wall_time_s: report.wall_ns as f64 * 1e-9,
+        producer_busy_s: producer.busy_ns as f64 * 1e-9,
+        peak_rss_kib: sys::peak_rss_kib(),
         buffer_capacity: config.buffer.capacity as u64,
         buffer_high_water: buffer.areas().high_water,
         events_dropped: published.events_dropped.load(Ordering::Relaxed),

@@ -1,7 +1,7 @@
 //! The kernel calls of the real-time loop, each behind a tiny safe wrapper (rppal's
 //! `ioctl.rs` pattern): the monotonic clock, absolute-deadline sleep, `SCHED_FIFO`,
-//! `mlockall`, CPU affinity, timer slack and the CPU wake-up latency request. This is the only
-//! module of the runtime with `unsafe`.
+//! `mlockall`, CPU affinity, timer slack, the CPU wake-up latency request, and the peak RSS
+//! for the job summary. This is the only module of the runtime with `unsafe`.
 //!
 //! All of them act on the calling thread (Linux: `pid` 0 means "this thread" for the
 //! scheduler calls), so the consumer thread calls them on itself.
@@ -134,5 +134,19 @@ mod tests {
         let _ = set_fifo_priority(1);
         let _ = lock_all_memory();
         assert!(pin_to_cpu(usize::MAX).is_err());
+    }
+}
+
+/// The process's peak resident set size so far, in KiB (`getrusage`'s `ru_maxrss`), for the
+/// job summary; 0 if the kernel refuses (it does not on Linux).
+pub fn peak_rss_kib() -> u64 {
+    // SAFETY: an all-zero rusage is a valid value of the plain C struct.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF always exists.
+    let rc = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
+    if rc == 0 {
+        usage.ru_maxrss.max(0) as u64
+    } else {
+        0
     }
 }
