@@ -55,7 +55,11 @@ pub fn gcode(data: &[u8]) {
                     assert!(feed.is_finite() && feed > 0.0, "feed {feed}");
                 }
                 let length = curve.length();
-                assert!(length.is_finite() && length >= 0.0, "line {}: length {length}", block.line);
+                assert!(
+                    length.is_finite() && length >= 0.0,
+                    "line {}: length {length}",
+                    block.line
+                );
                 let start = block.start();
                 if let Some(end) = previous_end {
                     let end: edmd::geometry::Point = end;

@@ -44,11 +44,15 @@ struct Soak {
 
 impl Soak {
     fn u(&self, key: &str) -> u64 {
-        self.summary[key].as_u64().unwrap_or_else(|| panic!("{key}"))
+        self.summary[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{key}"))
     }
 
     fn f(&self, key: &str) -> f64 {
-        self.summary[key].as_f64().unwrap_or_else(|| panic!("{key}"))
+        self.summary[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}"))
     }
 }
 
@@ -119,7 +123,11 @@ fn a_long_program_with_many_shorts_ends_exactly_in_flat_memory() {
             summary["end_steps"],
         );
         assert_eq!(summary["outcome"], "done", "{summary:#}");
-        assert_eq!(s.u("blocks"), n, "the program's blocks (the G01 to the start is empty)");
+        assert_eq!(
+            s.u("blocks"),
+            n,
+            "the program's blocks (the G01 to the start is empty)"
+        );
         assert_eq!(
             summary["end_steps"], summary["program_end_steps"],
             "the ledger ends on the program's end point"
@@ -135,7 +143,11 @@ fn a_long_program_with_many_shorts_ends_exactly_in_flat_memory() {
         {
             let (pulses, end) = (pulses.as_u64().unwrap(), end.as_i64().unwrap());
             assert!(pulses >= end.unsigned_abs(), "axis {axis}");
-            assert_eq!((pulses - end.unsigned_abs()) % 2, 0, "axis {axis}: odd pulse count");
+            assert_eq!(
+                (pulses - end.unsigned_abs()) % 2,
+                0,
+                "axis {axis}: odd pulse count"
+            );
         }
         assert!(
             s.u("shorts") >= n / 100,

@@ -253,7 +253,9 @@ pub struct Precheck {
     pub blocks: u64,
     pub end_steps: [i64; MAX_AXES],
     /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
-    /// length from the program's start. Measured for the simulated gap only.
+    /// length from the program's start, consecutive cutting moves merged into one span (so
+    /// this grows with the number of rapids, not of blocks). Measured only for the simulated
+    /// gap's placed debris.
     pub cutting_spans: Vec<(f64, f64)>,
 }
 
@@ -264,14 +266,17 @@ pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
     let mut end_steps = [0; MAX_AXES];
     let mut path_mm = 0.0;
     let mut cutting_spans = Vec::new();
-    let measure = config.gap.kind == GapKind::Sim;
+    let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
     for item in reader.by_ref() {
         let block = item?;
         blocks += 1;
         if measure {
             let length = block.curve.length();
             if block.kind != gcode::BlockKind::Rapid {
-                cutting_spans.push((path_mm, path_mm + length));
+                match cutting_spans.last_mut() {
+                    Some((_, to)) if *to == path_mm => *to += length,
+                    _ => cutting_spans.push((path_mm, path_mm + length)),
+                }
             }
             path_mm += length;
         }

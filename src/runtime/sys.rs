@@ -1,7 +1,8 @@
 //! The kernel calls of the real-time loop, each behind a tiny safe wrapper (rppal's
 //! `ioctl.rs` pattern): the monotonic clock, absolute-deadline sleep, `SCHED_FIFO`,
-//! `mlockall`, CPU affinity, timer slack, the CPU wake-up latency request, and the peak RSS
-//! for the job summary. This is the only module of the runtime with `unsafe`.
+//! `mlockall`, CPU affinity, timer slack and the CPU wake-up latency request (plus the peak
+//! RSS for the job summary, from `/proc`). This is the only module of the runtime with
+//! `unsafe`.
 //!
 //! All of them act on the calling thread (Linux: `pid` 0 means "this thread" for the
 //! scheduler calls), so the consumer thread calls them on itself.
@@ -114,6 +115,23 @@ pub fn hold_zero_cpu_wakeup_latency() -> io::Result<std::fs::File> {
     Ok(file)
 }
 
+/// The process's peak resident set size so far, in KiB: `VmHWM` of `/proc/self/status`, the
+/// high-water mark of this program's own memory; 0 if it cannot be read.
+///
+/// Not `getrusage`'s `ru_maxrss`: Linux carries that across `execve`, so a process started
+/// from a large parent (a test harness holding a generated program) reports the parent's peak.
+pub fn peak_rss_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            status
+                .lines()
+                .find_map(|line| line.strip_prefix("VmHWM:"))
+                .and_then(|value| value.trim().trim_end_matches("kB").trim().parse().ok())
+        })
+        .unwrap_or(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,18 +153,17 @@ mod tests {
         let _ = lock_all_memory();
         assert!(pin_to_cpu(usize::MAX).is_err());
     }
-}
 
-/// The process's peak resident set size so far, in KiB (`getrusage`'s `ru_maxrss`), for the
-/// job summary; 0 if the kernel refuses (it does not on Linux).
-pub fn peak_rss_kib() -> u64 {
-    // SAFETY: an all-zero rusage is a valid value of the plain C struct.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF always exists.
-    let rc = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
-    if rc == 0 {
-        usage.ru_maxrss.max(0) as u64
-    } else {
-        0
+    #[test]
+    fn peak_rss_is_read_and_follows_what_the_process_touches() {
+        let before = peak_rss_kib();
+        assert!(before > 0, "VmHWM not read");
+        let touched = vec![1u8; 64 << 20];
+        std::hint::black_box(&touched);
+        assert!(
+            peak_rss_kib() >= before.max(64 << 10),
+            "{} KiB",
+            peak_rss_kib()
+        );
     }
 }

@@ -103,15 +103,20 @@ impl SimGap {
         // One bridge in each of n equal stretches of cutting, away from the stretch ends, so
         // that they spread over the cut and never form in the first micrometres of approach.
         let cutting: f64 = cutting_spans.iter().map(|(a, b)| b - a).sum();
+        // The bridges' cutting distances increase with k, so one walk over the spans places
+        // them all.
         let n = params.debris_shorts as usize;
+        let mut spans = cutting_spans.iter().peekable();
+        let mut before = 0.0; // cutting length of the spans walked past
         let debris_at = (0..n)
             .map(|k| {
-                let mut into = cutting * (k as f64 + rng.uniform(0.1, 0.9)) / n as f64;
-                for &(from, to) in cutting_spans {
-                    if into <= to - from {
-                        return from + into;
+                let into = cutting * (k as f64 + rng.uniform(0.1, 0.9)) / n as f64;
+                while let Some(&&(from, to)) = spans.peek() {
+                    if into - before <= to - from {
+                        return from + (into - before);
                     }
-                    into -= to - from;
+                    before += to - from;
+                    spans.next();
                 }
                 cutting_spans.last().map_or(0.0, |&(_, to)| to)
             })
