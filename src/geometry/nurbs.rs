@@ -256,7 +256,7 @@ impl NurbsCurve {
     pub fn derivs(&self, u: f64) -> CurveDerivs {
         let u = u.clamp(self.u_min(), self.u_max());
         let span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
-        self.derivs_on_span(span, u)
+        self.at_ends_exactly(u, self.derivs_on_span(span, u))
     }
 
     /// Like [`derivs`](Self::derivs), but at a knot takes the span that ends there: the
@@ -269,7 +269,20 @@ impl NurbsCurve {
         while span > self.degree && self.knots[span] >= u {
             span -= 1;
         }
-        self.derivs_on_span(span, u)
+        self.at_ends_exactly(u, self.derivs_on_span(span, u))
+    }
+
+    /// At the ends the point is the end control point itself, bit for bit: the sums of the
+    /// basis can round a rational curve's end by an ulp, and a block's last segment must end
+    /// exactly where the next block starts (both are rounded to steps independently).
+    #[inline]
+    fn at_ends_exactly(&self, u: f64, mut d: CurveDerivs) -> CurveDerivs {
+        if u == self.u_max() {
+            d.point = self.end_point();
+        } else if u == self.u_min() {
+            d.point = self.start_point();
+        }
+        d
     }
 
     /// Interior parameters where the curve may have a corner: knots of multiplicity at least

@@ -64,6 +64,12 @@ pub struct ChordError {
 const MAX_NEWTON: u32 = 4;
 /// A Newton step smaller than this fraction of the piece means we are at the maximum.
 const NEWTON_DONE: f64 = 2e-3;
+/// Largest disagreement between the cubic and quintic models, as a fraction of the tolerance,
+/// under which the cubic model steers the search.
+const MODEL_TRUST: f64 = 0.25;
+/// Golden-section steps refining the best sample of the fallback (each shrinks the bracket of
+/// two sample spacings by 0.618: 16 leave 1/1000 of it).
+const GOLDEN_STEPS: u32 = 16;
 /// Samples when the Hermite model cannot be trusted.
 const FALLBACK_SAMPLES: usize = 24;
 
@@ -120,6 +126,76 @@ fn hermite_profile(ta: &Point, tb: &Point) -> [f64; 9] {
     g
 }
 
+/// Whether the cubic Hermite model of the normal offset may misplace the chord error at the
+/// scale of `tol`. The end curvatures it ignores: where a quintic through them departs from the
+/// cubic by a fair part of the tolerance, the piece has more going on inside than its end
+/// tangents tell (a sharp turn or a wiggle between the ends). And the along-chord motion it
+/// does not model at all: a piece that runs past an end of its chord and comes back.
+fn model_untrusted(
+    a: &Sample,
+    b: &Sample,
+    chord: &Chord,
+    du: f64,
+    ta: &Point,
+    tb: &Point,
+    tol: f64,
+) -> bool {
+    let na = chord.perp(&a.d.d2) * (du * du);
+    let nb = chord.perp(&b.d.d2) * (du * du);
+    // On a piece far over the tolerance (a segmenter's probe) the model only has to be right
+    // to a fraction of its own size to say "too long".
+    let peak = profile_peaks(&hermite_profile(ta, tb))[0].1.max(0.0).sqrt();
+    let scale = MODEL_TRUST * tol.max(peak);
+    model_disagreement(ta, tb, &na, &nb) > scale
+        || overshoots_the_chord(a, b, chord, du, MODEL_TRUST * tol)
+}
+
+/// Largest distance, over `s = k/8`, between the cubic Hermite model of the normal offset
+/// (end tangents `ta`, `tb`) and the quintic one that also matches the end second derivatives
+/// `na`, `nb` (all scaled to `s ∈ [0, 1]`). Arithmetic only: no curve evaluation.
+fn model_disagreement(ta: &Point, tb: &Point, na: &Point, nb: &Point) -> f64 {
+    let mut worst: f64 = 0.0;
+    for k in 1..8 {
+        let s = k as f64 / 8.0;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        // Quintic minus cubic Hermite basis for each end's tangent, and the quintic's basis
+        // for each end's second derivative (the values at both ends are zero).
+        let va = (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5) - (s3 - 2.0 * s2 + s);
+        let vb = (-4.0 * s3 + 7.0 * s4 - 3.0 * s5) - (s3 - s2);
+        let aa = 0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5;
+        let ab = 0.5 * s3 - s4 + 0.5 * s5;
+        worst = worst.max((ta * va + tb * vb + na * aa + nb * ab).norm());
+    }
+    worst
+}
+
+/// Whether the piece may run past either end of its chord along the chord's direction (a
+/// hairpin at an end: the curve overshoots the end point and comes back to it), which the
+/// normal-offset models cannot see: an end tangent pointing backwards along the chord, or the
+/// quintic Hermite model of the along-chord coordinate leaving `[-slack, len + slack]`.
+fn overshoots_the_chord(a: &Sample, b: &Sample, chord: &Chord, du: f64, slack: f64) -> bool {
+    let (v0, v1) = (a.d.d1.dot(&chord.dir) * du, b.d.d1.dot(&chord.dir) * du);
+    if v0 < 0.0 || v1 < 0.0 {
+        return true;
+    }
+    let (a0, a1) = (
+        a.d.d2.dot(&chord.dir) * du * du,
+        b.d.d2.dot(&chord.dir) * du * du,
+    );
+    (1..16).any(|k| {
+        let s = k as f64 / 16.0;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        let x = chord.len * (10.0 * s3 - 15.0 * s4 + 6.0 * s5)
+            + v0 * (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5)
+            + a0 * (0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5)
+            + a1 * (0.5 * s3 - s4 + 0.5 * s5)
+            + v1 * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5);
+        x < -slack || x > chord.len + slack
+    })
+}
+
 /// Up to two local maxima of a sampled profile, refined by a parabola through the neighbours.
 /// Returns `(s, value)` pairs, largest first.
 fn profile_peaks(g: &[f64]) -> [(f64, f64); 2] {
@@ -149,11 +225,17 @@ fn profile_peaks(g: &[f64]) -> [(f64, f64); 2] {
 /// Model-only estimate of the chord error (no curve evaluation): the largest normal offset of
 /// the cubic Hermite model built from the end tangents. Accurate to a few per cent on pieces
 /// short against their radius of curvature; [`chord_error`] is the real measure.
-pub fn chord_error_estimate(a: &Sample, b: &Sample) -> f64 {
+///
+/// `tol` is the tolerance the estimate will be compared with: where the model cannot be
+/// trusted at that scale (see [`chord_error`]) the estimate is infinite, so the caller measures.
+pub fn chord_error_estimate(a: &Sample, b: &Sample, tol: f64) -> f64 {
     let chord = Chord::new(a.d.point, b.d.point);
     let du = b.u - a.u;
     let ta = chord.perp(&a.d.d1) * du;
     let tb = chord.perp(&b.d.d1) * du;
+    if chord.len <= 1e-12 || model_untrusted(a, b, &chord, du, &ta, &tb, tol) {
+        return f64::INFINITY;
+    }
     let g = hermite_profile(&ta, &tb);
     let peaks = profile_peaks(&g);
     peaks[0].1.max(0.0).sqrt()
@@ -181,6 +263,10 @@ pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> Chor
     }
     let ta = chord.perp(&a.d.d1) * du;
     let tb = chord.perp(&b.d.d1) * du;
+    if model_untrusted(a, b, &chord, du, &ta, &tb, tol) {
+        sampled_maximum(curve, a.u, du, &chord, &mut out);
+        return out;
+    }
     let g = hermite_profile(&ta, &tb);
     let peaks = profile_peaks(&g);
     let noise = (0.05 * tol) * (0.05 * tol);
@@ -261,6 +347,39 @@ fn sampled_maximum(curve: &NurbsCurve, u0: f64, du: f64, chord: &Chord, out: &mu
             if value > 0.0 {
                 polish(curve, u0, du, chord, s, out);
             }
+        }
+    }
+    // Newton polishes normal offsets; where the largest distance is past an end of the chord
+    // (a hairpin overshooting the end point) it is a distance to that point instead. A
+    // golden-section search on the distance itself around the best sample finds either.
+    let best = (1..FALLBACK_SAMPLES)
+        .max_by(|&i, &j| g[i].total_cmp(&g[j]))
+        .unwrap_or(1);
+    let h = 1.0 / FALLBACK_SAMPLES as f64;
+    let distance_at = |s: f64, out: &mut ChordError| {
+        let d = curve.derivs(u0 + du * s);
+        out.evals += 1;
+        out.rho_min = out.rho_min.min(d.curvature_radius());
+        let dist = chord.distance(&d.point);
+        out.max = out.max.max(dist);
+        dist
+    };
+    const INV_PHI: f64 = 0.618_033_988_749_895;
+    let (mut lo, mut hi) = ((best as f64 - 1.0) * h, (best as f64 + 1.0) * h);
+    let mut x1 = hi - INV_PHI * (hi - lo);
+    let mut x2 = lo + INV_PHI * (hi - lo);
+    let (mut f1, mut f2) = (distance_at(x1, out), distance_at(x2, out));
+    for _ in 0..GOLDEN_STEPS {
+        if f1 < f2 {
+            lo = x1;
+            (x1, f1) = (x2, f2);
+            x2 = lo + INV_PHI * (hi - lo);
+            f2 = distance_at(x2, out);
+        } else {
+            hi = x2;
+            (x2, f2) = (x1, f1);
+            x1 = hi - INV_PHI * (hi - lo);
+            f1 = distance_at(x1, out);
         }
     }
 }
@@ -377,8 +496,8 @@ mod tests {
     fn estimate_is_close_on_short_pieces() {
         let c = s_curve();
         let (sa, sb) = (Sample::at(&c, 0.1), Sample::at(&c, 0.12));
-        let est = chord_error_estimate(&sa, &sb);
         let truth = dense(&c, 0.1, 0.12);
+        let est = chord_error_estimate(&sa, &sb, truth);
         assert!((est / truth - 1.0).abs() < 0.02, "{est} vs {truth}");
     }
 }

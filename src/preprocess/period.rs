@@ -27,6 +27,9 @@ use crate::gcode::Block;
 use crate::geometry::NurbsCurve;
 use std::sync::Arc;
 
+/// Extra steps at most to close a piece whose profile ended short of the curve's end.
+const MAX_CLOSING_STEPS: u32 = 256;
+
 /// Below this fraction of the tolerance the Hermite model's chord error is trusted as is.
 const CHORD_CHECK_FRACTION: f64 = 0.5;
 
@@ -196,15 +199,74 @@ impl PeriodStepper {
                 other = Some(node);
             }
         }
-        let (b, len) = best;
-        if full_period {
+        let (mut b, mut len) = best;
+        let mut chord_err = self.chord_error(curve, &a, &b, &mut evals);
+        let shortened = chord_err > self.settings.tolerance;
+        if shortened {
+            // The chord-length correction can land past a hairpin (|C(u) - C(u_i)| is not
+            // monotone there) or the profile can ask for more than the curve allows: the step is
+            // cut back until its chord is within tolerance. The profile is followed by distance,
+            // so the next steps make up the lag.
+            (b, chord_err) = self.shorten_to_tolerance(curve, &a, b, &mut evals);
+            len = (b.d.point - a.d.point).norm();
+        }
+        if full_period && !shortened {
             self.history.push(b.u);
         } else {
             self.history.reset();
             self.history.push(b.u);
         }
         let fluctuation = Some(fluct(len));
-        self.emit_step(block, a, b, len, t, fluctuation, evals, false, emit);
+        self.emit_step(
+            block,
+            a,
+            b,
+            len,
+            t,
+            fluctuation,
+            chord_err,
+            evals,
+            false,
+            emit,
+        );
+    }
+
+    /// Bisects the end of a step from `a` to `b` back towards `a` to the longest step whose
+    /// chord error is within the tolerance.
+    fn shorten_to_tolerance(
+        &mut self,
+        curve: &NurbsCurve,
+        a: &Sample,
+        b: Sample,
+        evals: &mut u32,
+    ) -> (Sample, f64) {
+        let tol = self.settings.tolerance;
+        let (mut lo, mut hi) = (a.u, b.u);
+        let mut best: Option<(Sample, f64)> = None;
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            let sample = Sample::at(curve, mid);
+            *evals += 1;
+            let err = self.chord_error(curve, a, &sample, evals);
+            if err <= tol {
+                lo = mid;
+                best = Some((sample, err));
+            } else {
+                hi = mid;
+            }
+            if best.is_some() && hi - lo <= 1e-3 * (hi - a.u) {
+                break;
+            }
+        }
+        best.unwrap_or_else(|| {
+            let sample = Sample::at(curve, hi);
+            *evals += 1;
+            let err = self.chord_error(curve, a, &sample, evals);
+            (sample, err)
+        })
     }
 
     /// The last step of a piece: exactly onto its end point.
@@ -215,15 +277,44 @@ impl PeriodStepper {
         last_of_block: bool,
         emit: &mut dyn FnMut(Segment),
     ) {
-        let a = self.at.expect("a piece is open");
+        let mut a = self.at.expect("a piece is open");
         if piece_end > a.u {
+            let curve = &block.curve;
             let b = Sample {
                 u: piece_end,
-                d: block.curve.derivs_from_left(piece_end),
+                d: curve.derivs_from_left(piece_end),
             };
+            let mut evals = 1;
+            let mut chord_err = self.chord_error(curve, &a, &b, &mut evals);
+            // The profile's length of the piece comes from chord-based arc estimates; around a
+            // hairpin they fall short, and the profile ends before the curve does. Rather than
+            // cut across, the rest is covered in steps within tolerance, each taking half of
+            // the remaining time (the speed they imply is reported as it is).
+            let mut extra = 0;
+            while chord_err > self.settings.tolerance && extra < MAX_CLOSING_STEPS {
+                let (mid, err) = self.shorten_to_tolerance(curve, &a, b, &mut evals);
+                let len = (mid.d.point - a.d.point).norm();
+                let t = self.now + 0.5 * (self.clock - self.now);
+                self.emit_step(block, a, mid, len, t, None, err, evals, false, emit);
+                a = mid;
+                evals = 0;
+                chord_err = self.chord_error(curve, &a, &b, &mut evals);
+                extra += 1;
+            }
             let len = (b.d.point - a.d.point).norm();
             let t = self.clock;
-            self.emit_step(block, a, b, len, t, None, 1, last_of_block, emit);
+            self.emit_step(
+                block,
+                a,
+                b,
+                len,
+                t,
+                None,
+                chord_err,
+                evals,
+                last_of_block,
+                emit,
+            );
         }
         self.at = None;
     }
@@ -237,11 +328,11 @@ impl PeriodStepper {
         len: f64,
         t: f64,
         fluctuation: Option<f64>,
-        mut evals: u32,
+        chord_err: f64,
+        evals: u32,
         last_of_block: bool,
         emit: &mut dyn FnMut(Segment),
     ) {
-        let chord_err = self.chord_error(&block.curve, &a, &b, &mut evals);
         self.evals += u64::from(evals);
         let rho_end = b.d.curvature_radius();
         let arc = if rho_end.is_finite() && rho_end > 0.0 {
@@ -280,8 +371,8 @@ impl PeriodStepper {
         if curve.degree() == 1 {
             return 0.0;
         }
-        let estimate = chord_error_estimate(a, b);
         let tol = self.settings.tolerance;
+        let estimate = chord_error_estimate(a, b, tol);
         if estimate < CHORD_CHECK_FRACTION * tol {
             return estimate;
         }
