@@ -135,39 +135,79 @@ fn model_untrusted(
     a: &Sample,
     b: &Sample,
     chord: &Chord,
-    du: f64,
     ta: &Point,
     tb: &Point,
+    peak: f64,
     tol: f64,
 ) -> bool {
-    let na = chord.perp(&a.d.d2) * (du * du);
-    let nb = chord.perp(&b.d.d2) * (du * du);
+    let du = b.u - a.u;
     // On a piece far over the tolerance (a segmenter's probe) the model only has to be right
     // to a fraction of its own size to say "too long".
-    let peak = profile_peaks(&hermite_profile(ta, tb))[0].1.max(0.0).sqrt();
     let scale = MODEL_TRUST * tol.max(peak);
-    model_disagreement(ta, tb, &na, &nb) > scale
-        || overshoots_the_chord(a, b, chord, du, MODEL_TRUST * tol)
+    overshoots_the_chord(a, b, chord, du, MODEL_TRUST * tol)
+        || model_disagreement(a, b, chord, du, ta, tb) > scale
 }
+
+/// The quintic Hermite basis at `s = k/8`, `k = 1..=7`: for the start value (unused, zero),
+/// start tangent, start second derivative, end second derivative, end tangent, end value;
+/// then the cubic Hermite basis for the start and end tangents.
+const HERMITE_AT_EIGHTHS: [[f64; 8]; 7] = {
+    let mut table = [[0.0; 8]; 7];
+    let mut k = 0;
+    while k < 7 {
+        let s = (k + 1) as f64 / 8.0;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        table[k] = [
+            1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5,
+            s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5,
+            0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5,
+            0.5 * s3 - s4 + 0.5 * s5,
+            -4.0 * s3 + 7.0 * s4 - 3.0 * s5,
+            10.0 * s3 - 15.0 * s4 + 6.0 * s5,
+            s3 - 2.0 * s2 + s,
+            s3 - s2,
+        ];
+        k += 1;
+    }
+    table
+};
 
 /// Largest distance, over `s = k/8`, between the cubic Hermite model of the normal offset
 /// (end tangents `ta`, `tb`) and the quintic one that also matches the end second derivatives
-/// `na`, `nb` (all scaled to `s ∈ [0, 1]`). Arithmetic only: no curve evaluation.
-fn model_disagreement(ta: &Point, tb: &Point, na: &Point, nb: &Point) -> f64 {
-    let mut worst: f64 = 0.0;
-    for k in 1..8 {
-        let s = k as f64 / 8.0;
-        let (s2, s3) = (s * s, s * s * s);
-        let (s4, s5) = (s3 * s, s3 * s2);
-        // Quintic minus cubic Hermite basis for each end's tangent, and the quintic's basis
-        // for each end's second derivative (the values at both ends are zero).
-        let va = (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5) - (s3 - 2.0 * s2 + s);
-        let vb = (-4.0 * s3 + 7.0 * s4 - 3.0 * s5) - (s3 - s2);
-        let aa = 0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5;
-        let ab = 0.5 * s3 - s4 + 0.5 * s5;
-        worst = worst.max((ta * va + tb * vb + na * aa + nb * ab).norm());
+/// (all scaled to `s ∈ [0, 1]`). Arithmetic only: no curve evaluation. The difference is
+/// `D = ta·va + tb·vb + na·aa + nb·ab`, so `|D|²` comes from the ten dot products of the four
+/// vectors, taken once.
+fn model_disagreement(
+    a: &Sample,
+    b: &Sample,
+    chord: &Chord,
+    du: f64,
+    ta: &Point,
+    tb: &Point,
+) -> f64 {
+    let na = chord.perp(&a.d.d2) * (du * du);
+    let nb = chord.perp(&b.d.d2) * (du * du);
+    let v = [ta, tb, &na, &nb];
+    let mut gram = [[0.0; 4]; 4];
+    for i in 0..4 {
+        for j in i..4 {
+            gram[i][j] = v[i].dot(v[j]);
+            gram[j][i] = gram[i][j];
+        }
     }
-    worst
+    let mut worst: f64 = 0.0;
+    for q in &HERMITE_AT_EIGHTHS {
+        let c = [q[1] - q[6], q[4] - q[7], q[2], q[3]];
+        let mut d2 = 0.0;
+        for i in 0..4 {
+            for j in 0..4 {
+                d2 += c[i] * gram[i][j] * c[j];
+            }
+        }
+        worst = worst.max(d2);
+    }
+    worst.max(0.0).sqrt()
 }
 
 /// Whether the piece may run past either end of its chord along the chord's direction (a
@@ -183,15 +223,8 @@ fn overshoots_the_chord(a: &Sample, b: &Sample, chord: &Chord, du: f64, slack: f
         a.d.d2.dot(&chord.dir) * du * du,
         b.d.d2.dot(&chord.dir) * du * du,
     );
-    (1..16).any(|k| {
-        let s = k as f64 / 16.0;
-        let (s2, s3) = (s * s, s * s * s);
-        let (s4, s5) = (s3 * s, s3 * s2);
-        let x = chord.len * (10.0 * s3 - 15.0 * s4 + 6.0 * s5)
-            + v0 * (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5)
-            + a0 * (0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5)
-            + a1 * (0.5 * s3 - s4 + 0.5 * s5)
-            + v1 * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5);
+    HERMITE_AT_EIGHTHS.iter().any(|q| {
+        let x = chord.len * q[5] + v0 * q[1] + a0 * q[2] + a1 * q[3] + v1 * q[4];
         x < -slack || x > chord.len + slack
     })
 }
@@ -233,12 +266,14 @@ pub fn chord_error_estimate(a: &Sample, b: &Sample, tol: f64) -> f64 {
     let du = b.u - a.u;
     let ta = chord.perp(&a.d.d1) * du;
     let tb = chord.perp(&b.d.d1) * du;
-    if chord.len <= 1e-12 || model_untrusted(a, b, &chord, du, &ta, &tb, tol) {
+    let peak = profile_peaks(&hermite_profile(&ta, &tb))[0]
+        .1
+        .max(0.0)
+        .sqrt();
+    if chord.len <= 1e-12 || model_untrusted(a, b, &chord, &ta, &tb, peak, tol) {
         return f64::INFINITY;
     }
-    let g = hermite_profile(&ta, &tb);
-    let peaks = profile_peaks(&g);
-    peaks[0].1.max(0.0).sqrt()
+    peak
 }
 
 /// The largest distance between the curve on `[a.u, b.u]` and the chord from `a` to `b`.
@@ -263,12 +298,12 @@ pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> Chor
     }
     let ta = chord.perp(&a.d.d1) * du;
     let tb = chord.perp(&b.d.d1) * du;
-    if model_untrusted(a, b, &chord, du, &ta, &tb, tol) {
+    let g = hermite_profile(&ta, &tb);
+    let peaks = profile_peaks(&g);
+    if model_untrusted(a, b, &chord, &ta, &tb, peaks[0].1.max(0.0).sqrt(), tol) {
         sampled_maximum(curve, a.u, du, &chord, &mut out);
         return out;
     }
-    let g = hermite_profile(&ta, &tb);
-    let peaks = profile_peaks(&g);
     let noise = (0.05 * tol) * (0.05 * tol);
     for (i, &(s, model)) in peaks.iter().enumerate() {
         if model < 0.0 || (i == 1 && model < 0.01 * peaks[0].1) {
