@@ -31,7 +31,7 @@ const MAX_BLOCKS: usize = 10_000;
 pub fn gcode(data: &[u8]) {
     let axes = [Axis::X, Axis::Y, Axis::Z];
     let mut reader = BlockReader::new(BufReader::new(Cursor::new(data)), "fuzz.nc", &axes);
-    let mut previous_end = None;
+    let mut previous_end: Option<edmd::geometry::Point> = None;
     for item in reader.by_ref().take(MAX_BLOCKS) {
         match item {
             Ok(block) => {
@@ -62,7 +62,6 @@ pub fn gcode(data: &[u8]) {
                 );
                 let start = block.start();
                 if let Some(end) = previous_end {
-                    let end: edmd::geometry::Point = end;
                     let gap = (start - end).norm();
                     let scale = 1.0 + start.norm().max(1.0) * 1e-12;
                     assert!(
