@@ -6,8 +6,8 @@ use std::hint::black_box;
 use std::io::Cursor;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use edmd::config::Axis;
 use edmd::gcode::BlockReader;
+use edmd::vocab::Axis;
 
 fn polyline(lines: usize) -> String {
     let mut s = String::from("G21 G90 G17\nG0 X0 Y0\nF600\n");

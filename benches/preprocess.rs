@@ -7,10 +7,11 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use edmd::config::{Config, Predictor, Segmentation};
+use edmd::config::Config;
 use edmd::gcode::{Block, BlockKind, NurbsForm};
 use edmd::geometry::{NurbsCurve, Point, clamped_uniform_knots, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segmenter};
+use edmd::vocab::{Predictor, Segmentation};
 
 fn cubic(points: &[(f64, f64)], weights: &[f64]) -> Arc<Block> {
     let n = points.len();

@@ -21,7 +21,7 @@ use edmd::parport::{
     Clock, ParportGap, ParportOutput, PinMap, Port, PortWriter, SpinClock, StepTiming,
 };
 use edmd::servo::Feeds;
-use edmd::sim::SimGap;
+use edmd::sim::{SimGap, SimSettings};
 use parking_lot::Mutex;
 
 /// Ticks per measured batch.
@@ -359,7 +359,11 @@ fn io_per_tick(c: &mut Criterion) {
     group.bench_function("parport gap sample (status read, filter 3)", |b| {
         b.iter(|| gap.sample(k).unwrap())
     });
-    let mut sim = SimGap::new(&config, &[(0.0, 1e9)], Vec::new());
+    let mut sim = SimGap::new(
+        &SimSettings::from_config(&config),
+        &[(0.0, 1e9)],
+        Vec::new(),
+    );
     let x = [1, 0, 0, 0, 0, 0];
     group.bench_function("sim gap sample + observe", |b| {
         b.iter(|| {

@@ -19,9 +19,10 @@ use std::io::{BufReader, Cursor};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use edmd::config::{Axis, Config};
+use edmd::config::Config;
 use edmd::daemon::protocol::Request;
 use edmd::gcode::{BlockReader, CURVE_START_TOLERANCE_MM};
+use edmd::vocab::Axis;
 
 /// Blocks read from one input at most: generated inputs of many tiny lines are cheap per
 /// block, and this keeps one input's time bounded without hiding any per-block behaviour.

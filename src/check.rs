@@ -2,9 +2,9 @@
 
 use std::fmt::Write as _;
 
-use crate::config::Axis;
 use crate::gcode::{Block, BlockKind};
 use crate::geometry::Point;
+use crate::vocab::Axis;
 
 /// Running totals over a program's blocks.
 #[derive(Debug, Clone, Default, PartialEq)]

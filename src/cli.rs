@@ -340,7 +340,7 @@ fn run_latency(mut args: LatencyArgs) -> ExitCode {
         "# edmd latency: tick {} µs, SCHED_FIFO {}, {:.1} s, {} ticks, {} pulses\n\
          # p50 {:.1} µs  p99 {:.1} µs  p99.9 {:.1} µs  max {:.1} µs  mean {:.2} µs\n\
          # overruns {} ({} deadlines skipped)\n",
-        cfg.fine.tick_us,
+        cfg.fine.tick.us(),
         cfg.fine.rt_priority,
         run.wall_ns as f64 * 1e-9,
         run.ticks,

@@ -1,24 +1,45 @@
 //! edmd: a real-time NURBS interpolation daemon for PC-based EDM controllers.
 //!
-//! See `ARCHITECTURE.md` for the module map and the invariants.
+//! See `ARCHITECTURE.md` for the module map, the floors they stand on and the invariants.
+//! The modules below are listed floor by floor, lowest first; a module imports only from its
+//! own floor or below (`tests/architecture.rs` checks it).
+//!
+//! `unsafe` is denied everywhere except the kernel-facing modules that allow it by name:
+//! [`sys`]'s clock, real-time and group look-up wrappers and [`parport::ioctl`].
 
-pub mod buffer;
-pub mod check;
-pub mod checkpoint;
-pub mod cli;
-pub mod config;
-pub mod daemon;
-pub mod fine;
-pub mod gap;
-pub mod gcode;
+#![deny(unsafe_code)]
+#![warn(clippy::undocumented_unsafe_blocks)]
+
+// Floor 0: vocabulary and kernel calls, importing nothing of edmd's.
+pub mod rng;
+pub mod sys;
+pub mod vocab;
+// Floor 1: curves.
 pub mod geometry;
+// Floor 2: programs.
+pub mod gcode;
+// Floor 3: the producer's algorithm (segmentation, feed planning).
+pub mod preprocess;
+// Floor 4: the loop buffer.
+pub mod buffer;
+// Floor 5: the tick core and its servo.
+pub mod fine;
+pub mod servo;
+// Floor 6: the machine's two sides (pulse outputs, gap inputs) and their devices.
+pub mod gap;
 pub mod output;
 pub mod parport;
-pub mod plan;
-pub mod plot;
-pub mod preprocess;
-pub mod rng;
-pub mod runtime;
-pub mod servo;
 pub mod sim;
 pub mod trace;
+// Floor 7: configuration, read at the edge and handed down as plain values.
+pub mod config;
+// Floor 8: reports and the job runner.
+pub mod check;
+pub mod checkpoint;
+pub mod plan;
+pub mod plot;
+pub mod runtime;
+// Floor 9: the daemon.
+pub mod daemon;
+// Floor 10: the command line.
+pub mod cli;

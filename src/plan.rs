@@ -15,10 +15,11 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::config::{Axis, Config, Predictor, Segmentation};
+use crate::config::Config;
 use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
 use crate::plot::{Chart, Decimated, Series, Style};
 use crate::preprocess::{PlanSettings, Preprocessor, Segment, bound};
+use crate::vocab::{Axis, Predictor, Segmentation};
 
 /// Largest program (in blocks) for which the time-optimal bound is computed.
 pub const BOUND_MAX_BLOCKS: usize = 10_000;

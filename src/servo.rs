@@ -24,7 +24,7 @@
 //! The machine only decides; the fine interpolator moves, and reports back where it is
 //! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
 
-use crate::gap::GapState;
+use crate::vocab::GapState;
 
 /// Where the electrode is along the program: block sequence number and Bresenham event.
 /// Ordered along the path (the end of block `s` and the start of block `s + 1` are the same

@@ -23,9 +23,9 @@ fn text(out: &Output) -> (String, String) {
 }
 
 #[test]
-fn check_accepts_the_papers_programs_in_shared_cases() {
+fn check_accepts_the_papers_programs() {
     for name in ["huang-table1-g38.nc", "jin-table1-g06_2.nc"] {
-        let path = Path::new("../shared/cases").join(name);
+        let path = Path::new("programs").join(name);
         let out = edmd(&["check", path.to_str().unwrap()]);
         let (stdout, stderr) = text(&out);
         assert_eq!(out.status.code(), Some(0), "{name}: {stdout}{stderr}");
@@ -184,7 +184,7 @@ fn plan_writes_trace_summary_and_plots() {
         let dir = out_dir.join(mode);
         let out = edmd(&[
             "plan",
-            "../shared/cases/jin-table1-g06_2.nc",
+            "programs/jin-table1-g06_2.nc",
             "--out",
             dir.to_str().unwrap(),
             "--set",

@@ -3,8 +3,8 @@
 
 use std::io::Cursor;
 
-use edmd::config::Axis;
 use edmd::gcode::{BlockReader, GcodeError};
+use edmd::vocab::Axis;
 use proptest::prelude::*;
 
 const XY: &[Axis] = &[Axis::X, Axis::Y];

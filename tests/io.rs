@@ -102,7 +102,7 @@ fn fake_port(config: &Config) -> (FakePortOutput, Bench, PinMap, StepTiming) {
     let output = AtTickTime {
         inner: output,
         bench: bench.clone(),
-        tick_ns: config.fine.tick_us as u64 * 1000,
+        tick_ns: config.fine.tick.ns(),
     };
     (output, bench, map, timing)
 }

@@ -3,10 +3,11 @@
 
 use std::sync::Arc;
 
-use edmd::config::{Config, Predictor, Segmentation};
+use edmd::config::Config;
 use edmd::gcode::{Block, BlockReader};
 use edmd::geometry::{NurbsCurve, Point, clamped_uniform_knots, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segment, bound};
+use edmd::vocab::{Predictor, Segmentation};
 
 fn settings(tol: f64, max_segment: f64) -> PlanSettings {
     let mut cfg = Config::default();

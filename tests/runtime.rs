@@ -12,10 +12,10 @@ use std::path::{Path, PathBuf};
 use common::repo;
 use std::process::{Command, Output};
 
-use edmd::config::Axis;
 use edmd::gap::GapState;
 use edmd::gcode::open_program;
 use edmd::output::read_pulse_log;
+use edmd::vocab::Axis;
 
 const PROGRAM: &str = "tests/data/runtime-path.nc";
 const STEP_MM: f64 = 0.001;

@@ -1,7 +1,7 @@
 //! Helpers shared by the benches.
 
-use edmd::config::Axis;
 use edmd::gcode::{Block, open_program};
+use edmd::vocab::Axis;
 
 /// The first NURBS block of a sample program in `programs/` (the papers' curves live there,
 /// once).

@@ -29,11 +29,12 @@
 //! second one stops at once, position kept). SIGHUP reloads the configuration (see
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
+mod jobs;
 pub mod notify;
 pub mod protocol;
 pub mod reload;
 pub mod socket;
-mod sys;
+mod status;
 
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
@@ -42,14 +43,13 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 
-use crate::checkpoint::{self, Checkpoint, Reason};
-use crate::config::{Config, GapKind, KeyValues, OutputKind};
+use crate::checkpoint::{Checkpoint, Reason};
+use crate::config::{Config, KeyValues, OutputKind};
 use crate::runtime::{
-    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, LoopSettings,
-    Outcome, Published, ResumePoint, Snapshot,
+    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobSummary, LoopSettings, Published,
 };
 use notify::{Notifier, Watchdog, WatchdogGate};
-use protocol::{CheckpointStatus, DaemonState, JobStatus, Reply, Request, Status};
+use protocol::{Reply, Request};
 
 /// How often the control loop does its periodic work when no message arrives.
 const PERIOD: Duration = Duration::from_millis(250);
@@ -186,7 +186,7 @@ pub fn serve(
         } else {
             "real"
         },
-        config.fine.tick_us
+        config.fine.tick.us()
     );
     let mut core = Core {
         config,
@@ -298,120 +298,6 @@ impl Core {
         }
     }
 
-    // ---- status ---------------------------------------------------------------------------
-
-    fn state(&self) -> DaemonState {
-        match &self.job {
-            None => DaemonState::Idle,
-            Some(job) => {
-                let snap = job.published.snapshot();
-                if job.stop.load(Ordering::Relaxed) {
-                    DaemonState::Stopping
-                } else if job.published.hold.load(Ordering::Relaxed) {
-                    if snap.still {
-                        DaemonState::Held
-                    } else {
-                        DaemonState::Holding
-                    }
-                } else {
-                    DaemonState::Running
-                }
-            }
-        }
-    }
-
-    fn status(&self) -> Status {
-        let config = &self.config;
-        let job = self.job.as_ref().map(|job| {
-            let p = &job.published;
-            let snap = p.snapshot();
-            let axes = job.config.machine.axes.len();
-            let samples = p.latency_samples.load(Ordering::Relaxed);
-            let tick_s = job.config.fine.tick_us as f64 * 1e-6;
-            JobStatus {
-                program: job.program.display().to_string(),
-                line: snap.line,
-                segment: snap.here.seq,
-                step: snap.here.event,
-                parameter: snap.u_end.is_finite().then_some(snap.u_end),
-                servo: snap.state.name().to_string(),
-                position_steps: snap.position[..axes].to_vec(),
-                position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
-                feed_mm_per_min: snap.speed * 60.0,
-                buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
-                buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
-                buffer_capacity: job.config.buffer.capacity as u64,
-                shorts: snap.servo.shorts,
-                turn_backs: snap.servo.turn_backs,
-                deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
-                alarms: snap.servo.alarms,
-                starvations: snap.servo.starvations,
-                overruns: p.overruns.load(Ordering::Relaxed),
-                pulses: snap.pulses[..axes].to_vec(),
-                ticks: snap.tick,
-                machine_time_s: snap.tick as f64 * tick_s,
-                elapsed_s: job.started.elapsed().as_secs_f64(),
-                latency_mean_us: (samples > 0).then(|| {
-                    p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
-                }),
-                latency_max_us: (samples > 0)
-                    .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
-                resumed: job.resumed,
-            }
-        });
-        Status {
-            state: self.state(),
-            version: env!("CARGO_PKG_VERSION").to_string(),
-            uptime_s: self.started.elapsed().as_secs_f64(),
-            axes: config.machine.axis_names(),
-            job,
-            last_job: self.last.clone(),
-            checkpoint: self.checkpoint.as_ref().map(|c| CheckpointStatus {
-                program: c.program.display().to_string(),
-                line: c.line,
-                reason: c.reason.name().to_string(),
-                still: c.still,
-                position_steps: c.position_steps.clone(),
-            }),
-            rt_refused: self.fine.rt_refused().to_vec(),
-        }
-    }
-
-    /// One line for the log and systemd's STATUS=.
-    fn status_line(&self) -> String {
-        let status = self.status();
-        match &status.job {
-            None => match &self.last {
-                Some(last) => format!("idle; last job {}: {}", last.program, last.outcome.name()),
-                None => "idle".to_string(),
-            },
-            Some(j) => {
-                let position =
-                    runtime::axis_list(&j.position_mm, &status.axes, |x| format!("{x:.4}"));
-                format!(
-                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, buffer {}/{}, {} shorts, \
-                     {} starvations, {} overruns",
-                    status.state.name(),
-                    j.program,
-                    j.line,
-                    j.servo,
-                    j.feed_mm_per_min,
-                    j.buffer_unprocessed,
-                    j.buffer_capacity,
-                    j.shorts,
-                    j.starvations,
-                    j.overruns
-                )
-            }
-        }
-    }
-
-    fn notify_status(&self) {
-        if self.notifier.active() {
-            self.notifier.status(&self.status_line());
-        }
-    }
-
     // ---- commands -------------------------------------------------------------------------
 
     fn handle(&mut self, request: Request) -> Reply {
@@ -442,216 +328,6 @@ impl Core {
         }
         Ok(())
     }
-
-    fn run_program(&mut self, requested: &str) -> Result<String, String> {
-        self.refuse_if_busy()?;
-        let program = confine(&self.config.daemon.program_dir, requested)?;
-        let mut message = String::new();
-        if let Some(old) = self.checkpoint.take() {
-            tracing::warn!(
-                "checkpoint of {} (line {}) discarded: a new job starts",
-                old.program.display(),
-                old.line
-            );
-            if let Err(e) = Checkpoint::remove(&self.config.daemon.checkpoint) {
-                tracing::error!("{}: {e}", self.config.daemon.checkpoint.display());
-            }
-            message = format!(
-                "; the checkpoint of {} was discarded",
-                old.program.display()
-            );
-        }
-        let blocks = self.start_job(program.clone(), None)?;
-        Ok(format!(
-            "running {}: {blocks} blocks{message}",
-            program.display()
-        ))
-    }
-
-    /// Checks, opens the I/O and starts the job thread. Returns the program's block count.
-    fn start_job(&mut self, program: PathBuf, resume: Option<ResumePoint>) -> Result<u64, String> {
-        let config = self.config.clone();
-        let program_sha256 =
-            checkpoint::sha256_file(&program).map_err(|e| format!("{}: {e}", program.display()))?;
-        let check = runtime::precheck(&program, &config).map_err(|e| e.to_string())?;
-        let blocks = check.blocks;
-        let start = resume
-            .as_ref()
-            .map(|r| r.position.clone())
-            .unwrap_or_default();
-        let io = self
-            .job_io(&config, &check, &start)
-            .map_err(|e| e.to_string())?;
-        let published = Arc::new(Published::new(4096));
-        let stop = Arc::new(AtomicBool::new(false));
-        let resumed = resume.is_some();
-        let (fine, tx) = (self.fine.clone(), self.to_core.clone());
-        let (job_published, job_stop, job_config, job_program) = (
-            published.clone(),
-            stop.clone(),
-            config.clone(),
-            program.clone(),
-        );
-        std::thread::Builder::new()
-            .name("edmd-job".to_string())
-            .spawn(move || {
-                let end = runtime::run_job_with(
-                    &fine,
-                    &job_program,
-                    &job_config,
-                    &check,
-                    io,
-                    job_published,
-                    &job_stop,
-                    resume,
-                );
-                let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
-            })
-            .map_err(|e| format!("cannot start the job thread: {e}"))?;
-        tracing::info!(
-            "job start: {}{}",
-            program.display(),
-            if resumed { " (resumed)" } else { "" }
-        );
-        self.job = Some(Job {
-            program,
-            program_sha256,
-            published,
-            stop,
-            stop_reason: None,
-            started: Instant::now(),
-            resumed,
-            hold_checkpointed: false,
-            last_checkpoint: Instant::now(),
-            overruns_seen: 0,
-            last_overrun_report: Instant::now(),
-            config,
-        });
-        Ok(blocks)
-    }
-
-    /// The job's output and gap source: the claimed port when there is one, else opened now.
-    fn job_io(
-        &mut self,
-        config: &Config,
-        check: &runtime::Precheck,
-        start: &[i64],
-    ) -> Result<JobIo, JobError> {
-        let tracer = (config.output.trace || config.gap.trace).then(|| {
-            crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
-        });
-        let (output, opened_gap) = match self.port_output.take() {
-            Some(output) => (output, None),
-            None => runtime::open_output(config, start)?,
-        };
-        let port_gap = if config.gap.kind == GapKind::Parport {
-            self.port_gap.take().or(opened_gap)
-        } else {
-            None
-        };
-        let gap = match runtime::open_gap(config, check, port_gap) {
-            Ok(gap) => gap,
-            Err(e) => {
-                if config.output.kind == OutputKind::Parport {
-                    self.port_output = Some(output);
-                }
-                return Err(e);
-            }
-        };
-        // The claimed port is lent as it is: wrappers would stay on it after the job.
-        let (output, gap) = if config.output.kind == OutputKind::Parport {
-            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
-                tracing::warn!(
-                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
-                     daemon's claimed parallel port"
-                );
-            }
-            (output, gap)
-        } else {
-            runtime::wrap_io(config, output, gap, tracer.as_ref())
-        };
-        Ok(JobIo {
-            output,
-            gap,
-            tracer,
-        })
-    }
-
-    fn hold(&mut self) -> Result<String, String> {
-        let Some(job) = &mut self.job else {
-            return Err("no job is running".to_string());
-        };
-        if job.stop.load(Ordering::Relaxed) {
-            return Err("the job is stopping".to_string());
-        }
-        if job.published.hold.swap(true, Ordering::Relaxed) {
-            return Ok("already held".to_string());
-        }
-        job.hold_checkpointed = false;
-        tracing::info!("hold: {} braking to a standstill", job.program.display());
-        Ok("holding: braking to a standstill".to_string())
-    }
-
-    fn resume(&mut self, force: bool) -> Result<String, String> {
-        if let Some(job) = &mut self.job {
-            if job.stop.load(Ordering::Relaxed) {
-                return Err("the job is stopping".to_string());
-            }
-            if !job.published.hold.swap(false, Ordering::Relaxed) {
-                return Err("the job is not held".to_string());
-            }
-            job.hold_checkpointed = false;
-            tracing::info!("resume: {} released", job.program.display());
-            return Ok("resumed".to_string());
-        }
-        self.refuse_if_busy()?;
-        let Some(cp) = self.checkpoint.clone() else {
-            return Err(format!(
-                "nothing to resume: no job and no checkpoint ({})",
-                self.config.daemon.checkpoint.display()
-            ));
-        };
-        let program = confine(
-            &self.config.daemon.program_dir,
-            &cp.program.display().to_string(),
-        )?;
-        cp.check_resumable(&self.config, force)
-            .map_err(|e| e.to_string())?;
-        let axes = self.config.machine.axes.len();
-        if cp.position_steps.len() != axes {
-            return Err(format!(
-                "the checkpoint has {} axes, the machine {axes}",
-                cp.position_steps.len()
-            ));
-        }
-        let point = ResumePoint {
-            here: crate::servo::PathPoint {
-                seq: cp.segment,
-                event: cp.step,
-            },
-            position: cp.position_steps.clone(),
-        };
-        self.start_job(program.clone(), Some(point))?;
-        Ok(format!(
-            "resuming {} from line {} (segment {}, step {})",
-            program.display(),
-            cp.line,
-            cp.segment,
-            cp.step
-        ))
-    }
-
-    fn abort(&mut self) -> Result<String, String> {
-        let Some(job) = &mut self.job else {
-            return Err("no job is running".to_string());
-        };
-        job.stop_reason.get_or_insert(Reason::Abort);
-        job.stop.store(true, Ordering::Relaxed);
-        tracing::info!("abort: {} braking to a standstill", job.program.display());
-        Ok("aborting: braking to a standstill, then the job ends".to_string())
-    }
-
-    // ---- signals --------------------------------------------------------------------------
 
     fn on_signal(&mut self, signal: i32) {
         use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
@@ -710,109 +386,6 @@ impl Core {
     }
 
     // ---- job end and periodic work --------------------------------------------------------
-
-    fn on_job_done(&mut self, end: JobEnd) {
-        let Some(job) = self.job.take() else {
-            return;
-        };
-        if job.config.output.kind == OutputKind::Parport {
-            self.port_output = Some(end.output);
-        }
-        if job.config.gap.kind == GapKind::Parport {
-            self.port_gap = Some(end.gap);
-        }
-        let summary = end.summary;
-        let reason = match summary.outcome {
-            Outcome::Done => None,
-            Outcome::ResumeRefused => None,
-            Outcome::Alarm => Some(Reason::Alarm),
-            Outcome::Stopped => Some(job.stop_reason.unwrap_or(Reason::Stop)),
-            Outcome::OutputError | Outcome::GapError | Outcome::ProducerError => {
-                Some(Reason::Error)
-            }
-        };
-        let text = summary.text();
-        let mut lines = text.lines();
-        let head = lines.next().unwrap_or_default();
-        match summary.outcome {
-            Outcome::Done => tracing::info!("job end: {head}"),
-            _ => tracing::error!(
-                "job end: {head}{}",
-                summary
-                    .error
-                    .as_ref()
-                    .map(|e| format!(": {e}"))
-                    .unwrap_or_default()
-            ),
-        }
-        for line in lines {
-            tracing::info!("job end: {line}");
-        }
-        let checkpoint_path = job.config.daemon.checkpoint.clone();
-        match reason {
-            Some(reason) => {
-                let mut at = end.stopped_at;
-                // The ledger the drives received (a failed write's steps taken back out).
-                for (p, s) in at.position.iter_mut().zip(&summary.end_steps) {
-                    *p = *s;
-                }
-                self.write_checkpoint(&job, &at, reason, true);
-            }
-            None if summary.outcome == Outcome::Done => {
-                if let Err(e) = Checkpoint::remove(&checkpoint_path) {
-                    tracing::error!("{}: {e}", checkpoint_path.display());
-                }
-                self.checkpoint = None;
-            }
-            None => {}
-        }
-        self.last = Some(summary);
-        self.notify_status();
-    }
-
-    fn write_checkpoint(&mut self, job: &Job, at: &Snapshot, reason: Reason, still: bool) {
-        let machine = &job.config.machine;
-        let axes = machine.axes.len();
-        let cp = Checkpoint {
-            version: checkpoint::VERSION,
-            program: job.program.clone(),
-            program_sha256: job.program_sha256.clone(),
-            motion_sha256: checkpoint::motion_hash(&job.config),
-            reason,
-            still,
-            line: at.line,
-            segment: at.here.seq,
-            step: at.here.event,
-            segment_steps: at.events,
-            parameter: at.u_end.is_finite().then_some(at.u_end),
-            axes: machine.axis_names(),
-            position_steps: at.position[..axes].to_vec(),
-            position_mm: mm(&at.position[..axes], &machine.step_mm),
-            written_unix_s: unix_now(),
-        };
-        let path = &job.config.daemon.checkpoint;
-        match cp.write_atomic(path) {
-            Ok(()) => {
-                let log = format!(
-                    "checkpoint ({}): {} line {}, segment {} step {}, at {:?} steps -> {}",
-                    reason.name(),
-                    cp.program.display(),
-                    cp.line,
-                    cp.segment,
-                    cp.step,
-                    cp.position_steps,
-                    path.display()
-                );
-                if reason == Reason::Periodic {
-                    tracing::debug!("{log}");
-                } else {
-                    tracing::info!("{log}");
-                }
-                self.checkpoint = Some(cp);
-            }
-            Err(e) => tracing::error!("{}: cannot write the checkpoint: {e}", path.display()),
-        }
-    }
 
     fn periodic(&mut self) {
         self.watchdog();
@@ -889,14 +462,6 @@ impl Core {
             ),
         }
     }
-}
-
-fn mm(steps: &[i64], step_mm: &[f64]) -> Vec<f64> {
-    steps
-        .iter()
-        .zip(step_mm)
-        .map(|(s, m)| *s as f64 * m)
-        .collect()
 }
 
 #[cfg(test)]

@@ -50,7 +50,7 @@ pub fn bind(config: &DaemonConfig) -> Result<UnixListener, DaemonError> {
     std::fs::set_permissions(path, std::fs::Permissions::from_mode(config.socket_mode))
         .map_err(socket_error)?;
     if let Some(group) = &config.socket_group {
-        let gid = super::sys::group_id(group)
+        let gid = crate::sys::group_id(group)
             .map_err(socket_error)?
             .ok_or_else(|| DaemonError::NoGroup {
                 group: group.clone(),

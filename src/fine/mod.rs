@@ -32,9 +32,9 @@
 pub mod bresenham;
 
 use crate::buffer::{BlockSource, Fetch, StepBlock};
-use crate::gap::GapState;
 use crate::geometry::MAX_AXES;
 use crate::servo::{Feeds, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
+use crate::vocab::GapState;
 
 pub use bresenham::Bresenham;
 
@@ -48,26 +48,6 @@ pub struct FineSettings {
     pub feeds: Feeds,
     /// Step size per axis (mm); unused axes 0.
     pub step_mm: [f64; MAX_AXES],
-}
-
-impl FineSettings {
-    pub fn from_config(config: &crate::config::Config) -> FineSettings {
-        let mut step_mm = [0.0; MAX_AXES];
-        for (slot, &s) in step_mm.iter_mut().zip(&config.machine.step_mm) {
-            *slot = s;
-        }
-        let servo = &config.servo;
-        FineSettings {
-            dt: config.fine.tick_us as f64 * 1e-6,
-            accel: config.machine.max_tangential_accel_mm_per_s2,
-            feeds: Feeds {
-                normal: servo.normal_feed_mm_per_min / 60.0,
-                open: servo.open_feed_mm_per_min / 60.0,
-                retract: servo.retract_feed_mm_per_min / 60.0,
-            },
-            step_mm,
-        }
-    }
 }
 
 /// What one tick produced.

@@ -11,39 +11,10 @@ mod script;
 
 use crate::geometry::MAX_AXES;
 
+/// The gap state is shared vocabulary (the servo and the tick core read it too).
+pub use crate::vocab::GapState;
 pub use script::{ScriptError, ScriptGap};
 pub(crate) use script::{read_script, words};
-
-/// The state of the spark gap.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum GapState {
-    /// Discharging: machine at the normal servo feed.
-    Normal,
-    /// No discharge: the electrode is too far; close in at the open feed.
-    Open,
-    /// Short circuit: turn back along the executed path.
-    Short,
-}
-
-impl GapState {
-    /// `normal`, `open` or `short`, as in the pulse log and gap scripts.
-    pub fn name(self) -> &'static str {
-        match self {
-            GapState::Normal => "normal",
-            GapState::Open => "open",
-            GapState::Short => "short",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<GapState> {
-        match name.to_ascii_lowercase().as_str() {
-            "normal" => Some(GapState::Normal),
-            "open" => Some(GapState::Open),
-            "short" => Some(GapState::Short),
-            _ => None,
-        }
-    }
-}
 
 /// A gap input that failed mid-job (a device that stopped answering).
 #[derive(Debug, thiserror::Error)]

@@ -33,8 +33,8 @@ pub use parser::{
     ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CURVE_POINTS,
 };
 
-use crate::config::Axis;
 use crate::geometry::{NurbsCurve, Point};
+use crate::vocab::Axis;
 
 /// The three NURBS block forms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -18,9 +18,9 @@ use std::io::{BufRead, BufWriter, Write};
 use std::path::Path;
 
 use super::{OutputError, PulseOutput};
-use crate::config::Axis;
 use crate::gap::GapState;
 use crate::geometry::MAX_AXES;
+use crate::vocab::Axis;
 
 /// What the `#` line says.
 #[derive(Debug, Clone, PartialEq)]

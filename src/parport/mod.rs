@@ -32,6 +32,7 @@
 //! refuses timings that do not fit in a tick.
 
 pub mod fake;
+#[allow(unsafe_code)]
 pub mod ioctl;
 pub mod pins;
 
@@ -41,13 +42,29 @@ use std::sync::Arc;
 
 use parking_lot::Mutex;
 
-use crate::config::{Config, ParportConfig};
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
 
 pub use ioctl::Ppdev;
 pub use pins::{PinLevels, PinMap, StepEncoder, StepTiming};
+
+/// The port's settings (`[parport]`, validated by the configuration): pins are DB-25 pin
+/// numbers, times in ns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParportConfig {
+    pub step_pins: Vec<u8>,
+    pub dir_pins: Vec<u8>,
+    pub enable_pin: Option<u8>,
+    pub invert_pins: Vec<u8>,
+    pub step_length_ns: u64,
+    pub step_space_ns: u64,
+    pub dir_setup_ns: u64,
+    pub dir_hold_ns: u64,
+    pub short_pin: Option<u8>,
+    pub open_pin: Option<u8>,
+    pub gap_filter_ticks: u32,
+}
 
 /// Opening the port failed. Each variant is what an operator needs to fix it.
 #[derive(Debug, thiserror::Error)]
@@ -84,6 +101,9 @@ pub enum ParportError {
         #[source]
         source: io::Error,
     },
+    /// The port was claimed, but writing the drives' enable level to it failed.
+    #[error(transparent)]
+    Enable(#[from] OutputError),
 }
 
 /// The port's registers, as the ppdev ioctls reach them.
@@ -106,11 +126,11 @@ pub struct SpinClock;
 
 impl Clock for SpinClock {
     fn now_ns(&mut self) -> u64 {
-        crate::runtime::sys::monotonic_ns()
+        crate::sys::monotonic_ns()
     }
 
     fn wait_until_ns(&mut self, deadline_ns: u64) {
-        while crate::runtime::sys::monotonic_ns() < deadline_ns {
+        while crate::sys::monotonic_ns() < deadline_ns {
             std::hint::spin_loop();
         }
     }
@@ -312,12 +332,12 @@ impl<P: Port> GapSensor for ParportGap<P> {
 }
 
 impl PinMap {
-    /// The pin map of `config` (`[parport]`; the configuration validated it).
-    pub fn from_config(config: &Config) -> PinMap {
-        let p: &ParportConfig = &config.parport;
+    /// The pin map of a machine with `axes` axes on the port of `settings` (validated by the
+    /// configuration: pins exist, are of the right kind and carry one signal each).
+    pub fn new(axes: usize, settings: &ParportConfig) -> PinMap {
+        let p = settings;
         let mut step = [0; MAX_AXES];
         let mut dir = [0; MAX_AXES];
-        let axes = config.machine.axes.len();
         let used = axes.min(p.step_pins.len()).min(p.dir_pins.len());
         step[..used].copy_from_slice(&p.step_pins[..used]);
         dir[..used].copy_from_slice(&p.dir_pins[..used]);
@@ -334,50 +354,40 @@ impl PinMap {
 }
 
 impl StepTiming {
-    pub fn from_config(config: &Config) -> StepTiming {
-        let p = &config.parport;
+    /// The drives' timing of `settings`.
+    pub fn new(settings: &ParportConfig) -> StepTiming {
         StepTiming {
-            step_length_ns: p.step_length_ns,
-            step_space_ns: p.step_space_ns,
-            dir_setup_ns: p.dir_setup_ns,
-            dir_hold_ns: p.dir_hold_ns,
+            step_length_ns: settings.step_length_ns,
+            step_space_ns: settings.step_space_ns,
+            dir_setup_ns: settings.dir_setup_ns,
+            dir_hold_ns: settings.dir_hold_ns,
         }
     }
 }
 
-/// The opened port of `config`: its output, and its gap input (used when `gap.kind =
-/// "parport"`; dropping it is harmless).
+/// Opens the port at `path` for a machine with `axes` axes: its output, and its gap input
+/// (used when `gap.kind = "parport"`; dropping it is harmless).
 pub fn open(
-    config: &Config,
-) -> Result<(ParportOutput<Ppdev, SpinClock>, ParportGap<Ppdev>), crate::runtime::JobError> {
-    let path = &config.output.path;
+    path: &Path,
+    axes: usize,
+    settings: &ParportConfig,
+) -> Result<(ParportOutput<Ppdev, SpinClock>, ParportGap<Ppdev>), ParportError> {
     let name = path.display().to_string();
-    let map = PinMap::from_config(config);
+    let map = PinMap::new(axes, settings);
     let idle = map.idle();
-    let port = Ppdev::open(
-        Path::new(path),
-        idle.data_register(),
-        idle.control_register(),
-    )?;
+    let port = Ppdev::open(path, idle.data_register(), idle.control_register())?;
     let shared = Arc::new(Mutex::new(PortWriter::new(port, idle)));
     let gap = ParportGap::new(
         shared.clone(),
         map.clone(),
-        config.parport.gap_filter_ticks,
+        settings.gap_filter_ticks,
         &name,
     );
-    let output = ParportOutput::new(
-        shared,
-        map,
-        StepTiming::from_config(config),
-        SpinClock,
-        &name,
-    )?;
+    let output = ParportOutput::new(shared, map, StepTiming::new(settings), SpinClock, &name)?;
     tracing::info!(
-        "{name}: claimed; {} axes, step length {} ns, dir setup {} ns",
-        config.machine.axes.len(),
-        config.parport.step_length_ns,
-        config.parport.dir_setup_ns
+        "{name}: claimed; {axes} axes, step length {} ns, dir setup {} ns",
+        settings.step_length_ns,
+        settings.dir_setup_ns
     );
     Ok((output, gap))
 }

@@ -13,9 +13,9 @@
 use super::chord::chord_length_limit;
 use super::segmenter::unit;
 use super::{PlanSettings, corner_speed};
-use crate::config::Segmentation;
 use crate::gcode::Block;
 use crate::geometry::Point;
+use crate::vocab::Segmentation;
 
 /// Time-optimal traversal time (s) of `blocks` in order, sampled about every `spacing` mm.
 pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f64) -> f64 {

@@ -37,9 +37,9 @@ pub mod segmenter;
 
 use std::sync::Arc;
 
-use crate::config::{Config, Predictor, Segmentation};
 use crate::gcode::Block;
 use crate::geometry::Point;
+use crate::vocab::{Predictor, Segmentation};
 
 pub use period::PeriodStepper;
 pub use planner::{PlannedSegment, Planner, Profile};
@@ -65,26 +65,6 @@ pub struct PlanSettings {
     pub lookahead: usize,
     pub fluctuation_tolerance: f64,
     pub max_corrections: u32,
-}
-
-impl PlanSettings {
-    pub fn from_config(config: &Config) -> PlanSettings {
-        let m = &config.machine;
-        let i = &config.interpolation;
-        PlanSettings {
-            predictor: i.predictor,
-            segmentation: i.segmentation,
-            tolerance: i.chord_tolerance_mm,
-            max_segment: i.max_segment_mm,
-            period: i.period_ms / 1000.0,
-            max_feed: m.max_feed_mm_per_min / 60.0,
-            max_normal_accel: m.max_normal_accel_mm_per_s2,
-            max_tangential_accel: m.max_tangential_accel_mm_per_s2,
-            lookahead: i.lookahead_segments,
-            fluctuation_tolerance: i.fluctuation_tolerance,
-            max_corrections: i.max_corrections,
-        }
-    }
 }
 
 /// A chord of a curve piece, before speed planning.

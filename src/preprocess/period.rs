@@ -22,9 +22,9 @@ use super::chord::{Sample, chord_error, chord_error_estimate};
 use super::planner::PlannedSegment;
 use super::predictor::{History, hamming_increments, taylor_increment};
 use super::{PlanSettings, Segment};
-use crate::config::Predictor;
 use crate::gcode::Block;
 use crate::geometry::NurbsCurve;
+use crate::vocab::Predictor;
 use std::sync::Arc;
 
 /// Extra steps at most to close a piece whose profile ended short of the curve's end.

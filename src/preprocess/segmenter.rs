@@ -21,9 +21,9 @@ use std::sync::Arc;
 use super::chord::{ChordError, Sample, chord_error, chord_length_limit};
 use super::predictor::{History, hamming_increments, taylor_increment};
 use super::{GeoSegment, PlanSettings, corner_speed};
-use crate::config::{Predictor, Segmentation};
 use crate::gcode::Block;
 use crate::geometry::{NurbsCurve, Point};
+use crate::vocab::{Predictor, Segmentation};
 
 /// Fraction of the tolerance that predictions aim at, leaving room for the circle formula's
 /// error on non-circular pieces.

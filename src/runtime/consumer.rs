@@ -23,14 +23,14 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering, fence};
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
-use super::latency::LatencyHistogram;
-use super::sys;
+use super::histogram::LatencyHistogram;
 use crate::buffer::BlockSource;
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
 use crate::servo::{PathPoint, ServoCounters, ServoEvent, ServoState};
+use crate::sys;
 
 /// How the loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,7 +47,7 @@ impl LoopSettings {
     pub fn from_config(config: &crate::config::Config) -> LoopSettings {
         let f = &config.fine;
         LoopSettings {
-            tick_ns: f.tick_us as u64 * 1000,
+            tick_ns: f.tick.ns(),
             virtual_time: f.virtual_time,
             rt_priority: f.rt_priority,
             lock_memory: f.lock_memory,

@@ -19,35 +19,37 @@
 //! daemon runs its jobs through [`run_job_with`] on one long-lived [`FineThread`].
 
 pub mod consumer;
+mod devices;
 pub mod fine_thread;
+mod histogram;
 pub mod latency;
+mod precheck;
 pub mod producer;
-pub mod sys;
+mod summary;
 
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use serde::{Deserialize, Serialize};
-
 use crate::buffer::LoopBuffer;
-use crate::config::{Config, GapKind, OutputKind};
+use crate::config::Config;
 use crate::fine::FineSettings;
-use crate::gap::{AlwaysNormal, GapSensor, ScriptError, ScriptGap};
-use crate::gcode::{self, GcodeError};
-use crate::geometry::MAX_AXES;
-use crate::output::{
-    FaultInjector, NullOutput, OutputError, PulseLog, PulseLogHeader, PulseOutput,
-};
+use crate::gap::ScriptError;
+use crate::gcode::GcodeError;
+use crate::output::OutputError;
 use crate::parport::ParportError;
-use crate::servo::{ServoEvent, ServoState};
-use crate::trace::{TraceEvent, TraceRecord, TracedGap, TracedOutput, Tracer};
+use crate::servo::ServoEvent;
+use crate::trace::{TraceEvent, TraceRecord, Tracer};
+use crate::vocab::TickPeriod;
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
+pub use devices::{BoxedGap, BoxedOutput, fine_speed_cap, open_gap, open_io, open_output, wrap_io};
 pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
-pub use latency::{LatencyHistogram, LatencySummary};
+pub use histogram::{LatencyHistogram, LatencySummary};
+pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
+pub use summary::{JobSummary, Outcome, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
 #[derive(Debug, thiserror::Error)]
@@ -69,347 +71,9 @@ pub enum JobError {
     Config(String),
 }
 
-/// How a job ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Outcome {
-    /// The whole program was executed.
-    Done,
-    /// Shorted after the whole reserved area: stopped, position kept.
-    Alarm,
-    /// The pulse output failed: stopped at once.
-    OutputError,
-    /// The gap input failed: stopped at once.
-    GapError,
-    /// The producer failed part-way (the program changed after the check, or a position out of
-    /// range): the consumer executed what it had and stopped.
-    ProducerError,
-    /// Stopped on request.
-    Stopped,
-    /// A resumed job did not find its checkpoint on the program's path: nothing moved.
-    ResumeRefused,
-}
-
-impl Outcome {
-    pub fn name(self) -> &'static str {
-        match self {
-            Outcome::Done => "done",
-            Outcome::Alarm => "alarm",
-            Outcome::OutputError => "output error",
-            Outcome::GapError => "gap input error",
-            Outcome::ProducerError => "producer error",
-            Outcome::Stopped => "stopped",
-            Outcome::ResumeRefused => "resume refused",
-        }
-    }
-}
-
-/// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JobSummary {
-    pub program: String,
-    pub outcome: Outcome,
-    pub error: Option<String>,
-    pub axes: Vec<String>,
-    /// G-code blocks of the program.
-    pub blocks: u64,
-    /// Loop-buffer blocks (segments) produced.
-    pub segments: u64,
-    /// Pulses emitted per axis, both directions.
-    pub steps_per_axis: Vec<u64>,
-    /// The pulse ledger at the end, per axis (steps).
-    pub end_steps: Vec<i64>,
-    /// The program's end point, per axis (steps).
-    pub program_end_steps: Vec<i64>,
-    pub end_mm: Vec<f64>,
-    pub events_forward: u64,
-    pub events_backward: u64,
-    pub shorts: u64,
-    pub turn_backs: u64,
-    pub deepest_turn_back_blocks: u64,
-    pub alarms: u64,
-    pub starvations: u64,
-    pub overruns: u64,
-    pub missed_deadlines: u64,
-    /// Real time only.
-    pub latency_us: Option<LatencySummary>,
-    pub tick_us: u32,
-    pub ticks: u64,
-    pub virtual_time: bool,
-    /// Machine time: ticks × tick period (s).
-    pub virtual_time_s: f64,
-    pub wall_time_s: f64,
-    /// Wall time the producer spent working (not waiting for buffer space), s. Machine time
-    /// over this is how many times faster than real time the producer can feed the loop.
-    #[serde(default)]
-    pub producer_busy_s: f64,
-    /// Peak resident set size of the process at the end of the job, KiB.
-    #[serde(default)]
-    pub peak_rss_kib: u64,
-    pub buffer_capacity: u64,
-    pub buffer_high_water: u64,
-    pub events_dropped: u64,
-    /// Trace records dropped because the logger fell behind (real time only).
-    pub trace_dropped: u64,
-    /// Real-time features the system refused.
-    pub rt_refused: Vec<String>,
-}
-
-impl JobSummary {
-    /// The human-readable summary.
-    pub fn text(&self) -> String {
-        use std::fmt::Write;
-        let mut t = String::new();
-        let list = |v: &[i64]| axis_list(v, &self.axes, |s| s.to_string());
-        let _ = writeln!(t, "{}: {}", self.program, self.outcome.name());
-        if let Some(e) = &self.error {
-            let _ = writeln!(t, "  error:            {e}");
-        }
-        let _ = writeln!(
-            t,
-            "  blocks:           {} G-code blocks, {} segments",
-            self.blocks, self.segments
-        );
-        let pulses: Vec<i64> = self.steps_per_axis.iter().map(|&p| p as i64).collect();
-        let _ = writeln!(t, "  steps per axis:   {}", list(&pulses));
-        let _ = writeln!(
-            t,
-            "  end position:     {} steps (program end {})",
-            list(&self.end_steps),
-            list(&self.program_end_steps)
-        );
-        let _ = writeln!(
-            t,
-            "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
-            self.shorts,
-            self.turn_backs,
-            self.deepest_turn_back_blocks,
-            self.alarms,
-            self.starvations
-        );
-        let _ = writeln!(
-            t,
-            "  events:           {} forward, {} backward",
-            self.events_forward, self.events_backward
-        );
-        match &self.latency_us {
-            Some(l) => {
-                let _ = writeln!(
-                    t,
-                    "  latency:          p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} ticks; {} overruns",
-                    l.p50_us, l.p99_us, l.max_us, l.samples, self.overruns
-                );
-            }
-            None => {
-                let _ = writeln!(
-                    t,
-                    "  latency:          none measured (virtual time); {} overruns",
-                    self.overruns
-                );
-            }
-        }
-        let _ = writeln!(
-            t,
-            "  time:             {:.3} s machine ({} ticks of {} µs), {:.3} s wall",
-            self.virtual_time_s, self.ticks, self.tick_us, self.wall_time_s
-        );
-        let _ = writeln!(
-            t,
-            "  producer:         {:.3} s busy for {:.3} s of machine time ({:.0}x real time)",
-            self.producer_busy_s,
-            self.virtual_time_s,
-            self.virtual_time_s / self.producer_busy_s.max(1e-9)
-        );
-        let _ = writeln!(
-            t,
-            "  loop buffer:      high water {} of {} blocks",
-            self.buffer_high_water, self.buffer_capacity
-        );
-        let _ = writeln!(
-            t,
-            "  memory:           peak RSS {:.1} MiB",
-            self.peak_rss_kib as f64 / 1024.0
-        );
-        for r in &self.rt_refused {
-            let _ = writeln!(t, "  warning:          {r}");
-        }
-        t
-    }
-}
-
-/// `X 1, Y 2`: one value per axis, each after its letter.
-pub fn axis_list<T>(values: &[T], axes: &[String], format: impl Fn(&T) -> String) -> String {
-    values
-        .iter()
-        .zip(axes)
-        .map(|(v, a)| format!("{a} {}", format(v)))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// What the check before the job found.
-#[derive(Debug, Clone)]
-pub struct Precheck {
-    pub blocks: u64,
-    pub end_steps: [i64; MAX_AXES],
-    /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
-    /// length from the program's start, consecutive cutting moves merged into one span (so
-    /// this grows with the number of rapids, not of blocks). Measured only for the simulated
-    /// gap's placed debris.
-    pub cutting_spans: Vec<(f64, f64)>,
-}
-
-/// Parses the whole program and checks every end point fits a step counter.
-pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
-    let mut reader = gcode::open_program(program, &config.machine.axes)?;
-    let mut blocks = 0;
-    let mut end_steps = [0; MAX_AXES];
-    let mut path_mm = 0.0;
-    let mut cutting_spans = Vec::new();
-    let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
-    for item in reader.by_ref() {
-        let block = item?;
-        blocks += 1;
-        if measure {
-            let length = block.curve.length();
-            if block.kind != gcode::BlockKind::Rapid {
-                match cutting_spans.last_mut() {
-                    Some((_, to)) if *to == path_mm => *to += length,
-                    _ => cutting_spans.push((path_mm, path_mm + length)),
-                }
-            }
-            path_mm += length;
-        }
-        end_steps =
-            to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
-                ProducerError::OutOfRange {
-                    program: program.display().to_string(),
-                    line: block.line,
-                    axis: config.machine.axes[axis].letter(),
-                    mm,
-                    steps,
-                }
-            })?;
-    }
-    for w in reader.take_warnings() {
-        if w.line == 0 {
-            tracing::warn!("{}: {}", program.display(), w.message);
-        } else {
-            tracing::warn!("{}:{}:{}: {}", program.display(), w.line, w.col, w.message);
-        }
-    }
-    Ok(Precheck {
-        blocks,
-        end_steps,
-        cutting_spans,
-    })
-}
-
-pub type BoxedOutput = Box<dyn PulseOutput + Send>;
-pub type BoxedGap = Box<dyn GapSensor + Send>;
-
-/// Opens the output and the gap source of `config`, with the fault injector and the tracer
-/// when configured: everything that can fail at startup fails here, before anything moves.
-pub fn open_io(
-    config: &Config,
-    check: &Precheck,
-    tracer: Option<&Arc<Tracer>>,
-) -> Result<(BoxedOutput, BoxedGap), JobError> {
-    let (output, port_gap) = open_output(config, &[])?;
-    let gap = open_gap(config, check, port_gap)?;
-    Ok(wrap_io(config, output, gap, tracer))
-}
-
-/// Opens the pulse output of `config`; a parallel port comes with its status pins (the gap
-/// input), opened together under one claim. `start`: the ledger the job starts from (steps
-/// per axis; empty for zero), for the pulse log's header.
-pub fn open_output(
-    config: &Config,
-    start: &[i64],
-) -> Result<(BoxedOutput, Option<BoxedGap>), JobError> {
-    let axes = config.machine.axes.len();
-    Ok(match config.output.kind {
-        // The simulated drives take every step and report nothing: the ledger is their position.
-        OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
-        OutputKind::File => (
-            Box::new(PulseLog::create(
-                &config.output.path,
-                &PulseLogHeader {
-                    axes: config.machine.axes.clone(),
-                    step_mm: config.machine.step_mm.clone(),
-                    tick_us: config.fine.tick_us,
-                    start: (0..axes)
-                        .map(|i| start.get(i).copied().unwrap_or(0))
-                        .collect(),
-                },
-            )?),
-            None,
-        ),
-        OutputKind::Parport => {
-            let (output, gap) = crate::parport::open(config)?;
-            (Box::new(output), Some(Box::new(gap)))
-        }
-    })
-}
-
-/// Opens the gap source of `config`; `port_gap` is the parallel port's status pins when the
-/// port is open.
-pub fn open_gap(
-    config: &Config,
-    check: &Precheck,
-    port_gap: Option<BoxedGap>,
-) -> Result<BoxedGap, JobError> {
-    Ok(match (config.gap.kind, port_gap) {
-        (GapKind::Parport, Some(gap)) => gap,
-        // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
-        (GapKind::Parport, None) => {
-            return Err(JobError::Config(
-                "gap.kind = \"parport\" reads the output port's status pins and needs \
-                 output.kind = \"parport\""
-                    .to_string(),
-            ));
-        }
-        (GapKind::None, _) => Box::new(AlwaysNormal),
-        (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
-        (GapKind::Sim, _) => Box::new(crate::sim::SimGap::from_config(
-            config,
-            &check.cutting_spans,
-        )?),
-    })
-}
-
-/// Wraps the output and the gap source in the fault injector and the tracer, as configured.
-pub fn wrap_io(
-    config: &Config,
-    mut output: BoxedOutput,
-    mut gap: BoxedGap,
-    tracer: Option<&Arc<Tracer>>,
-) -> (BoxedOutput, BoxedGap) {
-    if let Some(tick) = config.output.fault_at_tick {
-        tracing::warn!("output.fault_at_tick = {tick}: the output will fail at that tick");
-        output = Box::new(FaultInjector::new(output, tick));
-    }
-    if let Some(tracer) = tracer {
-        if config.output.trace {
-            output = Box::new(TracedOutput::new(output, tracer.clone()));
-        }
-        if config.gap.trace {
-            gap = Box::new(TracedGap::new(gap, tracer.clone()));
-        }
-    }
-    (output, gap)
-}
-
-/// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
-/// axis per tick.
-pub fn fine_speed_cap(config: &Config) -> f64 {
-    let coarsest = config.machine.step_mm.iter().cloned().fold(0.0, f64::max);
-    coarsest / (config.fine.tick_us as f64 * 1e-6)
-}
-
 /// Logs one servo event (from the main thread, never the consumer).
-fn log_event(program: &str, record: &EventRecord, tick_s: f64) {
-    let t = record.tick as f64 * tick_s;
+fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
+    let t = tick.ticks_to_secs(record.tick);
     let line = record.line;
     match record.event {
         ServoEvent::Short { at } => tracing::info!(
@@ -437,25 +101,25 @@ fn log_event(program: &str, record: &EventRecord, tick_s: f64) {
 }
 
 /// Logs one trace record (from the main thread).
-fn log_trace(config: &Config, record: &TraceRecord, tick_s: f64) {
-    let t = record.tick as f64 * tick_s;
-    let tick = record.tick;
+fn log_trace(config: &Config, record: &TraceRecord, tick: TickPeriod) {
+    let t = tick.ticks_to_secs(record.tick);
+    let tick_no = record.tick;
     match record.event {
         TraceEvent::Gap { from, to } => tracing::info!(
             target: "edmd::trace",
-            "t={t:.5} s (tick {tick}): gap {} -> {}",
+            "t={t:.5} s (tick {tick_no}): gap {} -> {}",
             from.map_or("(first reading)", |f| f.name()),
             to.name()
         ),
         TraceEvent::Direction { axis, positive } => tracing::info!(
             target: "edmd::trace",
-            "t={t:.5} s (tick {tick}): axis {} now steps {}",
+            "t={t:.5} s (tick {tick_no}): axis {} now steps {}",
             config.machine.axes[axis as usize].letter(),
             if positive { "+" } else { "-" }
         ),
         TraceEvent::WriteFailed => tracing::info!(
             target: "edmd::trace",
-            "t={t:.5} s (tick {tick}): output write failed"
+            "t={t:.5} s (tick {tick_no}): output write failed"
         ),
     }
 }
@@ -549,27 +213,27 @@ pub fn run_job_with(
         tracing::info!(
             "fine.tick_us = {} allows at most one step per axis per tick: path speeds above \
              about {:.0} mm/min (machine.max_feed_mm_per_min = {}) are not reachable",
-            config.fine.tick_us,
+            config.fine.tick.us(),
             cap * 60.0,
             config.machine.max_feed_mm_per_min
         );
     }
     tracing::info!(
-        "{name}: {} blocks; {} time, tick {} µs",
+        "{name}: {} blocks; {} time, tick {}",
         check.blocks,
         if config.fine.virtual_time {
             "virtual"
         } else {
             "real"
         },
-        config.fine.tick_us
+        config.fine.tick
     );
     let buffer = Arc::new(LoopBuffer::new(
         config.buffer.capacity,
         config.buffer.reserved,
     ));
     let loop_settings = LoopSettings::from_config(config);
-    let tick_s = config.fine.tick_us as f64 * 1e-6;
+    let tick = config.fine.tick;
     let JobIo {
         output,
         gap,
@@ -590,10 +254,10 @@ pub fn run_job_with(
         });
         let drain = || {
             while let Some(record) = published.events.pop() {
-                log_event(&name, &record, tick_s);
+                log_event(&name, &record, tick);
             }
             if let Some(tracer) = &tracer {
-                tracer.drain(|record| log_trace(config, record, tick_s));
+                tracer.drain(|record| log_trace(config, record, tick));
             }
         };
         let done = loop {
@@ -638,47 +302,9 @@ pub fn run_job_with(
         panic!("the fine interpolation thread panicked");
     };
 
-    let mut counters = fine.counters();
-    let mut position = fine.position();
-    // A tick whose write failed before its step edge never reached the drives: the ledger
-    // is what they received.
-    if let Some((steps, dir)) = report.untaken {
-        for (axis, &s) in steps.iter().enumerate() {
-            position[axis] -= s as i64;
-            counters.pulses[axis] -= s.unsigned_abs() as u64;
-        }
-        if dir > 0 {
-            counters.events_forward -= 1;
-        } else {
-            counters.events_backward -= 1;
-        }
-    }
+    let (counters, position) = summary::delivered(&fine, &report);
     let axes = config.machine.axes.len();
-    let (outcome, error) = if let Err(e) = &skip {
-        (Outcome::ResumeRefused, Some(e.to_string()))
-    } else if let Some(e) = report.gap_error.as_ref() {
-        (Outcome::GapError, Some(e.to_string()))
-    } else if let Some(e) = report.output_error.as_ref() {
-        (Outcome::OutputError, Some(e.to_string()))
-    } else if let Err(e) = finished {
-        (Outcome::OutputError, Some(e.to_string()))
-    } else if fine.state() == ServoState::Alarm {
-        (
-            Outcome::Alarm,
-            Some("shorted after turning back over the whole reserved area".to_string()),
-        )
-    } else if let Err(e) = &producer {
-        (Outcome::ProducerError, Some(e.to_string()))
-    } else if report.stopped {
-        (
-            Outcome::Stopped,
-            Some("a stop was requested: motion stopped where it was, position kept".to_string()),
-        )
-    } else if fine.state() != ServoState::Done {
-        (Outcome::Stopped, None)
-    } else {
-        (Outcome::Done, None)
-    };
+    let (outcome, error) = summary::outcome(&skip, &report, &finished, fine.state(), &producer);
     let producer = producer.unwrap_or_default();
     let stopped_at = Snapshot::of(report.ticks, &fine);
     let summary = JobSummary {
@@ -706,13 +332,13 @@ pub fn run_job_with(
         overruns: report.overruns,
         missed_deadlines: report.missed_deadlines,
         latency_us: report.latency.as_ref().map(|h| h.summary()),
-        tick_us: config.fine.tick_us,
+        tick_us: tick.us(),
         ticks: report.ticks,
         virtual_time: loop_settings.virtual_time,
-        virtual_time_s: report.ticks as f64 * tick_s,
+        virtual_time_s: tick.ticks_to_secs(report.ticks),
         wall_time_s: report.wall_ns as f64 * 1e-9,
         producer_busy_s: producer.busy_ns as f64 * 1e-9,
-        peak_rss_kib: sys::peak_rss_kib(),
+        peak_rss_kib: crate::sys::peak_rss_kib(),
         buffer_capacity: config.buffer.capacity as u64,
         buffer_high_water: buffer.areas().high_water,
         events_dropped: published.events_dropped.load(Ordering::Relaxed),

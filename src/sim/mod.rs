@@ -35,14 +35,40 @@
 
 pub mod events;
 
-use std::path::Path;
+use std::path::PathBuf;
 
-use crate::config::{Config, SimConfig};
 use crate::gap::{GapError, GapSensor, GapState, ScriptError};
 use crate::geometry::MAX_AXES;
 use crate::rng::SplitMix64;
+use crate::vocab::TickPeriod;
 
 pub use events::SimEvent;
+
+/// The simulated gap's own settings (`[sim]`, validated by the configuration), lengths in mm
+/// and speeds in mm/s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    pub seed: u64,
+    pub initial_gap_mm: f64,
+    pub short_gap_mm: f64,
+    pub open_gap_mm: f64,
+    pub erosion_mm_per_s: f64,
+    /// Debris shorts placed along the program's path.
+    pub debris_shorts: u32,
+    pub debris_shorts_per_s: f64,
+    pub debris_clear_mm: f64,
+    /// Scripted events file.
+    pub events: Option<PathBuf>,
+}
+
+/// Everything the model needs: its own settings, the machine's step sizes (unused axes 0)
+/// and the tick period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimSettings {
+    pub params: SimConfig,
+    pub step_mm: [f64; MAX_AXES],
+    pub tick: TickPeriod,
+}
 
 /// What the simulated gap did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -89,16 +115,13 @@ impl SimGap {
     /// The model for a program whose cutting moves lie at `cutting_spans` along its path
     /// (`(from, to)`, mm of path length from the start), with scripted `events`.
     pub fn new(
-        config: &Config,
+        settings: &SimSettings,
         cutting_spans: &[(f64, f64)],
         events: Vec<(u64, SimEvent)>,
     ) -> SimGap {
-        let mut step_mm = [0.0; MAX_AXES];
-        for (slot, s) in step_mm.iter_mut().zip(&config.machine.step_mm) {
-            *slot = *s;
-        }
-        let dt = config.fine.tick_us as f64 * 1e-6;
-        let params = config.sim.clone();
+        let step_mm = settings.step_mm;
+        let dt = settings.tick.secs();
+        let params = settings.params.clone();
         let mut rng = SplitMix64::new(params.seed);
         // One bridge in each of n equal stretches of cutting, away from the stretch ends, so
         // that they spread over the cut and never form in the first micrometres of approach.
@@ -142,17 +165,17 @@ impl SimGap {
         }
     }
 
-    /// The model of `config` for a program with these cutting spans (see [`new`](Self::new)),
+    /// The model of `settings` for a program with these cutting spans (see [`new`](Self::new)),
     /// with the scripted events of `sim.events` (read and checked here, before the job).
-    pub fn from_config(
-        config: &Config,
+    pub fn load(
+        settings: &SimSettings,
         cutting_spans: &[(f64, f64)],
     ) -> Result<SimGap, ScriptError> {
-        let events = match &config.sim.events {
-            Some(path) => events::load(Path::new(path))?,
+        let events = match &settings.params.events {
+            Some(path) => events::load(path)?,
             None => Vec::new(),
         };
-        Ok(SimGap::new(config, cutting_spans, events))
+        Ok(SimGap::new(settings, cutting_spans, events))
     }
 
     /// The gap distance (mm).
@@ -262,16 +285,45 @@ impl GapSensor for SimGap {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn config(overrides: &[&str]) -> Config {
-        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-        Config::load(None, &overrides).unwrap()
+    /// The shipped defaults (`config/edmd.toml`, on two 1 µm axes at 50 µs; the
+    /// configuration's tests check they are what the shipped file gives), with `sim.KEY=VALUE`
+    /// overrides in the file's units.
+    pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
+        let mut params = SimConfig {
+            seed: 1,
+            initial_gap_mm: 20.0 / 1000.0,
+            short_gap_mm: 1.0 / 1000.0,
+            open_gap_mm: 10.0 / 1000.0,
+            erosion_mm_per_s: 75.0 / 60.0,
+            debris_shorts: 5,
+            debris_shorts_per_s: 0.0,
+            debris_clear_mm: 300.0 / 1000.0,
+            events: None,
+        };
+        for o in overrides {
+            let (key, value) = o.split_once('=').expect("sim.KEY=VALUE");
+            let v: f64 = value.parse().expect("a number");
+            match key {
+                "sim.seed" => params.seed = v as u64,
+                "sim.initial_gap_um" => params.initial_gap_mm = v / 1000.0,
+                "sim.debris_shorts" => params.debris_shorts = v as u32,
+                "sim.debris_shorts_per_s" => params.debris_shorts_per_s = v,
+                "sim.debris_clear_um" => params.debris_clear_mm = v / 1000.0,
+                other => panic!("no test override for {other}"),
+            }
+        }
+        SimSettings {
+            params,
+            step_mm: [0.001, 0.001, 0.0, 0.0, 0.0, 0.0],
+            tick: TickPeriod::from_us(50).unwrap(),
+        }
     }
 
     fn gap(overrides: &[&str]) -> SimGap {
-        SimGap::new(&config(overrides), &[(0.0, 10.0)], Vec::new())
+        SimGap::new(&settings(overrides), &[(0.0, 10.0)], Vec::new())
     }
 
     fn sample(g: &mut SimGap, tick: u64) -> GapState {
@@ -356,7 +408,7 @@ mod tests {
         );
         // Only on cutting moves: a 10 mm rapid, 2 mm cut, 5 mm rapid, 2 mm cut.
         let spans = [(10.0, 12.0), (17.0, 19.0)];
-        let g = SimGap::new(&config(&["sim.debris_shorts=40"]), &spans, Vec::new());
+        let g = SimGap::new(&settings(&["sim.debris_shorts=40"]), &spans, Vec::new());
         for p in g.debris_positions() {
             assert!(spans.iter().any(|(a, b)| p >= a && p <= b), "{p}");
         }
@@ -392,7 +444,7 @@ mod tests {
         )
         .unwrap();
         let mut g = SimGap::new(
-            &config(&["sim.debris_shorts=0", "sim.initial_gap_um=5"]),
+            &settings(&["sim.debris_shorts=0", "sim.initial_gap_um=5"]),
             &[(0.0, 10.0)],
             events,
         );

@@ -1,5 +1,5 @@
-//! The daemon's only `unsafe`: looking a group up by name (`getgrnam_r(3)`, which also
-//! consults NSS, unlike reading `/etc/group`).
+//! Looking a group up by name (`getgrnam_r(3)`, which also consults NSS, unlike reading
+//! `/etc/group`), for the control socket's group.
 
 use std::ffi::CString;
 
@@ -10,11 +10,13 @@ pub fn group_id(name: &str) -> std::io::Result<Option<u32>> {
     })?;
     let mut buf = vec![0 as libc::c_char; 16 * 1024];
     loop {
+        // SAFETY: `libc::group` is a plain C struct of integers and pointers, for which all
+        // zero bytes (null pointers) is a valid value.
+        let mut group: libc::group = unsafe { std::mem::zeroed() };
+        let mut result: *mut libc::group = std::ptr::null_mut();
         // SAFETY: `group` and `result` are out-parameters written by getgrnam_r; `buf` is a
         // live buffer of the length passed; `cname` is NUL-terminated. The strings the
         // group entry points to live in `buf`, which outlives every read of `group` here.
-        let mut group: libc::group = unsafe { std::mem::zeroed() };
-        let mut result: *mut libc::group = std::ptr::null_mut();
         let rc = unsafe {
             libc::getgrnam_r(
                 cname.as_ptr(),

@@ -1,0 +1,295 @@
+//! Configuration: TOML text and `--set` overrides in, a validated [`Config`] out.
+//!
+//! Two layers, as in ripgrep: a raw layer that is whatever serde can read (`raw.rs`), and the
+//! validated [`Config`] that the rest of edmd trusts (positive step sizes, `reserved <
+//! capacity`, ...; `validate.rs`). The text under them is layered in `overrides.rs`.
+//!
+//! `config` stands on floor 7, above the pipeline and the devices: it reads their settings
+//! out of the configuration and hands them down as plain values (`settings.rs`), so no
+//! lower floor ever sees a `Config`.
+//!
+//! The shipped `config/edmd.toml` is the single source of truth for which keys exist and what
+//! their defaults are: it is embedded in the binary, a user's file is overlaid on it key by key,
+//! and any key the default does not have is rejected with its line. Every error names where the
+//! offending value came from: `file:line:col` for the file, the `--set` argument for an override.
+
+mod overrides;
+mod raw;
+mod settings;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::vocab::{Axis, Predictor, Segmentation, TickPeriod};
+use overrides::{Origins, apply_override, default_table, overlay, parse_user_table};
+use raw::RawConfig;
+
+pub use crate::parport::ParportConfig;
+pub use crate::sim::SimConfig;
+
+/// The default configuration, exactly as shipped in `config/edmd.toml`.
+pub const DEFAULT_CONFIG_TOML: &str = include_str!("../../config/edmd.toml");
+
+/// Where edmd looks for its configuration when no `--config` is given.
+pub const DEFAULT_CONFIG_PATH: &str = "config/edmd.toml";
+
+/// A configuration that could not be loaded: where, and what is wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: cannot read the configuration: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// `origin` is `file:line:col`, `--set key=value`, or `file` for a default value.
+    #[error("{origin}: {message}")]
+    Invalid { origin: String, message: String },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OutputKind {
+    Sim,
+    File,
+    Parport,
+    Null,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GapKind {
+    Sim,
+    Script,
+    Parport,
+    None,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LogLevel {
+    Error,
+    Warn,
+    Info,
+    Debug,
+    Trace,
+}
+
+impl LogLevel {
+    /// The level as `tracing`'s filters spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogLevel::Error => "error",
+            LogLevel::Warn => "warn",
+            LogLevel::Info => "info",
+            LogLevel::Debug => "debug",
+            LogLevel::Trace => "trace",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    Auto,
+    Human,
+    Plain,
+    Json,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineConfig {
+    pub axes: Vec<Axis>,
+    pub step_mm: Vec<f64>,
+    pub max_feed_mm_per_min: f64,
+    pub max_normal_accel_mm_per_s2: f64,
+    pub max_tangential_accel_mm_per_s2: f64,
+}
+
+impl MachineConfig {
+    /// The axis letters as strings, in machine order (for reports).
+    pub fn axis_names(&self) -> Vec<String> {
+        self.axes.iter().map(|a| a.letter().to_string()).collect()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct InterpolationConfig {
+    pub predictor: Predictor,
+    pub segmentation: Segmentation,
+    pub chord_tolerance_mm: f64,
+    pub period_ms: f64,
+    pub max_segment_mm: f64,
+    pub lookahead_segments: usize,
+    pub fluctuation_tolerance: f64,
+    pub max_corrections: u32,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct BufferConfig {
+    pub capacity: usize,
+    pub reserved: usize,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct FineConfig {
+    /// `fine.tick_us`.
+    pub tick: TickPeriod,
+    pub virtual_time: bool,
+    /// SCHED_FIFO priority, 0 for none.
+    pub rt_priority: u8,
+    pub lock_memory: bool,
+    /// CPU to pin the fine interpolation thread to.
+    pub cpu: Option<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputConfig {
+    pub kind: OutputKind,
+    pub path: PathBuf,
+    /// Log the output's state changes.
+    pub trace: bool,
+    /// Fail every write from this tick on (testing aid).
+    pub fault_at_tick: Option<u64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct GapConfig {
+    pub kind: GapKind,
+    pub script: PathBuf,
+    /// Log the gap state's changes.
+    pub trace: bool,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServoConfig {
+    pub normal_feed_mm_per_min: f64,
+    pub open_feed_mm_per_min: f64,
+    pub retract_feed_mm_per_min: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct DaemonConfig {
+    pub socket: PathBuf,
+    /// Permission bits of the socket.
+    pub socket_mode: u32,
+    /// Group owning the socket (`None`: the daemon's own).
+    pub socket_group: Option<String>,
+    pub program_dir: PathBuf,
+    pub checkpoint: PathBuf,
+    /// Checkpoint period while cutting (s); `None`: only at standstills.
+    pub checkpoint_interval_s: Option<f64>,
+    /// Period of the status line in the log (s); `None`: no periodic line.
+    pub status_interval_s: Option<f64>,
+    /// Control connections served at once; more are refused with an error reply.
+    pub max_clients: usize,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogConfig {
+    pub level: LogLevel,
+    pub format: LogFormat,
+}
+
+/// Every key of a configuration, `section.key` → its value as TOML text, in key order.
+pub type KeyValues = std::collections::BTreeMap<String, String>;
+
+/// A configuration every rule of which has been checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    pub machine: MachineConfig,
+    pub interpolation: InterpolationConfig,
+    pub buffer: BufferConfig,
+    pub fine: FineConfig,
+    pub output: OutputConfig,
+    pub gap: GapConfig,
+    pub parport: ParportConfig,
+    pub servo: ServoConfig,
+    pub sim: SimConfig,
+    pub daemon: DaemonConfig,
+    pub log: LogConfig,
+}
+
+impl Default for Config {
+    /// The shipped default (`config/edmd.toml`).
+    fn default() -> Self {
+        Config::from_toml_str(DEFAULT_CONFIG_TOML, "<built-in default>", &[])
+            .expect("the shipped default configuration is valid")
+    }
+}
+
+impl Config {
+    /// Loads `path` (or the shipped default when `path` is `None`) and applies `overrides`
+    /// (`section.key=value` strings, in order).
+    pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Config, ConfigError> {
+        Config::load_with_keys(path, overrides).map(|(config, _)| config)
+    }
+
+    /// [`load`](Self::load), also returning every key's value (`section.key` → TOML text),
+    /// defaults included: what a reload compares.
+    pub fn load_with_keys(
+        path: Option<&Path>,
+        overrides: &[String],
+    ) -> Result<(Config, KeyValues), ConfigError> {
+        match path {
+            None => Config::parse(DEFAULT_CONFIG_TOML, "<built-in default>", overrides),
+            Some(path) => {
+                let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+                Config::parse(&text, &path.display().to_string(), overrides)
+            }
+        }
+    }
+
+    /// Parses and validates configuration text; `source` names it in error messages.
+    pub fn from_toml_str(
+        text: &str,
+        source: &str,
+        overrides: &[String],
+    ) -> Result<Config, ConfigError> {
+        Config::parse(text, source, overrides).map(|(config, _)| config)
+    }
+
+    fn parse(
+        text: &str,
+        source: &str,
+        overrides: &[String],
+    ) -> Result<(Config, KeyValues), ConfigError> {
+        let mut origins = Origins::default();
+        let user = parse_user_table(text, source, &mut origins)?;
+        let mut merged = default_table();
+        overlay(&mut merged, user, source, &origins)?;
+        for arg in overrides {
+            apply_override(&mut merged, arg, &mut origins)?;
+        }
+        let mut keys = KeyValues::new();
+        for (section, table) in &merged {
+            if let Some(table) = table.as_table() {
+                for (key, value) in table {
+                    keys.insert(format!("{section}.{key}"), value.to_string());
+                }
+            }
+        }
+        let raw: RawConfig =
+            serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|err| {
+                let key = err.path().to_string();
+                ConfigError::Invalid {
+                    origin: origins.describe(&key, source),
+                    message: format!("{key}: {}", err.inner().message()),
+                }
+            })?;
+        let config = raw
+            .validate()
+            .map_err(|(key, message)| ConfigError::Invalid {
+                origin: origins.describe(key, source),
+                message: format!("{key}: {message}"),
+            })?;
+        Ok((config, keys))
+    }
+}

@@ -1,0 +1,140 @@
+//! The raw layer: whatever serde can read from the merged TOML table, before any rule is
+//! checked. One struct per section, `deny_unknown_fields` on each (the overlay already
+//! refuses keys the shipped default lacks; this is the second lock). Numbers stay `i64`
+//! here so that a negative or huge value reaches validation and gets a worded error.
+
+use serde::Deserialize;
+
+use super::{GapKind, LogFormat, LogLevel, OutputKind};
+use crate::vocab::{Predictor, Segmentation};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawConfig {
+    pub(super) machine: RawMachine,
+    pub(super) interpolation: RawInterpolation,
+    pub(super) buffer: RawBuffer,
+    pub(super) fine: RawFine,
+    pub(super) output: RawOutput,
+    pub(super) gap: RawGap,
+    pub(super) parport: RawParport,
+    pub(super) servo: RawServo,
+    pub(super) sim: RawSim,
+    pub(super) daemon: RawDaemon,
+    pub(super) log: RawLog,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMachine {
+    pub(super) axes: Vec<String>,
+    pub(super) step_mm: Vec<f64>,
+    pub(super) max_feed_mm_per_min: f64,
+    pub(super) max_normal_accel_mm_per_s2: f64,
+    pub(super) max_tangential_accel_mm_per_s2: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawInterpolation {
+    pub(super) predictor: Predictor,
+    pub(super) segmentation: Segmentation,
+    pub(super) chord_tolerance_mm: f64,
+    pub(super) period_ms: f64,
+    pub(super) max_segment_mm: f64,
+    pub(super) lookahead_segments: i64,
+    pub(super) fluctuation_tolerance: f64,
+    pub(super) max_corrections: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawBuffer {
+    pub(super) capacity: i64,
+    pub(super) reserved: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawFine {
+    pub(super) tick_us: i64,
+    pub(super) virtual_time: bool,
+    pub(super) rt_priority: i64,
+    pub(super) lock_memory: bool,
+    pub(super) cpu: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawOutput {
+    pub(super) kind: OutputKind,
+    pub(super) path: String,
+    pub(super) trace: bool,
+    pub(super) fault_at_tick: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawGap {
+    pub(super) kind: GapKind,
+    pub(super) script: String,
+    pub(super) trace: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawParport {
+    pub(super) step_pins: Vec<i64>,
+    pub(super) dir_pins: Vec<i64>,
+    pub(super) enable_pin: i64,
+    pub(super) invert_pins: Vec<i64>,
+    pub(super) step_length_ns: i64,
+    pub(super) step_space_ns: i64,
+    pub(super) dir_setup_ns: i64,
+    pub(super) dir_hold_ns: i64,
+    pub(super) short_pin: i64,
+    pub(super) open_pin: i64,
+    pub(super) gap_filter_ticks: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawServo {
+    pub(super) normal_feed_mm_per_min: f64,
+    pub(super) open_feed_mm_per_min: f64,
+    pub(super) retract_feed_mm_per_min: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawSim {
+    pub(super) seed: i64,
+    pub(super) initial_gap_um: f64,
+    pub(super) short_gap_um: f64,
+    pub(super) open_gap_um: f64,
+    pub(super) erosion_mm_per_min: f64,
+    pub(super) debris_shorts: i64,
+    pub(super) debris_shorts_per_s: f64,
+    pub(super) debris_clear_um: f64,
+    pub(super) events: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawDaemon {
+    pub(super) socket: String,
+    pub(super) socket_mode: String,
+    pub(super) socket_group: String,
+    pub(super) program_dir: String,
+    pub(super) checkpoint: String,
+    pub(super) checkpoint_interval_s: f64,
+    pub(super) status_interval_s: f64,
+    pub(super) max_clients: i64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawLog {
+    pub(super) level: LogLevel,
+    pub(super) format: LogFormat,
+}

@@ -1,0 +1,87 @@
+//! The hand-down: the validated configuration turned into each lower floor's own settings,
+//! as plain values in the units that floor computes in (mm, s, mm/s, steps).
+//!
+//! The floors below `config` never see a [`Config`]: each defines the settings it takes
+//! (`PlanSettings`, `FineSettings`, `SimSettings`, `PinMap`, `StepTiming`) and this module
+//! is the only place they are read out of one. Their `from_config` constructors live here,
+//! beside the keys they read, so a renamed key or a unit change is one edit in one file.
+
+use super::Config;
+use crate::fine::FineSettings;
+use crate::geometry::MAX_AXES;
+use crate::parport::{PinMap, StepTiming};
+use crate::preprocess::PlanSettings;
+use crate::servo::Feeds;
+use crate::sim::SimSettings;
+
+/// `machine.step_mm` as a fixed array, unused axes 0.
+pub(super) fn step_mm(config: &Config) -> [f64; MAX_AXES] {
+    let mut step_mm = [0.0; MAX_AXES];
+    for (slot, &s) in step_mm.iter_mut().zip(&config.machine.step_mm) {
+        *slot = s;
+    }
+    step_mm
+}
+
+impl PlanSettings {
+    /// The preprocessor's settings: `[interpolation]` and the machine's limits, per second.
+    pub fn from_config(config: &Config) -> PlanSettings {
+        let m = &config.machine;
+        let i = &config.interpolation;
+        PlanSettings {
+            predictor: i.predictor,
+            segmentation: i.segmentation,
+            tolerance: i.chord_tolerance_mm,
+            max_segment: i.max_segment_mm,
+            period: i.period_ms / 1000.0,
+            max_feed: m.max_feed_mm_per_min / 60.0,
+            max_normal_accel: m.max_normal_accel_mm_per_s2,
+            max_tangential_accel: m.max_tangential_accel_mm_per_s2,
+            lookahead: i.lookahead_segments,
+            fluctuation_tolerance: i.fluctuation_tolerance,
+            max_corrections: i.max_corrections,
+        }
+    }
+}
+
+impl FineSettings {
+    /// The tick core's settings: the tick, `a_T`, the servo's feeds per second, step sizes.
+    pub fn from_config(config: &Config) -> FineSettings {
+        let servo = &config.servo;
+        FineSettings {
+            dt: config.fine.tick.secs(),
+            accel: config.machine.max_tangential_accel_mm_per_s2,
+            feeds: Feeds {
+                normal: servo.normal_feed_mm_per_min / 60.0,
+                open: servo.open_feed_mm_per_min / 60.0,
+                retract: servo.retract_feed_mm_per_min / 60.0,
+            },
+            step_mm: step_mm(config),
+        }
+    }
+}
+
+impl SimSettings {
+    /// The simulated gap's settings: `[sim]`, the step sizes and the tick.
+    pub fn from_config(config: &Config) -> SimSettings {
+        SimSettings {
+            params: config.sim.clone(),
+            step_mm: step_mm(config),
+            tick: config.fine.tick,
+        }
+    }
+}
+
+impl PinMap {
+    /// The pin map of `config` (`[parport]` for `machine.axes`).
+    pub fn from_config(config: &Config) -> PinMap {
+        PinMap::new(config.machine.axes.len(), &config.parport)
+    }
+}
+
+impl StepTiming {
+    /// The drives' step timing of `config` (`[parport]`).
+    pub fn from_config(config: &Config) -> StepTiming {
+        StepTiming::new(&config.parport)
+    }
+}

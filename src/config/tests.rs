@@ -1,0 +1,215 @@
+use super::overrides::line_col;
+use super::*;
+
+fn load(text: &str, overrides: &[&str]) -> Result<Config, String> {
+    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    Config::from_toml_str(text, "edmd.toml", &overrides).map_err(|e| e.to_string())
+}
+
+#[test]
+fn shipped_default_is_valid_and_matches_design() {
+    let c = Config::default();
+    assert_eq!(c.machine.axes, vec![Axis::X, Axis::Y]);
+    assert_eq!(c.machine.step_mm, vec![0.001, 0.001]);
+    assert_eq!(c.interpolation.predictor, Predictor::Taylor);
+    assert_eq!(c.interpolation.segmentation, Segmentation::Chord);
+    assert_eq!(c.buffer.capacity, 1024);
+    assert_eq!(c.buffer.reserved, 256);
+    assert_eq!(c.fine.tick.us(), 50);
+    assert!(c.fine.virtual_time);
+    assert_eq!(c.output.kind, OutputKind::Sim);
+    assert_eq!(c.gap.kind, GapKind::Sim);
+    assert_eq!(c.daemon.socket, PathBuf::from("/run/edmd/edmd.sock"));
+}
+
+#[test]
+fn every_default_key_is_commented_in_the_shipped_file() {
+    // Each `key = value` line is preceded by a comment line (possibly a run of them).
+    let lines: Vec<&str> = DEFAULT_CONFIG_TOML.lines().collect();
+    for (i, line) in lines.iter().enumerate() {
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') || t.starts_with('[') {
+            continue;
+        }
+        assert!(
+            i > 0 && lines[i - 1].trim().starts_with('#'),
+            "line {} `{t}` has no comment above it",
+            i + 1
+        );
+    }
+}
+
+#[test]
+fn a_partial_file_keeps_the_other_defaults() {
+    let c = load("[buffer]\ncapacity = 64\nreserved = 16\n", &[]).unwrap();
+    assert_eq!(c.buffer.capacity, 64);
+    assert_eq!(c.machine, Config::default().machine);
+}
+
+#[test]
+fn unknown_key_is_named_with_its_line() {
+    let err = load("[buffer]\ncapacity = 64\ncapcity = 3\n", &[]).unwrap_err();
+    assert!(
+        err.starts_with("edmd.toml:3:1: unknown key `capcity` in [buffer]"),
+        "{err}"
+    );
+    let err = load("\n[bufer]\n", &[]).unwrap_err();
+    assert!(
+        err.starts_with("edmd.toml:2:2: unknown section [bufer]"),
+        "{err}"
+    );
+}
+
+#[test]
+fn validation_errors_point_at_the_key() {
+    let err = load("[buffer]\ncapacity = 100\nreserved = 100\n", &[]).unwrap_err();
+    assert!(
+        err.starts_with("edmd.toml:3:1: buffer.reserved: must be at least 0 and less than"),
+        "{err}"
+    );
+    let err = load("[machine]\nstep_mm = [0.001, 0.0]\n", &[]).unwrap_err();
+    assert!(
+        err.starts_with("edmd.toml:2:1: machine.step_mm: must be a finite number greater than 0"),
+        "{err}"
+    );
+    let err = load("[interpolation]\nchord_tolerance_mm = -1\n", &[]).unwrap_err();
+    assert!(
+        err.contains("edmd.toml:2:1: interpolation.chord_tolerance_mm"),
+        "{err}"
+    );
+    let err = load("[machine]\naxes = [\"X\", \"Q\"]\nstep_mm = [1, 1]\n", &[]).unwrap_err();
+    assert!(err.contains("\"Q\" is not an axis"), "{err}");
+    let err = load("[machine]\naxes = [\"X\", \"Y\", \"Z\"]\n", &[]).unwrap_err();
+    assert!(
+        err.contains("machine.step_mm: has 2 values but machine.axes has 3"),
+        "{err}"
+    );
+}
+
+#[test]
+fn type_errors_and_bad_enum_values_are_located() {
+    let err = load("[buffer]\ncapacity = \"big\"\n", &[]).unwrap_err();
+    assert!(
+        err.starts_with("edmd.toml:2:1: buffer.capacity: invalid type"),
+        "{err}"
+    );
+    let err = load("[interpolation]\npredictor = \"adams\"\n", &[]).unwrap_err();
+    assert!(
+        err.contains("edmd.toml:2:1: interpolation.predictor: unknown variant `adams`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn syntax_errors_carry_line_and_column() {
+    let err = load("[buffer]\ncapacity = = 3\n", &[]).unwrap_err();
+    assert!(err.starts_with("edmd.toml:2:"), "{err}");
+}
+
+#[test]
+fn overrides_apply_in_order_and_are_validated() {
+    let c = load(
+        "",
+        &[
+            "buffer.capacity=64",
+            "buffer.reserved=8",
+            "output.kind=file",
+            "machine.axes=[\"X\",\"Y\",\"Z\"]",
+            "machine.step_mm=[0.001,0.001,0.0005]",
+            "buffer.capacity=128",
+        ],
+    )
+    .unwrap();
+    assert_eq!(c.buffer.capacity, 128);
+    assert_eq!(c.output.kind, OutputKind::File);
+    assert_eq!(c.machine.axes.len(), 3);
+    let err = load("", &["buffer.reserved=5000"]).unwrap_err();
+    assert!(
+        err.starts_with("--set buffer.reserved=5000: buffer.reserved"),
+        "{err}"
+    );
+    let err = load("", &["buffer.size=5"]).unwrap_err();
+    assert!(err.contains("unknown key `size` in [buffer]"), "{err}");
+    let err = load("", &["capacity=5"]).unwrap_err();
+    assert!(err.contains("not of the form section.key"), "{err}");
+    let err = load("", &["fine.tick_us=fast"]).unwrap_err();
+    assert!(
+        err.starts_with("--set fine.tick_us=fast: fine.tick_us: invalid type"),
+        "{err}"
+    );
+}
+
+#[test]
+fn cross_key_rules() {
+    let err = load("[output]\nkind = \"parport\"\n", &[]).unwrap_err();
+    assert!(err.contains("fine.virtual_time: must be false"), "{err}");
+    let err = load("[gap]\nkind = \"parport\"\n", &[]).unwrap_err();
+    assert!(err.contains("gap.kind"), "{err}");
+}
+
+#[test]
+fn parport_pins_and_timing_are_checked() {
+    const PORT: &str = "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n";
+    let c = load(PORT, &[]).unwrap();
+    assert_eq!(c.parport.step_pins, [2, 4, 6, 8]);
+    assert_eq!(c.parport.dir_pins, [3, 5, 7, 9]);
+    assert_eq!(
+        (c.parport.short_pin, c.parport.open_pin),
+        (Some(10), Some(11))
+    );
+    assert_eq!(c.parport.enable_pin, None);
+    let err = |text: &str, sets: &[&str]| load(text, sets).unwrap_err();
+    assert!(
+        err("[parport]\ninvert_pins = [20]\n", &[]).contains("20 is not a signal pin"),
+        "ground pins cannot be inverted"
+    );
+    assert!(err("[parport]\ninvert_pins = [2, 2]\n", &[]).contains("pin 2 is listed twice"));
+    assert!(
+        err("[parport]\nenable_pin = 9\n", &[])
+            .contains("parport.enable_pin: pin 9 is already used by parport.dir_pins")
+    );
+    assert!(err("[parport]\nopen_pin = 10\n", &[]).contains("already used by parport.short_pin"));
+    assert!(err("[parport]\nstep_length_ns = 0\n", &[]).contains("parport.step_length_ns"));
+    // Axis count and timing only matter when the port is in use.
+    let four_axes = [
+        "machine.axes=[\"X\",\"Y\",\"Z\",\"A\",\"B\"]",
+        "machine.step_mm=[0.001,0.001,0.001,0.001,0.001]",
+    ];
+    load("", &four_axes).unwrap();
+    let e = err(PORT, &four_axes);
+    assert!(
+        e.contains("parport.step_pins: has 4 pins but machine.axes has 5 axes"),
+        "{e}"
+    );
+    load("", &["fine.tick_us=10"]).unwrap();
+    let e = err(PORT, &["fine.tick_us=40"]);
+    assert!(e.contains("raise fine.tick_us to at least 45"), "{e}");
+    let e = err(
+        "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n[gap]\nkind = \"parport\"\n",
+        &["parport.short_pin=0", "parport.open_pin=0"],
+    );
+    assert!(
+        e.contains("needs parport.short_pin or parport.open_pin"),
+        "{e}"
+    );
+}
+
+#[test]
+fn line_col_counts_characters() {
+    assert_eq!(line_col("ab\ncµd", 6), (2, 3));
+    assert_eq!(line_col("ab\ncµd", 5), (2, 2)); // inside µ: rounds down, no panic
+    assert_eq!(line_col("", 0), (1, 1));
+}
+
+#[test]
+fn the_shipped_defaults_hand_down_what_the_lower_floors_unit_tests_assume() {
+    // sim's unit tests build their settings by hand, from these same defaults.
+    let c = Config::default();
+    assert_eq!(
+        crate::sim::SimSettings::from_config(&c),
+        crate::sim::tests::settings(&[])
+    );
+    let fine = crate::fine::FineSettings::from_config(&c);
+    assert_eq!(fine.dt, c.fine.tick.secs());
+    assert_eq!(fine.feeds.normal, c.servo.normal_feed_mm_per_min / 60.0);
+}

@@ -1,0 +1,423 @@
+//! Validation: the raw layer in, the [`Config`] the rest of edmd trusts out. Each failure is
+//! the offending key and what is wrong; [`Config::parse`](super::Config) attaches where the
+//! value came from.
+
+use std::path::PathBuf;
+
+use super::raw::{RawConfig, RawParport};
+use super::*;
+use crate::geometry::MAX_AXES;
+use crate::parport::StepTiming;
+use crate::parport::pins::{is_input_pin, is_output_pin};
+
+type Invalid = (&'static str, String);
+
+fn positive(key: &'static str, value: f64) -> Result<f64, Invalid> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err((
+            key,
+            format!("must be a finite number greater than 0, got {value}"),
+        ))
+    }
+}
+
+fn in_range(key: &'static str, value: i64, lo: i64, hi: i64) -> Result<i64, Invalid> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err((key, format!("must be {lo} to {hi}, got {value}")))
+    }
+}
+
+fn non_empty(key: &'static str, value: String) -> Result<PathBuf, Invalid> {
+    if value.trim().is_empty() {
+        Err((key, "must not be empty".to_string()))
+    } else {
+        Ok(PathBuf::from(value))
+    }
+}
+
+impl RawConfig {
+    pub(super) fn validate(self) -> Result<Config, Invalid> {
+        let m = self.machine;
+        if m.axes.is_empty() || m.axes.len() > MAX_AXES {
+            return Err((
+                "machine.axes",
+                format!("must list 1 to {} axes, got {}", MAX_AXES, m.axes.len()),
+            ));
+        }
+        let mut axes = Vec::with_capacity(m.axes.len());
+        for name in &m.axes {
+            let axis = match name.trim().to_ascii_uppercase().as_str() {
+                s if s.chars().count() == 1 => Axis::from_letter(s.chars().next().unwrap_or(' ')),
+                _ => None,
+            }
+            .ok_or_else(|| {
+                (
+                    "machine.axes",
+                    format!("\"{name}\" is not an axis; use X, Y, Z, A, B, C, U or V"),
+                )
+            })?;
+            if axes.contains(&axis) {
+                return Err(("machine.axes", format!("axis {axis} is listed twice")));
+            }
+            axes.push(axis);
+        }
+        if m.step_mm.len() != axes.len() {
+            return Err((
+                "machine.step_mm",
+                format!(
+                    "has {} values but machine.axes has {} axes; give one step size per axis",
+                    m.step_mm.len(),
+                    axes.len()
+                ),
+            ));
+        }
+        for &s in &m.step_mm {
+            positive("machine.step_mm", s)?;
+        }
+        let machine = MachineConfig {
+            axes,
+            step_mm: m.step_mm,
+            max_feed_mm_per_min: positive("machine.max_feed_mm_per_min", m.max_feed_mm_per_min)?,
+            max_normal_accel_mm_per_s2: positive(
+                "machine.max_normal_accel_mm_per_s2",
+                m.max_normal_accel_mm_per_s2,
+            )?,
+            max_tangential_accel_mm_per_s2: positive(
+                "machine.max_tangential_accel_mm_per_s2",
+                m.max_tangential_accel_mm_per_s2,
+            )?,
+        };
+
+        let i = self.interpolation;
+        let interpolation = InterpolationConfig {
+            predictor: i.predictor,
+            segmentation: i.segmentation,
+            chord_tolerance_mm: positive("interpolation.chord_tolerance_mm", i.chord_tolerance_mm)?,
+            period_ms: positive("interpolation.period_ms", i.period_ms)?,
+            max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm)?,
+            lookahead_segments: in_range(
+                "interpolation.lookahead_segments",
+                i.lookahead_segments,
+                2,
+                1 << 20,
+            )? as usize,
+            fluctuation_tolerance: positive(
+                "interpolation.fluctuation_tolerance",
+                i.fluctuation_tolerance,
+            )?,
+            max_corrections: in_range("interpolation.max_corrections", i.max_corrections, 1, 64)?
+                as u32,
+        };
+
+        let b = self.buffer;
+        const MAX_CAPACITY: i64 = 1 << 24;
+        if !(2..=MAX_CAPACITY).contains(&b.capacity) {
+            return Err((
+                "buffer.capacity",
+                format!("must be 2 to {MAX_CAPACITY} blocks, got {}", b.capacity),
+            ));
+        }
+        if b.reserved < 0 || b.reserved >= b.capacity {
+            return Err((
+                "buffer.reserved",
+                format!(
+                    "must be at least 0 and less than buffer.capacity ({}), got {}",
+                    b.capacity, b.reserved
+                ),
+            ));
+        }
+        let buffer = BufferConfig {
+            capacity: b.capacity as usize,
+            reserved: b.reserved as usize,
+        };
+
+        let f = self.fine;
+        let tick = u32::try_from(f.tick_us)
+            .ok()
+            .and_then(TickPeriod::from_us)
+            .ok_or_else(|| {
+                (
+                    "fine.tick_us",
+                    format!("must be 1 to {} µs, got {}", TickPeriod::MAX_US, f.tick_us),
+                )
+            })?;
+        let fine = FineConfig {
+            tick,
+            virtual_time: f.virtual_time,
+            rt_priority: in_range("fine.rt_priority", f.rt_priority, 0, 99)? as u8,
+            lock_memory: f.lock_memory,
+            cpu: match f.cpu {
+                -1 => None,
+                cpu @ 0..=4095 => Some(cpu as usize),
+                cpu => {
+                    return Err((
+                        "fine.cpu",
+                        format!("must be -1 (any CPU) or a CPU number 0 to 4095, got {cpu}"),
+                    ));
+                }
+            },
+        };
+
+        let output = OutputConfig {
+            kind: self.output.kind,
+            path: non_empty("output.path", self.output.path)?,
+            trace: self.output.trace,
+            fault_at_tick: match in_range(
+                "output.fault_at_tick",
+                self.output.fault_at_tick,
+                0,
+                i64::MAX,
+            )? {
+                0 => None,
+                tick => Some(tick as u64),
+            },
+        };
+        if output.kind == OutputKind::Parport && fine.virtual_time {
+            return Err((
+                "fine.virtual_time",
+                "must be false with output.kind = \"parport\": virtual time cannot drive real hardware"
+                    .to_string(),
+            ));
+        }
+        let gap = GapConfig {
+            kind: self.gap.kind,
+            script: non_empty("gap.script", self.gap.script)?,
+            trace: self.gap.trace,
+        };
+        if gap.kind == GapKind::Parport && output.kind != OutputKind::Parport {
+            return Err((
+                "gap.kind",
+                "\"parport\" reads the status pins of the output port and needs output.kind = \"parport\""
+                    .to_string(),
+            ));
+        }
+
+        let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
+
+        let s = self.servo;
+        let servo = ServoConfig {
+            normal_feed_mm_per_min: positive(
+                "servo.normal_feed_mm_per_min",
+                s.normal_feed_mm_per_min,
+            )?,
+            open_feed_mm_per_min: positive("servo.open_feed_mm_per_min", s.open_feed_mm_per_min)?,
+            retract_feed_mm_per_min: positive(
+                "servo.retract_feed_mm_per_min",
+                s.retract_feed_mm_per_min,
+            )?,
+        };
+
+        let m = self.sim;
+        let non_negative = |key: &'static str, value: f64| {
+            if value.is_finite() && value >= 0.0 {
+                Ok(value)
+            } else {
+                Err((key, format!("must be a finite number >= 0, got {value}")))
+            }
+        };
+        let short_gap = positive("sim.short_gap_um", m.short_gap_um)?;
+        let open_gap = positive("sim.open_gap_um", m.open_gap_um)?;
+        if open_gap <= short_gap {
+            return Err((
+                "sim.open_gap_um",
+                format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
+            ));
+        }
+        let sim = SimConfig {
+            seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
+            initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
+            short_gap_mm: short_gap / 1000.0,
+            open_gap_mm: open_gap / 1000.0,
+            erosion_mm_per_s: positive("sim.erosion_mm_per_min", m.erosion_mm_per_min)? / 60.0,
+            debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
+            debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
+            debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um)? / 1000.0,
+            events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
+        };
+        let d = self.daemon;
+        let daemon = DaemonConfig {
+            socket: non_empty("daemon.socket", d.socket)?,
+            socket_mode: u32::from_str_radix(d.socket_mode.trim_start_matches("0o"), 8)
+                .ok()
+                .filter(|m| *m <= 0o777)
+                .ok_or((
+                    "daemon.socket_mode",
+                    format!(
+                        "{:?} is not an octal permission like \"0660\"",
+                        d.socket_mode
+                    ),
+                ))?,
+            socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
+            program_dir: non_empty("daemon.program_dir", d.program_dir)?,
+            checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
+            checkpoint_interval_s: (non_negative(
+                "daemon.checkpoint_interval_s",
+                d.checkpoint_interval_s,
+            )? > 0.0)
+                .then_some(d.checkpoint_interval_s),
+            status_interval_s: (non_negative("daemon.status_interval_s", d.status_interval_s)?
+                > 0.0)
+                .then_some(d.status_interval_s),
+            max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
+        };
+        let log = LogConfig {
+            level: self.log.level,
+            format: self.log.format,
+        };
+        Ok(Config {
+            machine,
+            interpolation,
+            buffer,
+            fine,
+            output,
+            gap,
+            parport,
+            servo,
+            sim,
+            daemon,
+            log,
+        })
+    }
+}
+
+impl RawParport {
+    /// Pins must exist and be of the right kind, and no pin may carry two signals, whatever
+    /// the output; the number of axes and the timing against the tick only matter when the
+    /// port is in use (a simulation with a short tick must not trip over the port's timing).
+    fn validate(
+        self,
+        machine: &MachineConfig,
+        fine: &FineConfig,
+        output: &OutputConfig,
+        gap: &GapConfig,
+    ) -> Result<ParportConfig, Invalid> {
+        const OUTPUTS: &str = "an output pin: 1-9, 14, 16 or 17";
+        const INPUTS: &str = "an input pin: 10, 11, 12, 13 or 15";
+        let output_pin = |key: &'static str, pin: i64| {
+            if is_output_pin(pin) {
+                Ok(pin as u8)
+            } else {
+                Err((key, format!("{pin} is not {OUTPUTS}")))
+            }
+        };
+        let optional = |key: &'static str, pin: i64, ok: fn(i64) -> bool, what: &str| match pin {
+            0 => Ok(None),
+            p if ok(p) => Ok(Some(p as u8)),
+            p => Err((key, format!("{p} is not {what} (or 0 for none)"))),
+        };
+        let step_pins = self
+            .step_pins
+            .iter()
+            .map(|&p| output_pin("parport.step_pins", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let dir_pins = self
+            .dir_pins
+            .iter()
+            .map(|&p| output_pin("parport.dir_pins", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let enable_pin = optional(
+            "parport.enable_pin",
+            self.enable_pin,
+            is_output_pin,
+            OUTPUTS,
+        )?;
+        let short_pin = optional("parport.short_pin", self.short_pin, is_input_pin, INPUTS)?;
+        let open_pin = optional("parport.open_pin", self.open_pin, is_input_pin, INPUTS)?;
+        let mut seen: Vec<(u8, &'static str)> = Vec::new();
+        let signals = step_pins
+            .iter()
+            .map(|&p| (p, "parport.step_pins"))
+            .chain(dir_pins.iter().map(|&p| (p, "parport.dir_pins")))
+            .chain(enable_pin.map(|p| (p, "parport.enable_pin")))
+            .chain(short_pin.map(|p| (p, "parport.short_pin")))
+            .chain(open_pin.map(|p| (p, "parport.open_pin")));
+        for (pin, key) in signals {
+            if let Some((_, first)) = seen.iter().find(|(p, _)| *p == pin) {
+                return Err((key, format!("pin {pin} is already used by {first}")));
+            }
+            seen.push((pin, key));
+        }
+        let mut invert_pins = Vec::with_capacity(self.invert_pins.len());
+        for &pin in &self.invert_pins {
+            if !is_output_pin(pin) && !is_input_pin(pin) {
+                return Err((
+                    "parport.invert_pins",
+                    format!("{pin} is not a signal pin (1-17; 18-25 are ground)"),
+                ));
+            }
+            if invert_pins.contains(&(pin as u8)) {
+                return Err(("parport.invert_pins", format!("pin {pin} is listed twice")));
+            }
+            invert_pins.push(pin as u8);
+        }
+        let ns = |key: &'static str, v: i64| in_range(key, v, 0, 1_000_000_000).map(|v| v as u64);
+        let p = ParportConfig {
+            step_pins,
+            dir_pins,
+            enable_pin,
+            invert_pins,
+            step_length_ns: in_range(
+                "parport.step_length_ns",
+                self.step_length_ns,
+                1,
+                1_000_000_000,
+            )? as u64,
+            step_space_ns: ns("parport.step_space_ns", self.step_space_ns)?,
+            dir_setup_ns: ns("parport.dir_setup_ns", self.dir_setup_ns)?,
+            dir_hold_ns: ns("parport.dir_hold_ns", self.dir_hold_ns)?,
+            short_pin,
+            open_pin,
+            gap_filter_ticks: in_range("parport.gap_filter_ticks", self.gap_filter_ticks, 1, 1000)?
+                as u32,
+        };
+        if output.kind == OutputKind::Parport {
+            let axes = machine.axes.len();
+            for (key, pins) in [
+                ("parport.step_pins", &p.step_pins),
+                ("parport.dir_pins", &p.dir_pins),
+            ] {
+                if pins.len() < axes {
+                    return Err((
+                        key,
+                        format!(
+                            "has {} pins but machine.axes has {axes} axes; give one pin per axis",
+                            pins.len()
+                        ),
+                    ));
+                }
+            }
+            let timing = StepTiming {
+                step_length_ns: p.step_length_ns,
+                step_space_ns: p.step_space_ns,
+                dir_setup_ns: p.dir_setup_ns,
+                dir_hold_ns: p.dir_hold_ns,
+            };
+            if timing.min_tick_ns() > fine.tick.ns() {
+                return Err((
+                    "fine.tick_us",
+                    format!(
+                        "{} µs is too short for the drives' step timing: dir_setup_ns + \
+                         step_length_ns + dir_hold_ns = {} ns and step_length_ns + step_space_ns \
+                         = {} ns must both fit in one tick; raise fine.tick_us to at least {} or \
+                         shorten the [parport] times",
+                        fine.tick.us(),
+                        p.dir_setup_ns + p.step_length_ns + p.dir_hold_ns,
+                        p.step_length_ns + p.step_space_ns,
+                        timing.min_tick_ns().div_ceil(1000)
+                    ),
+                ));
+            }
+        }
+        if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
+            return Err((
+                "parport.short_pin",
+                "gap.kind = \"parport\" needs parport.short_pin or parport.open_pin".to_string(),
+            ));
+        }
+        Ok(p)
+    }
+}

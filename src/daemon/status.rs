@@ -1,0 +1,130 @@
+//! What the daemon reports: its state, the [`Status`] a client receives, the periodic
+//! status line of the log and systemd's `STATUS=`. Read-only views of the control loop's
+//! state and of the running job's seqlocked snapshot.
+
+use std::sync::atomic::Ordering;
+
+use super::Core;
+use super::protocol::{CheckpointStatus, DaemonState, JobStatus, Status};
+use crate::runtime;
+
+impl Core {
+    pub(super) fn state(&self) -> DaemonState {
+        match &self.job {
+            None => DaemonState::Idle,
+            Some(job) => {
+                let snap = job.published.snapshot();
+                if job.stop.load(Ordering::Relaxed) {
+                    DaemonState::Stopping
+                } else if job.published.hold.load(Ordering::Relaxed) {
+                    if snap.still {
+                        DaemonState::Held
+                    } else {
+                        DaemonState::Holding
+                    }
+                } else {
+                    DaemonState::Running
+                }
+            }
+        }
+    }
+
+    pub(super) fn status(&self) -> Status {
+        let config = &self.config;
+        let job = self.job.as_ref().map(|job| {
+            let p = &job.published;
+            let snap = p.snapshot();
+            let axes = job.config.machine.axes.len();
+            let samples = p.latency_samples.load(Ordering::Relaxed);
+            JobStatus {
+                program: job.program.display().to_string(),
+                line: snap.line,
+                segment: snap.here.seq,
+                step: snap.here.event,
+                parameter: snap.u_end.is_finite().then_some(snap.u_end),
+                servo: snap.state.name().to_string(),
+                position_steps: snap.position[..axes].to_vec(),
+                position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
+                feed_mm_per_min: snap.speed * 60.0,
+                buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
+                buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
+                buffer_capacity: job.config.buffer.capacity as u64,
+                shorts: snap.servo.shorts,
+                turn_backs: snap.servo.turn_backs,
+                deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
+                alarms: snap.servo.alarms,
+                starvations: snap.servo.starvations,
+                overruns: p.overruns.load(Ordering::Relaxed),
+                pulses: snap.pulses[..axes].to_vec(),
+                ticks: snap.tick,
+                machine_time_s: job.config.fine.tick.ticks_to_secs(snap.tick),
+                elapsed_s: job.started.elapsed().as_secs_f64(),
+                latency_mean_us: (samples > 0).then(|| {
+                    p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
+                }),
+                latency_max_us: (samples > 0)
+                    .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
+                resumed: job.resumed,
+            }
+        });
+        Status {
+            state: self.state(),
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            uptime_s: self.started.elapsed().as_secs_f64(),
+            axes: config.machine.axis_names(),
+            job,
+            last_job: self.last.clone(),
+            checkpoint: self.checkpoint.as_ref().map(|c| CheckpointStatus {
+                program: c.program.display().to_string(),
+                line: c.line,
+                reason: c.reason.name().to_string(),
+                still: c.still,
+                position_steps: c.position_steps.clone(),
+            }),
+            rt_refused: self.fine.rt_refused().to_vec(),
+        }
+    }
+
+    /// One line for the log and systemd's STATUS=.
+    pub(super) fn status_line(&self) -> String {
+        let status = self.status();
+        match &status.job {
+            None => match &self.last {
+                Some(last) => format!("idle; last job {}: {}", last.program, last.outcome.name()),
+                None => "idle".to_string(),
+            },
+            Some(j) => {
+                let position =
+                    runtime::axis_list(&j.position_mm, &status.axes, |x| format!("{x:.4}"));
+                format!(
+                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, buffer {}/{}, {} shorts, \
+                     {} starvations, {} overruns",
+                    status.state.name(),
+                    j.program,
+                    j.line,
+                    j.servo,
+                    j.feed_mm_per_min,
+                    j.buffer_unprocessed,
+                    j.buffer_capacity,
+                    j.shorts,
+                    j.starvations,
+                    j.overruns
+                )
+            }
+        }
+    }
+
+    pub(super) fn notify_status(&self) {
+        if self.notifier.active() {
+            self.notifier.status(&self.status_line());
+        }
+    }
+}
+
+pub(super) fn mm(steps: &[i64], step_mm: &[f64]) -> Vec<f64> {
+    steps
+        .iter()
+        .zip(step_mm)
+        .map(|(s, m)| *s as f64 * m)
+        .collect()
+}

@@ -1,0 +1,141 @@
+//! The G-code word table: what each `G` number means to edmd, its modal group (two words of
+//! one group in a block conflict), and the refusals, each with the reason and what to post
+//! instead. Codes are compared as whole tenths (`G06.2` is 62), never as floats.
+
+use super::Step;
+use crate::gcode::error::GcodeErrorKind;
+use crate::gcode::lexer::Word;
+use crate::gcode::{NurbsForm, Plane};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Motion {
+    Rapid,
+    Linear,
+    Cw,
+    Ccw,
+}
+
+/// What a G word does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum GCode {
+    Motion(Motion),
+    /// G80: cancels the modal motion (it is in the motion group).
+    MotionCancel,
+    Curve(NurbsForm),
+    CurveEnd,
+    Inch(bool),
+    Incremental(bool),
+    ArcCentreAbsolute(bool),
+    Plane(Plane),
+    /// A mode edmd is always in (G40, G49, G54, G61, G64, G94): accepted, nothing to do.
+    Accepted(u8),
+}
+
+impl GCode {
+    /// Modal group: two words of one group in a block conflict.
+    pub(super) fn group(self) -> u8 {
+        match self {
+            GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => 1,
+            GCode::Inch(_) => 2,
+            GCode::Incremental(_) => 3,
+            GCode::ArcCentreAbsolute(_) => 4,
+            GCode::Plane(_) => 5,
+            GCode::Accepted(g) => g,
+        }
+    }
+}
+
+/// `G` number times ten (`G06.2` is 62), so codes compare exactly.
+pub(super) fn g_code_tenths(w: &Word) -> Step<u32> {
+    let tenths = w.value * 10.0;
+    if w.value < 0.0 || (tenths - tenths.round()).abs() > 1e-6 || tenths > 9999.0 {
+        return Err((
+            w.col,
+            GcodeErrorKind::UnknownG {
+                code: w.text.clone(),
+            },
+        )
+            .into());
+    }
+    Ok(tenths.round() as u32)
+}
+
+pub(super) fn g_name(tenths: u32) -> String {
+    if tenths.is_multiple_of(10) {
+        format!("{}", tenths / 10)
+    } else {
+        format!("{}.{}", tenths / 10, tenths % 10)
+    }
+}
+
+pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
+    let unsupported = |why: &'static str| -> Step<GCode> {
+        Err((
+            col,
+            GcodeErrorKind::UnsupportedG {
+                code: g_name(tenths),
+                why,
+            },
+        )
+            .into())
+    };
+    Ok(match tenths {
+        0 => GCode::Motion(Motion::Rapid),
+        10 => GCode::Motion(Motion::Linear),
+        20 => GCode::Motion(Motion::Cw),
+        30 => GCode::Motion(Motion::Ccw),
+        380 => GCode::Curve(NurbsForm::G38),
+        62 => GCode::Curve(NurbsForm::Fanuc),
+        52 => GCode::Curve(NurbsForm::LinuxCnc),
+        53 => GCode::CurveEnd,
+        800 => GCode::MotionCancel,
+        200 => GCode::Inch(true),
+        210 => GCode::Inch(false),
+        900 => GCode::Incremental(false),
+        910 => GCode::Incremental(true),
+        901 => GCode::ArcCentreAbsolute(true),
+        911 => GCode::ArcCentreAbsolute(false),
+        170 => GCode::Plane(Plane::XY),
+        180 => GCode::Plane(Plane::ZX),
+        190 => GCode::Plane(Plane::YZ),
+        400 => GCode::Accepted(7),
+        490 => GCode::Accepted(8),
+        540 => GCode::Accepted(12),
+        610 | 611 | 640 => GCode::Accepted(13),
+        940 => GCode::Accepted(6),
+        410 | 411 | 420 | 421 => {
+            return unsupported(
+                "cutter compensation; post the program with the offset applied (G40)",
+            );
+        }
+        430..=439 => return unsupported("tool length offsets"),
+        930 => return unsupported("inverse time feed; use G94 (units per minute)"),
+        950 => return unsupported("feed per revolution; use G94 (units per minute)"),
+        40 => return unsupported("dwell"),
+        50 | 51 => return unsupported("LinuxCNC splines; use the G5.2/G5.3 NURBS form"),
+        60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
+        70 | 80 => return unsupported("lathe modes"),
+        100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 | 550..=590 | 591..=593 => {
+            return unsupported(
+                "coordinate offsets and homing; edmd works in machine coordinates (G54)",
+            );
+        }
+        330 | 331 | 760 => return unsupported("threading"),
+        382..=385 => {
+            return unsupported(
+                "probing (edmd's G38 without a decimal is the seed-000 NURBS block)",
+            );
+        }
+        730 | 740 | 810..=890 => return unsupported("canned cycles"),
+        960 | 970 => return unsupported("spindle speed modes"),
+        _ => {
+            return Err((
+                col,
+                GcodeErrorKind::UnknownG {
+                    code: g_name(tenths),
+                },
+            )
+                .into());
+        }
+    })
+}

@@ -1,0 +1,331 @@
+//! The modal G-code interpreter: lines in, [`Block`]s out, one at a time.
+//!
+//! This file is the reader's loop: pull a line ([`super::lines`]), lex it
+//! ([`super::lexer`]), index its words by letter, then hand the block to the modal
+//! interpreter ([`modal`]: units, distance mode, plane, feed, lines; the `G` words are
+//! classified by [`codes`]), which passes arcs to [`arc`] and NURBS curves to [`nurbs`] (the
+//! three dialects, collected over several lines until they close). Every failure is a [`Fail`] (column and kind) that the
+//! loop locates (`file:line:col` and the line's text) before it leaves the reader.
+
+mod arc;
+mod codes;
+mod modal;
+mod nurbs;
+
+use std::io::BufRead;
+use std::sync::Arc;
+
+use super::error::{GcodeError, GcodeErrorKind, Warning};
+use super::lexer::{Word, lex};
+use super::lines::{Line, LineSource, MAX_LINE_BYTES};
+use super::{Block, Plane};
+use crate::geometry::Point;
+use crate::vocab::Axis;
+use modal::Modal;
+use nurbs::PendingCurve;
+
+pub use arc::ARC_RADIUS_TOLERANCE_MM;
+
+/// Most control points in one NURBS curve: a curve is held whole until it closes.
+pub const MAX_CURVE_POINTS: usize = 100_000;
+/// How close the first control point of a curve must be to the current position, mm.
+pub const CURVE_START_TOLERANCE_MM: f64 = 0.0005;
+pub(super) const MM_PER_INCH: f64 = 25.4;
+/// Largest coordinate magnitude accepted, mm.
+pub(super) const MAX_COORD_MM: f64 = 1.0e6;
+
+/// A failure inside the interpreter, before the location is attached. `at` is `None` for the
+/// current line, or another line (the start of a curve) with its text.
+pub(super) struct Fail {
+    pub(super) col: usize,
+    pub(super) kind: GcodeErrorKind,
+    pub(super) at: Option<(u64, String)>,
+}
+
+impl From<(usize, GcodeErrorKind)> for Fail {
+    fn from((col, kind): (usize, GcodeErrorKind)) -> Self {
+        Fail {
+            col,
+            kind,
+            at: None,
+        }
+    }
+}
+
+pub(super) type Step<T> = Result<T, Fail>;
+
+/// The words of one block, looked up by letter.
+pub(super) struct Letters<'w> {
+    by_letter: [Option<&'w Word>; 26],
+}
+
+impl<'w> Letters<'w> {
+    pub(super) fn get(&self, letter: char) -> Option<&'w Word> {
+        self.by_letter[(letter as u8 - b'A') as usize]
+    }
+
+    pub(super) fn present(&self) -> impl Iterator<Item = &'w Word> + '_ {
+        self.by_letter.iter().flatten().copied()
+    }
+}
+
+/// Reads a program one block at a time. See the module docs of [`crate::gcode`].
+pub struct BlockReader<R> {
+    lines: LineSource<R>,
+    source_name: Arc<str>,
+    axes: Vec<Axis>,
+    modal: Modal,
+    position: Point,
+    pending: Option<PendingCurve>,
+    warnings: Vec<Warning>,
+    warned_letters: Vec<char>,
+    warned_no_feed: bool,
+    words: Vec<Word>,
+    saw_content: bool,
+    ended_at: Option<u64>,
+    done: bool,
+}
+
+impl<R: BufRead> BlockReader<R> {
+    /// A reader for a machine with `axes`, starting at the machine origin, in G21 G90 G17 G94
+    /// with no motion mode and no feed. `source_name` prefixes every error (`file:line:col`).
+    pub fn new(reader: R, source_name: &str, axes: &[Axis]) -> Self {
+        Self {
+            lines: LineSource::new(reader),
+            source_name: source_name.into(),
+            axes: axes.to_vec(),
+            modal: Modal {
+                inch: false,
+                incremental: false,
+                arc_centre_absolute: false,
+                plane: Plane::XY,
+                motion: None,
+                feed: None,
+            },
+            position: Point::zeros(),
+            pending: None,
+            warnings: Vec::new(),
+            warned_letters: Vec::new(),
+            warned_no_feed: false,
+            words: Vec::new(),
+            saw_content: false,
+            ended_at: None,
+            done: false,
+        }
+    }
+
+    /// Takes the warnings collected so far.
+    pub fn take_warnings(&mut self) -> Vec<Warning> {
+        std::mem::take(&mut self.warnings)
+    }
+
+    /// Current position in mm, machine axis order.
+    pub fn position(&self) -> Point {
+        self.position
+    }
+
+    /// The line of the M2/M30 that ended the program, if one did.
+    pub fn program_end_line(&self) -> Option<u64> {
+        self.ended_at
+    }
+
+    fn error(&self, line: u64, text: &str, fail: Fail) -> GcodeError {
+        let (line, text) = match fail.at {
+            Some((l, t)) => (l, t),
+            None => (line, text.to_string()),
+        };
+        GcodeError {
+            source_name: self.source_name.clone(),
+            line,
+            col: fail.col,
+            kind: fail.kind,
+            text,
+        }
+    }
+
+    fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
+        loop {
+            let next = self.lines.next_line().map_err(|e| GcodeError {
+                source_name: self.source_name.clone(),
+                line: 0,
+                col: 0,
+                kind: GcodeErrorKind::Io(e),
+                text: String::new(),
+            })?;
+            let Some((line_no, line)) = next else {
+                return self.finish().map(|()| None);
+            };
+            let text = match line {
+                Line::Text(t) => t.to_string(),
+                Line::TooLong => {
+                    return Err(self.error(
+                        line_no,
+                        "",
+                        (
+                            1,
+                            GcodeErrorKind::LineTooLong {
+                                limit: MAX_LINE_BYTES,
+                            },
+                        )
+                            .into(),
+                    ));
+                }
+                Line::BadUtf8 { valid_prefix } => {
+                    let col = valid_prefix.chars().count() + 1;
+                    let shown = valid_prefix.to_string();
+                    return Err(self.error(
+                        line_no,
+                        &shown,
+                        (col, GcodeErrorKind::InvalidUtf8).into(),
+                    ));
+                }
+            };
+            let mut words = std::mem::take(&mut self.words);
+            let result = self.process_line(line_no, &text, &mut words);
+            self.words = words;
+            match result {
+                Ok(Some(block)) => return Ok(Some(block)),
+                Ok(None) if self.done => return Ok(None),
+                Ok(None) => {}
+                Err(fail) => return Err(self.error(line_no, &text, fail)),
+            }
+        }
+    }
+
+    fn finish(&mut self) -> Result<(), GcodeError> {
+        self.done = true;
+        if let Some(p) = &self.pending {
+            let kind = GcodeErrorKind::NurbsUnterminated {
+                form: p.form.name(),
+                start_line: p.start_line,
+                hint: p.close_hint(),
+            };
+            let fail = Fail {
+                col: p.start_col,
+                kind,
+                at: Some((p.start_line, p.start_text.clone())),
+            };
+            return Err(self.error(0, "", fail));
+        }
+        if !self.saw_content {
+            return Err(self.error(1, "", (1, GcodeErrorKind::EmptyProgram).into()));
+        }
+        if self.ended_at.is_none() {
+            self.warnings.push(Warning {
+                line: 0,
+                col: 0,
+                message: "the program has no M2/M30 end".to_string(),
+            });
+        }
+        Ok(())
+    }
+
+    fn process_line(
+        &mut self,
+        line_no: u64,
+        text: &str,
+        words: &mut Vec<Word>,
+    ) -> Step<Option<Block>> {
+        let info = lex(text, words).map_err(Fail::from)?;
+        if words.is_empty() && info.percent.is_none() {
+            return Ok(None);
+        }
+        self.saw_content = true;
+        if let Some(end_line) = self.ended_at {
+            if words.is_empty() {
+                return Ok(None); // a closing `%`
+            }
+            self.warnings.push(Warning {
+                line: line_no,
+                col: words[0].col,
+                message: format!(
+                    "text after the program end (M2/M30 at line {end_line}) is ignored"
+                ),
+            });
+            self.done = true;
+            return Ok(None);
+        }
+        if words.is_empty() {
+            return Ok(None); // `%` tape mark
+        }
+        let letters = collect_letters(words)?;
+        if let Some(n) = letters.get('N') {
+            whole(n, 0.0, 1e9)?;
+        }
+        if self.pending.is_some() {
+            return self.continue_curve(&letters, words);
+        }
+        self.start_block(line_no, text, &letters, words)
+    }
+}
+
+/// The word's value as a whole number in `[min, max]`.
+pub(super) fn whole(w: &Word, min: f64, max: f64) -> Step<f64> {
+    if w.value.fract() != 0.0 {
+        return Err((
+            w.col,
+            GcodeErrorKind::NotAWholeNumber {
+                letter: w.letter,
+                text: w.text.clone(),
+            },
+        )
+            .into());
+    }
+    if w.value < min || w.value > max {
+        return Err((
+            w.col,
+            GcodeErrorKind::OutOfRange {
+                what: match w.letter {
+                    'O' => "degree O",
+                    'P' | 'L' => "order",
+                    'C' => "control point count C",
+                    'N' => "line number N",
+                    _ => "value",
+                },
+                value: w.value,
+                min,
+                max,
+            },
+        )
+            .into());
+    }
+    Ok(w.value)
+}
+
+pub(super) fn first_col(words: &[Word]) -> usize {
+    words.first().map_or(1, |w| w.col)
+}
+
+/// Indexes the block's words by letter; G and M may repeat (checked later), others may not.
+pub(super) fn collect_letters(words: &[Word]) -> Step<Letters<'_>> {
+    let mut by_letter: [Option<&Word>; 26] = [None; 26];
+    for w in words {
+        if matches!(w.letter, 'G' | 'M') {
+            continue;
+        }
+        let slot = &mut by_letter[(w.letter as u8 - b'A') as usize];
+        if slot.is_some() {
+            return Err((w.col, GcodeErrorKind::RepeatedWord { letter: w.letter }).into());
+        }
+        *slot = Some(w);
+    }
+    Ok(Letters { by_letter })
+}
+
+impl<R: BufRead> Iterator for BlockReader<R> {
+    type Item = Result<Block, GcodeError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        match self.next_block() {
+            Ok(Some(b)) => Some(Ok(b)),
+            Ok(None) => None,
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
+        }
+    }
+}

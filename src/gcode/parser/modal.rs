@@ -1,0 +1,370 @@
+//! The modal state of an RS274 controller and the blocks it turns into motion: G-code
+//! words classified into their groups (motion, units, distance mode, arc centres, plane, and
+//! the modes edmd is always in), M and feed words, and `G0`/`G1` lines. Arcs go to
+//! [`super::arc`], NURBS curves to [`super::nurbs`].
+
+use std::io::BufRead;
+
+use super::codes::{GCode, Motion, classify_g, g_code_tenths};
+use super::nurbs::curve_letters;
+use super::{BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole};
+use crate::gcode::error::{GcodeErrorKind, Warning};
+use crate::gcode::lexer::Word;
+use crate::gcode::{Block, BlockKind, NurbsForm, Plane};
+use crate::geometry::{NurbsCurve, Point};
+use crate::vocab::Axis;
+
+#[derive(Debug, Clone)]
+pub(super) struct Modal {
+    pub(super) inch: bool,
+    pub(super) incremental: bool,
+    pub(super) arc_centre_absolute: bool,
+    pub(super) plane: Plane,
+    pub(super) motion: Option<Motion>,
+    /// mm/min
+    pub(super) feed: Option<f64>,
+}
+
+impl<R: BufRead> BlockReader<R> {
+    pub(super) fn start_block(
+        &mut self,
+        line_no: u64,
+        text: &str,
+        letters: &Letters,
+        words: &[Word],
+    ) -> Step<Option<Block>> {
+        let mut codes: Vec<(GCode, &Word)> = Vec::new();
+        for w in words.iter().filter(|w| w.letter == 'G') {
+            let code = classify_g(g_code_tenths(w)?, w.col)?;
+            if let Some((_, other)) = codes.iter().find(|(c, _)| c.group() == code.group()) {
+                return Err((
+                    w.col,
+                    GcodeErrorKind::ConflictingG {
+                        a: other.text.clone(),
+                        b: w.text.clone(),
+                    },
+                )
+                    .into());
+            }
+            codes.push((code, w));
+        }
+        let mut motion_word: Option<(GCode, &Word)> = None;
+        for &(code, w) in &codes {
+            match code {
+                GCode::Inch(inch) => self.modal.inch = inch,
+                GCode::Incremental(inc) => self.modal.incremental = inc,
+                GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
+                GCode::Plane(p) => self.modal.plane = p,
+                GCode::Accepted(_) => {}
+                GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
+                    motion_word = Some((code, w));
+                }
+            }
+        }
+        if let Some(o) = letters.get('O')
+            && !matches!(motion_word, Some((GCode::Curve(NurbsForm::G38), _)))
+        {
+            // Fanuc's program number (`O1000`) stands alone on its line.
+            if words.iter().all(|w| matches!(w.letter, 'O' | 'N')) {
+                whole(o, 0.0, 99_999.0)?;
+                return Ok(None);
+            }
+            return Err((
+                o.col,
+                GcodeErrorKind::UnexpectedWord {
+                    letter: 'O',
+                    context: "here: O is a program number alone on its line, or G38's degree"
+                        .into(),
+                },
+            )
+                .into());
+        }
+        let mut program_end = false;
+        for w in words.iter().filter(|w| w.letter == 'M') {
+            let code = whole(w, 0.0, 9999.0)? as u32;
+            match code {
+                2 | 30 => program_end = true,
+                3..=9 => self.warn_once(
+                    line_no,
+                    w,
+                    "spindle, tool change and coolant words (M3-M9) do nothing on an EDM and are ignored",
+                ),
+                0 | 1 | 60 => {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::UnknownM {
+                            code: format!("{} (program pause is not supported)", w.text),
+                        },
+                    )
+                        .into());
+                }
+                _ => {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::UnknownM {
+                            code: w.text.clone(),
+                        },
+                    )
+                        .into());
+                }
+            }
+        }
+        for letter in ['S', 'T'] {
+            if let Some(w) = letters.get(letter) {
+                self.warn_once(
+                    line_no,
+                    w,
+                    "spindle speed (S) and tool (T) words do nothing on an EDM and are ignored",
+                );
+            }
+        }
+        if let Some(f) = letters.get('F') {
+            // The lexer only yields finite numbers, so this also covers the sign.
+            if f.value <= 0.0 {
+                return Err((f.col, GcodeErrorKind::BadFeed).into());
+            }
+            self.modal.feed = Some(f.value * self.scale());
+        }
+
+        let block = match motion_word {
+            Some((GCode::Curve(form), w)) => {
+                self.check_letters(
+                    letters,
+                    true,
+                    curve_letters(form, true),
+                    &format!("with {}", form.name()),
+                )?;
+                self.open_curve(form, line_no, text, w, letters)?
+            }
+            Some((GCode::CurveEnd, w)) => {
+                return Err((w.col, GcodeErrorKind::NurbsEndWithoutStart).into());
+            }
+            Some((GCode::MotionCancel, _)) => {
+                self.modal.motion = None;
+                self.check_letters(letters, false, "", "with G80")?;
+                None
+            }
+            Some((GCode::Motion(m), w)) => {
+                self.modal.motion = Some(m);
+                if self.moves(m, letters)? {
+                    self.motion_block(m, line_no, letters, w.col)?
+                } else {
+                    self.check_letters(letters, false, "", "without axis words")?;
+                    None
+                }
+            }
+            _ => match self.modal.motion {
+                Some(m) if self.moves(m, letters)? => {
+                    self.motion_block(m, line_no, letters, first_col(words))?
+                }
+                Some(_) => {
+                    self.check_letters(letters, false, "", "without axis words")?;
+                    None
+                }
+                None => {
+                    if let Some(w) = self.first_axis_word(letters)? {
+                        return Err((w.col, GcodeErrorKind::NoMotionMode).into());
+                    }
+                    self.check_letters(letters, false, "", "without a motion word")?;
+                    None
+                }
+            },
+        };
+        if program_end {
+            self.ended_at = Some(line_no);
+        }
+        Ok(block)
+    }
+
+    /// Whether a block in motion mode `m` moves: it has axis words, or, for an arc, a centre
+    /// or radius (a full circle needs no axis words). A bare `G1` only sets the mode.
+    pub(super) fn moves(&self, m: Motion, letters: &Letters) -> Step<bool> {
+        if self.first_axis_word(letters)?.is_some() {
+            return Ok(true);
+        }
+        let arc_words = matches!(m, Motion::Cw | Motion::Ccw)
+            && ['I', 'J', 'K', 'R']
+                .iter()
+                .any(|&l| letters.get(l).is_some());
+        Ok(arc_words)
+    }
+
+    pub(super) fn warn_once(&mut self, line: u64, w: &Word, message: &str) {
+        if !self.warned_letters.contains(&w.letter) {
+            self.warned_letters.push(w.letter);
+            self.warnings.push(Warning {
+                line,
+                col: w.col,
+                message: format!("{}{}: {message}", w.letter, w.text),
+            });
+        }
+    }
+
+    pub(super) fn scale(&self) -> f64 {
+        if self.modal.inch { MM_PER_INCH } else { 1.0 }
+    }
+
+    pub(super) fn axes_list(&self) -> String {
+        self.axes
+            .iter()
+            .map(|a| a.letter().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The axis a word names: `Some` for one of the machine's axes, `None` for a letter that is
+    /// no axis, an error for an axis letter the machine does not have.
+    pub(super) fn machine_axis(&self, w: &Word) -> Step<Option<Axis>> {
+        match Axis::from_letter(w.letter) {
+            Some(axis) if !self.axes.contains(&axis) => Err((
+                w.col,
+                GcodeErrorKind::AxisNotOnMachine {
+                    axis: w.letter,
+                    axes: self.axes_list(),
+                },
+            )
+                .into()),
+            found => Ok(found),
+        }
+    }
+
+    /// The first axis word of the block, checking that every axis word names a machine axis.
+    pub(super) fn first_axis_word<'w>(&self, letters: &Letters<'w>) -> Step<Option<&'w Word>> {
+        let mut first: Option<&Word> = None;
+        for w in letters.present() {
+            if self.machine_axis(w)?.is_some() && first.is_none_or(|f| w.col < f.col) {
+                first = Some(w);
+            }
+        }
+        Ok(first)
+    }
+
+    /// Rejects any word outside G M N F S T, `extra`, and (with `allow_axes`) the machine's
+    /// axes. An axis letter the machine does not have is reported as such either way.
+    pub(super) fn check_letters(
+        &self,
+        letters: &Letters,
+        allow_axes: bool,
+        extra: &str,
+        context: &str,
+    ) -> Step<()> {
+        for w in letters.present() {
+            if extra.contains(w.letter) || "GMNFST".contains(w.letter) {
+                continue; // a form's own word (G38's C) wins over an axis letter
+            }
+            if self.machine_axis(w)?.is_some() && allow_axes {
+                continue;
+            }
+            return Err((
+                w.col,
+                GcodeErrorKind::UnexpectedWord {
+                    letter: w.letter,
+                    context: context.to_string(),
+                },
+            )
+                .into());
+        }
+        Ok(())
+    }
+
+    /// The point reached from `base` by the block's axis words (absolute or incremental),
+    /// and whether any axis word was present. Letters in `reserved` are not axis words here.
+    pub(super) fn target(
+        &self,
+        base: &Point,
+        letters: &Letters,
+        reserved: &str,
+    ) -> Step<(Point, bool)> {
+        let mut p = *base;
+        let mut any = false;
+        for (i, axis) in self.axes.iter().enumerate() {
+            if reserved.contains(axis.letter()) {
+                continue;
+            }
+            if let Some(w) = letters.get(axis.letter()) {
+                let v = w.value * self.scale();
+                p[i] = if self.modal.incremental {
+                    base[i] + v
+                } else {
+                    v
+                };
+                if p[i].abs() > MAX_COORD_MM {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::OutOfRange {
+                            what: "coordinate (mm)",
+                            value: p[i],
+                            min: -MAX_COORD_MM,
+                            max: MAX_COORD_MM,
+                        },
+                    )
+                        .into());
+                }
+                any = true;
+            }
+        }
+        Ok((p, any))
+    }
+
+    /// The programmed feed for a feed move. On an EDM the gap servo sets the advance speed and
+    /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
+    /// it runs at up to the machine maximum, and the operator is told once.
+    pub(super) fn feed_limit(&mut self, line: u64, col: usize) -> Option<f64> {
+        if self.modal.feed.is_none() && !self.warned_no_feed {
+            self.warned_no_feed = true;
+            self.warnings.push(Warning {
+                line,
+                col,
+                message: "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
+            });
+        }
+        self.modal.feed
+    }
+
+    pub(super) fn motion_block(
+        &mut self,
+        motion: Motion,
+        line_no: u64,
+        letters: &Letters,
+        col: usize,
+    ) -> Step<Option<Block>> {
+        match motion {
+            Motion::Rapid | Motion::Linear => {
+                self.check_letters(
+                    letters,
+                    true,
+                    "",
+                    if motion == Motion::Rapid {
+                        "with G0"
+                    } else {
+                        "with G1"
+                    },
+                )?;
+                let (target, _) = self.target(&self.position, letters, "")?;
+                let feed = match motion {
+                    Motion::Linear => self.feed_limit(line_no, col),
+                    _ => None,
+                };
+                if target == self.position {
+                    return Ok(None);
+                }
+                let curve = NurbsCurve::line(self.axes.len(), &self.position, &target)
+                    .map_err(|e| Fail::from((col, e.into())))?;
+                self.position = target;
+                Ok(Some(Block {
+                    line: line_no,
+                    kind: if motion == Motion::Rapid {
+                        BlockKind::Rapid
+                    } else {
+                        BlockKind::Line
+                    },
+                    curve,
+                    feed_mm_per_min: feed,
+                }))
+            }
+            Motion::Cw | Motion::Ccw => {
+                self.arc_block(motion == Motion::Ccw, line_no, letters, col)
+            }
+        }
+    }
+}

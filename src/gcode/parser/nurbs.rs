@@ -1,0 +1,462 @@
+//! NURBS curves in the three dialects, collected over several lines until they close:
+//!
+//! - `G38 O<degree> C<count> X Y [W] [K]` (seed 000): the header names the degree and the
+//!   number of control points; knots are clamped uniform on [0, 1] unless every line
+//!   carries `K`;
+//! - `G06.2 P<order> K<knot> X Y [R<weight>]` (Fanuc): a knot on every point line, closed by
+//!   as many knot-only `K` lines as the order (LinuxCNC's `Q` ignored);
+//! - `G5.2 [X Y] [P<weight>] [L<order>]` … `G5.3` (LinuxCNC): the current position is the
+//!   first control point, order 3 unless `L` says otherwise, knots clamped uniform in whole
+//!   numbers.
+//!
+//! A curve in progress is a [`PendingCurve`]; anything else on its lines (another motion,
+//! an unknown word, a decreasing knot) is an error naming the line where the curve began.
+
+use std::io::BufRead;
+
+use super::codes::{GCode, classify_g, g_code_tenths};
+use super::{
+    BlockReader, CURVE_START_TOLERANCE_MM, Fail, Letters, MAX_CURVE_POINTS, Step, first_col, whole,
+};
+use crate::gcode::error::GcodeErrorKind;
+use crate::gcode::lexer::Word;
+use crate::gcode::{Block, BlockKind, NurbsForm};
+use crate::geometry::{MAX_DEGREE, NurbsCurve, NurbsError, Point};
+
+/// A NURBS curve being collected over several lines.
+pub(super) struct PendingCurve {
+    pub(super) form: NurbsForm,
+    pub(super) start_line: u64,
+    pub(super) start_col: usize,
+    pub(super) start_text: String,
+    pub(super) degree: usize,
+    /// G38's `C`: how many control points the header announced.
+    pub(super) announced_points: Option<usize>,
+    pub(super) points: Vec<Point>,
+    pub(super) weights: Vec<f64>,
+    /// Knots as given (G06.2 always; G38 when its lines carry K).
+    pub(super) knots: Vec<f64>,
+    pub(super) knots_given: bool,
+    /// Knot-only blocks seen so far (the closing knots).
+    pub(super) closing_knots: usize,
+    pub(super) feed: Option<f64>,
+}
+
+impl PendingCurve {
+    pub(super) fn order(&self) -> usize {
+        self.degree + 1
+    }
+
+    pub(super) fn interrupted(&self, by: String, hint: &'static str) -> GcodeErrorKind {
+        if self.closing_knots > 0 || (self.knots_given && self.form == NurbsForm::G38) {
+            let need = self.points.len() + self.order();
+            return GcodeErrorKind::KnotCount(format!(
+                "the {} curve started at line {} has {} control points of order {} and needs {need} knots; {} were given before {by}",
+                self.form.name(),
+                self.start_line,
+                self.points.len(),
+                self.order(),
+                self.knots.len()
+            ));
+        }
+        GcodeErrorKind::NurbsInterrupted {
+            form: self.form.name(),
+            start_line: self.start_line,
+            by,
+            hint,
+        }
+    }
+
+    pub(super) fn close_hint(&self) -> &'static str {
+        match self.form {
+            NurbsForm::LinuxCnc => " (close it with G5.3)",
+            NurbsForm::Fanuc => " (it ends after as many knot-only K blocks as its order P)",
+            NurbsForm::G38 => " (it ends after the number of points given by C)",
+        }
+    }
+}
+
+impl<R: BufRead> BlockReader<R> {
+    pub(super) fn open_curve(
+        &mut self,
+        form: NurbsForm,
+        line_no: u64,
+        text: &str,
+        g_word: &Word,
+        letters: &Letters,
+    ) -> Step<Option<Block>> {
+        let feed = self.feed_limit(line_no, g_word.col);
+        let degree = match form {
+            NurbsForm::G38 => {
+                let o = letters.get('O').ok_or((
+                    g_word.col,
+                    GcodeErrorKind::MissingCoordinate {
+                        what: "the first G38 block needs O<degree>".into(),
+                    },
+                ))?;
+                whole(o, 1.0, MAX_DEGREE as f64)? as usize
+            }
+            NurbsForm::Fanuc => {
+                let p = letters.get('P').ok_or((
+                    g_word.col,
+                    GcodeErrorKind::MissingCoordinate {
+                        what: "the first G06.2 block needs P<order>".into(),
+                    },
+                ))?;
+                whole(p, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1
+            }
+            NurbsForm::LinuxCnc => match letters.get('L') {
+                Some(l) => whole(l, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1,
+                None => 2, // LinuxCNC's default order is 3
+            },
+        };
+        let mut curve = PendingCurve {
+            form,
+            start_line: line_no,
+            start_col: g_word.col,
+            start_text: text.to_string(),
+            degree,
+            announced_points: None,
+            points: Vec::new(),
+            weights: Vec::new(),
+            knots: Vec::new(),
+            knots_given: false,
+            closing_knots: 0,
+            feed,
+        };
+        if form == NurbsForm::G38 {
+            let c = letters.get('C').ok_or((
+                g_word.col,
+                GcodeErrorKind::MissingCoordinate {
+                    what: "the first G38 block needs C<number of control points>".into(),
+                },
+            ))?;
+            let count = whole(c, 2.0, MAX_CURVE_POINTS as f64)? as usize;
+            if count < degree + 1 {
+                return Err((
+                    c.col,
+                    NurbsError::TooFewPoints {
+                        points: count,
+                        degree,
+                    }
+                    .into(),
+                )
+                    .into());
+            }
+            curve.announced_points = Some(count);
+            curve.knots_given = letters.get('K').is_some();
+        }
+        if form == NurbsForm::LinuxCnc {
+            // The current position is the first control point; a G5.2 without axis words only
+            // sets that point's weight.
+            let (_, any) = self.target(&self.position, letters, "")?;
+            let p0_weight = if any { 1.0 } else { weight(letters.get('P'))? };
+            curve.points.push(self.position);
+            curve.weights.push(p0_weight);
+            if any {
+                self.add_point(&mut curve, letters, g_word.col)?;
+            }
+        } else {
+            let first = self.add_point(&mut curve, letters, g_word.col)?;
+            let gap = (first - self.position).norm();
+            if gap > CURVE_START_TOLERANCE_MM {
+                return Err((
+                    g_word.col,
+                    GcodeErrorKind::NurbsStartMismatch {
+                        first: self.format_point(&first),
+                        current: self.format_point(&self.position),
+                    },
+                )
+                    .into());
+            }
+            // Within tolerance: start exactly where the tool is, so no step is lost or invented.
+            curve.points[0] = self.position;
+        }
+        self.pending = Some(curve);
+        Ok(None)
+    }
+
+    pub(super) fn format_point(&self, p: &Point) -> String {
+        let parts: Vec<String> = self
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| format!("{a}{:.4}", p[i] / self.scale()))
+            .collect();
+        parts.join(" ")
+    }
+
+    /// Adds the block's control point (and its weight and knot) to `curve`; returns the point.
+    pub(super) fn add_point(
+        &self,
+        curve: &mut PendingCurve,
+        letters: &Letters,
+        col: usize,
+    ) -> Step<Point> {
+        if curve.points.len() >= MAX_CURVE_POINTS {
+            return Err((
+                col,
+                GcodeErrorKind::TooManyPoints {
+                    limit: MAX_CURVE_POINTS,
+                },
+            )
+                .into());
+        }
+        let base = curve.points.last().copied().unwrap_or(self.position);
+        // G38's first line uses C for the point count, even on a machine with a C axis.
+        let reserved = if curve.form == NurbsForm::G38 && curve.points.is_empty() {
+            "C"
+        } else {
+            ""
+        };
+        let (p, any) = self.target(&base, letters, reserved)?;
+        if !any {
+            return Err((
+                col,
+                GcodeErrorKind::MissingCoordinate {
+                    what: format!("{} control point without axis words", curve.form.name()),
+                },
+            )
+                .into());
+        }
+        let w = weight(letters.get(curve.form.weight_letter()))?;
+        if curve.form == NurbsForm::Fanuc || curve.knots_given {
+            push_knot(curve, letters, col)?;
+        } else if let Some(k) = letters.get('K') {
+            return Err((
+                k.col,
+                GcodeErrorKind::UnexpectedWord {
+                    letter: 'K',
+                    context: "here: the first G38 block gave no knots, so none may follow".into(),
+                },
+            )
+                .into());
+        }
+        curve.points.push(p);
+        curve.weights.push(w);
+        Ok(p)
+    }
+
+    pub(super) fn continue_curve(
+        &mut self,
+        letters: &Letters,
+        words: &[Word],
+    ) -> Step<Option<Block>> {
+        let mut curve = self
+            .pending
+            .take()
+            .expect("continue_curve with a pending curve");
+        let result = self.continue_curve_inner(&mut curve, letters, words);
+        match result {
+            Ok(true) => self.close_curve(curve).map(Some),
+            Ok(false) => {
+                self.pending = Some(curve);
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Takes one line of an open curve; `true` when the curve is complete.
+    pub(super) fn continue_curve_inner(
+        &mut self,
+        curve: &mut PendingCurve,
+        letters: &Letters,
+        words: &[Word],
+    ) -> Step<bool> {
+        // Anything but the curve's own G word interrupts it.
+        let mut own_g = false;
+        for w in words.iter().filter(|w| matches!(w.letter, 'G' | 'M')) {
+            let by = format!("{}{}", w.letter, w.text);
+            if w.letter == 'G' {
+                let code = classify_g(g_code_tenths(w)?, w.col)?;
+                match (curve.form, code) {
+                    (NurbsForm::G38, GCode::Curve(NurbsForm::G38))
+                    | (NurbsForm::Fanuc, GCode::Curve(NurbsForm::Fanuc)) => {
+                        own_g = true;
+                        continue;
+                    }
+                    (NurbsForm::LinuxCnc, GCode::CurveEnd) => {
+                        if let Some(other) = letters.present().find(|o| !"GN".contains(o.letter)) {
+                            return Err((
+                                other.col,
+                                GcodeErrorKind::UnexpectedWord {
+                                    letter: other.letter,
+                                    context: "with G5.3 (it only closes the curve)".into(),
+                                },
+                            )
+                                .into());
+                        }
+                        return Ok(true);
+                    }
+                    _ => {}
+                }
+            }
+            return Err((w.col, curve.interrupted(by, curve.close_hint())).into());
+        }
+        if curve.form == NurbsForm::G38 && !own_g {
+            return Err((
+                first_col(words),
+                GcodeErrorKind::NurbsInterrupted {
+                    form: "G38",
+                    start_line: curve.start_line,
+                    by: "a block without G38".into(),
+                    hint: " (every control point line starts with G38)",
+                },
+            )
+                .into());
+        }
+        self.check_letters(
+            letters,
+            true,
+            curve_letters(curve.form, false),
+            curve.form.inside_name(),
+        )?;
+        let col = first_col(words);
+        let has_axis = self.first_axis_word(letters)?.is_some();
+        match curve.form {
+            NurbsForm::LinuxCnc => {
+                self.add_point(curve, letters, col)?;
+                Ok(false)
+            }
+            NurbsForm::G38 => {
+                let announced = curve.announced_points.unwrap_or(0);
+                if curve.points.len() < announced {
+                    self.add_point(curve, letters, col)?;
+                    return Ok(curve.points.len() == announced && !curve.knots_given);
+                }
+                self.closing_knot(curve, letters, has_axis, col)
+            }
+            NurbsForm::Fanuc => {
+                if has_axis || letters.get('R').is_some() {
+                    if curve.closing_knots > 0 {
+                        return Err((
+                            col,
+                            GcodeErrorKind::PointAfterClosingKnots {
+                                form: curve.form.name(),
+                            },
+                        )
+                            .into());
+                    }
+                    self.add_point(curve, letters, col)?;
+                    return Ok(false);
+                }
+                self.closing_knot(curve, letters, has_axis, col)
+            }
+        }
+    }
+
+    /// A knot-only block; `true` once all `order` closing knots are in.
+    pub(super) fn closing_knot(
+        &self,
+        curve: &mut PendingCurve,
+        letters: &Letters,
+        has_axis: bool,
+        col: usize,
+    ) -> Step<bool> {
+        if has_axis {
+            return Err((
+                col,
+                GcodeErrorKind::PointAfterClosingKnots {
+                    form: curve.form.name(),
+                },
+            )
+                .into());
+        }
+        push_knot(curve, letters, col)?;
+        curve.closing_knots += 1;
+        Ok(curve.closing_knots == curve.order())
+    }
+
+    pub(super) fn close_curve(&mut self, curve: PendingCurve) -> Step<Block> {
+        let knots = if curve.form == NurbsForm::Fanuc || curve.knots_given {
+            curve.knots
+        } else {
+            clamped_uniform_knots(curve.points.len(), curve.degree, curve.form)
+        };
+        let at = |kind: GcodeErrorKind| Fail {
+            col: curve.start_col,
+            kind,
+            at: Some((curve.start_line, curve.start_text.clone())),
+        };
+        let nurbs = NurbsCurve::new(
+            curve.degree,
+            self.axes.len(),
+            &curve.points,
+            &curve.weights,
+            knots,
+        )
+        .map_err(|e| at(e.into()))?;
+        self.position = nurbs.end_point();
+        self.modal.motion = None;
+        Ok(Block {
+            line: curve.start_line,
+            kind: BlockKind::Nurbs { form: curve.form },
+            curve: nurbs,
+            feed_mm_per_min: curve.feed,
+        })
+    }
+}
+
+/// Knots for a curve whose program gives none: clamped and uniform, on `[0, 1]` for G38 (seed 000,
+/// Table I) and on `[0, n - order + 2]` in whole numbers for G5.2 (LinuxCNC's convention).
+pub(super) fn clamped_uniform_knots(points: usize, degree: usize, form: NurbsForm) -> Vec<f64> {
+    let mut knots = crate::geometry::clamped_uniform_knots(points, degree);
+    if form == NurbsForm::LinuxCnc {
+        let spans = (points.saturating_sub(degree + 1) + 1) as f64;
+        // Whole numbers: scale, then round away the division's last-bit noise.
+        knots.iter_mut().for_each(|k| *k = (*k * spans).round());
+    }
+    knots
+}
+
+/// Appends the block's `K` (which must be there) to the curve's knots, refusing a decrease.
+pub(super) fn push_knot(curve: &mut PendingCurve, letters: &Letters, col: usize) -> Step<()> {
+    let k = letters.get('K').ok_or((
+        col,
+        GcodeErrorKind::MissingKnot {
+            form: curve.form.name(),
+        },
+    ))?;
+    if let Some(&previous) = curve.knots.last()
+        && k.value < previous
+    {
+        return Err((
+            k.col,
+            GcodeErrorKind::KnotsDecreasing {
+                value: k.value,
+                previous,
+            },
+        )
+            .into());
+    }
+    curve.knots.push(k.value);
+    Ok(())
+}
+
+pub(super) fn weight(w: Option<&Word>) -> Step<f64> {
+    match w {
+        None => Ok(1.0),
+        Some(w) if w.value > 0.0 => Ok(w.value),
+        Some(w) => Err((
+            w.col,
+            GcodeErrorKind::BadWeight {
+                letter: w.letter,
+                value: w.value,
+            },
+        )
+            .into()),
+    }
+}
+
+/// Words (besides G M N F S T and axes) allowed in a curve's first block or its later blocks.
+pub(super) fn curve_letters(form: NurbsForm, first: bool) -> &'static str {
+    match (form, first) {
+        (NurbsForm::G38, true) => "OCWK",
+        (NurbsForm::G38, false) => "WK",
+        (NurbsForm::Fanuc, true) => "PKRQ",
+        (NurbsForm::Fanuc, false) => "KRQ",
+        (NurbsForm::LinuxCnc, true) => "PL",
+        (NurbsForm::LinuxCnc, false) => "P",
+    }
+}

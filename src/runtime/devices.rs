@@ -1,0 +1,118 @@
+//! The machine's two sides, opened from the configuration: the pulse output
+//! (`output.kind`: simulated drives, pulse log, parallel port, null) and the gap source
+//! (`gap.kind`: simulator, script, the port's status pins, none), each wrapped in the fault
+//! injector and the tracer when configured.
+//!
+//! Everything that can fail at startup fails here, before anything moves. This is the only
+//! place that knows which device a kind names; the job runner takes boxed traits.
+
+use std::sync::Arc;
+
+use super::{JobError, Precheck};
+use crate::config::{Config, GapKind, OutputKind};
+use crate::gap::{AlwaysNormal, GapSensor, ScriptGap};
+use crate::output::{FaultInjector, NullOutput, PulseLog, PulseLogHeader, PulseOutput};
+use crate::sim::{SimGap, SimSettings};
+use crate::trace::{TracedGap, TracedOutput, Tracer};
+
+pub type BoxedOutput = Box<dyn PulseOutput + Send>;
+pub type BoxedGap = Box<dyn GapSensor + Send>;
+
+/// Opens the output and the gap source of `config`, with the fault injector and the tracer
+/// when configured: everything that can fail at startup fails here, before anything moves.
+pub fn open_io(
+    config: &Config,
+    check: &Precheck,
+    tracer: Option<&Arc<Tracer>>,
+) -> Result<(BoxedOutput, BoxedGap), JobError> {
+    let (output, port_gap) = open_output(config, &[])?;
+    let gap = open_gap(config, check, port_gap)?;
+    Ok(wrap_io(config, output, gap, tracer))
+}
+
+/// Opens the pulse output of `config`; a parallel port comes with its status pins (the gap
+/// input), opened together under one claim. `start`: the ledger the job starts from (steps
+/// per axis; empty for zero), for the pulse log's header.
+pub fn open_output(
+    config: &Config,
+    start: &[i64],
+) -> Result<(BoxedOutput, Option<BoxedGap>), JobError> {
+    let axes = config.machine.axes.len();
+    Ok(match config.output.kind {
+        // The simulated drives take every step and report nothing: the ledger is their position.
+        OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
+        OutputKind::File => (
+            Box::new(PulseLog::create(
+                &config.output.path,
+                &PulseLogHeader {
+                    axes: config.machine.axes.clone(),
+                    step_mm: config.machine.step_mm.clone(),
+                    tick_us: config.fine.tick.us(),
+                    start: (0..axes)
+                        .map(|i| start.get(i).copied().unwrap_or(0))
+                        .collect(),
+                },
+            )?),
+            None,
+        ),
+        OutputKind::Parport => {
+            let (output, gap) = crate::parport::open(&config.output.path, axes, &config.parport)?;
+            (Box::new(output), Some(Box::new(gap)))
+        }
+    })
+}
+
+/// Opens the gap source of `config`; `port_gap` is the parallel port's status pins when the
+/// port is open.
+pub fn open_gap(
+    config: &Config,
+    check: &Precheck,
+    port_gap: Option<BoxedGap>,
+) -> Result<BoxedGap, JobError> {
+    Ok(match (config.gap.kind, port_gap) {
+        (GapKind::Parport, Some(gap)) => gap,
+        // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
+        (GapKind::Parport, None) => {
+            return Err(JobError::Config(
+                "gap.kind = \"parport\" reads the output port's status pins and needs \
+                 output.kind = \"parport\""
+                    .to_string(),
+            ));
+        }
+        (GapKind::None, _) => Box::new(AlwaysNormal),
+        (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
+        (GapKind::Sim, _) => Box::new(SimGap::load(
+            &SimSettings::from_config(config),
+            &check.cutting_spans,
+        )?),
+    })
+}
+
+/// Wraps the output and the gap source in the fault injector and the tracer, as configured.
+pub fn wrap_io(
+    config: &Config,
+    mut output: BoxedOutput,
+    mut gap: BoxedGap,
+    tracer: Option<&Arc<Tracer>>,
+) -> (BoxedOutput, BoxedGap) {
+    if let Some(tick) = config.output.fault_at_tick {
+        tracing::warn!("output.fault_at_tick = {tick}: the output will fail at that tick");
+        output = Box::new(FaultInjector::new(output, tick));
+    }
+    if let Some(tracer) = tracer {
+        if config.output.trace {
+            output = Box::new(TracedOutput::new(output, tracer.clone()));
+        }
+        if config.gap.trace {
+            gap = Box::new(TracedGap::new(gap, tracer.clone()));
+        }
+    }
+    (output, gap)
+}
+
+/// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
+/// axis per tick.
+pub fn fine_speed_cap(config: &Config) -> f64 {
+    let coarsest = config.machine.step_mm.iter().cloned().fold(0.0, f64::max);
+    coarsest / config.fine.tick.secs()
+}

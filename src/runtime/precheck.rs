@@ -1,0 +1,69 @@
+//! The check before a job: the whole program parsed, every end point rounded to steps once
+//! to prove it fits a step counter, before anything moves. A CNC control must not start
+//! cutting a program whose line 10,000 is bad.
+
+use std::path::Path;
+
+use super::JobError;
+use super::producer::{ProducerError, to_steps};
+use crate::config::{Config, GapKind};
+use crate::gcode;
+use crate::geometry::MAX_AXES;
+
+/// What the check before the job found.
+#[derive(Debug, Clone)]
+pub struct Precheck {
+    pub blocks: u64,
+    pub end_steps: [i64; MAX_AXES],
+    /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
+    /// length from the program's start, consecutive cutting moves merged into one span (so
+    /// this grows with the number of rapids, not of blocks). Measured only for the simulated
+    /// gap's placed debris.
+    pub cutting_spans: Vec<(f64, f64)>,
+}
+
+/// Parses the whole program and checks every end point fits a step counter.
+pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
+    let mut reader = gcode::open_program(program, &config.machine.axes)?;
+    let mut blocks = 0;
+    let mut end_steps = [0; MAX_AXES];
+    let mut path_mm = 0.0;
+    let mut cutting_spans = Vec::new();
+    let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
+    for item in reader.by_ref() {
+        let block = item?;
+        blocks += 1;
+        if measure {
+            let length = block.curve.length();
+            if block.kind != gcode::BlockKind::Rapid {
+                match cutting_spans.last_mut() {
+                    Some((_, to)) if *to == path_mm => *to += length,
+                    _ => cutting_spans.push((path_mm, path_mm + length)),
+                }
+            }
+            path_mm += length;
+        }
+        end_steps =
+            to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
+                ProducerError::OutOfRange {
+                    program: program.display().to_string(),
+                    line: block.line,
+                    axis: config.machine.axes[axis].letter(),
+                    mm,
+                    steps,
+                }
+            })?;
+    }
+    for w in reader.take_warnings() {
+        if w.line == 0 {
+            tracing::warn!("{}: {}", program.display(), w.message);
+        } else {
+            tracing::warn!("{}:{}:{}: {}", program.display(), w.line, w.col, w.message);
+        }
+    }
+    Ok(Precheck {
+        blocks,
+        end_steps,
+        cutting_spans,
+    })
+}

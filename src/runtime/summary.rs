@@ -1,0 +1,250 @@
+//! How a job ended and what it did: the [`Outcome`], the [`JobSummary`] that `edmd run`
+//! prints and writes as JSON (and the daemon logs and reports), and the two decisions behind
+//! them: which tick's steps the drives really received, and which failure names the end.
+
+use serde::{Deserialize, Serialize};
+
+use super::LatencySummary;
+use super::consumer::LoopReport;
+use super::producer::{ProducerError, ProducerReport};
+use crate::fine::{FineCounters, Interpolator, SkipError};
+use crate::geometry::MAX_AXES;
+use crate::output::OutputError;
+use crate::servo::ServoState;
+
+/// How a job ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Outcome {
+    /// The whole program was executed.
+    Done,
+    /// Shorted after the whole reserved area: stopped, position kept.
+    Alarm,
+    /// The pulse output failed: stopped at once.
+    OutputError,
+    /// The gap input failed: stopped at once.
+    GapError,
+    /// The producer failed part-way (the program changed after the check, or a position out of
+    /// range): the consumer executed what it had and stopped.
+    ProducerError,
+    /// Stopped on request.
+    Stopped,
+    /// A resumed job did not find its checkpoint on the program's path: nothing moved.
+    ResumeRefused,
+}
+
+impl Outcome {
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Done => "done",
+            Outcome::Alarm => "alarm",
+            Outcome::OutputError => "output error",
+            Outcome::GapError => "gap input error",
+            Outcome::ProducerError => "producer error",
+            Outcome::Stopped => "stopped",
+            Outcome::ResumeRefused => "resume refused",
+        }
+    }
+}
+
+/// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobSummary {
+    pub program: String,
+    pub outcome: Outcome,
+    pub error: Option<String>,
+    pub axes: Vec<String>,
+    /// G-code blocks of the program.
+    pub blocks: u64,
+    /// Loop-buffer blocks (segments) produced.
+    pub segments: u64,
+    /// Pulses emitted per axis, both directions.
+    pub steps_per_axis: Vec<u64>,
+    /// The pulse ledger at the end, per axis (steps).
+    pub end_steps: Vec<i64>,
+    /// The program's end point, per axis (steps).
+    pub program_end_steps: Vec<i64>,
+    pub end_mm: Vec<f64>,
+    pub events_forward: u64,
+    pub events_backward: u64,
+    pub shorts: u64,
+    pub turn_backs: u64,
+    pub deepest_turn_back_blocks: u64,
+    pub alarms: u64,
+    pub starvations: u64,
+    pub overruns: u64,
+    pub missed_deadlines: u64,
+    /// Real time only.
+    pub latency_us: Option<LatencySummary>,
+    pub tick_us: u32,
+    pub ticks: u64,
+    pub virtual_time: bool,
+    /// Machine time: ticks × tick period (s).
+    pub virtual_time_s: f64,
+    pub wall_time_s: f64,
+    /// Wall time the producer spent working (not waiting for buffer space), s. Machine time
+    /// over this is how many times faster than real time the producer can feed the loop.
+    #[serde(default)]
+    pub producer_busy_s: f64,
+    /// Peak resident set size of the process at the end of the job, KiB.
+    #[serde(default)]
+    pub peak_rss_kib: u64,
+    pub buffer_capacity: u64,
+    pub buffer_high_water: u64,
+    pub events_dropped: u64,
+    /// Trace records dropped because the logger fell behind (real time only).
+    pub trace_dropped: u64,
+    /// Real-time features the system refused.
+    pub rt_refused: Vec<String>,
+}
+
+impl JobSummary {
+    /// The human-readable summary.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut t = String::new();
+        let list = |v: &[i64]| axis_list(v, &self.axes, |s| s.to_string());
+        let _ = writeln!(t, "{}: {}", self.program, self.outcome.name());
+        if let Some(e) = &self.error {
+            let _ = writeln!(t, "  error:            {e}");
+        }
+        let _ = writeln!(
+            t,
+            "  blocks:           {} G-code blocks, {} segments",
+            self.blocks, self.segments
+        );
+        let pulses: Vec<i64> = self.steps_per_axis.iter().map(|&p| p as i64).collect();
+        let _ = writeln!(t, "  steps per axis:   {}", list(&pulses));
+        let _ = writeln!(
+            t,
+            "  end position:     {} steps (program end {})",
+            list(&self.end_steps),
+            list(&self.program_end_steps)
+        );
+        let _ = writeln!(
+            t,
+            "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
+            self.shorts,
+            self.turn_backs,
+            self.deepest_turn_back_blocks,
+            self.alarms,
+            self.starvations
+        );
+        let _ = writeln!(
+            t,
+            "  events:           {} forward, {} backward",
+            self.events_forward, self.events_backward
+        );
+        match &self.latency_us {
+            Some(l) => {
+                let _ = writeln!(
+                    t,
+                    "  latency:          p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} ticks; {} overruns",
+                    l.p50_us, l.p99_us, l.max_us, l.samples, self.overruns
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    t,
+                    "  latency:          none measured (virtual time); {} overruns",
+                    self.overruns
+                );
+            }
+        }
+        let _ = writeln!(
+            t,
+            "  time:             {:.3} s machine ({} ticks of {} µs), {:.3} s wall",
+            self.virtual_time_s, self.ticks, self.tick_us, self.wall_time_s
+        );
+        let _ = writeln!(
+            t,
+            "  producer:         {:.3} s busy for {:.3} s of machine time ({:.0}x real time)",
+            self.producer_busy_s,
+            self.virtual_time_s,
+            self.virtual_time_s / self.producer_busy_s.max(1e-9)
+        );
+        let _ = writeln!(
+            t,
+            "  loop buffer:      high water {} of {} blocks",
+            self.buffer_high_water, self.buffer_capacity
+        );
+        let _ = writeln!(
+            t,
+            "  memory:           peak RSS {:.1} MiB",
+            self.peak_rss_kib as f64 / 1024.0
+        );
+        for r in &self.rt_refused {
+            let _ = writeln!(t, "  warning:          {r}");
+        }
+        t
+    }
+}
+
+/// `X 1, Y 2`: one value per axis, each after its letter.
+pub fn axis_list<T>(values: &[T], axes: &[String], format: impl Fn(&T) -> String) -> String {
+    values
+        .iter()
+        .zip(axes)
+        .map(|(v, a)| format!("{a} {}", format(v)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The counters and the pulse ledger as the drives received them: a tick whose write failed
+/// before its step edge never reached them, so its steps are taken back.
+pub(super) fn delivered(
+    fine: &Interpolator,
+    report: &LoopReport,
+) -> (FineCounters, [i64; MAX_AXES]) {
+    let mut counters = fine.counters();
+    let mut position = fine.position();
+    if let Some((steps, dir)) = report.untaken {
+        for (axis, &s) in steps.iter().enumerate() {
+            position[axis] -= s as i64;
+            counters.pulses[axis] -= s.unsigned_abs() as u64;
+        }
+        if dir > 0 {
+            counters.events_forward -= 1;
+        } else {
+            counters.events_backward -= 1;
+        }
+    }
+    (counters, position)
+}
+
+/// How the job ended and why, the first cause winning: a refused resume, then a failed gap
+/// input, a failed output (mid-job, then on finishing), an alarm, a failed producer, a
+/// requested stop.
+pub(super) fn outcome(
+    skip: &Result<(), SkipError>,
+    report: &LoopReport,
+    finished: &Result<(), OutputError>,
+    state: ServoState,
+    producer: &Result<ProducerReport, ProducerError>,
+) -> (Outcome, Option<String>) {
+    if let Err(e) = skip {
+        (Outcome::ResumeRefused, Some(e.to_string()))
+    } else if let Some(e) = report.gap_error.as_ref() {
+        (Outcome::GapError, Some(e.to_string()))
+    } else if let Some(e) = report.output_error.as_ref() {
+        (Outcome::OutputError, Some(e.to_string()))
+    } else if let Err(e) = finished {
+        (Outcome::OutputError, Some(e.to_string()))
+    } else if state == ServoState::Alarm {
+        (
+            Outcome::Alarm,
+            Some("shorted after turning back over the whole reserved area".to_string()),
+        )
+    } else if let Err(e) = producer {
+        (Outcome::ProducerError, Some(e.to_string()))
+    } else if report.stopped {
+        (
+            Outcome::Stopped,
+            Some("a stop was requested: motion stopped where it was, position kept".to_string()),
+        )
+    } else if state != ServoState::Done {
+        (Outcome::Stopped, None)
+    } else {
+        (Outcome::Done, None)
+    }
+}

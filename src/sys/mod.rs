@@ -1,0 +1,28 @@
+//! The kernel calls edmd makes, each behind a tiny safe wrapper (rppal's `ioctl.rs`
+//! pattern): the monotonic clock and absolute-deadline sleep ([`clock`]), the real-time
+//! settings of a thread ([`rt`]), looking up a group ([`group`]), and what `/proc` says of
+//! this process ([`proc`]).
+//!
+//! With `parport/ioctl.rs` (the ppdev ioctls, kept beside the device they drive), these are
+//! the only modules allowed `unsafe`: `src/lib.rs` denies it everywhere else, and each
+//! `unsafe` block here carries a `// SAFETY:` comment (clippy's
+//! `undocumented_unsafe_blocks` is an error in CI).
+//!
+//! Must never: import another edmd module, log, or hold state. A refusal is an
+//! `io::Error` for the caller to word; nothing here panics on what the kernel answers.
+
+#[allow(unsafe_code)]
+mod clock;
+#[allow(unsafe_code)]
+mod group;
+mod proc;
+#[allow(unsafe_code)]
+mod rt;
+
+pub use clock::{monotonic_ns, sleep_until_ns};
+pub use group::group_id;
+pub use proc::peak_rss_kib;
+pub use rt::{
+    hold_zero_cpu_wakeup_latency, lock_all_memory, minimise_timer_slack, pin_to_cpu,
+    set_fifo_priority,
+};

@@ -1,0 +1,204 @@
+//! The shared vocabulary: the few plain types that every floor of edmd speaks.
+//!
+//! Axis letters, the two predictor and segmentation kinds, the spark gap's state and the
+//! tick period are named by the G-code reader, the preprocessor, the tick core, the devices
+//! and the configuration alike. They live here, in a module that imports nothing of edmd's,
+//! so that no lower floor has to reach up into `config` (or `gap`) for a word: the
+//! configuration *reads* these values at the edge and hands them down.
+//!
+//! Must never: import another edmd module, do I/O, or grow behaviour beyond naming,
+//! parsing and converting its own values.
+
+use serde::Deserialize;
+
+/// A machine axis letter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+    A,
+    B,
+    C,
+    U,
+    V,
+}
+
+impl Axis {
+    pub const ALL: [Axis; 8] = [
+        Axis::X,
+        Axis::Y,
+        Axis::Z,
+        Axis::A,
+        Axis::B,
+        Axis::C,
+        Axis::U,
+        Axis::V,
+    ];
+
+    /// The axis for a G-code word letter (upper case), if it is one.
+    pub fn from_letter(letter: char) -> Option<Axis> {
+        Axis::ALL.into_iter().find(|a| a.letter() == letter)
+    }
+
+    pub fn letter(self) -> char {
+        match self {
+            Axis::X => 'X',
+            Axis::Y => 'Y',
+            Axis::Z => 'Z',
+            Axis::A => 'A',
+            Axis::B => 'B',
+            Axis::C => 'C',
+            Axis::U => 'U',
+            Axis::V => 'V',
+        }
+    }
+}
+
+impl std::fmt::Display for Axis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.letter())
+    }
+}
+
+/// How the segmenter predicts the next curve parameter (`interpolation.predictor`): the
+/// corrected second-order Taylor update, or Hamming's predictor (seed 001), each followed by
+/// the Lagrange correction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Predictor {
+    Taylor,
+    Hamming,
+}
+
+/// How a curve is cut into segments (`interpolation.segmentation`): the longest chords within
+/// the chord tolerance, or one segment per interpolation period along the planned profile.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Segmentation {
+    Chord,
+    Period,
+}
+
+/// The state of the spark gap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GapState {
+    /// Discharging: machine at the normal servo feed.
+    Normal,
+    /// No discharge: the electrode is too far; close in at the open feed.
+    Open,
+    /// Short circuit: turn back along the executed path.
+    Short,
+}
+
+impl GapState {
+    /// `normal`, `open` or `short`, as in the pulse log and gap scripts.
+    pub fn name(self) -> &'static str {
+        match self {
+            GapState::Normal => "normal",
+            GapState::Open => "open",
+            GapState::Short => "short",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<GapState> {
+        match name.to_ascii_lowercase().as_str() {
+            "normal" => Some(GapState::Normal),
+            "open" => Some(GapState::Open),
+            "short" => Some(GapState::Short),
+            _ => None,
+        }
+    }
+}
+
+/// The fine interpolator's tick period: the one place a tick is converted to seconds or
+/// nanoseconds.
+///
+/// The configuration gives it in whole microseconds (`fine.tick_us`, 1 to 1,000,000); the
+/// tick core integrates speed over [`secs`](Self::secs), the real-time loop sleeps in
+/// [`ns`](Self::ns), and reports turn tick counts into seconds with
+/// [`ticks_to_secs`](Self::ticks_to_secs). Every conversion goes through these methods, so
+/// the rounding is the same everywhere (a pulse log replayed against a summary agrees to the
+/// last bit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct TickPeriod {
+    us: u32,
+}
+
+impl TickPeriod {
+    /// Longest period accepted (1 s).
+    pub const MAX_US: u32 = 1_000_000;
+
+    /// A period of `us` microseconds, `None` outside 1 to [`MAX_US`](Self::MAX_US).
+    pub const fn from_us(us: u32) -> Option<TickPeriod> {
+        if us >= 1 && us <= Self::MAX_US {
+            Some(TickPeriod { us })
+        } else {
+            None
+        }
+    }
+
+    /// The period in whole microseconds (as configured, and as the pulse log records it).
+    pub const fn us(self) -> u32 {
+        self.us
+    }
+
+    /// The period in nanoseconds (the real-time loop's deadlines).
+    pub const fn ns(self) -> u64 {
+        self.us as u64 * 1000
+    }
+
+    /// The period in seconds (the tick core's `dt`).
+    pub fn secs(self) -> f64 {
+        self.us as f64 * 1e-6
+    }
+
+    /// The time `ticks` ticks take, in seconds.
+    pub fn ticks_to_secs(self, ticks: u64) -> f64 {
+        ticks as f64 * self.secs()
+    }
+}
+
+impl std::fmt::Display for TickPeriod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} µs", self.us)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_letters_round_trip() {
+        for axis in Axis::ALL {
+            assert_eq!(Axis::from_letter(axis.letter()), Some(axis));
+        }
+        assert_eq!(Axis::from_letter('W'), None);
+    }
+
+    #[test]
+    fn gap_state_names_round_trip() {
+        for state in [GapState::Normal, GapState::Open, GapState::Short] {
+            assert_eq!(GapState::from_name(state.name()), Some(state));
+        }
+        assert_eq!(GapState::from_name("SHORT"), Some(GapState::Short));
+        assert_eq!(GapState::from_name("shorted"), None);
+    }
+
+    #[test]
+    fn tick_period_bounds_and_conversions() {
+        assert_eq!(TickPeriod::from_us(0), None);
+        assert_eq!(TickPeriod::from_us(1_000_001), None);
+        let t = TickPeriod::from_us(50).unwrap();
+        assert_eq!(t.us(), 50);
+        assert_eq!(t.ns(), 50_000);
+        // The exact expression every caller used before this type existed.
+        let tick_us: u32 = 50;
+        assert_eq!(t.secs().to_bits(), (tick_us as f64 * 1e-6).to_bits());
+        assert_eq!(t.ticks_to_secs(20_000), 20_000.0 * (50.0 * 1e-6));
+        assert_eq!(t.to_string(), "50 µs");
+        let max = TickPeriod::from_us(TickPeriod::MAX_US).unwrap();
+        assert_eq!(max.ns(), 1_000_000_000);
+    }
+}
