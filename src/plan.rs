@@ -59,9 +59,20 @@ pub struct PlanSummary {
     pub time_optimal_bound_s: Option<f64>,
     /// `planned / bound - 1`.
     pub time_over_bound: Option<f64>,
-    /// Largest true chord error (mm).
+    /// Largest true chord error (mm), as measured.
     pub max_chord_error_mm: f64,
+    /// Segments whose measured chord error is over the tolerance.
     pub segments_over_tolerance: u64,
+    /// Largest certified bound on a segment's chord error (mm): no segment's curve leaves its
+    /// chord by more. At most the tolerance.
+    pub max_chord_bound_mm: f64,
+    /// Segments whose certified bound is over the tolerance (none: the segmenter accepts a
+    /// segment only when its bound holds).
+    pub segments_bound_over_tolerance: u64,
+    /// Measurements within the tolerance that the bound refused (the segment was shortened).
+    pub refused_by_bound: u64,
+    /// Bézier pieces examined by the certificates, per segment.
+    pub certified_pieces_per_segment: f64,
     pub max_feed_mm_per_s: f64,
     /// Period mode: `|step - planned| / planned` (seed 001 eq. 16).
     pub max_fluctuation: Option<f64>,
@@ -110,6 +121,10 @@ impl PlanSummary {
         s += &format!(
             "max chord error    {:.6} mm ({} over tolerance)\n",
             self.max_chord_error_mm, self.segments_over_tolerance
+        );
+        s += &format!(
+            "max chord bound    {:.6} mm certified ({} over tolerance, {} measurements refused)\n",
+            self.max_chord_bound_mm, self.segments_bound_over_tolerance, self.refused_by_bound
         );
         s += &format!("max feed           {:.3} mm/s\n", self.max_feed_mm_per_s);
         s += &format!(
@@ -230,6 +245,8 @@ struct Collector {
     length: f64,
     max_err: f64,
     over: u64,
+    max_bound: f64,
+    bound_over: u64,
     max_feed: f64,
     fl_max: f64,
     fl_sum: f64,
@@ -255,7 +272,7 @@ impl Collector {
             BlockKind::Nurbs { .. } => format!("{}", block.curve.u_min()),
             _ => String::new(),
         };
-        let row = self.row_text(block, &u, &p, 0.0, 0.0, 0.0, None, f64::INFINITY, 0);
+        let row = self.row_text(block, &u, &p, 0.0, 0.0, (0.0, 0.0), None, f64::INFINITY, 0);
         self.write(&row);
         self.path.push(p[0], p[1]);
     }
@@ -268,14 +285,16 @@ impl Collector {
         p: &crate::geometry::Point,
         t: f64,
         feed: f64,
-        err: f64,
+        (err, bound): (f64, f64),
         fluct: Option<f64>,
         rho: f64,
         evals: u32,
     ) -> String {
-        let coord = |i: Option<usize>| i.map_or(String::new(), |i| format!("{:.6}", p[i]));
+        // Every number at full precision: the shortest decimal that reads back as the same
+        // double, so a 0.1 µm tolerance is not drowned by the printing.
+        let coord = |i: Option<usize>| i.map_or(String::new(), |i| format!("{}", p[i]));
         let mut row = format!(
-            "{},{},{},{},{},{},{:.9},{:.6},{:.9},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
             block.line,
             block.kind.name(),
             u,
@@ -285,16 +304,17 @@ impl Collector {
             t,
             feed,
             err,
-            fluct.map_or(String::new(), |f| format!("{f:.3e}")),
+            bound,
+            fluct.map_or(String::new(), |f| format!("{f:e}")),
             if rho.is_finite() {
-                format!("{rho:.6}")
+                format!("{rho}")
             } else {
                 String::new()
             },
             evals
         );
         for &(i, _) in &self.axis_columns {
-            row += &format!(",{:.6}", p[i]);
+            row += &format!(",{}", p[i]);
         }
         row.push('\n');
         row
@@ -316,6 +336,10 @@ impl Collector {
         self.max_err = self.max_err.max(seg.chord_error);
         if seg.chord_error > self.tolerance {
             self.over += 1;
+        }
+        self.max_bound = self.max_bound.max(seg.chord_bound);
+        if seg.chord_bound > self.tolerance {
+            self.bound_over += 1;
         }
         let v = seg.v_exit;
         self.max_feed = self.max_feed.max(seg.v_peak);
@@ -359,7 +383,7 @@ impl Collector {
             &seg.end,
             self.t,
             v,
-            seg.chord_error,
+            (seg.chord_error, seg.chord_bound),
             seg.fluctuation,
             seg.rho_end,
             seg.evals,
@@ -413,6 +437,8 @@ pub fn plan_program(
         length: 0.0,
         max_err: 0.0,
         over: 0,
+        max_bound: 0.0,
+        bound_over: 0,
         max_feed: 0.0,
         fl_max: 0.0,
         fl_sum: 0.0,
@@ -430,7 +456,8 @@ pub fn plan_program(
         fluct: Decimated::new(PLOT_POINTS),
         error: None,
     };
-    let mut header = "line,kind,u,x,y,z,t,feed,chord_err,fluctuation,rho,evals".to_string();
+    let mut header =
+        "line,kind,u,x,y,z,t,feed,chord_err,chord_bound,fluctuation,rho,evals".to_string();
     for (_, letter) in &extra {
         header += &format!(",{letter}");
     }
@@ -500,6 +527,12 @@ pub fn plan_program(
         time_over_bound: bound.map(|b| c.t / b - 1.0),
         max_chord_error_mm: c.max_err,
         segments_over_tolerance: c.over,
+        max_chord_bound_mm: c.max_bound,
+        segments_bound_over_tolerance: c.bound_over,
+        refused_by_bound: stats.segmenter.refused_by_bound,
+        certified_pieces_per_segment: (stats.segmenter.certified_pieces + stats.certified_pieces)
+            as f64
+            / segments,
         max_feed_mm_per_s: c.max_feed,
         max_fluctuation: (c.fl_count > 0).then_some(c.fl_max),
         mean_fluctuation: (c.fl_count > 0).then(|| c.fl_sum / c.fl_count as f64),

@@ -196,7 +196,18 @@ fn plan_writes_trace_summary_and_plots() {
         let trace = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
         let mut lines = trace.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        for col in ["line", "kind", "u", "x", "y", "z", "t", "feed", "chord_err"] {
+        for col in [
+            "line",
+            "kind",
+            "u",
+            "x",
+            "y",
+            "z",
+            "t",
+            "feed",
+            "chord_err",
+            "chord_bound",
+        ] {
             assert!(header.contains(&col), "missing column {col}: {header:?}");
         }
         let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
@@ -211,8 +222,8 @@ fn plan_writes_trace_summary_and_plots() {
         );
         // The first row is the path's start, at rest; the G0 to X0 Y0 is a zero move, so the
         // first block is the curve on line 5.
-        assert_eq!(rows[0][6], "0.000000000");
         let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+        assert_eq!(rows[0][col("t")], "0");
         let last = rows.last().unwrap();
         assert_eq!(last[col("kind")], "nurbs");
         assert_eq!(last[col("u")], "1");
@@ -223,6 +234,25 @@ fn plan_writes_trace_summary_and_plots() {
             .fold(0.0, f64::max);
         assert!(max_err <= 0.001, "{max_err}");
         assert!(json["max_chord_error_mm"].as_f64().unwrap() <= 0.001);
+        // Every segment carries its certified bound, within the tolerance.
+        let max_bound = rows
+            .iter()
+            .map(|r| r[col("chord_bound")].parse::<f64>().unwrap())
+            .fold(0.0, f64::max);
+        assert!(max_bound > 0.0 && max_bound <= 0.001, "{max_bound}");
+        assert_eq!(json["max_chord_bound_mm"].as_f64().unwrap(), max_bound);
+        assert_eq!(json["segments_bound_over_tolerance"].as_u64(), Some(0));
+        // Full precision: each number is the shortest text that reads back as the same
+        // double, so coordinates carry more than the old 6 decimals.
+        let long = rows
+            .iter()
+            .filter(|r| r[col("x")].split('.').nth(1).is_some_and(|d| d.len() > 6))
+            .count();
+        assert!(long > rows.len() / 2, "{long} of {} rows", rows.len());
+        for r in &rows {
+            let x = r[col("x")];
+            assert_eq!(x.parse::<f64>().unwrap().to_string(), x);
+        }
         let time = json["planned_time_s"].as_f64().unwrap();
         let bound = json["time_optimal_bound_s"].as_f64().unwrap();
         assert!(time >= bound && time <= 1.01 * bound, "{time} vs {bound}");

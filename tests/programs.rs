@@ -202,8 +202,9 @@ fn incremental_mode_applies_to_nurbs_control_points() {
     let (b, _) = parse(incremental, XY);
     assert_eq!(a[1].curve, b[1].curve);
 
+    // G5.2 under G91 follows LinuxCNC: offsets from the curve's start point (X1 Y1).
     let g52_abs = "G0 X1 Y1\nF100\nG5.2 X2 Y3\nX4 Y3\nX5 Y1\nG5.3\nM30\n";
-    let g52_inc = "G0 X1 Y1\nF100\nG91 G5.2 X1 Y2\nX2 Y0\nX1 Y-2\nG5.3\nM30\n";
+    let g52_inc = "G0 X1 Y1\nF100\nG91 G5.2 X1 Y2\nX3 Y2\nX4 Y0\nG5.3\nM30\n";
     assert_eq!(parse(g52_abs, XY).0[1].curve, parse(g52_inc, XY).0[1].curve);
 
     let g38_abs = "G0 X1 Y1\nG38 O2 C3 X1 Y1 F50\nG38 X3 Y4\nG38 X6 Y1\nM30\n";
@@ -348,4 +349,78 @@ fn the_default_config_axes_read_the_shipped_programs() {
     ] {
         assert!(!parse_file(p, &cfg.machine.axes).0.is_empty());
     }
+}
+
+#[test]
+fn spindle_speed_modes_are_accepted_with_one_warning() {
+    // LinuxCNC's NURBS examples start this way.
+    let (blocks, warnings) = parse(
+        "G21 G90 G17\nG96 M3 S200\nG1 X1 F100\nG97 S1000\nG1 X2\nM30\n",
+        XY,
+    );
+    assert_eq!(blocks.len(), 2);
+    let spindle: Vec<_> = warnings
+        .iter()
+        .filter(|w| w.message.contains("G96/G97"))
+        .collect();
+    assert_eq!(spindle.len(), 1, "{warnings:?}");
+    assert_eq!((spindle[0].line, spindle[0].col), (2, 1));
+}
+
+/// LinuxCNC's `G5.2` (interp_convert.cc, `convert_nurbs`): under G91 every control point is
+/// relative to the curve's start; an order L below 3 is 3; only X and Y make the curve.
+#[test]
+fn g5_2_follows_linuxcnc_under_g91_with_low_orders_and_off_plane_words() {
+    // From the origin: LinuxCNC ends at X3 Y1 (start + offset), not X6 Y2 (chained).
+    let (blocks, warnings) = parse(
+        "G21 G91 G17 F100\nG5.2 X1 Y1 P1\nX2 Y0 P1\nX3 Y1 P1\nG5.3\nM30\n",
+        XY,
+    );
+    let c = &nurbs_blocks(&blocks)[0].curve;
+    assert_eq!(c.end_point(), point(&[3.0, 1.0]));
+    assert_eq!(c.control_point(2), point(&[2.0, 0.0]));
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.message.contains("relative to the curve's start")),
+        "{warnings:?}"
+    );
+    // Absolute coordinates mean the same thing either way: no warning.
+    let (_, warnings) = parse(
+        "G21 G90 G17 F100\nG5.2 X1 Y1 P1\nX2 Y0 P1\nX3 Y1 P1\nG5.3\nM30\n",
+        XY,
+    );
+    assert!(
+        warnings.iter().all(|w| !w.message.contains("G91")),
+        "{warnings:?}"
+    );
+
+    // L2 is order 3 (degree 2), not a polyline; L4 stays order 4.
+    let (blocks, warnings) = parse(
+        "G21 G90 F100\nG5.2 X1 Y1 P1 L2\nX2 Y0 P1\nX3 Y1 P1\nG5.3\nG5.2 X4 Y0 P1 L4\nX5 Y2 P1\nX6 Y0 P1\nX7 Y1 P1\nG5.3\nM30\n",
+        XY,
+    );
+    let curves = nurbs_blocks(&blocks);
+    assert_eq!(curves[0].curve.degree(), 2);
+    assert_eq!(curves[1].curve.degree(), 3);
+    let order = warnings
+        .iter()
+        .find(|w| w.message.contains("order below 3"))
+        .unwrap();
+    assert_eq!((order.line, order.col), (2, 15));
+
+    // Z on a G5.2 line is not part of the curve: it stays at the start's Z.
+    let (blocks, warnings) = parse(
+        "G21 G90 F100\nG1 Z-2\nG5.2 X1 Y1 Z5 P1\nX2 Y0 P1\nX3 Y1 Z7 P1\nG5.3\nM30\n",
+        XYZ,
+    );
+    let c = &nurbs_blocks(&blocks)[0].curve;
+    for i in 0..c.num_points() {
+        assert_eq!(c.control_point(i)[2], -2.0, "control point {i}");
+    }
+    let z = warnings
+        .iter()
+        .find(|w| w.message.contains("X and Y only"))
+        .unwrap();
+    assert_eq!((z.line, z.col), (3, 12));
 }

@@ -12,9 +12,11 @@
 
 mod arc;
 mod basis;
+mod bezier;
 mod nurbs;
 
 pub use arc::circular_arc;
+pub use bezier::Bezier;
 pub use nurbs::{CurveDerivs, CurveEnd, NurbsCurve, NurbsError};
 
 /// Highest curve degree accepted (order 10).

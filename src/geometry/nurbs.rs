@@ -54,9 +54,9 @@ pub enum NurbsError {
 
 /// Width of a stored homogeneous control point: up to [`MAX_AXES`] coordinates, the weight,
 /// one slot of padding.
-const HOMOGENEOUS_WIDTH: usize = 8;
+pub(super) const HOMOGENEOUS_WIDTH: usize = 8;
 /// Where the weight sits in a stored homogeneous control point.
-const WEIGHT_SLOT: usize = MAX_AXES;
+pub(super) const WEIGHT_SLOT: usize = MAX_AXES;
 
 /// Which end of a knot vector a [`NurbsError::NotClamped`] refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -214,6 +214,11 @@ impl NurbsCurve {
             p[axis] = h[axis] / w;
         }
         p
+    }
+
+    /// The homogeneous control points `(w x, w)`, weight in slot [`WEIGHT_SLOT`].
+    pub(super) fn homogeneous(&self) -> &[[f64; HOMOGENEOUS_WIDTH]] {
+        &self.homogeneous
     }
 
     pub fn weight(&self, i: usize) -> f64 {

@@ -54,10 +54,24 @@ pub fn chord_length_limit(rho: f64, tol: f64) -> f64 {
 pub struct ChordError {
     /// Largest distance from the curve piece to its chord (mm).
     pub max: f64,
+    /// The curve parameter where that distance was found (NaN when nothing was measured):
+    /// where a certificate splits first ([`certify`](super::certify)).
+    pub at: f64,
     /// Smallest radius of curvature seen at the interior points evaluated (mm).
     pub rho_min: f64,
     /// Curve evaluations spent.
     pub evals: u32,
+}
+
+impl ChordError {
+    /// A distance found at parameter `u`: kept if it is the largest so far.
+    #[inline]
+    fn note(&mut self, distance: f64, u: f64) {
+        if distance > self.max {
+            self.max = distance;
+            self.at = u;
+        }
+    }
 }
 
 /// Newton iterations per bulge before settling for the largest value seen.
@@ -283,6 +297,7 @@ pub fn chord_error_estimate(a: &Sample, b: &Sample, tol: f64) -> f64 {
 pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> ChordError {
     let mut out = ChordError {
         max: 0.0,
+        at: f64::NAN,
         rho_min: f64::INFINITY,
         evals: 0,
     };
@@ -344,7 +359,7 @@ fn polish(
         let d = curve.derivs(u0 + s * du);
         out.evals += 1;
         out.rho_min = out.rho_min.min(d.curvature_radius());
-        out.max = out.max.max(chord.distance(&d.point));
+        out.note(chord.distance(&d.point), u0 + s * du);
         let r = chord.perp(&(d.point - chord.start));
         let f = r.norm_squared();
         if first < 0.0 {
@@ -358,7 +373,8 @@ fn polish(
         }
         let step = -slope / curv;
         if (step / du).abs() <= NEWTON_DONE {
-            out.max = out.max.max((f - slope * slope / curv).max(0.0).sqrt());
+            let peak = (s + step / du).clamp(0.0, 1.0);
+            out.note((f - slope * slope / curv).max(0.0).sqrt(), u0 + peak * du);
             break;
         }
         s = (s + step / du).clamp(0.0, 1.0);
@@ -370,11 +386,12 @@ fn polish(
 fn sampled_maximum(curve: &NurbsCurve, u0: f64, du: f64, chord: &Chord, out: &mut ChordError) {
     let mut g = [0.0; FALLBACK_SAMPLES + 1];
     for (k, slot) in g.iter_mut().enumerate().take(FALLBACK_SAMPLES).skip(1) {
-        let d = curve.derivs(u0 + du * k as f64 / FALLBACK_SAMPLES as f64);
+        let u = u0 + du * k as f64 / FALLBACK_SAMPLES as f64;
+        let d = curve.derivs(u);
         out.evals += 1;
         out.rho_min = out.rho_min.min(d.curvature_radius());
         let dist = chord.distance(&d.point);
-        out.max = out.max.max(dist);
+        out.note(dist, u);
         *slot = dist * dist;
     }
     if chord.len > 1e-12 {
@@ -396,7 +413,7 @@ fn sampled_maximum(curve: &NurbsCurve, u0: f64, du: f64, chord: &Chord, out: &mu
         out.evals += 1;
         out.rho_min = out.rho_min.min(d.curvature_radius());
         let dist = chord.distance(&d.point);
-        out.max = out.max.max(dist);
+        out.note(dist, u0 + du * s);
         dist
     };
     const INV_PHI: f64 = 0.618_033_988_749_895;

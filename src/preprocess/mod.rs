@@ -29,6 +29,7 @@
 //! segment of it is in flight. Nothing here does I/O or reads a clock.
 
 pub mod bound;
+pub mod certify;
 pub mod chord;
 pub mod period;
 pub mod planner;
@@ -79,8 +80,11 @@ pub struct GeoSegment {
     pub chord: f64,
     /// Arc length of the curve piece (mm), from chord and sagitta.
     pub arc: f64,
-    /// True chord error (mm).
+    /// True chord error (mm), as measured.
     pub chord_error: f64,
+    /// Certified upper bound on the chord error (mm): the curve provably stays this close to
+    /// the chord ([`certify`]).
+    pub chord_bound: f64,
     /// Smallest radius of curvature seen on the piece (mm).
     pub rho_min: f64,
     /// Radius of curvature at the end (mm).
@@ -112,6 +116,9 @@ pub struct Segment {
     pub length: f64,
     /// True chord error (mm); in period mode a model estimate unless it came near the tolerance.
     pub chord_error: f64,
+    /// Certified upper bound on the chord error (mm), never above the tolerance
+    /// ([`certify`]).
+    pub chord_bound: f64,
     /// Speeds at the start and end of the segment and the highest inside it (mm/s).
     pub v_entry: f64,
     pub v_exit: f64,
@@ -159,6 +166,8 @@ pub struct PreprocessStats {
     pub step_evals: u64,
     /// Period-mode steps whose chord error needed the full measurement.
     pub chord_checks: u64,
+    /// Bézier pieces the period steps' certificates examined (the segmenter counts its own).
+    pub certified_pieces: u64,
 }
 
 /// Segmenter, planner and (in period mode) period stepper, wired together.
@@ -225,16 +234,17 @@ impl Preprocessor {
     }
 
     pub fn stats(&self) -> PreprocessStats {
-        let (step_evals, chord_checks) = self
-            .stepper
-            .as_ref()
-            .map_or((0, 0), |s| (s.evals(), s.chord_checks()));
+        let (step_evals, chord_checks, certified_pieces) =
+            self.stepper.as_ref().map_or((0, 0, 0), |s| {
+                (s.evals(), s.chord_checks(), s.certified_pieces())
+            });
         PreprocessStats {
             blocks: self.blocks,
             segmenter: self.segmenter.stats,
             segments: self.segments,
             step_evals,
             chord_checks,
+            certified_pieces,
         }
     }
 }
@@ -258,6 +268,7 @@ fn chord_segment(p: PlannedSegment) -> Segment {
         end: g.end,
         length: g.chord,
         chord_error: g.chord_error,
+        chord_bound: g.chord_bound,
         v_entry: p.profile.v_entry,
         v_exit: p.profile.v_exit,
         v_peak: p.profile.v_peak,

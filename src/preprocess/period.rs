@@ -17,7 +17,12 @@
 //!
 //! A piece (block, or curve part between corner knots) always ends exactly on its end point with
 //! a partial period; the next piece starts on the same time grid.
+//!
+//! Every step obeys the certified chord bound ([`certify`](super::certify)): a step counts as
+//! within the tolerance only when its bound holds, and one that is not is cut back until it
+//! does. The measured error is reported beside the bound.
 
+use super::certify::certify;
 use super::chord::{Sample, chord_error, chord_error_estimate};
 use super::planner::PlannedSegment;
 use super::predictor::{History, hamming_increments, taylor_increment};
@@ -32,6 +37,14 @@ const MAX_CLOSING_STEPS: u32 = 256;
 
 /// Below this fraction of the tolerance the Hermite model's chord error is trusted as is.
 const CHORD_CHECK_FRACTION: f64 = 0.5;
+
+/// A step's chord error as measured (or estimated, well below the tolerance) and its
+/// certified bound; decisions use the bound.
+#[derive(Debug, Clone, Copy)]
+struct Chord {
+    error: f64,
+    bound: f64,
+}
 
 /// Samples the planned profile once per period.
 #[derive(Debug)]
@@ -55,6 +68,7 @@ pub struct PeriodStepper {
     prev_speed: f64,
     evals: u64,
     chord_checks: u64,
+    certified_pieces: u64,
 }
 
 impl PeriodStepper {
@@ -71,6 +85,7 @@ impl PeriodStepper {
             prev_speed: 0.0,
             evals: 0,
             chord_checks: 0,
+            certified_pieces: 0,
         }
     }
 
@@ -80,6 +95,11 @@ impl PeriodStepper {
 
     pub fn chord_checks(&self) -> u64 {
         self.chord_checks
+    }
+
+    /// Bézier pieces the steps' certificates examined.
+    pub fn certified_pieces(&self) -> u64 {
+        self.certified_pieces
     }
 
     /// Takes one planned grid segment and emits the period steps that end inside it.
@@ -201,7 +221,7 @@ impl PeriodStepper {
         }
         let (mut b, mut len) = best;
         let mut chord_err = self.chord_error(curve, &a, &b, &mut evals);
-        let shortened = chord_err > self.settings.tolerance;
+        let shortened = chord_err.bound > self.settings.tolerance;
         if shortened {
             // The chord-length correction can land past a hairpin (|C(u) - C(u_i)| is not
             // monotone there) or the profile can ask for more than the curve allows: the step is
@@ -239,10 +259,10 @@ impl PeriodStepper {
         a: &Sample,
         b: Sample,
         evals: &mut u32,
-    ) -> (Sample, f64) {
+    ) -> (Sample, Chord) {
         let tol = self.settings.tolerance;
         let (mut lo, mut hi) = (a.u, b.u);
-        let mut best: Option<(Sample, f64)> = None;
+        let mut best: Option<(Sample, Chord)> = None;
         for _ in 0..48 {
             let mid = 0.5 * (lo + hi);
             if mid <= lo || mid >= hi {
@@ -251,7 +271,7 @@ impl PeriodStepper {
             let sample = Sample::at(curve, mid);
             *evals += 1;
             let err = self.chord_error(curve, a, &sample, evals);
-            if err <= tol {
+            if err.bound <= tol {
                 lo = mid;
                 best = Some((sample, err));
             } else {
@@ -291,7 +311,7 @@ impl PeriodStepper {
             // cut across, the rest is covered in steps within tolerance, each taking half of
             // the remaining time (the speed they imply is reported as it is).
             let mut extra = 0;
-            while chord_err > self.settings.tolerance && extra < MAX_CLOSING_STEPS {
+            while chord_err.bound > self.settings.tolerance && extra < MAX_CLOSING_STEPS {
                 let (mid, err) = self.shorten_to_tolerance(curve, &a, b, &mut evals);
                 let len = (mid.d.point - a.d.point).norm();
                 let t = self.now + 0.5 * (self.clock - self.now);
@@ -328,7 +348,7 @@ impl PeriodStepper {
         len: f64,
         t: f64,
         fluctuation: Option<f64>,
-        chord_err: f64,
+        chord_err: Chord,
         evals: u32,
         last_of_block: bool,
         emit: &mut dyn FnMut(Segment),
@@ -352,7 +372,8 @@ impl PeriodStepper {
             start: a.d.point,
             end: b.d.point,
             length: len,
-            chord_error: chord_err,
+            chord_error: chord_err.error,
+            chord_bound: chord_err.bound,
             v_entry: v_prev,
             v_exit: v,
             v_peak: v,
@@ -365,20 +386,37 @@ impl PeriodStepper {
         self.prev_speed = v;
     }
 
-    /// The chord error of a step: the Hermite model when it is well below the tolerance, the
-    /// full measurement otherwise.
-    fn chord_error(&mut self, curve: &NurbsCurve, a: &Sample, b: &Sample, evals: &mut u32) -> f64 {
+    /// The chord error of a step (the Hermite model when it is well below the tolerance, the
+    /// full measurement otherwise) and its certified bound. A degree-1 curve's bound is zero:
+    /// a piece between corner knots is one span of a rational line, on its chord.
+    fn chord_error(
+        &mut self,
+        curve: &NurbsCurve,
+        a: &Sample,
+        b: &Sample,
+        evals: &mut u32,
+    ) -> Chord {
         if curve.degree() == 1 {
-            return 0.0;
+            return Chord {
+                error: 0.0,
+                bound: 0.0,
+            };
         }
         let tol = self.settings.tolerance;
         let estimate = chord_error_estimate(a, b, tol);
-        if estimate < CHORD_CHECK_FRACTION * tol {
-            return estimate;
+        let (error, at) = if estimate < CHORD_CHECK_FRACTION * tol {
+            (estimate, f64::NAN)
+        } else {
+            self.chord_checks += 1;
+            let measured = chord_error(curve, a, b, tol);
+            *evals += measured.evals;
+            (measured.max, measured.at)
+        };
+        let certificate = certify(curve, a.u, b.u, &a.d.point, &b.d.point, tol, at);
+        self.certified_pieces += u64::from(certificate.pieces);
+        Chord {
+            error,
+            bound: certificate.bound,
         }
-        self.chord_checks += 1;
-        let measured = chord_error(curve, a, b, tol);
-        *evals += measured.evals;
-        measured.max
     }
 }

@@ -29,6 +29,9 @@ pub(super) enum GCode {
     Plane(Plane),
     /// A mode edmd is always in (G40, G49, G54, G61, G64, G94): accepted, nothing to do.
     Accepted(u8),
+    /// G96/G97, spindle speed modes (group 14): meaningless on an EDM, accepted with a
+    /// warning as `S` and `M3` are (LinuxCNC's NURBS examples start with `G96 M3 S200`).
+    SpindleMode,
 }
 
 impl GCode {
@@ -41,6 +44,7 @@ impl GCode {
             GCode::ArcCentreAbsolute(_) => 4,
             GCode::Plane(_) => 5,
             GCode::Accepted(g) => g,
+            GCode::SpindleMode => 14,
         }
     }
 }
@@ -127,7 +131,7 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
             );
         }
         730 | 740 | 810..=890 => return unsupported("canned cycles"),
-        960 | 970 => return unsupported("spindle speed modes"),
+        960 | 970 => GCode::SpindleMode,
         _ => {
             return Err((
                 col,

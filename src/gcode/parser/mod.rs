@@ -80,6 +80,10 @@ pub struct BlockReader<R> {
     warnings: Vec<Warning>,
     warned_letters: Vec<char>,
     warned_no_feed: bool,
+    /// Warnings given once per program, by what they are about.
+    warned_about: Vec<&'static str>,
+    /// The line being read (for warnings raised deep in a block).
+    line_no: u64,
     words: Vec<Word>,
     saw_content: bool,
     ended_at: Option<u64>,
@@ -107,6 +111,8 @@ impl<R: BufRead> BlockReader<R> {
             warnings: Vec::new(),
             warned_letters: Vec::new(),
             warned_no_feed: false,
+            warned_about: Vec::new(),
+            line_no: 0,
             words: Vec::new(),
             saw_content: false,
             ended_at: None,
@@ -226,6 +232,7 @@ impl<R: BufRead> BlockReader<R> {
         text: &str,
         words: &mut Vec<Word>,
     ) -> Step<Option<Block>> {
+        self.line_no = line_no;
         let info = lex(text, words).map_err(Fail::from)?;
         if words.is_empty() && info.percent.is_none() {
             return Ok(None);

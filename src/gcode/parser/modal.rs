@@ -56,6 +56,14 @@ impl<R: BufRead> BlockReader<R> {
                 GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
                 GCode::Plane(p) => self.modal.plane = p,
                 GCode::Accepted(_) => {}
+                GCode::SpindleMode => self.warn_once_about(
+                    "spindle mode",
+                    w.col,
+                    format!(
+                        "G{}: spindle speed modes (G96/G97) do nothing on an EDM and are ignored",
+                        w.text
+                    ),
+                ),
                 GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
                     motion_word = Some((code, w));
                 }
@@ -187,6 +195,18 @@ impl<R: BufRead> BlockReader<R> {
                 .iter()
                 .any(|&l| letters.get(l).is_some());
         Ok(arc_words)
+    }
+
+    /// A warning given once per program for `about`, at the current line.
+    pub(super) fn warn_once_about(&mut self, about: &'static str, col: usize, message: String) {
+        if !self.warned_about.contains(&about) {
+            self.warned_about.push(about);
+            self.warnings.push(Warning {
+                line: self.line_no,
+                col,
+                message,
+            });
+        }
     }
 
     pub(super) fn warn_once(&mut self, line: u64, w: &Word, message: &str) {

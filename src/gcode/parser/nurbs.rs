@@ -105,9 +105,23 @@ impl<R: BufRead> BlockReader<R> {
                 ))?;
                 whole(p, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1
             }
+            // LinuxCNC's order is 3 unless L is above 3 (interp_convert.cc, convert_nurbs).
             NurbsForm::LinuxCnc => match letters.get('L') {
-                Some(l) => whole(l, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1,
-                None => 2, // LinuxCNC's default order is 3
+                Some(l) => {
+                    let order = whole(l, 0.0, (MAX_DEGREE + 1) as f64)? as usize;
+                    if order < 3 {
+                        self.warn_once_about(
+                            "G5.2 order",
+                            l.col,
+                            format!(
+                                "L{}: an order below 3 is read as order 3, as LinuxCNC does",
+                                l.text
+                            ),
+                        );
+                    }
+                    order.max(3) - 1
+                }
+                None => 2,
             },
         };
         let mut curve = PendingCurve {
@@ -149,7 +163,13 @@ impl<R: BufRead> BlockReader<R> {
         if form == NurbsForm::LinuxCnc {
             // The current position is the first control point; a G5.2 without axis words only
             // sets that point's weight.
-            let (_, any) = self.target(&self.position, letters, "")?;
+            let off_plane: String = self
+                .axes
+                .iter()
+                .map(|a| a.letter())
+                .filter(|&l| l != 'X' && l != 'Y')
+                .collect();
+            let (_, any) = self.target(&self.position, letters, &off_plane)?;
             let p0_weight = if any { 1.0 } else { weight(letters.get('P'))? };
             curve.points.push(self.position);
             curve.weights.push(p0_weight);
@@ -187,8 +207,13 @@ impl<R: BufRead> BlockReader<R> {
     }
 
     /// Adds the block's control point (and its weight and knot) to `curve`; returns the point.
+    ///
+    /// `G5.2` points follow LinuxCNC (interp_convert.cc, `convert_nurbs`): under `G91` each is
+    /// relative to the curve's start point, not to the previous point, and only X and Y are
+    /// part of the curve (other axis words are ignored; the curve stays at its start's other
+    /// coordinates). Each is warned about once where a program relies on it.
     pub(super) fn add_point(
-        &self,
+        &mut self,
         curve: &mut PendingCurve,
         letters: &Letters,
         col: usize,
@@ -202,14 +227,46 @@ impl<R: BufRead> BlockReader<R> {
             )
                 .into());
         }
-        let base = curve.points.last().copied().unwrap_or(self.position);
-        // G38's first line uses C for the point count, even on a machine with a C axis.
-        let reserved = if curve.form == NurbsForm::G38 && curve.points.is_empty() {
-            "C"
-        } else {
-            ""
+        let linuxcnc = curve.form == NurbsForm::LinuxCnc;
+        let base = match curve.points.first() {
+            Some(&start) if linuxcnc => start,
+            _ => curve.points.last().copied().unwrap_or(self.position),
         };
-        let (p, any) = self.target(&base, letters, reserved)?;
+        // G38's first line uses C for the point count, even on a machine with a C axis; a G5.2
+        // curve takes X and Y only.
+        let reserved: String = if curve.form == NurbsForm::G38 && curve.points.is_empty() {
+            "C".into()
+        } else if linuxcnc {
+            self.axes
+                .iter()
+                .map(|a| a.letter())
+                .filter(|&l| l != 'X' && l != 'Y')
+                .collect()
+        } else {
+            String::new()
+        };
+        if linuxcnc {
+            if let Some(w) = reserved.chars().find_map(|l| letters.get(l)) {
+                self.warn_once_about(
+                    "G5.2 plane",
+                    w.col,
+                    format!(
+                        "{}{}: a G5.2 curve moves X and Y only, as in LinuxCNC; the word is ignored",
+                        w.letter, w.text
+                    ),
+                );
+            }
+            if self.modal.incremental && curve.points.len() >= 2 {
+                self.warn_once_about(
+                    "G5.2 incremental",
+                    col,
+                    "G5.2 under G91: every control point is relative to the curve's start point, \
+                     not to the previous point, as in LinuxCNC"
+                        .to_string(),
+                );
+            }
+        }
+        let (p, any) = self.target(&base, letters, &reserved)?;
         if !any {
             return Err((
                 col,

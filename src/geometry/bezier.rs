@@ -1,0 +1,308 @@
+//! The rational Bézier pieces of a NURBS curve between two parameters, for bounds that hold.
+//!
+//! Inside one knot span a NURBS curve is a rational polynomial, so its piece between two
+//! parameters `s < t` of that span is a rational Bézier curve of the same degree. Its
+//! homogeneous control points are the blossom values `b(s,…,s, t,…,t)` (`p − j` times `s`,
+//! `j` times `t`), which de Boor's algorithm evaluates when each level takes its own argument
+//! (Ramshaw's blossoming; The NURBS Book §5.2 gets the same points by knot insertion). With
+//! every argument inside the span, each de Boor step is a convex combination of homogeneous
+//! points, so every Bézier control point is a convex combination of the curve's own: its
+//! weight is positive when the curve's weights are (which `NurbsCurve::new` enforces).
+//!
+//! That is what makes bounds sound: a rational Bézier curve with positive weights is a convex
+//! combination of its projected control points at every parameter
+//! (`C(u) = Σ λ_j(u) P_j`, `λ_j = B_j w_j / Σ B_k w_k ≥ 0`, `Σ λ_j = 1`), so the curve lies in
+//! their convex hull, and any convex function of the point (a distance to a segment, a
+//! coordinate) is at most its largest value at a control point. Halving a piece by de
+//! Casteljau ([`Bezier::split`]) gives control polygons that converge to the curve
+//! quadratically, so such bounds tighten by about four at each halving.
+
+use super::basis::find_span;
+use super::nurbs::{HOMOGENEOUS_WIDTH, WEIGHT_SLOT};
+use super::{MAX_DEGREE, NurbsCurve, Point};
+
+const ORDER: usize = MAX_DEGREE + 1;
+type Homogeneous = [f64; HOMOGENEOUS_WIDTH];
+
+/// A rational Bézier curve in homogeneous form `(w x, w)`: degree `p`, `p + 1` control points,
+/// all weights positive. Fixed-size, so pieces and their halves live on the stack.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bezier {
+    degree: usize,
+    dim: usize,
+    points: [Homogeneous; ORDER],
+}
+
+#[inline]
+fn lerp(a: &Homogeneous, b: &Homogeneous, t: f64) -> Homogeneous {
+    let mut out = [0.0; HOMOGENEOUS_WIDTH];
+    for c in 0..HOMOGENEOUS_WIDTH {
+        out[c] = (1.0 - t) * a[c] + t * b[c];
+    }
+    out
+}
+
+impl Bezier {
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+
+    /// Weight of control point `j` (positive).
+    pub fn weight(&self, j: usize) -> f64 {
+        self.points[j][WEIGHT_SLOT]
+    }
+
+    /// Control point `j` in Cartesian coordinates (mm).
+    pub fn control_point(&self, j: usize) -> Point {
+        let h = &self.points[j];
+        let w = h[WEIGHT_SLOT];
+        let mut p = Point::zeros();
+        for axis in 0..self.dim {
+            p[axis] = h[axis] / w;
+        }
+        p
+    }
+
+    /// The curve's point at `t ∈ [0, 1]` (de Casteljau in homogeneous form).
+    pub fn point(&self, t: f64) -> Point {
+        let p = self.degree;
+        let mut work = self.points;
+        for r in 1..=p {
+            for j in 0..=p - r {
+                work[j] = lerp(&work[j], &work[j + 1], t);
+            }
+        }
+        let mut out = Point::zeros();
+        for axis in 0..self.dim {
+            out[axis] = work[0][axis] / work[0][WEIGHT_SLOT];
+        }
+        out
+    }
+
+    /// The two halves, on `[0, ½]` and `[½, 1]` (de Casteljau at `½`).
+    pub fn split(&self) -> (Bezier, Bezier) {
+        self.split_at(0.5)
+    }
+
+    /// The two parts on `[0, t]` and `[t, 1]`, `t ∈ [0, 1]` (de Casteljau at `t`). Their control
+    /// points are convex combinations of this curve's, so they stay in its convex hull and
+    /// keep positive weights.
+    pub fn split_at(&self, t: f64) -> (Bezier, Bezier) {
+        let p = self.degree;
+        let mut left = Bezier {
+            degree: p,
+            dim: self.dim,
+            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+        };
+        let mut right = Bezier {
+            degree: p,
+            dim: self.dim,
+            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+        };
+        let mut work = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
+        work[..=p].copy_from_slice(&self.points[..=p]);
+        left.points[0] = work[0];
+        right.points[p] = work[p];
+        for r in 1..=p {
+            for j in 0..=p - r {
+                work[j] = lerp(&work[j], &work[j + 1], t);
+            }
+            left.points[r] = work[0];
+            right.points[p - r] = work[p - r];
+        }
+        (left, right)
+    }
+
+    /// The largest of `f` over the control points (Cartesian), without building vectors:
+    /// `f` gets each point's first `dim` coordinates.
+    pub fn max_over_control_points(&self, mut f: impl FnMut(&[f64]) -> f64) -> f64 {
+        let mut best = 0.0f64;
+        let mut c = [0.0; HOMOGENEOUS_WIDTH];
+        for h in &self.points[..=self.degree] {
+            let inv = 1.0 / h[WEIGHT_SLOT];
+            for axis in 0..self.dim {
+                c[axis] = h[axis] * inv;
+            }
+            best = best.max(f(&c[..self.dim]));
+        }
+        best
+    }
+}
+
+impl NurbsCurve {
+    /// The curve between `u0` and `u1` (clamped to its range) as rational Bézier curves, one
+    /// per non-empty knot span the interval crosses, in order along the curve; nothing when
+    /// the interval is empty. Each comes with the parameter interval it covers. Allocation-free.
+    pub fn bezier_pieces(&self, u0: f64, u1: f64, mut each: impl FnMut(&Bezier, f64, f64)) {
+        let (u0, u1) = (
+            u0.clamp(self.u_min(), self.u_max()),
+            u1.clamp(self.u_min(), self.u_max()),
+        );
+        if u0 >= u1 {
+            return;
+        }
+        let p = self.degree();
+        let knots = self.knots();
+        let last = self.num_points() - 1;
+        let mut span = find_span(last, p, knots, u0);
+        loop {
+            let (s, t) = (u0.max(knots[span]), u1.min(knots[span + 1]));
+            if s < t {
+                each(&self.span_bezier(span, s, t), s, t);
+            }
+            if knots[span + 1] >= u1 || span >= last {
+                break;
+            }
+            span += 1;
+        }
+    }
+
+    /// The Bézier control points of knot span `span` restricted to `[s, t]` (both inside it):
+    /// blossom values `b(s^{p−j}, t^j)` by de Boor's algorithm with one argument per level.
+    ///
+    /// The blossom is symmetric, so control point `j` may take `t` at the first `j` levels and
+    /// `s` after: the `t` levels are a prefix shared by every `j`, computed once (`p(p+1)/2`
+    /// lerps), and each point finishes with its own `s` levels (`(p−j)(p−j+1)/2`).
+    fn span_bezier(&self, span: usize, s: f64, t: f64) -> Bezier {
+        let p = self.degree();
+        let knots = self.knots();
+        let q = &self.homogeneous()[span - p..=span];
+        let level = |d: &mut [Homogeneous; ORDER], r: usize, x: f64| {
+            for i in (r..=p).rev() {
+                let k = span - p + i;
+                let alpha = (x - knots[k]) / (knots[k + p + 1 - r] - knots[k]);
+                d[i] = lerp(&d[i - 1], &d[i], alpha);
+            }
+        };
+        let mut out = Bezier {
+            degree: p,
+            dim: self.dim(),
+            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+        };
+        // `prefix` after j levels at t; `d` finishes each point (only the live rows copied).
+        let mut prefix = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
+        let mut d = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
+        prefix[..=p].copy_from_slice(q);
+        for j in 0..=p {
+            if j > 0 {
+                level(&mut prefix, j, t);
+            }
+            d[j..=p].copy_from_slice(&prefix[j..=p]);
+            for r in j + 1..=p {
+                level(&mut d, r, s);
+            }
+            out.points[j] = d[p];
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{circular_arc, clamped_uniform_knots, point};
+    use crate::rng::SplitMix64;
+
+    fn random_curve(rng: &mut SplitMix64, degree: usize, n: usize, repeat: bool) -> NurbsCurve {
+        let points: Vec<Point> = (0..n)
+            .map(|_| {
+                point(&[
+                    rng.uniform(-50.0, 50.0),
+                    rng.uniform(-50.0, 50.0),
+                    rng.uniform(-5.0, 5.0),
+                ])
+            })
+            .collect();
+        let weights: Vec<f64> = (0..n).map(|_| rng.uniform(0.2, 5.0)).collect();
+        let mut knots = clamped_uniform_knots(n, degree);
+        if repeat && n > degree + 2 {
+            // Repeat one interior knot up to the degree (replacing its neighbours).
+            let i = degree + 1;
+            for k in 1..degree.min(n - degree - 1) {
+                knots[i + k] = knots[i];
+            }
+        }
+        NurbsCurve::new(degree, 3, &points, &weights, knots).unwrap()
+    }
+
+    #[test]
+    fn pieces_reproduce_the_curve_between_the_parameters() {
+        let mut rng = SplitMix64::new(7);
+        for case in 0..200 {
+            let degree = 1 + case % 7;
+            let curve = random_curve(&mut rng, degree, degree + 1 + case % 6, case % 3 == 0);
+            let (lo, hi) = (curve.u_min(), curve.u_max());
+            let a = rng.uniform(lo, hi);
+            let b = rng.uniform(a, hi);
+            let mut pieces = Vec::new();
+            curve.bezier_pieces(a, b, |bz, _, _| pieces.push(*bz));
+            assert!(!pieces.is_empty());
+            // The pieces chain and end on the curve's points at a and b.
+            let scale = 1e-9 * 100.0;
+            assert!((pieces[0].control_point(0) - curve.point(a)).norm() < scale);
+            let last = pieces.last().unwrap();
+            assert!((last.control_point(degree) - curve.point(b)).norm() < scale);
+            for w in pieces.windows(2) {
+                assert!((w[0].control_point(degree) - w[1].control_point(0)).norm() < scale);
+            }
+            // Every piece matches the curve in between, and its weights are positive.
+            let knots = curve.knots();
+            let mut starts = vec![a];
+            starts.extend(knots.iter().copied().filter(|&k| k > a && k < b));
+            starts.dedup();
+            starts.push(b);
+            let spans: Vec<(f64, f64)> = starts
+                .windows(2)
+                .map(|w| (w[0], w[1]))
+                .filter(|(s, t)| t > s)
+                .collect();
+            assert_eq!(spans.len(), pieces.len(), "case {case}");
+            for ((s, t), bz) in spans.iter().zip(&pieces) {
+                for j in 0..=degree {
+                    assert!(bz.weight(j) > 0.0);
+                }
+                for k in 0..=8 {
+                    let f = k as f64 / 8.0;
+                    let u = s + f * (t - s);
+                    assert!(
+                        (bz.point(f) - curve.point(u)).norm() < scale,
+                        "case {case} at {u}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn halves_are_the_two_halves_and_stay_in_the_hull() {
+        let arc = circular_arc(
+            2,
+            [0, 1],
+            &point(&[0.0, 0.0]),
+            &point(&[10.0, 0.0]),
+            &point(&[-10.0, 0.0]),
+            std::f64::consts::PI,
+        )
+        .unwrap();
+        let mut piece = None;
+        arc.bezier_pieces(
+            arc.u_min(),
+            arc.u_min() + 0.3 * (arc.u_max() - arc.u_min()),
+            |b, _, _| {
+                piece.get_or_insert(*b);
+            },
+        );
+        let piece = piece.unwrap();
+        let (l, r) = piece.split();
+        for k in 0..=10 {
+            let t = k as f64 / 10.0;
+            assert!((l.point(t) - piece.point(0.5 * t)).norm() < 1e-12);
+            assert!((r.point(t) - piece.point(0.5 + 0.5 * t)).norm() < 1e-12);
+            // On the circle of radius 10.
+            assert!((piece.point(t).norm() - 10.0).abs() < 1e-12);
+        }
+        for j in 0..=2 {
+            assert!(l.weight(j) > 0.0 && r.weight(j) > 0.0);
+        }
+    }
+}
