@@ -13,6 +13,8 @@
 //! runs thousands of curves and prints the figures recorded in BENCHMARKS.md:
 //! `cargo test --release --test chord_bound -- --ignored --nocapture`.
 
+mod oracle;
+
 use std::sync::Arc;
 
 use edmd::config::Config;
@@ -21,6 +23,7 @@ use edmd::geometry::{NurbsCurve, Point, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segment};
 use edmd::rng::SplitMix64;
 use edmd::vocab::Segmentation;
+use oracle::dist_to_segment;
 
 const TOLERANCES: [f64; 3] = [1e-4, 1e-3, 1e-2];
 
@@ -135,17 +138,6 @@ fn plan(curve: &NurbsCurve, s: &PlanSettings) -> (Arc<Block>, Vec<Segment>) {
     pre.push_block(Arc::clone(&block), |seg| out.push(seg));
     pre.finish(|seg| out.push(seg));
     (block, out)
-}
-
-fn dist_to_segment(p: &Point, a: &Point, b: &Point) -> f64 {
-    let ab = b - a;
-    let len2 = ab.norm_squared();
-    let t = if len2 > 0.0 {
-        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + ab * t)).norm()
 }
 
 /// The true chord error of the curve on `[u0, u1]` against the segment `a`–`b`: 96 samples,

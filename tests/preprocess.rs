@@ -1,6 +1,8 @@
 //! The preprocessor against independent references: a slow greedy oracle with dense sampling
 //! for segment counts and chord errors, and the two papers' experiments.
 
+mod oracle;
+
 use std::sync::Arc;
 
 use edmd::config::Config;
@@ -8,6 +10,7 @@ use edmd::gcode::{Block, BlockReader};
 use edmd::geometry::{NurbsCurve, Point, clamped_uniform_knots, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segment, bound};
 use edmd::vocab::{Predictor, Segmentation};
+use oracle::dist_to_segment;
 
 fn settings(tol: f64, max_segment: f64) -> PlanSettings {
     let mut cfg = Config::default();
@@ -46,18 +49,6 @@ fn run(blocks: &[Arc<Block>], s: &PlanSettings) -> Vec<Segment> {
     }
     pre.finish(|seg| out.push(seg));
     out
-}
-
-/// Distance from `p` to the segment `a`–`b`.
-fn dist_to_segment(p: &Point, a: &Point, b: &Point) -> f64 {
-    let ab = b - a;
-    let len2 = ab.norm_squared();
-    let t = if len2 > 0.0 {
-        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + ab * t)).norm()
 }
 
 /// Largest distance from the curve on `[u0, u1]` to its chord, over `n + 1` uniform samples.

@@ -215,10 +215,9 @@ mod tests {
     use super::*;
     use crate::geometry::{circular_arc, point};
 
-    #[test]
-    fn the_bound_of_an_arc_tightens_to_the_sagitta() {
-        // Radius 10, a 0.2 rad piece: sagitta r (1 - cos 0.1).
-        let arc = circular_arc(
+    /// Radius 10 about the origin, counter-clockwise from (10, 0) to (−10, 0).
+    fn semicircle() -> NurbsCurve {
+        circular_arc(
             2,
             [0, 1],
             &point(&[0.0, 0.0]),
@@ -226,7 +225,13 @@ mod tests {
             &point(&[-10.0, 0.0]),
             std::f64::consts::PI,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn the_bound_of_an_arc_tightens_to_the_sagitta() {
+        // Radius 10, a 0.2 rad piece: sagitta r (1 - cos 0.1).
+        let arc = semicircle();
         let (u0, u1) = (0.1, 0.1 + 0.2 / std::f64::consts::PI);
         let (a, b) = (arc.point(u0), arc.point(u1));
         let truth = {
@@ -248,15 +253,7 @@ mod tests {
 
     #[test]
     fn a_cut_at_the_farthest_point_certifies_with_fewer_pieces() {
-        let arc = circular_arc(
-            2,
-            [0, 1],
-            &point(&[0.0, 0.0]),
-            &point(&[10.0, 0.0]),
-            &point(&[-10.0, 0.0]),
-            std::f64::consts::PI,
-        )
-        .unwrap();
+        let arc = semicircle();
         let (u0, u1) = (0.1, 0.1 + 0.2 / std::f64::consts::PI);
         let (a, b) = (arc.point(u0), arc.point(u1));
         // The farthest point, by golden section (a rational arc's parameter is not its
