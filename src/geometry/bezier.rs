@@ -22,40 +22,43 @@ use super::nurbs::{HOMOGENEOUS_WIDTH, WEIGHT_SLOT};
 use super::{MAX_DEGREE, NurbsCurve, Point};
 
 const ORDER: usize = MAX_DEGREE + 1;
-type Homogeneous = [f64; HOMOGENEOUS_WIDTH];
 
 /// A rational Bézier curve in homogeneous form `(w x, w)`: degree `p`, `p + 1` control points,
-/// all weights positive. Fixed-size, so pieces and their halves live on the stack.
+/// all weights positive, each a row of `W` numbers (the coordinates, zeros, the weight last).
+/// `W = 4` holds curves of up to three axes in half the room of `W = 8` (up to seven), which
+/// matters: pieces and their halves are copied on the stack. Fixed-size, so nothing allocates.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bezier {
+pub struct Bezier<const W: usize = HOMOGENEOUS_WIDTH> {
     degree: usize,
     dim: usize,
-    points: [Homogeneous; ORDER],
+    points: [[f64; W]; ORDER],
 }
 
 #[inline]
-fn lerp(a: &Homogeneous, b: &Homogeneous, t: f64) -> Homogeneous {
-    let mut out = [0.0; HOMOGENEOUS_WIDTH];
-    for c in 0..HOMOGENEOUS_WIDTH {
+fn lerp<const W: usize>(a: &[f64; W], b: &[f64; W], t: f64) -> [f64; W] {
+    let mut out = [0.0; W];
+    for c in 0..W {
         out[c] = (1.0 - t) * a[c] + t * b[c];
     }
     out
 }
 
-impl Bezier {
+impl<const W: usize> Bezier<W> {
+    const WEIGHT: usize = W - 1;
+
     pub fn degree(&self) -> usize {
         self.degree
     }
 
     /// Weight of control point `j` (positive).
     pub fn weight(&self, j: usize) -> f64 {
-        self.points[j][WEIGHT_SLOT]
+        self.points[j][Self::WEIGHT]
     }
 
     /// Control point `j` in Cartesian coordinates (mm).
     pub fn control_point(&self, j: usize) -> Point {
         let h = &self.points[j];
-        let w = h[WEIGHT_SLOT];
+        let w = h[Self::WEIGHT];
         let mut p = Point::zeros();
         for axis in 0..self.dim {
             p[axis] = h[axis] / w;
@@ -74,32 +77,32 @@ impl Bezier {
         }
         let mut out = Point::zeros();
         for axis in 0..self.dim {
-            out[axis] = work[0][axis] / work[0][WEIGHT_SLOT];
+            out[axis] = work[0][axis] / work[0][Self::WEIGHT];
         }
         out
     }
 
     /// The two halves, on `[0, ½]` and `[½, 1]` (de Casteljau at `½`).
-    pub fn split(&self) -> (Bezier, Bezier) {
+    pub fn split(&self) -> (Bezier<W>, Bezier<W>) {
         self.split_at(0.5)
     }
 
     /// The two parts on `[0, t]` and `[t, 1]`, `t ∈ [0, 1]` (de Casteljau at `t`). Their control
     /// points are convex combinations of this curve's, so they stay in its convex hull and
     /// keep positive weights.
-    pub fn split_at(&self, t: f64) -> (Bezier, Bezier) {
+    pub fn split_at(&self, t: f64) -> (Bezier<W>, Bezier<W>) {
         let p = self.degree;
         let mut left = Bezier {
             degree: p,
             dim: self.dim,
-            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+            points: [[0.0; W]; ORDER],
         };
         let mut right = Bezier {
             degree: p,
             dim: self.dim,
-            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+            points: [[0.0; W]; ORDER],
         };
-        let mut work = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
+        let mut work = [[0.0; W]; ORDER];
         work[..=p].copy_from_slice(&self.points[..=p]);
         left.points[0] = work[0];
         right.points[p] = work[p];
@@ -117,9 +120,9 @@ impl Bezier {
     /// `f` gets each point's first `dim` coordinates.
     pub fn max_over_control_points(&self, mut f: impl FnMut(&[f64]) -> f64) -> f64 {
         let mut best = 0.0f64;
-        let mut c = [0.0; HOMOGENEOUS_WIDTH];
+        let mut c = [0.0; W];
         for h in &self.points[..=self.degree] {
-            let inv = 1.0 / h[WEIGHT_SLOT];
+            let inv = 1.0 / h[Self::WEIGHT];
             for axis in 0..self.dim {
                 c[axis] = h[axis] * inv;
             }
@@ -133,7 +136,20 @@ impl NurbsCurve {
     /// The curve between `u0` and `u1` (clamped to its range) as rational Bézier curves, one
     /// per non-empty knot span the interval crosses, in order along the curve; nothing when
     /// the interval is empty. Each comes with the parameter interval it covers. Allocation-free.
-    pub fn bezier_pieces(&self, u0: f64, u1: f64, mut each: impl FnMut(&Bezier, f64, f64)) {
+    ///
+    /// `W` is the row width: 8 holds any curve; 4 holds curves of up to three axes (panics on
+    /// more: the caller picks the width from [`dim`](Self::dim)).
+    pub fn bezier_pieces<const W: usize>(
+        &self,
+        u0: f64,
+        u1: f64,
+        mut each: impl FnMut(&Bezier<W>, f64, f64),
+    ) {
+        assert!(
+            self.dim() < W,
+            "a {W}-wide Bézier holds at most {} axes",
+            W - 1
+        );
         let (u0, u1) = (
             u0.clamp(self.u_min(), self.u_max()),
             u1.clamp(self.u_min(), self.u_max()),
@@ -163,11 +179,11 @@ impl NurbsCurve {
     /// The blossom is symmetric, so control point `j` may take `t` at the first `j` levels and
     /// `s` after: the `t` levels are a prefix shared by every `j`, computed once (`p(p+1)/2`
     /// lerps), and each point finishes with its own `s` levels (`(p−j)(p−j+1)/2`).
-    fn span_bezier(&self, span: usize, s: f64, t: f64) -> Bezier {
+    fn span_bezier<const W: usize>(&self, span: usize, s: f64, t: f64) -> Bezier<W> {
         let p = self.degree();
+        let dim = self.dim();
         let knots = self.knots();
-        let q = &self.homogeneous()[span - p..=span];
-        let level = |d: &mut [Homogeneous; ORDER], r: usize, x: f64| {
+        let level = |d: &mut [[f64; W]; ORDER], r: usize, x: f64| {
             for i in (r..=p).rev() {
                 let k = span - p + i;
                 let alpha = (x - knots[k]) / (knots[k + p + 1 - r] - knots[k]);
@@ -176,13 +192,16 @@ impl NurbsCurve {
         };
         let mut out = Bezier {
             degree: p,
-            dim: self.dim(),
-            points: [[0.0; HOMOGENEOUS_WIDTH]; ORDER],
+            dim,
+            points: [[0.0; W]; ORDER],
         };
         // `prefix` after j levels at t; `d` finishes each point (only the live rows copied).
-        let mut prefix = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
-        let mut d = [[0.0; HOMOGENEOUS_WIDTH]; ORDER];
-        prefix[..=p].copy_from_slice(q);
+        let mut prefix = [[0.0; W]; ORDER];
+        let mut d = [[0.0; W]; ORDER];
+        for (row, h) in prefix.iter_mut().zip(&self.homogeneous()[span - p..=span]) {
+            row[..dim].copy_from_slice(&h[..dim]);
+            row[W - 1] = h[WEIGHT_SLOT];
+        }
         for j in 0..=p {
             if j > 0 {
                 level(&mut prefix, j, t);
@@ -235,7 +254,15 @@ mod tests {
             let a = rng.uniform(lo, hi);
             let b = rng.uniform(a, hi);
             let mut pieces = Vec::new();
-            curve.bezier_pieces(a, b, |bz, _, _| pieces.push(*bz));
+            curve.bezier_pieces::<8>(a, b, |bz, _, _| pieces.push(*bz));
+            // The narrow rows give the same points.
+            let mut narrow = Vec::new();
+            curve.bezier_pieces::<4>(a, b, |bz, _, _| narrow.push(*bz));
+            for (w, n) in pieces.iter().zip(&narrow) {
+                for j in 0..=degree {
+                    assert!((w.control_point(j) - n.control_point(j)).norm() < 1e-12);
+                }
+            }
             assert!(!pieces.is_empty());
             // The pieces chain and end on the curve's points at a and b.
             let scale = 1e-9 * 100.0;
@@ -284,7 +311,7 @@ mod tests {
             std::f64::consts::PI,
         )
         .unwrap();
-        let mut piece = None;
+        let mut piece: Option<Bezier<4>> = None;
         arc.bezier_pieces(
             arc.u_min(),
             arc.u_min() + 0.3 * (arc.u_max() - arc.u_min()),

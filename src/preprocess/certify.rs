@@ -88,7 +88,7 @@ impl Segment {
         (r - self.dir * along).norm()
     }
 
-    fn largest_control_distance(&self, bz: &Bezier) -> f64 {
+    fn largest_control_distance<const W: usize>(&self, bz: &Bezier<W>) -> f64 {
         let dim = self.dim;
         bz.max_over_control_points(|c| {
             let mut along = 0.0;
@@ -144,6 +144,24 @@ pub fn certify(
     tol: f64,
     farthest: f64,
 ) -> Certificate {
+    // Narrow rows for up to three axes: half the copying.
+    if curve.dim() < 4 {
+        certify_in::<4>(curve, u0, u1, start, end, tol, farthest)
+    } else {
+        certify_in::<8>(curve, u0, u1, start, end, tol, farthest)
+    }
+}
+
+/// [`certify`] with Bézier rows `W` wide.
+fn certify_in<const W: usize>(
+    curve: &NurbsCurve,
+    u0: f64,
+    u1: f64,
+    start: &Point,
+    end: &Point,
+    tol: f64,
+    farthest: f64,
+) -> Certificate {
     let chord = Segment::new(start, end).with_dim(curve.dim());
     let allowance = rounding_allowance(start, end, curve.degree(), tol);
     // Below this a piece needs no halving; above it after MAX_DEPTH halvings, it is over.
@@ -155,7 +173,7 @@ pub fn certify(
         pieces: 0,
         over: false,
     };
-    curve.bezier_pieces(u0, u1, |piece, s, t| {
+    curve.bezier_pieces::<W>(u0, u1, |piece, s, t| {
         if walk.over {
             return;
         }
@@ -192,7 +210,7 @@ struct Walk<'a> {
 }
 
 impl Walk<'_> {
-    fn visit(&mut self, bz: &Bezier, depth: u32) {
+    fn visit<const W: usize>(&mut self, bz: &Bezier<W>, depth: u32) {
         self.pieces += 1;
         let b = self.chord.largest_control_distance(bz);
         if b <= self.target {
