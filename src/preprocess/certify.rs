@@ -144,54 +144,22 @@ pub fn certify(
     tol: f64,
     farthest: f64,
 ) -> Certificate {
-    // Narrow rows for up to three axes: half the copying.
-    if curve.dim() < 4 {
-        certify_in::<4>(curve, u0, u1, start, end, tol, farthest)
-    } else {
-        certify_in::<8>(curve, u0, u1, start, end, tol, farthest)
-    }
-}
-
-/// [`certify`] with Bézier rows `W` wide.
-fn certify_in<const W: usize>(
-    curve: &NurbsCurve,
-    u0: f64,
-    u1: f64,
-    start: &Point,
-    end: &Point,
-    tol: f64,
-    farthest: f64,
-) -> Certificate {
     let chord = Segment::new(start, end).with_dim(curve.dim());
     let allowance = rounding_allowance(start, end, curve.degree(), tol);
     // Below this a piece needs no halving; above it after MAX_DEPTH halvings, it is over.
-    let target = tol - allowance;
     let mut walk = Walk {
         chord: &chord,
-        target,
+        target: tol - allowance,
         bound: 0.0,
         pieces: 0,
         over: false,
     };
-    curve.bezier_pieces::<W>(u0, u1, |piece, s, t| {
-        if walk.over {
-            return;
-        }
-        let cut = (farthest - s) / (t - s);
-        // Only a cut well inside the piece helps; near an end one half is a sliver. The cut
-        // is made without first measuring the whole piece: with a measured maximum near the
-        // tolerance, the whole piece's control points are over it anyway.
-        if cut > 0.02 && cut < 0.98 {
-            walk.pieces += 1;
-            let (left, right) = piece.split_at(cut);
-            walk.visit(&left, 1);
-            if !walk.over {
-                walk.visit(&right, 1);
-            }
-        } else {
-            walk.visit(piece, 0);
-        }
-    });
+    // Narrow rows for up to three axes: half the copying.
+    if curve.dim() < 4 {
+        walk.curve::<4>(curve, u0, u1, farthest);
+    } else {
+        walk.curve::<8>(curve, u0, u1, farthest);
+    }
     Certificate {
         bound: walk.bound + allowance,
         pieces: walk.pieces,
@@ -210,6 +178,30 @@ struct Walk<'a> {
 }
 
 impl Walk<'_> {
+    /// Every Bézier piece of `curve` between `u0` and `u1`, in rows `W` wide; the piece
+    /// holding `farthest` is cut there first.
+    fn curve<const W: usize>(&mut self, curve: &NurbsCurve, u0: f64, u1: f64, farthest: f64) {
+        curve.bezier_pieces::<W>(u0, u1, |piece, s, t| {
+            if self.over {
+                return;
+            }
+            let cut = (farthest - s) / (t - s);
+            // Only a cut well inside the piece helps; near an end one half is a sliver. The
+            // cut is made without first measuring the whole piece: with a measured maximum
+            // near the tolerance, the whole piece's control points are over it anyway.
+            if cut > 0.02 && cut < 0.98 {
+                self.pieces += 1;
+                let (left, right) = piece.split_at(cut);
+                self.visit(&left, 1);
+                if !self.over {
+                    self.visit(&right, 1);
+                }
+            } else {
+                self.visit(piece, 0);
+            }
+        });
+    }
+
     fn visit<const W: usize>(&mut self, bz: &Bezier<W>, depth: u32) {
         self.pieces += 1;
         let b = self.chord.largest_control_distance(bz);

@@ -55,7 +55,7 @@ impl<R: BufRead> BlockReader<R> {
             )
                 .into());
         };
-        let feed = self.feed_limit(line_no, col);
+        let feed = self.feed_limit(col);
         let (end, _) = self.target(&self.position, letters, "")?;
         let start = self.position;
         for (i, axis) in self.axes.iter().enumerate() {

@@ -79,7 +79,6 @@ pub struct BlockReader<R> {
     pending: Option<PendingCurve>,
     warnings: Vec<Warning>,
     warned_letters: Vec<char>,
-    warned_no_feed: bool,
     /// Warnings given once per program, by what they are about.
     warned_about: Vec<&'static str>,
     /// The line being read (for warnings raised deep in a block).
@@ -110,7 +109,6 @@ impl<R: BufRead> BlockReader<R> {
             pending: None,
             warnings: Vec::new(),
             warned_letters: Vec::new(),
-            warned_no_feed: false,
             warned_about: Vec::new(),
             line_no: 0,
             words: Vec::new(),

@@ -329,14 +329,13 @@ impl<R: BufRead> BlockReader<R> {
     /// The programmed feed for a feed move. On an EDM the gap servo sets the advance speed and
     /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
     /// it runs at up to the machine maximum, and the operator is told once.
-    pub(super) fn feed_limit(&mut self, line: u64, col: usize) -> Option<f64> {
-        if self.modal.feed.is_none() && !self.warned_no_feed {
-            self.warned_no_feed = true;
-            self.warnings.push(Warning {
-                line,
+    pub(super) fn feed_limit(&mut self, col: usize) -> Option<f64> {
+        if self.modal.feed.is_none() {
+            self.warn_once_about(
+                "no feed",
                 col,
-                message: "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
-            });
+                "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
+            );
         }
         self.modal.feed
     }
@@ -362,7 +361,7 @@ impl<R: BufRead> BlockReader<R> {
                 )?;
                 let (target, _) = self.target(&self.position, letters, "")?;
                 let feed = match motion {
-                    Motion::Linear => self.feed_limit(line_no, col),
+                    Motion::Linear => self.feed_limit(col),
                     _ => None,
                 };
                 if target == self.position {

@@ -85,7 +85,7 @@ impl<R: BufRead> BlockReader<R> {
         g_word: &Word,
         letters: &Letters,
     ) -> Step<Option<Block>> {
-        let feed = self.feed_limit(line_no, g_word.col);
+        let feed = self.feed_limit(g_word.col);
         let degree = match form {
             NurbsForm::G38 => {
                 let o = letters.get('O').ok_or((
