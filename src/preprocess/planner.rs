@@ -4,10 +4,11 @@
 //! Each segment arrives with a cruise limit (program feed, machine maximum, normal acceleration
 //! over its tightest radius, and in period mode the chord-error speed) and its entry junction
 //! limit (a corner's speed, infinite inside a smooth piece). The planner keeps the last
-//! `lookahead_segments` segments in a window and maintains, for each, the highest entry speed
+//! `lookahead_segments` segments in a window and knows, for each, the highest entry speed
 //! from which the machine can still stop by the end of the window (`v_back`, the backward pass).
-//! A new segment can only raise those speeds, and the pass stops at the first one it does not
-//! change, so a push costs O(1) amortised rather than O(window).
+//! It never walks the window to find it: in squared speeds `v_back` is a suffix minimum over
+//! the junctions ahead, which a monotonic queue answers at the window's front (see
+//! [`Planner`]), so a push costs O(1) amortised whatever the window's length.
 //!
 //! When the window is full the oldest segment is released: its entry speed was fixed when its
 //! predecessor left, its exit speed is the smaller of the successor's `v_back` and what the
@@ -104,58 +105,97 @@ pub struct PlannedSegment {
 #[derive(Debug)]
 struct Entry {
     geo: GeoSegment,
-    /// Entry junction limit: corner speed and both neighbours' cruise limits.
+    /// Position in the job's sequence of segments.
+    seq: u64,
+    /// Arc length from the planner's origin to the segment's start (mm).
+    before: f64,
+    /// Entry junction limit (mm/s): corner speed and both neighbours' cruise limits.
     junction: f64,
-    /// Highest entry speed that can still stop by the end of the window.
-    v_back: f64,
 }
 
+/// A junction that caps the entry speed of segment `seq`, as a key of the suffix minimum:
+/// `J² + 2a·before`, the squared speed it allows, shifted by the arc length before it.
+#[derive(Debug, Clone, Copy)]
+struct Cap {
+    seq: u64,
+    key: f64,
+}
+
+/// Prefix arc length (mm) past which the planner subtracts its origin from every stored
+/// position, so keys stay small and their rounding far below any speed that matters.
+const REBASE_AFTER_MM: f64 = 1e6;
+
 /// The look-ahead planner. Holds at most `lookahead` segments.
+///
+/// The backward pass is kept implicitly. In squared speeds, with `s_j` the arc length before
+/// segment `j`, `S` the arc length at the end of the window and `J_k` the entry junction limit
+/// of segment `k`, the highest entry speed from which segment `j` can still stop in time is
+///
+/// ```text
+/// v_back(j)² = min( min over k ≥ j of (J_k² + 2a·s_k),  2a·S ) − 2a·s_j
+/// ```
+///
+/// (stop at `k`'s junction, or at the window's end, whichever binds first). The inner minimum is
+/// a suffix minimum over a window that only grows at the back and shrinks at the front, so a
+/// monotonic queue of caps (`caps`, keys increasing front to back) answers it at the front in
+/// O(1), and a push costs O(1) amortised however long the stretch without a binding junction.
+/// Grbl walks its backward pass over the whole buffer; with a 1024-segment window on a smooth
+/// curve that walk was most of the planner's time.
 #[derive(Debug)]
 pub struct Planner {
+    /// Tangential acceleration (mm/s²).
     accel: f64,
     lookahead: usize,
     window: VecDeque<Entry>,
+    caps: VecDeque<Cap>,
     /// Entry speed of the window's first segment (fixed when its predecessor left).
     v_start: f64,
     prev_cruise: f64,
+    /// Arc length from the origin to the end of the window (mm).
+    travelled: f64,
+    next_seq: u64,
 }
 
 impl Planner {
     pub fn new(accel: f64, lookahead: usize) -> Planner {
+        let lookahead = lookahead.max(1);
         Planner {
             accel,
-            lookahead: lookahead.max(1),
-            window: VecDeque::with_capacity(lookahead.max(1) + 1),
+            lookahead,
+            window: VecDeque::with_capacity(lookahead + 1),
+            caps: VecDeque::with_capacity(lookahead + 1),
             v_start: 0.0,
             prev_cruise: 0.0,
+            travelled: 0.0,
+            next_seq: 0,
         }
     }
 
     /// Adds a segment; releases the oldest to `emit` when the window is full.
     pub fn push<F: FnMut(PlannedSegment)>(&mut self, geo: GeoSegment, mut emit: F) {
+        if self.travelled > REBASE_AFTER_MM {
+            self.rebase();
+        }
         // `prev_cruise` starts at 0: the first segment of a job starts at rest.
         let junction = geo.entry_limit.min(geo.feed_limit).min(self.prev_cruise);
         self.prev_cruise = geo.feed_limit;
-        let v_back = junction.min((2.0 * self.accel * geo.arc).sqrt());
+        let seq = self.next_seq;
+        self.next_seq += 1;
+        let before = self.travelled;
+        self.travelled += geo.arc;
+        if junction.is_finite() {
+            let key = junction * junction + 2.0 * self.accel * before;
+            while self.caps.back().is_some_and(|c| c.key >= key) {
+                self.caps.pop_back();
+            }
+            self.caps.push_back(Cap { seq, key });
+        }
         self.window.push_back(Entry {
             geo,
+            seq,
+            before,
             junction,
-            v_back,
         });
-        // Backward pass: raise entry speeds now that the window ends one segment later.
-        let mut next = v_back;
-        for j in (0..self.window.len() - 1).rev() {
-            let e = &mut self.window[j];
-            let v = e
-                .junction
-                .min((next * next + 2.0 * self.accel * e.geo.arc).sqrt());
-            if v == e.v_back {
-                break;
-            }
-            e.v_back = v;
-            next = v;
-        }
         while self.window.len() > self.lookahead {
             self.release(&mut emit);
         }
@@ -167,14 +207,40 @@ impl Planner {
             self.release(&mut emit);
         }
         self.prev_cruise = 0.0;
+        self.travelled = 0.0;
+    }
+
+    /// Highest entry speed of the window's first segment that can still stop in time.
+    fn front_v_back(&self) -> f64 {
+        let Some(front) = self.window.front() else {
+            return 0.0;
+        };
+        let two_a = 2.0 * self.accel;
+        let end = two_a * self.travelled;
+        // Caps before the front were dropped when their segment left.
+        let bound = self.caps.front().map_or(end, |c| c.key.min(end));
+        // The front's own junction, applied directly: the key's rounding must not lift a
+        // speed above its limit.
+        (bound - two_a * front.before)
+            .max(0.0)
+            .sqrt()
+            .min(front.junction)
     }
 
     fn release<F: FnMut(PlannedSegment)>(&mut self, emit: &mut F) {
+        let v_back = self.front_v_back();
         let Some(e) = self.window.pop_front() else {
             return;
         };
-        let v0 = self.v_start.min(e.v_back);
-        let next_max = self.window.front().map_or(0.0, |n| n.v_back);
+        if let Some(next) = self.window.front() {
+            while self.caps.front().is_some_and(|c| c.seq < next.seq) {
+                self.caps.pop_front();
+            }
+        } else {
+            self.caps.clear();
+        }
+        let v0 = self.v_start.min(v_back);
+        let next_max = self.front_v_back();
         let v1 = next_max.min((v0 * v0 + 2.0 * self.accel * e.geo.arc).sqrt());
         let profile = Profile::new(e.geo.arc, v0, v1, e.geo.feed_limit, self.accel);
         self.v_start = v1;
@@ -183,11 +249,162 @@ impl Planner {
             profile,
         });
     }
+
+    /// Moves the origin to the window's first segment (rarely: every [`REBASE_AFTER_MM`]).
+    fn rebase(&mut self) {
+        let origin = self.window.front().map_or(self.travelled, |e| e.before);
+        let shift = 2.0 * self.accel * origin;
+        for e in &mut self.window {
+            e.before -= origin;
+        }
+        for c in &mut self.caps {
+            c.key -= shift;
+        }
+        self.travelled -= origin;
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
+    use proptest::prelude::*;
+
     use super::*;
+    use crate::gcode::{Block, BlockKind};
+    use crate::geometry::{NurbsCurve, point};
+
+    fn segment(block: &Arc<Block>, arc: f64, feed_limit: f64, entry_limit: f64) -> GeoSegment {
+        GeoSegment {
+            block: Arc::clone(block),
+            u_start: 0.0,
+            u_end: 1.0,
+            start: point(&[0.0, 0.0]),
+            end: point(&[arc, 0.0]),
+            chord: arc,
+            arc,
+            chord_error: 0.0,
+            chord_bound: 0.0,
+            rho_min: f64::INFINITY,
+            rho_end: f64::INFINITY,
+            feed_limit,
+            entry_limit,
+            evals: 0,
+            first_of_piece: false,
+            last_of_piece: false,
+            last_of_block: false,
+        }
+    }
+
+    /// The backward pass written out: every push walks the whole window (Grbl's way). The
+    /// planner's implicit pass must agree with it.
+    fn walked_plan(accel: f64, lookahead: usize, segs: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
+        let mut window: VecDeque<(f64, f64, f64, f64)> = VecDeque::new(); // arc, feed, junction, v_back
+        let (mut v_start, mut prev_cruise) = (0.0, 0.0);
+        let mut out = Vec::new();
+        let mut release = |window: &mut VecDeque<(f64, f64, f64, f64)>, v_start: &mut f64| {
+            let (arc, _, _, vb) = window.pop_front().unwrap();
+            let v0 = v_start.min(vb);
+            let next = window.front().map_or(0.0, |n| n.3);
+            let v1 = next.min((v0 * v0 + 2.0 * accel * arc).sqrt());
+            *v_start = v1;
+            out.push((v0, v1));
+        };
+        for &(arc, feed, entry) in segs {
+            let junction = entry.min(feed).min(prev_cruise);
+            prev_cruise = feed;
+            window.push_back((
+                arc,
+                feed,
+                junction,
+                junction.min((2.0 * accel * arc).sqrt()),
+            ));
+            for j in (0..window.len() - 1).rev() {
+                let next = window[j + 1].3;
+                let e = &mut window[j];
+                e.3 = e.2.min((next * next + 2.0 * accel * e.0).sqrt());
+            }
+            while window.len() > lookahead {
+                release(&mut window, &mut v_start);
+            }
+        }
+        while !window.is_empty() {
+            release(&mut window, &mut v_start);
+        }
+        out
+    }
+
+    fn planned(accel: f64, lookahead: usize, segs: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
+        let curve = NurbsCurve::line(2, &point(&[0.0, 0.0]), &point(&[1.0, 0.0])).unwrap();
+        let block = Arc::new(Block {
+            line: 1,
+            kind: BlockKind::Line,
+            curve,
+            feed_mm_per_min: None,
+        });
+        let mut planner = Planner::new(accel, lookahead);
+        let mut out = Vec::new();
+        for &(arc, feed, entry) in segs {
+            planner.push(segment(&block, arc, feed, entry), |p| {
+                out.push((p.profile.v_entry, p.profile.v_exit))
+            });
+        }
+        planner.finish(|p| out.push((p.profile.v_entry, p.profile.v_exit)));
+        out
+    }
+
+    fn segments() -> impl Strategy<Value = Vec<(f64, f64, f64)>> {
+        let entry = prop_oneof![
+            3 => Just(f64::INFINITY),
+            1 => Just(0.0),
+            2 => 0.0..400.0f64,
+        ];
+        prop::collection::vec((1e-4..20.0f64, 1.0..400.0f64, entry), 1..300)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+        /// Same entry and exit speeds as the walked backward pass, to rounding, for any
+        /// window length, corners (stops included) and feed changes.
+        #[test]
+        fn implicit_backward_pass_equals_the_walked_one(
+            segs in segments(),
+            lookahead in 1usize..64,
+            accel in 10.0..5000.0f64,
+        ) {
+            let want = walked_plan(accel, lookahead, &segs);
+            let got = planned(accel, lookahead, &segs);
+            prop_assert_eq!(want.len(), got.len());
+            // The keys carry `2a·s`, so their rounding is a few ulps of `2a` times the path
+            // length, in squared speed: compare squares against that.
+            let path: f64 = segs.iter().map(|s| s.0).sum();
+            let tol = 1e-13 * 2.0 * accel * path + 1e-12;
+            for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+                let close = |a: f64, b: f64| (a * a - b * b).abs() <= tol + 1e-12 * a * a;
+                prop_assert!(close(w.0, g.0) && close(w.1, g.1),
+                    "segment {}: walked {:?}, planned {:?}", i, w, g);
+                // A stop is a stop, not a rounding of one.
+                prop_assert_eq!(w.0 == 0.0, g.0 == 0.0, "segment {} entry", i);
+            }
+        }
+    }
+
+    #[test]
+    fn long_paths_rebase_without_changing_the_plan() {
+        // 3000 segments of 1 km: the origin moves many times; speeds match the walked pass.
+        let segs: Vec<_> = (0..3000)
+            .map(|i| (1000.0, 300.0, if i % 7 == 0 { 0.0 } else { f64::INFINITY }))
+            .collect();
+        let want = walked_plan(2400.0, 16, &segs);
+        let got = planned(2400.0, 16, &segs);
+        for (w, g) in want.iter().zip(&got) {
+            assert!(
+                (w.0 - g.0).abs() < 1e-9 && (w.1 - g.1).abs() < 1e-9,
+                "{w:?} {g:?}"
+            );
+        }
+    }
 
     #[test]
     fn trapezoid_and_triangle() {
