@@ -139,6 +139,9 @@ struct Ring {
     closed: bool,
     /// The job is being torn down: nobody waits any more.
     aborted: bool,
+    /// A stop was asked for: the consumer no longer waits for the producer (it reports an
+    /// empty buffer and brakes), the producer may still fill the ring.
+    interrupted: bool,
     /// Deepest fill seen (`tail - oldest`), for the summary.
     high_water: u64,
 }
@@ -241,6 +244,7 @@ impl LoopBuffer {
                 tail: 0,
                 closed: false,
                 aborted: false,
+                interrupted: false,
                 high_water: 0,
             }),
             space: Condvar::new(),
@@ -292,6 +296,14 @@ impl LoopBuffer {
         self.data.notify_all();
     }
 
+    /// Supervisor: a stop was asked for. A consumer waiting for the producer (virtual time,
+    /// or the walk to a checkpoint) returns [`Fetch::Empty`] at once and from now on, so the
+    /// fine interpolator can brake to a standstill whatever the producer is doing.
+    pub fn interrupt(&self) {
+        self.ring.lock().interrupted = true;
+        self.data.notify_all();
+    }
+
     pub fn areas(&self) -> Areas {
         let ring = self.ring.lock();
         let unprocessed = ring.tail - ring.cursor;
@@ -334,13 +346,15 @@ impl BlockSource for Consumer<'_> {
         let buffer = self.buffer;
         let mut ring = buffer.ring.lock();
         let (mut fetch, freed) = ring.next(out);
-        while fetch == Fetch::Empty && self.wait_for_producer && !ring.aborted {
+        if freed {
+            // Before any wait: with `reserved = capacity - 1` the slot just freed is the only
+            // one, and a producer asleep for it is what this consumer would wait for.
+            buffer.space.notify_one();
+        }
+        while fetch == Fetch::Empty && self.wait_for_producer && !ring.aborted && !ring.interrupted
+        {
             buffer.data.wait(&mut ring);
             fetch = ring.next(out).0;
-        }
-        drop(ring);
-        if freed {
-            buffer.space.notify_one();
         }
         fetch
     }
@@ -370,6 +384,7 @@ impl VecSource {
                 tail,
                 closed: true,
                 aborted: false,
+                interrupted: false,
                 high_water: tail,
             },
         }
@@ -498,6 +513,65 @@ mod tests {
                 );
                 prop_assert!(areas.reserved as usize <= reserved);
             }
+        }
+
+        /// Two real threads on any ring that configuration accepts, `reserved = capacity - 1`
+        /// included: a producer that sleeps while the ring is full, a virtual-time consumer
+        /// that sleeps while it is empty and turns back into the reserved area at random.
+        /// Every block arrives in order and the job reaches its end (a lost wake-up would
+        /// leave both asleep: the deadline catches it).
+        #[test]
+        fn producer_and_waiting_consumer_never_wedge(
+            (capacity, reserved) in (2usize..9).prop_flat_map(|c| (Just(c), 0..c)),
+            moves in proptest::collection::vec(0u8..10, 1..400),
+        ) {
+            let total = 60u64;
+            let (done_tx, done_rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let buffer = std::sync::Arc::new(LoopBuffer::new(capacity, reserved));
+                let producer = {
+                    let buffer = buffer.clone();
+                    std::thread::spawn(move || {
+                        for seq in 0..total {
+                            buffer.push(&block(seq)).unwrap();
+                        }
+                        buffer.close();
+                    })
+                };
+                let mut consumer = buffer.consumer(true);
+                let mut out = StepBlock::EMPTY;
+                let mut furthest = None::<u64>;
+                let mut moves = moves.into_iter().cycle();
+                let mut turn_backs = 0;
+                let result = loop {
+                    // About one move in five turns back (at most 300 in all, so the job ends);
+                    // the rest go forward.
+                    if moves.next().unwrap() < 2 && turn_backs < 300 && consumer.previous(&mut out) {
+                        turn_backs += 1;
+                        continue;
+                    }
+                    match consumer.next(&mut out) {
+                        Fetch::Block => {
+                            if furthest.is_none_or(|f| out.seq > f) {
+                                if out.seq != furthest.map_or(0, |f| f + 1) {
+                                    break Err(format!("block {} after {furthest:?}", out.seq));
+                                }
+                                furthest = Some(out.seq);
+                            }
+                        }
+                        Fetch::End => break Ok(furthest),
+                        Fetch::Empty => break Err("empty while waiting".to_string()),
+                    }
+                };
+                producer.join().unwrap();
+                let _ = done_tx.send(result);
+            });
+            let result = done_rx
+                .recv_timeout(std::time::Duration::from_secs(5))
+                .map_err(|_| TestCaseError::fail(format!(
+                    "capacity {capacity}, reserved {reserved}: wedged"
+                )))?;
+            prop_assert_eq!(result, Ok(Some(total - 1)));
         }
 
         /// `VecSource` follows the same rule as the ring (it stands in for it in tests).

@@ -109,11 +109,6 @@ pub enum CheckpointError {
     },
     #[error("{path}: checkpoint format {found}, this edmd reads {VERSION}")]
     Version { path: PathBuf, found: u32 },
-    #[error("{program}: cannot read the program of the checkpoint: {source}")]
-    Program {
-        program: PathBuf,
-        source: std::io::Error,
-    },
     #[error(
         "{program}: the program changed since the checkpoint (SHA-256 {found:.12}…, the \
          checkpoint has {expected:.12}…); refusing to resume a different program"
@@ -197,20 +192,22 @@ impl Checkpoint {
         }
     }
 
-    /// Checks the program and the settings are those of the checkpoint, and (without
-    /// `force`) that it was written at a standstill.
-    pub fn check_resumable(&self, config: &Config, force: bool) -> Result<(), CheckpointError> {
-        let found = sha256_file(&self.program).map_err(|source| CheckpointError::Program {
-            program: self.program.clone(),
-            source,
-        })?;
+    /// Checks a program's bytes (their SHA-256, `found`) are the checkpoint's.
+    pub fn check_program(&self, found: &str) -> Result<(), CheckpointError> {
         if found != self.program_sha256 {
             return Err(CheckpointError::ProgramChanged {
                 program: self.program.clone(),
                 expected: self.program_sha256.clone(),
-                found,
+                found: found.to_string(),
             });
         }
+        Ok(())
+    }
+
+    /// Checks the settings are those of the checkpoint, and (without `force`) that it was
+    /// written at a standstill. The program is checked where it is read
+    /// ([`check_program`](Self::check_program)).
+    pub fn check_resumable(&self, config: &Config, force: bool) -> Result<(), CheckpointError> {
         if motion_hash(config) != self.motion_sha256 {
             return Err(CheckpointError::MotionChanged);
         }
@@ -231,10 +228,7 @@ fn hex(bytes: &[u8]) -> String {
     })
 }
 
-/// SHA-256 of a file's bytes, hex.
-pub fn sha256_file(path: &Path) -> std::io::Result<String> {
-    Ok(hex(&Sha256::digest(std::fs::read(path)?)))
-}
+pub use crate::runtime::program::sha256_file;
 
 /// SHA-256 over the settings that decide the step path of a program: the machine (axes, step
 /// sizes, limits) and the interpolation (tolerance, predictor, segmentation). The loop
@@ -302,8 +296,11 @@ mod tests {
         feeds.servo.normal_feed_mm_per_min *= 2.0;
         back.check_resumable(&feeds, false).unwrap();
 
+        back.check_program(&sha256_file(&program).unwrap()).unwrap();
         std::fs::write(&program, "G1 X2 F60\n").unwrap();
-        let err = back.check_resumable(&config, false).unwrap_err();
+        let err = back
+            .check_program(&sha256_file(&program).unwrap())
+            .unwrap_err();
         assert!(
             err.to_string().contains("changed since the checkpoint"),
             "{err}"

@@ -74,18 +74,27 @@ struct CtlArgs {
 
 #[derive(Subcommand, Debug)]
 enum CtlCommand {
-    /// Run a program (a path inside daemon.program_dir)
+    /// Run a program (a path inside daemon.program_dir): the daemon copies and checks it,
+    /// then starts the job; this waits for that verdict (exit 0: started; 1: refused)
     Run {
         /// Program path, relative to daemon.program_dir (or absolute inside it)
         program: String,
+        /// Return as soon as the daemon has accepted the request (the verdict shows in
+        /// `edmd ctl status`)
+        #[arg(long)]
+        no_wait: bool,
     },
     /// Brake to a standstill and hold there (checkpoint written)
     Hold,
-    /// Release a hold; with no job running, resume the checkpoint's job
+    /// Release a hold; with no job running, resume the checkpoint's job (waiting for its
+    /// check, as `run` does)
     Resume {
         /// Resume from a checkpoint written while cutting (the electrode may be past it)
         #[arg(long)]
         force: bool,
+        /// Return as soon as the daemon has accepted the request
+        #[arg(long)]
+        no_wait: bool,
     },
     /// Brake to a standstill and end the job (checkpoint kept)
     Abort,
@@ -466,14 +475,17 @@ fn run_ctl(args: &CtlArgs) -> ExitCode {
             Err(code) => return code,
         },
     };
-    let request = match &args.command {
-        CtlCommand::Run { program } => Request::Run {
-            program: program.clone(),
-        },
-        CtlCommand::Hold => Request::Hold {},
-        CtlCommand::Resume { force } => Request::Resume { force: *force },
-        CtlCommand::Abort => Request::Abort {},
-        CtlCommand::Status => Request::Status {},
+    let (request, wait) = match &args.command {
+        CtlCommand::Run { program, no_wait } => (
+            Request::Run {
+                program: program.clone(),
+            },
+            !no_wait,
+        ),
+        CtlCommand::Hold => (Request::Hold {}, false),
+        CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
+        CtlCommand::Abort => (Request::Abort {}, false),
+        CtlCommand::Status => (Request::Status {}, false),
     };
     let reply = match crate::daemon::socket::request(&socket, &request) {
         Ok(reply) => reply,
@@ -481,6 +493,31 @@ fn run_ctl(args: &CtlArgs) -> ExitCode {
             eprintln!("edmd: error: {e}");
             return ExitCode::from(EXIT_RUNTIME);
         }
+    };
+    let check = reply
+        .status
+        .as_ref()
+        .and_then(|s| s.check.as_ref())
+        .filter(|c| {
+            reply.ok
+                && wait
+                && !c.decided()
+                && matches!(request, Request::Run { .. } | Request::Resume { .. })
+        });
+    let reply = match check {
+        Some(check) => {
+            if !args.json {
+                println!("{}", reply.message.as_deref().unwrap_or_default());
+            }
+            match crate::daemon::socket::wait_for_verdict(&socket, check.id, !args.json) {
+                Ok(reply) => reply,
+                Err(e) => {
+                    eprintln!("edmd: error: {e}");
+                    return ExitCode::from(EXIT_RUNTIME);
+                }
+            }
+        }
+        None => reply,
     };
     if args.json {
         print!("{}", reply.to_line());

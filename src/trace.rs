@@ -148,6 +148,10 @@ impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
     fn finish(&mut self) -> Result<(), OutputError> {
         self.inner.finish()
     }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        self.inner.sync()
+    }
 }
 
 /// Traces a gap input: every change of state.

@@ -165,6 +165,15 @@ impl std::fmt::Display for TickPeriod {
     }
 }
 
+/// The UTF-8 byte-order mark, which some Windows editors and CAM posts write at the start of
+/// a file. It is not text: programs, configurations and gap scripts skip it.
+pub const BOM: &str = "\u{feff}";
+
+/// `text` without a leading byte-order mark.
+pub fn without_bom(text: &str) -> &str {
+    text.strip_prefix(BOM).unwrap_or(text)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -184,6 +193,13 @@ mod tests {
         }
         assert_eq!(GapState::from_name("SHORT"), Some(GapState::Short));
         assert_eq!(GapState::from_name("shorted"), None);
+    }
+
+    #[test]
+    fn a_leading_bom_is_skipped_and_only_there() {
+        assert_eq!(without_bom("\u{feff}G1 X1"), "G1 X1");
+        assert_eq!(without_bom("G1 X1"), "G1 X1");
+        assert_eq!(without_bom("G1\u{feff}"), "G1\u{feff}");
     }
 
     #[test]

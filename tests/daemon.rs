@@ -433,11 +433,20 @@ fn a_changed_program_or_motion_setting_refuses_to_resume() {
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
 
-    // The program edited: refused, and the checkpoint stays for the right program.
+    // The program edited and the job's private copy gone: refused, and the checkpoint stays
+    // for the right program. (With the copy there, the edit changes nothing: see
+    // `edits_of_the_program_change_nothing_about_the_motion`.)
     let program = dir.join("programs").join(PROGRAM);
     let mut text = std::fs::read_to_string(&program).unwrap();
     text = text.replace("G1 X10 Y8", "G1 X10 Y8.001");
     std::fs::write(&program, text).unwrap();
+    let copies = dir.join("job-programs");
+    assert_eq!(
+        std::fs::read_dir(&copies).unwrap().count(),
+        1,
+        "the checkpoint's copy"
+    );
+    std::fs::remove_dir_all(&copies).unwrap();
     let third = Daemon::start(&dir, &base_sets(&dir, "third.csv"), &[]);
     let (reply, _) = third.ctl(&["resume"]);
     let error = reply["error"].as_str().unwrap();
@@ -489,11 +498,10 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
             r#"{"cmd":"run"}"#,
             r#"{"cmd":"run","program":"../secret.nc"}"#,
             r#"{"cmd":"run","program":"escape.nc"}"#,
-            r#"{"cmd":"run","program":"broken.nc"}"#,
             r#"{"cmd":"status"}"#,
         ],
     );
-    let errors: Vec<&str> = replies[..6]
+    let errors: Vec<&str> = replies[..5]
         .iter()
         .map(|r| {
             assert_eq!(r["ok"], false, "{r}");
@@ -513,13 +521,16 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
         "{}",
         errors[4]
     );
-    assert!(
-        errors[5].contains("broken.nc:2:"),
-        "file:line:col: {}",
-        errors[5]
-    );
-    assert_eq!(replies[6]["ok"], true, "the connection still works");
-    assert_eq!(replies[6]["status"]["state"], "idle");
+    assert_eq!(replies[5]["ok"], true, "the connection still works");
+    assert_eq!(replies[5]["status"]["state"], "idle");
+
+    // A program with an error is accepted, then refused by its check, at its line.
+    let (reply, code) = daemon.ctl(&["run", "broken.nc"]);
+    assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1), "{reply}");
+    let error = reply["error"].as_str().unwrap();
+    assert!(error.contains("broken.nc:2:"), "file:line:col: {error}");
+    assert_eq!(reply["status"]["check"]["phase"], "refused");
+    assert!(!dir.join("pulses.csv").exists(), "nothing moved");
 
     // A client that vanishes mid-request asked for nothing.
     {
@@ -541,15 +552,30 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
     };
     let a = served();
     let b = served();
+    // The reserved slot: the emergency commands only, one request.
     let c = UnixStream::connect(&daemon.socket).unwrap();
-    c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let refused = exchange(&c, r#"{"cmd":"run","program":"runtime-path.nc"}"#);
+    assert!(
+        refused["error"]
+            .as_str()
+            .unwrap()
+            .contains("status, hold and abort only"),
+        "{refused}"
+    );
+    // The slot is free again once the refused client's thread has let it go; with it taken,
+    // the next client is told there is no room.
+    std::thread::sleep(Duration::from_millis(300));
+    let c = UnixStream::connect(&daemon.socket).unwrap();
+    let d = UnixStream::connect(&daemon.socket).unwrap();
+    d.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     let mut answer = String::new();
-    let _ = BufReader::new(c).read_line(&mut answer);
+    let _ = BufReader::new(d).read_line(&mut answer);
     assert!(
         answer.contains("too many clients"),
         "{answer:?}\n{}",
         daemon.log()
     );
+    assert_eq!(exchange(&c, r#"{"cmd":"status"}"#)["ok"], true);
     drop(b);
     assert_eq!(exchange(&a, r#"{"cmd":"status"}"#)["ok"], true);
 
@@ -670,4 +696,304 @@ impl Daemon {
     ) -> Daemon {
         Daemon::start_args(dir, &[format!("--config={}", config.display())], sets, env)
     }
+}
+
+#[test]
+fn edits_of_the_program_change_nothing_about_the_motion() {
+    let dir = scratch("edit");
+    let reference = uninterrupted(&dir);
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let reply = daemon.ok(&["run", PROGRAM]);
+    assert!(
+        reply["message"].as_str().unwrap().starts_with("running"),
+        "{reply}"
+    );
+    daemon.wait_for("cutting", is_moving);
+    // Overwritten in place with a 300 mm detour (the same file, the same inode), then
+    // replaced and deleted: the job runs the copy it checked.
+    let program = dir.join("programs").join(PROGRAM);
+    let text = std::fs::read_to_string(&program).unwrap();
+    let edited = text.replace("G1 X10 Y8", "G1 X310 Y8");
+    assert_ne!(edited, text);
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&program)
+        .unwrap()
+        .write_all(edited.as_bytes())
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    std::fs::remove_file(&program).unwrap();
+    let idle = daemon.wait_for("the job's end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
+    assert!(
+        moves(&dir.join("pulses.csv")) == reference,
+        "the pulses differ"
+    );
+    // Done: the private copy goes with the job.
+    let copies = std::fs::read_dir(dir.join("job-programs")).unwrap().count();
+    assert_eq!(copies, 0);
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}
+
+#[test]
+fn idle_clients_never_lock_out_hold_and_abort() {
+    let dir = scratch("idle");
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("daemon.max_clients=2".to_string());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    // Every ordinary slot held by a client that only ever sends blank lines.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let idlers: Vec<_> = (0..2)
+        .map(|_| {
+            let stream = UnixStream::connect(&daemon.socket).unwrap();
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut stream = stream;
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    if stream.write_all(b"\n").is_err() {
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(300));
+    // The emergency path: status, hold and abort all get through.
+    assert_eq!(daemon.status()["state"], "running");
+    daemon.ok(&["hold"]);
+    daemon.wait_for("held", |s| s["state"] == "held");
+    daemon.ok(&["abort"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    // A client on the reserved slot that sends only blank lines is dropped after its idle
+    // time (5 s) all the same.
+    let lingering = UnixStream::connect(&daemon.socket).unwrap();
+    lingering
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    let started = Instant::now();
+    let mut writer = lingering.try_clone().unwrap();
+    let keep = std::thread::spawn(move || {
+        while writer.write_all(b"\n").is_ok() {
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    });
+    let mut rest = String::new();
+    let _ = BufReader::new(lingering).read_line(&mut rest);
+    let held_for = started.elapsed();
+    assert!(rest.is_empty(), "closed without a reply: {rest:?}");
+    assert!(
+        held_for >= Duration::from_secs(4) && held_for < Duration::from_secs(10),
+        "dropped after {held_for:?}"
+    );
+    keep.join().unwrap();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    for idler in idlers {
+        idler.join().unwrap();
+    }
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}
+
+/// Peak resident memory of a process (kB), from /proc.
+fn peak_rss_kb(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap()
+}
+
+#[test]
+fn a_large_program_never_blocks_the_daemon() {
+    let dir = scratch("large");
+    // A 200 MB program (EDMD_LARGE_MB to change it), written in 1 MB chunks.
+    let mb: usize = std::env::var("EDMD_LARGE_MB")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(200);
+    let big = dir.join("programs").join("big.nc");
+    {
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&big).unwrap());
+        writeln!(out, "G21 G90 F600").unwrap();
+        let mut line = 0usize;
+        let mut written = 0;
+        while written < mb << 20 {
+            let text = format!("G1 X{}.{:03} Y{}\n", line % 50, line % 1000, line % 7);
+            out.write_all(text.as_bytes()).unwrap();
+            written += text.len();
+            line += 1;
+        }
+        writeln!(out, "M2").unwrap();
+    }
+    let notify_path = dir.join("notify.sock");
+    let notify = UnixDatagram::bind(&notify_path).unwrap();
+    notify
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    let pings = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Instant>::new()));
+    let reader = {
+        let pings = pings.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = notify.recv(&mut buf) {
+                let message = String::from_utf8_lossy(&buf[..n]).into_owned();
+                if message == "WATCHDOG=1" {
+                    pings.lock().unwrap().push(Instant::now());
+                }
+                if message == "STOPPING=1" {
+                    return;
+                }
+            }
+        })
+    };
+    let daemon = Daemon::start(
+        &dir,
+        &base_sets(&dir, "pulses.csv"),
+        &[
+            ("NOTIFY_SOCKET", notify_path.display().to_string()),
+            ("WATCHDOG_USEC", "1000000".to_string()),
+        ],
+    );
+    let timed = |args: &[&str]| {
+        let t = Instant::now();
+        let reply = daemon.ok(args);
+        (reply, t.elapsed())
+    };
+    let (reply, took) = timed(&["run", "big.nc", "--no-wait"]);
+    assert!(
+        took < Duration::from_millis(500),
+        "run --no-wait took {took:?}"
+    );
+    assert_eq!(reply["status"]["state"], "checking", "{reply}");
+    let checking_since = Instant::now();
+    let mut worst = Duration::ZERO;
+    let mut progress = Vec::new();
+    // Two seconds of status requests while the daemon copies and checks.
+    while checking_since.elapsed() < Duration::from_secs(2) {
+        let (reply, took) = timed(&["status"]);
+        worst = worst.max(took);
+        let check = &reply["status"]["check"];
+        progress.push((
+            check["phase"].as_str().unwrap_or_default().to_string(),
+            check["bytes_done"].as_u64().unwrap_or(0),
+        ));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(
+        worst < Duration::from_millis(500),
+        "status took up to {worst:?}"
+    );
+    assert!(
+        progress.windows(2).any(|w| w[1] != w[0]),
+        "the check shows its progress: {progress:?}"
+    );
+    eprintln!("{mb} MB: status within {worst:?}; progress {progress:?}");
+    // The emergency stop of a check: abort cancels it, nothing moves.
+    daemon.ok(&["abort"]);
+    let idle = daemon.wait_for("the check's end", |s| s["state"] == "idle");
+    assert_eq!(idle["check"]["phase"], "refused", "{idle}");
+    assert!(!dir.join("pulses.csv").exists(), "nothing moved");
+    let rss = peak_rss_kb(daemon.child.id());
+    let ping_gaps: Vec<Duration> = {
+        let p = pings.lock().unwrap();
+        p.windows(2).map(|w| w[1] - w[0]).collect()
+    };
+    let worst_gap = ping_gaps.iter().max().copied().unwrap_or_default();
+    eprintln!(
+        "peak RSS {rss} kB; {} watchdog pings, widest gap {worst_gap:?}",
+        ping_gaps.len() + 1
+    );
+    assert!(rss < 64 * 1024, "peak RSS {rss} kB");
+    assert!(ping_gaps.len() >= 2, "watchdog pings: {ping_gaps:?}");
+    assert!(
+        worst_gap < Duration::from_millis(1000),
+        "watchdog gaps {ping_gaps:?}"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+    reader.join().unwrap();
+}
+
+#[test]
+fn after_a_crash_at_a_hold_the_pulse_log_and_the_checkpoint_agree() {
+    let dir = scratch("crash");
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    daemon.ok(&["hold"]);
+    daemon.wait_for("the hold checkpoint", |s| {
+        s["state"] == "held" && s["checkpoint"]["reason"] == "hold"
+    });
+    // SIGKILL: nothing is flushed on the way out; what is on disk is all there is.
+    let mut daemon = daemon;
+    daemon.child.kill().unwrap();
+    daemon.child.wait().unwrap();
+    let cp: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(cp["still"], true);
+    let logged: Vec<i64> = (0..2)
+        .map(|a| {
+            moves(&dir.join("pulses.csv"))
+                .iter()
+                .map(|m| m[a] as i64)
+                .sum()
+        })
+        .collect();
+    assert_eq!(
+        logged,
+        ints(&cp["position_steps"]),
+        "log on disk against the checkpoint"
+    );
+}
+
+#[test]
+fn a_corrupt_checkpoint_is_reported_in_the_reply_and_a_moving_one_asks_for_force() {
+    let dir = scratch("corrupt");
+    std::fs::write(
+        dir.join("checkpoint.json"),
+        "{\n  \"version\": 1,\n  \"oops\n",
+    )
+    .unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let (reply, code) = daemon.ctl(&["resume"]);
+    assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
+    let error = reply["error"].as_str().unwrap();
+    assert!(
+        error.starts_with("nothing to resume: ")
+            && error.contains("checkpoint.json:4:0: not a checkpoint"),
+        "the reason, located: {error}"
+    );
+    // A periodic checkpoint written while cutting, then a crash: status says what it takes.
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("a periodic checkpoint", |s| {
+        s["checkpoint"]["reason"] == "periodic"
+    });
+    let mut daemon = daemon;
+    daemon.child.kill().unwrap();
+    daemon.child.wait().unwrap();
+    let second = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "status", "--socket"])
+        .arg(&second.socket)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("`edmd ctl resume --force` continues it"),
+        "{text}"
+    );
+    let (reply, _) = second.ctl(&["resume"]);
+    assert!(
+        reply["error"].as_str().unwrap().contains("--force"),
+        "{reply}"
+    );
+    second.signal(libc::SIGTERM);
+    assert_eq!(second.wait().0, 0);
 }

@@ -113,8 +113,8 @@ fn job_on(
     output: impl PulseOutput + Send + 'static,
     gap: impl GapSensor + Send + 'static,
 ) -> runtime::JobSummary {
-    let program = repo().join(PROGRAM);
-    let check = runtime::precheck(&program, config).unwrap();
+    let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
+    let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
     runtime::run_job_on(
         &program,
         config,

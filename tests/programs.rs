@@ -256,6 +256,52 @@ fn program_end_and_tape_marks() {
 }
 
 #[test]
+fn a_closing_percent_ends_the_program() {
+    // `%`, three blocks, `%`, then a move: LinuxCNC and Fanuc stop reading at the second `%`.
+    let (blocks, warnings) = parse("%\nG1 X1 F60\nG1 X2\nG1 X3\n%\nG1 X99 Y99\nG1 X5\n", XY);
+    assert_eq!(blocks.len(), 3);
+    assert_eq!(blocks[2].end()[0], 3.0);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert_eq!(warnings[0].line, 6);
+    assert!(
+        warnings[0]
+            .message
+            .contains("after the closing `%` (line 5)")
+    );
+    // Without an opening mark too, and a closing `%` is an end: no "no M2/M30" warning.
+    let (blocks, warnings) = parse("G1 X1 F60\n%\n\n", XY);
+    assert_eq!(blocks.len(), 1);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // A curve still open at the closing `%` is unterminated, as at the end of the file.
+    let mut reader = BlockReader::new(
+        Cursor::new(&b"G0 X0 Y0\nG5.2 X1 Y1 P1 L4\nX2 Y0 P1\n%\nX3 Y1\n"[..]),
+        "t.nc",
+        XY,
+    );
+    let err = reader.find_map(Result::err).expect("an unterminated curve");
+    assert!(err.to_string().contains("t.nc:2:"), "{err}");
+}
+
+#[test]
+fn a_byte_order_mark_is_not_text() {
+    let (blocks, warnings) = parse("\u{feff}%\nG1 X1 F60\nM30\n%\n", XY);
+    assert_eq!(blocks.len(), 1);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (blocks, _) = parse("\u{feff}G1 X2 F60\nM30\n", XY);
+    assert_eq!(blocks[0].end()[0], 2.0);
+    // Only at the start of the file: elsewhere it is still an unexpected character.
+    let mut reader = BlockReader::new(
+        Cursor::new("G1 X1 F60\n\u{feff}G1 X2\n".as_bytes()),
+        "t.nc",
+        XY,
+    );
+    let err = reader
+        .find_map(Result::err)
+        .expect("a BOM inside the program");
+    assert!(err.to_string().starts_with("t.nc:2:1:"), "{err}");
+}
+
+#[test]
 fn accepted_modes_and_ignored_words() {
     let (blocks, warnings) = parse(
         "N10 G17 G21 G40 G49 G54 G64 G80 G90 G94\nG61\nT1 M6\nS1000 M3\nG0 X1 Y1\nM8\nM5\nM30\n",

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use common::repo;
 use std::process::{Command, Output};
+use std::time::Duration;
 
 use edmd::gap::GapState;
 use edmd::gcode::open_program;
@@ -392,4 +393,99 @@ fn bad_gap_scripts_and_programs_are_located_before_anything_moves() {
         !log.exists(),
         "no pulse log for a program that never started"
     );
+}
+
+/// `run`, but killed (and failed) if it has not ended within `limit`: a wedge is a failure,
+/// not a hung test.
+fn run_within(
+    dir: &Path,
+    script: Option<&str>,
+    extra: &[&str],
+    limit: Duration,
+) -> (Output, serde_json::Value) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (dir2, script2) = (dir.to_path_buf(), script.map(str::to_string));
+    let extra2: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+    std::thread::spawn(move || {
+        let extra: Vec<&str> = extra2.iter().map(String::as_str).collect();
+        let _ = tx.send(run(&dir2, script2.as_deref(), &extra));
+    });
+    rx.recv_timeout(limit)
+        .unwrap_or_else(|_| panic!("{extra:?}: no end within {limit:?} (wedged)"))
+}
+
+#[test]
+fn every_ring_the_configuration_accepts_runs_to_the_end_with_turn_backs() {
+    // Every (capacity, reserved) pair up to 4 slots, and the "reserved = capacity - 1" ones
+    // that used to wedge; short segments so the ring turns over thousands of times, and a
+    // short that turns back across segments.
+    let mut pairs: Vec<(usize, usize)> =
+        (2..=4).flat_map(|c| (0..c).map(move |r| (c, r))).collect();
+    pairs.extend([(8, 7), (64, 63)]);
+    for (capacity, reserved) in pairs {
+        let dir = scratch(&format!("ring-{capacity}-{reserved}"));
+        let (c, r) = (
+            format!("buffer.capacity={capacity}"),
+            format!("buffer.reserved={reserved}"),
+        );
+        let (out, summary) = run_within(
+            &dir,
+            Some("160000 short\n160600 normal\n"),
+            &[&c, &r, "interpolation.max_segment_mm=0.05"],
+            Duration::from_secs(60),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let outcome = summary["outcome"].as_str().unwrap_or_default();
+        let r = replay(&dir.join("pulses.csv"));
+        eprintln!(
+            "capacity {capacity}, reserved {reserved}: {outcome}, {} moves back",
+            r.backward_moves
+        );
+        match outcome {
+            "done" => assert_finished_exactly(&out, &summary, &r),
+            // Too small a reserved area for the turn-back: the alarm keeps the position.
+            "alarm" => assert_eq!(summary["end_steps"], serde_json::json!(r.end), "{stderr}"),
+            other => panic!("capacity {capacity}, reserved {reserved}: {other}\n{stderr}"),
+        }
+        if reserved >= 3 {
+            assert_eq!(
+                outcome, "done",
+                "capacity {capacity}, reserved {reserved}: {stderr}"
+            );
+            assert!(r.backward_moves > 0);
+        }
+    }
+}
+
+#[test]
+fn sigterm_ends_edmd_run_within_a_second_while_it_checks_a_large_program() {
+    let dir = scratch("sigterm-check");
+    let big = dir.join("big.nc");
+    {
+        use std::io::Write;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&big).unwrap());
+        for i in 0..3_000_000u32 {
+            writeln!(out, "G1 X{}.{:03} Y{} F600", i % 50, i % 1000, i % 7).unwrap();
+        }
+    }
+    let child = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("run")
+        .arg(&big)
+        .args(["--set", "gap.kind=none", "--set", "output.kind=null"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let signalled = std::time::Instant::now();
+    let out = child.wait_with_output().unwrap();
+    let took = signalled.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        took < Duration::from_secs(1),
+        "ended {took:?} after SIGTERM: {stderr}"
+    );
+    assert!(!out.status.success());
+    assert!(stderr.contains("cancelled"), "{stderr}");
 }

@@ -262,6 +262,7 @@ impl Config {
         overrides: &[String],
     ) -> Result<(Config, KeyValues), ConfigError> {
         let mut origins = Origins::default();
+        let text = crate::vocab::without_bom(text);
         let user = parse_user_table(text, source, &mut origins)?;
         let mut merged = default_table();
         overlay(&mut merged, user, source, &origins)?;

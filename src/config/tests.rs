@@ -23,6 +23,12 @@ fn shipped_default_is_valid_and_matches_design() {
 }
 
 #[test]
+fn a_byte_order_mark_is_skipped() {
+    let c = load("\u{feff}[buffer]\ncapacity = 64\nreserved = 8\n", &[]).unwrap();
+    assert_eq!(c.buffer.capacity, 64);
+}
+
+#[test]
 fn every_default_key_is_commented_in_the_shipped_file() {
     // Each `key = value` line is preceded by a comment line (possibly a run of them).
     let lines: Vec<&str> = DEFAULT_CONFIG_TOML.lines().collect();
@@ -69,8 +75,15 @@ fn validation_errors_point_at_the_key() {
     );
     let err = load("[machine]\nstep_mm = [0.001, 0.0]\n", &[]).unwrap_err();
     assert!(
-        err.starts_with("edmd.toml:2:1: machine.step_mm: must be a finite number greater than 0"),
+        err.starts_with("edmd.toml:2:1: machine.step_mm: must be greater than 0 and at most 10 mm"),
         "{err}"
+    );
+    // Absurd magnitudes: refused with the unit, and printed as written, not in 300 digits.
+    let err = load("[interpolation]\nchord_tolerance_mm = 1e300\n", &[]).unwrap_err();
+    assert_eq!(
+        err,
+        "edmd.toml:2:1: interpolation.chord_tolerance_mm: must be greater than 0 and at most \
+         10 mm, got 1e300"
     );
     let err = load("[interpolation]\nchord_tolerance_mm = -1\n", &[]).unwrap_err();
     assert!(

@@ -12,14 +12,30 @@ use crate::parport::pins::{is_input_pin, is_output_pin};
 
 type Invalid = (&'static str, String);
 
-fn positive(key: &'static str, value: f64) -> Result<f64, Invalid> {
-    if value.is_finite() && value > 0.0 {
+/// A physical quantity: greater than 0 and at most `max` (a bound no machine reaches, so a
+/// typo such as `1e300` is caught here with its unit rather than misbehaving later).
+fn positive(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
+    if value.is_finite() && value > 0.0 && value <= max {
         Ok(value)
     } else {
         Err((
             key,
-            format!("must be a finite number greater than 0, got {value}"),
+            format!(
+                "must be greater than 0 and at most {} {unit}, got {}",
+                short(max),
+                short(value)
+            ),
         ))
+    }
+}
+
+/// A number as a person would write it: `1e300`, not three hundred digits.
+fn short(value: f64) -> String {
+    let magnitude = value.abs();
+    if magnitude != 0.0 && !(1e-4..1e7).contains(&magnitude) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
     }
 }
 
@@ -76,19 +92,28 @@ impl RawConfig {
             ));
         }
         for &s in &m.step_mm {
-            positive("machine.step_mm", s)?;
+            positive("machine.step_mm", s, 10.0, "mm")?;
         }
         let machine = MachineConfig {
             axes,
             step_mm: m.step_mm,
-            max_feed_mm_per_min: positive("machine.max_feed_mm_per_min", m.max_feed_mm_per_min)?,
+            max_feed_mm_per_min: positive(
+                "machine.max_feed_mm_per_min",
+                m.max_feed_mm_per_min,
+                1e6,
+                "mm/min",
+            )?,
             max_normal_accel_mm_per_s2: positive(
                 "machine.max_normal_accel_mm_per_s2",
                 m.max_normal_accel_mm_per_s2,
+                1e7,
+                "mm/s²",
             )?,
             max_tangential_accel_mm_per_s2: positive(
                 "machine.max_tangential_accel_mm_per_s2",
                 m.max_tangential_accel_mm_per_s2,
+                1e7,
+                "mm/s²",
             )?,
         };
 
@@ -96,9 +121,14 @@ impl RawConfig {
         let interpolation = InterpolationConfig {
             predictor: i.predictor,
             segmentation: i.segmentation,
-            chord_tolerance_mm: positive("interpolation.chord_tolerance_mm", i.chord_tolerance_mm)?,
-            period_ms: positive("interpolation.period_ms", i.period_ms)?,
-            max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm)?,
+            chord_tolerance_mm: positive(
+                "interpolation.chord_tolerance_mm",
+                i.chord_tolerance_mm,
+                10.0,
+                "mm",
+            )?,
+            period_ms: positive("interpolation.period_ms", i.period_ms, 1000.0, "ms")?,
+            max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm, 1e6, "mm")?,
             lookahead_segments: in_range(
                 "interpolation.lookahead_segments",
                 i.lookahead_segments,
@@ -108,6 +138,8 @@ impl RawConfig {
             fluctuation_tolerance: positive(
                 "interpolation.fluctuation_tolerance",
                 i.fluctuation_tolerance,
+                1.0,
+                "(a fraction of the step)",
             )?,
             max_corrections: in_range("interpolation.max_corrections", i.max_corrections, 1, 64)?
                 as u32,
@@ -203,11 +235,20 @@ impl RawConfig {
             normal_feed_mm_per_min: positive(
                 "servo.normal_feed_mm_per_min",
                 s.normal_feed_mm_per_min,
+                1e6,
+                "mm/min",
             )?,
-            open_feed_mm_per_min: positive("servo.open_feed_mm_per_min", s.open_feed_mm_per_min)?,
+            open_feed_mm_per_min: positive(
+                "servo.open_feed_mm_per_min",
+                s.open_feed_mm_per_min,
+                1e6,
+                "mm/min",
+            )?,
             retract_feed_mm_per_min: positive(
                 "servo.retract_feed_mm_per_min",
                 s.retract_feed_mm_per_min,
+                1e6,
+                "mm/min",
             )?,
         };
 
@@ -219,8 +260,8 @@ impl RawConfig {
                 Err((key, format!("must be a finite number >= 0, got {value}")))
             }
         };
-        let short_gap = positive("sim.short_gap_um", m.short_gap_um)?;
-        let open_gap = positive("sim.open_gap_um", m.open_gap_um)?;
+        let short_gap = positive("sim.short_gap_um", m.short_gap_um, 1e4, "µm")?;
+        let open_gap = positive("sim.open_gap_um", m.open_gap_um, 1e4, "µm")?;
         if open_gap <= short_gap {
             return Err((
                 "sim.open_gap_um",
@@ -232,10 +273,16 @@ impl RawConfig {
             initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
             short_gap_mm: short_gap / 1000.0,
             open_gap_mm: open_gap / 1000.0,
-            erosion_mm_per_s: positive("sim.erosion_mm_per_min", m.erosion_mm_per_min)? / 60.0,
+            erosion_mm_per_s: positive(
+                "sim.erosion_mm_per_min",
+                m.erosion_mm_per_min,
+                1e6,
+                "mm/min",
+            )? / 60.0,
             debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
             debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
-            debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um)? / 1000.0,
+            debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")?
+                / 1000.0,
             events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
         };
         let d = self.daemon;

@@ -2,23 +2,197 @@
 //! thread), `hold`, `resume` (of a hold, or of the checkpoint), `abort`, and what happens
 //! when a job ends: the checkpoint written at a standstill, or removed when the job is done.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use super::protocol::CheckStatus;
 use super::status::mm;
 use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
 use crate::config::{Config, GapKind, OutputKind};
+use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
+
+/// A program copied and checked: ready to run.
+pub(super) type Checked = (JobProgram, runtime::Precheck);
+
+/// What a check reads.
+pub(super) enum Source {
+    /// The operator's file: copied first.
+    Original(PathBuf),
+    /// A private copy already made (a checkpoint's).
+    Copy(JobProgram),
+}
+
+/// A resume waiting for its check: where to resume, and the bytes it must be.
+pub(super) struct Resume {
+    point: ResumePoint,
+    sha256: String,
+}
+
+/// The check in progress.
+pub(super) struct Check {
+    pub(super) id: u64,
+    /// The program as the operator named it.
+    pub(super) name: String,
+    pub(super) progress: Arc<Progress>,
+    resume: Option<Resume>,
+}
+
+impl Check {
+    pub(super) fn is_resume(&self) -> bool {
+        self.resume.is_some()
+    }
+}
+
+/// The copies of the daemon's job programs live beside its checkpoint.
+pub(super) fn copy_dir(checkpoint: &Path) -> PathBuf {
+    checkpoint.with_file_name("job-programs")
+}
+
+/// The check worker: copy (unless already a copy), hold to the expected hash, then check.
+fn copy_and_check(
+    source: Source,
+    dir: &Path,
+    config: &Config,
+    expect: Option<&str>,
+    progress: &Progress,
+) -> Result<Checked, String> {
+    let program = match source {
+        Source::Original(path) => {
+            program::copy_program(&path, dir, progress).map_err(|e| e.to_string())?
+        }
+        Source::Copy(program) => program,
+    };
+    if let Some(expect) = expect
+        && program.sha256 != expect
+    {
+        return Err(checkpoint::CheckpointError::ProgramChanged {
+            program: PathBuf::from(&program.name),
+            expected: expect.to_string(),
+            found: program.sha256,
+        }
+        .to_string());
+    }
+    let check = runtime::precheck(&program, config, progress).map_err(|e| e.to_string())?;
+    Ok((program, check))
+}
 
 impl Core {
     pub(super) fn run_program(&mut self, requested: &str) -> Result<String, String> {
         self.refuse_if_busy()?;
         let program = confine(&self.config.daemon.program_dir, requested)?;
+        let id = self.begin_check(Source::Original(program.clone()), None);
+        Ok(format!(
+            "accepted: checking {} (check {id}); the job starts when the check passes",
+            program.display()
+        ))
+    }
+
+    /// Where the daemon keeps the private copies of its jobs' programs: beside the checkpoint.
+    pub(super) fn copy_dir(&self) -> PathBuf {
+        copy_dir(&self.config.daemon.checkpoint)
+    }
+
+    /// Starts copying and checking a program on a worker thread; the verdict comes back as
+    /// [`CoreMsg::Checked`]. Returns the check's id.
+    pub(super) fn begin_check(&mut self, source: Source, resume: Option<Resume>) -> u64 {
+        self.next_check_id += 1;
+        let id = self.next_check_id;
+        let progress = Arc::new(Progress::new());
+        let name = match &source {
+            Source::Original(path) => path.display().to_string(),
+            Source::Copy(program) => program.name.clone(),
+        };
+        let (config, dir, tx) = (self.config.clone(), self.copy_dir(), self.to_core.clone());
+        let expect = resume.as_ref().map(|r| r.sha256.clone());
+        let worker_progress = progress.clone();
+        let spawned = std::thread::Builder::new()
+            .name("edmd-check".to_string())
+            .spawn(move || {
+                let result =
+                    copy_and_check(source, &dir, &config, expect.as_deref(), &worker_progress);
+                let _ = tx.send(CoreMsg::Checked { id, result });
+            });
+        if let Err(e) = spawned {
+            let result = Err(format!("cannot start the check thread: {e}"));
+            let _ = self.to_core.send(CoreMsg::Checked { id, result });
+        }
+        tracing::info!("check {id}: {name}: copying and checking");
+        self.check = Some(Check {
+            id,
+            name,
+            progress,
+            resume,
+        });
+        id
+    }
+
+    /// The verdict of a check: start the job, or record why not.
+    pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, String>) {
+        let Some(check) = self.check.take_if(|c| c.id == id) else {
+            return;
+        };
+        let outcome = if self.shutting_down {
+            Err("the daemon is shutting down".to_string())
+        } else {
+            result.and_then(|(program, precheck)| {
+                let resume = check.resume.as_ref().map(|r| r.point.clone());
+                self.start_job(program, precheck, resume)
+            })
+        };
+        let (bytes_done, bytes_total) = {
+            let (_, done, total) = check.progress.get();
+            (done, total)
+        };
+        let mut status = CheckStatus {
+            id,
+            program: check.name.clone(),
+            phase: String::new(),
+            bytes_done,
+            bytes_total,
+            error: None,
+            message: None,
+            resume: check.resume.is_some(),
+        };
+        match outcome {
+            Ok(message) => {
+                tracing::info!("check {id}: {message}");
+                status.phase = "started".to_string();
+                status.message = Some(message);
+            }
+            Err(error) => {
+                tracing::error!("check {id}: refused: {error}");
+                status.phase = "refused".to_string();
+                status.error = Some(error);
+            }
+        }
+        self.last_check = Some(status);
+        self.notify_status();
+    }
+
+    /// Opens the I/O and starts the job thread on a checked program.
+    fn start_job(
+        &mut self,
+        program: JobProgram,
+        check: runtime::Precheck,
+        resume: Option<ResumePoint>,
+    ) -> Result<String, String> {
+        let config = self.config.clone();
+        let blocks = check.blocks;
+        let start = resume
+            .as_ref()
+            .map(|r| r.position.clone())
+            .unwrap_or_default();
+        let io = self
+            .job_io(&config, &check, &start)
+            .map_err(|e| e.to_string())?;
+        let resumed = resume.is_some();
+        // A new job replaces the checkpoint of an old one, and only now that it really starts.
         let mut message = String::new();
-        if let Some(old) = self.checkpoint.take() {
+        if !resumed && let Some(old) = self.checkpoint.take() {
             tracing::warn!(
                 "checkpoint of {} (line {}) discarded: a new job starts",
                 old.program.display(),
@@ -32,34 +206,9 @@ impl Core {
                 old.program.display()
             );
         }
-        let blocks = self.start_job(program.clone(), None)?;
-        Ok(format!(
-            "running {}: {blocks} blocks{message}",
-            program.display()
-        ))
-    }
-
-    /// Checks, opens the I/O and starts the job thread. Returns the program's block count.
-    pub(super) fn start_job(
-        &mut self,
-        program: PathBuf,
-        resume: Option<ResumePoint>,
-    ) -> Result<u64, String> {
-        let config = self.config.clone();
-        let program_sha256 =
-            checkpoint::sha256_file(&program).map_err(|e| format!("{}: {e}", program.display()))?;
-        let check = runtime::precheck(&program, &config).map_err(|e| e.to_string())?;
-        let blocks = check.blocks;
-        let start = resume
-            .as_ref()
-            .map(|r| r.position.clone())
-            .unwrap_or_default();
-        let io = self
-            .job_io(&config, &check, &start)
-            .map_err(|e| e.to_string())?;
+        self.prune_copies(Some(&program.sha256));
         let published = Arc::new(Published::new(4096));
         let stop = Arc::new(AtomicBool::new(false));
-        let resumed = resume.is_some();
         let (fine, tx) = (self.fine.clone(), self.to_core.clone());
         let (job_published, job_stop, job_config, job_program) = (
             published.clone(),
@@ -85,12 +234,17 @@ impl Core {
             .map_err(|e| format!("cannot start the job thread: {e}"))?;
         tracing::info!(
             "job start: {}{}",
-            program.display(),
+            program.name,
             if resumed { " (resumed)" } else { "" }
         );
+        let text = if resumed {
+            format!("resuming {}: {blocks} blocks", program.name)
+        } else {
+            format!("running {}: {blocks} blocks{message}", program.name)
+        };
         self.job = Some(Job {
-            program,
-            program_sha256,
+            program: PathBuf::from(&program.name),
+            program_sha256: program.sha256,
             published,
             stop,
             stop_reason: None,
@@ -102,7 +256,29 @@ impl Core {
             last_overrun_report: Instant::now(),
             config,
         });
-        Ok(blocks)
+        Ok(text)
+    }
+
+    /// Removes the program copies no job or checkpoint needs (and half-written ones).
+    pub(super) fn prune_copies(&self, running: Option<&str>) {
+        let Ok(entries) = std::fs::read_dir(self.copy_dir()) else {
+            return;
+        };
+        let keep: Vec<String> = running
+            .into_iter()
+            .map(str::to_string)
+            .chain(self.checkpoint.as_ref().map(|c| c.program_sha256.clone()))
+            .chain(self.job.as_ref().map(|j| j.program_sha256.clone()))
+            .map(|sha| format!("{sha}.nc"))
+            .collect();
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().to_string();
+            let ours = name.ends_with(".nc");
+            let busy = self.check.is_some() && name.starts_with(".incoming-");
+            if ours && !busy && !keep.contains(&name) {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
     }
 
     /// The job's output and gap source: the claimed port when there is one, else opened now.
@@ -181,15 +357,14 @@ impl Core {
         }
         self.refuse_if_busy()?;
         let Some(cp) = self.checkpoint.clone() else {
-            return Err(format!(
-                "nothing to resume: no job and no checkpoint ({})",
-                self.config.daemon.checkpoint.display()
-            ));
+            return Err(match &self.checkpoint_error {
+                Some(e) => format!("nothing to resume: {e}"),
+                None => format!(
+                    "nothing to resume: no job and no checkpoint ({})",
+                    self.config.daemon.checkpoint.display()
+                ),
+            });
         };
-        let program = confine(
-            &self.config.daemon.program_dir,
-            &cp.program.display().to_string(),
-        )?;
         cp.check_resumable(&self.config, force)
             .map_err(|e| e.to_string())?;
         let axes = self.config.machine.axes.len();
@@ -206,10 +381,30 @@ impl Core {
             },
             position: cp.position_steps.clone(),
         };
-        self.start_job(program.clone(), Some(point))?;
+        // The private copy the checkpoint's job ran, if it is still there: the very bytes,
+        // whatever became of the original. Otherwise the original, copied again and held to
+        // the checkpoint's hash.
+        let copy = program::copy_path(&self.copy_dir(), &cp.program_sha256);
+        let source = match std::fs::metadata(&copy) {
+            Ok(meta) if meta.is_file() => Source::Copy(JobProgram {
+                path: copy,
+                name: cp.program.display().to_string(),
+                sha256: cp.program_sha256.clone(),
+                bytes: meta.len(),
+            }),
+            _ => Source::Original(confine(
+                &self.config.daemon.program_dir,
+                &cp.program.display().to_string(),
+            )?),
+        };
+        let resume = Resume {
+            point,
+            sha256: cp.program_sha256.clone(),
+        };
+        let id = self.begin_check(source, Some(resume));
         Ok(format!(
-            "resuming {} from line {} (segment {}, step {})",
-            program.display(),
+            "accepted: checking {} (check {id}) to resume it from line {} (segment {}, step {})",
+            cp.program.display(),
             cp.line,
             cp.segment,
             cp.step
@@ -217,6 +412,11 @@ impl Core {
     }
 
     pub(super) fn abort(&mut self) -> Result<String, String> {
+        if let Some(check) = &self.check {
+            check.progress.cancel();
+            tracing::info!("abort: check {} of {} cancelled", check.id, check.name);
+            return Ok(format!("cancelling the check of {}", check.name));
+        }
         let Some(job) = &mut self.job else {
             return Err("no job is running".to_string());
         };
@@ -284,6 +484,7 @@ impl Core {
             None => {}
         }
         self.last = Some(summary);
+        self.prune_copies(None);
         self.notify_status();
     }
 
@@ -332,6 +533,7 @@ impl Core {
                     tracing::info!("{log}");
                 }
                 self.checkpoint = Some(cp);
+                self.checkpoint_error = None;
             }
             Err(e) => tracing::error!("{}: cannot write the checkpoint: {e}", path.display()),
         }

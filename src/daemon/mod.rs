@@ -81,6 +81,11 @@ pub enum CoreMsg {
     Request(Request, Sender<Reply>),
     Signal(i32),
     JobDone(Box<JobEnd>),
+    /// A check worker's verdict on check `id`.
+    Checked {
+        id: u64,
+        result: Result<jobs::Checked, String>,
+    },
 }
 
 /// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
@@ -122,8 +127,15 @@ struct Core {
     port_output: Option<BoxedOutput>,
     port_gap: Option<BoxedGap>,
     job: Option<Job>,
+    /// The program being copied and checked before its job starts.
+    check: Option<jobs::Check>,
+    /// The verdict of the last check.
+    last_check: Option<protocol::CheckStatus>,
+    next_check_id: u64,
     last: Option<JobSummary>,
     checkpoint: Option<Checkpoint>,
+    /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
+    checkpoint_error: Option<String>,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
     last_status_line: Instant,
@@ -141,19 +153,20 @@ pub fn serve(
     set_log_level: SetLogLevel,
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
-    let checkpoint = match Checkpoint::load(&config.daemon.checkpoint) {
-        Ok(c) => c,
+    let (checkpoint, checkpoint_error) = match Checkpoint::load(&config.daemon.checkpoint) {
+        Ok(c) => (c, None),
         Err(e) => {
             tracing::error!("{e}; ignoring it (it is left in place)");
-            None
+            (None, Some(e.to_string()))
         }
     };
     if let Some(c) = &checkpoint {
         tracing::info!(
-            "checkpoint: {} stopped at line {} ({}); `edmd ctl resume` continues it",
+            "checkpoint: {} stopped at line {} ({}); `edmd ctl resume{}` continues it",
             c.program.display(),
             c.line,
-            c.reason.name()
+            c.reason.name(),
+            if c.still { "" } else { " --force" }
         );
     }
     // The port first: if it cannot be claimed, nothing else should start.
@@ -197,8 +210,12 @@ pub fn serve(
         port_output,
         port_gap,
         job: None,
+        check: None,
+        last_check: None,
+        next_check_id: 0,
         last: None,
         checkpoint,
+        checkpoint_error,
         notifier,
         watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
         last_status_line: Instant::now(),
@@ -207,6 +224,7 @@ pub fn serve(
         to_core,
         shutting_down: false,
     };
+    core.prune_copies(None);
     core.notifier.send("READY=1");
     core.notify_status();
     core.run(&inbox);
@@ -288,11 +306,12 @@ impl Core {
                 }
                 Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
                 Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
+                Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, result),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return,
             }
             self.periodic();
-            if self.shutting_down && self.job.is_none() {
+            if self.shutting_down && self.job.is_none() && self.check.is_none() {
                 return;
             }
         }
@@ -326,6 +345,12 @@ impl Core {
                 job.program.display()
             ));
         }
+        if let Some(check) = &self.check {
+            return Err(format!(
+                "{} is being checked (check {}); abort cancels it",
+                check.name, check.id
+            ));
+        }
         Ok(())
     }
 
@@ -342,6 +367,10 @@ impl Core {
                 }
                 self.shutting_down = true;
                 self.notifier.send("STOPPING=1");
+                if let Some(check) = &self.check {
+                    tracing::info!("signal {signal}: check {} cancelled", check.id);
+                    check.progress.cancel();
+                }
                 match &mut self.job {
                     Some(job) => {
                         tracing::info!(
@@ -395,6 +424,7 @@ impl Core {
             let stopping = job.stop.load(Ordering::Relaxed);
             if job.published.hold.load(Ordering::Relaxed)
                 && snap.still
+                && job.published.output_synced.load(Ordering::Acquire)
                 && !stopping
                 && !job.hold_checkpointed
             {

@@ -106,6 +106,8 @@ impl Reply {
 pub enum DaemonState {
     /// No job.
     Idle,
+    /// A program is being copied and checked; nothing moves yet.
+    Checking,
     /// A job is cutting (or turning back, or starved).
     Running,
     /// A hold was asked for; still braking.
@@ -120,6 +122,7 @@ impl DaemonState {
     pub fn name(self) -> &'static str {
         match self {
             DaemonState::Idle => "idle",
+            DaemonState::Checking => "checking",
             DaemonState::Running => "running",
             DaemonState::Holding => "holding",
             DaemonState::Held => "held",
@@ -143,8 +146,38 @@ pub struct Status {
     /// The checkpoint on disk: what `resume` would continue.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointStatus>,
+    /// The check in progress, or the verdict of the last one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<CheckStatus>,
     /// Real-time features the system refused.
     pub rt_refused: Vec<String>,
+}
+
+/// A `run` (or `resume`) is answered at once; its program is then copied and checked on a
+/// worker, and the verdict lands here.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckStatus {
+    /// Counts the checks of this daemon; the `run` reply carries the one it started.
+    pub id: u64,
+    pub program: String,
+    /// `copying`, `checking`, then `started` or `refused`.
+    pub phase: String,
+    pub bytes_done: u64,
+    pub bytes_total: u64,
+    /// Why the job was refused (the program's `file:line:col` error, a cancel, …).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// What the job's start said (`running X: N blocks`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
+    pub resume: bool,
+}
+
+impl CheckStatus {
+    /// The verdict is in: the job started or was refused.
+    pub fn decided(&self) -> bool {
+        self.phase == "started" || self.phase == "refused"
+    }
 }
 
 /// The running job.
@@ -198,6 +231,13 @@ impl Status {
         let mut t = String::new();
         let list = |v: &[f64]| axis_list(v, &self.axes, |x| format!("{x:.4}"));
         let _ = writeln!(t, "state:        {}", self.state.name());
+        if let Some(c) = self.check.as_ref().filter(|c| !c.decided()) {
+            let _ = writeln!(
+                t,
+                "check:        {} {}: {} of {} bytes",
+                c.phase, c.program, c.bytes_done, c.bytes_total
+            );
+        }
         if let Some(j) = &self.job {
             let _ = writeln!(
                 t,
@@ -252,7 +292,7 @@ impl Status {
         if let Some(c) = &self.checkpoint {
             let _ = writeln!(
                 t,
-                "checkpoint:   {} line {} ({}{}); `edmd ctl resume` continues it",
+                "checkpoint:   {} line {} ({}{}); {}",
                 c.program,
                 c.line,
                 c.reason,
@@ -260,6 +300,12 @@ impl Status {
                     ""
                 } else {
                     ", written while cutting"
+                },
+                if c.still {
+                    "`edmd ctl resume` continues it"
+                } else {
+                    "the electrode may be past it: check the position, then \
+                     `edmd ctl resume --force` continues it"
                 }
             );
         }

@@ -1,18 +1,23 @@
 //! The control socket: a Unix-domain stream socket speaking JSON lines ([`super::protocol`]).
 //!
 //! One thread accepts; each client gets a thread of its own, at most `daemon.max_clients` at
-//! once (the next is answered with an error and closed). A client thread reads a line, hands
-//! the request to the daemon's control loop and writes the reply. A request counts only when
-//! its newline arrives: a client that vanishes mid-line has asked for nothing. Idle clients
-//! are dropped after [`CLIENT_IDLE`].
+//! once. A client thread reads a line, hands the request to the daemon's control loop and
+//! writes the reply. A request counts only when its newline arrives: a client that vanishes
+//! mid-line has asked for nothing. A client that asks nothing for [`CLIENT_IDLE`] is dropped;
+//! blank lines are not requests and do not keep it.
+//!
+//! **The emergency path is reserved.** Past `max_clients`, one more connection is served on a
+//! reserved slot that takes `status`, `hold` and `abort` only, one request, within
+//! [`EMERGENCY_IDLE`]: however many idle clients hold the ordinary slots, an operator can
+//! always stop the machine. Only past that is a client told "too many clients".
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::fs::{FileTypeExt, PermissionsExt};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Duration;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 use crossbeam::channel::{self, Sender};
 
@@ -20,8 +25,10 @@ use super::protocol::{MAX_REQUEST_BYTES, Reply, Request};
 use super::{CoreMsg, DaemonError};
 use crate::config::DaemonConfig;
 
-/// A client that sends nothing for this long is disconnected.
+/// A client that sends no request for this long is disconnected (blank lines do not count).
 pub const CLIENT_IDLE: Duration = Duration::from_secs(60);
+/// The reserved slot's client must send its request within this.
+pub const EMERGENCY_IDLE: Duration = Duration::from_secs(5);
 /// Longest wait for the control loop's answer.
 const REPLY_TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -74,6 +81,7 @@ pub fn spawn_listener(
     max_clients: Arc<AtomicUsize>,
 ) -> std::io::Result<()> {
     let active = Arc::new(AtomicUsize::new(0));
+    let emergency = Arc::new(AtomicBool::new(false));
     std::thread::Builder::new()
         .name("edmd-listen".to_string())
         .spawn(move || {
@@ -81,7 +89,12 @@ pub fn spawn_listener(
                 let Ok(mut stream) = stream else { continue };
                 let busy = active.load(Ordering::Relaxed);
                 tracing::debug!("control client connected ({busy} already served)");
-                if busy >= max_clients.load(Ordering::Relaxed) {
+                let slot = if busy < max_clients.load(Ordering::Relaxed) {
+                    active.fetch_add(1, Ordering::Relaxed);
+                    Slot::Ordinary(active.clone())
+                } else if !emergency.swap(true, Ordering::AcqRel) {
+                    Slot::Emergency(emergency.clone())
+                } else {
                     let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
                     let limit = max_clients.load(Ordering::Relaxed);
                     let reply = Reply::error(
@@ -90,15 +103,13 @@ pub fn spawn_listener(
                     );
                     let _ = stream.write_all(reply.to_line().as_bytes());
                     continue;
-                }
-                active.fetch_add(1, Ordering::Relaxed);
-                let active = active.clone();
+                };
                 let core = core.clone();
                 let spawned = std::thread::Builder::new()
                     .name("edmd-client".to_string())
                     .spawn(move || {
-                        serve_client(stream, &core);
-                        active.fetch_sub(1, Ordering::Relaxed);
+                        serve_client(stream, &core, slot.is_emergency());
+                        drop(slot);
                     });
                 if spawned.is_err() {
                     tracing::warn!("cannot start a thread for a control client; dropped");
@@ -106,6 +117,29 @@ pub fn spawn_listener(
             }
         })?;
     Ok(())
+}
+
+/// The slot a client holds; dropping it frees the slot.
+enum Slot {
+    Ordinary(Arc<AtomicUsize>),
+    Emergency(Arc<AtomicBool>),
+}
+
+impl Slot {
+    fn is_emergency(&self) -> bool {
+        matches!(self, Slot::Emergency(_))
+    }
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        match self {
+            Slot::Ordinary(active) => {
+                active.fetch_sub(1, Ordering::Relaxed);
+            }
+            Slot::Emergency(taken) => taken.store(false, Ordering::Release),
+        }
+    }
 }
 
 /// Reads one request line of at most [`MAX_REQUEST_BYTES`]. `Ok(None)`: the client is gone (or sent
@@ -131,15 +165,26 @@ pub fn read_request_line(
     ))
 }
 
-fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>) {
-    let _ = stream.set_read_timeout(Some(CLIENT_IDLE));
+fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>, emergency: bool) {
+    let idle = if emergency {
+        EMERGENCY_IDLE
+    } else {
+        CLIENT_IDLE
+    };
     let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
     let Ok(read_half) = stream.try_clone() else {
         return;
     };
     let mut reader = BufReader::new(read_half);
     let mut writer = stream;
+    let mut last_request = Instant::now();
     loop {
+        // The idle clock runs from the last request, not the last byte: blank lines and
+        // dribbled partial lines do not keep a slot.
+        let left = idle.saturating_sub(last_request.elapsed());
+        if left.is_zero() || writer.set_read_timeout(Some(left)).is_err() {
+            return;
+        }
         let line = match read_request_line(&mut reader) {
             Ok(Some(line)) => line,
             Ok(None) | Err(_) => return,
@@ -148,14 +193,29 @@ fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>) {
             Err(e) => (Reply::error(e, None), true),
             Ok(line) if line.trim().is_empty() => continue,
             Ok(line) => match Request::parse(&line) {
-                Err(e) => (Reply::error(e, None), false),
+                Err(e) => (Reply::error(e, None), emergency),
+                Ok(request)
+                    if emergency
+                        && !matches!(
+                            request,
+                            Request::Status {} | Request::Hold {} | Request::Abort {}
+                        ) =>
+                {
+                    let reply = Reply::error(
+                        "every client slot is taken (daemon.max_clients); the reserved one \
+                         takes status, hold and abort only",
+                        None,
+                    );
+                    (reply, true)
+                }
                 Ok(request) => {
+                    last_request = Instant::now();
                     let (tx, rx) = channel::bounded(1);
                     if core.send(CoreMsg::Request(request, tx)).is_err() {
                         return;
                     }
                     match rx.recv_timeout(REPLY_TIMEOUT) {
-                        Ok(reply) => (reply, false),
+                        Ok(reply) => (reply, emergency),
                         Err(_) => (Reply::error("the daemon did not answer", None), true),
                     }
                 }
@@ -179,29 +239,74 @@ pub fn request(socket: &Path, request: &Request) -> Result<Reply, ClientError> {
         .map_err(connect_error)?;
     let mut line = serde_json::to_string(request).expect("requests serialise");
     line.push('\n');
-    stream
-        .write_all(line.as_bytes())
-        .map_err(|source| ClientError::Io {
-            path: socket.to_path_buf(),
-            source,
-        })?;
+    // A daemon that turned the connection away has written why before closing: a failed
+    // write (a broken pipe) must not hide that reply, so read whatever came back first.
+    let written = stream.write_all(line.as_bytes());
     let mut reader = BufReader::new(stream);
     let mut answer = String::new();
-    reader
-        .read_line(&mut answer)
-        .map_err(|source| ClientError::Io {
+    let read = reader.read_line(&mut answer);
+    if answer.is_empty() {
+        let source = match (written, read) {
+            (Err(e), _) | (Ok(()), Err(e)) => e,
+            (Ok(()), Ok(_)) => {
+                return Err(ClientError::Closed {
+                    path: socket.to_path_buf(),
+                });
+            }
+        };
+        return Err(ClientError::Io {
             path: socket.to_path_buf(),
             source,
-        })?;
-    if answer.is_empty() {
-        return Err(ClientError::Closed {
-            path: socket.to_path_buf(),
         });
     }
     serde_json::from_str(&answer).map_err(|e| ClientError::Reply {
         path: socket.to_path_buf(),
         message: e.to_string(),
     })
+}
+
+/// How often `edmd ctl run` asks for the verdict of its check.
+const VERDICT_POLL: Duration = Duration::from_millis(200);
+
+/// The client side of a `run` or `resume` that waits: polls the status until check `id` is
+/// decided, showing its progress on standard error when `show` is set. The reply is the
+/// verdict: `ok` with the job's start message, or the refusal.
+pub fn wait_for_verdict(socket: &Path, id: u64, show: bool) -> Result<Reply, ClientError> {
+    let mut shown = None;
+    loop {
+        let reply = request(socket, &Request::Status {})?;
+        let Some(status) = reply.status else {
+            return Err(ClientError::Reply {
+                path: socket.to_path_buf(),
+                message: "a status reply without a status".to_string(),
+            });
+        };
+        let check = status.check.clone().filter(|c| c.id == id);
+        let Some(check) = check else {
+            return Err(ClientError::Reply {
+                path: socket.to_path_buf(),
+                message: format!("check {id} is no longer reported (another run replaced it)"),
+            });
+        };
+        if check.decided() {
+            return Ok(match (check.message, check.error) {
+                (Some(message), None) => Reply::ok(message, status),
+                (_, error) => Reply::error(
+                    error.unwrap_or_else(|| "the job was refused".to_string()),
+                    Some(status),
+                ),
+            });
+        }
+        let percent = (check.bytes_done * 100)
+            .checked_div(check.bytes_total)
+            .unwrap_or(0);
+        let now = (check.phase.clone(), percent / 10);
+        if show && shown.as_ref() != Some(&now) {
+            eprintln!("{} {}: {percent} %", check.phase, check.program);
+            shown = Some(now);
+        }
+        std::thread::sleep(VERDICT_POLL);
+    }
 }
 
 /// Why `edmd ctl` got no answer.

@@ -5,12 +5,13 @@
 use std::sync::atomic::Ordering;
 
 use super::Core;
-use super::protocol::{CheckpointStatus, DaemonState, JobStatus, Status};
+use super::protocol::{CheckStatus, CheckpointStatus, DaemonState, JobStatus, Status};
 use crate::runtime;
 
 impl Core {
     pub(super) fn state(&self) -> DaemonState {
         match &self.job {
+            None if self.check.is_some() => DaemonState::Checking,
             None => DaemonState::Idle,
             Some(job) => {
                 let snap = job.published.snapshot();
@@ -81,6 +82,22 @@ impl Core {
                 still: c.still,
                 position_steps: c.position_steps.clone(),
             }),
+            check: match &self.check {
+                Some(c) => {
+                    let (phase, done, total) = c.progress.get();
+                    Some(CheckStatus {
+                        id: c.id,
+                        program: c.name.clone(),
+                        phase: phase.name().to_string(),
+                        bytes_done: done,
+                        bytes_total: total,
+                        error: None,
+                        message: None,
+                        resume: c.is_resume(),
+                    })
+                }
+                None => self.last_check.clone(),
+            },
             rt_refused: self.fine.rt_refused().to_vec(),
         }
     }

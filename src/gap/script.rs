@@ -42,7 +42,7 @@ pub(crate) fn read_script(
 ) -> Result<(String, String), ScriptError> {
     let name = path.display().to_string();
     match std::fs::read_to_string(path) {
-        Ok(text) => Ok((text, name)),
+        Ok(text) => Ok((crate::vocab::without_bom(&text).to_string(), name)),
         Err(source) => Err(ScriptError::Io {
             path: name,
             what,
@@ -89,7 +89,7 @@ impl ScriptGap {
     /// Parses script text; `name` is used in error messages.
     pub fn parse(text: &str, name: &str) -> Result<ScriptGap, ScriptError> {
         let mut changes: Vec<(u64, GapState)> = Vec::new();
-        for (index, raw) in text.lines().enumerate() {
+        for (index, raw) in crate::vocab::without_bom(text).lines().enumerate() {
             let line = index + 1;
             let content = raw.split('#').next().unwrap_or("");
             let invalid = |col: usize, message: String| ScriptError::Invalid {
@@ -184,6 +184,12 @@ mod tests {
             .collect();
         use GapState::*;
         assert_eq!(states, [Normal, Normal, Short, Short, Normal, Normal]);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let mut gap = ScriptGap::parse("\u{feff}10 short\n", "g").unwrap();
+        assert_eq!(gap.sample(10).unwrap(), GapState::Short);
     }
 
     #[test]

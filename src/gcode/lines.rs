@@ -76,6 +76,9 @@ impl<R: BufRead> LineSource<R> {
         if self.buf.last() == Some(&b'\r') {
             self.buf.pop();
         }
+        if self.line_no == 1 && self.buf.starts_with(crate::vocab::BOM.as_bytes()) {
+            self.buf.drain(..crate::vocab::BOM.len());
+        }
         let line = match std::str::from_utf8(&self.buf) {
             Ok(text) => Line::Text(text),
             Err(e) => Line::BadUtf8 {

@@ -177,17 +177,27 @@ pub fn open_program(
     path: &Path,
     axes: &[Axis],
 ) -> Result<BlockReader<BufReader<File>>, GcodeError> {
-    let name = path.display().to_string();
+    open_program_as(path, &path.display().to_string(), axes, |file| file)
+}
+
+/// Opens `path` for streaming through `wrap` (a byte counter, say); errors name the program
+/// `name` (the file the operator knows when `path` is a private copy of it).
+pub fn open_program_as<R: std::io::Read>(
+    path: &Path,
+    name: &str,
+    axes: &[Axis],
+    wrap: impl FnOnce(File) -> R,
+) -> Result<BlockReader<BufReader<R>>, GcodeError> {
     let file = File::open(path).map_err(|e| GcodeError {
-        source_name: name.as_str().into(),
+        source_name: name.into(),
         line: 0,
         col: 0,
         kind: GcodeErrorKind::Io(e),
         text: String::new(),
     })?;
     Ok(BlockReader::new(
-        BufReader::with_capacity(64 * 1024, file),
-        &name,
+        BufReader::with_capacity(64 * 1024, wrap(file)),
+        name,
         axes,
     ))
 }

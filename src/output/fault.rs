@@ -39,6 +39,10 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
     fn finish(&mut self) -> Result<(), OutputError> {
         self.inner.finish()
     }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        self.inner.sync()
+    }
 }
 
 #[cfg(test)]

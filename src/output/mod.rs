@@ -74,6 +74,14 @@ pub trait PulseOutput {
 
     /// The job is over: everything written reaches its destination, outputs go inactive.
     fn finish(&mut self) -> Result<(), OutputError>;
+
+    /// Everything written so far reaches its destination, durably where there is a disk (a
+    /// pulse log): called at a standstill, before a checkpoint is written there, so after a
+    /// crash the record and the checkpoint agree to the step. Devices with nothing buffered
+    /// have nothing to do.
+    fn sync(&mut self) -> Result<(), OutputError> {
+        Ok(())
+    }
 }
 
 /// `output.kind = "null"`: discards everything.
@@ -102,5 +110,9 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
 
     fn finish(&mut self) -> Result<(), OutputError> {
         (**self).finish()
+    }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        (**self).sync()
     }
 }

@@ -127,7 +127,24 @@ impl PulseOutput for PulseLog {
     }
 
     fn finish(&mut self) -> Result<(), OutputError> {
-        let result = self.out.flush();
+        self.sync()
+    }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        let result = self.out.flush().and_then(|()| {
+            match self.out.get_ref().sync_data() {
+                // A pipe or a terminal (`/dev/stdout`) has no disk to reach: flushed is all.
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::InvalidInput | std::io::ErrorKind::Unsupported
+                    ) =>
+                {
+                    Ok(())
+                }
+                other => other,
+            }
+        });
         result.map_err(|e| self.io(e))
     }
 }

@@ -91,6 +91,9 @@ pub struct Published {
     pub stop: AtomicBool,
     /// Set by the consumer when its loop has ended.
     pub finished: AtomicBool,
+    /// Set by the consumer's loop once the output was synced at the current standstill
+    /// (cleared when motion resumes): a checkpoint written now agrees with the pulse record.
+    pub output_synced: AtomicBool,
 }
 
 impl Published {
@@ -109,6 +112,7 @@ impl Published {
             hold: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             finished: AtomicBool::new(false),
+            output_synced: AtomicBool::new(false),
         }
     }
 
@@ -483,6 +487,20 @@ where
         if tick.event.is_some() || fine.held() || tick_no & 0x3f == 0 {
             published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
+        }
+        // At a held standstill the output's record is made durable once, before the
+        // supervisor writes its checkpoint (it waits for `output_synced`). Nothing moves
+        // here, so the time a disk takes costs no step; the next deadline starts afresh.
+        let standstill = fine.held() && fine.still();
+        if standstill && !published.output_synced.load(Ordering::Relaxed) {
+            if let Err(e) = output.sync() {
+                report.output_error = Some(e);
+                break;
+            }
+            published.output_synced.store(true, Ordering::Release);
+            deadline = sys::monotonic_ns();
+        } else if !standstill && published.output_synced.load(Ordering::Relaxed) {
+            published.output_synced.store(false, Ordering::Relaxed);
         }
         if fine.state().is_final() {
             break;

@@ -25,12 +25,13 @@ mod histogram;
 pub mod latency;
 mod precheck;
 pub mod producer;
+pub mod program;
 mod summary;
 
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crate::buffer::LoopBuffer;
 use crate::config::Config;
@@ -49,6 +50,7 @@ pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
 pub use histogram::{LatencyHistogram, LatencySummary};
 pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
+pub use program::{JobProgram, Progress, TempCopy};
 pub use summary::{JobSummary, Outcome, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
@@ -69,6 +71,10 @@ pub enum JobError {
     /// A combination of settings that cannot run (the validated configuration refuses it).
     #[error("{0}")]
     Config(String),
+    #[error(transparent)]
+    Copy(#[from] program::CopyError),
+    #[error("{program}: the check was cancelled")]
+    Cancelled { program: String },
 }
 
 /// Logs one servo event (from the main thread, never the consumer).
@@ -124,6 +130,9 @@ fn log_trace(config: &Config, record: &TraceRecord, tick: TickPeriod) {
     }
 }
 
+/// How long a controlled stop lets a consumer that waits for the producer keep waiting.
+const STOP_WAKE: Duration = Duration::from_millis(200);
+
 /// Runs `program` through both threads with the output and gap source of `config`.
 pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
     run_job_until(program, config, &AtomicBool::new(false))
@@ -136,18 +145,43 @@ pub fn run_job_until(
     config: &Config,
     stop: &AtomicBool,
 ) -> Result<JobSummary, JobError> {
-    let check = precheck(program, config)?;
+    let (copy, check) = copy_and_check(program, config, stop)?;
+    let program = &copy.0;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let (output, gap) = open_io(config, &check, tracer.as_ref())?;
     run_job_on(program, config, &check, output, gap, tracer, Some(stop))
 }
 
+/// Copies `program` to a private temporary copy and checks the copy (on a thread of their
+/// own, so `stop` cancels them within a poll period however large the file).
+pub fn copy_and_check(
+    program: &Path,
+    config: &Config,
+    stop: &AtomicBool,
+) -> Result<(TempCopy, Precheck), JobError> {
+    let progress = Progress::new();
+    std::thread::scope(|s| {
+        let work = s.spawn(|| {
+            let copy = TempCopy::new_with(program, &progress)?;
+            let check = precheck(&copy.0, config, &progress)?;
+            Ok((copy, check))
+        });
+        while !work.is_finished() {
+            if stop.load(Ordering::Relaxed) {
+                progress.cancel();
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        work.join().expect("the program check panicked")
+    })
+}
+
 /// Runs `program` (already checked: `check`) through both threads with the given output and
 /// gap source; `tracer` is drained and logged while the job runs; once `stop` is set the job
 /// brakes to a standstill and ends there (position kept).
 pub fn run_job_on(
-    program: &Path,
+    program: &JobProgram,
     config: &Config,
     check: &Precheck,
     output: BoxedOutput,
@@ -199,7 +233,7 @@ pub struct JobEnd {
 #[allow(clippy::too_many_arguments)]
 pub fn run_job_with(
     fine_thread: &FineThread,
-    program: &Path,
+    program: &JobProgram,
     config: &Config,
     check: &Precheck,
     io: JobIo,
@@ -207,7 +241,7 @@ pub fn run_job_with(
     stop: &AtomicBool,
     resume: Option<ResumePoint>,
 ) -> JobEnd {
-    let name = program.display().to_string();
+    let name = program.name.clone();
     let cap = fine_speed_cap(config);
     if config.machine.max_feed_mm_per_min / 60.0 > cap {
         tracing::info!(
@@ -260,12 +294,18 @@ pub fn run_job_with(
                 tracer.drain(|record| log_trace(config, record, tick));
             }
         };
+        let mut stop_asked: Option<Instant> = None;
         let done = loop {
-            // A controlled stop: hold, and end the loop once it stands still.
+            // A controlled stop: hold, and end the loop once it stands still. A consumer
+            // that waits for the producer (virtual time, the walk to a checkpoint) is told to
+            // stop waiting if it has not come to a standstill within STOP_WAKE.
             if stop.load(Ordering::Relaxed) {
                 published.hold.store(true, Ordering::Relaxed);
+                let asked = *stop_asked.get_or_insert_with(Instant::now);
                 if published.snapshot().still {
                     published.stop.store(true, Ordering::Relaxed);
+                } else if asked.elapsed() >= STOP_WAKE {
+                    buffer.interrupt();
                 }
             }
             drain();

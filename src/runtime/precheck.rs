@@ -2,10 +2,9 @@
 //! to prove it fits a step counter, before anything moves. A CNC control must not start
 //! cutting a program whose line 10,000 is bad.
 
-use std::path::Path;
-
 use super::JobError;
 use super::producer::{ProducerError, to_steps};
+use super::program::{CountingReader, JobProgram, Phase, Progress};
 use crate::config::{Config, GapKind};
 use crate::gcode;
 use crate::geometry::MAX_AXES;
@@ -22,9 +21,21 @@ pub struct Precheck {
     pub cutting_spans: Vec<(f64, f64)>,
 }
 
-/// Parses the whole program and checks every end point fits a step counter.
-pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
-    let mut reader = gcode::open_program(program, &config.machine.axes)?;
+/// How many blocks the check reads between looks at its cancel flag.
+const CANCEL_EVERY: u64 = 1024;
+
+/// Parses the whole program and checks every end point fits a step counter. Reports the
+/// bytes read to `progress` and gives up with [`JobError::Cancelled`] when it is cancelled.
+pub fn precheck(
+    program: &JobProgram,
+    config: &Config,
+    progress: &Progress,
+) -> Result<Precheck, JobError> {
+    progress.start(Phase::Checking, program.bytes);
+    let mut reader =
+        gcode::open_program_as(&program.path, &program.name, &config.machine.axes, |f| {
+            CountingReader::new(f, progress)
+        })?;
     let mut blocks = 0;
     let mut end_steps = [0; MAX_AXES];
     let mut path_mm = 0.0;
@@ -33,6 +44,11 @@ pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
     for item in reader.by_ref() {
         let block = item?;
         blocks += 1;
+        if blocks % CANCEL_EVERY == 0 && progress.cancelled() {
+            return Err(JobError::Cancelled {
+                program: program.name.clone(),
+            });
+        }
         if measure {
             let length = block.curve.length();
             if block.kind != gcode::BlockKind::Rapid {
@@ -46,7 +62,7 @@ pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
         end_steps =
             to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
                 ProducerError::OutOfRange {
-                    program: program.display().to_string(),
+                    program: program.name.clone(),
                     line: block.line,
                     axis: config.machine.axes[axis].letter(),
                     mm,
@@ -56,9 +72,9 @@ pub fn precheck(program: &Path, config: &Config) -> Result<Precheck, JobError> {
     }
     for w in reader.take_warnings() {
         if w.line == 0 {
-            tracing::warn!("{}: {}", program.display(), w.message);
+            tracing::warn!("{}: {}", program.name, w.message);
         } else {
-            tracing::warn!("{}:{}:{}: {}", program.display(), w.line, w.col, w.message);
+            tracing::warn!("{}:{}:{}: {}", program.name, w.line, w.col, w.message);
         }
     }
     Ok(Precheck {

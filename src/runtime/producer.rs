@@ -5,10 +5,10 @@
 //! buffer is full. Step positions are rounded once per segment end point, absolutely, from mm
 //! (never accumulated), so a block's start is bit-for-bit the previous block's end.
 
-use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::program::JobProgram;
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::config::Config;
 use crate::gcode::{self, BlockKind, GcodeError};
@@ -124,7 +124,7 @@ impl BlockMaker {
 /// Streams `program` into `buffer`; closes the buffer at the end (also after an error, so the
 /// consumer finishes what it has and stops).
 pub fn produce(
-    program: &Path,
+    program: &JobProgram,
     config: &Config,
     buffer: &LoopBuffer,
 ) -> Result<ProducerReport, ProducerError> {
@@ -134,13 +134,13 @@ pub fn produce(
 }
 
 fn produce_inner(
-    program: &Path,
+    program: &JobProgram,
     config: &Config,
     buffer: &LoopBuffer,
 ) -> Result<ProducerReport, ProducerError> {
-    let reader = gcode::open_program(program, &config.machine.axes)?;
+    let reader = gcode::open_program_as(&program.path, &program.name, &config.machine.axes, |f| f)?;
     let mut pre = Preprocessor::new(PlanSettings::from_config(config));
-    let mut maker = BlockMaker::new(config, &program.display().to_string());
+    let mut maker = BlockMaker::new(config, &program.name);
     let mut report = ProducerReport::default();
     let mut failed: Option<ProducerError> = None;
     let started = Instant::now();

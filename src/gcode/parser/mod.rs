@@ -86,6 +86,10 @@ pub struct BlockReader<R> {
     words: Vec<Word>,
     saw_content: bool,
     ended_at: Option<u64>,
+    /// The line of the `%` that closed the program (a tape mark after its first block).
+    closed_at: Option<u64>,
+    /// A block was read (a `%` alone is not one).
+    saw_block: bool,
     done: bool,
 }
 
@@ -114,6 +118,8 @@ impl<R: BufRead> BlockReader<R> {
             words: Vec::new(),
             saw_content: false,
             ended_at: None,
+            closed_at: None,
+            saw_block: false,
             done: false,
         }
     }
@@ -189,7 +195,7 @@ impl<R: BufRead> BlockReader<R> {
             self.words = words;
             match result {
                 Ok(Some(block)) => return Ok(Some(block)),
-                Ok(None) if self.done => return Ok(None),
+                Ok(None) if self.done => return self.finish().map(|()| None),
                 Ok(None) => {}
                 Err(fail) => return Err(self.error(line_no, &text, fail)),
             }
@@ -214,7 +220,7 @@ impl<R: BufRead> BlockReader<R> {
         if !self.saw_content {
             return Err(self.error(1, "", (1, GcodeErrorKind::EmptyProgram).into()));
         }
-        if self.ended_at.is_none() {
+        if self.ended_at.is_none() && self.closed_at.is_none() {
             self.warnings.push(Warning {
                 line: 0,
                 col: 0,
@@ -250,9 +256,24 @@ impl<R: BufRead> BlockReader<R> {
             self.done = true;
             return Ok(None);
         }
-        if words.is_empty() {
-            return Ok(None); // `%` tape mark
+        if let Some(closed) = self.closed_at {
+            // Like LinuxCNC and Fanuc: nothing after the closing `%` is read.
+            self.warnings.push(Warning {
+                line: line_no,
+                col: words.first().map_or(1, |w| w.col),
+                message: format!("text after the closing `%` (line {closed}) is ignored"),
+            });
+            self.done = true;
+            return Ok(None);
         }
+        if words.is_empty() {
+            // A tape mark: the opening one before the first block, the closing one after.
+            if self.saw_block {
+                self.closed_at = Some(line_no);
+            }
+            return Ok(None);
+        }
+        self.saw_block = true;
         let letters = collect_letters(words)?;
         if let Some(n) = letters.get('N') {
             whole(n, 0.0, 1e9)?;
