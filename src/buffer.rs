@@ -64,6 +64,9 @@ pub struct StepBlock {
     /// lines and arcs). Checkpoints report it; motion never uses it.
     pub u_end: f64,
     pub flags: u8,
+    /// Path length from the program's start to the move's end (mm, forward, chords summed):
+    /// how far along the job this move ends, for progress and ETA.
+    pub path_end_mm: f64,
 }
 
 impl StepBlock {
@@ -84,6 +87,7 @@ impl StepBlock {
         line: 0,
         u_end: f64::NAN,
         flags: 0,
+        path_end_mm: 0.0,
     };
 
     /// Signed step count of each axis.

@@ -34,6 +34,9 @@ pub enum PlanError {
     Program(#[from] GcodeError),
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: io::Error },
+    /// `--out` names something that is not a directory: bad input, like a bad program.
+    #[error("{path}: not a directory (--out names the directory the plan is written into)")]
+    NotADirectory { path: PathBuf },
 }
 
 fn io_err(path: &Path) -> impl FnOnce(io::Error) -> PlanError + '_ {
@@ -401,6 +404,11 @@ pub fn plan_program(
     progress: bool,
 ) -> Result<PlanSummary, PlanError> {
     let started = Instant::now();
+    if out_dir.exists() && !out_dir.is_dir() {
+        return Err(PlanError::NotADirectory {
+            path: out_dir.to_path_buf(),
+        });
+    }
     let file = File::open(program).map_err(io_err(program))?;
     let total = file.metadata().map(|m| m.len()).unwrap_or(0);
     let count = Arc::new(AtomicU64::new(0));

@@ -292,3 +292,99 @@ fn plan_reports_bad_programs_with_their_location() {
     assert!(stderr.contains("bad.nc:3:"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_closed_pipe_ends_quietly_not_in_a_panic() {
+    // `edmd check PROGRAM | head -1`: the reader goes away after one line.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["check", "programs/jin-table1-g06_2.nc"])
+        .current_dir(repo())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(141), "{stderr}");
+}
+
+#[test]
+fn the_configuration_is_found_in_order_and_named() {
+    let dir = temp_dir("config-search");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("mine.toml");
+    std::fs::write(&file, "[buffer]\ncapacity = 64\nreserved = 8\n").unwrap();
+    let program = repo().join("programs/jin-table1-g06_2.nc");
+    let check = |env: Option<&Path>, args: &[&str]| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_edmd"));
+        cmd.arg("check").arg(&program).args(["-q", "-v"]).args(args);
+        cmd.current_dir(&dir).env_remove("EDMD_CONFIG");
+        if let Some(path) = env {
+            cmd.env("EDMD_CONFIG", path);
+        }
+        let out = cmd.output().unwrap();
+        assert_eq!(out.status.code(), Some(0));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let from_env = check(Some(&file), &[]);
+    assert!(
+        from_env.contains(&format!("configuration: {} ($EDMD_CONFIG)", file.display())),
+        "{from_env}"
+    );
+    let explicit = check(
+        Some(Path::new("/nonexistent")),
+        &["--config", file.to_str().unwrap()],
+    );
+    assert!(explicit.contains("(--config)"), "{explicit}");
+    // From a directory with no checkout's config: the installed one if there is one, else the
+    // built-in default; either way it says which.
+    let neither = check(None, &[]);
+    assert!(
+        neither.contains("/etc/edmd/edmd.toml (the installed one)")
+            || neither.contains("configuration: the built-in default"),
+        "{neither}"
+    );
+}
+
+#[test]
+fn plan_out_naming_a_file_is_bad_input() {
+    let dir = temp_dir("plan-out-file");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("not-a-dir");
+    std::fs::write(&file, "x").unwrap();
+    let out = edmd(&[
+        "plan",
+        "programs/jin-table1-g06_2.nc",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("not a directory"), "{stderr}");
+}
+
+#[test]
+fn run_logs_its_progress_when_not_on_a_terminal() {
+    let out = edmd(&[
+        "run",
+        "tests/data/runtime-path.nc",
+        "--set",
+        "gap.kind=\"none\"",
+        "--set",
+        "output.kind=\"null\"",
+        // Real time at 900 mm/min: about a second, so the progress shows.
+        "--set",
+        "fine.virtual_time=false",
+        "--set",
+        "servo.normal_feed_mm_per_min=900.0",
+    ]);
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("progress: ") && stderr.contains(" % of 17.13"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("configuration: "), "{stderr}");
+}

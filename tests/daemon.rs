@@ -745,11 +745,14 @@ fn idle_clients_never_lock_out_hold_and_abort() {
     let daemon = Daemon::start(&dir, &sets, &[]);
     daemon.ok(&["run", PROGRAM]);
     daemon.wait_for("cutting", is_moving);
-    // Every ordinary slot held by a client that only ever sends blank lines.
+    // Every ordinary slot held by a client that, once served, only ever sends blank lines.
+    // (The status polls' connections are given a moment to close first.)
+    std::thread::sleep(Duration::from_millis(300));
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let idlers: Vec<_> = (0..2)
         .map(|_| {
             let stream = UnixStream::connect(&daemon.socket).unwrap();
+            assert_eq!(exchange(&stream, r#"{"cmd":"status"}"#)["ok"], true);
             let stop = stop.clone();
             std::thread::spawn(move || {
                 let mut stream = stream;
@@ -996,4 +999,137 @@ fn a_corrupt_checkpoint_is_reported_in_the_reply_and_a_moving_one_asks_for_force
     );
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
+}
+
+#[test]
+fn a_refused_run_leaves_the_checkpoint_and_resume_continues_the_job() {
+    let dir = scratch("refused");
+    std::fs::write(
+        dir.join("programs/broken.nc"),
+        "G1 X1 F60\nG2 X5 Y0 I1 J0\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("outside.nc"), "G1 X1 F60\n").unwrap();
+    let reference = uninterrupted(&dir);
+    let first = Daemon::start(&dir, &base_sets(&dir, "first.csv"), &[]);
+    first.ok(&["run", PROGRAM]);
+    first.wait_for("cutting", is_moving);
+    first.ok(&["hold"]);
+    first.wait_for("the hold checkpoint", |s| {
+        s["checkpoint"]["reason"] == "hold"
+    });
+    first.ok(&["abort"]);
+    first.wait_for("idle", |s| s["state"] == "idle");
+    let before = std::fs::read(dir.join("checkpoint.json")).unwrap();
+    // Refused for every kind of reason: a program error, a missing file, a path outside.
+    let outside = dir.join("outside.nc").display().to_string();
+    for program in ["broken.nc", "missing.nc", "../outside.nc", outside.as_str()] {
+        let (reply, code) = first.ctl(&["run", program]);
+        assert_eq!(
+            (reply["ok"].as_bool(), code),
+            (Some(false), 1),
+            "{program}: {reply}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("checkpoint.json")).unwrap(),
+            before,
+            "{program}: the checkpoint must stay byte-identical"
+        );
+    }
+    assert!(!first.log().contains("discarded"), "{}", first.log());
+    // The interrupted job goes on from where it stopped, and ends exactly.
+    let reply = first.ok(&["resume"]);
+    assert!(
+        reply["message"].as_str().unwrap().contains("resuming"),
+        "{reply}"
+    );
+    let idle = first.wait_for("the resumed job's end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
+    // The resumed job's own log (the same file, started afresh) holds only the rest.
+    assert!(moves(&dir.join("first.csv")).len() < reference.len());
+    first.signal(libc::SIGTERM);
+    assert_eq!(first.wait().0, 0);
+}
+
+#[test]
+fn status_shows_progress_and_eta_and_monitor_prints_a_line_per_interval() {
+    let dir = scratch("progress");
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    std::thread::sleep(Duration::from_millis(1500));
+    let job = daemon.wait_for("an ETA", |s| s["job"]["eta_s"].as_f64().is_some())["job"].clone();
+    let progress = job["progress"].as_f64().unwrap();
+    let total = job["path_total_mm"].as_f64().unwrap();
+    assert!(progress > 0.0 && progress < 1.0, "{job}");
+    // The program: lines, an arc and a NURBS curve, 17.13 mm of path.
+    assert!((17.0..17.3).contains(&total), "{job}");
+    let done = job["path_done_mm"].as_f64().unwrap();
+    assert!((done - progress * total).abs() < 1e-9, "{job}");
+    // The ETA is the path left at the recent forward feed, which the servo keeps at or below
+    // its 300 mm/min (the window includes the start from rest; a loaded machine overruns).
+    let eta = job["eta_s"].as_f64().unwrap();
+    let feed = job["recent_feed_mm_per_min"].as_f64().unwrap();
+    assert!(feed > 0.0 && feed <= 300.0 * 1.01, "{job}");
+    let expected = (total - done) / (feed / 60.0);
+    assert!(
+        (eta - expected).abs() < 1e-6 * expected,
+        "ETA {eta} s, expected {expected} s"
+    );
+
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(&daemon.socket)
+        .args(["--json", "monitor", "--count", "3", "--interval", "0.2"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON status per line"))
+        .collect();
+    assert_eq!(lines.len(), 3);
+    assert!(lines.iter().all(|s| s["state"] == "running"), "{lines:?}");
+    let p: Vec<f64> = lines
+        .iter()
+        .map(|s| s["job"]["progress"].as_f64().unwrap())
+        .collect();
+    assert!(p[0] <= p[1] && p[1] <= p[2], "progress only grows: {p:?}");
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(&daemon.socket)
+        .args(["monitor", "--count", "1"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.starts_with("running ") && text.contains(" % ETA "),
+        "{text}"
+    );
+
+    daemon.ok(&["abort"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "status", "--socket"])
+        .arg(&daemon.socket)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("(where the last job ended)"), "{text}");
+    // The monitor ends on its own when the daemon goes away.
+    let monitor = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(&daemon.socket)
+        .args(["monitor", "--interval", "0.1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+    let out = monitor.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("went away"));
 }

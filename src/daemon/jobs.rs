@@ -182,6 +182,7 @@ impl Core {
     ) -> Result<String, String> {
         let config = self.config.clone();
         let blocks = check.blocks;
+        let path_total_mm = check.path_mm;
         let start = resume
             .as_ref()
             .map(|r| r.position.clone())
@@ -255,6 +256,7 @@ impl Core {
             overruns_seen: 0,
             last_overrun_report: Instant::now(),
             config,
+            progress: runtime::ProgressTracker::new(path_total_mm),
         });
         Ok(text)
     }
@@ -325,6 +327,7 @@ impl Core {
             output,
             gap,
             tracer,
+            progress: None,
         })
     }
 
@@ -453,6 +456,8 @@ impl Core {
         let head = lines.next().unwrap_or_default();
         match summary.outcome {
             Outcome::Done => tracing::info!("job end: {head}"),
+            // An operator's abort or stop, or a signal's: asked for, not a fault.
+            Outcome::Stopped => tracing::warn!("job end: {head}"),
             _ => tracing::error!(
                 "job end: {head}{}",
                 summary

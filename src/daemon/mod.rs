@@ -46,7 +46,8 @@ use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 use crate::checkpoint::{Checkpoint, Reason};
 use crate::config::{Config, KeyValues, OutputKind};
 use crate::runtime::{
-    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobSummary, LoopSettings, Published,
+    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobSummary, LoopSettings,
+    ProgressTracker, Published,
 };
 use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{Reply, Request};
@@ -114,6 +115,8 @@ struct Job {
     last_overrun_report: Instant,
     /// The config the job runs with (a reload may not change it under the job).
     config: Config,
+    /// How far along the program, and the ETA.
+    progress: ProgressTracker,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -447,6 +450,7 @@ impl Core {
                 self.write_checkpoint(&job, &snap, Reason::Periodic, false);
                 job.last_checkpoint = now;
             }
+            job.progress.track(snap.path_mm, now);
             let overruns = job.published.overruns.load(Ordering::Relaxed);
             if overruns > job.overruns_seen
                 && now.duration_since(job.last_overrun_report) >= OVERRUN_REPORT

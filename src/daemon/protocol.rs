@@ -212,6 +212,17 @@ pub struct JobStatus {
     pub latency_max_us: Option<f64>,
     /// Started from a checkpoint.
     pub resumed: bool,
+    /// Fraction of the program's path done (0 to 1): the farthest point reached, so a
+    /// turn-back does not move it back and the re-advance does not count twice.
+    pub progress: f64,
+    /// Path length done and in all (mm).
+    pub path_done_mm: f64,
+    pub path_total_mm: f64,
+    /// Seconds to the end at the recent average forward feed (none until a second of motion
+    /// is known, or while nothing advances).
+    pub eta_s: Option<f64>,
+    /// That recent average forward feed (mm/min).
+    pub recent_feed_mm_per_min: Option<f64>,
 }
 
 /// The checkpoint on disk, in short.
@@ -225,6 +236,50 @@ pub struct CheckpointStatus {
 }
 
 impl Status {
+    /// One line: the log's periodic status, systemd's `STATUS=`, `edmd ctl monitor`.
+    pub fn line(&self) -> String {
+        match &self.job {
+            None => {
+                let check = self
+                    .check
+                    .as_ref()
+                    .filter(|c| !c.decided())
+                    .map(|c| format!("; {} {}", c.phase, c.program))
+                    .unwrap_or_default();
+                match &self.last_job {
+                    Some(last) => format!(
+                        "{}{check}; last job {}: {}",
+                        self.state.name(),
+                        last.program,
+                        last.outcome.name()
+                    ),
+                    None => format!("{}{check}", self.state.name()),
+                }
+            }
+            Some(j) => {
+                let position = axis_list(&j.position_mm, &self.axes, |x| format!("{x:.4}"));
+                format!(
+                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, {:.1} %{}, buffer {}/{}, \
+                     {} shorts, {} starvations, {} overruns",
+                    self.state.name(),
+                    j.program,
+                    j.line,
+                    j.servo,
+                    j.feed_mm_per_min,
+                    j.progress * 100.0,
+                    j.eta_s
+                        .map(|s| format!(" ETA {}", duration_text(s)))
+                        .unwrap_or_default(),
+                    j.buffer_unprocessed,
+                    j.buffer_capacity,
+                    j.shorts,
+                    j.starvations,
+                    j.overruns
+                )
+            }
+        }
+    }
+
     /// The human-readable form `edmd ctl` prints.
     pub fn text(&self) -> String {
         use std::fmt::Write;
@@ -255,6 +310,19 @@ impl Status {
                 j.servo,
                 j.feed_mm_per_min
             );
+            let eta = match j.eta_s {
+                Some(s) => format!("ETA {}", duration_text(s)),
+                None => "ETA unknown".to_string(),
+            };
+            let _ = writeln!(
+                t,
+                "progress:     {:.1} % of {:.3} mm, {eta}{}",
+                j.progress * 100.0,
+                j.path_total_mm,
+                j.recent_feed_mm_per_min
+                    .map(|f| format!(" (recent feed {f:.2} mm/min)"))
+                    .unwrap_or_default()
+            );
             let _ = writeln!(
                 t,
                 "buffer:       {} ahead, {} reserved, of {}",
@@ -275,6 +343,13 @@ impl Status {
                 t,
                 "time:         {:.3} s machine, {:.1} s elapsed; {}; {} overruns",
                 j.machine_time_s, j.elapsed_s, latency, j.overruns
+            );
+        }
+        if let (None, Some(last)) = (&self.job, &self.last_job) {
+            let _ = writeln!(
+                t,
+                "position:     {} mm (where the last job ended)",
+                list(&last.end_mm)
             );
         }
         if let Some(last) = &self.last_job {
@@ -313,6 +388,16 @@ impl Status {
             let _ = writeln!(t, "warning:      {r}");
         }
         t
+    }
+}
+
+/// `3 h 02 min`, `4 min 10 s`, `12 s`: a duration as an operator reads it.
+pub fn duration_text(seconds: f64) -> String {
+    let s = seconds.max(0.0).round() as u64;
+    match (s / 3600, s / 60 % 60, s % 60) {
+        (0, 0, s) => format!("{s} s"),
+        (0, m, s) => format!("{m} min {s:02} s"),
+        (h, m, _) => format!("{h} h {m:02} min"),
     }
 }
 

@@ -108,8 +108,7 @@ pub fn spawn_listener(
                 let spawned = std::thread::Builder::new()
                     .name("edmd-client".to_string())
                     .spawn(move || {
-                        serve_client(stream, &core, slot.is_emergency());
-                        drop(slot);
+                        serve_client(stream, &core, slot);
                     });
                 if spawned.is_err() {
                     tracing::warn!("cannot start a thread for a control client; dropped");
@@ -165,7 +164,9 @@ pub fn read_request_line(
     ))
 }
 
-fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>, emergency: bool) {
+fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>, slot: Slot) {
+    let emergency = slot.is_emergency();
+    let mut slot = Some(slot);
     let idle = if emergency {
         EMERGENCY_IDLE
     } else {
@@ -221,14 +222,41 @@ fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>, emergency: bool) {
                 }
             },
         };
+        if close {
+            // Free the slot before the last reply goes out: an operator's next command may
+            // connect the moment it has read this one.
+            drop(slot.take());
+        }
         if writer.write_all(reply.to_line().as_bytes()).is_err() || close {
             return;
         }
     }
 }
 
-/// The client side (`edmd ctl`): sends one request, returns the reply.
+/// How long `edmd ctl` keeps trying while the daemon says every slot is taken.
+const BUSY_RETRY: Duration = Duration::from_secs(2);
+
+/// The client side (`edmd ctl`): sends one request, returns the reply. A daemon whose slots
+/// are all taken (the reserved one too, for a moment) is asked again for up to
+/// [`BUSY_RETRY`].
 pub fn request(socket: &Path, request: &Request) -> Result<Reply, ClientError> {
+    let started = Instant::now();
+    loop {
+        let reply = request_once(socket, request)?;
+        let busy = !reply.ok
+            && reply.status.is_none()
+            && reply
+                .error
+                .as_deref()
+                .is_some_and(|e| e.starts_with("too many clients"));
+        if !busy || started.elapsed() >= BUSY_RETRY {
+            return Ok(reply);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn request_once(socket: &Path, request: &Request) -> Result<Reply, ClientError> {
     let connect_error = |source| ClientError::Connect {
         path: socket.to_path_buf(),
         source,

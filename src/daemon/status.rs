@@ -6,7 +6,6 @@ use std::sync::atomic::Ordering;
 
 use super::Core;
 use super::protocol::{CheckStatus, CheckpointStatus, DaemonState, JobStatus, Status};
-use crate::runtime;
 
 impl Core {
     pub(super) fn state(&self) -> DaemonState {
@@ -66,6 +65,11 @@ impl Core {
                 latency_max_us: (samples > 0)
                     .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
                 resumed: job.resumed,
+                progress: job.progress.fraction(),
+                path_done_mm: job.progress.done_mm(),
+                path_total_mm: job.progress.total_mm(),
+                eta_s: job.progress.eta_s(),
+                recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
             }
         });
         Status {
@@ -104,31 +108,7 @@ impl Core {
 
     /// One line for the log and systemd's STATUS=.
     pub(super) fn status_line(&self) -> String {
-        let status = self.status();
-        match &status.job {
-            None => match &self.last {
-                Some(last) => format!("idle; last job {}: {}", last.program, last.outcome.name()),
-                None => "idle".to_string(),
-            },
-            Some(j) => {
-                let position =
-                    runtime::axis_list(&j.position_mm, &status.axes, |x| format!("{x:.4}"));
-                format!(
-                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, buffer {}/{}, {} shorts, \
-                     {} starvations, {} overruns",
-                    status.state.name(),
-                    j.program,
-                    j.line,
-                    j.servo,
-                    j.feed_mm_per_min,
-                    j.buffer_unprocessed,
-                    j.buffer_capacity,
-                    j.shorts,
-                    j.starvations,
-                    j.overruns
-                )
-            }
-        }
+        self.status().line()
     }
 
     pub(super) fn notify_status(&self) {

@@ -38,6 +38,7 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
                 line: i as u64 + 1,
                 u_end: f64::NAN,
                 flags: 0,
+                path_end_mm: 0.0,
             }
         })
         .collect()

@@ -156,6 +156,9 @@ pub struct Snapshot {
     pub servo: ServoCounters,
     /// Pulses emitted per axis.
     pub pulses: [u64; MAX_AXES],
+    /// Path length from the program's start to the electrode (mm), along the segment in
+    /// hand: goes back during a turn-back.
+    pub path_mm: f64,
 }
 
 impl Default for Snapshot {
@@ -173,11 +176,12 @@ impl Default for Snapshot {
             speed: 0.0,
             servo: ServoCounters::default(),
             pulses: [0; MAX_AXES],
+            path_mm: 0.0,
         }
     }
 }
 
-const WORDS: usize = 2 + MAX_AXES + 6 + 5 + MAX_AXES;
+const WORDS: usize = 2 + MAX_AXES + 6 + 5 + MAX_AXES + 1;
 const STATES: [ServoState; 6] = [
     ServoState::Forward,
     ServoState::Hold,
@@ -193,6 +197,15 @@ impl Snapshot {
         let (events, u_end) = fine
             .block()
             .map_or((0, f64::NAN), |b| (b.events() as i64, b.u_end));
+        let here = fine.here();
+        let path_mm = fine.block().map_or(0.0, |b| {
+            let left = if events > 0 {
+                (events - here.event).clamp(0, events) as f64 / events as f64
+            } else {
+                0.0
+            };
+            b.path_end_mm - b.length_mm * left
+        });
         Snapshot {
             tick,
             state: fine.state(),
@@ -206,6 +219,7 @@ impl Snapshot {
             speed: fine.speed(),
             servo: c.servo,
             pulses: c.pulses,
+            path_mm,
         }
     }
 
@@ -233,6 +247,7 @@ impl Snapshot {
             c.alarms,
             c.starvations,
         ]);
+        w[WORDS - 1] = self.path_mm.to_bits();
         w
     }
 
@@ -260,6 +275,7 @@ impl Snapshot {
                 starvations: w[m + 10],
             },
             pulses: std::array::from_fn(|i| w[m + 11 + i]),
+            path_mm: f64::from_bits(w[WORDS - 1]),
         }
     }
 }

@@ -118,6 +118,7 @@ impl BlockSource for SquarePath {
             line: 0,
             u_end: f64::NAN,
             flags: 0,
+            path_end_mm: 0.0,
         };
         self.at = end;
         self.next_seq += 1;

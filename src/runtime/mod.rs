@@ -26,6 +26,7 @@ pub mod latency;
 mod precheck;
 pub mod producer;
 pub mod program;
+pub mod progress;
 mod summary;
 
 use std::path::Path;
@@ -51,6 +52,7 @@ pub use histogram::{LatencyHistogram, LatencySummary};
 pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
+pub use progress::ProgressTracker;
 pub use summary::{JobSummary, Outcome, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
@@ -135,23 +137,37 @@ const STOP_WAKE: Duration = Duration::from_millis(200);
 
 /// Runs `program` through both threads with the output and gap source of `config`.
 pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
-    run_job_until(program, config, &AtomicBool::new(false))
+    run_job_until(program, config, &AtomicBool::new(false), None)
 }
 
 /// [`run_job`], stopping where it is (position kept, outputs inactive) once `stop` is set,
-/// e.g. by a signal handler.
+/// e.g. by a signal handler; `progress` hears how far the job has come every
+/// [`PROGRESS_EVERY`].
 pub fn run_job_until(
     program: &Path,
     config: &Config,
     stop: &AtomicBool,
+    progress: Option<ProgressFn>,
 ) -> Result<JobSummary, JobError> {
     let (copy, check) = copy_and_check(program, config, stop)?;
     let program = &copy.0;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let (output, gap) = open_io(config, &check, tracer.as_ref())?;
-    run_job_on(program, config, &check, output, gap, tracer, Some(stop))
+    let io = JobIo {
+        output,
+        gap,
+        tracer,
+        progress,
+    };
+    run_job_io(program, config, &check, io, Some(stop))
 }
+
+/// How often a job's supervisor reports progress.
+pub const PROGRESS_EVERY: Duration = Duration::from_millis(250);
+
+/// Hears a job's progress (on the supervising thread): the tracker and the latest snapshot.
+pub type ProgressFn = Box<dyn FnMut(&ProgressTracker, &Snapshot) + Send>;
 
 /// Copies `program` to a private temporary copy and checks the copy (on a thread of their
 /// own, so `stop` cancels them within a poll period however large the file).
@@ -189,6 +205,22 @@ pub fn run_job_on(
     tracer: Option<Arc<Tracer>>,
     stop: Option<&AtomicBool>,
 ) -> Result<JobSummary, JobError> {
+    let io = JobIo {
+        output,
+        gap,
+        tracer,
+        progress: None,
+    };
+    run_job_io(program, config, check, io, stop)
+}
+
+fn run_job_io(
+    program: &JobProgram,
+    config: &Config,
+    check: &Precheck,
+    io: JobIo,
+    stop: Option<&AtomicBool>,
+) -> Result<JobSummary, JobError> {
     let fine_thread =
         FineThread::start(&LoopSettings::from_config(config)).map_err(JobError::Thread)?;
     let never = AtomicBool::new(false);
@@ -197,11 +229,7 @@ pub fn run_job_on(
         program,
         config,
         check,
-        JobIo {
-            output,
-            gap,
-            tracer,
-        },
+        io,
         Arc::new(Published::new(4096)),
         stop.unwrap_or(&never),
         None,
@@ -214,6 +242,8 @@ pub struct JobIo {
     pub output: BoxedOutput,
     pub gap: BoxedGap,
     pub tracer: Option<Arc<Tracer>>,
+    /// Hears the job's progress (`edmd run`'s bar or log line); the daemon reads `Published`.
+    pub progress: Option<ProgressFn>,
 }
 
 /// A finished job: the summary, where the electrode stands, and the output and gap source
@@ -272,7 +302,10 @@ pub fn run_job_with(
         output,
         gap,
         tracer,
+        mut progress,
     } = io;
+    let mut tracker = ProgressTracker::new(check.path_mm);
+    let mut last_progress = Instant::now();
 
     let (producer, done) = std::thread::scope(|s| {
         let producer = s.spawn(|| producer::produce(program, config, &buffer));
@@ -309,6 +342,14 @@ pub fn run_job_with(
                 }
             }
             drain();
+            if let Some(report) = progress.as_mut()
+                && last_progress.elapsed() >= PROGRESS_EVERY
+            {
+                last_progress = Instant::now();
+                let snap = published.snapshot();
+                tracker.track(snap.path_mm, last_progress);
+                report(&tracker, &snap);
+            }
             let areas = buffer.areas();
             published
                 .buffer_unprocessed

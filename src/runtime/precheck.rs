@@ -19,6 +19,8 @@ pub struct Precheck {
     /// this grows with the number of rapids, not of blocks). Measured only for the simulated
     /// gap's placed debris.
     pub cutting_spans: Vec<(f64, f64)>,
+    /// Path length of the whole program (mm): the denominator of a job's progress.
+    pub path_mm: f64,
 }
 
 /// How many blocks the check reads between looks at its cancel flag.
@@ -49,16 +51,14 @@ pub fn precheck(
                 program: program.name.clone(),
             });
         }
-        if measure {
-            let length = block.curve.length();
-            if block.kind != gcode::BlockKind::Rapid {
-                match cutting_spans.last_mut() {
-                    Some((_, to)) if *to == path_mm => *to += length,
-                    _ => cutting_spans.push((path_mm, path_mm + length)),
-                }
+        let length = block.curve.length();
+        if measure && block.kind != gcode::BlockKind::Rapid {
+            match cutting_spans.last_mut() {
+                Some((_, to)) if *to == path_mm => *to += length,
+                _ => cutting_spans.push((path_mm, path_mm + length)),
             }
-            path_mm += length;
         }
+        path_mm += length;
         end_steps =
             to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
                 ProducerError::OutOfRange {
@@ -81,5 +81,6 @@ pub fn precheck(
         blocks,
         end_steps,
         cutting_spans,
+        path_mm,
     })
 }

@@ -70,6 +70,7 @@ pub struct BlockMaker {
     program: String,
     seq: u64,
     last_end: [i64; MAX_AXES],
+    path_mm: f64,
 }
 
 impl BlockMaker {
@@ -80,6 +81,7 @@ impl BlockMaker {
             program: program.to_string(),
             seq: 0,
             last_end: [0; MAX_AXES],
+            path_mm: 0.0,
         }
     }
 
@@ -114,7 +116,9 @@ impl BlockMaker {
                 _ => f64::NAN,
             },
             flags,
+            path_end_mm: self.path_mm + segment.length,
         };
+        self.path_mm += segment.length;
         self.seq += 1;
         self.last_end = end;
         Ok(block)

@@ -58,54 +58,11 @@ struct ServeArgs {
     config: ConfigArgs,
 }
 
-#[derive(Args, Debug)]
-struct CtlArgs {
-    /// The daemon's control socket [default: daemon.socket of the configuration]
-    #[arg(long, value_name = "PATH", global = true)]
-    socket: Option<PathBuf>,
-    /// Print the daemon's reply as JSON (one line) instead of text
-    #[arg(long, global = true)]
-    json: bool,
-    #[command(flatten)]
-    config: ConfigArgs,
-    #[command(subcommand)]
-    command: CtlCommand,
-}
-
-#[derive(Subcommand, Debug)]
-enum CtlCommand {
-    /// Run a program (a path inside daemon.program_dir): the daemon copies and checks it,
-    /// then starts the job; this waits for that verdict (exit 0: started; 1: refused)
-    Run {
-        /// Program path, relative to daemon.program_dir (or absolute inside it)
-        program: String,
-        /// Return as soon as the daemon has accepted the request (the verdict shows in
-        /// `edmd ctl status`)
-        #[arg(long)]
-        no_wait: bool,
-    },
-    /// Brake to a standstill and hold there (checkpoint written)
-    Hold,
-    /// Release a hold; with no job running, resume the checkpoint's job (waiting for its
-    /// check, as `run` does)
-    Resume {
-        /// Resume from a checkpoint written while cutting (the electrode may be past it)
-        #[arg(long)]
-        force: bool,
-        /// Return as soon as the daemon has accepted the request
-        #[arg(long)]
-        no_wait: bool,
-    },
-    /// Brake to a standstill and end the job (checkpoint kept)
-    Abort,
-    /// Print what the daemon is doing
-    Status,
-}
-
 /// Options shared by every command that reads the configuration.
 #[derive(Args, Debug)]
 struct ConfigArgs {
-    /// Configuration file [default: config/edmd.toml if present, else the built-in default]
+    /// Configuration file [default: $EDMD_CONFIG, else ./config/edmd.toml, else
+    /// /etc/edmd/edmd.toml, the first that exists; else the built-in default]
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Override one key, e.g. --set buffer.capacity=64 (TOML value; repeatable)
@@ -113,21 +70,87 @@ struct ConfigArgs {
     set: Vec<String>,
 }
 
+/// The installed configuration, read when no other is named and no checkout's is at hand.
+/// `print!` for standard output that a closed pipe cannot turn into a panic:
+/// `edmd check big.nc | head -1` ends quietly, with the exit status of a Unix tool killed by
+/// SIGPIPE (141), instead of panicking. (SIGPIPE itself stays ignored: the daemon and `ctl`
+/// must outlive a peer that hangs up.)
+macro_rules! out {
+    ($($arg:tt)*) => { write_stdout(format_args!($($arg)*), false) };
+}
+
+/// [`out!`] with a line break, for `println!`.
+macro_rules! outln {
+    ($($arg:tt)*) => { write_stdout(format_args!($($arg)*), true) };
+}
+
+/// Exit status after standard output was closed under us: 128 + SIGPIPE, as a shell reports it.
+const EXIT_CLOSED_PIPE: i32 = 141;
+
+fn write_stdout(args: std::fmt::Arguments, newline: bool) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    let written = stdout.write_fmt(args).and_then(|()| {
+        if newline {
+            stdout.write_all(b"\n")
+        } else {
+            Ok(())
+        }
+    });
+    match written {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            std::process::exit(EXIT_CLOSED_PIPE)
+        }
+        Err(e) => {
+            eprintln!("edmd: error: standard output: {e}");
+            std::process::exit(i32::from(EXIT_RUNTIME))
+        }
+    }
+}
+
+mod ctl;
+
+use ctl::{CtlArgs, run_ctl};
+
+const INSTALLED_CONFIG: &str = "/etc/edmd/edmd.toml";
+
 impl ConfigArgs {
-    /// The file to read: `--config`, else `config/edmd.toml` if present, else none (the
-    /// built-in default).
-    fn path(&self) -> Option<PathBuf> {
-        match &self.config {
-            Some(path) => Some(path.clone()),
-            None => {
-                let default = Path::new(config::DEFAULT_CONFIG_PATH);
-                default.exists().then(|| default.to_path_buf())
+    /// The file to read and how it was found: `--config`, else `$EDMD_CONFIG`, else
+    /// `./config/edmd.toml` (a checkout), else `/etc/edmd/edmd.toml` (an installation), else
+    /// none: the built-in default (the shipped file, compiled in).
+    fn source(&self) -> (Option<PathBuf>, &'static str) {
+        if let Some(path) = &self.config {
+            return (Some(path.clone()), "--config");
+        }
+        if let Some(path) = std::env::var_os("EDMD_CONFIG").filter(|p| !p.is_empty()) {
+            return (Some(PathBuf::from(path)), "$EDMD_CONFIG");
+        }
+        for (path, how) in [
+            (config::DEFAULT_CONFIG_PATH, "the checkout's"),
+            (INSTALLED_CONFIG, "the installed one"),
+        ] {
+            if Path::new(path).exists() {
+                return (Some(PathBuf::from(path)), how);
             }
+        }
+        (None, "no file found")
+    }
+
+    /// One line for the log and `check -v`: which configuration is in use.
+    fn describe(&self) -> String {
+        match self.source() {
+            (Some(path), how) => format!("configuration: {} ({how})", path.display()),
+            (None, _) => format!(
+                "configuration: the built-in default (no --config, $EDMD_CONFIG, {} or {})",
+                config::DEFAULT_CONFIG_PATH,
+                INSTALLED_CONFIG
+            ),
         }
     }
 
     fn load(&self) -> Result<Config, config::ConfigError> {
-        Config::load(self.path().as_deref(), &self.set)
+        Config::load(self.source().0.as_deref(), &self.set)
     }
 }
 
@@ -140,6 +163,9 @@ struct CheckArgs {
     /// Print only the totals, not one line per block
     #[arg(short, long)]
     quiet: bool,
+    /// Also say which configuration file is in use
+    #[arg(short, long)]
+    verbose: bool,
 }
 
 #[derive(Args, Debug)]
@@ -243,6 +269,9 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         Err(code) => return code,
     };
     let _ = init_logging(&cfg.log);
+    if args.verbose {
+        eprintln!("{}", args.config.describe());
+    }
     let axes = &cfg.machine.axes;
     let mut reader = match gcode::open_program(&args.program, axes) {
         Ok(r) => r,
@@ -254,8 +283,8 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     let name = args.program.display().to_string();
     let mut totals = check::Totals::default();
     if !args.quiet {
-        println!("{name}");
-        println!("{}", check::BLOCK_TABLE_HEADER);
+        outln!("{name}");
+        outln!("{}", check::BLOCK_TABLE_HEADER);
     }
     let mut failed = None;
     for item in reader.by_ref() {
@@ -263,7 +292,7 @@ fn run_check(args: &CheckArgs) -> ExitCode {
             Ok(block) => {
                 let length = block.curve.length();
                 if !args.quiet {
-                    println!("{}", check::describe_block(&block, length, axes));
+                    outln!("{}", check::describe_block(&block, length, axes));
                 }
                 totals.add(&block, length);
             }
@@ -284,12 +313,12 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         eprintln!("edmd: error: {e}");
         return ExitCode::from(EXIT_BAD_INPUT);
     }
-    println!(
+    outln!(
         "{}",
         check::describe_totals(&totals, axes, cfg.machine.max_feed_mm_per_min)
     );
     if let Some(line) = reader.program_end_line() {
-        println!("program end: line {line}");
+        outln!("program end: line {line}");
     }
     ExitCode::SUCCESS
 }
@@ -302,11 +331,11 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
     let _ = init_logging(&cfg.log);
     match plan::plan_program(&args.program, &cfg, &args.out, !args.quiet) {
         Ok(summary) => {
-            print!("{}", summary.text());
-            println!("written to {}", args.out.display());
+            out!("{}", summary.text());
+            outln!("written to {}", args.out.display());
             ExitCode::SUCCESS
         }
-        Err(e @ plan::PlanError::Program(_)) => {
+        Err(e @ (plan::PlanError::Program(_) | plan::PlanError::NotADirectory { .. })) => {
             eprintln!("edmd: error: {e}");
             ExitCode::from(EXIT_BAD_INPUT)
         }
@@ -372,9 +401,9 @@ fn run_latency(mut args: LatencyArgs) -> ExitCode {
                 eprintln!("edmd: error: {}: {e}", path.display());
                 return ExitCode::from(EXIT_RUNTIME);
             }
-            print!("{header}");
+            out!("{header}");
         }
-        None => print!("{header}{histogram}"),
+        None => out!("{header}{histogram}"),
     }
     ExitCode::SUCCESS
 }
@@ -406,8 +435,15 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Err(code) => return code,
     };
     let _ = init_logging(&cfg.log);
+    tracing::info!("{}", args.config.describe());
     let stop = stop_on_signals();
-    let summary = match runtime::run_job_until(&args.program, &cfg, &stop) {
+    let terminal = std::io::stderr().is_terminal();
+    let progress = job_progress(terminal, cfg.fine.tick);
+    let result = runtime::run_job_until(&args.program, &cfg, &stop, Some(progress));
+    if terminal {
+        eprintln!();
+    }
+    let summary = match result {
         Ok(summary) => summary,
         Err(e) => {
             eprintln!("edmd: error: {e}");
@@ -420,7 +456,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
             return ExitCode::from(code);
         }
     };
-    print!("{}", summary.text());
+    out!("{}", summary.text());
     if let Some(path) = &args.summary {
         let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
         if let Err(e) = std::fs::write(path, json + "\n") {
@@ -443,7 +479,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
 }
 
 fn run_serve(args: &ServeArgs) -> ExitCode {
-    let path = args.config.path();
+    let (path, _) = args.config.source();
     let (cfg, keys) = match Config::load_with_keys(path.as_deref(), &args.config.set) {
         Ok(loaded) => loaded,
         Err(e) => {
@@ -452,6 +488,7 @@ fn run_serve(args: &ServeArgs) -> ExitCode {
         }
     };
     let set_level = init_logging(&cfg.log);
+    tracing::info!("{}", args.config.describe());
     let source = crate::daemon::ConfigSource {
         path,
         overrides: args.config.set.clone(),
@@ -466,83 +503,39 @@ fn run_serve(args: &ServeArgs) -> ExitCode {
     }
 }
 
-fn run_ctl(args: &CtlArgs) -> ExitCode {
-    use crate::daemon::protocol::Request;
-    let socket = match &args.socket {
-        Some(socket) => socket.clone(),
-        None => match load_config(&args.config) {
-            Ok(cfg) => cfg.daemon.socket,
-            Err(code) => return code,
-        },
-    };
-    let (request, wait) = match &args.command {
-        CtlCommand::Run { program, no_wait } => (
-            Request::Run {
-                program: program.clone(),
-            },
-            !no_wait,
-        ),
-        CtlCommand::Hold => (Request::Hold {}, false),
-        CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
-        CtlCommand::Abort => (Request::Abort {}, false),
-        CtlCommand::Status => (Request::Status {}, false),
-    };
-    let reply = match crate::daemon::socket::request(&socket, &request) {
-        Ok(reply) => reply,
-        Err(e) => {
-            eprintln!("edmd: error: {e}");
-            return ExitCode::from(EXIT_RUNTIME);
-        }
-    };
-    let check = reply
-        .status
-        .as_ref()
-        .and_then(|s| s.check.as_ref())
-        .filter(|c| {
-            reply.ok
-                && wait
-                && !c.decided()
-                && matches!(request, Request::Run { .. } | Request::Resume { .. })
-        });
-    let reply = match check {
-        Some(check) => {
-            if !args.json {
-                println!("{}", reply.message.as_deref().unwrap_or_default());
-            }
-            match crate::daemon::socket::wait_for_verdict(&socket, check.id, !args.json) {
-                Ok(reply) => reply,
-                Err(e) => {
-                    eprintln!("edmd: error: {e}");
-                    return ExitCode::from(EXIT_RUNTIME);
-                }
-            }
-        }
-        None => reply,
-    };
-    if args.json {
-        print!("{}", reply.to_line());
-    } else {
-        if let Some(message) = reply
-            .message
-            .as_ref()
-            .filter(|_| request != Request::Status {})
-        {
-            println!("{message}");
-        }
-        if let Some(status) = &reply.status
-            && (request == Request::Status {} || !reply.ok)
-        {
-            print!("{}", status.text());
-        }
-    }
-    match (&reply.ok, &reply.error) {
-        (true, _) => ExitCode::SUCCESS,
-        (false, error) => {
-            eprintln!(
-                "edmd: error: {}",
-                error.as_deref().unwrap_or("the daemon refused")
+/// How often `edmd run` logs its progress when standard error is not a terminal.
+const PROGRESS_LOG_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// `edmd run`'s progress: a bar with the ETA on a terminal, a log line every
+/// [`PROGRESS_LOG_EVERY`] otherwise (a journal, a file, CI).
+fn job_progress(terminal: bool, tick: crate::vocab::TickPeriod) -> runtime::ProgressFn {
+    use crate::daemon::protocol::duration_text;
+    let mut last_log: Option<std::time::Instant> = None;
+    Box::new(move |tracker, snap| {
+        let eta = tracker.eta_s().map_or_else(
+            || "ETA unknown".to_string(),
+            |s| format!("ETA {}", duration_text(s)),
+        );
+        let fraction = tracker.fraction();
+        if terminal {
+            let filled = (fraction * 30.0) as usize;
+            eprint!(
+                "\r[{}{}] {:5.1} %  line {}  {:.1} s machine time  {eta}   ",
+                "#".repeat(filled),
+                "-".repeat(30 - filled.min(30)),
+                fraction * 100.0,
+                snap.line,
+                tick.ticks_to_secs(snap.tick)
             );
-            ExitCode::from(EXIT_RUNTIME)
+        } else if last_log.is_none_or(|t| t.elapsed() >= PROGRESS_LOG_EVERY) {
+            last_log = Some(std::time::Instant::now());
+            tracing::info!(
+                "progress: {:.1} % of {:.3} mm (line {}), {:.1} s machine time, {eta}",
+                fraction * 100.0,
+                tracker.total_mm(),
+                snap.line,
+                tick.ticks_to_secs(snap.tick)
+            );
         }
-    }
+    })
 }

@@ -1,0 +1,187 @@
+//! `edmd ctl`: the client of `edmd serve`. One request per connection; `run` and `resume`
+//! wait for their check's verdict unless told not to; `monitor` prints a line per interval.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Subcommand};
+
+use super::{ConfigArgs, EXIT_BAD_INPUT, EXIT_RUNTIME, load_config, write_stdout};
+
+#[derive(Args, Debug)]
+pub(super) struct CtlArgs {
+    /// The daemon's control socket [default: daemon.socket of the configuration]
+    #[arg(long, value_name = "PATH", global = true)]
+    socket: Option<PathBuf>,
+    /// Print the daemon's reply as JSON (one line) instead of text
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(flatten)]
+    config: ConfigArgs,
+    #[command(subcommand)]
+    command: CtlCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub(super) enum CtlCommand {
+    /// Run a program (a path inside daemon.program_dir): the daemon copies and checks it,
+    /// then starts the job; this waits for that verdict (exit 0: started; 1: refused)
+    Run {
+        /// Program path, relative to daemon.program_dir (or absolute inside it)
+        program: String,
+        /// Return as soon as the daemon has accepted the request (the verdict shows in
+        /// `edmd ctl status`)
+        #[arg(long)]
+        no_wait: bool,
+    },
+    /// Brake to a standstill and hold there (checkpoint written)
+    Hold,
+    /// Release a hold; with no job running, resume the checkpoint's job (waiting for its
+    /// check, as `run` does)
+    Resume {
+        /// Resume from a checkpoint written while cutting (the electrode may be past it)
+        #[arg(long)]
+        force: bool,
+        /// Return as soon as the daemon has accepted the request
+        #[arg(long)]
+        no_wait: bool,
+    },
+    /// Brake to a standstill and end the job (checkpoint kept)
+    Abort,
+    /// Print what the daemon is doing
+    Status,
+    /// A status line every interval (one JSON status per line with --json), until N lines
+    /// or until the daemon goes away
+    Monitor {
+        /// Seconds between lines
+        #[arg(long, default_value_t = 1.0, value_name = "S")]
+        interval: f64,
+        /// Stop after this many lines [default: until interrupted or the daemon goes away]
+        #[arg(long, value_name = "N")]
+        count: Option<u64>,
+    },
+}
+
+pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
+    use crate::daemon::protocol::Request;
+    let socket = match &args.socket {
+        Some(socket) => socket.clone(),
+        None => match load_config(&args.config) {
+            Ok(cfg) => cfg.daemon.socket,
+            Err(code) => return code,
+        },
+    };
+    if let CtlCommand::Monitor { interval, count } = &args.command {
+        return monitor(&socket, *interval, *count, args.json);
+    }
+    let (request, wait) = match &args.command {
+        CtlCommand::Run { program, no_wait } => (
+            Request::Run {
+                program: program.clone(),
+            },
+            !no_wait,
+        ),
+        CtlCommand::Hold => (Request::Hold {}, false),
+        CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
+        CtlCommand::Abort => (Request::Abort {}, false),
+        CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
+    };
+    let reply = match crate::daemon::socket::request(&socket, &request) {
+        Ok(reply) => reply,
+        Err(e) => {
+            eprintln!("edmd: error: {e}");
+            return ExitCode::from(EXIT_RUNTIME);
+        }
+    };
+    let check = reply
+        .status
+        .as_ref()
+        .and_then(|s| s.check.as_ref())
+        .filter(|c| {
+            reply.ok
+                && wait
+                && !c.decided()
+                && matches!(request, Request::Run { .. } | Request::Resume { .. })
+        });
+    let reply = match check {
+        Some(check) => {
+            if !args.json {
+                outln!("{}", reply.message.as_deref().unwrap_or_default());
+            }
+            match crate::daemon::socket::wait_for_verdict(&socket, check.id, !args.json) {
+                Ok(reply) => reply,
+                Err(e) => {
+                    eprintln!("edmd: error: {e}");
+                    return ExitCode::from(EXIT_RUNTIME);
+                }
+            }
+        }
+        None => reply,
+    };
+    if args.json {
+        out!("{}", reply.to_line());
+    } else {
+        if let Some(message) = reply
+            .message
+            .as_ref()
+            .filter(|_| request != Request::Status {})
+        {
+            outln!("{message}");
+        }
+        if let Some(status) = &reply.status
+            && (request == Request::Status {} || !reply.ok)
+        {
+            out!("{}", status.text());
+        }
+    }
+    match (&reply.ok, &reply.error) {
+        (true, _) => ExitCode::SUCCESS,
+        (false, error) => {
+            eprintln!(
+                "edmd: error: {}",
+                error.as_deref().unwrap_or("the daemon refused")
+            );
+            ExitCode::from(EXIT_RUNTIME)
+        }
+    }
+}
+
+/// `edmd ctl monitor`: one status line (or JSON object) per interval.
+fn monitor(socket: &Path, interval: f64, count: Option<u64>, json: bool) -> ExitCode {
+    use crate::daemon::protocol::Request;
+    if !(interval.is_finite() && (0.05..=3600.0).contains(&interval)) {
+        eprintln!("edmd: error: --interval {interval}: must be 0.05 to 3600 seconds");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let mut printed = 0u64;
+    while count.is_none_or(|n| printed < n) {
+        if printed > 0 {
+            std::thread::sleep(std::time::Duration::from_secs_f64(interval));
+        }
+        let status = match crate::daemon::socket::request(socket, &Request::Status {}) {
+            Ok(reply) => reply.status,
+            Err(e) if printed > 0 => {
+                eprintln!("edmd: the daemon went away ({e})");
+                return ExitCode::SUCCESS;
+            }
+            Err(e) => {
+                eprintln!("edmd: error: {e}");
+                return ExitCode::from(EXIT_RUNTIME);
+            }
+        };
+        let Some(status) = status else {
+            eprintln!("edmd: error: a status reply without a status");
+            return ExitCode::from(EXIT_RUNTIME);
+        };
+        if json {
+            outln!(
+                "{}",
+                serde_json::to_string(&status).expect("a status serialises")
+            );
+        } else {
+            outln!("{}", status.line());
+        }
+        printed += 1;
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,111 @@
+//! How far a job has come and how long it has to go: the farthest fraction of the program's
+//! path reached, and an ETA from the recent average forward feed.
+//!
+//! Progress is the farthest point reached, not the current one: a turn-back retraces executed
+//! path, so it must not move progress back, and the re-advance over the same ground must not
+//! count twice. The ETA divides the path left by the forward feed of the last
+//! [`ETA_WINDOW`]: an EDM job's speed is the gap servo's, not the plan's, so the recent past is
+//! the best guess at the near future. Time is passed in, so the tracker is testable.
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+/// How far back the ETA's average feed looks.
+pub const ETA_WINDOW: Duration = Duration::from_secs(20);
+
+/// A job's progress along its program's path.
+#[derive(Debug, Clone)]
+pub struct ProgressTracker {
+    total_mm: f64,
+    fraction: f64,
+    recent: VecDeque<(Instant, f64)>,
+}
+
+impl ProgressTracker {
+    /// A job whose program is `total_mm` long (the precheck's path length).
+    pub fn new(total_mm: f64) -> ProgressTracker {
+        ProgressTracker {
+            total_mm,
+            fraction: 0.0,
+            recent: VecDeque::new(),
+        }
+    }
+
+    /// The electrode is `path_mm` along the program at `now`.
+    pub fn track(&mut self, path_mm: f64, now: Instant) {
+        if self.total_mm > 0.0 && path_mm.is_finite() {
+            self.fraction = self.fraction.max((path_mm / self.total_mm).clamp(0.0, 1.0));
+        }
+        self.recent.push_back((now, self.done_mm()));
+        while self
+            .recent
+            .front()
+            .is_some_and(|(t, _)| now.duration_since(*t) > ETA_WINDOW)
+        {
+            self.recent.pop_front();
+        }
+    }
+
+    /// The job ended done: all of it.
+    pub fn finish(&mut self) {
+        self.fraction = 1.0;
+    }
+
+    /// Fraction of the path done (0 to 1).
+    pub fn fraction(&self) -> f64 {
+        self.fraction
+    }
+
+    pub fn done_mm(&self) -> f64 {
+        self.fraction * self.total_mm
+    }
+
+    pub fn total_mm(&self) -> f64 {
+        self.total_mm
+    }
+
+    /// Average forward feed over the recent window (mm/s), once a second of it is known.
+    pub fn recent_feed(&self) -> Option<f64> {
+        let (&(t0, p0), &(t1, p1)) = (self.recent.front()?, self.recent.back()?);
+        let dt = t1.duration_since(t0).as_secs_f64();
+        (dt >= 1.0).then(|| (p1 - p0) / dt)
+    }
+
+    /// Seconds to the end at the recent feed (none while nothing advances).
+    pub fn eta_s(&self) -> Option<f64> {
+        let feed = self.recent_feed()?;
+        (feed > 1e-9).then(|| (self.total_mm - self.done_mm()).max(0.0) / feed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_turn_back_is_not_progress_and_the_eta_follows_the_recent_feed() {
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let mut p = ProgressTracker::new(100.0);
+        assert_eq!(p.eta_s(), None);
+        p.track(10.0, at(0.0));
+        p.track(20.0, at(1.0));
+        p.track(30.0, at(2.0));
+        assert_eq!(p.fraction(), 0.3);
+        assert_eq!(p.recent_feed(), Some(10.0));
+        assert_eq!(p.eta_s(), Some(7.0));
+        // Turned back 5 mm, then re-advancing over the same ground: no progress, and the
+        // recent feed drops accordingly.
+        p.track(25.0, at(3.0));
+        p.track(30.0, at(4.0));
+        assert_eq!(p.fraction(), 0.3);
+        assert_eq!(p.recent_feed(), Some(5.0));
+        assert_eq!(p.eta_s(), Some(14.0));
+        // Standing still for longer than the window: no ETA.
+        p.track(30.0, at(30.0));
+        p.track(30.0, at(40.0));
+        assert_eq!(p.eta_s(), None);
+        p.finish();
+        assert_eq!(p.done_mm(), 100.0);
+    }
+}
