@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::config::Config;
+use crate::config::{Config, KeyValues};
 
 /// Format version written into every checkpoint.
 pub const VERSION: u32 = 1;
@@ -71,6 +71,9 @@ pub struct Checkpoint {
     pub program_sha256: String,
     /// SHA-256 of the settings that shape the path (hex): see [`motion_hash`].
     pub motion_sha256: String,
+    /// Those settings as `section.key = value`, so a refusal can name what changed.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub motion_settings: KeyValues,
     pub reason: Reason,
     /// Written at a standstill: the electrode is exactly here.
     pub still: bool,
@@ -119,10 +122,10 @@ pub enum CheckpointError {
         found: String,
     },
     #[error(
-        "the [machine] or [interpolation] settings changed since the checkpoint; the path \
-         would not be the same, refusing to resume"
+        "the [machine] or [interpolation] settings changed since the checkpoint ({changed}); \
+         the path would not be the same, refusing to resume"
     )]
-    MotionChanged,
+    MotionChanged { changed: String },
     #[error(
         "the checkpoint was written while cutting ({reason}), so the electrode may be past it; \
          check the position and resume with --force"
@@ -207,9 +210,16 @@ impl Checkpoint {
     /// Checks the settings are those of the checkpoint, and (without `force`) that it was
     /// written at a standstill. The program is checked where it is read
     /// ([`check_program`](Self::check_program)).
-    pub fn check_resumable(&self, config: &Config, force: bool) -> Result<(), CheckpointError> {
+    pub fn check_resumable(
+        &self,
+        config: &Config,
+        keys: &KeyValues,
+        force: bool,
+    ) -> Result<(), CheckpointError> {
         if motion_hash(config) != self.motion_sha256 {
-            return Err(CheckpointError::MotionChanged);
+            return Err(CheckpointError::MotionChanged {
+                changed: self.changed_settings(keys),
+            });
         }
         if !self.still && !force {
             return Err(CheckpointError::Moving {
@@ -217,6 +227,41 @@ impl Checkpoint {
             });
         }
         Ok(())
+    }
+}
+
+/// The settings of `keys` that shape the path: `machine.*` and `interpolation.*`.
+pub fn motion_settings(keys: &KeyValues) -> KeyValues {
+    keys.iter()
+        .filter(|(k, _)| k.starts_with("machine.") || k.starts_with("interpolation."))
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect()
+}
+
+impl Checkpoint {
+    /// `key: then -> now` for each path-shaping setting that differs from the checkpoint's.
+    fn changed_settings(&self, keys: &KeyValues) -> String {
+        if self.motion_settings.is_empty() {
+            return "this checkpoint does not list them".to_string();
+        }
+        let now = motion_settings(keys);
+        let names: std::collections::BTreeSet<&String> =
+            self.motion_settings.keys().chain(now.keys()).collect();
+        let changes: Vec<String> = names
+            .into_iter()
+            .filter_map(|k| {
+                let (then, now) = (self.motion_settings.get(k), now.get(k));
+                (then != now).then(|| {
+                    let show = |v: Option<&String>| v.map_or("(unset)", |s| s.as_str()).to_string();
+                    format!("{k}: {} -> {}", show(then), show(now))
+                })
+            })
+            .collect();
+        if changes.is_empty() {
+            "no key differs; the defaults of this edmd do".to_string()
+        } else {
+            changes.join(", ")
+        }
     }
 }
 
@@ -248,6 +293,7 @@ mod tests {
             program_sha256: sha256_file(&program).unwrap(),
             program,
             motion_sha256: motion_hash(config),
+            motion_settings: KeyValues::new(),
             reason: Reason::Stop,
             still: true,
             line: 12,
@@ -282,19 +328,21 @@ mod tests {
         assert!(!dir.join("checkpoint.json.tmp").exists());
         let back = Checkpoint::load(&path).unwrap().unwrap();
         assert_eq!(back, cp);
-        back.check_resumable(&config, false).unwrap();
+        back.check_resumable(&config, &KeyValues::new(), false)
+            .unwrap();
 
         // A different tolerance gives a different path.
         let mut other = config.clone();
         other.interpolation.chord_tolerance_mm *= 2.0;
         assert!(matches!(
-            back.check_resumable(&other, false),
-            Err(CheckpointError::MotionChanged)
+            back.check_resumable(&other, &KeyValues::new(), false),
+            Err(CheckpointError::MotionChanged { .. })
         ));
         // A servo feed does not.
         let mut feeds = config.clone();
         feeds.servo.normal_feed_mm_per_min *= 2.0;
-        back.check_resumable(&feeds, false).unwrap();
+        back.check_resumable(&feeds, &KeyValues::new(), false)
+            .unwrap();
 
         back.check_program(&sha256_file(&program).unwrap()).unwrap();
         std::fs::write(&program, "G1 X2 F60\n").unwrap();
@@ -312,6 +360,29 @@ mod tests {
     }
 
     #[test]
+    fn a_refusal_names_the_settings_that_changed() {
+        let (config, keys) = Config::load_with_keys(None, &[]).unwrap();
+        let dir = scratch("named");
+        let program = dir.join("p.nc");
+        std::fs::write(&program, "G1 X1 F60\n").unwrap();
+        let mut cp = sample(program, &config);
+        cp.motion_settings = motion_settings(&keys);
+        assert!(
+            cp.motion_settings
+                .contains_key("interpolation.chord_tolerance_mm")
+        );
+        assert!(!cp.motion_settings.keys().any(|k| k.starts_with("servo.")));
+        let set = ["interpolation.chord_tolerance_mm=0.002".to_string()];
+        let (other, other_keys) = Config::load_with_keys(None, &set).unwrap();
+        let err = cp.check_resumable(&other, &other_keys, false).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("(interpolation.chord_tolerance_mm: 0.001 -> 0.002)"),
+            "{err}"
+        );
+    }
+
+    #[test]
     fn a_moving_checkpoint_needs_force_and_a_bad_file_is_located() {
         let dir = scratch("moving");
         let program = dir.join("p.nc");
@@ -321,10 +392,11 @@ mod tests {
         cp.still = false;
         cp.reason = Reason::Periodic;
         assert!(matches!(
-            cp.check_resumable(&config, false),
+            cp.check_resumable(&config, &KeyValues::new(), false),
             Err(CheckpointError::Moving { .. })
         ));
-        cp.check_resumable(&config, true).unwrap();
+        cp.check_resumable(&config, &KeyValues::new(), true)
+            .unwrap();
 
         let path = dir.join("bad.json");
         std::fs::write(&path, "{\n  \"version\": 1,\n  \"nonsense\": true\n}\n").unwrap();

@@ -29,6 +29,8 @@ pub mod servo;
 pub mod gap;
 pub mod output;
 pub mod parport;
+pub mod record;
+pub mod report;
 pub mod sim;
 pub mod trace;
 // Floor 7: configuration, read at the edge and handed down as plain values.

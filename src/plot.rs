@@ -74,6 +74,8 @@ impl Decimated {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Style {
     Line,
+    /// A dashed line (rapids).
+    Dashed,
     Dots,
 }
 
@@ -96,13 +98,21 @@ pub struct Chart {
     pub limits: Vec<(f64, String)>,
     /// Same scale on both axes (a path plot).
     pub equal_axes: bool,
+    /// A start point and the direction the path leaves it in (a path plot): a ring and an
+    /// arrow.
+    pub start: Option<((f64, f64), (f64, f64))>,
 }
+
+/// A point that breaks a [`Style::Line`] or [`Style::Dashed`] series: the next point starts a
+/// new stroke.
+pub const BREAK: (f64, f64) = (f64::NAN, f64::NAN);
 
 const WIDTH: f64 = 900.0;
 const HEIGHT: f64 = 560.0;
 const LEFT: f64 = 90.0;
 const RIGHT: f64 = 30.0;
-const TOP: f64 = 50.0;
+/// Room above the plot for the title and, below it, the legend (never over the data).
+const TOP: f64 = 64.0;
 const BOTTOM: f64 = 60.0;
 
 impl Chart {
@@ -203,22 +213,34 @@ impl Chart {
                 escape(label)
             );
         }
-        for (i, s) in self.series.iter().enumerate() {
+        let mut legend_x = LEFT;
+        for s in &self.series {
             match s.style {
-                Style::Line => {
+                Style::Line | Style::Dashed => {
                     let mut d = String::new();
-                    for (k, &(x, y)) in s.points.iter().enumerate() {
+                    let mut pen_up = true;
+                    for &(x, y) in &s.points {
+                        if x.is_nan() || y.is_nan() {
+                            pen_up = true;
+                            continue;
+                        }
                         let _ = write!(
                             d,
                             "{}{:.2},{:.2} ",
-                            if k == 0 { "M" } else { "L" },
+                            if pen_up { "M" } else { "L" },
                             sx(x),
                             sy(y)
                         );
+                        pen_up = false;
                     }
+                    let dash = if matches!(s.style, Style::Dashed) {
+                        r#" stroke-dasharray="5 4""#
+                    } else {
+                        ""
+                    };
                     let _ = writeln!(
                         svg,
-                        r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.2"/>"#,
+                        r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.2"{dash}/>"#,
                         s.color
                     );
                 }
@@ -234,16 +256,41 @@ impl Chart {
                     }
                 }
             }
-            let ly = TOP + 16.0 + 16.0 * i as f64;
+            // The legend: one row between the title and the plot, left to right.
+            let ly = TOP - 12.0;
             let _ = writeln!(
                 svg,
                 r#"<rect x="{:.1}" y="{:.1}" width="12" height="4" fill="{}"/><text x="{:.1}" y="{:.1}">{}</text>"#,
-                LEFT + 10.0,
-                ly - 6.0,
+                legend_x,
+                ly - 4.0,
                 s.color,
-                LEFT + 28.0,
+                legend_x + 18.0,
                 ly,
                 escape(&s.name)
+            );
+            legend_x += 40.0 + 7.0 * s.name.chars().count() as f64;
+        }
+        if let Some(((x, y), (dx, dy))) = self.start {
+            let (px, py) = (sx(x), sy(y));
+            // Screen y grows downwards.
+            let norm = (dx * dx + dy * dy).sqrt();
+            let (ux, uy) = if norm > 0.0 {
+                (dx / norm, -dy / norm)
+            } else {
+                (1.0, 0.0)
+            };
+            let (tx, ty) = (px + 34.0 * ux, py + 34.0 * uy);
+            let (bx, by) = (tx - 9.0 * ux, ty - 9.0 * uy);
+            let (nx, ny) = (-uy * 4.5, ux * 4.5);
+            let _ = writeln!(
+                svg,
+                r##"<circle cx="{px:.2}" cy="{py:.2}" r="5" fill="none" stroke="#1f8f3f" stroke-width="2"/><line x1="{px:.2}" y1="{py:.2}" x2="{bx:.2}" y2="{by:.2}" stroke="#1f8f3f" stroke-width="2"/><polygon points="{tx:.2},{ty:.2} {:.2},{:.2} {:.2},{:.2}" fill="#1f8f3f"/><text x="{:.2}" y="{:.2}" fill="#1f8f3f">start</text>"##,
+                bx + nx,
+                by + ny,
+                bx - nx,
+                by - ny,
+                px + 8.0,
+                py - 8.0
             );
         }
         svg.push_str("</svg>\n");

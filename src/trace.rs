@@ -45,21 +45,25 @@ pub struct TraceRecord {
     pub event: TraceEvent,
 }
 
-/// The queue between the traced wrappers and the thread that logs.
+/// A bounded lock-free hand-off from the real-time loop to a normal-priority thread: the
+/// tracer's queue, and the recorder's (`crate::record`).
 #[derive(Debug)]
-pub struct Tracer {
-    queue: ArrayQueue<TraceRecord>,
+pub struct Handoff<T> {
+    queue: ArrayQueue<T>,
     dropped: AtomicU64,
     lossless: bool,
-    /// The draining thread, woken when a lossless tracer is full.
+    /// The draining thread, woken when a lossless queue is full.
     drainer: Option<Thread>,
 }
 
-impl Tracer {
+/// The queue between the traced wrappers and the thread that logs.
+pub type Tracer = Handoff<TraceRecord>;
+
+impl<T> Handoff<T> {
     /// `lossless`: wait for room instead of dropping (virtual time only). `drainer` is the
     /// thread that calls [`drain`](Self::drain).
-    pub fn new(capacity: usize, lossless: bool, drainer: Option<Thread>) -> Arc<Tracer> {
-        Arc::new(Tracer {
+    pub fn new(capacity: usize, lossless: bool, drainer: Option<Thread>) -> Arc<Handoff<T>> {
+        Arc::new(Handoff {
             queue: ArrayQueue::new(capacity.max(1)),
             dropped: AtomicU64::new(0),
             lossless,
@@ -67,8 +71,9 @@ impl Tracer {
         })
     }
 
-    pub fn record(&self, tick: u64, event: TraceEvent) {
-        let mut record = TraceRecord { tick, event };
+    /// Queues `record`; never allocates. Lossless: yields until there is room; otherwise a
+    /// full queue drops it and counts it.
+    pub fn push(&self, mut record: T) {
         loop {
             match self.queue.push(record) {
                 Ok(()) => return,
@@ -88,7 +93,7 @@ impl Tracer {
     }
 
     /// Hands every queued record to `f`, oldest first.
-    pub fn drain(&self, mut f: impl FnMut(&TraceRecord)) {
+    pub fn drain(&self, mut f: impl FnMut(&T)) {
         while let Some(record) = self.queue.pop() {
             f(&record);
         }
@@ -97,6 +102,12 @@ impl Tracer {
     /// Records dropped because the queue was full (real time only).
     pub fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+impl Tracer {
+    pub fn record(&self, tick: u64, event: TraceEvent) {
+        self.push(TraceRecord { tick, event });
     }
 }
 

@@ -12,15 +12,15 @@ use std::path::{Path, PathBuf};
 
 /// The floors, lowest first: shared vocabulary at the bottom, the command line at the top.
 const FLOORS: &[&[&str]] = &[
-    &["rng", "sys", "vocab"],
+    &["plot", "rng", "sys", "vocab"],
     &["geometry"],
     &["gcode"],
     &["preprocess"],
     &["buffer"],
     &["fine", "servo"],
-    &["gap", "output", "parport", "sim", "trace"],
+    &["gap", "output", "parport", "record", "sim", "trace"],
     &["config"],
-    &["check", "checkpoint", "plan", "plot", "runtime"],
+    &["check", "checkpoint", "plan", "report", "runtime"],
     &["daemon"],
     &["cli"],
 ];

@@ -261,11 +261,20 @@ fn plan_writes_trace_summary_and_plots() {
             "chord_error.svg",
             "feed.svg",
             "tangential_accel.svg",
-            "fluctuation.svg",
         ] {
             let body = std::fs::read_to_string(dir.join(svg)).unwrap();
             assert!(body.starts_with("<svg") && body.contains("</svg>"), "{svg}");
         }
+        // The fluctuation is period mode's figure; chord mode draws no empty chart.
+        assert_eq!(
+            dir.join("fluctuation.svg").exists(),
+            mode == "period",
+            "{mode}"
+        );
+        // The path plot marks where it starts; a two-axis program has no Z chart.
+        let path = std::fs::read_to_string(dir.join("path.svg")).unwrap();
+        assert!(path.contains(">start</text>"), "a start marker");
+        assert!(!dir.join("path_z.svg").exists());
         assert!(
             std::fs::read_to_string(dir.join("summary.txt"))
                 .unwrap()
@@ -387,4 +396,54 @@ fn run_logs_its_progress_when_not_on_a_terminal() {
         "{stderr}"
     );
     assert!(stderr.contains("configuration: "), "{stderr}");
+}
+
+#[test]
+fn plan_plots_rapids_dashed_z_on_its_own_and_the_legend_off_the_data() {
+    let dir = temp_dir("plan-plots");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("p.nc");
+    std::fs::write(
+        &program,
+        "G21 G90\nG0 X5 Y5 Z2\nG1 Z0 F100\nG1 X10 Y5\nG0 Z2\nG0 X0 Y0\nM30\n",
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let out = edmd(&[
+        "plan",
+        program.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--set",
+        "machine.axes=[\"X\",\"Y\",\"Z\"]",
+        "--set",
+        "machine.step_mm=[0.001,0.001,0.001]",
+    ]);
+    let (stdout, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+    let path = std::fs::read_to_string(out_dir.join("path.svg")).unwrap();
+    assert!(path.contains("stroke-dasharray=\"5 4\""), "rapids dashed");
+    assert!(path.contains("rapids (G0)"), "and named in the legend");
+    // The legend sits above the plot frame, not inside it.
+    let frame_top: f64 = 64.0;
+    for legend in path
+        .lines()
+        .filter(|l| l.contains("width=\"12\" height=\"4\""))
+    {
+        let y: f64 = legend
+            .split("y=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(y < frame_top, "legend at y {y}: {legend}");
+    }
+    let z = std::fs::read_to_string(out_dir.join("path_z.svg")).unwrap();
+    assert!(
+        z.contains("Z along the path") && z.contains("<path d=\"M"),
+        "{z}"
+    );
 }

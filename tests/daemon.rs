@@ -426,9 +426,11 @@ fn a_changed_program_or_motion_setting_refuses_to_resume() {
     let second = Daemon::start(&dir, &sets, &[]);
     let (reply, code) = second.ctl(&["resume"]);
     assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
+    let error = reply["error"].as_str().unwrap();
     assert!(
-        reply["error"].as_str().unwrap().contains("[interpolation]"),
-        "{reply}"
+        error.contains("[interpolation]")
+            && error.contains("interpolation.chord_tolerance_mm: 0.001 -> 0.002"),
+        "the changed key named: {reply}"
     );
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
@@ -1132,4 +1134,149 @@ fn status_shows_progress_and_eta_and_monitor_prints_a_line_per_interval() {
     let out = monitor.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&out.stderr).contains("went away"));
+}
+
+#[test]
+fn after_an_output_fault_a_restart_and_resume_finish_the_job_exactly() {
+    let dir = scratch("fault");
+    let reference = uninterrupted(&dir);
+    // The output fails 1 s into the job (20,000 ticks of 50 µs, real time).
+    let mut sets = base_sets(&dir, "first.csv");
+    sets.push("output.fault_at_tick=20000".to_string());
+    let first = Daemon::start(&dir, &sets, &[]);
+    first.ok(&["run", PROGRAM]);
+    let idle = first.wait_for("the fault", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "output-error", "{idle}");
+    assert_eq!(idle["checkpoint"]["reason"], "error", "{idle}");
+    let at = ints(&idle["checkpoint"]["position_steps"]);
+    assert_ne!(at, PROGRAM_END.to_vec());
+    first.signal(libc::SIGTERM);
+    assert_eq!(first.wait().0, 0);
+
+    // The fault cleared (no injection), a new daemon: resume ends on the program's end.
+    let second = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
+    let reply = second.ok(&["resume"]);
+    assert!(
+        reply["message"].as_str().unwrap().contains("resuming"),
+        "{reply}"
+    );
+    let idle = second.wait_for("the resumed job's end", |s| s["state"] == "idle");
+    assert_eq!(
+        idle["last_job"]["outcome"],
+        "done",
+        "{idle}\n{}",
+        second.log()
+    );
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
+    // The pulses the drives received before the fault, then after the resume: the
+    // uninterrupted run's, step for step.
+    let mut joined = moves(&dir.join("first.csv"));
+    joined.extend(moves(&dir.join("second.csv")));
+    assert!(joined == reference, "the pulse sequences differ");
+    second.signal(libc::SIGTERM);
+    assert_eq!(second.wait().0, 0);
+}
+
+/// One journal entry in the native protocol: `KEY=value` lines, and `KEY`, a 64-bit
+/// little-endian length and the value for values with line breaks.
+fn journal_fields(mut d: &[u8]) -> std::collections::BTreeMap<String, String> {
+    let mut fields = std::collections::BTreeMap::new();
+    while let Some(end) = d.iter().position(|&b| b == b'\n') {
+        let line = String::from_utf8_lossy(&d[..end]).into_owned();
+        d = &d[end + 1..];
+        match line.split_once('=') {
+            Some((k, v)) => {
+                fields.insert(k.to_string(), v.to_string());
+            }
+            None => {
+                let len = u64::from_le_bytes(d[..8].try_into().unwrap()) as usize;
+                let value = String::from_utf8_lossy(&d[8..8 + len]).into_owned();
+                fields.insert(line, value);
+                d = &d[8 + len + 1..];
+            }
+        }
+    }
+    fields
+}
+
+#[test]
+fn under_systemd_log_entries_carry_their_priority_and_fields() {
+    let dir = scratch("journal");
+    std::fs::write(dir.join("programs/broken.nc"), "G1 X1 F60\nG1 Q7\n").unwrap();
+    let journal_path = dir.join("journal.sock");
+    let journal = UnixDatagram::bind(&journal_path).unwrap();
+    journal
+        .set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    // journald reads all the time; so does this thread, until the daemon has exited.
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let reader = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let mut entries = Vec::new();
+            let mut buf = vec![0u8; 65536];
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                if let Ok(n) = journal.recv(&mut buf) {
+                    entries.push(journal_fields(&buf[..n]));
+                }
+            }
+            entries
+        })
+    };
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("log.format=\"auto\"".to_string());
+    // What systemd sets when it connects stderr to the journal.
+    let daemon = Daemon::start(
+        &dir,
+        &sets,
+        &[
+            ("JOURNAL_STREAM", "8:12345".to_string()),
+            ("EDMD_JOURNAL_SOCKET", journal_path.display().to_string()),
+        ],
+    );
+    let (reply, _) = daemon.ctl(&["run", "broken.nc"]);
+    assert_eq!(reply["ok"], false);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    daemon.ok(&["abort"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let entries = reader.join().unwrap();
+    let find = |event: &str| {
+        entries
+            .iter()
+            .find(|e| e.get("EDMD_EVENT").map(String::as_str) == Some(event))
+            .unwrap_or_else(|| panic!("no {event} entry in {entries:#?}"))
+    };
+    let refusal = find("refusal");
+    assert_eq!(refusal["PRIORITY"], "3");
+    assert!(
+        refusal["EDMD_PROGRAM"].ends_with("broken.nc"),
+        "{refusal:?}"
+    );
+    assert!(refusal["MESSAGE"].contains("broken.nc:2:"), "{refusal:?}");
+    let start = find("job_start");
+    assert_eq!(start["PRIORITY"], "6");
+    assert!(start["EDMD_PROGRAM"].ends_with(PROGRAM), "{start:?}");
+    // The operator's abort ends the job at warning priority, not as an error.
+    let end = find("job_end");
+    assert_eq!(end["PRIORITY"], "4", "{end:?}");
+    assert_eq!(find("checkpoint")["SYSLOG_IDENTIFIER"], "edmd");
+    // Nothing went to stderr but what could not reach the journal.
+    assert!(!daemon_log_has_entries(&dir), "stderr should be quiet");
+}
+
+/// The daemon's stderr log files in `dir` hold no formatted log lines.
+fn daemon_log_has_entries(dir: &Path) -> bool {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with("serve-"))
+        .any(|e| {
+            std::fs::read_to_string(e.path())
+                .unwrap_or_default()
+                .contains(" INFO ")
+        })
 }

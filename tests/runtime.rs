@@ -489,3 +489,60 @@ fn sigterm_ends_edmd_run_within_a_second_while_it_checks_a_large_program() {
     assert!(!out.status.success());
     assert!(stderr.contains("cancelled"), "{stderr}");
 }
+
+#[test]
+fn run_report_shows_what_ran_turn_backs_included() {
+    let dir = scratch("report");
+    std::fs::write(dir.join("gap.txt"), "160000 short\n166000 normal\n").unwrap();
+    let report = dir.join("report");
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["run", PROGRAM, "--report"])
+        .arg(&report)
+        .args([
+            "--set",
+            "output.kind=null",
+            "--set",
+            "gap.kind=script",
+            "--set",
+        ])
+        .arg(format!("gap.script={}", dir.join("gap.txt").display()))
+        .current_dir(repo())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["outcome"], "done");
+    // events.csv: the short, the turn-back and the resume, in that order, with time, line
+    // and a position on the path.
+    let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
+    let mut lines = events.lines();
+    assert_eq!(lines.next(), Some("tick,time_s,line,event,depth,x_mm,y_mm"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let kinds: Vec<&str> = rows.iter().map(|r| r[3]).collect();
+    assert_eq!(kinds, ["short", "turn_back", "resumed", "done"], "{events}");
+    assert_eq!(rows[0][0], "160000");
+    assert_eq!(
+        rows[0][1].parse::<f64>().unwrap(),
+        8.0,
+        "160000 ticks of 50 µs"
+    );
+    assert!(
+        rows[1][4].parse::<u64>().unwrap() >= 1,
+        "turned back over blocks"
+    );
+    let line: u64 = rows[0][2].parse().unwrap();
+    assert!((5..=9).contains(&line), "the short's source line: {line}");
+    let x: f64 = rows[0][5].parse().unwrap();
+    assert!(x > 4.0 && x < 10.0, "{events}");
+    // The last event sits at the program's end.
+    let end: Vec<f64> = rows[3][5..].iter().map(|v| v.parse().unwrap()).collect();
+    assert_eq!(end, [7.5, 8.25]);
+    let path = std::fs::read_to_string(report.join("path.svg")).unwrap();
+    assert!(path.contains("turned back and re-advanced") && path.contains(">start</text>"));
+    assert!(path.contains("short circuits (1)"));
+    let feed = std::fs::read_to_string(report.join("feed.svg")).unwrap();
+    assert!(feed.contains("machine time (s)") && feed.contains("feed (mm/min)"));
+}

@@ -110,6 +110,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 }
 
 mod ctl;
+mod journal;
 
 use ctl::{CtlArgs, run_ctl};
 
@@ -191,6 +192,10 @@ struct RunArgs {
     /// Also write the end-of-job summary as JSON to FILE
     #[arg(long, value_name = "FILE")]
     summary: Option<PathBuf>,
+    /// Write a report of what ran into DIR (created if needed): path.svg, feed.svg,
+    /// events.csv, summary.json
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -235,11 +240,33 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
         EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(cfg.level.name()));
     let (filter, handle) = reload::Layer::<EnvFilter, Registry>::new(filter);
     let terminal = std::io::stderr().is_terminal();
+    // The journal's structured fields (`edmd_event`, …) are for the journal; the text formats
+    // show the message and any other field.
+    let text_fields = fmt::format::debug_fn(|writer, field, value| {
+        let name = field.name();
+        if name.starts_with(journal::FIELD_PREFIX) {
+            Ok(())
+        } else if name == "message" {
+            write!(writer, "{value:?}")
+        } else {
+            write!(writer, " {name}={value:?}")
+        }
+    });
     let layer = fmt::layer().with_writer(std::io::stderr);
-    let layer = match cfg.format {
-        LogFormat::Json => layer.json().boxed(),
-        LogFormat::Plain => layer.with_ansi(false).boxed(),
-        LogFormat::Human | LogFormat::Auto => layer.with_ansi(terminal).boxed(),
+    let journal = match cfg.format {
+        LogFormat::Journal => journal::JournalLayer::connect(),
+        LogFormat::Auto if journal::stderr_is_journal() => journal::JournalLayer::connect(),
+        _ => None,
+    };
+    let layer = match (cfg.format, journal) {
+        (_, Some(journal)) => journal.boxed(),
+        (LogFormat::Json, None) => layer.json().boxed(),
+        (LogFormat::Plain | LogFormat::Journal, None) => {
+            layer.with_ansi(false).fmt_fields(text_fields).boxed()
+        }
+        (LogFormat::Human | LogFormat::Auto, None) => {
+            layer.with_ansi(terminal).fmt_fields(text_fields).boxed()
+        }
     };
     // A second initialisation (tests calling twice) is harmless, so its error is ignored.
     let _ = tracing_subscriber::registry()
@@ -439,7 +466,17 @@ fn run_job(args: &RunArgs) -> ExitCode {
     let stop = stop_on_signals();
     let terminal = std::io::stderr().is_terminal();
     let progress = job_progress(terminal, cfg.fine.tick);
-    let result = runtime::run_job_until(&args.program, &cfg, &stop, Some(progress));
+    let recording = args.report.as_ref().map(|_| {
+        Arc::new(parking_lot::Mutex::new(crate::record::Recording::new(
+            &cfg.machine.step_mm,
+            cfg.fine.tick,
+        )))
+    });
+    let observers = runtime::Observers {
+        progress: Some(progress),
+        recording: recording.clone(),
+    };
+    let result = runtime::run_job_until(&args.program, &cfg, &stop, observers);
     if terminal {
         eprintln!();
     }
@@ -457,6 +494,12 @@ fn run_job(args: &RunArgs) -> ExitCode {
         }
     };
     out!("{}", summary.text());
+    if let (Some(dir), Some(recording)) = (&args.report, &recording)
+        && let Err(e) = crate::report::write_report(dir, &mut recording.lock(), &summary)
+    {
+        eprintln!("edmd: error: {e}");
+        return ExitCode::from(EXIT_RUNTIME);
+    }
     if let Some(path) = &args.summary {
         let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
         if let Err(e) = std::fs::write(path, json + "\n") {

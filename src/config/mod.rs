@@ -95,10 +95,14 @@ impl LogLevel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LogFormat {
+    /// The journal when systemd connected stderr to it, else human on a terminal, else plain.
     Auto,
     Human,
     Plain,
     Json,
+    /// systemd's native journal protocol (priorities and `EDMD_*` fields); plain if there is
+    /// no journal.
+    Journal,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -164,7 +164,11 @@ impl Core {
                 status.message = Some(message);
             }
             Err(error) => {
-                tracing::error!("check {id}: refused: {error}");
+                tracing::error!(
+                    edmd_event = "refusal",
+                    edmd_program = check.name,
+                    "check {id}: refused: {error}"
+                );
                 status.phase = "refused".to_string();
                 status.error = Some(error);
             }
@@ -234,6 +238,8 @@ impl Core {
             })
             .map_err(|e| format!("cannot start the job thread: {e}"))?;
         tracing::info!(
+            edmd_event = "job_start",
+            edmd_program = program.name,
             "job start: {}{}",
             program.name,
             if resumed { " (resumed)" } else { "" }
@@ -256,6 +262,7 @@ impl Core {
             overruns_seen: 0,
             last_overrun_report: Instant::now(),
             config,
+            motion_settings: checkpoint::motion_settings(&self.keys),
             progress: runtime::ProgressTracker::new(path_total_mm),
         });
         Ok(text)
@@ -327,6 +334,7 @@ impl Core {
             output,
             gap,
             tracer,
+            recording: None,
             progress: None,
         })
     }
@@ -342,7 +350,12 @@ impl Core {
             return Ok("already held".to_string());
         }
         job.hold_checkpointed = false;
-        tracing::info!("hold: {} braking to a standstill", job.program.display());
+        tracing::info!(
+            edmd_event = "hold",
+            edmd_program = job.program.display().to_string(),
+            "hold: {} braking to a standstill",
+            job.program.display()
+        );
         Ok("holding: braking to a standstill".to_string())
     }
 
@@ -368,7 +381,7 @@ impl Core {
                 ),
             });
         };
-        cp.check_resumable(&self.config, force)
+        cp.check_resumable(&self.config, &self.keys, force)
             .map_err(|e| e.to_string())?;
         let axes = self.config.machine.axes.len();
         if cp.position_steps.len() != axes {
@@ -455,10 +468,20 @@ impl Core {
         let mut lines = text.lines();
         let head = lines.next().unwrap_or_default();
         match summary.outcome {
-            Outcome::Done => tracing::info!("job end: {head}"),
+            Outcome::Done => tracing::info!(
+                edmd_event = "job_end",
+                edmd_program = summary.program,
+                "job end: {head}"
+            ),
             // An operator's abort or stop, or a signal's: asked for, not a fault.
-            Outcome::Stopped => tracing::warn!("job end: {head}"),
+            Outcome::Stopped => tracing::warn!(
+                edmd_event = "job_end",
+                edmd_program = summary.program,
+                "job end: {head}"
+            ),
             _ => tracing::error!(
+                edmd_event = "job_end",
+                edmd_program = summary.program,
                 "job end: {head}{}",
                 summary
                     .error
@@ -507,6 +530,7 @@ impl Core {
             program: job.program.clone(),
             program_sha256: job.program_sha256.clone(),
             motion_sha256: checkpoint::motion_hash(&job.config),
+            motion_settings: job.motion_settings.clone(),
             reason,
             still,
             line: at.line,
@@ -532,10 +556,11 @@ impl Core {
                     cp.position_steps,
                     path.display()
                 );
+                let program = cp.program.display().to_string();
                 if reason == Reason::Periodic {
-                    tracing::debug!("{log}");
+                    tracing::debug!(edmd_event = "checkpoint", edmd_program = program, "{log}");
                 } else {
-                    tracing::info!("{log}");
+                    tracing::info!(edmd_event = "checkpoint", edmd_program = program, "{log}");
                 }
                 self.checkpoint = Some(cp);
                 self.checkpoint_error = None;

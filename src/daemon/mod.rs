@@ -117,6 +117,8 @@ struct Job {
     config: Config,
     /// How far along the program, and the ETA.
     progress: ProgressTracker,
+    /// The job's path-shaping settings (`machine.*`, `interpolation.*`) for its checkpoints.
+    motion_settings: crate::config::KeyValues,
 }
 
 /// The daemon's state, owned by the control loop.

@@ -39,8 +39,10 @@ use crate::config::Config;
 use crate::fine::FineSettings;
 use crate::gap::ScriptError;
 use crate::gcode::GcodeError;
+use crate::geometry::MAX_AXES;
 use crate::output::OutputError;
 use crate::parport::ParportError;
+use crate::record::{RecordedOutput, Recorder, Recording};
 use crate::servo::ServoEvent;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
 use crate::vocab::TickPeriod;
@@ -85,11 +87,17 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
     let line = record.line;
     match record.event {
         ServoEvent::Short { at } => tracing::info!(
+            edmd_event = "short",
+            edmd_program = program,
+            edmd_line = line,
             "{program}:{line}: short circuit at t={t:.4} s (segment {}, step {}): turning back",
             at.seq,
             at.event
         ),
         ServoEvent::Cleared { depth } => tracing::info!(
+            edmd_event = "turn_back",
+            edmd_program = program,
+            edmd_line = line,
             "{program}:{line}: gap cleared at t={t:.4} s after turning back over {depth} blocks: re-advancing"
         ),
         ServoEvent::Resumed { .. } => {
@@ -100,6 +108,9 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
             at.seq
         ),
         ServoEvent::Alarm { at, depth } => tracing::error!(
+            edmd_event = "alarm",
+            edmd_program = program,
+            edmd_line = line,
             "{program}:{line}: ALARM at t={t:.4} s: still shorted after turning back over the whole \
              reserved area ({depth} blocks, segment {}); motion stopped, position kept",
             at.seq
@@ -132,22 +143,60 @@ fn log_trace(config: &Config, record: &TraceRecord, tick: TickPeriod) {
     }
 }
 
+/// A report's recorder samples the motion at most this often (and at every gap change).
+const RECORD_EVERY_TICKS: u64 = 20;
+
+/// Hands a batch of samples and servo events to the recording, in tick order.
+fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventRecord]) {
+    let mut events = events.iter().peekable();
+    let mut take_events = |recording: &mut Recording, before: u64| {
+        while let Some(e) = events.next_if(|e| e.tick <= before) {
+            let (kind, depth) = match e.event {
+                ServoEvent::Short { .. } => ("short", None),
+                ServoEvent::Cleared { depth } => ("turn_back", Some(depth)),
+                ServoEvent::Resumed { .. } => ("resumed", None),
+                ServoEvent::Starved { .. } => ("starved", None),
+                ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
+                ServoEvent::Done => ("done", None),
+            };
+            recording.event(e.tick, e.line, kind, depth);
+        }
+    };
+    recorder.drain(|sample| {
+        take_events(recording, sample.tick.saturating_sub(1));
+        recording.sample(sample);
+    });
+    take_events(recording, u64::MAX);
+}
+
 /// How long a controlled stop lets a consumer that waits for the producer keep waiting.
 const STOP_WAKE: Duration = Duration::from_millis(200);
 
 /// Runs `program` through both threads with the output and gap source of `config`.
 pub fn run_job(program: &Path, config: &Config) -> Result<JobSummary, JobError> {
-    run_job_until(program, config, &AtomicBool::new(false), None)
+    run_job_until(
+        program,
+        config,
+        &AtomicBool::new(false),
+        Observers::default(),
+    )
+}
+
+/// Who watches a job besides its log: a progress callback, a recording for a report.
+#[derive(Default)]
+pub struct Observers {
+    pub progress: Option<ProgressFn>,
+    pub recording: Option<Arc<parking_lot::Mutex<Recording>>>,
 }
 
 /// [`run_job`], stopping where it is (position kept, outputs inactive) once `stop` is set,
-/// e.g. by a signal handler; `progress` hears how far the job has come every
-/// [`PROGRESS_EVERY`].
+/// e.g. by a signal handler; `observers.progress` hears how far the job has come every
+/// [`PROGRESS_EVERY`], `observers.recording` gathers what ran.
 pub fn run_job_until(
     program: &Path,
     config: &Config,
     stop: &AtomicBool,
-    progress: Option<ProgressFn>,
+    observers: Observers,
 ) -> Result<JobSummary, JobError> {
     let (copy, check) = copy_and_check(program, config, stop)?;
     let program = &copy.0;
@@ -158,7 +207,8 @@ pub fn run_job_until(
         output,
         gap,
         tracer,
-        progress,
+        recording: observers.recording,
+        progress: observers.progress,
     };
     run_job_io(program, config, &check, io, Some(stop))
 }
@@ -209,6 +259,7 @@ pub fn run_job_on(
         output,
         gap,
         tracer,
+        recording: None,
         progress: None,
     };
     run_job_io(program, config, check, io, stop)
@@ -242,6 +293,9 @@ pub struct JobIo {
     pub output: BoxedOutput,
     pub gap: BoxedGap,
     pub tracer: Option<Arc<Tracer>>,
+    /// What actually ran, for a report (`edmd run --report`): the output is wrapped in a
+    /// [`RecordedOutput`] and the supervisor fills the recording.
+    pub recording: Option<Arc<parking_lot::Mutex<Recording>>>,
     /// Hears the job's progress (`edmd run`'s bar or log line); the daemon reads `Published`.
     pub progress: Option<ProgressFn>,
 }
@@ -299,11 +353,30 @@ pub fn run_job_with(
     let loop_settings = LoopSettings::from_config(config);
     let tick = config.fine.tick;
     let JobIo {
-        output,
+        mut output,
         gap,
         tracer,
+        recording,
         mut progress,
     } = io;
+    let mut recorder = None;
+    if recording.is_some() {
+        let queue = Recorder::new(
+            1 << 16,
+            config.fine.virtual_time,
+            Some(std::thread::current()),
+        );
+        let start = resume.as_ref().map_or([0; MAX_AXES], |r| {
+            std::array::from_fn(|i| r.position.get(i).copied().unwrap_or(0))
+        });
+        output = Box::new(RecordedOutput::new(
+            output,
+            queue.clone(),
+            RECORD_EVERY_TICKS,
+            start,
+        ));
+        recorder = Some(queue);
+    }
     let mut tracker = ProgressTracker::new(check.path_mm);
     let mut last_progress = Instant::now();
 
@@ -320,8 +393,15 @@ pub fn run_job_with(
             supervisor: std::thread::current(),
         });
         let drain = || {
+            let mut events = Vec::new();
             while let Some(record) = published.events.pop() {
                 log_event(&name, &record, tick);
+                if recording.is_some() {
+                    events.push(record);
+                }
+            }
+            if let (Some(recording), Some(recorder)) = (&recording, &recorder) {
+                record_batch(&mut recording.lock(), recorder, &events);
             }
             if let Some(tracer) = &tracer {
                 tracer.drain(|record| log_trace(config, record, tick));

@@ -17,9 +17,12 @@ use serde::Serialize;
 
 use crate::config::Config;
 use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
-use crate::plot::{Chart, Decimated, Series, Style};
+use crate::plot::Decimated;
 use crate::preprocess::{PlanSettings, Preprocessor, Segment, bound};
 use crate::vocab::{Axis, Predictor, Segmentation};
+
+mod charts;
+use charts::write_reports;
 
 /// Largest program (in blocks) for which the time-optimal bound is computed.
 pub const BOUND_MAX_BLOCKS: usize = 10_000;
@@ -265,8 +268,19 @@ struct Collector {
     feed: Decimated,
     accel: Decimated,
     fluct: Decimated,
+    /// Z against path length, when the machine has a Z axis (a path plot shows X and Y).
+    z: Option<Decimated>,
+    /// Rapid moves, each G0 block one stroke, [`MAX_RAPID_STROKES`] at most.
+    rapids: Vec<(f64, f64)>,
+    rapid_strokes: usize,
+    /// The first point, and the direction the path leaves it in.
+    start: Option<(f64, f64)>,
+    direction: Option<(f64, f64)>,
     error: Option<io::Error>,
 }
+
+/// Rapid strokes kept for the path plot (a program with more draws the first ones).
+const MAX_RAPID_STROKES: usize = 10_000;
 
 impl Collector {
     fn first_row(&mut self, block: &Block) {
@@ -278,6 +292,7 @@ impl Collector {
         let row = self.row_text(block, &u, &p, 0.0, 0.0, (0.0, 0.0), None, f64::INFINITY, 0);
         self.write(&row);
         self.path.push(p[0], p[1]);
+        self.start.get_or_insert((p[0], p[1]));
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -374,6 +389,23 @@ impl Collector {
         }
         self.prev = Some((self.t, v, full));
         self.path.push(seg.end[0], seg.end[1]);
+        if self.direction.is_none() && seg.length > 0.0 {
+            let d = (seg.end[0] - seg.start[0], seg.end[1] - seg.start[1]);
+            if d.0 != 0.0 || d.1 != 0.0 {
+                self.direction = Some(d);
+            }
+        }
+        if seg.block.kind == BlockKind::Rapid && self.rapid_strokes < MAX_RAPID_STROKES {
+            let start = (seg.start[0], seg.start[1]);
+            if self.rapids.last() != Some(&start) {
+                self.rapids.extend([crate::plot::BREAK, start]);
+                self.rapid_strokes += 1;
+            }
+            self.rapids.push((seg.end[0], seg.end[1]));
+        }
+        if let (Some(z), Some(axis)) = (self.z.as_mut(), self.xyz[2]) {
+            z.push(self.s, seg.end[axis]);
+        }
         self.chord.push(self.s, seg.chord_error);
         self.feed.push(self.t, v);
         let u = match seg.block.kind {
@@ -462,6 +494,11 @@ pub fn plan_program(
         feed: Decimated::new(PLOT_POINTS),
         accel: Decimated::new(PLOT_POINTS),
         fluct: Decimated::new(PLOT_POINTS),
+        z: index_of(Axis::Z).map(|_| Decimated::new(PLOT_POINTS)),
+        rapids: Vec::new(),
+        rapid_strokes: 0,
+        start: None,
+        direction: None,
         error: None,
     };
     let mut header =
@@ -554,109 +591,4 @@ pub fn plan_program(
     };
     write_reports(out_dir, &summary, &c, &settings)?;
     Ok(summary)
-}
-
-fn write_reports(
-    out_dir: &Path,
-    summary: &PlanSummary,
-    c: &Collector,
-    settings: &PlanSettings,
-) -> Result<(), PlanError> {
-    let write = |file: &str, text: &str| {
-        let path = out_dir.join(file);
-        std::fs::write(&path, text).map_err(io_err(&path))
-    };
-    let json = serde_json::to_string_pretty(summary).expect("summary serialises");
-    write("summary.json", &(json + "\n"))?;
-    write("summary.txt", &summary.text())?;
-    let series = |name: &str, color: &'static str, style: Style, d: &Decimated| Series {
-        name: name.into(),
-        color,
-        style,
-        points: d.points(),
-    };
-    let path_points = c.path.points();
-    let mode = &summary.segmentation;
-    write(
-        "path.svg",
-        &Chart {
-            title: format!("Path and segment points ({} segments)", summary.segments),
-            x_label: "X (mm)".into(),
-            y_label: "Y (mm)".into(),
-            series: vec![
-                Series {
-                    name: "path".into(),
-                    color: "#999",
-                    style: Style::Line,
-                    points: path_points.clone(),
-                },
-                Series {
-                    name: "segment ends".into(),
-                    color: "#1f5fbf",
-                    style: Style::Dots,
-                    points: path_points,
-                },
-            ],
-            equal_axes: true,
-            ..Chart::default()
-        }
-        .render(),
-    )?;
-    write(
-        "chord_error.svg",
-        &Chart {
-            title: format!("True chord error per segment ({mode} mode)"),
-            x_label: "path length (mm)".into(),
-            y_label: "chord error (mm)".into(),
-            series: vec![series("chord error", "#1f5fbf", Style::Dots, &c.chord)],
-            limits: vec![(settings.tolerance, "tolerance".into())],
-            ..Chart::default()
-        }
-        .render(),
-    )?;
-    write(
-        "feed.svg",
-        &Chart {
-            title: "Planned feed".into(),
-            x_label: "time (s)".into(),
-            y_label: "feed (mm/s)".into(),
-            series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
-            limits: vec![(settings.max_feed, "max feed".into())],
-            ..Chart::default()
-        }
-        .render(),
-    )?;
-    let a = settings.max_tangential_accel;
-    write(
-        "tangential_accel.svg",
-        &Chart {
-            title: "Tangential acceleration".into(),
-            x_label: "time (s)".into(),
-            y_label: "a_T (mm/s²)".into(),
-            series: vec![series("a_T", "#bf5f1f", Style::Line, &c.accel)],
-            limits: vec![(a, "+a_T limit".into()), (-a, "-a_T limit".into())],
-            ..Chart::default()
-        }
-        .render(),
-    )?;
-    write(
-        "fluctuation.svg",
-        &Chart {
-            title: if c.period_mode {
-                "Feed fluctuation per period (seed 001 eq. 16)".into()
-            } else {
-                "Feed fluctuation: none in chord mode (segments carry speeds)".into()
-            },
-            x_label: "time (s)".into(),
-            y_label: "|L - ΔL| / ΔL".into(),
-            series: vec![series("fluctuation", "#7f1fbf", Style::Dots, &c.fluct)],
-            limits: vec![(
-                settings.fluctuation_tolerance,
-                "fluctuation tolerance".into(),
-            )],
-            ..Chart::default()
-        }
-        .render(),
-    )?;
-    Ok(())
 }

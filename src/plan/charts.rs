@@ -1,0 +1,138 @@
+//! The files `edmd plan` writes: `summary.json`, `summary.txt` and the SVG charts (path with
+//! rapids and the start, chord error, feed, tangential acceleration, the fluctuation in period
+//! mode, Z along the path on a machine with Z).
+
+use std::path::Path;
+
+use super::{Collector, PlanError, PlanSummary, io_err};
+use crate::plot::{Chart, Decimated, Series, Style};
+use crate::preprocess::PlanSettings;
+
+pub(super) fn write_reports(
+    out_dir: &Path,
+    summary: &PlanSummary,
+    c: &Collector,
+    settings: &PlanSettings,
+) -> Result<(), PlanError> {
+    let write = |file: &str, text: &str| {
+        let path = out_dir.join(file);
+        std::fs::write(&path, text).map_err(io_err(&path))
+    };
+    let json = serde_json::to_string_pretty(summary).expect("summary serialises");
+    write("summary.json", &(json + "\n"))?;
+    write("summary.txt", &summary.text())?;
+    let series = |name: &str, color: &'static str, style: Style, d: &Decimated| Series {
+        name: name.into(),
+        color,
+        style,
+        points: d.points(),
+    };
+    let path_points = c.path.points();
+    let mode = &summary.segmentation;
+    write(
+        "path.svg",
+        &Chart {
+            title: format!("Path and segment points ({} segments)", summary.segments),
+            x_label: "X (mm)".into(),
+            y_label: "Y (mm)".into(),
+            series: vec![
+                Series {
+                    name: "path".into(),
+                    color: "#999",
+                    style: Style::Line,
+                    points: path_points.clone(),
+                },
+                Series {
+                    name: "segment ends".into(),
+                    color: "#1f5fbf",
+                    style: Style::Dots,
+                    points: path_points,
+                },
+                Series {
+                    name: "rapids (G0)".into(),
+                    color: "#d08000",
+                    style: Style::Dashed,
+                    points: c.rapids.clone(),
+                },
+            ],
+            equal_axes: true,
+            start: c.start.map(|p| (p, c.direction.unwrap_or((1.0, 0.0)))),
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    write(
+        "chord_error.svg",
+        &Chart {
+            title: format!("True chord error per segment ({mode} mode)"),
+            x_label: "path length (mm)".into(),
+            y_label: "chord error (mm)".into(),
+            series: vec![series("chord error", "#1f5fbf", Style::Dots, &c.chord)],
+            limits: vec![(settings.tolerance, "tolerance".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    write(
+        "feed.svg",
+        &Chart {
+            title: "Planned feed".into(),
+            x_label: "time (s)".into(),
+            y_label: "feed (mm/s)".into(),
+            series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
+            limits: vec![(settings.max_feed, "max feed".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    let a = settings.max_tangential_accel;
+    write(
+        "tangential_accel.svg",
+        &Chart {
+            title: "Tangential acceleration".into(),
+            x_label: "time (s)".into(),
+            y_label: "a_T (mm/s²)".into(),
+            series: vec![series("a_T", "#bf5f1f", Style::Line, &c.accel)],
+            limits: vec![(a, "+a_T limit".into()), (-a, "-a_T limit".into())],
+            ..Chart::default()
+        }
+        .render(),
+    )?;
+    // The fluctuation is a period-mode figure: in chord mode there is none to draw, so no
+    // chart (and none left over from an earlier period-mode plan in the same directory).
+    let fluctuation = out_dir.join("fluctuation.svg");
+    if c.period_mode {
+        write(
+            "fluctuation.svg",
+            &Chart {
+                title: "Feed fluctuation per period (seed 001 eq. 16)".into(),
+                x_label: "time (s)".into(),
+                y_label: "|L - ΔL| / ΔL".into(),
+                series: vec![series("fluctuation", "#7f1fbf", Style::Dots, &c.fluct)],
+                limits: vec![(
+                    settings.fluctuation_tolerance,
+                    "fluctuation tolerance".into(),
+                )],
+                ..Chart::default()
+            }
+            .render(),
+        )?;
+    } else if fluctuation.exists() {
+        std::fs::remove_file(&fluctuation).map_err(io_err(&fluctuation))?;
+    }
+    // A path plot shows X and Y; Z gets its own chart against the path length.
+    if let Some(z) = &c.z {
+        write(
+            "path_z.svg",
+            &Chart {
+                title: "Z along the path".into(),
+                x_label: "path length (mm)".into(),
+                y_label: "Z (mm)".into(),
+                series: vec![series("Z", "#1f5fbf", Style::Line, z)],
+                ..Chart::default()
+            }
+            .render(),
+        )?;
+    }
+    Ok(())
+}

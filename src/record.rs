@@ -1,0 +1,333 @@
+//! The recorder (`edmd run --report DIR`): what actually ran, not what was planned.
+//!
+//! ```text
+//!  consumer thread loop                               supervisor thread
+//!  RecordedOutput(out) ── position, gap ──► Handoff<Sample> (bounded) ──► Recording
+//!                                                                          + servo events
+//! ```
+//!
+//! The wrapper sits in the real-time loop: it keeps the position from the steps it passes on
+//! and pushes a small [`Sample`] into a preallocated lock-free queue at every gap change and
+//! every `every` ticks of motion. It never allocates, logs or waits (in real time a full queue
+//! drops the sample and counts it; in virtual time the loop yields until there is room, as
+//! the tracer does). The supervisor drains the queue into a [`Recording`]: a decimated path
+//! and feed, the gap state over time, and the servo events it logs anyway.
+
+use std::sync::Arc;
+
+use crate::gap::GapState;
+use crate::geometry::MAX_AXES;
+use crate::output::{OutputError, PulseOutput};
+use crate::plot::Decimated;
+use crate::trace::Handoff;
+use crate::vocab::TickPeriod;
+
+/// Where the machine was at one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub tick: u64,
+    pub position: [i64; MAX_AXES],
+    pub gap: GapState,
+}
+
+/// The queue from the wrapper to the supervisor.
+pub type Recorder = Handoff<Sample>;
+
+/// Records an output's motion and gap states into a [`Recorder`].
+#[derive(Debug)]
+pub struct RecordedOutput<O> {
+    inner: O,
+    recorder: Arc<Recorder>,
+    every: u64,
+    position: [i64; MAX_AXES],
+    last_gap: Option<GapState>,
+    next: u64,
+}
+
+impl<O> RecordedOutput<O> {
+    /// A sample at every gap change and at most every `every` ticks of motion; `start` is the
+    /// position in steps the job starts from.
+    pub fn new(inner: O, recorder: Arc<Recorder>, every: u64, start: [i64; MAX_AXES]) -> Self {
+        RecordedOutput {
+            inner,
+            recorder,
+            every: every.max(1),
+            position: start,
+            last_gap: None,
+            next: 0,
+        }
+    }
+}
+
+impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
+    fn write(
+        &mut self,
+        tick: u64,
+        steps: &[i8; MAX_AXES],
+        gap: GapState,
+    ) -> Result<(), OutputError> {
+        self.inner.write(tick, steps, gap)?;
+        let mut moved = false;
+        for (p, &s) in self.position.iter_mut().zip(steps) {
+            *p += i64::from(s);
+            moved |= s != 0;
+        }
+        if self.last_gap != Some(gap) || (moved && tick >= self.next) {
+            self.last_gap = Some(gap);
+            self.next = tick + self.every;
+            self.recorder.push(Sample {
+                tick,
+                position: self.position,
+                gap,
+            });
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), OutputError> {
+        self.inner.finish()
+    }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        self.inner.sync()
+    }
+}
+
+/// A servo event as the report lists it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedEvent {
+    pub tick: u64,
+    pub line: u64,
+    /// `short`, `turn_back` (the gap cleared after turning back), `resumed`, `starved`,
+    /// `alarm`, `done`.
+    pub kind: &'static str,
+    /// Blocks turned back over (`turn_back`, `alarm`).
+    pub depth: Option<u64>,
+    /// Where the electrode was (mm, machine axis order): the last sample before the event.
+    pub position_mm: Vec<f64>,
+}
+
+/// The window over which the report measures the feed (s of machine time).
+pub const FEED_WINDOW_S: f64 = 0.02;
+
+/// Points kept per plotted series.
+const PLOT_POINTS: usize = 20_000;
+/// Events kept in a report (a job with more lists the first ones and says how many it left).
+pub const MAX_EVENTS: usize = 100_000;
+
+/// What the supervisor gathered of a job: bounded whatever the job's length.
+#[derive(Debug)]
+pub struct Recording {
+    pub step_mm: Vec<f64>,
+    pub tick: TickPeriod,
+    /// X–Y of the executed path (mm), decimated; turn-back stretches separately.
+    pub path: Decimated,
+    /// Points reached while turning back or re-advancing (mm), between [`crate::plot::BREAK`]s.
+    pub turn_back: Vec<(f64, f64)>,
+    /// Feed along the path (mm/min) against machine time (s).
+    pub feed: Decimated,
+    /// Gap state against machine time: 0 open, 1 normal, 2 short (decimated, peaks kept: a
+    /// short is never decimated away).
+    pub gap: Decimated,
+    pub events: Vec<RecordedEvent>,
+    pub events_left_out: u64,
+    pub start: Option<(f64, f64)>,
+    pub direction: Option<(f64, f64)>,
+    last: Option<Sample>,
+    /// Where the feed's current window started: steps are whole, so a feed measured over a
+    /// few ticks is mostly quantisation; over [`FEED_WINDOW_S`] it is the feed.
+    feed_from: Option<Sample>,
+    /// Inside a turn-back or its re-advance (from a short to the resume).
+    turning_back: bool,
+    turn_back_points: usize,
+}
+
+impl Recording {
+    pub fn new(step_mm: &[f64], tick: TickPeriod) -> Recording {
+        Recording {
+            step_mm: step_mm.to_vec(),
+            tick,
+            path: Decimated::new(PLOT_POINTS),
+            turn_back: Vec::new(),
+            feed: Decimated::new(PLOT_POINTS),
+            gap: Decimated::new(PLOT_POINTS),
+            events: Vec::new(),
+            events_left_out: 0,
+            start: None,
+            direction: None,
+            last: None,
+            feed_from: None,
+            turning_back: false,
+            turn_back_points: 0,
+        }
+    }
+
+    /// Machine time of `ticks` (s), exact for whole milliseconds and microseconds.
+    pub fn secs(&self, ticks: u64) -> f64 {
+        (u128::from(ticks) * u128::from(self.tick.ns())) as f64 * 1e-9
+    }
+
+    fn mm(&self, position: &[i64; MAX_AXES], axis: usize) -> f64 {
+        self.step_mm
+            .get(axis)
+            .map_or(0.0, |s| position[axis] as f64 * s)
+    }
+
+    /// Takes one sample (in tick order).
+    pub fn sample(&mut self, s: &Sample) {
+        let (x, y) = (self.mm(&s.position, 0), self.mm(&s.position, 1));
+        let t = self.secs(s.tick);
+        if self.start.is_none() {
+            self.start = Some((x, y));
+        }
+        if let Some(last) = self.last {
+            let (lx, ly) = (self.mm(&last.position, 0), self.mm(&last.position, 1));
+            if self.direction.is_none() && (x != lx || y != ly) {
+                self.direction = Some((x - lx, y - ly));
+            }
+            let from = *self.feed_from.get_or_insert(last);
+            let dt = self.secs(s.tick - from.tick);
+            if dt >= FEED_WINDOW_S {
+                let d: f64 = (0..self.step_mm.len())
+                    .map(|a| self.mm(&s.position, a) - self.mm(&from.position, a))
+                    .map(|d| d * d)
+                    .sum::<f64>()
+                    .sqrt();
+                self.feed.push(t, d / dt * 60.0);
+                self.feed_from = Some(*s);
+            }
+            if last.gap != s.gap {
+                // A step: the old state up to this tick, the new one from it.
+                self.gap.push(t, gap_level(last.gap));
+            }
+            if self.turning_back && self.turn_back_points < PLOT_POINTS {
+                self.turn_back.push((x, y));
+                self.turn_back_points += 1;
+            }
+        }
+        self.gap.push(t, gap_level(s.gap));
+        self.path.push(x, y);
+        self.last = Some(*s);
+    }
+
+    /// Takes one servo event (in tick order, after the samples up to its tick).
+    pub fn event(&mut self, tick: u64, line: u64, kind: &'static str, depth: Option<u64>) {
+        match kind {
+            "short" if !self.turning_back => {
+                self.turning_back = true;
+                if let Some(last) = self.last {
+                    let p = (self.mm(&last.position, 0), self.mm(&last.position, 1));
+                    self.turn_back.extend([crate::plot::BREAK, p]);
+                }
+            }
+            "resumed" | "alarm" | "done" => self.turning_back = false,
+            _ => {}
+        }
+        if self.events.len() < MAX_EVENTS {
+            let position_mm = self.last_position_mm();
+            self.events.push(RecordedEvent {
+                tick,
+                line,
+                kind,
+                depth,
+                position_mm,
+            });
+        } else {
+            self.events_left_out += 1;
+        }
+    }
+
+    /// The position (mm, machine axis order) of the last sample so far.
+    pub fn last_position_mm(&self) -> Vec<f64> {
+        self.last.map_or_else(
+            || vec![0.0; self.step_mm.len()],
+            |s| {
+                (0..self.step_mm.len())
+                    .map(|a| self.mm(&s.position, a))
+                    .collect()
+            },
+        )
+    }
+
+    /// The gap state at the end of the samples so far, for the chart's last step.
+    pub fn close(&mut self, end_tick: u64) {
+        if let Some(last) = self.last {
+            let t = self.secs(end_tick.max(last.tick));
+            self.gap.push(t, gap_level(last.gap));
+        }
+    }
+}
+
+fn gap_level(gap: GapState) -> f64 {
+    match gap {
+        GapState::Open => 0.0,
+        GapState::Normal => 1.0,
+        GapState::Short => 2.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::NullOutput;
+
+    #[test]
+    fn samples_at_gap_changes_and_every_n_ticks_of_motion() {
+        let recorder = Recorder::new(64, true, None);
+        let mut out = RecordedOutput::new(NullOutput, recorder.clone(), 10, [0; MAX_AXES]);
+        let step = [1, 0, 0, 0, 0, 0];
+        let still = [0; MAX_AXES];
+        for tick in 0..25 {
+            out.write(tick, &step, GapState::Normal).unwrap();
+        }
+        out.write(25, &still, GapState::Short).unwrap();
+        out.write(26, &still, GapState::Short).unwrap();
+        let mut got = Vec::new();
+        recorder.drain(|s| got.push((s.tick, s.position[0], s.gap)));
+        use GapState::*;
+        assert_eq!(
+            got,
+            [
+                (0, 1, Normal),
+                (10, 11, Normal),
+                (20, 21, Normal),
+                (25, 25, Short)
+            ]
+        );
+    }
+
+    #[test]
+    fn a_recording_marks_turn_backs_and_keeps_events() {
+        let mut r = Recording::new(&[0.001, 0.001], TickPeriod::from_us(1000).unwrap());
+        let s = |tick, x, gap| Sample {
+            tick,
+            position: [x, 0, 0, 0, 0, 0],
+            gap,
+        };
+        r.sample(&s(0, 0, GapState::Normal));
+        r.sample(&s(1000, 1000, GapState::Normal));
+        r.event(1000, 3, "short", None);
+        r.sample(&s(1000, 1000, GapState::Short));
+        r.sample(&s(1500, 900, GapState::Normal));
+        r.event(1500, 3, "turn_back", Some(1));
+        r.sample(&s(1600, 1000, GapState::Normal));
+        r.event(1600, 3, "resumed", None);
+        r.sample(&s(2000, 1400, GapState::Normal));
+        assert_eq!(r.start, Some((0.0, 0.0)));
+        assert_eq!(r.direction, Some((1.0, 0.0)));
+        // The turn-back stroke: from the short, back, and forward again to the resume.
+        let stroke: Vec<_> = r
+            .turn_back
+            .iter()
+            .filter(|p| !p.0.is_nan())
+            .copied()
+            .collect();
+        assert_eq!(stroke, [(1.0, 0.0), (1.0, 0.0), (0.9, 0.0), (1.0, 0.0)]);
+        assert_eq!(r.events.len(), 3);
+        // Feed: 1 mm in 1 s = 60 mm/min.
+        assert_eq!(r.feed.points()[0], (1.0, 60.0));
+        let gap = r.gap.points();
+        assert_eq!(gap[0], (0.0, 1.0));
+        assert!(gap.contains(&(1.0, 2.0)), "{gap:?}");
+    }
+}

@@ -1,0 +1,151 @@
+//! The report of a job that ran (`edmd run --report DIR`): what the machine did, from the
+//! [`Recording`] its supervisor gathered, where `edmd plan` shows what was planned.
+//!
+//! - `path.svg`: the executed X–Y path, the stretches turned back over and re-advanced marked,
+//!   the start point and the direction it leaves in;
+//! - `feed.svg`: the feed along the path and the gap state against machine time;
+//! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, end) with
+//!   its machine time, source line and position;
+//! - `summary.json`: the job's summary, as `--summary` writes it.
+//!
+//! Every series is decimated to a fixed number of points, so a report's size does not grow
+//! with the job.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::plot::{Chart, Series, Style};
+use crate::record::Recording;
+use crate::runtime::JobSummary;
+
+/// A report that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: cannot write the report: {source}")]
+pub struct ReportError {
+    pub path: PathBuf,
+    pub source: std::io::Error,
+}
+
+/// Writes the report of a finished job into `dir` (created if needed).
+pub fn write_report(
+    dir: &Path,
+    recording: &mut Recording,
+    summary: &JobSummary,
+) -> Result<(), ReportError> {
+    let fail = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ReportError { path, source }
+    };
+    std::fs::create_dir_all(dir).map_err(fail(dir))?;
+    let write = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(fail(&path))
+    };
+    recording.close(summary.ticks);
+    let json = serde_json::to_string_pretty(summary).expect("a summary serialises");
+    write("summary.json", &(json + "\n"))?;
+    write("events.csv", &events_csv(recording, &summary.axes))?;
+    let path = Chart {
+        title: format!(
+            "Executed path: {} ({})",
+            summary.program,
+            summary.outcome.name()
+        ),
+        x_label: "X (mm)".into(),
+        y_label: "Y (mm)".into(),
+        series: vec![
+            Series {
+                name: "executed path".into(),
+                color: "#1f5fbf",
+                style: Style::Line,
+                points: recording.path.points(),
+            },
+            Series {
+                name: "turned back and re-advanced".into(),
+                color: "#d02020",
+                style: Style::Line,
+                points: recording.turn_back.clone(),
+            },
+            Series {
+                name: format!("short circuits ({})", summary.shorts),
+                color: "#d02020",
+                style: Style::Dots,
+                points: recording
+                    .events
+                    .iter()
+                    .filter(|e| e.kind == "short" && e.position_mm.len() >= 2)
+                    .map(|e| (e.position_mm[0], e.position_mm[1]))
+                    .collect(),
+            },
+        ],
+        equal_axes: true,
+        start: recording
+            .start
+            .map(|p| (p, recording.direction.unwrap_or((1.0, 0.0)))),
+        ..Chart::default()
+    };
+    write("path.svg", &path.render())?;
+    let feed_points = recording.feed.points();
+    let top = feed_points.iter().map(|p| p.1).fold(0.0, f64::max).max(1.0);
+    // The gap state on the feed's scale: open at 0, normal at half the top feed, short at it.
+    let gap: Vec<(f64, f64)> = recording
+        .gap
+        .points()
+        .into_iter()
+        .map(|(t, level)| (t, level * top / 2.0))
+        .collect();
+    let feed = Chart {
+        title: "Feed and gap state".into(),
+        x_label: "machine time (s)".into(),
+        y_label: "feed (mm/min)".into(),
+        series: vec![
+            Series {
+                name: "feed along the path".into(),
+                color: "#1f8f3f",
+                style: Style::Line,
+                points: feed_points,
+            },
+            Series {
+                name: "gap: open (bottom), normal (middle), short (top)".into(),
+                color: "#d08000",
+                style: Style::Dashed,
+                points: gap,
+            },
+        ],
+        ..Chart::default()
+    };
+    write("feed.svg", &feed.render())
+}
+
+/// `tick,time_s,line,event,depth,<axis>_mm...`, one row per event.
+fn events_csv(recording: &Recording, axes: &[String]) -> String {
+    let mut csv = String::from("tick,time_s,line,event,depth");
+    for a in axes {
+        let _ = write!(csv, ",{}_mm", a.to_ascii_lowercase());
+    }
+    csv.push('\n');
+    for e in &recording.events {
+        let _ = write!(
+            csv,
+            "{},{},{},{},{}",
+            e.tick,
+            recording.secs(e.tick),
+            e.line,
+            e.kind,
+            e.depth.map(|d| d.to_string()).unwrap_or_default()
+        );
+        for p in &e.position_mm {
+            let _ = write!(csv, ",{p}");
+        }
+        csv.push('\n');
+    }
+    if recording.events_left_out > 0 {
+        let _ = writeln!(
+            csv,
+            "# {} more events left out (the report keeps the first {})",
+            recording.events_left_out,
+            crate::record::MAX_EVENTS
+        );
+    }
+    csv
+}
