@@ -99,7 +99,7 @@ pub struct RecordedEvent {
     pub tick: u64,
     pub line: u64,
     /// `short`, `turn_back` (the gap cleared after turning back), `resumed`, `starved`,
-    /// `alarm`, `done`.
+    /// `alarm`, `done`; from the daemon's operator, `hold`, `released` and `abort`.
     pub kind: &'static str,
     /// Blocks turned back over (`turn_back`, `alarm`).
     pub depth: Option<u64>,

@@ -304,9 +304,19 @@ fn plan_reports_bad_programs_with_their_location() {
 
 #[test]
 fn a_closed_pipe_ends_quietly_not_in_a_panic() {
-    // `edmd check PROGRAM | head -1`: the reader goes away after one line.
+    // `edmd check PROGRAM | head -1`: the reader goes away after one line. The listing is
+    // far longer than a pipe holds, so writing fails however the scheduling goes (a child
+    // forked meanwhile by another test may hold the read end for a moment).
+    let dir = temp_dir("closed-pipe");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("long.nc");
+    let text: String = (0..20_000)
+        .map(|i| format!("G1 X{} Y{} F100\n", i % 50, i % 7))
+        .collect();
+    std::fs::write(&program, text).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["check", "programs/jin-table1-g06_2.nc"])
+        .arg("check")
+        .arg(&program)
         .current_dir(repo())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())

@@ -250,7 +250,12 @@ fn is_moving(s: &Value) -> bool {
 #[test]
 fn run_hold_resume_abort_and_status() {
     let dir = scratch("hold");
-    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(format!(
+        "daemon.report_dir=\"{}\"",
+        dir.join("reports").display()
+    ));
+    let daemon = Daemon::start(&dir, &sets, &[]);
     let status = daemon.status();
     assert_eq!(status["state"], "idle");
     assert!(status.get("job").is_none());
@@ -319,6 +324,19 @@ fn run_hold_resume_abort_and_status() {
         })
         .collect();
     assert_eq!(sum, end);
+    // The job's report lists the operator's hold and its release, where they happened.
+    let report = std::fs::read_dir(dir.join("reports"))
+        .unwrap()
+        .flatten()
+        .next()
+        .unwrap();
+    let events = std::fs::read_to_string(report.path().join("events.csv")).unwrap();
+    let kinds: Vec<&str> = events
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(3).unwrap())
+        .collect();
+    assert_eq!(kinds, ["hold", "released", "abort"], "{events}");
 
     // Nothing to hold or abort now; a human-readable status says so.
     let (reply, code) = daemon.ctl(&["hold"]);
@@ -704,7 +722,12 @@ impl Daemon {
 fn edits_of_the_program_change_nothing_about_the_motion() {
     let dir = scratch("edit");
     let reference = uninterrupted(&dir);
-    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(format!(
+        "daemon.report_dir=\"{}\"",
+        dir.join("reports").display()
+    ));
+    let daemon = Daemon::start(&dir, &sets, &[]);
     let reply = daemon.ok(&["run", PROGRAM]);
     assert!(
         reply["message"].as_str().unwrap().starts_with("running"),
@@ -735,6 +758,23 @@ fn edits_of_the_program_change_nothing_about_the_motion() {
     // Done: the private copy goes with the job.
     let copies = std::fs::read_dir(dir.join("job-programs")).unwrap().count();
     assert_eq!(copies, 0);
+    // The job's report (daemon.report_dir): what ran, ending at the program's end.
+    let reports: Vec<_> = std::fs::read_dir(dir.join("reports"))
+        .unwrap()
+        .flatten()
+        .collect();
+    assert_eq!(reports.len(), 1);
+    let report = reports[0].path();
+    assert!(
+        report.to_string_lossy().ends_with("-runtime-path"),
+        "{}",
+        report.display()
+    );
+    let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
+    assert!(events.trim_end().ends_with("done,,7.5,8.25"), "{events}");
+    for file in ["path.svg", "feed.svg", "summary.json"] {
+        assert!(report.join(file).exists(), "{file}");
+    }
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
 }

@@ -567,3 +567,68 @@ fn scripted_sim_events_reach_the_job_and_bad_ones_are_located() {
     );
     assert!(s.is_null());
 }
+
+/// A job whose output fails at `fault_tick`, then the same program resumed from the point and
+/// ledger its end reports (what the daemon's checkpoint holds): it must finish exactly.
+fn fault_then_resume(
+    config: &Config,
+    fault_tick: u64,
+) -> (runtime::JobSummary, runtime::JobSummary) {
+    let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
+    let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
+    let fine = runtime::FineThread::start(&runtime::LoopSettings::from_config(config)).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let job = |output: runtime::BoxedOutput, resume| {
+        let io = runtime::JobIo {
+            output,
+            gap: Box::new(edmd::gap::AlwaysNormal),
+            tracer: None,
+            recording: None,
+            progress: None,
+        };
+        let published = Arc::new(runtime::Published::new(64));
+        runtime::run_job_with(
+            &fine, &program, config, &check, io, published, &never, resume,
+        )
+    };
+    let failing = edmd::output::FaultInjector::new(edmd::output::NullOutput, fault_tick);
+    let first = job(Box::new(failing), None);
+    let point = runtime::ResumePoint {
+        here: first.stopped_at.here,
+        position: first.summary.end_steps.clone(),
+    };
+    let second = job(Box::new(edmd::output::NullOutput), Some(point));
+    (first.summary, second.summary)
+}
+
+#[test]
+fn a_job_cut_short_by_an_output_fault_resumes_exactly_at_any_tick() {
+    // Segments of two steps, so about every other step finishes one: a fault on a step that
+    // finished a segment once left the checkpoint one step ahead of the ledger.
+    let config = config(&["gap.kind=\"none\"", "interpolation.max_segment_mm=0.002"]);
+    // The ticks that step, from a run into a pulse log.
+    let dir = scratch("fault-ticks");
+    let log = dir.join("pulses.csv");
+    let mut with_log = config.clone();
+    with_log.output.kind = edmd::config::OutputKind::File;
+    with_log.output.path = log.clone();
+    runtime::run_job(&repo().join(PROGRAM), &with_log).unwrap();
+    let (_, rows) = read_pulse_log(&log).unwrap();
+    let stepping: Vec<u64> = rows
+        .iter()
+        .filter(|r| r.steps.iter().any(|&s| s != 0))
+        .map(|r| r.tick)
+        .collect();
+    let middle = stepping.len() / 2;
+    for &tick in &stepping[middle..middle + 24] {
+        let (first, second) = fault_then_resume(&config, tick);
+        assert_eq!(first.outcome, Outcome::OutputError, "fault at {tick}");
+        assert_eq!(
+            second.outcome,
+            Outcome::Done,
+            "fault at {tick}: {:?}",
+            second.error
+        );
+        assert_eq!(second.end_steps, PROGRAM_END.to_vec(), "fault at {tick}");
+    }
+}

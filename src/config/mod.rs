@@ -191,6 +191,8 @@ pub struct DaemonConfig {
     pub status_interval_s: Option<f64>,
     /// Control connections served at once; more are refused with an error reply.
     pub max_clients: usize,
+    /// Where each job's report of what ran goes (`<dir>/<job>/`); `None`: no reports.
+    pub report_dir: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -130,6 +130,7 @@ pub(super) struct RawDaemon {
     pub(super) checkpoint_interval_s: f64,
     pub(super) status_interval_s: f64,
     pub(super) max_clients: i64,
+    pub(super) report_dir: String,
 }
 
 #[derive(Debug, Deserialize)]

@@ -310,6 +310,7 @@ impl RawConfig {
                 > 0.0)
                 .then_some(d.status_interval_s),
             max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
+            report_dir: (!d.report_dir.trim().is_empty()).then(|| PathBuf::from(d.report_dir)),
         };
         let log = LogConfig {
             level: self.log.level,

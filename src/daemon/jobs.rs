@@ -12,6 +12,7 @@ use super::status::mm;
 use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
 use crate::config::{Config, GapKind, OutputKind};
+use crate::record::Recording;
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
 
@@ -39,6 +40,17 @@ pub(super) struct Check {
     pub(super) name: String,
     pub(super) progress: Arc<Progress>,
     resume: Option<Resume>,
+}
+
+impl Job {
+    /// An operator's event (a hold, its release) into the job's report, at the tick and
+    /// line the job has reached.
+    fn report_event(&self, kind: &'static str) {
+        if let Some((_, recording)) = &self.report {
+            let snap = self.published.snapshot();
+            recording.lock().event(snap.tick, snap.line, kind, None);
+        }
+    }
 }
 
 impl Check {
@@ -191,9 +203,21 @@ impl Core {
             .as_ref()
             .map(|r| r.position.clone())
             .unwrap_or_default();
-        let io = self
+        let mut io = self
             .job_io(&config, &check, &start)
             .map_err(|e| e.to_string())?;
+        // A report of what this job runs, when the configuration asks for one.
+        let report = config.daemon.report_dir.as_ref().map(|dir| {
+            let stem = Path::new(&program.name)
+                .file_stem()
+                .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
+            let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
+                &config.machine.step_mm,
+                config.fine.tick,
+            )));
+            io.recording = Some(recording.clone());
+            (dir.join(format!("{}-{stem}", unix_now())), recording)
+        });
         let resumed = resume.is_some();
         // A new job replaces the checkpoint of an old one, and only now that it really starts.
         let mut message = String::new();
@@ -262,6 +286,7 @@ impl Core {
             overruns_seen: 0,
             last_overrun_report: Instant::now(),
             config,
+            report,
             motion_settings: checkpoint::motion_settings(&self.keys),
             progress: runtime::ProgressTracker::new(path_total_mm),
         });
@@ -350,6 +375,7 @@ impl Core {
             return Ok("already held".to_string());
         }
         job.hold_checkpointed = false;
+        job.report_event("hold");
         tracing::info!(
             edmd_event = "hold",
             edmd_program = job.program.display().to_string(),
@@ -368,6 +394,7 @@ impl Core {
                 return Err("the job is not held".to_string());
             }
             job.hold_checkpointed = false;
+            job.report_event("released");
             tracing::info!("resume: {} released", job.program.display());
             return Ok("resumed".to_string());
         }
@@ -438,6 +465,7 @@ impl Core {
         };
         job.stop_reason.get_or_insert(Reason::Abort);
         job.stop.store(true, Ordering::Relaxed);
+        job.report_event("abort");
         tracing::info!("abort: {} braking to a standstill", job.program.display());
         Ok("aborting: braking to a standstill, then the job ends".to_string())
     }
@@ -510,6 +538,12 @@ impl Core {
                 self.checkpoint = None;
             }
             None => {}
+        }
+        if let Some((dir, recording)) = &job.report {
+            match crate::report::write_report(dir, &mut recording.lock(), &summary) {
+                Ok(()) => tracing::info!("job report: {}", dir.display()),
+                Err(e) => tracing::error!("{e}"),
+            }
         }
         self.last = Some(summary);
         self.prune_copies(None);

@@ -117,6 +117,8 @@ struct Job {
     config: Config,
     /// How far along the program, and the ETA.
     progress: ProgressTracker,
+    /// Where the job's report goes, and the recording it is written from.
+    report: Option<(PathBuf, Arc<parking_lot::Mutex<crate::record::Recording>>)>,
     /// The job's path-shaping settings (`machine.*`, `interpolation.*`) for its checkpoints.
     motion_settings: crate::config::KeyValues,
 }

@@ -5,7 +5,7 @@
 //!
 //! | class | keys | while a job runs | idle |
 //! |---|---|---|---|
-//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.max_clients` | applied | applied |
+//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients` | applied | applied |
 //! | job | everything that shapes or times motion: `machine.*`, `interpolation.*`, `buffer.*`, `fine.tick_us`, `servo.*`, `gap.*`, `sim.*`, `output.path`, … | refused | applied (next job) |
 //! | restart | what was set up at startup: `daemon.socket*`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
 //!
@@ -29,6 +29,7 @@ pub fn classify(key: &str) -> KeyClass {
         | "daemon.program_dir"
         | "daemon.status_interval_s"
         | "daemon.checkpoint_interval_s"
+        | "daemon.report_dir"
         | "daemon.max_clients" => KeyClass::Live,
         "daemon.socket"
         | "daemon.socket_mode"

@@ -344,6 +344,9 @@ pub struct LoopReport {
     /// The failed write's tick did not reach the drives: its steps and event direction, to
     /// take back out of the interpolator's ledger.
     pub untaken: Option<([i8; MAX_AXES], i8)>,
+    /// With `untaken`: where along the program the electrode was before that tick (segment
+    /// and step, and the segment's step count), the checkpoint's point to go with the ledger.
+    pub untaken_from: Option<(PathPoint, i64)>,
     /// The gap input failed; the loop stopped before that tick moved anything.
     pub gap_error: Option<GapError>,
     /// The supervisor asked the loop to stop.
@@ -363,6 +366,7 @@ impl LoopReport {
             wall_ns: 0,
             output_error: None,
             untaken: None,
+            untaken_from: None,
             gap_error: None,
             stopped: false,
             rt_refused: Vec::new(),
@@ -474,10 +478,20 @@ where
                 break;
             }
         };
+        // Where the electrode stands before this tick (two words): if the output refuses the
+        // tick's step, this is the point that goes with the ledger the drives received.
+        let before = fine.here();
         let tick = fine.tick(gap, source);
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
             if !e.step_taken() && tick.moved() {
                 report.untaken = Some((tick.steps, tick.dir));
+                // A tick takes at most one step event: if it finished the segment, that
+                // segment had one event more than the point before it.
+                let events = match fine.block() {
+                    Some(b) if b.seq == before.seq => b.events() as i64,
+                    _ => before.event + 1,
+                };
+                report.untaken_from = Some((before, events));
             }
             report.output_error = Some(e);
             tick_no += 1;

@@ -467,7 +467,13 @@ pub fn run_job_with(
     let axes = config.machine.axes.len();
     let (outcome, error) = summary::outcome(&skip, &report, &finished, fine.state(), &producer);
     let producer = producer.unwrap_or_default();
-    let stopped_at = Snapshot::of(report.ticks, &fine);
+    let mut stopped_at = Snapshot::of(report.ticks, &fine);
+    if let Some((here, events)) = report.untaken_from {
+        // The failed tick's step never reached the drives: the checkpoint's point is the
+        // one before it (its ledger is taken back below, in `summary::delivered`).
+        stopped_at.here = here;
+        stopped_at.events = events;
+    }
     let summary = JobSummary {
         program: name,
         outcome,
