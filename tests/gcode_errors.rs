@@ -113,7 +113,7 @@ fn cases() -> Vec<Case> {
             "G1 X1e5 F10\n",
             1,
             6,
-            "word E is not used",
+            "exponent notation",
         ),
         case(
             "two decimal points",
@@ -541,8 +541,10 @@ fn every_malformed_program_fails_at_the_right_place() {
 
 #[test]
 fn invalid_utf8_is_reported_at_its_column() {
-    let err = first_error(b"G21\nG1 X1 (caf\xe9) F1\n", XY).unwrap();
-    assert_eq!((err.line, err.col), (2, 11));
+    // Latin-1 in a comment is read (an older editor's `Ø`); anywhere else it is an error.
+    assert!(first_error(b"G21\nG1 X1 (caf\xe9, \xd8 5 mm) F1\n; \xe9\n", XY).is_none());
+    let err = first_error(b"G21\nG1 X1 F1 caf\xe9\n", XY).unwrap();
+    assert_eq!((err.line, err.col), (2, 13));
     assert!(err.to_string().contains("invalid UTF-8"), "{err}");
 }
 
@@ -611,4 +613,11 @@ proptest! {
             }
         }
     }
+}
+
+#[test]
+fn exponent_notation_is_named_not_taken_for_a_word_e() {
+    let err = first_error(b"G21\nG1 X1e308 F1\n", XY).unwrap();
+    assert_eq!((err.line, err.col), (2, 6));
+    assert!(err.to_string().contains("exponent notation"), "{err}");
 }

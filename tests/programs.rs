@@ -470,3 +470,31 @@ fn g5_2_follows_linuxcnc_under_g91_with_low_orders_and_off_plane_words() {
         .unwrap();
     assert_eq!((z.line, z.col), (3, 12));
 }
+
+#[test]
+fn a_latin1_comment_is_read_with_one_warning() {
+    let program = b"(Elektrode \xd8 5 mm)\nG1 X1 F60 (\xe9)\nM30\n";
+    let mut reader = BlockReader::new(Cursor::new(&program[..]), "t.nc", XY);
+    let blocks: Vec<Block> = reader.by_ref().collect::<Result<_, _>>().unwrap();
+    assert_eq!(blocks.len(), 1);
+    let warnings = reader.take_warnings();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert_eq!(warnings[0].line, 1);
+    assert!(warnings[0].message.contains("Latin-1"), "{warnings:?}");
+}
+
+#[test]
+fn path_blending_and_tool_length_words_are_ignored_with_one_warning_each() {
+    let (blocks, warnings) = parse(
+        "G64 P0.01 Q0.005\nG43 H1\nG1 X1 F60\nG64 P0.02\nG43 H2 X2\nG49\nM30\n",
+        XY,
+    );
+    assert_eq!(blocks.len(), 2);
+    assert_eq!(blocks[1].end()[0], 2.0);
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings[0].message.contains("G64 P/Q"), "{warnings:?}");
+    assert!(warnings[1].message.contains("G43"), "{warnings:?}");
+    // A bare G64 is the mode edmd is in: no warning.
+    let (_, warnings) = parse("G64\nG1 X1 F60\nM30\n", XY);
+    assert!(warnings.is_empty(), "{warnings:?}");
+}

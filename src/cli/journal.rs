@@ -12,8 +12,8 @@
 //! `journalctl -u edmd -p warning` and `journalctl EDMD_EVENT=alarm` work.
 //!
 //! The socket is `/run/systemd/journal/socket`, or `$EDMD_JOURNAL_SOCKET` (tests point it at a
-//! socket of their own). The socket never blocks: an entry that cannot be sent at once (the
-//! journal is gone, or stalled with its queue full) is written to stderr instead.
+//! socket of their own). A send waits at most 50 ms for room in journald's queue: an entry that
+//! cannot be sent in that time (the journal is gone, or stalled) is written to stderr instead.
 
 use std::fmt::Write as _;
 use std::os::unix::net::UnixDatagram;
@@ -23,6 +23,9 @@ use tracing::field::{Field, Visit};
 use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::Layer;
 use tracing_subscriber::layer::Context;
+
+/// The longest an entry waits for room in journald's queue.
+const SEND_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(50);
 
 /// Where journald listens for native entries.
 const JOURNAL_SOCKET: &str = "/run/systemd/journal/socket";
@@ -46,9 +49,11 @@ impl JournalLayer {
             .map_or_else(|| PathBuf::from(JOURNAL_SOCKET), PathBuf::from);
         let socket = UnixDatagram::unbound().ok()?;
         socket.connect(&path).ok()?;
-        // Never wait for journald: a stalled journal must not stall the control loop or a
-        // job's supervisor. An entry it cannot take now goes to stderr instead.
-        socket.set_nonblocking(true).ok()?;
+        // Wait for journald briefly, never long: the kernel queues only a few datagrams per
+        // socket (`net.unix.max_dgram_qlen`, often 10), so a burst must be able to wait for
+        // the journal to read, but a stalled journal must not stall the control loop or a
+        // job's supervisor. An entry it cannot take in time goes to stderr instead.
+        socket.set_write_timeout(Some(SEND_TIMEOUT)).ok()?;
         Some(JournalLayer { socket, path })
     }
 }

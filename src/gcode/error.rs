@@ -14,7 +14,9 @@ pub enum GcodeErrorKind {
     EmptyProgram,
     #[error("line is longer than {limit} bytes")]
     LineTooLong { limit: usize },
-    #[error("invalid UTF-8")]
+    #[error(
+        "invalid UTF-8 (bytes of another encoding, such as Latin-1, are read in comments only)"
+    )]
     InvalidUtf8,
     #[error("comment opened here is never closed with `)`")]
     UnterminatedComment,

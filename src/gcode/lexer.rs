@@ -88,6 +88,23 @@ pub(crate) fn lex(line: &str, words: &mut Vec<Word>) -> Result<LineInfo, LexErro
                     it.next();
                     col += 1;
                 }
+                // `X1e308`: an exponent glued to a number is not a word `E`, and G-code has no
+                // exponent notation; say so rather than "word E is not used".
+                if !text.is_empty() && matches!(it.peek(), Some('e' | 'E')) {
+                    let mut ahead = it.clone();
+                    ahead.next();
+                    if matches!(ahead.peek(), Some(c) if c.is_ascii_digit() || *c == '+' || *c == '-')
+                    {
+                        return Err((
+                            col + 1,
+                            GcodeErrorKind::UnexpectedChar {
+                                ch: it.peek().copied().unwrap_or('e'),
+                                hint: " (exponent notation such as 1e3 is not G-code: write the \
+                                       number out)",
+                            },
+                        ));
+                    }
+                }
                 if text.is_empty()
                     && let Some(hint) = it.peek().and_then(|&c| unsupported_syntax(c))
                 {

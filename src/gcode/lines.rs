@@ -12,9 +12,12 @@ pub const MAX_LINE_BYTES: usize = 64 * 1024;
 pub(crate) enum Line<'a> {
     Text(&'a str),
     TooLong,
-    /// Bytes up to the first invalid sequence, as text, for the error's column and excerpt.
+    /// Not UTF-8: the bytes up to the first invalid sequence, as text, for the error's column
+    /// and excerpt, and the whole line's bytes (a comment saved by an older editor may be
+    /// Latin-1).
     BadUtf8 {
         valid_prefix: &'a str,
+        bytes: &'a [u8],
     },
 }
 
@@ -84,6 +87,7 @@ impl<R: BufRead> LineSource<R> {
             Err(e) => Line::BadUtf8 {
                 // Safe: the prefix up to valid_up_to is valid UTF-8 by definition.
                 valid_prefix: std::str::from_utf8(&self.buf[..e.valid_up_to()]).unwrap_or(""),
+                bytes: &self.buf,
             },
         };
         Ok(Some((self.line_no, line)))
@@ -101,7 +105,7 @@ mod tests {
             out.push(match line {
                 Line::Text(t) => format!("{n}:{t}"),
                 Line::TooLong => format!("{n}:<too long>"),
-                Line::BadUtf8 { valid_prefix } => format!("{n}:<utf8 after {valid_prefix:?}>"),
+                Line::BadUtf8 { valid_prefix, .. } => format!("{n}:<utf8 after {valid_prefix:?}>"),
             });
         }
         out

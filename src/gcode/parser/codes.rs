@@ -29,6 +29,16 @@ pub(super) enum GCode {
     Plane(Plane),
     /// A mode edmd is always in (G40, G49, G54, G61, G64, G94): accepted, nothing to do.
     Accepted(u8),
+    /// A code edmd can safely ignore, with the words it takes: `G64 P… Q…` (path blending:
+    /// edmd keeps to its chord tolerance), `G43 H…` (tool length offsets: none on an EDM's
+    /// X/Y path). Ignored with one warning.
+    Ignored {
+        group: u8,
+        takes: &'static [char],
+        /// Warn only when the block has one of `takes` (a bare `G64` is the default mode).
+        only_with_words: bool,
+        why: &'static str,
+    },
     /// G96/G97, spindle speed modes (group 14): meaningless on an EDM, accepted with a
     /// warning as `S` and `M3` are (LinuxCNC's NURBS examples start with `G96 M3 S200`).
     SpindleMode,
@@ -44,6 +54,7 @@ impl GCode {
             GCode::ArcCentreAbsolute(_) => 4,
             GCode::Plane(_) => 5,
             GCode::Accepted(g) => g,
+            GCode::Ignored { group, .. } => group,
             GCode::SpindleMode => 14,
         }
     }
@@ -105,14 +116,28 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         400 => GCode::Accepted(7),
         490 => GCode::Accepted(8),
         540 => GCode::Accepted(12),
-        610 | 611 | 640 => GCode::Accepted(13),
+        610 | 611 => GCode::Accepted(13),
+        640 => GCode::Ignored {
+            group: 13,
+            takes: &['P', 'Q'],
+            only_with_words: true,
+            why: "G64 P/Q (path blending tolerance) is ignored: the path keeps within \
+                  interpolation.chord_tolerance_mm",
+        },
         940 => GCode::Accepted(6),
         410 | 411 | 420 | 421 => {
             return unsupported(
                 "cutter compensation; post the program with the offset applied (G40)",
             );
         }
-        430..=439 => return unsupported("tool length offsets"),
+        430..=432 => GCode::Ignored {
+            group: 8,
+            takes: &['H'],
+            only_with_words: false,
+            why: "G43 (tool length offset) is ignored: an EDM's wire or electrode length is \
+                  not offset in the path",
+        },
+        433..=439 => return unsupported("tool length offsets"),
         930 => return unsupported("inverse time feed; use G94 (units per minute)"),
         950 => return unsupported("feed per revolution; use G94 (units per minute)"),
         40 => return unsupported("dwell"),

@@ -55,11 +55,20 @@ impl From<(usize, GcodeErrorKind)> for Fail {
 pub(super) type Step<T> = Result<T, Fail>;
 
 /// The words of one block, looked up by letter.
+#[derive(Clone, Copy)]
 pub(super) struct Letters<'w> {
     by_letter: [Option<&'w Word>; 26],
 }
 
 impl<'w> Letters<'w> {
+    /// The same words but `drop`: words a code consumed (G64's `P`/`Q`, G43's `H`).
+    pub(super) fn without(mut self, drop: &[char]) -> Letters<'w> {
+        for &letter in drop {
+            self.by_letter[(letter as u8 - b'A') as usize] = None;
+        }
+        self
+    }
+
     pub(super) fn get(&self, letter: char) -> Option<&'w Word> {
         self.by_letter[(letter as u8 - b'A') as usize]
     }
@@ -165,6 +174,7 @@ impl<R: BufRead> BlockReader<R> {
             let Some((line_no, line)) = next else {
                 return self.finish().map(|()| None);
             };
+            let mut latin1_at = None;
             let text = match line {
                 Line::Text(t) => t.to_string(),
                 Line::TooLong => {
@@ -180,16 +190,38 @@ impl<R: BufRead> BlockReader<R> {
                             .into(),
                     ));
                 }
-                Line::BadUtf8 { valid_prefix } => {
-                    let col = valid_prefix.chars().count() + 1;
-                    let shown = valid_prefix.to_string();
-                    return Err(self.error(
-                        line_no,
-                        &shown,
-                        (col, GcodeErrorKind::InvalidUtf8).into(),
-                    ));
+                Line::BadUtf8 {
+                    valid_prefix,
+                    bytes,
+                } => {
+                    // Not UTF-8: read as Latin-1 (one character per byte), which is what an
+                    // older editor saved. Accepted inside comments only; anywhere else it is
+                    // an error at that column.
+                    let latin1: String = bytes.iter().map(|&b| char::from(b)).collect();
+                    match non_ascii_outside_comments(&latin1) {
+                        None => {
+                            latin1_at = Some(valid_prefix.chars().count() + 1);
+                            latin1
+                        }
+                        Some(col) => {
+                            let shown = valid_prefix.to_string();
+                            return Err(self.error(
+                                line_no,
+                                &shown,
+                                (col, GcodeErrorKind::InvalidUtf8).into(),
+                            ));
+                        }
+                    }
                 }
             };
+            if let Some(col) = latin1_at {
+                self.line_no = line_no;
+                self.warn_once_about(
+                    "latin1",
+                    col,
+                    "a comment is not UTF-8: read as Latin-1 (comments only)".to_string(),
+                );
+            }
             let mut words = std::mem::take(&mut self.words);
             let result = self.process_line(line_no, &text, &mut words);
             self.words = words;
@@ -336,6 +368,21 @@ pub(super) fn collect_letters(words: &[Word]) -> Step<Letters<'_>> {
         *slot = Some(w);
     }
     Ok(Letters { by_letter })
+}
+
+/// The column of the first non-ASCII character outside `( … )` and `;` comments, if any.
+fn non_ascii_outside_comments(line: &str) -> Option<usize> {
+    let mut in_comment = false;
+    for (i, c) in line.chars().enumerate() {
+        match c {
+            '(' if !in_comment => in_comment = true,
+            ')' if in_comment => in_comment = false,
+            ';' if !in_comment => return None,
+            c if !c.is_ascii() && !in_comment => return Some(i + 1),
+            _ => {}
+        }
+    }
+    None
 }
 
 impl<R: BufRead> Iterator for BlockReader<R> {

@@ -49,6 +49,7 @@ impl<R: BufRead> BlockReader<R> {
             codes.push((code, w));
         }
         let mut motion_word: Option<(GCode, &Word)> = None;
+        let mut kept = *letters;
         for &(code, w) in &codes {
             match code {
                 GCode::Inch(inch) => self.modal.inch = inch,
@@ -56,6 +57,18 @@ impl<R: BufRead> BlockReader<R> {
                 GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
                 GCode::Plane(p) => self.modal.plane = p,
                 GCode::Accepted(_) => {}
+                GCode::Ignored {
+                    takes,
+                    only_with_words,
+                    why,
+                    ..
+                } => {
+                    let with_words = takes.iter().any(|&l| kept.get(l).is_some());
+                    kept = kept.without(takes);
+                    if with_words || !only_with_words {
+                        self.warn_once_about(why, w.col, why.to_string());
+                    }
+                }
                 GCode::SpindleMode => self.warn_once_about(
                     "spindle mode",
                     w.col,
@@ -69,6 +82,7 @@ impl<R: BufRead> BlockReader<R> {
                 }
             }
         }
+        let letters = &kept;
         if let Some(o) = letters.get('O')
             && !matches!(motion_word, Some((GCode::Curve(NurbsForm::G38), _)))
         {
