@@ -28,6 +28,8 @@ pub struct Sample {
     pub tick: u64,
     pub position: [i64; MAX_AXES],
     pub gap: GapState,
+    /// Part of a rapid (G0).
+    pub rapid: bool,
 }
 
 /// The queue from the wrapper to the supervisor.
@@ -42,6 +44,9 @@ pub struct RecordedOutput<O> {
     position: [i64; MAX_AXES],
     last_gap: Option<GapState>,
     next: u64,
+    rapid: bool,
+    /// The move changed kind since the last sample: sample at the next tick.
+    kind_changed: bool,
 }
 
 impl<O> RecordedOutput<O> {
@@ -55,6 +60,8 @@ impl<O> RecordedOutput<O> {
             position: start,
             last_gap: None,
             next: 0,
+            rapid: false,
+            kind_changed: false,
         }
     }
 }
@@ -72,16 +79,25 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
             *p += i64::from(s);
             moved |= s != 0;
         }
-        if self.last_gap != Some(gap) || (moved && tick >= self.next) {
+        if self.last_gap != Some(gap) || self.kind_changed || (moved && tick >= self.next) {
             self.last_gap = Some(gap);
+            self.kind_changed = false;
             self.next = tick + self.every;
             self.recorder.push(Sample {
                 tick,
                 position: self.position,
                 gap,
+                rapid: self.rapid,
             });
         }
         Ok(())
+    }
+
+    fn moving_in(&mut self, flags: u8) {
+        let rapid = flags & crate::buffer::StepBlock::RAPID != 0;
+        self.kind_changed |= rapid != self.rapid;
+        self.rapid = rapid;
+        self.inner.moving_in(flags);
     }
 
     fn finish(&mut self) -> Result<(), OutputError> {
@@ -124,6 +140,8 @@ pub struct Recording {
     pub path: Decimated,
     /// Points reached while turning back or re-advancing (mm), between [`crate::plot::BREAK`]s.
     pub turn_back: Vec<(f64, f64)>,
+    /// Rapid moves (mm), one stroke each between [`crate::plot::BREAK`]s.
+    pub rapids: Vec<(f64, f64)>,
     /// Feed along the path (mm/min) against machine time (s).
     pub feed: Decimated,
     /// Gap state against machine time: 0 open, 1 normal, 2 short (decimated, peaks kept: a
@@ -149,6 +167,7 @@ impl Recording {
             tick,
             path: Decimated::new(PLOT_POINTS),
             turn_back: Vec::new(),
+            rapids: Vec::new(),
             feed: Decimated::new(PLOT_POINTS),
             gap: Decimated::new(PLOT_POINTS),
             events: Vec::new(),
@@ -203,6 +222,13 @@ impl Recording {
             if self.turning_back && self.turn_back_points < PLOT_POINTS {
                 self.turn_back.push((x, y));
                 self.turn_back_points += 1;
+            }
+            if s.rapid && self.rapids.len() < PLOT_POINTS {
+                if !last.rapid {
+                    let from = (self.mm(&last.position, 0), self.mm(&last.position, 1));
+                    self.rapids.extend([crate::plot::BREAK, from]);
+                }
+                self.rapids.push((x, y));
             }
         }
         self.gap.push(t, gap_level(s.gap));
@@ -303,6 +329,7 @@ mod tests {
             tick,
             position: [x, 0, 0, 0, 0, 0],
             gap,
+            rapid: false,
         };
         r.sample(&s(0, 0, GapState::Normal));
         r.sample(&s(1000, 1000, GapState::Normal));

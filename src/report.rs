@@ -61,6 +61,12 @@ pub fn write_report(
                 points: recording.path.points(),
             },
             Series {
+                name: "rapids (G0)".into(),
+                color: "#d08000",
+                style: Style::Dashed,
+                points: recording.rapids.clone(),
+            },
+            Series {
                 name: "turned back and re-advanced".into(),
                 color: "#d02020",
                 style: Style::Line,

@@ -163,6 +163,10 @@ impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
     fn sync(&mut self) -> Result<(), OutputError> {
         self.inner.sync()
     }
+
+    fn moving_in(&mut self, flags: u8) {
+        self.inner.moving_in(flags)
+    }
 }
 
 /// Traces a gap input: every change of state.

@@ -546,3 +546,39 @@ fn run_report_shows_what_ran_turn_backs_included() {
     let feed = std::fs::read_to_string(report.join("feed.svg")).unwrap();
     assert!(feed.contains("machine time (s)") && feed.contains("feed (mm/min)"));
 }
+
+#[test]
+fn run_report_dashes_the_rapids_it_ran() {
+    let dir = scratch("report-rapids");
+    let program = dir.join("rapids.nc");
+    std::fs::write(&program, "G0 X2 Y2\nG1 X3 F600\nG0 X0 Y0\nM2\n").unwrap();
+    let report = dir.join("report");
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("run")
+        .arg(&program)
+        .arg("--report")
+        .arg(&report)
+        .args(["--set", "output.kind=null", "--set", "gap.kind=none"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let path = std::fs::read_to_string(report.join("path.svg")).unwrap();
+    assert!(path.contains("rapids (G0)"), "named in the legend");
+    // Two rapid strokes, dashed: from the start to (2, 2) and from (3, 2) home.
+    let dashed: Vec<&str> = path
+        .lines()
+        .filter(|l| l.contains("stroke-dasharray=\"5 4\""))
+        .collect();
+    assert_eq!(dashed.len(), 1, "{path}");
+    assert_eq!(
+        dashed[0].matches('M').count(),
+        2,
+        "two strokes: {}",
+        dashed[0]
+    );
+}

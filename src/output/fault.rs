@@ -43,6 +43,10 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
     fn sync(&mut self) -> Result<(), OutputError> {
         self.inner.sync()
     }
+
+    fn moving_in(&mut self, flags: u8) {
+        self.inner.moving_in(flags)
+    }
 }
 
 #[cfg(test)]

@@ -82,6 +82,10 @@ pub trait PulseOutput {
     fn sync(&mut self) -> Result<(), OutputError> {
         Ok(())
     }
+
+    /// The move in hand changed to one with these `StepBlock` flags (a rapid, say); the
+    /// steps written from now on belong to it. Devices have nothing to do; a recorder notes it.
+    fn moving_in(&mut self, _flags: u8) {}
 }
 
 /// `output.kind = "null"`: discards everything.
@@ -114,5 +118,9 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
 
     fn sync(&mut self) -> Result<(), OutputError> {
         (**self).sync()
+    }
+
+    fn moving_in(&mut self, flags: u8) {
+        (**self).moving_in(flags)
     }
 }

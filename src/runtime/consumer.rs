@@ -456,6 +456,8 @@ where
     let period = settings.tick_ns;
     let mut deadline = started + period;
     let mut tick_no: u64 = 0;
+    // The flags of the move in hand, as the output was last told them.
+    let mut move_flags = 0u8;
     loop {
         if let Some(histogram) = latency.as_mut() {
             sys::sleep_until_ns(deadline);
@@ -482,6 +484,11 @@ where
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
         let tick = fine.tick(gap, source);
+        let flags = fine.block().map_or(0, |b| b.flags);
+        if flags != move_flags {
+            move_flags = flags;
+            output.moving_in(flags);
+        }
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
             if !e.step_taken() && tick.moved() {
                 report.untaken = Some((tick.steps, tick.dir));
