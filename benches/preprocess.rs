@@ -17,14 +17,14 @@ fn cubic(points: &[(f64, f64)], weights: &[f64]) -> Arc<Block> {
     let n = points.len();
     let pts: Vec<Point> = points.iter().map(|&(x, y)| point(&[x, y])).collect();
     let knots = clamped_uniform_knots(n, 3);
-    Arc::new(Block {
-        line: 1,
-        kind: BlockKind::Nurbs {
+    Arc::new(Block::new(
+        1,
+        BlockKind::Nurbs {
             form: NurbsForm::Fanuc,
         },
-        curve: NurbsCurve::new(3, 2, &pts, weights, knots).unwrap(),
-        feed_mm_per_min: Some(18000.0),
-    })
+        NurbsCurve::new(3, 2, &pts, weights, knots).unwrap(),
+        Some(18000.0),
+    ))
 }
 
 fn curves() -> Vec<(&'static str, Arc<Block>)> {

@@ -233,7 +233,11 @@ impl Checkpoint {
 /// The settings of `keys` that shape the path: `machine.*` and `interpolation.*`.
 pub fn motion_settings(keys: &KeyValues) -> KeyValues {
     keys.iter()
-        .filter(|(k, _)| k.starts_with("machine.") || k.starts_with("interpolation."))
+        .filter(|(k, _)| {
+            k.starts_with("machine.")
+                || k.starts_with("interpolation.")
+                || k.starts_with("program.")
+        })
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect()
 }
@@ -279,7 +283,17 @@ pub use crate::runtime::program::sha256_file;
 /// sizes, limits) and the interpolation (tolerance, predictor, segmentation). The loop
 /// buffer, the tick, the servo feeds and the outputs change when things happen, never where.
 pub fn motion_hash(config: &Config) -> String {
-    let text = format!("{:?}\n{:?}", config.machine, config.interpolation);
+    let mut text = format!("{:?}\n{:?}", config.machine, config.interpolation);
+    // `[program]` shapes the path too (block delete); hashed only when it differs from the
+    // default, so checkpoints written before the section existed still resume.
+    let default_program = crate::config::ProgramConfig {
+        block_delete: false,
+        optional_stop: false,
+        max_loop_iterations: 1_000_000,
+    };
+    if config.program != default_program {
+        text.push_str(&format!("\n{:?}", config.program));
+    }
     hex(&Sha256::digest(text.as_bytes()))
 }
 

@@ -125,14 +125,14 @@ fn settings(tol: f64, segmentation: Segmentation) -> PlanSettings {
 }
 
 fn plan(curve: &NurbsCurve, s: &PlanSettings) -> (Arc<Block>, Vec<Segment>) {
-    let block = Arc::new(Block {
-        line: 1,
-        kind: BlockKind::Nurbs {
+    let block = Arc::new(Block::new(
+        1,
+        BlockKind::Nurbs {
             form: NurbsForm::Fanuc,
         },
-        curve: curve.clone(),
-        feed_mm_per_min: Some(6000.0),
-    });
+        curve.clone(),
+        Some(6000.0),
+    ));
     let mut pre = Preprocessor::new(s.clone());
     let mut out = Vec::new();
     pre.push_block(Arc::clone(&block), |seg| out.push(seg));

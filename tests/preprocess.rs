@@ -31,14 +31,14 @@ fn parse_with(path: &str, cfg: &Config) -> Vec<Arc<Block>> {
 }
 
 fn block_of(curve: NurbsCurve) -> Arc<Block> {
-    Arc::new(Block {
-        line: 1,
-        kind: edmd::gcode::BlockKind::Nurbs {
+    Arc::new(Block::new(
+        1,
+        edmd::gcode::BlockKind::Nurbs {
             form: edmd::gcode::NurbsForm::Fanuc,
         },
         curve,
-        feed_mm_per_min: Some(6000.0),
-    })
+        Some(6000.0),
+    ))
 }
 
 fn run(blocks: &[Arc<Block>], s: &PlanSettings) -> Vec<Segment> {
@@ -361,9 +361,13 @@ fn reproduces_seed_000_table_1() {
         text += &format!("G01 X{:.4} Y{:.4} F600\n", p[0], p[1]);
     }
     let cfg = Config::default();
-    let lines: Vec<Block> = BlockReader::new(text.as_bytes(), "cam.nc", &cfg.machine.axes)
-        .map(|b| b.unwrap())
-        .collect();
+    let lines: Vec<Block> = BlockReader::new(
+        std::io::Cursor::new(text.as_bytes()),
+        "cam.nc",
+        &cfg.machine.axes,
+    )
+    .map(|b| b.unwrap())
+    .collect();
     assert_eq!(lines.len(), n + 1);
     // The polyline's chord error against the true curve, by dense sampling of each span.
     let cam_err = (0..n)

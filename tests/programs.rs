@@ -368,6 +368,12 @@ fn a_large_program_streams_block_by_block() {
             Ok(n)
         }
     }
+    // A program without loops or calls never seeks back.
+    impl std::io::Seek for Generated {
+        fn seek(&mut self, _: std::io::SeekFrom) -> std::io::Result<u64> {
+            Err(std::io::ErrorKind::Unsupported.into())
+        }
+    }
     let source = Generated {
         line: 0,
         total: 200_000,

@@ -300,14 +300,15 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         eprintln!("{}", args.config.describe());
     }
     let axes = &cfg.machine.axes;
-    let mut reader = match gcode::open_program(&args.program, axes) {
+    let name = args.program.display().to_string();
+    let options = gcode::ProgramOptions::from_config(&cfg);
+    let mut reader = match gcode::open_program_as(&args.program, &name, axes, options, |f| f) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("edmd: error: {e}");
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let name = args.program.display().to_string();
     let mut totals = check::Totals::default();
     if !args.quiet {
         outln!("{name}");

@@ -195,6 +195,14 @@ pub struct DaemonConfig {
     pub report_dir: Option<PathBuf>,
 }
 
+/// `[program]`: switches that change how a program reads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramConfig {
+    pub block_delete: bool,
+    pub optional_stop: bool,
+    pub max_loop_iterations: u64,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct LogConfig {
     pub level: LogLevel,
@@ -218,6 +226,7 @@ pub struct Config {
     pub sim: SimConfig,
     pub daemon: DaemonConfig,
     pub log: LogConfig,
+    pub program: ProgramConfig,
 }
 
 impl Default for Config {

@@ -22,6 +22,15 @@ pub(super) struct RawConfig {
     pub(super) sim: RawSim,
     pub(super) daemon: RawDaemon,
     pub(super) log: RawLog,
+    pub(super) program: RawProgram,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawProgram {
+    pub(super) block_delete: bool,
+    pub(super) optional_stop: bool,
+    pub(super) max_loop_iterations: i64,
 }
 
 #[derive(Debug, Deserialize)]

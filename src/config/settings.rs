@@ -8,6 +8,7 @@
 
 use super::Config;
 use crate::fine::FineSettings;
+use crate::gcode::ProgramOptions;
 use crate::geometry::MAX_AXES;
 use crate::parport::{PinMap, StepTiming};
 use crate::preprocess::PlanSettings;
@@ -83,5 +84,17 @@ impl StepTiming {
     /// The drives' step timing of `config` (`[parport]`).
     pub fn from_config(config: &Config) -> StepTiming {
         StepTiming::new(&config.parport)
+    }
+}
+
+impl ProgramOptions {
+    /// The reader's switches: `[program]`.
+    pub fn from_config(config: &Config) -> ProgramOptions {
+        let p = &config.program;
+        ProgramOptions {
+            block_delete: p.block_delete,
+            optional_stop: p.optional_stop,
+            max_loop_iterations: p.max_loop_iterations,
+        }
     }
 }

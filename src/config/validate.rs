@@ -316,6 +316,18 @@ impl RawConfig {
             level: self.log.level,
             format: self.log.format,
         };
+        let p = self.program;
+        if !(1..=1_000_000_000).contains(&p.max_loop_iterations) {
+            return Err((
+                "program.max_loop_iterations",
+                format!("must be 1 to 1000000000, got {}", p.max_loop_iterations),
+            ));
+        }
+        let program = ProgramConfig {
+            block_delete: p.block_delete,
+            optional_stop: p.optional_stop,
+            max_loop_iterations: p.max_loop_iterations as u64,
+        };
         Ok(Config {
             machine,
             interpolation,
@@ -328,6 +340,7 @@ impl RawConfig {
             sim,
             daemon,
             log,
+            program,
         })
     }
 }

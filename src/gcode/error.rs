@@ -94,11 +94,11 @@ pub enum GcodeErrorKind {
     MissingKnot { form: &'static str },
     #[error("control point after the closing knot-only blocks of the {form} curve")]
     PointAfterClosingKnots { form: &'static str },
-    #[error("{form} curve started at line {start_line} is interrupted by {by}{hint}")]
+    #[error("{} curve started at line {start_line} is interrupted by {by}{hint}", form.name())]
     NurbsInterrupted {
-        form: &'static str,
+        form: super::NurbsForm,
         start_line: u64,
-        by: String,
+        by: Box<str>,
         hint: &'static str,
     },
     #[error("{form} curve started at line {start_line} is never finished{hint}")]
@@ -117,6 +117,22 @@ pub enum GcodeErrorKind {
     TooManyPoints { limit: usize },
     #[error("invalid NURBS curve: {0}")]
     Nurbs(#[from] NurbsError),
+    #[error("expression: {what}")]
+    Expression { what: &'static str },
+    #[error("parameter number {value} out of range (1 to {max})")]
+    ParameterNumber { value: f64, max: usize },
+    #[error("parameter {name} is not set")]
+    UndefinedParameter { name: String },
+    #[error("{function}: argument outside the function's domain")]
+    MathDomain { function: &'static str },
+    #[error("{0}")]
+    Control(String),
+    #[error("{label} ran more than {limit} times (program.max_loop_iterations)")]
+    LoopLimit { label: String, limit: u64 },
+    #[error("subroutine calls nested deeper than {limit}")]
+    CallDepth { limit: usize },
+    #[error("no subroutine {label} in the program{searched}")]
+    SubroutineNotFound { label: String, searched: String },
 }
 
 /// A program error with its place: `source:line:col: message`, then the line with a caret.
@@ -130,6 +146,10 @@ pub struct GcodeError {
     pub kind: GcodeErrorKind,
     /// The offending line (or a window of it around the column), for the excerpt.
     pub text: String,
+    /// Lines of the calls that led here, innermost first (`None` in the main program).
+    /// Boxed so that the error stays small on every `Result` path (the lint's 128 bytes).
+    #[allow(clippy::box_collection)]
+    pub called_from: Option<Box<Vec<u64>>>,
 }
 
 impl std::error::Error for GcodeError {
@@ -148,6 +168,19 @@ impl fmt::Display for GcodeError {
             "{}:{}:{}: {}",
             self.source_name, self.line, self.col, self.kind
         )?;
+        let chain = self.called_from.as_deref().map_or(&[][..], |v| v.as_slice());
+        if let Some((first, rest)) = chain.split_first() {
+            write!(f, " (in a subroutine called at line {first}")?;
+            const SHOWN: usize = 3;
+            for l in rest.iter().take(SHOWN) {
+                write!(f, ", from line {l}")?;
+            }
+            if rest.len() > SHOWN {
+                let last = rest[rest.len() - 1];
+                write!(f, ", … {} calls deep, from line {last}", rest.len() + 1)?;
+            }
+            write!(f, ")")?;
+        }
         if !self.text.is_empty() {
             let (excerpt, caret) = excerpt(&self.text, self.col);
             let gutter = self.line.to_string();
@@ -205,6 +238,7 @@ mod tests {
             col: 8,
             kind: GcodeErrorKind::UnknownG { code: "7".into() },
             text: "G01 X1 G7 Y2".into(),
+            called_from: None,
         };
         assert_eq!(
             e.to_string(),

@@ -2,8 +2,19 @@
 //!
 //! A line longer than [`MAX_LINE_BYTES`] is consumed to its end without being stored (so a
 //! 10 MB line costs no memory) and reported; invalid UTF-8 is reported at its column.
+//!
+//! The source keeps the byte offset of the next line, so the interpreter can come back to a
+//! line it read before (a loop, a subroutine) by seeking rather than by keeping the lines.
 
-use std::io::{self, BufRead};
+use std::io::{self, BufRead, Seek, SeekFrom};
+
+/// Where a line starts: byte offset and 1-based line number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Pos {
+    pub offset: u64,
+    /// Number of the line that starts at `offset`.
+    pub line: u64,
+}
 
 /// Longest line accepted, in bytes (without the line break).
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
@@ -25,15 +36,36 @@ pub(crate) struct LineSource<R> {
     reader: R,
     buf: Vec<u8>,
     line_no: u64,
+    /// Byte offset of the next line.
+    offset: u64,
 }
 
-impl<R: BufRead> LineSource<R> {
+impl<R: BufRead + Seek> LineSource<R> {
     pub(crate) fn new(reader: R) -> Self {
         Self {
             reader,
             buf: Vec::with_capacity(256),
             line_no: 0,
+            offset: 0,
         }
+    }
+
+    /// Where the next line starts.
+    pub(crate) fn position(&self) -> Pos {
+        Pos {
+            offset: self.offset,
+            line: self.line_no + 1,
+        }
+    }
+
+    /// Makes the line at `pos` the next one.
+    pub(crate) fn seek(&mut self, pos: Pos) -> io::Result<()> {
+        if pos.offset != self.offset {
+            self.reader.seek(SeekFrom::Start(pos.offset))?;
+            self.offset = pos.offset;
+        }
+        self.line_no = pos.line - 1;
+        Ok(())
     }
 
     /// The next line and its 1-based number, or `None` at the end of input.
@@ -65,6 +97,7 @@ impl<R: BufRead> LineSource<R> {
             }
             let consumed = chunk.len() + usize::from(found_newline);
             self.reader.consume(consumed);
+            self.offset += consumed as u64;
             if found_newline {
                 break;
             }
@@ -99,7 +132,7 @@ mod tests {
     use super::*;
 
     fn collect(input: &[u8]) -> Vec<String> {
-        let mut src = LineSource::new(io::BufReader::with_capacity(7, input));
+        let mut src = LineSource::new(io::BufReader::with_capacity(7, io::Cursor::new(input)));
         let mut out = Vec::new();
         while let Some((n, line)) = src.next_line().unwrap() {
             out.push(match line {
@@ -119,6 +152,25 @@ mod tests {
         );
         assert_eq!(collect(b""), Vec::<String>::new());
         assert_eq!(collect(b"\n"), ["1:"]);
+    }
+
+    #[test]
+    fn seeks_back_to_a_line() {
+        let mut src = LineSource::new(io::BufReader::with_capacity(
+            5,
+            io::Cursor::new(&b"a1\r\nbb2\nccc3\n"[..]),
+        ));
+        src.next_line().unwrap();
+        let at = src.position();
+        assert_eq!(at, Pos { offset: 4, line: 2 });
+        src.next_line().unwrap();
+        src.next_line().unwrap();
+        src.seek(at).unwrap();
+        match src.next_line().unwrap() {
+            Some((2, Line::Text(t))) => assert_eq!(t, "bb2"),
+            _ => panic!("line 2 expected"),
+        }
+        assert_eq!(src.position(), Pos { offset: 8, line: 3 });
     }
 
     #[test]

@@ -19,6 +19,7 @@
 //! that mean nothing on an EDM (`S`, `T`, `M3`–`M9`) are accepted with a [`Warning`].
 
 mod error;
+mod expr;
 mod lexer;
 mod lines;
 mod parser;
@@ -28,9 +29,11 @@ use std::io::BufReader;
 use std::path::Path;
 
 pub use error::{GcodeError, GcodeErrorKind, Warning};
+pub use expr::NUMBERED_MAX;
 pub use lines::MAX_LINE_BYTES;
 pub use parser::{
-    ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CURVE_POINTS,
+    ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CALL_DEPTH,
+    MAX_CURVE_POINTS,
 };
 
 use crate::geometry::{NurbsCurve, Point};
@@ -149,6 +152,37 @@ impl BlockKind {
     }
 }
 
+/// The `[program]` options that change how a program reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProgramOptions {
+    /// Lines starting with `/` are skipped (the block-delete switch is on).
+    pub block_delete: bool,
+    /// `M1` pauses (the optional-stop switch is on); otherwise `M1` does nothing.
+    pub optional_stop: bool,
+    /// A loop that runs more often than this is an error (a runaway loop).
+    pub max_loop_iterations: u64,
+}
+
+impl Default for ProgramOptions {
+    /// LinuxCNC's defaults: block delete off (`/` lines run), optional stop off.
+    fn default() -> Self {
+        Self {
+            block_delete: false,
+            optional_stop: false,
+            max_loop_iterations: 1_000_000,
+        }
+    }
+}
+
+/// A programmed stop before a block's motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pause {
+    /// `M0`: wait for the operator's resume.
+    Program,
+    /// `M1` with `program.optional_stop` on.
+    Optional,
+}
+
 /// One motion of the program.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Block {
@@ -160,9 +194,33 @@ pub struct Block {
     /// Programmed feed limit in mm/min: `None` for rapids and for feed moves before any `F`
     /// (both run at up to the machine's maximum; feed moves as the gap servo allows).
     pub feed_mm_per_min: Option<f64>,
+    /// `G4` dwell before the motion, s: the electrode holds its place while the gap sparks.
+    pub dwell_s: f64,
+    /// `M0`/`M1` before the motion, with the line that asked for it.
+    pub pause: Option<(u64, Pause)>,
+    /// Flushing (`M7`/`M8` on, `M9` off) during the motion.
+    pub flushing: bool,
 }
 
 impl Block {
+    /// A motion with no dwell or pause before it and flushing off.
+    pub fn new(
+        line: u64,
+        kind: BlockKind,
+        curve: NurbsCurve,
+        feed_mm_per_min: Option<f64>,
+    ) -> Block {
+        Block {
+            line,
+            kind,
+            curve,
+            feed_mm_per_min,
+            dwell_s: 0.0,
+            pause: None,
+            flushing: false,
+        }
+    }
+
     pub fn start(&self) -> Point {
         self.curve.start_point()
     }
@@ -172,20 +230,23 @@ impl Block {
     }
 }
 
-/// Opens `path` for streaming. Errors name the path as given.
+/// Opens `path` for streaming with the default [`ProgramOptions`]. Errors name the path as
+/// given.
 pub fn open_program(
     path: &Path,
     axes: &[Axis],
 ) -> Result<BlockReader<BufReader<File>>, GcodeError> {
-    open_program_as(path, &path.display().to_string(), axes, |file| file)
+    let name = path.display().to_string();
+    open_program_as(path, &name, axes, ProgramOptions::default(), |file| file)
 }
 
 /// Opens `path` for streaming through `wrap` (a byte counter, say); errors name the program
 /// `name` (the file the operator knows when `path` is a private copy of it).
-pub fn open_program_as<R: std::io::Read>(
+pub fn open_program_as<R: std::io::Read + std::io::Seek>(
     path: &Path,
     name: &str,
     axes: &[Axis],
+    options: ProgramOptions,
     wrap: impl FnOnce(File) -> R,
 ) -> Result<BlockReader<BufReader<R>>, GcodeError> {
     let file = File::open(path).map_err(|e| GcodeError {
@@ -194,10 +255,12 @@ pub fn open_program_as<R: std::io::Read>(
         col: 0,
         kind: GcodeErrorKind::Io(e),
         text: String::new(),
+        called_from: None,
     })?;
-    Ok(BlockReader::new(
+    Ok(BlockReader::with_options(
         BufReader::with_capacity(64 * 1024, wrap(file)),
         name,
         axes,
+        options,
     ))
 }

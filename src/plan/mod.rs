@@ -186,6 +186,15 @@ impl<R: Read> Read for Counting<R> {
     }
 }
 
+/// Loops and calls seek back: the count follows the position.
+impl<R: io::Seek> io::Seek for Counting<R> {
+    fn seek(&mut self, pos: io::SeekFrom) -> io::Result<u64> {
+        let at = self.inner.seek(pos)?;
+        self.count.store(at, Ordering::Relaxed);
+        Ok(at)
+    }
+}
+
 /// A one-line progress bar on stderr, redrawn at most every 200 ms, shown only after the job
 /// has run for a second (short jobs print nothing).
 struct Progress {
@@ -453,7 +462,8 @@ pub fn plan_program(
     );
     let name = program.display().to_string();
     let axes = &config.machine.axes;
-    let mut blocks = BlockReader::new(reader, &name, axes);
+    let options = crate::gcode::ProgramOptions::from_config(config);
+    let mut blocks = BlockReader::with_options(reader, &name, axes, options);
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let trace_path = out_dir.join("trace.csv");
     let trace = BufWriter::new(File::create(&trace_path).map_err(io_err(&trace_path))?);

@@ -336,12 +336,7 @@ mod tests {
 
     fn planned(accel: f64, lookahead: usize, segs: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
         let curve = NurbsCurve::line(2, &point(&[0.0, 0.0]), &point(&[1.0, 0.0])).unwrap();
-        let block = Arc::new(Block {
-            line: 1,
-            kind: BlockKind::Line,
-            curve,
-            feed_mm_per_min: None,
-        });
+        let block = Arc::new(Block::new(1, BlockKind::Line, curve, None));
         let mut planner = Planner::new(accel, lookahead);
         let mut out = Vec::new();
         for &(arc, feed, entry) in segs {

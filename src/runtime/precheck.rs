@@ -34,10 +34,13 @@ pub fn precheck(
     progress: &Progress,
 ) -> Result<Precheck, JobError> {
     progress.start(Phase::Checking, program.bytes);
-    let mut reader =
-        gcode::open_program_as(&program.path, &program.name, &config.machine.axes, |f| {
-            CountingReader::new(f, progress)
-        })?;
+    let mut reader = gcode::open_program_as(
+        &program.path,
+        &program.name,
+        &config.machine.axes,
+        gcode::ProgramOptions::from_config(config),
+        |f| CountingReader::new(f, progress),
+    )?;
     let mut blocks = 0;
     let mut end_steps = [0; MAX_AXES];
     let mut path_mm = 0.0;

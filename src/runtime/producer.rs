@@ -142,7 +142,13 @@ fn produce_inner(
     config: &Config,
     buffer: &LoopBuffer,
 ) -> Result<ProducerReport, ProducerError> {
-    let reader = gcode::open_program_as(&program.path, &program.name, &config.machine.axes, |f| f)?;
+    let reader = gcode::open_program_as(
+        &program.path,
+        &program.name,
+        &config.machine.axes,
+        gcode::ProgramOptions::from_config(config),
+        |f| f,
+    )?;
     let mut pre = Preprocessor::new(PlanSettings::from_config(config));
     let mut maker = BlockMaker::new(config, &program.name);
     let mut report = ProducerReport::default();

@@ -272,6 +272,14 @@ impl<R: Read> Read for CountingReader<'_, R> {
     }
 }
 
+/// Loops and calls seek back; progress shows the furthest point read.
+impl<R: std::io::Seek> std::io::Seek for CountingReader<'_, R> {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.read = self.inner.seek(pos)?;
+        Ok(self.read)
+    }
+}
+
 /// A copy in the temporary directory for one `edmd run`, removed when dropped.
 #[derive(Debug)]
 pub struct TempCopy(pub JobProgram);

@@ -4,7 +4,7 @@
 //! refused (it is no rational quadratic), as are start and end radii further apart than
 //! [`ARC_RADIUS_TOLERANCE_MM`] plus `1e-5` of the radius.
 
-use std::io::BufRead;
+use std::io::{BufRead, Seek};
 
 use super::{BlockReader, Fail, Letters, Step};
 use crate::gcode::error::GcodeErrorKind;
@@ -16,7 +16,7 @@ use crate::vocab::Axis;
 /// of the radius): CAM output rounded to 3 decimals in mm or 4 in inch stays inside.
 pub const ARC_RADIUS_TOLERANCE_MM: f64 = 0.002;
 const ARC_RADIUS_REL: f64 = 1e-5;
-impl<R: BufRead> BlockReader<R> {
+impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn arc_block(
         &mut self,
         ccw: bool,
@@ -112,8 +112,8 @@ impl<R: BufRead> BlockReader<R> {
             let va = off_a.map(|w| w.value * s);
             let vb = off_b.map(|w| w.value * s);
             if self.modal.arc_centre_absolute {
-                center[ia] = va.unwrap_or(start[ia]);
-                center[ib] = vb.unwrap_or(start[ib]);
+                center[ia] = va.map_or(start[ia], |v| v + self.offset[ia]);
+                center[ib] = vb.map_or(start[ib], |v| v + self.offset[ib]);
             } else {
                 center[ia] = start[ia] + va.unwrap_or(0.0);
                 center[ib] = start[ib] + vb.unwrap_or(0.0);
@@ -151,16 +151,16 @@ impl<R: BufRead> BlockReader<R> {
             .map_err(|e| Fail::from((col, e.into())))?;
         let radius = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
         self.position = end;
-        Ok(Some(Block {
-            line: line_no,
-            kind: BlockKind::Arc {
+        Ok(Some(self.block(
+            line_no,
+            BlockKind::Arc {
                 center,
                 radius,
                 sweep,
                 plane,
             },
             curve,
-            feed_mm_per_min: feed,
-        }))
+            feed,
+        )))
     }
 }

@@ -42,6 +42,23 @@ pub(super) enum GCode {
     /// G96/G97, spindle speed modes (group 14): meaningless on an EDM, accepted with a
     /// warning as `S` and `M3` are (LinuxCNC's NURBS examples start with `G96 M3 S200`).
     SpindleMode,
+    /// G4 P<seconds> (group 0).
+    Dwell,
+    /// G92 family (group 0).
+    Offset(OffsetCode),
+}
+
+/// The G92 family.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum OffsetCode {
+    /// G92: the current point gets the given coordinates.
+    Set,
+    /// G92.1: offsets cleared.
+    Clear,
+    /// G92.2: offsets suspended (kept for G92.3).
+    Suspend,
+    /// G92.3: suspended offsets restored.
+    Restore,
 }
 
 impl GCode {
@@ -56,6 +73,7 @@ impl GCode {
             GCode::Accepted(g) => g,
             GCode::Ignored { group, .. } => group,
             GCode::SpindleMode => 14,
+            GCode::Dwell | GCode::Offset(_) => 0,
         }
     }
 }
@@ -140,14 +158,22 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         433..=439 => return unsupported("tool length offsets"),
         930 => return unsupported("inverse time feed; use G94 (units per minute)"),
         950 => return unsupported("feed per revolution; use G94 (units per minute)"),
-        40 => return unsupported("dwell"),
+        40 => GCode::Dwell,
+        920 => GCode::Offset(OffsetCode::Set),
+        921 => GCode::Offset(OffsetCode::Clear),
+        922 => GCode::Offset(OffsetCode::Suspend),
+        923 => GCode::Offset(OffsetCode::Restore),
         50 | 51 => return unsupported("LinuxCNC splines; use the G5.2/G5.3 NURBS form"),
         60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
         70 | 80 => return unsupported("lathe modes"),
-        100 | 280 | 281 | 300 | 301 | 520 | 530 | 920..=923 | 550..=590 | 591..=593 => {
+        100 | 520 | 530 | 550..=590 | 591..=593 => {
             return unsupported(
-                "coordinate offsets and homing; edmd works in machine coordinates (G54)",
+                "work offsets other than G54 and G92; edmd works in machine coordinates (G54) \
+                 shifted by G92",
             );
+        }
+        280 | 281 | 300 | 301 => {
+            return unsupported("homing and reference points (G28/G30) need a homed machine");
         }
         330 | 331 | 760 => return unsupported("threading"),
         382..=385 => {

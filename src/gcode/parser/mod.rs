@@ -9,22 +9,26 @@
 
 mod arc;
 mod codes;
+mod control;
 mod modal;
 mod nurbs;
 
-use std::io::BufRead;
+use std::io::{BufRead, Seek};
 use std::sync::Arc;
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
-use super::lexer::{Word, lex};
+use super::expr::{Env, Params};
+use super::lexer::{Assign, Word, lex, program_number_of};
 use super::lines::{Line, LineSource, MAX_LINE_BYTES};
-use super::{Block, Plane};
+use super::{Block, Plane, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
+use control::Flow;
 use modal::Modal;
 use nurbs::PendingCurve;
 
 pub use arc::ARC_RADIUS_TOLERANCE_MM;
+pub use control::MAX_CALL_DEPTH;
 
 /// Most control points in one NURBS curve: a curve is held whole until it closes.
 pub const MAX_CURVE_POINTS: usize = 100_000;
@@ -81,6 +85,21 @@ impl<'w> Letters<'w> {
 /// Reads a program one block at a time. See the module docs of [`crate::gcode`].
 pub struct BlockReader<R> {
     lines: LineSource<R>,
+    options: ProgramOptions,
+    params: Params,
+    flow: Flow,
+    assigns: Vec<Assign>,
+    /// G92 offset, mm: machine position = program position + offset.
+    offset: Point,
+    /// The offset G92.2 suspended, for G92.3.
+    saved_offset: Option<Point>,
+    /// Byte offset where the line being read starts.
+    line_start: u64,
+    /// G4 dwell (s) and M0/M1 pause waiting for the next motion.
+    pending_dwell: f64,
+    pending_pause: Option<(u64, super::Pause)>,
+    /// M7/M8 on, M9 off.
+    flushing: bool,
     source_name: Arc<str>,
     axes: Vec<Axis>,
     modal: Modal,
@@ -102,12 +121,33 @@ pub struct BlockReader<R> {
     done: bool,
 }
 
-impl<R: BufRead> BlockReader<R> {
+impl<R: BufRead + Seek> BlockReader<R> {
     /// A reader for a machine with `axes`, starting at the machine origin, in G21 G90 G17 G94
     /// with no motion mode and no feed. `source_name` prefixes every error (`file:line:col`).
     pub fn new(reader: R, source_name: &str, axes: &[Axis]) -> Self {
+        Self::with_options(reader, source_name, axes, ProgramOptions::default())
+    }
+
+    /// [`BlockReader::new`] with the `[program]` options (block delete, optional stop, loop
+    /// limit).
+    pub fn with_options(
+        reader: R,
+        source_name: &str,
+        axes: &[Axis],
+        options: ProgramOptions,
+    ) -> Self {
         Self {
             lines: LineSource::new(reader),
+            options,
+            params: Params::default(),
+            flow: Flow::default(),
+            assigns: Vec::new(),
+            offset: Point::zeros(),
+            saved_offset: None,
+            line_start: 0,
+            pending_dwell: 0.0,
+            pending_pause: None,
+            flushing: false,
             source_name: source_name.into(),
             axes: axes.to_vec(),
             modal: Modal {
@@ -159,17 +199,25 @@ impl<R: BufRead> BlockReader<R> {
             col: fail.col,
             kind: fail.kind,
             text,
+            called_from: self.flow.call_lines(),
         }
+    }
+
+    /// What expressions read: the parameters and the interpreter's own values.
+    fn env(&self) -> ReaderEnv<'_, R> {
+        ReaderEnv { reader: self }
     }
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
+            self.line_start = self.lines.position().offset;
             let next = self.lines.next_line().map_err(|e| GcodeError {
                 source_name: self.source_name.clone(),
                 line: 0,
                 col: 0,
                 kind: GcodeErrorKind::Io(e),
                 text: String::new(),
+                called_from: None,
             })?;
             let Some((line_no, line)) = next else {
                 return self.finish().map(|()| None);
@@ -236,6 +284,11 @@ impl<R: BufRead> BlockReader<R> {
 
     fn finish(&mut self) -> Result<(), GcodeError> {
         self.done = true;
+        if self.ended_at.is_none()
+            && let Some(fail) = self.unclosed()
+        {
+            return Err(self.error(0, "", fail));
+        }
         if let Some(p) = &self.pending {
             let kind = GcodeErrorKind::NurbsUnterminated {
                 form: p.form.name(),
@@ -252,6 +305,7 @@ impl<R: BufRead> BlockReader<R> {
         if !self.saw_content {
             return Err(self.error(1, "", (1, GcodeErrorKind::EmptyProgram).into()));
         }
+        self.trailing_stops();
         if self.ended_at.is_none() && self.closed_at.is_none() {
             self.warnings.push(Warning {
                 line: 0,
@@ -269,40 +323,69 @@ impl<R: BufRead> BlockReader<R> {
         words: &mut Vec<Word>,
     ) -> Step<Option<Block>> {
         self.line_no = line_no;
-        let info = lex(text, words).map_err(Fail::from)?;
+        if self.flow.skip.is_some() && !self.skip_line(text)? {
+            return Ok(None);
+        }
+        let mut assigns = std::mem::take(&mut self.assigns);
+        let lexed = lex(text, words, &mut assigns, &self.env()).map_err(Fail::from);
+        let info = match lexed {
+            Ok(info) => info,
+            Err(e) => {
+                self.assigns = assigns;
+                return Err(e);
+            }
+        };
+        if info.block_delete.is_some() && self.options.block_delete {
+            self.assigns = assigns;
+            return Ok(None);
+        }
+        for a in assigns.drain(..) {
+            self.params.set(&a.target, a.value);
+        }
+        self.assigns = assigns;
+        if let Some((col, message)) = info.message {
+            self.warnings.push(Warning {
+                line: line_no,
+                col,
+                message: format!("message: {message}"),
+            });
+        }
+        if let Some(o) = info.oword {
+            self.saw_content = true;
+            if self.ended_at.is_some() || self.closed_at.is_some() {
+                return self.after_end(line_no, text, o.col);
+            }
+            if let Some(p) = &self.pending {
+                let by = format!("{} {}", o.label, o.keyword.name());
+                return Err((o.col, p.interrupted(by, p.close_hint())).into());
+            }
+            self.saw_block = true;
+            self.statement(text, o)?;
+            return Ok(None);
+        }
         if words.is_empty() && info.percent.is_none() {
             return Ok(None);
         }
         self.saw_content = true;
-        if let Some(end_line) = self.ended_at {
-            if words.is_empty() {
-                return Ok(None); // a closing `%`
-            }
-            self.warnings.push(Warning {
-                line: line_no,
-                col: words[0].col,
-                message: format!(
-                    "text after the program end (M2/M30 at line {end_line}) is ignored"
-                ),
-            });
-            self.done = true;
-            return Ok(None);
+        if self.ended_at.is_some() && words.is_empty() {
+            return Ok(None); // a closing `%`
         }
-        if let Some(closed) = self.closed_at {
-            // Like LinuxCNC and Fanuc: nothing after the closing `%` is read.
-            self.warnings.push(Warning {
-                line: line_no,
-                col: words.first().map_or(1, |w| w.col),
-                message: format!("text after the closing `%` (line {closed}) is ignored"),
-            });
-            self.done = true;
-            return Ok(None);
+        if self.ended_at.is_some() || self.closed_at.is_some() {
+            return self.after_end(line_no, text, words.first().map_or(1, |w| w.col));
         }
         if words.is_empty() {
             // A tape mark: the opening one before the first block, the closing one after.
             if self.saw_block {
                 self.closed_at = Some(line_no);
             }
+            return Ok(None);
+        }
+        if self.saw_block
+            && self.pending.is_none()
+            && let Some(n) = program_number_of(text)
+        {
+            // A Fanuc subprogram in the flow (the main program did not end before it).
+            self.fanuc_definition(n);
             return Ok(None);
         }
         self.saw_block = true;
@@ -314,6 +397,88 @@ impl<R: BufRead> BlockReader<R> {
             return self.continue_curve(&letters, words);
         }
         self.start_block(line_no, text, &letters, words)
+    }
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// A line after the program's end (M2/M30 or the closing `%`): ignored with a warning,
+    /// and reading stops, as LinuxCNC and Fanuc do. Subprograms there are found by their calls.
+    fn after_end(&mut self, line_no: u64, text: &str, col: usize) -> Step<Option<Block>> {
+        let message = match (self.ended_at, self.closed_at) {
+            (Some(end_line), _) => {
+                format!("text after the program end (M2/M30 at line {end_line}) is ignored")
+            }
+            (None, Some(closed)) => {
+                format!("text after the closing `%` (line {closed}) is ignored")
+            }
+            (None, None) => return Ok(None),
+        };
+        self.done = true;
+        if program_number_of(text).is_some() {
+            // Fanuc subprograms follow the main program's M30: not "ignored text".
+            return Ok(None);
+        }
+        self.warnings.push(Warning {
+            line: line_no,
+            col,
+            message,
+        });
+        Ok(None)
+    }
+}
+
+/// Parameters as expressions see them: the store, plus read-only system values as LinuxCNC
+/// names them (`#<_x>`…`#<_w>` and `#5420`…`#5428` the position in program units and
+/// coordinates, `#<_metric>`, `#<_imperial>`, `#<_absolute>`, `#<_incremental>`, `#<_feed>`).
+struct ReaderEnv<'a, R> {
+    reader: &'a BlockReader<R>,
+}
+
+const SYSTEM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
+
+impl<R> ReaderEnv<'_, R> {
+    /// Position on the axis `letter` in program units and coordinates (0 if not on the machine).
+    fn axis_position(&self, letter: char) -> f64 {
+        let r = self.reader;
+        let scale = if r.modal.inch { MM_PER_INCH } else { 1.0 };
+        r.axes
+            .iter()
+            .position(|a| a.letter() == letter)
+            .map_or(0.0, |i| (r.position[i] - r.offset[i]) / scale)
+    }
+}
+
+impl<R> Env for ReaderEnv<'_, R> {
+    fn numbered(&self, n: usize) -> f64 {
+        match n {
+            5420..=5428 => self.axis_position(SYSTEM_AXES[n - 5420]),
+            _ => self.reader.params.numbered(n),
+        }
+    }
+
+    fn named(&self, name: &str) -> Option<f64> {
+        let r = self.reader;
+        let truth = |b: bool| Some(if b { 1.0 } else { 0.0 });
+        match name {
+            "_metric" => truth(!r.modal.inch),
+            "_imperial" => truth(r.modal.inch),
+            "_absolute" => truth(!r.modal.incremental),
+            "_incremental" => truth(r.modal.incremental),
+            "_feed" => {
+                Some(r.modal.feed.unwrap_or(0.0) / if r.modal.inch { MM_PER_INCH } else { 1.0 })
+            }
+            "_line" => Some(r.line_no as f64),
+            _ => {
+                let mut chars = name.chars();
+                if let (Some('_'), Some(c), None) = (chars.next(), chars.next(), chars.next()) {
+                    let upper = c.to_ascii_uppercase();
+                    if SYSTEM_AXES.contains(&upper) {
+                        return Some(self.axis_position(upper));
+                    }
+                }
+                r.params.named(name)
+            }
+        }
     }
 }
 
@@ -385,7 +550,7 @@ fn non_ascii_outside_comments(line: &str) -> Option<usize> {
     None
 }
 
-impl<R: BufRead> Iterator for BlockReader<R> {
+impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {

@@ -3,14 +3,15 @@
 //! the modes edmd is always in), M and feed words, and `G0`/`G1` lines. Arcs go to
 //! [`super::arc`], NURBS curves to [`super::nurbs`].
 
-use std::io::BufRead;
+use std::io::{BufRead, Seek};
 
-use super::codes::{GCode, Motion, classify_g, g_code_tenths};
+use super::codes::{GCode, Motion, OffsetCode, classify_g, g_code_tenths};
 use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole};
 use crate::gcode::error::{GcodeErrorKind, Warning};
+use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Plane};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -25,7 +26,13 @@ pub(super) struct Modal {
     pub(super) feed: Option<f64>,
 }
 
-impl<R: BufRead> BlockReader<R> {
+/// LinuxCNC's G92 parameters: `#5210` (offset on), `#5211`… (per axis X Y Z A B C U V W).
+const G92_ENABLED: usize = 5210;
+const G92_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
+/// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
+const MAX_DWELL_S: f64 = 86_400.0;
+
+impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn start_block(
         &mut self,
         line_no: u64,
@@ -49,9 +56,46 @@ impl<R: BufRead> BlockReader<R> {
             codes.push((code, w));
         }
         let mut motion_word: Option<(GCode, &Word)> = None;
+        let mut offset_word: Option<(OffsetCode, &Word)> = None;
         let mut kept = *letters;
+        // M98 takes P (the subprogram) and L (the count).
+        let m98 = words.iter().find(|w| w.letter == 'M' && w.value == 98.0);
+        let m98 = match m98 {
+            Some(m) => {
+                let call = letters_p_l(letters, m)?;
+                kept = kept.without(&['P', 'L']);
+                Some((m.col, call))
+            }
+            None => None,
+        };
         for &(code, w) in &codes {
             match code {
+                GCode::Dwell => {
+                    let Some(p) = kept.get('P') else {
+                        return Err((
+                            w.col,
+                            GcodeErrorKind::MissingCoordinate {
+                                what: "G4 needs P, the dwell in seconds".into(),
+                            },
+                        )
+                            .into());
+                    };
+                    if !(0.0..=MAX_DWELL_S).contains(&p.value) {
+                        return Err((
+                            p.col,
+                            GcodeErrorKind::OutOfRange {
+                                what: "dwell P (s)",
+                                value: p.value,
+                                min: 0.0,
+                                max: MAX_DWELL_S,
+                            },
+                        )
+                            .into());
+                    }
+                    self.pending_dwell += p.value;
+                    kept = kept.without(&['P']);
+                }
+                GCode::Offset(o) => offset_word = Some((o, w)),
                 GCode::Inch(inch) => self.modal.inch = inch,
                 GCode::Incremental(inc) => self.modal.incremental = inc,
                 GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
@@ -82,6 +126,21 @@ impl<R: BufRead> BlockReader<R> {
                 }
             }
         }
+        if let Some((code, w)) = offset_word {
+            if let Some((_, m)) = motion_word {
+                return Err((
+                    m.col,
+                    GcodeErrorKind::ConflictingG {
+                        a: w.text.clone(),
+                        b: m.text.clone(),
+                    },
+                )
+                    .into());
+            }
+            self.coordinate_offset(code, w, &kept)?;
+            let axis_letters: Vec<char> = self.axes.iter().map(|a| a.letter()).collect();
+            kept = kept.without(&axis_letters);
+        }
         let letters = &kept;
         if let Some(o) = letters.get('O')
             && !matches!(motion_word, Some((GCode::Curve(NurbsForm::G38), _)))
@@ -102,24 +161,28 @@ impl<R: BufRead> BlockReader<R> {
                 .into());
         }
         let mut program_end = false;
+        let mut pause = None;
+        let mut m99 = None;
         for w in words.iter().filter(|w| w.letter == 'M') {
             let code = whole(w, 0.0, 9999.0)? as u32;
             match code {
                 2 | 30 => program_end = true,
-                3..=9 => self.warn_once(
+                0 => pause = Some(Pause::Program),
+                1 if self.options.optional_stop => pause = Some(Pause::Optional),
+                1 => self.warn_once_about(
+                    "M1 off",
+                    w.col,
+                    "M1 (optional stop) does not pause: program.optional_stop is off".into(),
+                ),
+                7 | 8 => self.flushing = true,
+                9 => self.flushing = false,
+                3..=6 => self.warn_once(
                     line_no,
                     w,
-                    "spindle, tool change and coolant words (M3-M9) do nothing on an EDM and are ignored",
+                    "spindle and tool change words (M3-M6) do nothing on an EDM and are ignored",
                 ),
-                0 | 1 | 60 => {
-                    return Err((
-                        w.col,
-                        GcodeErrorKind::UnknownM {
-                            code: format!("{} (program pause is not supported)", w.text),
-                        },
-                    )
-                        .into());
-                }
+                98 => {}
+                99 => m99 = Some(w.col),
                 _ => {
                     return Err((
                         w.col,
@@ -195,7 +258,93 @@ impl<R: BufRead> BlockReader<R> {
         if program_end {
             self.ended_at = Some(line_no);
         }
+        if let Some(p) = pause {
+            self.pending_pause = Some((line_no, p));
+        }
+        if let Some((col, (number, count))) = m98 {
+            self.call_fanuc(number, count, col)?;
+        }
+        if let Some(col) = m99 {
+            self.return_fanuc(col)?;
+        }
         Ok(block)
+    }
+
+    /// A motion block, taking the dwell and pause waiting for it.
+    pub(super) fn block(
+        &mut self,
+        line: u64,
+        kind: BlockKind,
+        curve: NurbsCurve,
+        feed: Option<f64>,
+    ) -> Block {
+        let mut block = Block::new(line, kind, curve, feed);
+        block.dwell_s = std::mem::take(&mut self.pending_dwell);
+        block.pause = self.pending_pause.take();
+        block.flushing = self.flushing;
+        block
+    }
+
+    /// A dwell or pause that no motion follows: said once, as it changes nothing.
+    pub(super) fn trailing_stops(&mut self) {
+        if self.pending_dwell > 0.0 || self.pending_pause.is_some() {
+            let line = self.pending_pause.map_or(self.line_no, |(l, _)| l);
+            self.warnings.push(Warning {
+                line,
+                col: 1,
+                message: "a dwell or stop after the last motion does nothing".into(),
+            });
+            self.pending_dwell = 0.0;
+            self.pending_pause = None;
+        }
+    }
+
+    /// G92, G92.1, G92.2, G92.3 (LinuxCNC's semantics; the offsets also go to `#5210`…).
+    fn coordinate_offset(&mut self, code: OffsetCode, w: &Word, letters: &Letters) -> Step<()> {
+        match code {
+            OffsetCode::Set => {
+                let mut any = false;
+                for (i, axis) in self.axes.iter().enumerate() {
+                    if let Some(v) = letters.get(axis.letter()) {
+                        self.offset[i] = self.position[i] - v.value * self.scale();
+                        any = true;
+                    }
+                }
+                if !any {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::MissingCoordinate {
+                            what: "G92 needs the axis words that name the current point".into(),
+                        },
+                    )
+                        .into());
+                }
+                self.saved_offset = None;
+            }
+            OffsetCode::Clear => {
+                self.offset = Point::zeros();
+                self.saved_offset = None;
+            }
+            OffsetCode::Suspend => {
+                self.saved_offset = Some(self.offset);
+                self.offset = Point::zeros();
+            }
+            OffsetCode::Restore => {
+                if let Some(saved) = self.saved_offset.take() {
+                    self.offset = saved;
+                }
+            }
+        }
+        let on = self.offset.iter().any(|&o| o != 0.0);
+        self.params
+            .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
+        for (i, axis) in self.axes.iter().enumerate() {
+            if let Some(k) = G92_AXES.iter().position(|&l| l == axis.letter()) {
+                let v = self.offset[i] / self.scale();
+                self.params.set(&ParamRef::Numbered(G92_ENABLED + 1 + k), v);
+            }
+        }
+        Ok(())
     }
 
     /// Whether a block in motion mode `m` moves: it has axis words, or, for an arc, a centre
@@ -320,7 +469,7 @@ impl<R: BufRead> BlockReader<R> {
                 p[i] = if self.modal.incremental {
                     base[i] + v
                 } else {
-                    v
+                    v + self.offset[i]
                 };
                 if p[i].abs() > MAX_COORD_MM {
                     return Err((
@@ -384,20 +533,35 @@ impl<R: BufRead> BlockReader<R> {
                 let curve = NurbsCurve::line(self.axes.len(), &self.position, &target)
                     .map_err(|e| Fail::from((col, e.into())))?;
                 self.position = target;
-                Ok(Some(Block {
-                    line: line_no,
-                    kind: if motion == Motion::Rapid {
-                        BlockKind::Rapid
-                    } else {
-                        BlockKind::Line
-                    },
-                    curve,
-                    feed_mm_per_min: feed,
-                }))
+                let kind = if motion == Motion::Rapid {
+                    BlockKind::Rapid
+                } else {
+                    BlockKind::Line
+                };
+                Ok(Some(self.block(line_no, kind, curve, feed)))
             }
             Motion::Cw | Motion::Ccw => {
                 self.arc_block(motion == Motion::Ccw, line_no, letters, col)
             }
         }
     }
+}
+
+/// M98's subprogram number (P) and count (L, default 1).
+fn letters_p_l(letters: &Letters, m: &Word) -> Step<(u32, u64)> {
+    let Some(p) = letters.get('P') else {
+        return Err((
+            m.col,
+            GcodeErrorKind::MissingCoordinate {
+                what: "M98 needs P, the subprogram number".into(),
+            },
+        )
+            .into());
+    };
+    let number = whole(p, 0.0, 99_999_999.0)? as u32;
+    let count = match letters.get('L') {
+        Some(l) => whole(l, 0.0, 1e9)? as u64,
+        None => 1,
+    };
+    Ok((number, count))
 }

@@ -12,7 +12,7 @@
 //! A curve in progress is a [`PendingCurve`]; anything else on its lines (another motion,
 //! an unknown word, a decreasing knot) is an error naming the line where the curve began.
 
-use std::io::BufRead;
+use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, classify_g, g_code_tenths};
 use super::{
@@ -60,9 +60,9 @@ impl PendingCurve {
             ));
         }
         GcodeErrorKind::NurbsInterrupted {
-            form: self.form.name(),
+            form: self.form,
             start_line: self.start_line,
-            by,
+            by: by.into(),
             hint,
         }
     }
@@ -76,7 +76,7 @@ impl PendingCurve {
     }
 }
 
-impl<R: BufRead> BlockReader<R> {
+impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn open_curve(
         &mut self,
         form: NurbsForm,
@@ -355,7 +355,7 @@ impl<R: BufRead> BlockReader<R> {
             return Err((
                 first_col(words),
                 GcodeErrorKind::NurbsInterrupted {
-                    form: "G38",
+                    form: NurbsForm::G38,
                     start_line: curve.start_line,
                     by: "a block without G38".into(),
                     hint: " (every control point line starts with G38)",
@@ -446,12 +446,12 @@ impl<R: BufRead> BlockReader<R> {
         .map_err(|e| at(e.into()))?;
         self.position = nurbs.end_point();
         self.modal.motion = None;
-        Ok(Block {
-            line: curve.start_line,
-            kind: BlockKind::Nurbs { form: curve.form },
-            curve: nurbs,
-            feed_mm_per_min: curve.feed,
-        })
+        Ok(self.block(
+            curve.start_line,
+            BlockKind::Nurbs { form: curve.form },
+            nurbs,
+            curve.feed,
+        ))
     }
 }
 

@@ -1,0 +1,650 @@
+//! Program flow: O-word subroutines and control structures, and Fanuc `M98`/`M99`
+//! subprograms, without ever holding the program in memory.
+//!
+//! The reader is a streaming interpreter. Every construct that goes back (a loop, a call, a
+//! return) **seeks** in the file to a line position it noted ([`Pos`]: byte offset and line
+//! number); every construct that goes forward over lines it must not execute (a false `if`, a
+//! subroutine body met in the main flow, a `break`) **skips**: it reads lines looking only at
+//! their O-word ([`super::super::lexer::oword_of`]), evaluating nothing. So memory holds the
+//! labels of subroutines (name → body position), the call stack and the loop stack, never the
+//! lines, and a program of any length loops in constant memory.
+//!
+//! A subroutine may be defined before or after its call, or after `M2`/`M30` (Fanuc programs
+//! put their subprograms there): a call to a label not seen yet scans ahead from the call,
+//! noting every definition it passes, and seeks back. `#1`…`#30` carry the call's arguments
+//! and are restored on return; named parameters without `_` are local to the call
+//! ([`super::super::expr::Params`]). `M98 P<n> L<k>` runs the subprogram `O<n>` (up to its
+//! `M99`) k times in the caller's scope, as Fanuc does.
+//!
+//! Guards: a loop that runs more than `max_loop_iterations` times is an error naming it, and
+//! calls nest at most [`MAX_CALL_DEPTH`] deep (a recursion that never ends). Because the flow
+//! depends only on the program's text and its parameters, replaying a program from its start
+//! reaches the same line in the same loop iteration and call: that is how a checkpoint inside
+//! a subroutine resumes (the interpreter state is rebuilt by the replay, never guessed).
+
+use std::collections::HashMap;
+use std::io::{BufRead, Seek};
+
+use super::{BlockReader, Fail, Step};
+use crate::gcode::error::GcodeErrorKind;
+use crate::gcode::expr::{self, ARGUMENTS, ParamRef, Scanner};
+use crate::gcode::lexer::{Keyword, Label, OWord, has_m99, oword_of, program_number_of};
+use crate::gcode::lines::{Line, Pos};
+
+/// Deepest nesting of subroutine calls.
+pub const MAX_CALL_DEPTH: usize = 64;
+
+/// How a subroutine was entered.
+#[derive(Debug, Clone)]
+pub(super) enum CallKind {
+    /// `o<name> call`: a new parameter scope, whose saved arguments are kept here.
+    OWord {
+        label: Label,
+        saved: Box<[f64; ARGUMENTS]>,
+    },
+    /// `M98 P<n> L<k>`: the caller's scope, `remaining` more runs of the body at `body`.
+    Fanuc { remaining: u64, body: Pos },
+}
+
+#[derive(Debug, Clone)]
+pub(super) struct Frame {
+    kind: CallKind,
+    return_to: Pos,
+    pub(super) call_line: u64,
+    loops: usize,
+    ifs: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum LoopKind {
+    /// `while` at the top: the `while` line, to evaluate again.
+    While {
+        at: Pos,
+    },
+    /// `do` … `while`: the first line of the body.
+    Do {
+        body: Pos,
+    },
+    Repeat {
+        body: Pos,
+        remaining: u64,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct Loop {
+    label: Label,
+    kind: LoopKind,
+    iterations: u64,
+    line: u64,
+}
+
+/// Why lines are being skipped, and what ends the skip.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Purpose {
+    /// A false `if`/`elseif`: the next `elseif`, `else` or `endif` of the label.
+    FalseIf,
+    /// A taken branch is done: the `endif`.
+    IfDone,
+    /// A subroutine body met in the main flow: its `endsub`.
+    SubBody,
+    /// `break` or a false `while`/`repeat`: the loop's end line, then on after it.
+    LoopExit,
+    /// `continue` in a `do` loop: its closing `while`, which is then evaluated.
+    DoContinue,
+    /// A Fanuc subprogram met in the main flow: its `M99`.
+    FanucBody,
+}
+
+#[derive(Debug, Clone)]
+pub(super) struct Skip {
+    label: Option<Label>,
+    purpose: Purpose,
+    /// The line that started the skip, for "never closed".
+    from_line: u64,
+    what: &'static str,
+}
+
+/// The flow state: labels seen, calls and loops in progress, the skip in progress.
+#[derive(Debug, Default, Clone)]
+pub(super) struct Flow {
+    subs: HashMap<Label, Pos>,
+    fanuc_subs: HashMap<u32, Pos>,
+    pub(super) frames: Vec<Frame>,
+    loops: Vec<Loop>,
+    ifs: Vec<(Label, u64)>,
+    pub(super) skip: Option<Skip>,
+    /// A `while` loop going round: its label and iterations so far.
+    reenter: Option<(Label, u64)>,
+}
+
+impl Flow {
+    /// Lines of the calls in progress, innermost first; `None` in the main program.
+    #[allow(clippy::box_collection)]
+    pub(super) fn call_lines(&self) -> Option<Box<Vec<u64>>> {
+        (!self.frames.is_empty())
+            .then(|| Box::new(self.frames.iter().rev().map(|f| f.call_line).collect()))
+    }
+}
+
+fn control(msg: String) -> GcodeErrorKind {
+    GcodeErrorKind::Control(msg)
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    fn seek(&mut self, pos: Pos) -> Step<()> {
+        self.lines
+            .seek(pos)
+            .map_err(|e| Fail::from((1, GcodeErrorKind::Io(e))))
+    }
+
+    fn start_skip(&mut self, label: Option<Label>, purpose: Purpose, what: &'static str) {
+        self.flow.skip = Some(Skip {
+            label,
+            purpose,
+            from_line: self.line_no,
+            what,
+        });
+    }
+
+    /// A line read while skipping: `true` if the skip ended on it and the line is to be
+    /// processed as usual (a `do` loop's closing `while`), `false` if it was consumed.
+    pub(super) fn skip_line(&mut self, text: &str) -> Step<bool> {
+        let Some(skip) = self.flow.skip.clone() else {
+            return Ok(true);
+        };
+        if skip.purpose == Purpose::FanucBody {
+            if has_m99(text) {
+                self.flow.skip = None;
+            }
+            return Ok(false);
+        }
+        let Some(o) = oword_of(text) else {
+            return Ok(false);
+        };
+        if Some(&o.label) != skip.label.as_ref() {
+            return Ok(false);
+        }
+        match (skip.purpose, o.keyword) {
+            (Purpose::FalseIf, Keyword::Elseif) if self.condition(text, &o)? => {
+                self.flow.ifs.push((o.label, self.line_no));
+                self.flow.skip = None;
+            }
+            (Purpose::FalseIf, Keyword::Else) => {
+                self.flow.ifs.push((o.label, self.line_no));
+                self.flow.skip = None;
+            }
+            (Purpose::FalseIf | Purpose::IfDone, Keyword::Endif)
+            | (Purpose::SubBody, Keyword::Endsub)
+            | (Purpose::LoopExit, Keyword::Endwhile | Keyword::Endrepeat | Keyword::While) => {
+                self.flow.skip = None;
+            }
+            (Purpose::DoContinue, Keyword::While) => {
+                self.flow.skip = None;
+                return Ok(true);
+            }
+            _ => {}
+        }
+        Ok(false)
+    }
+
+    /// The end of the file was reached inside a construct: it was never closed. (A program
+    /// that ends with M2/M30 inside one is fine: nothing after M2 runs.)
+    pub(super) fn unclosed(&self) -> Option<Fail> {
+        let open = |label: &Label, line: u64, what: &str| Fail {
+            col: 1,
+            kind: control(format!(
+                "{label} at line {line} is never closed: {what} expected before the end of the file"
+            )),
+            at: Some((line, String::new())),
+        };
+        if let Some(frame) = self.flow.frames.last() {
+            let what = match &frame.kind {
+                CallKind::OWord { label, .. } => format!("{label} endsub"),
+                CallKind::Fanuc { .. } => "M99".to_string(),
+            };
+            return Some(Fail {
+                col: 1,
+                kind: control(format!(
+                    "the subroutine called at line {} has no end: {what} expected",
+                    frame.call_line
+                )),
+                at: Some((frame.call_line, String::new())),
+            });
+        }
+        if let Some(l) = self.flow.loops.last() {
+            let what = match l.kind {
+                LoopKind::While { .. } => "endwhile",
+                LoopKind::Do { .. } => "while",
+                LoopKind::Repeat { .. } => "endrepeat",
+            };
+            return Some(open(&l.label, l.line, what));
+        }
+        if let Some((label, line)) = self.flow.ifs.last() {
+            return Some(open(label, *line, "endif"));
+        }
+        let skip = self.flow.skip.as_ref()?;
+        let label = skip
+            .label
+            .as_ref()
+            .map_or_else(|| "the subprogram".to_string(), |l| l.to_string());
+        Some(Fail {
+            col: 1,
+            kind: control(format!(
+                "{label} at line {} is never closed: {} expected",
+                skip.from_line, skip.what
+            )),
+            at: Some((skip.from_line, String::new())),
+        })
+    }
+
+    /// Values of `[…]` arguments after the keyword, as many as there are.
+    fn arguments(&self, text: &str, o: &OWord) -> Step<Vec<f64>> {
+        let mut sc = Scanner {
+            s: text,
+            pos: o.rest,
+            col: o.rest_col,
+        };
+        let env = self.env();
+        let mut args = Vec::new();
+        loop {
+            sc.skip_ws();
+            match sc.peek() {
+                None | Some('(' | ';') => return Ok(args),
+                Some('[') => args.push(expr::value(&mut sc, &env).map_err(Fail::from)?),
+                Some(c) => {
+                    return Err((
+                        sc.next_col(),
+                        GcodeErrorKind::UnexpectedChar {
+                            ch: c,
+                            hint: " (O-word arguments are bracketed: [value])",
+                        },
+                    )
+                        .into());
+                }
+            }
+        }
+    }
+
+    fn one_argument(&self, text: &str, o: &OWord, required: bool) -> Step<Option<f64>> {
+        let args = self.arguments(text, o)?;
+        match (args.len(), required) {
+            (0, true) => Err((
+                o.rest_col + 1,
+                control(format!("{} {} needs a [value]", o.label, o.keyword.name())),
+            )
+                .into()),
+            (0 | 1, _) => Ok(args.first().copied()),
+            _ => Err((
+                o.rest_col + 1,
+                control(format!(
+                    "{} {} takes one [value]",
+                    o.label,
+                    o.keyword.name()
+                )),
+            )
+                .into()),
+        }
+    }
+
+    fn condition(&self, text: &str, o: &OWord) -> Step<bool> {
+        Ok(self.one_argument(text, o, true)? != Some(0.0))
+    }
+
+    /// A loop's body is about to run for the `runs`-th time.
+    fn count_iteration(&self, label: &Label, runs: u64, line: u64) -> Step<()> {
+        if runs > self.options.max_loop_iterations {
+            return Err(Fail {
+                col: 1,
+                kind: GcodeErrorKind::LoopLimit {
+                    label: format!("the loop {label} at line {line}"),
+                    limit: self.options.max_loop_iterations,
+                },
+                at: None,
+            });
+        }
+        Ok(())
+    }
+
+    /// Executes an O-word statement met in the flow.
+    pub(super) fn statement(&mut self, text: &str, o: OWord) -> Step<()> {
+        let label = o.label.clone();
+        let shown = format!("{} {}", o.label, o.keyword.name());
+        let mismatch = |what: &str| -> Fail { (o.col, control(format!("{shown}: {what}"))).into() };
+        match o.keyword {
+            Keyword::Sub => {
+                if !self.flow.frames.is_empty() {
+                    return Err(mismatch("a subroutine cannot be defined inside another"));
+                }
+                let body = self.lines.position();
+                self.flow.subs.insert(label.clone(), body);
+                self.start_skip(Some(label), Purpose::SubBody, "endsub");
+            }
+            Keyword::Endsub | Keyword::Return => {
+                let value = self.one_argument(text, &o, false)?;
+                match self.flow.frames.last() {
+                    Some(Frame {
+                        kind: CallKind::OWord { label: l, .. },
+                        ..
+                    }) if *l == label => {}
+                    Some(_) => return Err(mismatch("not the subroutine that is running")),
+                    None => return Err(mismatch("not inside a call of this subroutine")),
+                }
+                if let Some(v) = value {
+                    self.params.set(&ParamRef::Named("_value".into()), v);
+                }
+                self.params.set(
+                    &ParamRef::Named("_value_returned".into()),
+                    if value.is_some() { 1.0 } else { 0.0 },
+                );
+                self.return_from_call()?;
+            }
+            Keyword::Call => {
+                let args = self.arguments(text, &o)?;
+                if args.len() > ARGUMENTS {
+                    return Err(mismatch("at most 30 arguments"));
+                }
+                let body = match self.flow.subs.get(&label) {
+                    Some(&p) => p,
+                    None => self.find_ahead(
+                        |reader| reader.flow.subs.get(&label).copied(),
+                        &label.to_string(),
+                        o.col,
+                    )?,
+                };
+                self.check_depth(o.col)?;
+                let saved = Box::new(self.params.enter(&args));
+                self.push_frame(CallKind::OWord { label, saved });
+                self.seek(body)?;
+            }
+            Keyword::If => {
+                if self.condition(text, &o)? {
+                    self.flow.ifs.push((label, self.line_no));
+                } else {
+                    self.start_skip(Some(label), Purpose::FalseIf, "elseif, else or endif");
+                }
+            }
+            Keyword::Elseif | Keyword::Else => {
+                if self.flow.ifs.last().map(|(l, _)| l) != Some(&label) {
+                    return Err(mismatch("without its if"));
+                }
+                self.flow.ifs.pop();
+                self.start_skip(Some(label), Purpose::IfDone, "endif");
+            }
+            Keyword::Endif => {
+                if self.flow.ifs.pop().map(|(l, _)| l) != Some(label) {
+                    return Err(mismatch("without its if"));
+                }
+            }
+            Keyword::While => {
+                let closes_do = matches!(
+                    self.flow.loops.last(),
+                    Some(Loop { label: l, kind: LoopKind::Do { .. }, .. }) if *l == label
+                );
+                let truth = self.condition(text, &o)?;
+                if closes_do {
+                    let top = self.flow.loops.last_mut().expect("checked above");
+                    if truth {
+                        top.iterations += 1;
+                        let (iterations, line) = (top.iterations, top.line);
+                        let LoopKind::Do { body } = top.kind else {
+                            unreachable!("checked above")
+                        };
+                        self.count_iteration(&label, iterations + 1, line)?;
+                        self.seek(body)?;
+                    } else {
+                        self.flow.loops.pop();
+                    }
+                    return Ok(());
+                }
+                let iterations = match self.flow.reenter.take() {
+                    Some((l, n)) if l == label => n + 1,
+                    _ => 0,
+                };
+                if truth {
+                    self.count_iteration(&label, iterations + 1, self.line_no)?;
+                    let at = Pos {
+                        offset: self.line_start,
+                        line: self.line_no,
+                    };
+                    self.flow.loops.push(Loop {
+                        label,
+                        kind: LoopKind::While { at },
+                        iterations,
+                        line: self.line_no,
+                    });
+                } else {
+                    self.start_skip(Some(label), Purpose::LoopExit, "endwhile");
+                }
+            }
+            Keyword::Do => {
+                let body = self.lines.position();
+                self.flow.loops.push(Loop {
+                    label,
+                    kind: LoopKind::Do { body },
+                    iterations: 0,
+                    line: self.line_no,
+                });
+            }
+            Keyword::Repeat => {
+                let n = self.one_argument(text, &o, true)?.unwrap_or(0.0).round();
+                if n < 1.0 {
+                    self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+                } else {
+                    self.count_iteration(&label, n as u64, self.line_no)?;
+                    let body = self.lines.position();
+                    self.flow.loops.push(Loop {
+                        label,
+                        kind: LoopKind::Repeat {
+                            body,
+                            remaining: n as u64,
+                        },
+                        iterations: 0,
+                        line: self.line_no,
+                    });
+                }
+            }
+            Keyword::Endwhile | Keyword::Endrepeat | Keyword::Continue => {
+                let Some(top) = self.current_loop(&label) else {
+                    return Err(mismatch("not inside this loop"));
+                };
+                match (o.keyword, top.kind) {
+                    (Keyword::Endwhile | Keyword::Continue, LoopKind::While { at }) => {
+                        let top = self.flow.loops.pop().expect("found above");
+                        self.flow.reenter = Some((label, top.iterations));
+                        self.seek(at)?;
+                    }
+                    (
+                        Keyword::Endrepeat | Keyword::Continue,
+                        LoopKind::Repeat { body, remaining },
+                    ) => {
+                        let top = self.flow.loops.last_mut().expect("found above");
+                        top.iterations += 1;
+                        if remaining > 1 {
+                            top.kind = LoopKind::Repeat {
+                                body,
+                                remaining: remaining - 1,
+                            };
+                            self.seek(body)?;
+                        } else {
+                            self.flow.loops.pop();
+                            if o.keyword == Keyword::Continue {
+                                self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+                            }
+                        }
+                    }
+                    (Keyword::Continue, LoopKind::Do { .. }) => {
+                        self.start_skip(Some(label), Purpose::DoContinue, "while");
+                    }
+                    _ => return Err(mismatch("does not close this kind of loop")),
+                }
+            }
+            Keyword::Break => {
+                let Some(top) = self.current_loop(&label) else {
+                    return Err(mismatch("not inside this loop"));
+                };
+                let what = match top.kind {
+                    LoopKind::While { .. } => "endwhile",
+                    LoopKind::Do { .. } => "while",
+                    LoopKind::Repeat { .. } => "endrepeat",
+                };
+                self.flow.loops.pop();
+                self.start_skip(Some(label), Purpose::LoopExit, what);
+            }
+        }
+        Ok(())
+    }
+
+    /// The innermost loop if it is `label`'s (a loop of the current call only).
+    fn current_loop(&self, label: &Label) -> Option<&Loop> {
+        let floor = self.flow.frames.last().map_or(0, |f| f.loops);
+        (self.flow.loops.len() > floor)
+            .then(|| self.flow.loops.last())
+            .flatten()
+            .filter(|l| l.label == *label)
+    }
+
+    fn check_depth(&self, col: usize) -> Step<()> {
+        if self.flow.frames.len() >= MAX_CALL_DEPTH {
+            return Err((
+                col,
+                GcodeErrorKind::CallDepth {
+                    limit: MAX_CALL_DEPTH,
+                },
+            )
+                .into());
+        }
+        Ok(())
+    }
+
+    fn push_frame(&mut self, kind: CallKind) {
+        let frame = Frame {
+            kind,
+            return_to: self.lines.position(),
+            call_line: self.line_no,
+            loops: self.flow.loops.len(),
+            ifs: self.flow.ifs.len(),
+        };
+        self.flow.frames.push(frame);
+    }
+
+    fn return_from_call(&mut self) -> Step<()> {
+        let frame = self.flow.frames.pop().expect("caller checked");
+        if let CallKind::OWord { saved, .. } = &frame.kind {
+            self.params.leave(saved);
+        }
+        self.flow.loops.truncate(frame.loops);
+        self.flow.ifs.truncate(frame.ifs);
+        self.seek(frame.return_to)
+    }
+
+    /// `M98 P<number> L<count>`.
+    pub(super) fn call_fanuc(&mut self, number: u32, count: u64, col: usize) -> Step<()> {
+        if count == 0 {
+            return Ok(());
+        }
+        let body = match self.flow.fanuc_subs.get(&number) {
+            Some(&p) => p,
+            None => self.find_ahead(
+                |reader| reader.flow.fanuc_subs.get(&number).copied(),
+                &format!("O{number}"),
+                col,
+            )?,
+        };
+        self.check_depth(col)?;
+        self.push_frame(CallKind::Fanuc {
+            remaining: count - 1,
+            body,
+        });
+        self.seek(body)
+    }
+
+    /// `M99`: the end of a Fanuc subprogram.
+    pub(super) fn return_fanuc(&mut self, col: usize) -> Step<()> {
+        match self.flow.frames.last_mut() {
+            Some(Frame {
+                kind: CallKind::Fanuc {
+                    remaining, body, ..
+                },
+                ..
+            }) => {
+                if *remaining > 0 {
+                    *remaining -= 1;
+                    let body = *body;
+                    return self.seek(body);
+                }
+                self.return_from_call()
+            }
+            Some(Frame {
+                kind: CallKind::OWord { label, .. },
+                ..
+            }) => Err((
+                col,
+                control(format!("M99 inside {label}: end it with endsub or return")),
+            )
+                .into()),
+            None => Err((
+                col,
+                control(
+                    "M99 outside a subprogram (in a main program it would repeat the program \
+                     forever): end the program with M2 or M30"
+                        .into(),
+                ),
+            )
+                .into()),
+        }
+    }
+
+    /// A Fanuc program number met in the flow after the first block: a subprogram's start.
+    /// Its body is noted and skipped up to its `M99`.
+    pub(super) fn fanuc_definition(&mut self, number: u32) {
+        let body = self.lines.position();
+        self.flow.fanuc_subs.insert(number, body);
+        self.start_skip(None, Purpose::FanucBody, "M99");
+    }
+
+    /// Reads ahead from here, noting every subroutine definition, until `found` knows the
+    /// body's position; then seeks back. The subroutine not being there is an error at `col`.
+    fn find_ahead(
+        &mut self,
+        found: impl Fn(&Self) -> Option<Pos>,
+        name: &str,
+        col: usize,
+    ) -> Step<Pos> {
+        let back = self.lines.position();
+        let line_no = self.line_no;
+        let io = |e| Fail::from((col, GcodeErrorKind::Io(e)));
+        let result = loop {
+            let Some((_, line)) = self.lines.next_line().map_err(io)? else {
+                break None;
+            };
+            let Line::Text(text) = line else { continue };
+            if let Some(OWord {
+                label,
+                keyword: Keyword::Sub,
+                ..
+            }) = oword_of(text)
+            {
+                let body = self.lines.position();
+                self.flow.subs.entry(label).or_insert(body);
+            } else if let Some(n) = program_number_of(text) {
+                let body = self.lines.position();
+                self.flow.fanuc_subs.entry(n).or_insert(body);
+            }
+            if let Some(pos) = found(self) {
+                break Some(pos);
+            }
+        };
+        self.seek(back)?;
+        self.line_no = line_no;
+        result.ok_or_else(|| {
+            Fail::from((
+                col,
+                GcodeErrorKind::SubroutineNotFound {
+                    label: name.to_string(),
+                    searched: String::new(),
+                },
+            ))
+        })
+    }
+}

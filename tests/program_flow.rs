@@ -1,0 +1,319 @@
+//! Parameters, expressions, O-word control, Fanuc subprograms, G92, dwell, stops, flushing and
+//! block delete, through the public reader: each program's path is checked point by point
+//! against the positions worked out by hand (or by a plain Rust loop doing what the program
+//! says), and each error by its `file:line:col` and wording.
+
+use std::io::Cursor;
+
+use edmd::gcode::{Block, BlockReader, GcodeError, Pause, ProgramOptions, Warning};
+use edmd::vocab::Axis;
+
+const XY: &[Axis] = &[Axis::X, Axis::Y];
+
+fn read_with(
+    program: &str,
+    options: ProgramOptions,
+) -> Result<(Vec<Block>, Vec<Warning>), GcodeError> {
+    let mut reader =
+        BlockReader::with_options(Cursor::new(program.as_bytes()), "t.ngc", XY, options);
+    let blocks = reader.by_ref().collect::<Result<Vec<_>, _>>()?;
+    Ok((blocks, reader.take_warnings()))
+}
+
+fn read(program: &str) -> (Vec<Block>, Vec<Warning>) {
+    read_with(program, ProgramOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn error(program: &str) -> String {
+    match read_with(program, ProgramOptions::default()) {
+        Ok(_) => panic!("the program should be refused:\n{program}"),
+        Err(e) => e.to_string().lines().next().unwrap_or("").to_string(),
+    }
+}
+
+/// Each block's end point and source line, rounded to 1 nm.
+fn ends(blocks: &[Block]) -> Vec<(u64, f64, f64)> {
+    let r = |v: f64| (v * 1e6).round() / 1e6;
+    blocks
+        .iter()
+        .map(|b| (b.line, r(b.end()[0]), r(b.end()[1])))
+        .collect()
+}
+
+#[test]
+fn subroutine_with_arguments_loops_and_branches() {
+    let program = "\
+#<step> = 2.5
+#1 = 0
+o<side> sub
+  G1 X[#1 * #<_step_scale>] Y#2 F120
+o<side> endsub
+#<_step_scale> = 1
+G0 X0 Y0
+o10 while [#1 LT 4]
+  #1 = [#1 + 1]
+  o20 if [#1 MOD 2 EQ 0]
+    o<side> call [#1 * #<step>] [1]
+  o20 elseif [#1 EQ 3]
+    G1 X0 Y[#1] F120
+  o20 else
+    G1 Y-1 F120
+  o20 endif
+o10 endwhile
+M2
+";
+    // The same program written as a Rust loop.
+    let mut expect = Vec::new();
+    let (mut x, mut y) = (0.0_f64, 0.0_f64);
+    for i in 1..=4 {
+        let (line, nx, ny) = if i % 2 == 0 {
+            (4, i as f64 * 2.5, 1.0)
+        } else if i == 3 {
+            (13, 0.0, 3.0)
+        } else {
+            (15, x, -1.0)
+        };
+        if (nx, ny) != (x, y) {
+            expect.push((line, nx, ny));
+        }
+        (x, y) = (nx, ny);
+    }
+    let (blocks, warnings) = read(program);
+    assert_eq!(ends(&blocks), expect);
+    assert!(warnings.is_empty(), "{warnings:?}");
+}
+
+#[test]
+fn repeat_do_while_break_continue_and_return_values() {
+    let program = "\
+G0 X0 Y0
+F60
+o1 repeat [3]
+  G91 G1 X1
+o1 endrepeat
+G90
+#5 = 0
+o2 do
+  #5 = [#5 + 1]
+  o3 if [#5 EQ 2]
+    o2 continue
+  o3 endif
+  o4 if [#5 EQ 4]
+    o2 break
+  o4 endif
+  G1 Y#5
+o2 while [#5 LT 10]
+o<twice> sub
+  o<twice> return [#1 * 2]
+o<twice> endsub
+o<twice> call [21]
+G1 X#<_value>
+M30
+";
+    let (blocks, _) = read(program);
+    assert_eq!(
+        ends(&blocks),
+        vec![
+            (4, 1.0, 0.0),
+            (4, 2.0, 0.0),
+            (4, 3.0, 0.0),
+            (16, 3.0, 1.0), // #5 = 1
+            (16, 3.0, 3.0), // #5 = 2 skipped by continue, 3 drawn, 4 breaks
+            (22, 42.0, 3.0),
+        ]
+    );
+}
+
+#[test]
+fn assignments_take_effect_after_the_line_and_locals_are_scoped() {
+    let program = "\
+#1 = 5 G0 X#1 Y0
+#<a> = 1
+o<s> sub
+  #<a> = 7
+  G0 Y#<a>
+o<s> endsub
+o<s> call
+G0 X#<a>
+M2
+";
+    let (blocks, _) = read(program);
+    // X#1 reads the old #1 (0): no move on line 1; the sub's #<a> is its own.
+    assert_eq!(ends(&blocks), vec![(5, 0.0, 7.0), (8, 1.0, 7.0)]);
+}
+
+#[test]
+fn fanuc_subprograms_after_m30_run_l_times_in_the_callers_scope() {
+    let program = "\
+%
+O0001 (main)
+G90 G0 X0 Y0
+#100 = 0.5
+M98 P2000 L3
+G90 G1 X10 F100
+M30
+O2000 (step)
+G91 G1 X#100 F100
+#100 = [#100 * 2]
+M99
+%
+";
+    let (blocks, warnings) = read(program);
+    assert_eq!(
+        ends(&blocks),
+        vec![(9, 0.5, 0.0), (9, 1.5, 0.0), (9, 3.5, 0.0), (6, 10.0, 0.0)]
+    );
+    assert!(
+        warnings.iter().all(|w| !w.message.contains("ignored")),
+        "a subprogram after M30 is not ignored text: {warnings:?}"
+    );
+}
+
+#[test]
+fn g92_family_shifts_the_program_origin() {
+    let program = "\
+G0 X5 Y5
+G92 X0 Y0
+G1 X1 Y0 F100
+#10 = #5211
+G92.2
+G1 X1 Y0
+G92.3
+G1 X2 Y#10
+G92.1
+G1 X0 Y0
+G20 G92 X1
+G21 G1 X0
+M2
+";
+    let (blocks, _) = read(program);
+    assert_eq!(
+        ends(&blocks),
+        vec![
+            (1, 5.0, 5.0),
+            (3, 6.0, 5.0),
+            (6, 1.0, 0.0),  // suspended: machine coordinates
+            (8, 7.0, 10.0), // restored; #5211 held the X offset, 5
+            (10, 0.0, 0.0),
+            (12, -25.4, 0.0), // X1 inch at the origin: program 0 is 25.4 mm to the left
+        ]
+    );
+}
+
+#[test]
+fn dwell_pause_flushing_and_block_delete() {
+    let program = "\
+G0 X0 Y0
+M8
+G4 P1.5
+G1 X1 F100
+M0
+G4 P0.25 G1 X2
+M9 M1
+/ G1 X9
+G1 X3
+M2
+";
+    let (blocks, _) = read(program);
+    assert_eq!(
+        ends(&blocks),
+        vec![(4, 1.0, 0.0), (6, 2.0, 0.0), (8, 9.0, 0.0), (9, 3.0, 0.0)]
+    );
+    assert_eq!(
+        (blocks[0].dwell_s, blocks[0].pause, blocks[0].flushing),
+        (1.5, None, true)
+    );
+    assert_eq!(blocks[1].dwell_s, 0.25);
+    assert_eq!(blocks[1].pause, Some((5, Pause::Program)));
+    assert_eq!(
+        (blocks[2].pause, blocks[2].flushing),
+        (None, false),
+        "M1 is off by default"
+    );
+
+    let options = ProgramOptions {
+        block_delete: true,
+        optional_stop: true,
+        ..ProgramOptions::default()
+    };
+    let (blocks, _) = read_with(program, options).unwrap();
+    assert_eq!(
+        ends(&blocks),
+        vec![(4, 1.0, 0.0), (6, 2.0, 0.0), (9, 3.0, 0.0)]
+    );
+    assert_eq!(blocks[2].pause, Some((7, Pause::Optional)));
+}
+
+#[test]
+fn messages_go_to_the_operator() {
+    let (_, warnings) = read("G0 X1 (MSG, thread the wire)\nM2\n");
+    assert_eq!(warnings[0].message, "message: thread the wire");
+    assert_eq!((warnings[0].line, warnings[0].col), (1, 7));
+}
+
+#[test]
+fn errors_name_the_line_and_the_calls() {
+    assert_eq!(
+        error("o<s> call [2]\nM2\no<s> sub\nG1 X[#1 / 0] F1\no<s> endsub\n"),
+        "t.ngc:4:9: expression: division by zero (in a subroutine called at line 1)"
+    );
+    assert_eq!(
+        error(
+            "o<a> sub\no<b> call\no<a> endsub\no<b> sub\nG1 X#<nope> F1\no<b> endsub\no<a> call\nM2\n"
+        ),
+        "t.ngc:5:5: parameter #<nope> is not set (in a subroutine called at line 2, from line 7)"
+    );
+    assert_eq!(
+        error("#1 = 0\no7 while [1]\n#1 = [#1 + 1]\no7 endwhile\n"),
+        "t.ngc:2:1: the loop O7 at line 2 ran more than 1000000 times (program.max_loop_iterations)"
+    );
+    assert_eq!(
+        error("G0 X1\no1 if [1]\nG0 X2\n"),
+        "t.ngc:2:1: O1 at line 2 is never closed: endif expected before the end of the file"
+    );
+    assert_eq!(
+        error("o<missing> call\nM2\n"),
+        "t.ngc:1:1: no subroutine o<missing> in the program"
+    );
+    assert!(error("G0 X1\nM99\n").starts_with("t.ngc:2:1: M99 outside a subprogram"));
+    assert!(error("o1 endif\n").contains("O1 endif: without its if"));
+    assert!(
+        error("o<r> sub\no<r> call\no<r> endsub\no<r> call\nM2\n")
+            .contains("nested deeper than 64")
+    );
+    assert_eq!(
+        error("G1 X#0 F1\n"),
+        "t.ngc:1:6: parameter number 0 out of range (1 to 5602)"
+    );
+    assert_eq!(
+        error("G4\n"),
+        "t.ngc:1:1: missing coordinate: G4 needs P, the dwell in seconds"
+    );
+    assert_eq!(
+        error("G92\n"),
+        "t.ngc:1:1: missing coordinate: G92 needs the axis words that name the current point"
+    );
+    let options = ProgramOptions {
+        max_loop_iterations: 10,
+        ..ProgramOptions::default()
+    };
+    let e = read_with("o1 repeat [11]\nG91 G1 X1 F1\no1 endrepeat\nM2\n", options).unwrap_err();
+    assert!(e.to_string().contains("more than 10 times"), "{e}");
+}
+
+/// A loop of a million iterations reads a file of a few lines: the reader seeks back and keeps
+/// no lines, so it finishes and holds nothing but its position.
+#[test]
+fn long_loops_stream_from_a_short_file() {
+    let program = "G0 X0 Y0\nF600\n#1 = 0\no1 while [#1 LT 200000]\n#1 = [#1 + 1]\nG1 X[#1 MOD 2]\no1 endwhile\nM2\n";
+    let reader = BlockReader::new(Cursor::new(program.as_bytes()), "t.ngc", XY);
+    let mut count = 0u64;
+    let mut last = 0.0;
+    for b in reader {
+        let b = b.unwrap();
+        assert_eq!(b.line, 6);
+        last = b.end()[0];
+        count += 1;
+    }
+    assert_eq!((count, last), (200_000, 0.0));
+}
