@@ -61,6 +61,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 u_end: f64::NAN,
                 flags: 0,
                 path_end_mm: 0.0,
+                dwell_s: 0.0,
             };
             at = end;
             b

@@ -67,6 +67,8 @@ pub struct StepBlock {
     /// Path length from the program's start to the move's end (mm, forward, chords summed):
     /// how far along the job this move ends, for progress and ETA.
     pub path_end_mm: f64,
+    /// `G4` dwell before the move, s (first move of its G-code block only).
+    pub dwell_s: f64,
 }
 
 impl StepBlock {
@@ -74,6 +76,10 @@ impl StepBlock {
     pub const LAST_OF_BLOCK: u8 = 1;
     /// Part of a rapid (G0).
     pub const RAPID: u8 = 2;
+    /// `M0`/`M1`: stop before this move and wait for the operator (first move of its block).
+    pub const PAUSE: u8 = 4;
+    /// Flushing is on (`M7`/`M8`) during this move.
+    pub const FLUSH: u8 = 8;
 
     /// An all-zero block (a placeholder for preallocated storage).
     pub const EMPTY: StepBlock = StepBlock {
@@ -88,6 +94,7 @@ impl StepBlock {
         u_end: f64::NAN,
         flags: 0,
         path_end_mm: 0.0,
+        dwell_s: 0.0,
     };
 
     /// Signed step count of each axis.

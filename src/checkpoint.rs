@@ -234,9 +234,9 @@ impl Checkpoint {
 pub fn motion_settings(keys: &KeyValues) -> KeyValues {
     keys.iter()
         .filter(|(k, _)| {
-            k.starts_with("machine.")
-                || k.starts_with("interpolation.")
-                || k.starts_with("program.")
+            ["machine.", "interpolation.", "program.", "compensation."]
+                .iter()
+                .any(|s| k.starts_with(s))
         })
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect()
@@ -293,6 +293,9 @@ pub fn motion_hash(config: &Config) -> String {
     };
     if config.program != default_program {
         text.push_str(&format!("\n{:?}", config.program));
+    }
+    if config.compensation.d_mm != [0.0] {
+        text.push_str(&format!("\n{:?}", config.compensation));
     }
     hex(&Sha256::digest(text.as_bytes()))
 }

@@ -87,6 +87,9 @@ pub enum ServoEvent {
     Alarm { at: PathPoint, depth: u64 },
     /// The last block is done.
     Done,
+    /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
+    /// the interpolator holds there.
+    Paused { at: PathPoint },
 }
 
 /// Counters kept by the servo.

@@ -221,10 +221,15 @@ fn moves(path: &Path) -> Vec<Vec<i8>> {
 
 /// The reference: the same program uninterrupted through `edmd run` (virtual time).
 fn uninterrupted(dir: &Path) -> Vec<Vec<i8>> {
+    uninterrupted_run(dir, PROGRAM)
+}
+
+/// The pulses of `edmd run` on `program` (in `dir/programs`), uninterrupted.
+fn uninterrupted_run(dir: &Path, program: &str) -> Vec<Vec<i8>> {
     let pulses = dir.join("reference.csv");
     let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
         .arg("run")
-        .arg(dir.join("programs").join(PROGRAM))
+        .arg(dir.join("programs").join(program))
         .args([
             "--set",
             "gap.kind=\"none\"",
@@ -1323,4 +1328,89 @@ fn daemon_log_has_entries(dir: &Path) -> bool {
                 .unwrap_or_default()
                 .contains(" INFO edmd::")
         })
+}
+
+/// A program whose motion comes from subroutine calls inside a loop, then a dwell and an `M0`.
+const LOOP_PROGRAM: &str = "\
+(edmd daemon test: subroutine calls in a loop, a dwell, a programmed stop)
+G21 G90 G17
+G0 X0 Y0
+F600
+o<leg> sub
+  G91 G1 X#1 Y#2
+  G90
+o<leg> endsub
+#<n> = 0
+o1 repeat [4]
+  #<n> = [#<n> + 1]
+  o<leg> call [#<n> * 0.5] [0]
+  o<leg> call [0] [#<n> * 0.5]
+  o<leg> call [#<n> * -0.25] [0]
+o1 endrepeat
+G4 P0.3
+G1 X0 Y10
+M0
+G1 X1 Y11
+M2
+";
+
+#[test]
+fn a_job_stopped_inside_a_subroutine_resumes_exactly_and_m0_pauses_it() {
+    let dir = scratch("loop-pause");
+    std::fs::write(dir.join("programs/loop.ngc"), LOOP_PROGRAM).unwrap();
+    let reference = uninterrupted_run(&dir, "loop.ngc");
+
+    // Stopped while the loop runs: the checkpoint's line is the subroutine's move.
+    let first = Daemon::start(&dir, &base_sets(&dir, "first.csv"), &[]);
+    first.ok(&["run", "loop.ngc"]);
+    first.wait_for("cutting in the loop", |s| {
+        is_moving(s) && position(s)[1] > 1000
+    });
+    first.signal(libc::SIGTERM);
+    assert_eq!(first.wait().0, 0);
+    let cp: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(cp["line"], 6, "stopped inside o<leg>: {cp}");
+    assert!(
+        ints(&cp["position_steps"])[1] < 5000,
+        "stopped too late: {cp}"
+    );
+
+    // Resumed by a new daemon: the replay rebuilds the loop count and the call, so the job
+    // goes on from the very step, then the M0 holds it before line 19.
+    let second = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
+    second.ok(&["resume"]);
+    let paused = second.wait_for("the M0 pause", |s| s["state"] == "paused");
+    assert_eq!(paused["job"]["paused_before_line"], 19, "{paused}");
+    assert_eq!(position(&paused), vec![0, 10000]);
+    let cp = second.wait_for("the pause's checkpoint", |s| {
+        s["checkpoint"]["reason"] == "hold"
+    });
+    assert_eq!(ints(&cp["checkpoint"]["position_steps"]), vec![0, 10000]);
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(
+        position(&second.status()),
+        vec![0, 10000],
+        "moved while paused"
+    );
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "status", "--socket"])
+        .arg(&second.socket)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("state:        paused"), "{text}");
+    assert!(text.contains("before line 19"), "{text}");
+    second.ok(&["resume"]);
+    let idle = second.wait_for("the end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), vec![1000, 11000]);
+
+    let mut joined = moves(&dir.join("first.csv"));
+    joined.extend(moves(&dir.join("second.csv")));
+    assert_eq!(joined.len(), reference.len());
+    assert!(joined == reference, "the pulse sequences differ");
+    second.signal(libc::SIGTERM);
+    assert_eq!(second.wait().0, 0);
 }

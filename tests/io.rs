@@ -585,6 +585,7 @@ fn fault_then_resume(
             tracer: None,
             recording: None,
             progress: None,
+            program_pauses: true,
         };
         let published = Arc::new(runtime::Published::new(64));
         runtime::run_job_with(

@@ -195,6 +195,13 @@ pub struct DaemonConfig {
     pub report_dir: Option<PathBuf>,
 }
 
+/// `[compensation]`: the wire offset registers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompensationConfig {
+    /// `d_mm[k]` is register `Dk` (mm); `d_mm[0]` is 0.
+    pub d_mm: Vec<f64>,
+}
+
 /// `[program]`: switches that change how a program reads.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProgramConfig {
@@ -227,6 +234,7 @@ pub struct Config {
     pub daemon: DaemonConfig,
     pub log: LogConfig,
     pub program: ProgramConfig,
+    pub compensation: CompensationConfig,
 }
 
 impl Default for Config {

@@ -23,6 +23,13 @@ pub(super) struct RawConfig {
     pub(super) daemon: RawDaemon,
     pub(super) log: RawLog,
     pub(super) program: RawProgram,
+    pub(super) compensation: RawCompensation,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawCompensation {
+    pub(super) d_mm: Vec<f64>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -95,6 +95,8 @@ impl ProgramOptions {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
             max_loop_iterations: p.max_loop_iterations,
+            d_mm: config.compensation.d_mm.clone(),
+            offset_tolerance_mm: config.interpolation.chord_tolerance_mm,
         }
     }
 }

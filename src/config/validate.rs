@@ -323,6 +323,28 @@ impl RawConfig {
                 format!("must be 1 to 1000000000, got {}", p.max_loop_iterations),
             ));
         }
+        let d_mm = self.compensation.d_mm;
+        if d_mm.first() != Some(&0.0) {
+            return Err((
+                "compensation.d_mm",
+                "must start with D0 = 0.0 (then D1, D2, …)".to_string(),
+            ));
+        }
+        if d_mm.len() > 100 {
+            return Err((
+                "compensation.d_mm",
+                format!("has {} registers; at most 100", d_mm.len()),
+            ));
+        }
+        for &d in &d_mm {
+            if !(0.0..=10.0).contains(&d) {
+                return Err((
+                    "compensation.d_mm",
+                    format!("{d} is not a wire offset: each must be 0 to 10 mm"),
+                ));
+            }
+        }
+        let compensation = CompensationConfig { d_mm };
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
@@ -341,6 +363,7 @@ impl RawConfig {
             daemon,
             log,
             program,
+            compensation,
         })
     }
 }

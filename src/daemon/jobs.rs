@@ -361,6 +361,7 @@ impl Core {
             tracer,
             recording: None,
             progress: None,
+            program_pauses: true,
         })
     }
 
@@ -394,6 +395,7 @@ impl Core {
                 return Err("the job is not held".to_string());
             }
             job.hold_checkpointed = false;
+            job.published.paused_line.store(0, Ordering::Relaxed);
             job.report_event("released");
             tracing::info!("resume: {} released", job.program.display());
             return Ok("resumed".to_string());

@@ -114,6 +114,9 @@ pub enum DaemonState {
     Holding,
     /// Held at a standstill.
     Held,
+    /// Held at a standstill by a programmed stop (`M0`, or `M1` with the optional stop on):
+    /// `resume` continues.
+    Paused,
     /// Braking to end the job (abort, SIGTERM).
     Stopping,
 }
@@ -126,6 +129,7 @@ impl DaemonState {
             DaemonState::Running => "running",
             DaemonState::Holding => "holding",
             DaemonState::Held => "held",
+            DaemonState::Paused => "paused",
             DaemonState::Stopping => "stopping",
         }
     }
@@ -223,6 +227,9 @@ pub struct JobStatus {
     pub eta_s: Option<f64>,
     /// That recent average forward feed (mm/min).
     pub recent_feed_mm_per_min: Option<f64>,
+    /// Held by a programmed stop (`M0`/`M1`) before this source line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paused_before_line: Option<u64>,
 }
 
 /// The checkpoint on disk, in short.
@@ -303,6 +310,12 @@ impl Status {
                 j.step,
                 if j.resumed { ", resumed" } else { "" }
             );
+            if let Some(line) = j.paused_before_line {
+                let _ = writeln!(
+                    t,
+                    "paused:       programmed stop (M0/M1) before line {line}; `edmd ctl resume` continues"
+                );
+            }
             let _ = writeln!(
                 t,
                 "position:     {} mm; servo {}, feed {:.2} mm/min",

@@ -17,7 +17,9 @@ impl Core {
                 if job.stop.load(Ordering::Relaxed) {
                     DaemonState::Stopping
                 } else if job.published.hold.load(Ordering::Relaxed) {
-                    if snap.still {
+                    if snap.still && job.published.paused_line.load(Ordering::Relaxed) != 0 {
+                        DaemonState::Paused
+                    } else if snap.still {
                         DaemonState::Held
                     } else {
                         DaemonState::Holding
@@ -70,6 +72,10 @@ impl Core {
                 path_total_mm: job.progress.total_mm(),
                 eta_s: job.progress.eta_s(),
                 recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
+                paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
+                    0 => None,
+                    line => Some(line),
+                },
             }
         });
         Status {

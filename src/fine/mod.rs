@@ -28,6 +28,14 @@
 //!
 //! The believed position (the pulse ledger) is updated with every step returned, so it always
 //! equals the sum of everything emitted.
+//!
+//! **Programmed stops.** A block may carry a `G4` dwell or an `M0`/`M1` pause for the point
+//! where it starts (the planner brings the path to a standstill there). The first time the
+//! interpolator enters such a block going forward it honours them: a dwell holds the electrode
+//! still for `round(dwell_s / dt)` ticks (the generator keeps sparking; the tick count is the
+//! clock, so virtual time dwells too), a pause holds it like the operator's hold and reports
+//! [`ServoEvent::Paused`], released by [`Interpolator::set_hold`]. Re-entering a block after a
+//! turn-back, or walking over it to a checkpoint, does not repeat them.
 
 pub mod bresenham;
 
@@ -98,6 +106,12 @@ pub struct Interpolator {
     phase: f64,
     /// Held by the operator: brake to a standstill under `a_T` and stay there.
     hold: bool,
+    /// Ticks of a `G4` dwell still to wait.
+    dwell_left: u64,
+    /// Blocks before this sequence number have had their stops honoured.
+    stops_from: u64,
+    /// A pause was met while fetching: reported by the tick that met it.
+    paused: bool,
     counters: FineCounters,
 }
 
@@ -139,6 +153,9 @@ impl Interpolator {
             dir: 1,
             phase: 0.0,
             hold: false,
+            dwell_left: 0,
+            stops_from: 0,
+            paused: false,
             counters: FineCounters::default(),
         }
     }
@@ -210,6 +227,10 @@ impl Interpolator {
         }
         self.servo.on_block();
         self.servo.on_forward(self.here());
+        // The first run honoured every stop up to here.
+        self.dwell_left = 0;
+        self.paused = false;
+        self.hold = false;
         Ok(())
     }
 
@@ -279,6 +300,16 @@ impl Interpolator {
                     return tick;
                 }
             }
+        }
+        if self.take_pause(&mut tick) {
+            return tick;
+        }
+        if self.dwell_left > 0 && self.servo.state() == ServoState::Forward {
+            // G4: the electrode stays where the dwell began while the gap sparks.
+            self.dwell_left -= 1;
+            self.speed = 0.0;
+            self.phase = 0.0;
+            return tick;
         }
         let here = self.here();
         tick.event = self.servo.on_gap(gap, here);
@@ -381,6 +412,11 @@ impl Interpolator {
         self.apply(tick);
         self.counters.events_forward += 1;
         let mut event = self.servo.on_forward(self.here());
+        if self.paused && event.is_none() {
+            // The step that finished the block before a programmed stop.
+            self.paused = false;
+            event = Some(ServoEvent::Paused { at: self.here() });
+        }
         if self.walk.at_end() {
             match self.fetch_forward(source) {
                 Fetch::Block => {
@@ -432,6 +468,16 @@ impl Interpolator {
             }
             self.counters.blocks_entered += 1;
             self.enter_block(false);
+            if self.block.seq >= self.stops_from {
+                self.stops_from = self.block.seq + 1;
+                if self.block.dwell_s > 0.0 {
+                    self.dwell_left += (self.block.dwell_s / self.settings.dt).round() as u64;
+                }
+                if self.block.flags & StepBlock::PAUSE != 0 {
+                    self.hold = true;
+                    self.paused = true;
+                }
+            }
             if self.walk.events() > 0 {
                 return Fetch::Block;
             }
@@ -453,6 +499,18 @@ impl Interpolator {
         } else {
             0.0
         };
+    }
+
+    /// Reports a pause met while fetching, if the tick has no other event to report.
+    fn take_pause(&mut self, tick: &mut Tick) -> bool {
+        if self.paused && tick.event.is_none() {
+            self.paused = false;
+            tick.event = Some(ServoEvent::Paused { at: self.here() });
+            self.speed = 0.0;
+            self.phase = 0.0;
+            return true;
+        }
+        false
     }
 
     #[inline]

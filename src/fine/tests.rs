@@ -39,6 +39,7 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
                 u_end: f64::NAN,
                 flags: 0,
                 path_end_mm: 0.0,
+                dwell_s: 0.0,
             }
         })
         .collect()
@@ -423,4 +424,89 @@ proptest! {
         }
         prop_assert_eq!(second.counters().pulses, rest);
     }
+}
+
+/// A dwell holds the electrode at its block's start for `dwell_s / dt` ticks; a pause holds it
+/// until released; neither repeats when a turn-back brings the block back.
+#[test]
+fn dwell_and_pause_hold_at_the_block_start_once() {
+    let mut blocks = chain(&[p2(0, 0), p2(40, 0), p2(80, 0), p2(120, 0)], 0.2);
+    blocks[1].dwell_s = 0.01; // 200 ticks at 50 µs
+    blocks[1].v_entry = 0.0;
+    blocks[0].v_exit = 0.0;
+    blocks[2].flags |= StepBlock::PAUSE;
+    blocks[2].v_entry = 0.0;
+    blocks[1].v_exit = 0.0;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let mut still_at_40 = 0u64;
+    let mut still_at_40_again = 0u64;
+    let mut paused_at = None;
+    let mut released = false;
+    let mut short_ticks = 0u64;
+    let mut min_x_after_short = i64::MAX;
+    let mut hold = false;
+    for t in 0..2_000_000u64 {
+        fine.set_hold(hold);
+        // A short just after the dwell takes the electrode back into block 0; the re-advance
+        // enters block 1 again.
+        if fine.position()[0] == 41 && short_ticks == 0 {
+            short_ticks = 1;
+        }
+        let gap = if (1..400).contains(&short_ticks) {
+            short_ticks += 1;
+            GapState::Short
+        } else {
+            GapState::Normal
+        };
+        let shorted = short_ticks > 0;
+        let tick = fine.tick(gap, &mut source);
+        if fine.position()[0] == 40 && !tick.moved() {
+            if shorted {
+                still_at_40_again += 1;
+            } else {
+                still_at_40 += 1;
+            }
+        }
+        if shorted {
+            min_x_after_short = min_x_after_short.min(fine.position()[0]);
+        }
+        if let Some(ServoEvent::Paused { at }) = tick.event {
+            assert!(paused_at.is_none(), "the pause is reported once");
+            assert_eq!(fine.position()[0], 80);
+            assert_eq!(at.seq, 2);
+            paused_at = Some(t);
+            hold = true;
+        }
+        if let Some(p) = paused_at
+            && !released
+        {
+            assert_eq!(fine.position()[0], 80, "held at the pause");
+            if t == p + 1000 {
+                assert!(fine.still());
+                hold = false;
+                released = true;
+            }
+        }
+        if fine.state().is_final() {
+            break;
+        }
+    }
+    assert_eq!(fine.state(), ServoState::Done);
+    assert_eq!(fine.position()[0], 120);
+    assert!(released);
+    // Passing 40 twice (back and forth) at servo speeds takes some 30 ticks; a dwell, 200.
+    assert!(
+        min_x_after_short < 40,
+        "the turn-back left block 1 ({min_x_after_short})"
+    );
+    assert!(
+        still_at_40_again < 100,
+        "the dwell was repeated: {still_at_40_again} ticks"
+    );
+    // 200 dwell ticks, plus the few ticks the arrival and departure take at creep speed.
+    assert!(
+        (200..230).contains(&still_at_40),
+        "still at the dwell point for {still_at_40} ticks"
+    );
 }

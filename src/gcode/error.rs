@@ -127,6 +127,8 @@ pub enum GcodeErrorKind {
     MathDomain { function: &'static str },
     #[error("{0}")]
     Control(String),
+    #[error("wire offset: {0}")]
+    WireOffset(String),
     #[error("{label} ran more than {limit} times (program.max_loop_iterations)")]
     LoopLimit { label: String, limit: u64 },
     #[error("subroutine calls nested deeper than {limit}")]
@@ -168,7 +170,10 @@ impl fmt::Display for GcodeError {
             "{}:{}:{}: {}",
             self.source_name, self.line, self.col, self.kind
         )?;
-        let chain = self.called_from.as_deref().map_or(&[][..], |v| v.as_slice());
+        let chain = self
+            .called_from
+            .as_deref()
+            .map_or(&[][..], |v| v.as_slice());
         if let Some((first, rest)) = chain.split_first() {
             write!(f, " (in a subroutine called at line {first}")?;
             const SHOWN: usize = 3;

@@ -152,8 +152,8 @@ impl BlockKind {
     }
 }
 
-/// The `[program]` options that change how a program reads.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The `[program]` options that change how a program reads, and the wire offsets.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProgramOptions {
     /// Lines starting with `/` are skipped (the block-delete switch is on).
     pub block_delete: bool,
@@ -161,6 +161,10 @@ pub struct ProgramOptions {
     pub optional_stop: bool,
     /// A loop that runs more often than this is an error (a runaway loop).
     pub max_loop_iterations: u64,
+    /// `D` registers for `G41`/`G42`, mm: `d_mm[k]` is `Dk` (`D0` is 0).
+    pub d_mm: Vec<f64>,
+    /// How far a NURBS curve's offset polyline may stray from the true offset, mm.
+    pub offset_tolerance_mm: f64,
 }
 
 impl Default for ProgramOptions {
@@ -170,6 +174,8 @@ impl Default for ProgramOptions {
             block_delete: false,
             optional_stop: false,
             max_loop_iterations: 1_000_000,
+            d_mm: vec![0.0],
+            offset_tolerance_mm: 0.001,
         }
     }
 }

@@ -100,6 +100,10 @@ impl Segmenter {
         let curve = &block.curve;
         let (u_min, u_max) = (curve.u_min(), curve.u_max());
         let feed = self.block_feed(block);
+        if block.dwell_s > 0.0 || block.pause.is_some() {
+            // A dwell or a programmed stop first: the move before it ends at a standstill.
+            self.prev_tangent = None;
+        }
         let mut lo = u_min;
         let mut corners = curve.corner_knots().chain(std::iter::once(u_max));
         while let Some(hi) = corners.next().filter(|_| lo < u_max) {

@@ -41,6 +41,9 @@ pub struct LoopSettings {
     pub rt_priority: u8,
     pub lock_memory: bool,
     pub cpu: Option<usize>,
+    /// A programmed stop (`M0`/`M1`) sets `Published::hold` (and `paused_line`) so that the
+    /// job waits for the operator; otherwise the interpolator's own hold is released at once.
+    pub program_pauses: bool,
 }
 
 impl LoopSettings {
@@ -52,6 +55,7 @@ impl LoopSettings {
             rt_priority: f.rt_priority,
             lock_memory: f.lock_memory,
             cpu: f.cpu,
+            program_pauses: false,
         }
     }
 }
@@ -94,6 +98,9 @@ pub struct Published {
     /// Set by the consumer's loop once the output was synced at the current standstill
     /// (cleared when motion resumes): a checkpoint written now agrees with the pulse record.
     pub output_synced: AtomicBool,
+    /// Source line of the move a programmed stop (`M0`/`M1`) holds before; 0 for none.
+    /// Set by the consumer's loop, cleared by whoever releases the hold.
+    pub paused_line: AtomicU64,
 }
 
 impl Published {
@@ -113,6 +120,7 @@ impl Published {
             stop: AtomicBool::new(false),
             finished: AtomicBool::new(false),
             output_synced: AtomicBool::new(false),
+            paused_line: AtomicU64::new(0),
         }
     }
 
@@ -505,6 +513,12 @@ where
             break;
         }
         sensor.observe(&tick.steps, tick.dir);
+        if let Some(ServoEvent::Paused { .. }) = tick.event
+            && settings.program_pauses
+        {
+            published.paused_line.store(fine.line(), Ordering::Relaxed);
+            published.hold.store(true, Ordering::Relaxed);
+        }
         if let Some(event) = tick.event
             && published
                 .events

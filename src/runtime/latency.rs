@@ -119,6 +119,7 @@ impl BlockSource for SquarePath {
             u_end: f64::NAN,
             flags: 0,
             path_end_mm: 0.0,
+            dwell_s: 0.0,
         };
         self.at = end;
         self.next_seq += 1;

@@ -116,6 +116,12 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
             at.seq
         ),
         ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+        ServoEvent::Paused { .. } => tracing::warn!(
+            edmd_event = "pause",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: programmed stop (M0/M1) before this line at t={t:.4} s"
+        ),
     }
 }
 
@@ -158,6 +164,7 @@ fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventR
                 ServoEvent::Starved { .. } => ("starved", None),
                 ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
                 ServoEvent::Done => ("done", None),
+                ServoEvent::Paused { .. } => ("pause", None),
             };
             recording.event(e.tick, e.line, kind, depth);
         }
@@ -209,6 +216,7 @@ pub fn run_job_until(
         tracer,
         recording: observers.recording,
         progress: observers.progress,
+        program_pauses: false,
     };
     run_job_io(program, config, &check, io, Some(stop))
 }
@@ -261,6 +269,7 @@ pub fn run_job_on(
         tracer,
         recording: None,
         progress: None,
+        program_pauses: false,
     };
     run_job_io(program, config, check, io, stop)
 }
@@ -298,6 +307,9 @@ pub struct JobIo {
     pub recording: Option<Arc<parking_lot::Mutex<Recording>>>,
     /// Hears the job's progress (`edmd run`'s bar or log line); the daemon reads `Published`.
     pub progress: Option<ProgressFn>,
+    /// `M0`/`M1` hold the job until the operator resumes it (the daemon); otherwise (`edmd
+    /// run`, which has no operator channel) they are logged and the job goes on.
+    pub program_pauses: bool,
 }
 
 /// A finished job: the summary, where the electrode stands, and the output and gap source
@@ -350,7 +362,7 @@ pub fn run_job_with(
         config.buffer.capacity,
         config.buffer.reserved,
     ));
-    let loop_settings = LoopSettings::from_config(config);
+    let mut loop_settings = LoopSettings::from_config(config);
     let tick = config.fine.tick;
     let JobIo {
         mut output,
@@ -358,7 +370,9 @@ pub fn run_job_with(
         tracer,
         recording,
         mut progress,
+        program_pauses,
     } = io;
+    loop_settings.program_pauses = program_pauses;
     let mut recorder = None;
     if recording.is_some() {
         let queue = Recorder::new(

@@ -71,6 +71,8 @@ pub struct BlockMaker {
     seq: u64,
     last_end: [i64; MAX_AXES],
     path_mm: f64,
+    /// The next segment is the first of its G-code block (it carries the block's stops).
+    first_of_block: bool,
 }
 
 impl BlockMaker {
@@ -82,6 +84,7 @@ impl BlockMaker {
             seq: 0,
             last_end: [0; MAX_AXES],
             path_mm: 0.0,
+            first_of_block: true,
         }
     }
 
@@ -102,6 +105,13 @@ impl BlockMaker {
         if segment.block.kind == BlockKind::Rapid {
             flags |= StepBlock::RAPID;
         }
+        if segment.block.flushing {
+            flags |= StepBlock::FLUSH;
+        }
+        let first = std::mem::replace(&mut self.first_of_block, segment.last_of_block);
+        if first && segment.block.pause.is_some() {
+            flags |= StepBlock::PAUSE;
+        }
         let block = StepBlock {
             seq: self.seq,
             start: self.last_end,
@@ -117,6 +127,7 @@ impl BlockMaker {
             },
             flags,
             path_end_mm: self.path_mm + segment.length,
+            dwell_s: if first { segment.block.dwell_s } else { 0.0 },
         };
         self.path_mm += segment.length;
         self.seq += 1;

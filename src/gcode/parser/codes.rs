@@ -44,6 +44,12 @@ pub(super) enum GCode {
     SpindleMode,
     /// G4 P<seconds> (group 0).
     Dwell,
+    /// G40 (group 7): wire offset off.
+    CompOff,
+    /// G41 (left) / G42 (right) with D (group 7).
+    Comp {
+        left: bool,
+    },
     /// G92 family (group 0).
     Offset(OffsetCode),
 }
@@ -74,6 +80,7 @@ impl GCode {
             GCode::Ignored { group, .. } => group,
             GCode::SpindleMode => 14,
             GCode::Dwell | GCode::Offset(_) => 0,
+            GCode::CompOff | GCode::Comp { .. } => 7,
         }
     }
 }
@@ -131,7 +138,9 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         170 => GCode::Plane(Plane::XY),
         180 => GCode::Plane(Plane::ZX),
         190 => GCode::Plane(Plane::YZ),
-        400 => GCode::Accepted(7),
+        400 => GCode::CompOff,
+        410 => GCode::Comp { left: true },
+        420 => GCode::Comp { left: false },
         490 => GCode::Accepted(8),
         540 => GCode::Accepted(12),
         610 | 611 => GCode::Accepted(13),
@@ -143,9 +152,10 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
                   interpolation.chord_tolerance_mm",
         },
         940 => GCode::Accepted(6),
-        410 | 411 | 420 | 421 => {
+        411 | 421 => {
             return unsupported(
-                "cutter compensation; post the program with the offset applied (G40)",
+                "dynamic compensation with a diameter word; use G41/G42 with a D register \
+                 (compensation.d_mm)",
             );
         }
         430..=432 => GCode::Ignored {

@@ -9,10 +9,12 @@
 
 mod arc;
 mod codes;
+mod comp;
 mod control;
 mod modal;
 mod nurbs;
 
+use std::collections::VecDeque;
 use std::io::{BufRead, Seek};
 use std::sync::Arc;
 
@@ -23,6 +25,7 @@ use super::lines::{Line, LineSource, MAX_LINE_BYTES};
 use super::{Block, Plane, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
+use comp::Compensator;
 use control::Flow;
 use modal::Modal;
 use nurbs::PendingCurve;
@@ -100,6 +103,9 @@ pub struct BlockReader<R> {
     pending_pause: Option<(u64, super::Pause)>,
     /// M7/M8 on, M9 off.
     flushing: bool,
+    /// G41/G42 wire offset, and the moves it has made final, waiting to be handed out.
+    comp: Compensator,
+    queue: VecDeque<Block>,
     source_name: Arc<str>,
     axes: Vec<Axis>,
     modal: Modal,
@@ -136,7 +142,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
         axes: &[Axis],
         options: ProgramOptions,
     ) -> Self {
+        let index = |a: Axis| axes.iter().position(|&x| x == a);
+        let plane = index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]);
         Self {
+            comp: Compensator::new(plane, options.offset_tolerance_mm),
+            queue: VecDeque::new(),
             lines: LineSource::new(reader),
             options,
             params: Params::default(),
@@ -210,6 +220,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
+            if let Some(block) = self.queue.pop_front() {
+                return Ok(Some(block));
+            }
+            if self.done {
+                return Ok(None);
+            }
             self.line_start = self.lines.position().offset;
             let next = self.lines.next_line().map_err(|e| GcodeError {
                 source_name: self.source_name.clone(),
@@ -220,7 +236,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 called_from: None,
             })?;
             let Some((line_no, line)) = next else {
-                return self.finish().map(|()| None);
+                self.finish()?;
+                continue;
             };
             let mut latin1_at = None;
             let text = match line {
@@ -274,16 +291,39 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let result = self.process_line(line_no, &text, &mut words);
             self.words = words;
             match result {
-                Ok(Some(block)) => return Ok(Some(block)),
-                Ok(None) if self.done => return self.finish().map(|()| None),
+                Ok(Some(block)) => {
+                    if let Err(e) = self.comp.push(block, &mut self.queue) {
+                        return Err(self.comp_error(e));
+                    }
+                }
+                Ok(None) if self.done => self.finish()?,
                 Ok(None) => {}
                 Err(fail) => return Err(self.error(line_no, &text, fail)),
             }
         }
     }
 
+    fn comp_error(&self, e: comp::CompError) -> GcodeError {
+        let fail = Fail {
+            col: 1,
+            kind: GcodeErrorKind::WireOffset(e.message),
+            at: Some((e.line, String::new())),
+        };
+        self.error(e.line, "", fail)
+    }
+
     fn finish(&mut self) -> Result<(), GcodeError> {
         self.done = true;
+        if self.comp.engaged() {
+            self.warnings.push(Warning {
+                line: self.line_no,
+                col: 1,
+                message: "the program ends with the wire offset on (no G40 exit move)".into(),
+            });
+        }
+        if let Err(e) = self.comp.finish(&mut self.queue) {
+            return Err(self.comp_error(e));
+        }
         if self.ended_at.is_none()
             && let Some(fail) = self.unclosed()
         {
@@ -554,7 +594,7 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.done {
+        if self.done && self.queue.is_empty() {
             return None;
         }
         match self.next_block() {

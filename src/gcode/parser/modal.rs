@@ -96,6 +96,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     kept = kept.without(&['P']);
                 }
                 GCode::Offset(o) => offset_word = Some((o, w)),
+                GCode::CompOff => self.comp.cancel(),
+                GCode::Comp { left } => {
+                    let d = self.wire_offset(w, kept.get('D'))?;
+                    kept = kept.without(&['D']);
+                    let plane = self.modal.plane;
+                    self.comp
+                        .start(left, d, plane)
+                        .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
+                }
                 GCode::Inch(inch) => self.modal.inch = inch,
                 GCode::Incremental(inc) => self.modal.incremental = inc,
                 GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
@@ -268,6 +277,31 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.return_fanuc(col)?;
         }
         Ok(block)
+    }
+
+    /// The offset `D` names for `G41`/`G42`.
+    fn wire_offset(&self, g: &Word, d: Option<&Word>) -> Step<f64> {
+        let Some(d) = d else {
+            return Err((
+                g.col,
+                GcodeErrorKind::WireOffset(format!(
+                    "G{} needs D, the offset register (compensation.d_mm)",
+                    g.text
+                )),
+            )
+                .into());
+        };
+        let registers = &self.options.d_mm;
+        let k = whole(d, 0.0, 99.0)? as usize;
+        registers.get(k).copied().ok_or_else(|| {
+            Fail::from((
+                d.col,
+                GcodeErrorKind::WireOffset(format!(
+                    "D{k} is not set: compensation.d_mm has D0 to D{}",
+                    registers.len() - 1
+                )),
+            ))
+        })
     }
 
     /// A motion block, taking the dwell and pause waiting for it.

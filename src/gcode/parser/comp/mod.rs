@@ -1,0 +1,483 @@
+//! Wire offset (`G41`/`G42` with `D`, `G40`): the programmed contour in, the path of the wire's
+//! centre out, in the XY plane (`G17`), streamed with one move of look-ahead.
+//!
+//! Each programmed move is offset by `d` to the left (`G41`) or right (`G42`) of its travel:
+//! a line stays a line, an arc keeps its centre with radius `r ∓ d`, and a NURBS curve, whose
+//! offset is no NURBS, becomes a polyline through points `p(u) ± d·n(u)` placed so that the
+//! true offset curve never leaves a chord by more than the tolerance (each chord is split
+//! until its midpoint and quarter points are within half the tolerance of it; the offset is
+//! smooth between the curve's corner knots, so a chord that passes at its probes passes
+//! between them to within the tolerance). Where two offset moves meet:
+//!
+//! - **convex corner** (the offset side is outside the turn): an arc of radius `d` about the
+//!   programmed corner joins them, so every point of it is exactly `d` from the contour (the
+//!   wire-EDM convention; a sharp corner would leave the corner's distance larger);
+//! - **concave corner**: both moves are trimmed at their intersection; none found (the offset
+//!   would cut into the part) is an error naming the line;
+//! - **tangent junction**: nothing to add.
+//!
+//! **Entry and exit** as LinuxCNC does them: the first move after `G41`/`G42` must be a straight
+//! move; it starts at the uncompensated point and ends offset perpendicular to itself at its
+//! end (then the corner with the next move is handled as above). The first move after `G40`
+//! starts offset perpendicular to itself at its start and ends at its programmed point.
+//!
+//! An arc whose offset radius would be 0 or less, or a curve whose radius of curvature on the
+//! offset side is smaller than `d`, cannot be cut: an error naming the line. So is a move of
+//! any axis outside the plane while the offset is on.
+
+mod prim;
+
+use std::collections::VecDeque;
+
+use crate::gcode::{Block, BlockKind, NurbsForm, Plane};
+use crate::geometry::{NurbsCurve, Point, circular_arc};
+use prim::{
+    MAX_DEPTH, Prim, SAME_MM, V2, add, cross, dot, join_prims, left, norm, scale, sub, unit,
+};
+
+/// The offset of one programmed move, with what its blocks carry.
+#[derive(Debug, Clone)]
+struct Piece {
+    prims: Vec<Prim>,
+    template: Block,
+}
+
+/// What went wrong, at which source line.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct CompError {
+    pub(super) line: u64,
+    pub(super) message: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    Off,
+    /// G41/G42 given: the next move is the entry.
+    Entry,
+    On,
+    /// G40 given while on: the next move is the exit.
+    Exit,
+}
+
+/// The wire-offset state of a reader.
+#[derive(Debug, Clone)]
+pub(super) struct Compensator {
+    phase: Phase,
+    /// +1 left (G41), -1 right (G42).
+    side: f64,
+    d: f64,
+    tolerance: f64,
+    /// Axis indices of X and Y.
+    plane: Option<[usize; 2]>,
+    /// The last offset move, held until the next one shows its corner.
+    pending: Option<Piece>,
+}
+
+impl Compensator {
+    pub(super) fn new(plane: Option<[usize; 2]>, tolerance: f64) -> Compensator {
+        Compensator {
+            phase: Phase::Off,
+            side: 1.0,
+            d: 0.0,
+            tolerance,
+            plane,
+            pending: None,
+        }
+    }
+
+    /// The offset is on, or about to be (a move is transformed rather than passed on).
+    pub(super) fn engaged(&self) -> bool {
+        self.phase != Phase::Off
+    }
+
+    /// `G41` (`left`) or `G42` with offset `d` (mm). Errors are messages for the G word.
+    pub(super) fn start(&mut self, left: bool, d: f64, plane: Plane) -> Result<(), String> {
+        if plane != Plane::XY {
+            return Err("the wire offset works in the XY plane (G17) only".into());
+        }
+        if self.plane.is_none() {
+            return Err("the wire offset needs axes X and Y on the machine".into());
+        }
+        match self.phase {
+            Phase::On | Phase::Exit => {
+                return Err("the wire offset is already on: cancel it with G40 first".into());
+            }
+            Phase::Off | Phase::Entry => {}
+        }
+        self.side = if left { 1.0 } else { -1.0 };
+        self.d = d;
+        self.phase = if d == 0.0 { Phase::Off } else { Phase::Entry };
+        Ok(())
+    }
+
+    /// `G40`.
+    pub(super) fn cancel(&mut self) {
+        self.phase = match self.phase {
+            Phase::Off | Phase::Entry => Phase::Off,
+            Phase::On | Phase::Exit => Phase::Exit,
+        };
+    }
+
+    /// Takes a programmed move; hands the offset moves that are final to `out`.
+    pub(super) fn push(
+        &mut self,
+        block: Block,
+        out: &mut VecDeque<Block>,
+    ) -> Result<(), CompError> {
+        let line = block.line;
+        let fail = |message: String| CompError { line, message };
+        if self.phase == Phase::Off {
+            out.push_back(block);
+            return Ok(());
+        }
+        let [ix, iy] = self.plane.expect("checked by start");
+        let (s, e) = (block.start(), block.end());
+        for i in 0..s.len() {
+            if i != ix && i != iy && (e[i] - s[i]).abs() > SAME_MM {
+                return Err(fail(
+                    "only X and Y may move while the wire offset is on (G41/G42)".into(),
+                ));
+            }
+        }
+        let p0 = (s[ix], s[iy]);
+        let p1 = (e[ix], e[iy]);
+        let straight = matches!(block.kind, BlockKind::Line | BlockKind::Rapid);
+        let sd = self.side * self.d;
+        match self.phase {
+            Phase::Entry => {
+                if !straight {
+                    return Err(fail(
+                        "the first move after G41/G42 (the entry) must be a straight move".into(),
+                    ));
+                }
+                let n = left(unit(sub(p1, p0)));
+                let piece = Piece {
+                    prims: vec![Prim::Line {
+                        a: p0,
+                        b: add(p1, scale(n, sd)),
+                    }],
+                    template: block,
+                };
+                self.pending = Some(piece);
+                self.phase = Phase::On;
+            }
+            Phase::On => {
+                let piece = self.offset(block).map_err(fail)?;
+                self.join(piece, out)?;
+            }
+            Phase::Exit => {
+                if !straight {
+                    return Err(fail(
+                        "the first move after G40 (the exit) must be a straight move".into(),
+                    ));
+                }
+                let n = left(unit(sub(p1, p0)));
+                let piece = Piece {
+                    prims: vec![Prim::Line {
+                        a: add(p0, scale(n, sd)),
+                        b: p1,
+                    }],
+                    template: block,
+                };
+                self.join(piece, out)?;
+                if let Some(last) = self.pending.take() {
+                    self.emit(last, out).map_err(|m| CompError {
+                        line: 0,
+                        message: m,
+                    })?;
+                }
+                self.phase = Phase::Off;
+            }
+            Phase::Off => unreachable!("handled above"),
+        }
+        Ok(())
+    }
+
+    /// At the end of the program: the held move goes out as it is.
+    pub(super) fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), CompError> {
+        if let Some(last) = self.pending.take() {
+            let line = last.template.line;
+            self.emit(last, out)
+                .map_err(|message| CompError { line, message })?;
+        }
+        self.phase = Phase::Off;
+        Ok(())
+    }
+
+    /// The offset of a programmed move (not the entry or exit).
+    fn offset(&self, block: Block) -> Result<Piece, String> {
+        let [ix, iy] = self.plane.expect("checked by start");
+        let sd = self.side * self.d;
+        let (s, e) = (block.start(), block.end());
+        let (p0, p1) = ((s[ix], s[iy]), (e[ix], e[iy]));
+        let prims = match &block.kind {
+            BlockKind::Line | BlockKind::Rapid => {
+                let n = scale(left(unit(sub(p1, p0))), sd);
+                vec![Prim::Line {
+                    a: add(p0, n),
+                    b: add(p1, n),
+                }]
+            }
+            BlockKind::Arc {
+                center,
+                radius,
+                sweep,
+                ..
+            } => {
+                let c = (center[ix], center[iy]);
+                // Left of a counter-clockwise arc is towards its centre.
+                let r = radius - sd * sweep.signum();
+                if r <= self.tolerance {
+                    return Err(format!(
+                        "the wire offset {} mm is not smaller than the arc's radius {radius} mm \
+                         on the inside of the turn: it cannot be cut",
+                        self.d
+                    ));
+                }
+                vec![Prim::Arc {
+                    c,
+                    r,
+                    a0: (p0.1 - c.1).atan2(p0.0 - c.0),
+                    sweep: *sweep,
+                }]
+            }
+            BlockKind::Nurbs { .. } => self.offset_curve(&block.curve)?,
+        };
+        Ok(Piece {
+            prims,
+            template: block,
+        })
+    }
+
+    /// A NURBS curve's offset as chords within the tolerance, piece by piece between corner
+    /// knots; the corners inside the curve are joined like corners between moves.
+    fn offset_curve(&self, curve: &NurbsCurve) -> Result<Vec<Prim>, String> {
+        let [ix, iy] = self.plane.expect("checked by start");
+        let sd = self.side * self.d;
+        let offset_at = |u: f64, from_left: bool| -> Result<V2, String> {
+            let d = if from_left {
+                curve.derivs_from_left(u)
+            } else {
+                curve.derivs(u)
+            };
+            let t = (d.d1[ix], d.d1[iy]);
+            let speed = norm(t);
+            if speed == 0.0 {
+                return Err(
+                    "the curve has a point without a direction: it cannot be offset".into(),
+                );
+            }
+            // Signed curvature: positive turning left.
+            let k = cross(t, (d.d2[ix], d.d2[iy])) / (speed * speed * speed);
+            if self.side * k > 0.0 && 1.0 / k.abs() < self.d {
+                return Err(format!(
+                    "the curve turns tighter (radius {:.4} mm) than the wire offset {} mm on its \
+                     inner side: it cannot be cut",
+                    1.0 / k.abs(),
+                    self.d
+                ));
+            }
+            let n = left(scale(t, 1.0 / speed));
+            Ok(add((d.point[ix], d.point[iy]), scale(n, sd)))
+        };
+        let mut bounds: Vec<f64> = vec![curve.u_min()];
+        bounds.extend(curve.corner_knots());
+        bounds.push(curve.u_max());
+        let mut pieces: Vec<(f64, Vec<Prim>)> = Vec::new();
+        for w in bounds.windows(2) {
+            let (u0, u1) = (w[0], w[1]);
+            if u1 <= u0 {
+                continue;
+            }
+            let mut prims = Vec::new();
+            let q0 = offset_at(u0, false)?;
+            let q1 = offset_at(u1, true)?;
+            self.chords(&offset_at, u0, q0, u1, q1, 0, &mut prims)?;
+            if !prims.is_empty() {
+                pieces.push((u0, prims));
+            }
+        }
+        let mut all: Vec<Prim> = Vec::new();
+        for (u0, prims) in pieces {
+            if all.is_empty() {
+                all = prims;
+                continue;
+            }
+            // A corner of the curve: joined as between two moves.
+            let p = curve.point(u0);
+            let corner_point = (p[ix], p[iy]);
+            let mut b = prims;
+            let extra = join_prims(&mut all, &mut b, corner_point, self.side, self.d)?;
+            all.extend(extra);
+            all.extend(b);
+        }
+        Ok(all)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn chords(
+        &self,
+        offset_at: &dyn Fn(f64, bool) -> Result<V2, String>,
+        u0: f64,
+        q0: V2,
+        u1: f64,
+        q1: V2,
+        depth: u32,
+        out: &mut Vec<Prim>,
+    ) -> Result<(), String> {
+        let um = 0.5 * (u0 + u1);
+        let qm = offset_at(um, false)?;
+        let probes = [0.25, 0.75].map(|f| u0 + f * (u1 - u0));
+        let chord = sub(q1, q0);
+        let len = norm(chord);
+        let off_chord = |q: V2| -> f64 {
+            if len == 0.0 {
+                norm(sub(q, q0))
+            } else {
+                let s = (dot(sub(q, q0), chord) / (len * len)).clamp(0.0, 1.0);
+                norm(sub(q, add(q0, scale(chord, s))))
+            }
+        };
+        let mut worst = off_chord(qm);
+        for &u in &probes {
+            worst = worst.max(off_chord(offset_at(u, false)?));
+        }
+        if depth < 4 || (worst > 0.5 * self.tolerance && depth < MAX_DEPTH) {
+            self.chords(offset_at, u0, q0, um, qm, depth + 1, out)?;
+            self.chords(offset_at, um, qm, u1, q1, depth + 1, out)?;
+            return Ok(());
+        }
+        if worst > 0.5 * self.tolerance {
+            return Err("the curve's offset could not be approximated within the tolerance".into());
+        }
+        if len > SAME_MM {
+            out.push(Prim::Line { a: q0, b: q1 });
+        }
+        Ok(())
+    }
+
+    /// Joins the held move and `next` at their corner, sends the held one out, holds `next`.
+    fn join(&mut self, mut next: Piece, out: &mut VecDeque<Block>) -> Result<(), CompError> {
+        let Some(mut prev) = self.pending.take() else {
+            self.pending = Some(next);
+            return Ok(());
+        };
+        let [ix, iy] = self.plane.expect("checked by start");
+        let corner = next.template.start();
+        let corner = (corner[ix], corner[iy]);
+        let extra = join_prims(&mut prev.prims, &mut next.prims, corner, self.side, self.d)
+            .map_err(|message| CompError {
+                line: next.template.line,
+                message,
+            })?;
+        let line = prev.template.line;
+        self.emit(prev, out)
+            .map_err(|message| CompError { line, message })?;
+        if !extra.is_empty() {
+            // The corner arc: a move of its own, on the next move's line, carrying its stops.
+            let mut template = next.template.clone();
+            template.kind = BlockKind::Arc {
+                center: Point::zeros(),
+                radius: self.d,
+                sweep: 0.0,
+                plane: Plane::XY,
+            };
+            next.template.dwell_s = 0.0;
+            next.template.pause = None;
+            let corner = Piece {
+                prims: extra,
+                template,
+            };
+            let line = corner.template.line;
+            self.emit(corner, out)
+                .map_err(|message| CompError { line, message })?;
+        }
+        self.pending = Some(next);
+        Ok(())
+    }
+
+    /// Turns a piece into blocks: one per line or arc; a NURBS offset's chords as one
+    /// polyline block.
+    fn emit(&self, piece: Piece, out: &mut VecDeque<Block>) -> Result<(), String> {
+        let [ix, iy] = self.plane.expect("checked by start");
+        let t = &piece.template;
+        let base = t.start();
+        let dim = t.curve.dim();
+        let point = |v: V2| {
+            let mut p = base;
+            p[ix] = v.0;
+            p[iy] = v.1;
+            p
+        };
+        let prims: Vec<Prim> = piece
+            .prims
+            .iter()
+            .copied()
+            .filter(|p| p.length() > SAME_MM)
+            .collect();
+        let mut first = true;
+        let mut push = |kind: BlockKind, curve: NurbsCurve| {
+            let mut b = Block::new(t.line, kind, curve, t.feed_mm_per_min);
+            b.flushing = t.flushing;
+            if std::mem::take(&mut first) {
+                b.dwell_s = t.dwell_s;
+                b.pause = t.pause;
+            }
+            out.push_back(b);
+        };
+        let polyline = matches!(t.kind, BlockKind::Nurbs { .. }) && prims.len() > 1;
+        if polyline {
+            let points: Vec<Point> = std::iter::once(point(prims[0].start()))
+                .chain(prims.iter().map(|p| point(p.end())))
+                .collect();
+            let n = points.len();
+            let mut knots = vec![0.0, 0.0];
+            knots.extend((1..n - 1).map(|i| i as f64));
+            knots.extend([(n - 1) as f64, (n - 1) as f64]);
+            let curve = NurbsCurve::new(1, dim, &points, &vec![1.0; n], knots)
+                .map_err(|e| e.to_string())?;
+            let form = match t.kind {
+                BlockKind::Nurbs { form } => form,
+                _ => NurbsForm::LinuxCnc,
+            };
+            push(BlockKind::Nurbs { form }, curve);
+            return Ok(());
+        }
+        for prim in prims {
+            match prim {
+                Prim::Line { a, b } => {
+                    let kind = if t.kind == BlockKind::Rapid {
+                        BlockKind::Rapid
+                    } else {
+                        BlockKind::Line
+                    };
+                    let curve =
+                        NurbsCurve::line(dim, &point(a), &point(b)).map_err(|e| e.to_string())?;
+                    push(kind, curve);
+                }
+                Prim::Arc { c, r, sweep, .. } => {
+                    let center = point(c);
+                    let curve = circular_arc(
+                        dim,
+                        [ix, iy],
+                        &center,
+                        &point(prim.start()),
+                        &point(prim.end()),
+                        sweep,
+                    )
+                    .map_err(|e| e.to_string())?;
+                    push(
+                        BlockKind::Arc {
+                            center,
+                            radius: r,
+                            sweep,
+                            plane: Plane::XY,
+                        },
+                        curve,
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,254 @@
+//! The offset path's primitives (segments and circular arcs) in the plane: evaluation,
+//! intersections, cutting, and the join of two offset paths at a programmed corner.
+
+/// Two closer than this (mm) are the same point.
+pub(super) const SAME_MM: f64 = 1e-9;
+/// How many primitives on each side of a concave corner are searched for the intersection.
+const TRIM_SEARCH: usize = 64;
+/// Deepest subdivision of a NURBS offset (2^30 chords at most per piece).
+pub(super) const MAX_DEPTH: u32 = 30;
+
+pub(super) type V2 = (f64, f64);
+
+pub(super) fn sub(a: V2, b: V2) -> V2 {
+    (a.0 - b.0, a.1 - b.1)
+}
+pub(super) fn add(a: V2, b: V2) -> V2 {
+    (a.0 + b.0, a.1 + b.1)
+}
+pub(super) fn scale(a: V2, k: f64) -> V2 {
+    (a.0 * k, a.1 * k)
+}
+pub(super) fn dot(a: V2, b: V2) -> f64 {
+    a.0 * b.0 + a.1 * b.1
+}
+pub(super) fn cross(a: V2, b: V2) -> f64 {
+    a.0 * b.1 - a.1 * b.0
+}
+pub(super) fn norm(a: V2) -> f64 {
+    a.0.hypot(a.1)
+}
+pub(super) fn unit(a: V2) -> V2 {
+    let n = norm(a);
+    if n > 0.0 {
+        scale(a, 1.0 / n)
+    } else {
+        (0.0, 0.0)
+    }
+}
+/// Left normal of a unit tangent.
+pub(super) fn left(t: V2) -> V2 {
+    (-t.1, t.0)
+}
+
+/// One primitive of an offset path: a segment or a circular arc.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Prim {
+    Line {
+        a: V2,
+        b: V2,
+    },
+    /// Centre, radius, start angle, signed sweep (positive counter-clockwise), radians.
+    Arc {
+        c: V2,
+        r: f64,
+        a0: f64,
+        sweep: f64,
+    },
+}
+
+impl Prim {
+    pub(super) fn at(&self, s: f64) -> V2 {
+        match *self {
+            Prim::Line { a, b } => add(a, scale(sub(b, a), s)),
+            Prim::Arc { c, r, a0, sweep } => {
+                let ang = a0 + sweep * s;
+                (c.0 + r * ang.cos(), c.1 + r * ang.sin())
+            }
+        }
+    }
+
+    pub(super) fn start(&self) -> V2 {
+        self.at(0.0)
+    }
+
+    pub(super) fn end(&self) -> V2 {
+        self.at(1.0)
+    }
+
+    /// Unit tangent at fraction `s`.
+    pub(super) fn tangent(&self, s: f64) -> V2 {
+        match *self {
+            Prim::Line { a, b } => unit(sub(b, a)),
+            Prim::Arc { a0, sweep, .. } => {
+                let ang = a0 + sweep * s;
+                let t = (-ang.sin(), ang.cos());
+                if sweep >= 0.0 { t } else { scale(t, -1.0) }
+            }
+        }
+    }
+
+    /// Fractions along `self` and `other` where they cross (within both).
+    fn intersections(&self, other: &Prim) -> Vec<(f64, f64)> {
+        const E: f64 = 1e-9;
+        let inside = |s: f64| (-E..=1.0 + E).contains(&s);
+        let mut found = Vec::new();
+        match (*self, *other) {
+            (Prim::Line { a, b }, Prim::Line { a: c, b: d }) => {
+                let (r, q) = (sub(b, a), sub(d, c));
+                let den = cross(r, q);
+                if den.abs() > 1e-15 {
+                    let s = cross(sub(c, a), q) / den;
+                    let t = cross(sub(c, a), r) / den;
+                    if inside(s) && inside(t) {
+                        found.push((s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)));
+                    }
+                }
+            }
+            (Prim::Line { .. }, Prim::Arc { .. }) => {
+                found = other
+                    .intersections(self)
+                    .into_iter()
+                    .map(|(t, s)| (s, t))
+                    .collect();
+            }
+            (Prim::Arc { c, r, .. }, Prim::Line { a, b }) => {
+                // |a + t (b - a) - c| = r
+                let d = sub(b, a);
+                let f = sub(a, c);
+                let (qa, qb, qc) = (dot(d, d), 2.0 * dot(f, d), dot(f, f) - r * r);
+                let disc = qb * qb - 4.0 * qa * qc;
+                if qa > 0.0 && disc >= -1e-12 {
+                    let root = disc.max(0.0).sqrt();
+                    for t in [(-qb - root) / (2.0 * qa), (-qb + root) / (2.0 * qa)] {
+                        if inside(t)
+                            && let Some(s) = self.fraction_of(add(a, scale(d, t)))
+                        {
+                            found.push((s, t.clamp(0.0, 1.0)));
+                        }
+                    }
+                }
+            }
+            (Prim::Arc { c: c1, r: r1, .. }, Prim::Arc { c: c2, r: r2, .. }) => {
+                let dv = sub(c2, c1);
+                let dist = norm(dv);
+                if dist > 1e-12 && dist <= r1 + r2 + 1e-9 && dist >= (r1 - r2).abs() - 1e-9 {
+                    let x = (dist * dist + r1 * r1 - r2 * r2) / (2.0 * dist);
+                    let h = (r1 * r1 - x * x).max(0.0).sqrt();
+                    let base = add(c1, scale(dv, x / dist));
+                    let off = scale(left(scale(dv, 1.0 / dist)), h);
+                    for p in [add(base, off), sub(base, off)] {
+                        if let (Some(s), Some(t)) = (self.fraction_of(p), other.fraction_of(p)) {
+                            found.push((s, t));
+                        }
+                    }
+                }
+            }
+        }
+        found
+    }
+
+    /// For an arc: the fraction of the sweep at which it passes through `p` (on its circle).
+    fn fraction_of(&self, p: V2) -> Option<f64> {
+        let Prim::Arc { c, a0, sweep, .. } = *self else {
+            return None;
+        };
+        let ang = (p.1 - c.1).atan2(p.0 - c.0);
+        let tau = std::f64::consts::TAU;
+        let along = if sweep >= 0.0 {
+            (ang - a0).rem_euclid(tau)
+        } else {
+            (a0 - ang).rem_euclid(tau)
+        };
+        let s = along / sweep.abs();
+        let e = 1e-9 / sweep.abs().max(1e-12);
+        if s <= 1.0 + e {
+            Some(s.min(1.0))
+        } else if (tau - along) / sweep.abs() <= e {
+            Some(0.0)
+        } else {
+            None
+        }
+    }
+
+    /// The part from fraction `from` to `to`.
+    fn cut(&self, from: f64, to: f64) -> Prim {
+        match *self {
+            Prim::Line { .. } => Prim::Line {
+                a: self.at(from),
+                b: self.at(to),
+            },
+            Prim::Arc { c, r, a0, sweep } => Prim::Arc {
+                c,
+                r,
+                a0: a0 + sweep * from,
+                sweep: sweep * (to - from),
+            },
+        }
+    }
+
+    pub(super) fn length(&self) -> f64 {
+        match *self {
+            Prim::Line { a, b } => norm(sub(b, a)),
+            Prim::Arc { r, sweep, .. } => r * sweep.abs(),
+        }
+    }
+}
+
+/// Joins two offset paths meeting at the programmed `corner`: trims both at their
+/// intersection (concave) or returns the arc about `corner` that links them (convex).
+pub(super) fn join_prims(
+    a: &mut Vec<Prim>,
+    b: &mut Vec<Prim>,
+    corner: V2,
+    side: f64,
+    d: f64,
+) -> Result<Vec<Prim>, String> {
+    let (ea, sb) = (a[a.len() - 1].end(), b[0].start());
+    if norm(sub(ea, sb)) <= 1e-7 {
+        // Tangent (or as good as): the offsets meet.
+        return Ok(Vec::new());
+    }
+    let (ta, tb) = (a[a.len() - 1].tangent(1.0), b[0].tangent(0.0));
+    let turn = cross(ta, tb);
+    let reverse = dot(ta, tb) < 0.0 && turn.abs() < 1e-9;
+    if side * turn < 0.0 || reverse {
+        // Convex: around the corner at distance d.
+        let (v1, v2) = (sub(ea, corner), sub(sb, corner));
+        let mut sweep = cross(v1, v2).atan2(dot(v1, v2));
+        if reverse || (sweep.abs() - std::f64::consts::PI).abs() < 1e-9 {
+            sweep = -side * std::f64::consts::PI;
+        }
+        return Ok(vec![Prim::Arc {
+            c: corner,
+            r: d,
+            a0: v1.1.atan2(v1.0),
+            sweep,
+        }]);
+    }
+    // Concave: the nearest crossing, searching back along `a` and forward along `b`.
+    let na = a.len();
+    for i in (na.saturating_sub(TRIM_SEARCH)..na).rev() {
+        for j in 0..b.len().min(TRIM_SEARCH) {
+            let hits = a[i].intersections(&b[j]);
+            if let Some(&(s, t)) = hits
+                .iter()
+                .max_by(|x, y| (x.0 - x.1).total_cmp(&(y.0 - y.1)))
+            {
+                a.truncate(i + 1);
+                a[i] = a[i].cut(0.0, s);
+                b.drain(..j);
+                b[0] = b[0].cut(t, 1.0);
+                // Meet exactly (the cut points agree to rounding).
+                if let Prim::Line { a: start, .. } = &mut b[0] {
+                    *start = a[i].end();
+                }
+                return Ok(Vec::new());
+            }
+        }
+    }
+    Err(format!(
+        "the wire offset of {d} mm cuts into the part at this corner (the offset paths do not \
+         meet): the offset is larger than the contour allows"
+    ))
+}
