@@ -90,6 +90,9 @@ pub enum ServoEvent {
     /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
     /// the interpolator holds there.
     Paused { at: PathPoint },
+    /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
+    /// consumer's thread loop, which tells the output).
+    Flushing { on: bool },
 }
 
 /// Counters kept by the servo.

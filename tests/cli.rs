@@ -457,3 +457,50 @@ fn plan_plots_rapids_dashed_z_on_its_own_and_the_legend_off_the_data() {
         "{z}"
     );
 }
+
+/// `edmd run` on a program with flushing, a dwell and a programmed stop: the log tells each,
+/// the dwell adds its time to the machine time, and the stop does not wait without an operator.
+#[test]
+fn run_logs_flushing_dwells_and_passes_programmed_stops() {
+    let dir = temp_dir("stops");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("stops.ngc");
+    let write = |dwell: &str| {
+        std::fs::write(
+            &program,
+            format!(
+                "G21 G90 G17\nG0 X0 Y0\nM8\nG1 X1 F600\n{dwell}\nG1 X2\nM0\nG1 X3\nM9\nG1 X4\nM2\n"
+            ),
+        )
+        .unwrap();
+        let out = edmd(&[
+            "run",
+            program.to_str().unwrap(),
+            "--set",
+            "gap.kind=\"none\"",
+            "--set",
+            "output.kind=\"null\"",
+            "--set",
+            "log.format=\"plain\"",
+        ]);
+        let (stdout, stderr) = text(&out);
+        assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+        let end: f64 = stderr
+            .lines()
+            .find_map(|l| l.split("program end at t=").nth(1))
+            .and_then(|t| t.trim_end_matches(" s").parse().ok())
+            .unwrap_or_else(|| panic!("no program end in {stderr}"));
+        (stderr, end)
+    };
+    let (log, with_dwell) = write("G4 P0.75");
+    assert!(log.contains("stops.ngc:4: flushing on"), "{log}");
+    assert!(log.contains("stops.ngc:10: flushing off"), "{log}");
+    assert!(
+        log.contains("stops.ngc:8: programmed stop (M0/M1) before this line")
+            && log.contains("not waiting"),
+        "{log}"
+    );
+    let (_, without) = write("");
+    let dwell = with_dwell - without;
+    assert!((dwell - 0.75).abs() < 0.01, "the dwell took {dwell} s");
+}

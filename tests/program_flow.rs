@@ -317,3 +317,24 @@ fn long_loops_stream_from_a_short_file() {
     }
     assert_eq!((count, last), (200_000, 0.0));
 }
+
+/// As LinuxCNC's `retval.ngc`: a `return` inside an `if` may carry the if's label; it returns
+/// from the subroutine that runs, with its value, and the if's state goes with the call.
+#[test]
+fn return_from_inside_an_if_with_the_ifs_label() {
+    let program = "\
+o1000 sub
+o1010 if [#1 GT 0]
+o1010    return [123 * #1]
+o1010 endif
+o1000 endsub [4712]
+F60
+o1000 call [0]
+G1 X#<_value>
+o1000 call [2]
+G1 X#<_value>
+M2
+";
+    let (blocks, _) = read(program);
+    assert_eq!(ends(&blocks), vec![(8, 4712.0, 0.0), (10, 246.0, 0.0)]);
+}

@@ -103,6 +103,7 @@ pub(super) struct RawParport {
     pub(super) step_pins: Vec<i64>,
     pub(super) dir_pins: Vec<i64>,
     pub(super) enable_pin: i64,
+    pub(super) flush_pin: i64,
     pub(super) invert_pins: Vec<i64>,
     pub(super) step_length_ns: i64,
     pub(super) step_space_ns: i64,

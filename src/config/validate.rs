@@ -409,6 +409,7 @@ impl RawParport {
             is_output_pin,
             OUTPUTS,
         )?;
+        let flush_pin = optional("parport.flush_pin", self.flush_pin, is_output_pin, OUTPUTS)?;
         let short_pin = optional("parport.short_pin", self.short_pin, is_input_pin, INPUTS)?;
         let open_pin = optional("parport.open_pin", self.open_pin, is_input_pin, INPUTS)?;
         let mut seen: Vec<(u8, &'static str)> = Vec::new();
@@ -417,6 +418,7 @@ impl RawParport {
             .map(|&p| (p, "parport.step_pins"))
             .chain(dir_pins.iter().map(|&p| (p, "parport.dir_pins")))
             .chain(enable_pin.map(|p| (p, "parport.enable_pin")))
+            .chain(flush_pin.map(|p| (p, "parport.flush_pin")))
             .chain(short_pin.map(|p| (p, "parport.short_pin")))
             .chain(open_pin.map(|p| (p, "parport.open_pin")));
         for (pin, key) in signals {
@@ -443,6 +445,7 @@ impl RawParport {
             step_pins,
             dir_pins,
             enable_pin,
+            flush_pin,
             invert_pins,
             step_length_ns: in_range(
                 "parport.step_length_ns",

@@ -56,6 +56,8 @@ pub struct ParportConfig {
     pub step_pins: Vec<u8>,
     pub dir_pins: Vec<u8>,
     pub enable_pin: Option<u8>,
+    /// Flushing output, active while the program's flushing is on (`M7`/`M8`).
+    pub flush_pin: Option<u8>,
     pub invert_pins: Vec<u8>,
     pub step_length_ns: u64,
     pub step_space_ns: u64,
@@ -245,6 +247,11 @@ impl<P: Port, C: Clock> PulseOutput for ParportOutput<P, C> {
         Ok(())
     }
 
+    fn moving_in(&mut self, flags: u8) {
+        self.encoder
+            .set_flush(flags & crate::buffer::StepBlock::FLUSH != 0);
+    }
+
     fn finish(&mut self) -> Result<(), OutputError> {
         let idle = self.encoder.map().idle();
         self.port
@@ -346,6 +353,7 @@ impl PinMap {
             step,
             dir,
             enable: p.enable_pin,
+            flush: p.flush_pin,
             inverted: p.invert_pins.iter().fold(0, |m, &pin| m | 1 << pin),
             short: p.short_pin,
             open: p.open_pin,

@@ -137,6 +137,8 @@ pub struct PinMap {
     pub step: [Pin; MAX_AXES],
     pub dir: [Pin; MAX_AXES],
     pub enable: Option<Pin>,
+    /// Flushing on (`M7`/`M8`) while active; inactive when idle.
+    pub flush: Option<Pin>,
     /// Bit `p` set: pin `p` is active low.
     pub inverted: u32,
     pub short: Option<Pin>,
@@ -162,7 +164,7 @@ impl PinMap {
             levels.set(self.step[axis], self.level(self.step[axis], false));
             levels.set(self.dir[axis], self.level(self.dir[axis], false));
         }
-        if let Some(pin) = self.enable {
+        for pin in [self.enable, self.flush].into_iter().flatten() {
             levels.set(pin, self.level(pin, false));
         }
         levels
@@ -205,6 +207,8 @@ impl StepTiming {
 /// edge means the step was taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
+    /// The flushing pin changes in a tick without steps.
+    Flush,
     Direction,
     StepEdge,
     StepRelease,
@@ -213,6 +217,7 @@ pub enum Phase {
 impl Phase {
     pub fn name(self) -> &'static str {
         match self {
+            Phase::Flush => "setting the flushing pin",
             Phase::Direction => "setting the direction pins",
             Phase::StepEdge => "raising the step pins",
             Phase::StepRelease => "releasing the step pins",
@@ -269,6 +274,8 @@ pub struct StepEncoder {
     levels: PinLevels,
     /// The direction each dir pin shows: 1 positive, -1 negative, 0 never driven.
     dir: [i8; MAX_AXES],
+    /// The flushing pin changed since the last write.
+    flush_changed: bool,
 }
 
 impl StepEncoder {
@@ -278,6 +285,18 @@ impl StepEncoder {
             map,
             timing,
             dir: [0; MAX_AXES],
+            flush_changed: false,
+        }
+    }
+
+    /// Flushing on or off from the next tick on (nothing without a flushing pin).
+    pub fn set_flush(&mut self, on: bool) {
+        if let Some(pin) = self.map.flush {
+            let level = self.map.level(pin, on);
+            if self.levels.is_high(pin) != level {
+                self.levels.set(pin, level);
+                self.flush_changed = true;
+            }
         }
     }
 
@@ -293,7 +312,15 @@ impl StepEncoder {
     /// The writes for a tick with these steps (-1, 0, 1 per axis); empty when nothing steps.
     pub fn tick(&mut self, steps: &[i8; MAX_AXES]) -> TickWrites {
         let mut out = TickWrites::default();
+        let flush_changed = std::mem::take(&mut self.flush_changed);
         if steps[..self.map.axes].iter().all(|&s| s == 0) {
+            if flush_changed {
+                out.push(TimedWrite {
+                    offset_ns: 0,
+                    levels: self.levels,
+                    phase: Phase::Flush,
+                });
+            }
             return out;
         }
         let mut levels = self.levels;
@@ -394,6 +421,7 @@ mod tests {
             step: [2, 4, 6, 8, 0, 0],
             dir: [3, 5, 7, 9, 0, 0],
             enable: Some(1),
+            flush: None,
             inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
             short: Some(10),
             open: Some(11),

@@ -22,6 +22,7 @@ fn stepconf_map(axes: usize, inverted: &[Pin]) -> PinMap {
         step: [2, 4, 6, 8, 0, 0],
         dir: [3, 5, 7, 9, 0, 0],
         enable: Some(14),
+        flush: None,
         inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
         short: Some(10),
         open: Some(11),
@@ -87,6 +88,41 @@ fn stepconf_pins_dir_before_step_high_then_low() {
         ]
     );
     check_waveform(&map, TIMING, &bench).unwrap();
+}
+
+/// The flushing pin (M7/M8) follows the move's flag, changes in a tick without steps too, and
+/// is inactive again when the port is let go.
+#[test]
+fn the_flushing_pin_follows_the_moves_and_idles_off() {
+    let mut map = stepconf_map(1, &[16]);
+    map.flush = Some(16); // C2, active low here
+    let bench = Bench::new();
+    let mut out = output(&bench, map.clone(), TIMING);
+    out.moving_in(crate::buffer::StepBlock::FLUSH);
+    bench.set_now(TICK_NS);
+    out.write(1, &[0; MAX_AXES], GapState::Normal).unwrap();
+    bench.set_now(2 * TICK_NS);
+    out.write(2, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
+    out.moving_in(0);
+    bench.set_now(3 * TICK_NS);
+    out.write(3, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
+    drop(out);
+    let wave = bench.waveform(map.idle());
+    let flushing = |t: u64| {
+        let levels = wave.iter().rev().find(|(at, _)| *at <= t).unwrap().1;
+        !levels.is_high(16)
+    };
+    assert!(!flushing(0), "off before the program asks");
+    assert!(flushing(TICK_NS), "on in a tick without steps");
+    assert!(
+        flushing(2 * TICK_NS + TIMING.dir_setup_ns),
+        "held through the steps"
+    );
+    assert!(!flushing(3 * TICK_NS + TIMING.dir_setup_ns), "off after M9");
+    assert!(
+        wave.last().unwrap().1.is_high(16),
+        "let go: inactive (active low: high)"
+    );
 }
 
 #[test]
@@ -188,6 +224,7 @@ fn arb_map() -> impl Strategy<Value = PinMap> {
                 step,
                 dir,
                 enable: enable.then_some(pins[8]),
+                flush: None,
                 inverted: invert_bits & 0x3_43fe,
                 short: None,
                 open: None,

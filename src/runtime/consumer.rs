@@ -24,7 +24,7 @@ use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
 use super::histogram::LatencyHistogram;
-use crate::buffer::BlockSource;
+use crate::buffer::{BlockSource, StepBlock};
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
@@ -494,6 +494,19 @@ where
         let tick = fine.tick(gap, source);
         let flags = fine.block().map_or(0, |b| b.flags);
         if flags != move_flags {
+            let flush = flags & StepBlock::FLUSH;
+            if flush != move_flags & StepBlock::FLUSH
+                && published
+                    .events
+                    .push(EventRecord {
+                        tick: tick_no,
+                        line: fine.line(),
+                        event: ServoEvent::Flushing { on: flush != 0 },
+                    })
+                    .is_err()
+            {
+                published.events_dropped.fetch_add(1, Ordering::Relaxed);
+            }
             move_flags = flags;
             output.moving_in(flags);
         }

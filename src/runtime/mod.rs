@@ -82,7 +82,8 @@ pub enum JobError {
 }
 
 /// Logs one servo event (from the main thread, never the consumer).
-fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
+/// `pauses`: a programmed stop holds the job (the daemon) rather than being passed (`edmd run`).
+fn log_event(program: &str, record: &EventRecord, tick: TickPeriod, pauses: bool) {
     let t = tick.ticks_to_secs(record.tick);
     let line = record.line;
     match record.event {
@@ -116,11 +117,23 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod) {
             at.seq
         ),
         ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+        ServoEvent::Flushing { on } => tracing::info!(
+            edmd_event = "flushing",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: flushing {} at t={t:.4} s",
+            if on { "on" } else { "off" }
+        ),
         ServoEvent::Paused { .. } => tracing::warn!(
             edmd_event = "pause",
             edmd_program = program,
             edmd_line = line,
-            "{program}:{line}: programmed stop (M0/M1) before this line at t={t:.4} s"
+            "{program}:{line}: programmed stop (M0/M1) before this line at t={t:.4} s: {}",
+            if pauses {
+                "paused until `edmd ctl resume`"
+            } else {
+                "not waiting (edmd run has no operator channel; edmd serve holds the job here)"
+            }
         ),
     }
 }
@@ -165,6 +178,8 @@ fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventR
                 ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
                 ServoEvent::Done => ("done", None),
                 ServoEvent::Paused { .. } => ("pause", None),
+                ServoEvent::Flushing { on: true } => ("flush_on", None),
+                ServoEvent::Flushing { on: false } => ("flush_off", None),
             };
             recording.event(e.tick, e.line, kind, depth);
         }
@@ -409,7 +424,7 @@ pub fn run_job_with(
         let drain = || {
             let mut events = Vec::new();
             while let Some(record) = published.events.pop() {
-                log_event(&name, &record, tick);
+                log_event(&name, &record, tick, program_pauses);
                 if recording.is_some() {
                     events.push(record);
                 }

@@ -323,10 +323,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Keyword::Endsub | Keyword::Return => {
                 let value = self.one_argument(text, &o, false)?;
                 match self.flow.frames.last() {
+                    // LinuxCNC lets `return` carry any label (its own `retval.ngc` returns
+                    // with the label of the `if` around it); `endsub` must name the sub.
                     Some(Frame {
                         kind: CallKind::OWord { label: l, .. },
                         ..
-                    }) if *l == label => {}
+                    }) if *l == label || o.keyword == Keyword::Return => {}
                     Some(_) => return Err(mismatch("not the subroutine that is running")),
                     None => return Err(mismatch("not inside a call of this subroutine")),
                 }
