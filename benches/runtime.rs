@@ -37,6 +37,7 @@ fn settings(feed: f64) -> FineSettings {
             retract: feed,
         },
         step_mm: [0.001; MAX_AXES],
+        max_short_ticks: 0,
     }
 }
 

@@ -83,13 +83,21 @@ pub enum ServoEvent {
     Resumed { at: PathPoint },
     /// The buffer ran dry.
     Starved { at: PathPoint },
-    /// Shorted after the whole reserved area.
-    Alarm { at: PathPoint, depth: u64 },
+    /// Shorted after the whole reserved area, or for longer than `servo.max_short_s`
+    /// (`timed_out`).
+    Alarm {
+        at: PathPoint,
+        depth: u64,
+        timed_out: bool,
+    },
     /// The last block is done.
     Done,
     /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
     /// the interpolator holds there.
     Paused { at: PathPoint },
+    /// The gap shorted during a rapid (`G0`): the electrode touched something while
+    /// positioning with the spark off. Motion stopped at `at`; the interpolator holds.
+    Collision { at: PathPoint },
     /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
     /// consumer's thread loop, which tells the output).
     Flushing { on: bool },
@@ -103,6 +111,8 @@ pub struct ServoCounters {
     pub deepest_turn_back_blocks: u64,
     pub alarms: u64,
     pub starvations: u64,
+    /// Shorts during rapids (collisions).
+    pub collisions: u64,
 }
 
 /// The state machine.
@@ -190,8 +200,31 @@ impl Servo {
             ServoEvent::Alarm {
                 at: here,
                 depth: self.depth,
+                timed_out: false,
             }
         })
+    }
+
+    /// The short has lasted `servo.max_short_s` while turning back.
+    pub fn on_short_timeout(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        (self.state == ServoState::TurnBack).then(|| {
+            self.state = ServoState::Alarm;
+            self.counters.alarms += 1;
+            ServoEvent::Alarm {
+                at: here,
+                depth: self.depth,
+                timed_out: true,
+            }
+        })
+    }
+
+    /// The operator released the hold an alarm caused (the gap was flushed): re-advance to
+    /// the point of the short; a short there turns back again, or alarms again.
+    pub fn release_alarm(&mut self) {
+        if self.state == ServoState::Alarm {
+            self.state = ServoState::ReAdvance;
+            self.depth = 0;
+        }
     }
 
     /// Forward motion found no block to execute.

@@ -206,6 +206,10 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
         self.inner.observe(steps, dir)
     }
+
+    fn moving_in(&mut self, flags: u8) {
+        self.inner.moving_in(flags)
+    }
 }
 
 #[cfg(test)]

@@ -504,3 +504,50 @@ fn run_logs_flushing_dwells_and_passes_programmed_stops() {
     let dwell = with_dwell - without;
     assert!((dwell - 0.75).abs() < 0.01, "the dwell took {dwell} s");
 }
+
+/// Rapids run at the machine's speed, not the servo's: `G0 X50` takes seconds, not the
+/// 50 s the servo's normal feed would. A short during one is a collision: `edmd run` has no
+/// operator to resume, so it stops there and exits 1 saying so.
+#[test]
+fn rapids_run_at_rapid_speed_and_a_short_in_one_is_a_collision() {
+    let dir = temp_dir("rapids");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("rapid.ngc");
+    std::fs::write(&program, "G21 G90\nG0 X50\nG1 X51 F60\nG0 X0\nM2\n").unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            program.to_str().unwrap(),
+            "--set",
+            "output.kind=\"null\"",
+            "--set",
+            "log.format=\"plain\"",
+        ];
+        args.extend_from_slice(extra);
+        let out = edmd(&args);
+        let (stdout, stderr) = text(&out);
+        (out.status.code(), stdout, stderr)
+    };
+    let (code, stdout, stderr) = run(&["--set", "sim.debris_shorts=0"]);
+    assert_eq!(code, Some(0), "{stdout}{stderr}");
+    let end: f64 = stderr
+        .lines()
+        .find_map(|l| l.split("program end at t=").nth(1))
+        .and_then(|t| t.trim_end_matches(" s").parse().ok())
+        .unwrap_or_else(|| panic!("no program end in {stderr}"));
+    // 100 mm of rapids at the one-step-per-tick cap (20 mm/s) and 1 mm cut at 1 mm/s.
+    assert!((5.9..6.2).contains(&end), "took {end} s");
+
+    // The gap shorts 1 s into the first rapid (tick 20000): a collision at X = 20 mm or so.
+    let script = dir.join("gap.txt");
+    std::fs::write(&script, "0 open\n20000 short\n").unwrap();
+    let script_set = format!("gap.script=\"{}\"", script.display());
+    let (code, stdout, stderr) = run(&["--set", "gap.kind=\"script\"", "--set", &script_set]);
+    assert_eq!(code, Some(1), "{stdout}{stderr}");
+    assert!(stderr.contains("rapid.ngc:2: COLLISION"), "{stderr}");
+    assert!(stdout.contains("rapid.ngc: collision"), "{stdout}");
+    assert!(
+        stdout.contains("0 shorts, 0 turn-backs"),
+        "no turn-back in a rapid: {stdout}"
+    );
+}

@@ -1414,3 +1414,91 @@ fn a_job_stopped_inside_a_subroutine_resumes_exactly_and_m0_pauses_it() {
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
 }
+
+/// A short that outlasts `servo.max_short_s` holds the job instead of ending it: a hold
+/// checkpoint, the alarm in the log; once the gap is clear `resume` re-advances and the job
+/// ends exactly on the program's end point.
+#[test]
+fn a_long_short_holds_the_job_and_resume_finishes_it() {
+    let dir = scratch("long-short");
+    // Shorted from 0.5 s to 3 s of the job's time (ticks of 50 µs).
+    std::fs::write(dir.join("gap.txt"), "0 normal\n10000 short\n60000 normal\n").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.retain(|s| !s.starts_with("gap.kind"));
+    sets.push("gap.kind=\"script\"".into());
+    sets.push(format!("gap.script=\"{}\"", dir.join("gap.txt").display()));
+    sets.push("servo.max_short_s=0.5".into());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", PROGRAM]);
+    let held = daemon.wait_for("the alarm's hold", |s| {
+        s["state"] == "held" && s["job"]["servo"] == "alarm"
+    });
+    assert_eq!(held["job"]["alarms"], 1, "{held}");
+    let cp = daemon.wait_for("the hold checkpoint", |s| {
+        s["checkpoint"]["reason"] == "hold"
+    });
+    assert_eq!(ints(&cp["checkpoint"]["position_steps"]), position(&held));
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !daemon
+        .log()
+        .contains("the short outlasted servo.max_short_s")
+    {
+        assert!(Instant::now() < deadline, "{}", daemon.log());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Wait for the script's short to be over (3 s of job time), then resume.
+    daemon.wait_for("the gap to clear", |s| {
+        s["job"]["ticks"].as_u64().unwrap_or(0) > 62_000
+    });
+    daemon.ok(&["resume"]);
+    let idle = daemon.wait_for("the end", |s| s["state"] == "idle");
+    assert_eq!(
+        idle["last_job"]["outcome"],
+        "done",
+        "{idle}\n{}",
+        daemon.log()
+    );
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}
+
+/// A short during a rapid holds the daemon's job (a collision: no turn-back), and `resume`
+/// carries on to the end once the contact is gone.
+#[test]
+fn a_collision_in_a_rapid_holds_the_job() {
+    let dir = scratch("collision");
+    std::fs::write(
+        dir.join("programs/rapid.ngc"),
+        "G21 G90\nG0 X20\nG1 X20.5 F60\nG0 X0\nM2\n",
+    )
+    .unwrap();
+    // Contact 0.25 s into the first rapid, for 1 s.
+    std::fs::write(dir.join("gap.txt"), "0 normal\n5000 short\n25000 normal\n").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.retain(|s| !s.starts_with("gap.kind"));
+    sets.push("gap.kind=\"script\"".into());
+    sets.push(format!("gap.script=\"{}\"", dir.join("gap.txt").display()));
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", "rapid.ngc"]);
+    let held = daemon.wait_for("the collision's hold", |s| s["state"] == "held");
+    assert_eq!(held["job"]["collisions"], 1, "{held}");
+    assert_eq!(held["job"]["shorts"], 0, "no turn-back: {held}");
+    let x = position(&held)[0];
+    assert!((4000..6000).contains(&x), "stopped at {x} steps");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !daemon.log().contains("COLLISION") {
+        assert!(Instant::now() < deadline, "{}", daemon.log());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    daemon.wait_for("the contact to clear", |s| {
+        s["job"]["ticks"].as_u64().unwrap_or(0) > 26_000
+    });
+    assert_eq!(position(&daemon.status())[0], x, "moved while held");
+    daemon.ok(&["resume"]);
+    let idle = daemon.wait_for("the end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), vec![0, 0]);
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}

@@ -174,6 +174,8 @@ pub struct ServoConfig {
     pub normal_feed_mm_per_min: f64,
     pub open_feed_mm_per_min: f64,
     pub retract_feed_mm_per_min: f64,
+    /// 0: off.
+    pub max_short_s: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -120,6 +120,7 @@ pub(super) struct RawServo {
     pub(super) normal_feed_mm_per_min: f64,
     pub(super) open_feed_mm_per_min: f64,
     pub(super) retract_feed_mm_per_min: f64,
+    pub(super) max_short_s: f64,
 }
 
 #[derive(Debug, Deserialize)]

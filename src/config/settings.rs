@@ -58,6 +58,7 @@ impl FineSettings {
                 retract: servo.retract_feed_mm_per_min / 60.0,
             },
             step_mm: step_mm(config),
+            max_short_ticks: (servo.max_short_s / config.fine.tick.secs()).round() as u64,
         }
     }
 }

@@ -250,6 +250,14 @@ impl RawConfig {
                 1e6,
                 "mm/min",
             )?,
+            max_short_s: if s.max_short_s.is_finite() && (0.0..=86_400.0).contains(&s.max_short_s) {
+                s.max_short_s
+            } else {
+                return Err((
+                    "servo.max_short_s",
+                    format!("must be 0 (off) to 86400 s, got {}", s.max_short_s),
+                ));
+            },
         };
 
         let m = self.sim;

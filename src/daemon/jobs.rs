@@ -488,7 +488,7 @@ impl Core {
         let reason = match summary.outcome {
             Outcome::Done => None,
             Outcome::ResumeRefused => None,
-            Outcome::Alarm => Some(Reason::Alarm),
+            Outcome::Alarm | Outcome::Collision => Some(Reason::Alarm),
             Outcome::Stopped => Some(job.stop_reason.unwrap_or(Reason::Stop)),
             Outcome::OutputError | Outcome::GapError | Outcome::ProducerError => {
                 Some(Reason::Error)

@@ -206,6 +206,9 @@ pub struct JobStatus {
     pub deepest_turn_back_blocks: u64,
     pub alarms: u64,
     pub starvations: u64,
+    /// Shorts during rapids (each holds the job).
+    #[serde(default)]
+    pub collisions: u64,
     pub overruns: u64,
     pub pulses: Vec<u64>,
     pub ticks: u64,

@@ -56,6 +56,7 @@ impl Core {
                 deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
                 alarms: snap.servo.alarms,
                 starvations: snap.servo.starvations,
+                collisions: snap.servo.collisions,
                 overruns: p.overruns.load(Ordering::Relaxed),
                 pulses: snap.pulses[..axes].to_vec(),
                 ticks: snap.tick,

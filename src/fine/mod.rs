@@ -56,6 +56,8 @@ pub struct FineSettings {
     pub feeds: Feeds,
     /// Step size per axis (mm); unused axes 0.
     pub step_mm: [f64; MAX_AXES],
+    /// A short lasting this many ticks raises the alarm (0: only the reserved history does).
+    pub max_short_ticks: u64,
 }
 
 /// What one tick produced.
@@ -112,6 +114,8 @@ pub struct Interpolator {
     stops_from: u64,
     /// A pause was met while fetching: reported by the tick that met it.
     paused: bool,
+    /// Consecutive ticks the gap has read short while turning back.
+    short_ticks: u64,
     counters: FineCounters,
 }
 
@@ -156,13 +160,22 @@ impl Interpolator {
             dwell_left: 0,
             stops_from: 0,
             paused: false,
+            short_ticks: 0,
             counters: FineCounters::default(),
         }
     }
 
     /// Holds (brakes to a standstill under `a_T`, then stays) or releases the hold. The servo
     /// keeps watching the gap while held; motion resumes from where it stopped.
+    ///
+    /// Releasing a hold after an alarm (a short that outlasted `max_short_ticks` or the
+    /// reserved history) re-advances towards the point of the short: if the gap is still
+    /// shorted there, the alarm comes straight back.
     pub fn set_hold(&mut self, hold: bool) {
+        if self.hold && !hold && self.servo.state() == ServoState::Alarm {
+            self.servo.release_alarm();
+            self.short_ticks = 0;
+        }
         self.hold = hold;
     }
 
@@ -312,8 +325,40 @@ impl Interpolator {
             return tick;
         }
         let here = self.here();
-        tick.event = self.servo.on_gap(gap, here);
-        let (want_dir, feed) = self.servo.motion(gap);
+        let rapid = self.has_block
+            && self.block.flags & StepBlock::RAPID != 0
+            && self.servo.state() == ServoState::Forward;
+        let (want_dir, feed) = if rapid {
+            // Positioning with the spark off: no gap servo, the planned speed. A short here is
+            // a collision: stop on the spot (no turn-back into a move that is not a cut) and
+            // hold until released.
+            if gap == GapState::Short {
+                self.speed = 0.0;
+                self.phase = 0.0;
+                if !self.hold {
+                    self.hold = true;
+                    self.servo.counters.collisions += 1;
+                    tick.event = Some(ServoEvent::Collision { at: here });
+                }
+                return tick;
+            }
+            (1, f64::INFINITY)
+        } else {
+            tick.event = self.servo.on_gap(gap, here);
+            if gap == GapState::Short && self.servo.state() == ServoState::TurnBack {
+                self.short_ticks += 1;
+                let max = self.settings.max_short_ticks;
+                if max > 0 && self.short_ticks >= max {
+                    self.speed = 0.0;
+                    self.phase = 0.0;
+                    tick.event = self.servo.on_short_timeout(here).or(tick.event);
+                    return tick;
+                }
+            } else {
+                self.short_ticks = 0;
+            }
+            self.servo.motion(gap)
+        };
         if want_dir == 0 {
             self.speed = 0.0;
             self.phase = 0.0;

@@ -12,6 +12,7 @@ const SETTINGS: FineSettings = FineSettings {
         retract: 2.0,
     },
     step_mm: [0.001; MAX_AXES],
+    max_short_ticks: 0,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.
@@ -509,4 +510,119 @@ fn dwell_and_pause_hold_at_the_block_start_once() {
         (200..230).contains(&still_at_40),
         "still at the dwell point for {still_at_40} ticks"
     );
+}
+
+/// A rapid runs at its planned speed whatever the servo feeds say; a short during it is a
+/// collision: motion stops on the spot, no turn-back, the interpolator holds until released.
+#[test]
+fn rapids_ignore_the_servo_and_a_short_in_one_is_a_collision() {
+    let mut blocks = chain(&[p2(0, 0), p2(2000, 0), p2(2100, 0)], 15.0);
+    blocks[0].flags |= StepBlock::RAPID;
+    blocks[1].v_cruise = 0.5;
+    blocks[1].v_entry = 0.0;
+    blocks[0].v_exit = 0.0;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let mut top_speed: f64 = 0.0;
+    let mut collided_at = None;
+    let mut hold = false;
+    for t in 0..4_000_000u64 {
+        fine.set_hold(hold);
+        // Contact at 1.5 mm into the rapid, for 100 ticks.
+        let x = fine.position()[0];
+        let gap = match collided_at {
+            None if x == 1500 => GapState::Short,
+            Some(at) if t < at + 100 => GapState::Short,
+            _ => GapState::Normal,
+        };
+        let tick = fine.tick(gap, &mut source);
+        assert!(tick.dir >= 0, "no turn-back in a rapid");
+        if fine
+            .block()
+            .is_some_and(|b| b.flags & StepBlock::RAPID != 0)
+        {
+            top_speed = top_speed.max(fine.speed());
+        }
+        if let Some(ServoEvent::Collision { at }) = tick.event {
+            assert!(collided_at.is_none(), "reported once while held");
+            assert_eq!((at.seq, fine.position()[0]), (0, 1500));
+            assert_eq!(fine.speed(), 0.0);
+            collided_at = Some(t);
+            hold = true;
+        }
+        if let Some(at) = collided_at
+            && hold
+        {
+            assert_eq!(fine.position()[0], 1500, "stopped on the spot");
+            if t == at + 200 {
+                hold = false; // the operator clears the contact and resumes
+            }
+        }
+        if fine.state().is_final() {
+            break;
+        }
+    }
+    assert_eq!(fine.state(), ServoState::Done);
+    assert_eq!(fine.position()[0], 2100);
+    assert!(collided_at.is_some());
+    // Far above the servo's normal feed of 1 mm/s: the planned rapid speed (one step per tick
+    // caps it at 20 mm/s here; the plan says 15).
+    assert!(top_speed > 14.0, "rapid top speed {top_speed} mm/s");
+    assert_eq!(fine.counters().servo.collisions, 1);
+    assert_eq!(fine.counters().servo.shorts, 0);
+}
+
+/// A short that outlasts `max_short_ticks` raises the alarm (timed out) and holds; when the
+/// operator releases the hold with the gap flushed, the re-advance goes back to the point of
+/// the short and the job ends exactly on the last point.
+#[test]
+fn a_long_short_alarms_and_a_release_re_advances_to_the_end() {
+    let blocks = chain(&[p2(0, 0), p2(300, 0), p2(600, 0), p2(900, 0)], 1.0);
+    let settings = FineSettings {
+        max_short_ticks: 2_000,
+        ..SETTINGS
+    };
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
+    let mut alarm_at = None;
+    let mut short_from = None;
+    let mut hold = false;
+    for t in 0..10_000_000u64 {
+        fine.set_hold(hold);
+        if fine.position()[0] == 450 && short_from.is_none() {
+            short_from = Some(t);
+        }
+        // Shorted for 50,000 ticks (2.5 s) from the point 450: the turn-back alone cannot clear it.
+        let gap = match short_from {
+            Some(from) if t < from + 50_000 => GapState::Short,
+            _ => GapState::Normal,
+        };
+        let tick = fine.tick(gap, &mut source);
+        if let Some(ServoEvent::Alarm { timed_out, .. }) = tick.event {
+            assert!(timed_out, "the reserved history was not used up");
+            assert!(alarm_at.is_none());
+            alarm_at = Some(t);
+            hold = true; // the daemon holds the job
+        }
+        if let (Some(at), true) = (alarm_at, hold) {
+            assert!(!tick.moved(), "moved while alarm-held");
+            if t >= short_from.unwrap() + 60_000 {
+                assert!(t > at);
+                hold = false; // flushed; the operator resumes
+            }
+        }
+        if fine.state() == ServoState::Done {
+            break;
+        }
+    }
+    let at = alarm_at.expect("an alarm");
+    let from = short_from.unwrap();
+    assert!(
+        (at - from).abs_diff(2_000) < 10,
+        "alarm {} ticks into the short",
+        at - from
+    );
+    assert_eq!(fine.state(), ServoState::Done);
+    assert_eq!(fine.position()[0], 900);
+    assert_eq!(fine.counters().servo.alarms, 1);
 }

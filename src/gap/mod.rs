@@ -37,6 +37,10 @@ pub trait GapSensor {
     /// program (1 forward, -1 turn-back, 0 none). A simulated gap moves its electrode here;
     /// a real sensor ignores it.
     fn observe(&mut self, _steps: &[i8; MAX_AXES], _dir: i8) {}
+
+    /// The kind of move in hand changed (`StepBlock` flags: rapid, flushing): a simulated gap
+    /// knows the spark is off on a rapid; a real sensor ignores it.
+    fn moving_in(&mut self, _flags: u8) {}
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -56,5 +60,9 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
         (**self).observe(steps, dir)
+    }
+
+    fn moving_in(&mut self, flags: u8) {
+        (**self).moving_in(flags)
     }
 }

@@ -41,8 +41,9 @@ pub struct LoopSettings {
     pub rt_priority: u8,
     pub lock_memory: bool,
     pub cpu: Option<usize>,
-    /// A programmed stop (`M0`/`M1`) sets `Published::hold` (and `paused_line`) so that the
-    /// job waits for the operator; otherwise the interpolator's own hold is released at once.
+    /// There is an operator (the daemon): a programmed stop (`M0`/`M1`) sets
+    /// `Published::hold` (and `paused_line`), a collision or an alarm holds the job, all until
+    /// released. Without one (`edmd run`) stops pass and collisions and alarms end the loop.
     pub program_pauses: bool,
 }
 
@@ -189,7 +190,7 @@ impl Default for Snapshot {
     }
 }
 
-const WORDS: usize = 2 + MAX_AXES + 6 + 5 + MAX_AXES + 1;
+const WORDS: usize = 2 + MAX_AXES + 6 + 6 + MAX_AXES + 1;
 const STATES: [ServoState; 6] = [
     ServoState::Forward,
     ServoState::Hold,
@@ -238,7 +239,7 @@ impl Snapshot {
         w[1] = state | (self.held as u64) << 8 | (self.still as u64) << 9;
         for i in 0..MAX_AXES {
             w[2 + i] = self.position[i] as u64;
-            w[2 + MAX_AXES + 11 + i] = self.pulses[i];
+            w[2 + MAX_AXES + 12 + i] = self.pulses[i];
         }
         let m = 2 + MAX_AXES;
         w[m] = self.here.seq;
@@ -248,12 +249,13 @@ impl Snapshot {
         w[m + 4] = self.u_end.to_bits();
         w[m + 5] = self.speed.to_bits();
         let c = &self.servo;
-        w[m + 6..m + 11].copy_from_slice(&[
+        w[m + 6..m + 12].copy_from_slice(&[
             c.shorts,
             c.turn_backs,
             c.deepest_turn_back_blocks,
             c.alarms,
             c.starvations,
+            c.collisions,
         ]);
         w[WORDS - 1] = self.path_mm.to_bits();
         w
@@ -281,8 +283,9 @@ impl Snapshot {
                 deepest_turn_back_blocks: w[m + 8],
                 alarms: w[m + 9],
                 starvations: w[m + 10],
+                collisions: w[m + 11],
             },
-            pulses: std::array::from_fn(|i| w[m + 11 + i]),
+            pulses: std::array::from_fn(|i| w[m + 12 + i]),
             path_mm: f64::from_bits(w[WORDS - 1]),
         }
     }
@@ -359,6 +362,8 @@ pub struct LoopReport {
     pub gap_error: Option<GapError>,
     /// The supervisor asked the loop to stop.
     pub stopped: bool,
+    /// A collision during a rapid ended a job without an operator: where, and the line.
+    pub collision: Option<(PathPoint, u64)>,
     /// Real-time features the system refused, with the reason.
     pub rt_refused: Vec<String>,
 }
@@ -377,6 +382,7 @@ impl LoopReport {
             untaken_from: None,
             gap_error: None,
             stopped: false,
+            collision: None,
             rt_refused: Vec::new(),
         }
     }
@@ -509,6 +515,7 @@ where
             }
             move_flags = flags;
             output.moving_in(flags);
+            sensor.moving_in(flags);
         }
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
             if !e.step_taken() && tick.moved() {
@@ -526,11 +533,19 @@ where
             break;
         }
         sensor.observe(&tick.steps, tick.dir);
-        if let Some(ServoEvent::Paused { .. }) = tick.event
-            && settings.program_pauses
-        {
-            published.paused_line.store(fine.line(), Ordering::Relaxed);
-            published.hold.store(true, Ordering::Relaxed);
+        match tick.event {
+            Some(ServoEvent::Paused { .. }) if settings.program_pauses => {
+                published.paused_line.store(fine.line(), Ordering::Relaxed);
+                published.hold.store(true, Ordering::Relaxed);
+            }
+            // A collision or an alarm holds a job that has an operator; otherwise it ends it.
+            Some(ServoEvent::Collision { .. } | ServoEvent::Alarm { .. })
+                if settings.program_pauses =>
+            {
+                published.hold.store(true, Ordering::Relaxed);
+            }
+            Some(ServoEvent::Collision { at }) => report.collision = Some((at, fine.line())),
+            _ => {}
         }
         if let Some(event) = tick.event
             && published
@@ -566,7 +581,9 @@ where
         } else if !standstill && published.output_synced.load(Ordering::Relaxed) {
             published.output_synced.store(false, Ordering::Relaxed);
         }
-        if fine.state().is_final() {
+        let state = fine.state();
+        let alarm_held = state == ServoState::Alarm && settings.program_pauses;
+        if (state.is_final() && !alarm_held) || report.collision.is_some() {
             break;
         }
         if published.stop.load(Ordering::Relaxed) {

@@ -108,15 +108,43 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod, pauses: bool
             "{program}:{line}: loop buffer empty at t={t:.4} s (segment {}): holding",
             at.seq
         ),
-        ServoEvent::Alarm { at, depth } => tracing::error!(
+        ServoEvent::Alarm {
+            at,
+            depth,
+            timed_out,
+        } => tracing::error!(
             edmd_event = "alarm",
             edmd_program = program,
             edmd_line = line,
-            "{program}:{line}: ALARM at t={t:.4} s: still shorted after turning back over the whole \
-             reserved area ({depth} blocks, segment {}); motion stopped, position kept",
-            at.seq
+            "{program}:{line}: ALARM at t={t:.4} s: {} ({depth} blocks back, segment {}); motion \
+             stopped, position kept{}",
+            if timed_out {
+                "the short outlasted servo.max_short_s while turning back"
+            } else {
+                "still shorted after turning back over the whole reserved area"
+            },
+            at.seq,
+            if pauses {
+                "; the job holds: flush the gap, then `edmd ctl resume` re-advances"
+            } else {
+                ""
+            }
         ),
         ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+        ServoEvent::Collision { at } => tracing::error!(
+            edmd_event = "collision",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: COLLISION at t={t:.4} s: the gap shorted during a rapid (segment {}, \
+             step {}); motion stopped, position kept{}",
+            at.seq,
+            at.event,
+            if pauses {
+                "; the job holds until `edmd ctl resume`"
+            } else {
+                ""
+            }
+        ),
         ServoEvent::Flushing { on } => tracing::info!(
             edmd_event = "flushing",
             edmd_program = program,
@@ -178,6 +206,7 @@ fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventR
                 ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
                 ServoEvent::Done => ("done", None),
                 ServoEvent::Paused { .. } => ("pause", None),
+                ServoEvent::Collision { .. } => ("collision", None),
                 ServoEvent::Flushing { on: true } => ("flush_on", None),
                 ServoEvent::Flushing { on: false } => ("flush_off", None),
             };
@@ -525,6 +554,7 @@ pub fn run_job_with(
         deepest_turn_back_blocks: counters.servo.deepest_turn_back_blocks,
         alarms: counters.servo.alarms,
         starvations: counters.servo.starvations,
+        collisions: counters.servo.collisions,
         overruns: report.overruns,
         missed_deadlines: report.missed_deadlines,
         latency_us: report.latency.as_ref().map(|h| h.summary()),

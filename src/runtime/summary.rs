@@ -31,6 +31,9 @@ pub enum Outcome {
     Stopped,
     /// A resumed job did not find its checkpoint on the program's path: nothing moved.
     ResumeRefused,
+    /// The gap shorted during a rapid and no operator could release the hold (`edmd run`):
+    /// stopped there, position kept.
+    Collision,
 }
 
 impl Outcome {
@@ -43,6 +46,7 @@ impl Outcome {
             Outcome::ProducerError => "producer error",
             Outcome::Stopped => "stopped",
             Outcome::ResumeRefused => "resume refused",
+            Outcome::Collision => "collision",
         }
     }
 }
@@ -72,6 +76,9 @@ pub struct JobSummary {
     pub deepest_turn_back_blocks: u64,
     pub alarms: u64,
     pub starvations: u64,
+    /// Shorts during rapids.
+    #[serde(default)]
+    pub collisions: u64,
     pub overruns: u64,
     pub missed_deadlines: u64,
     /// Real time only.
@@ -123,12 +130,17 @@ impl JobSummary {
         );
         let _ = writeln!(
             t,
-            "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
+            "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations{}",
             self.shorts,
             self.turn_backs,
             self.deepest_turn_back_blocks,
             self.alarms,
-            self.starvations
+            self.starvations,
+            if self.collisions > 0 {
+                format!(", {} collisions", self.collisions)
+            } else {
+                String::new()
+            }
         );
         let _ = writeln!(
             t,
@@ -230,10 +242,23 @@ pub(super) fn outcome(
         (Outcome::OutputError, Some(e.to_string()))
     } else if let Err(e) = finished {
         (Outcome::OutputError, Some(e.to_string()))
+    } else if let Some((at, line)) = report.collision {
+        (
+            Outcome::Collision,
+            Some(format!(
+                "line {line}: the gap shorted during a rapid (segment {}, step {}): motion \
+                 stopped, position kept",
+                at.seq, at.event
+            )),
+        )
     } else if state == ServoState::Alarm {
         (
             Outcome::Alarm,
-            Some("shorted after turning back over the whole reserved area".to_string()),
+            Some(
+                "a short outlasted the reserved history or servo.max_short_s: motion stopped, \
+                 position kept"
+                    .to_string(),
+            ),
         )
     } else if let Err(e) = producer {
         (Outcome::ProducerError, Some(e.to_string()))

@@ -32,6 +32,11 @@
 //!
 //! With the default erosion rate above the normal feed and below the open feed, the servo
 //! alternates between sparking and closing in, and only debris shorts the gap.
+//!
+//! **Rapids** (told through [`GapSensor::moving_in`]): the spark is off, so the gap reads open
+//! (a debris bridge still shorts it, and a scripted hold still applies: that is how a
+//! collision is simulated), and moving forward through one carries the front along, so the
+//! next cut starts at `initial_gap` from the work, as after positioning to a new start hole.
 
 pub mod events;
 
@@ -108,6 +113,8 @@ pub struct SimGap {
     /// A scripted hold: this state until (excluding) this tick.
     hold: Option<(GapState, u64)>,
     state: GapState,
+    /// The move in hand is a rapid: the spark is off, the electrode moves through the open.
+    rapid: bool,
     counters: SimCounters,
 }
 
@@ -161,6 +168,7 @@ impl SimGap {
             next_event: 0,
             hold: None,
             state: GapState::Open,
+            rapid: false,
             counters: SimCounters::default(),
         }
     }
@@ -247,6 +255,11 @@ impl GapSensor for SimGap {
             }
             self.debris_until = None;
         }
+        if self.rapid {
+            // The spark is off while positioning: nothing discharges.
+            self.state = GapState::Open;
+            return Ok(self.state);
+        }
         let gap = self.gap_mm();
         let previous = self.state;
         self.state = if gap < self.params.short_gap_mm {
@@ -281,6 +294,15 @@ impl GapSensor for SimGap {
             len2 += d * d;
         }
         self.progress += dir as f64 * len2.sqrt();
+        if self.rapid && dir > 0 {
+            // Positioning through the open: the next cut starts at the initial gap. (A
+            // turn-back through a rapid retraces it and leaves the front where it is.)
+            self.front = self.progress + self.params.initial_gap_mm;
+        }
+    }
+
+    fn moving_in(&mut self, flags: u8) {
+        self.rapid = flags & crate::buffer::StepBlock::RAPID != 0;
     }
 }
 
