@@ -551,3 +551,49 @@ fn rapids_run_at_rapid_speed_and_a_short_in_one_is_a_collision() {
         "no turn-back in a rapid: {stdout}"
     );
 }
+
+/// `gap.kind = "iio"` on a fake sysfs directory: a steady sparking voltage runs the job to its
+/// end; a device that is not there is a clear startup error.
+#[test]
+fn run_reads_the_gap_voltage_through_iio() {
+    let dir = temp_dir("iio");
+    let dev = dir.join("iio:device0");
+    std::fs::create_dir_all(&dev).unwrap();
+    // 30 V at the gap: 1500 counts of 1 mV behind a 1:20 divider.
+    std::fs::write(dev.join("in_voltage0_raw"), "1500\n").unwrap();
+    std::fs::write(dev.join("in_voltage_scale"), "1.000000\n").unwrap();
+    let device = format!("gap.iio_device=\"{}\"", dev.display());
+    let run = |device: &str| {
+        edmd(&[
+            "run",
+            "tests/data/runtime-path.nc",
+            "--set",
+            "gap.kind=\"iio\"",
+            "--set",
+            device,
+            "--set",
+            "gap.iio_gain=20.0",
+            "--set",
+            "output.kind=\"null\"",
+            "--set",
+            "fine.virtual_time=false",
+            "--set",
+            "servo.normal_feed_mm_per_min=600.0",
+        ])
+    };
+    let out = run(&device);
+    let (stdout, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(
+        stdout.contains(": done") && stdout.contains("0 shorts"),
+        "{stdout}"
+    );
+    let missing = format!("gap.iio_device=\"{}\"", dir.join("nope").display());
+    let out = run(&missing);
+    let (stdout, stderr) = text(&out);
+    assert_ne!(out.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("no such IIO device (gap.iio_device)"),
+        "{stderr}"
+    );
+}

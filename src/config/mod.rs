@@ -66,6 +66,7 @@ pub enum GapKind {
     Sim,
     Script,
     Parport,
+    Iio,
     None,
 }
 
@@ -167,6 +168,8 @@ pub struct GapConfig {
     pub script: PathBuf,
     /// Log the gap state's changes.
     pub trace: bool,
+    /// `gap.kind = "iio"`: the ADC channel and the voltage thresholds.
+    pub iio: crate::gap::IioSettings,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -95,6 +95,12 @@ pub(super) struct RawGap {
     pub(super) kind: GapKind,
     pub(super) script: String,
     pub(super) trace: bool,
+    pub(super) iio_device: String,
+    pub(super) iio_channel: String,
+    pub(super) iio_gain: f64,
+    pub(super) iio_rate_hz: f64,
+    pub(super) short_below_v: f64,
+    pub(super) open_above_v: f64,
 }
 
 #[derive(Debug, Deserialize)]

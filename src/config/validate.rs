@@ -215,10 +215,40 @@ impl RawConfig {
                     .to_string(),
             ));
         }
+        let g = &self.gap;
+        let channel = g.iio_channel.trim().to_string();
+        if channel.is_empty()
+            || !channel
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
+            return Err((
+                "gap.iio_channel",
+                format!("\"{channel}\" is not an IIO channel name such as \"voltage0\""),
+            ));
+        }
+        let iio = crate::gap::IioSettings {
+            device: PathBuf::from(g.iio_device.clone()),
+            channel,
+            gain: positive("gap.iio_gain", g.iio_gain, 1e6, "V/V")?,
+            rate_hz: positive("gap.iio_rate_hz", g.iio_rate_hz, 1e6, "Hz")?,
+            short_below_v: positive("gap.short_below_v", g.short_below_v, 1e4, "V")?,
+            open_above_v: positive("gap.open_above_v", g.open_above_v, 1e4, "V")?,
+        };
+        if iio.open_above_v <= iio.short_below_v {
+            return Err((
+                "gap.open_above_v",
+                format!(
+                    "{} V must be above gap.short_below_v ({} V)",
+                    iio.open_above_v, iio.short_below_v
+                ),
+            ));
+        }
         let gap = GapConfig {
             kind: self.gap.kind,
             script: non_empty("gap.script", self.gap.script)?,
             trace: self.gap.trace,
+            iio,
         };
         if gap.kind == GapKind::Parport && output.kind != OutputKind::Parport {
             return Err((

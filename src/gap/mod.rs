@@ -4,27 +4,33 @@
 //! core, which gets the state as a value). Sources: [`AlwaysNormal`] (`gap.kind = "none"`),
 //! [`ScriptGap`] (`gap.kind = "script"`, a file of `TICK STATE` lines), the closed-loop
 //! simulator ([`crate::sim::SimGap`], `"sim"`) and the parallel port's status pins
-//! ([`crate::parport::ParportGap`], `"parport"`). The tracer
+//! ([`crate::parport::ParportGap`], `"parport"`), an ADC's gap voltage through Linux IIO
+//! ([`IioGap`], `"iio"`). The tracer
 //! ([`crate::trace::TracedGap`]) wraps any of them.
 
+mod iio;
 mod script;
 
 use crate::geometry::MAX_AXES;
 
 /// The gap state is shared vocabulary (the servo and the tick core read it too).
 pub use crate::vocab::GapState;
+pub use iio::{IioError, IioGap, IioSettings};
 pub use script::{ScriptError, ScriptGap};
 pub(crate) use script::{read_script, words};
 
 /// A gap input that failed mid-job (a device that stopped answering).
 #[derive(Debug, thiserror::Error)]
 pub enum GapError {
-    #[error("{path}: cannot read the gap input (status pins): {source}")]
+    #[error("{path}: cannot read the gap input: {source}")]
     Device {
         path: String,
         #[source]
         source: std::io::Error,
     },
+    /// The IIO sampler has not delivered a value for this long.
+    #[error("{path}: the gap voltage is stale: no sample for {ms} ms (the IIO sampler stopped)")]
+    Stale { path: String, ms: u64 },
 }
 
 /// A source of gap states, sampled once per tick.

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use super::{JobError, Precheck};
 use crate::config::{Config, GapKind, OutputKind};
-use crate::gap::{AlwaysNormal, GapSensor, ScriptGap};
+use crate::gap::{AlwaysNormal, GapSensor, IioGap, ScriptGap};
 use crate::output::{FaultInjector, NullOutput, PulseLog, PulseLogHeader, PulseOutput};
 use crate::sim::{SimGap, SimSettings};
 use crate::trace::{TracedGap, TracedOutput, Tracer};
@@ -81,6 +81,7 @@ pub fn open_gap(
         }
         (GapKind::None, _) => Box::new(AlwaysNormal),
         (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
+        (GapKind::Iio, _) => Box::new(IioGap::open(&config.gap.iio)?),
         (GapKind::Sim, _) => Box::new(SimGap::load(
             &SimSettings::from_config(config),
             &check.cutting_spans,

@@ -67,6 +67,8 @@ pub enum JobError {
     #[error(transparent)]
     GapScript(#[from] ScriptError),
     #[error(transparent)]
+    Iio(#[from] crate::gap::IioError),
+    #[error(transparent)]
     Output(#[from] OutputError),
     #[error(transparent)]
     Parport(#[from] ParportError),
