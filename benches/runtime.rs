@@ -38,6 +38,7 @@ fn settings(feed: f64) -> FineSettings {
         },
         step_mm: [0.001; MAX_AXES],
         max_short_ticks: 0,
+        law: edmd::servo::Law::ThreeState,
     }
 }
 

@@ -71,6 +71,24 @@ pub struct Feeds {
     pub retract: f64,
 }
 
+/// How the servo turns the gap into a feed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Law {
+    /// Three states: sparking at `Feeds::normal`, open at `Feeds::open`, shorted: turn back.
+    ThreeState,
+    /// The gap voltage (filtered, V): below `short_v` a short (turn back), above `open_v`
+    /// open (`Feeds::open`); in between the feed is `gain · (V − v_ref)` (mm/s per V),
+    /// negative backing off along the path at up to `Feeds::retract`.
+    Voltage {
+        v_ref: f64,
+        gain: f64,
+        short_v: f64,
+        open_v: f64,
+        /// Filter time constant (s); 0 for none.
+        tau: f64,
+    },
+}
+
 /// Something the servo did that the outside world wants to hear about (logged by a normal
 /// thread, never by the tick core).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -249,6 +267,25 @@ impl Servo {
             self.state = ServoState::Done;
             ServoEvent::Done
         })
+    }
+
+    /// Direction and feed under the voltage law for a sparking gap at `volts` (filtered):
+    /// `gain · (V − v_ref)`, backing off (negative) at up to the retract feed.
+    pub fn voltage_motion(&self, gap: GapState, volts: f64, law: &Law) -> (i8, f64) {
+        let Law::Voltage { v_ref, gain, .. } = *law else {
+            return self.motion(gap);
+        };
+        match (self.state, gap) {
+            (ServoState::Forward | ServoState::ReAdvance, GapState::Normal) => {
+                let feed = gain * (volts - v_ref);
+                if feed >= 0.0 {
+                    (1, feed)
+                } else {
+                    (-1, (-feed).min(self.feeds.retract))
+                }
+            }
+            _ => self.motion(gap),
+        }
     }
 
     /// Direction (+1 forward, -1 backward, 0 still) and feed (mm/s) for this tick's gap state.

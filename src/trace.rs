@@ -210,6 +210,10 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
     fn moving_in(&mut self, flags: u8) {
         self.inner.moving_in(flags)
     }
+
+    fn volts(&self) -> Option<f64> {
+        self.inner.volts()
+    }
 }
 
 #[cfg(test)]

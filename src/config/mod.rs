@@ -179,6 +179,18 @@ pub struct ServoConfig {
     pub retract_feed_mm_per_min: f64,
     /// 0: off.
     pub max_short_s: f64,
+    pub law: ServoLaw,
+    pub v_ref: f64,
+    pub voltage_gain_mm_per_min_per_v: f64,
+    pub voltage_filter_ms: f64,
+}
+
+/// `servo.law`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ServoLaw {
+    ThreeState,
+    Voltage,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -5,7 +5,7 @@
 
 use serde::Deserialize;
 
-use super::{GapKind, LogFormat, LogLevel, OutputKind};
+use super::{GapKind, LogFormat, LogLevel, OutputKind, ServoLaw};
 use crate::vocab::{Predictor, Segmentation};
 
 #[derive(Debug, Deserialize)]
@@ -127,6 +127,10 @@ pub(super) struct RawServo {
     pub(super) open_feed_mm_per_min: f64,
     pub(super) retract_feed_mm_per_min: f64,
     pub(super) max_short_s: f64,
+    pub(super) law: ServoLaw,
+    pub(super) v_ref: f64,
+    pub(super) voltage_gain_mm_per_min_per_v: f64,
+    pub(super) voltage_filter_ms: f64,
 }
 
 #[derive(Debug, Deserialize)]

@@ -7,12 +7,13 @@
 //! beside the keys they read, so a renamed key or a unit change is one edit in one file.
 
 use super::Config;
+use super::ServoLaw;
 use crate::fine::FineSettings;
 use crate::gcode::ProgramOptions;
 use crate::geometry::MAX_AXES;
 use crate::parport::{PinMap, StepTiming};
 use crate::preprocess::PlanSettings;
-use crate::servo::Feeds;
+use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
 
 /// `machine.step_mm` as a fixed array, unused axes 0.
@@ -59,6 +60,16 @@ impl FineSettings {
             },
             step_mm: step_mm(config),
             max_short_ticks: (servo.max_short_s / config.fine.tick.secs()).round() as u64,
+            law: match servo.law {
+                ServoLaw::ThreeState => Law::ThreeState,
+                ServoLaw::Voltage => Law::Voltage {
+                    v_ref: servo.v_ref,
+                    gain: servo.voltage_gain_mm_per_min_per_v / 60.0,
+                    short_v: config.gap.iio.short_below_v,
+                    open_v: config.gap.iio.open_above_v,
+                    tau: servo.voltage_filter_ms / 1000.0,
+                },
+            },
         }
     }
 }
@@ -70,6 +81,8 @@ impl SimSettings {
             params: config.sim.clone(),
             step_mm: step_mm(config),
             tick: config.fine.tick,
+            short_v: config.gap.iio.short_below_v,
+            open_v: config.gap.iio.open_above_v,
         }
     }
 }

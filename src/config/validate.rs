@@ -250,6 +250,13 @@ impl RawConfig {
             trace: self.gap.trace,
             iio,
         };
+        if self.servo.law == ServoLaw::Voltage && !matches!(gap.kind, GapKind::Iio | GapKind::Sim) {
+            return Err((
+                "servo.law",
+                "\"voltage\" needs a gap voltage: gap.kind = \"iio\" (an ADC) or \"sim\""
+                    .to_string(),
+            ));
+        }
         if gap.kind == GapKind::Parport && output.kind != OutputKind::Parport {
             return Err((
                 "gap.kind",
@@ -286,6 +293,24 @@ impl RawConfig {
                 return Err((
                     "servo.max_short_s",
                     format!("must be 0 (off) to 86400 s, got {}", s.max_short_s),
+                ));
+            },
+            law: s.law,
+            v_ref: positive("servo.v_ref", s.v_ref, 1e4, "V")?,
+            voltage_gain_mm_per_min_per_v: positive(
+                "servo.voltage_gain_mm_per_min_per_v",
+                s.voltage_gain_mm_per_min_per_v,
+                1e6,
+                "mm/min per V",
+            )?,
+            voltage_filter_ms: if s.voltage_filter_ms.is_finite()
+                && (0.0..=10_000.0).contains(&s.voltage_filter_ms)
+            {
+                s.voltage_filter_ms
+            } else {
+                return Err((
+                    "servo.voltage_filter_ms",
+                    format!("must be 0 to 10000 ms, got {}", s.voltage_filter_ms),
                 ));
             },
         };

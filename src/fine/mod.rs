@@ -41,7 +41,7 @@ pub mod bresenham;
 
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::geometry::MAX_AXES;
-use crate::servo::{Feeds, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
+use crate::servo::{Feeds, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
 use crate::vocab::GapState;
 
 pub use bresenham::Bresenham;
@@ -58,6 +58,8 @@ pub struct FineSettings {
     pub step_mm: [f64; MAX_AXES],
     /// A short lasting this many ticks raises the alarm (0: only the reserved history does).
     pub max_short_ticks: u64,
+    /// The servo law (the voltage law reads [`Interpolator::tick_volts`]'s voltage).
+    pub law: Law,
 }
 
 /// What one tick produced.
@@ -116,6 +118,8 @@ pub struct Interpolator {
     paused: bool,
     /// Consecutive ticks the gap has read short while turning back.
     short_ticks: u64,
+    /// The voltage law's filtered gap voltage (V); NaN before the first reading.
+    volts: f64,
     counters: FineCounters,
 }
 
@@ -161,6 +165,7 @@ impl Interpolator {
             stops_from: 0,
             paused: false,
             short_ticks: 0,
+            volts: f64::NAN,
             counters: FineCounters::default(),
         }
     }
@@ -290,6 +295,49 @@ impl Interpolator {
         c
     }
 
+    /// The voltage law's filtered gap voltage (V), if it has one.
+    pub fn filtered_volts(&self) -> Option<f64> {
+        self.volts.is_finite().then_some(self.volts)
+    }
+
+    /// One tick with the gap's voltage (V, when the input measures one) and the state the
+    /// input reports. Under the voltage law the state comes from the filtered voltage and the
+    /// feed is proportional; under the three-state law the voltage is ignored.
+    #[inline]
+    pub fn tick_volts<S: BlockSource + ?Sized>(
+        &mut self,
+        gap: GapState,
+        volts: Option<f64>,
+        source: &mut S,
+    ) -> Tick {
+        let gap = match (self.settings.law, volts) {
+            (
+                Law::Voltage {
+                    short_v,
+                    open_v,
+                    tau,
+                    ..
+                },
+                Some(v),
+            ) => {
+                self.volts = if !self.volts.is_finite() || tau <= 0.0 {
+                    v
+                } else {
+                    self.volts + (v - self.volts) * (self.settings.dt / tau).min(1.0)
+                };
+                if self.volts < short_v {
+                    GapState::Short
+                } else if self.volts > open_v {
+                    GapState::Open
+                } else {
+                    GapState::Normal
+                }
+            }
+            _ => gap,
+        };
+        self.tick(gap, source)
+    }
+
     /// One tick with gap state `gap`.
     #[inline]
     pub fn tick<S: BlockSource + ?Sized>(&mut self, gap: GapState, source: &mut S) -> Tick {
@@ -357,7 +405,12 @@ impl Interpolator {
             } else {
                 self.short_ticks = 0;
             }
-            self.servo.motion(gap)
+            if self.volts.is_finite() {
+                self.servo
+                    .voltage_motion(gap, self.volts, &self.settings.law)
+            } else {
+                self.servo.motion(gap)
+            }
         };
         if want_dir == 0 {
             self.speed = 0.0;

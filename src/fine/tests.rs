@@ -13,6 +13,7 @@ const SETTINGS: FineSettings = FineSettings {
     },
     step_mm: [0.001; MAX_AXES],
     max_short_ticks: 0,
+    law: crate::servo::Law::ThreeState,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.

@@ -265,6 +265,10 @@ impl GapSensor for IioGap {
         }
         Ok(self.state_of(self.volts()))
     }
+
+    fn volts(&self) -> Option<f64> {
+        Some(IioGap::volts(self))
+    }
 }
 
 impl Drop for IioGap {

@@ -47,6 +47,12 @@ pub trait GapSensor {
     /// The kind of move in hand changed (`StepBlock` flags: rapid, flushing): a simulated gap
     /// knows the spark is off on a rapid; a real sensor ignores it.
     fn moving_in(&mut self, _flags: u8) {}
+
+    /// The gap voltage (V) at the last [`sample`](Self::sample), for inputs that measure one
+    /// (the IIO ADC, the simulator); `None` for state-only inputs.
+    fn volts(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -70,5 +76,9 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn moving_in(&mut self, flags: u8) {
         (**self).moving_in(flags)
+    }
+
+    fn volts(&self) -> Option<f64> {
+        (**self).volts()
     }
 }

@@ -497,7 +497,7 @@ where
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
-        let tick = fine.tick(gap, source);
+        let tick = fine.tick_volts(gap, sensor.volts(), source);
         let flags = fine.block().map_or(0, |b| b.flags);
         if flags != move_flags {
             let flush = flags & StepBlock::FLUSH;

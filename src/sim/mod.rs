@@ -73,7 +73,13 @@ pub struct SimSettings {
     pub params: SimConfig,
     pub step_mm: [f64; MAX_AXES],
     pub tick: TickPeriod,
+    /// The gap voltage's thresholds (V): the sparking band of the model maps onto them.
+    pub short_v: f64,
+    pub open_v: f64,
 }
+
+/// The simulated generator's open-circuit voltage (V): what an open gap reads.
+pub const OPEN_CIRCUIT_V: f64 = 80.0;
 
 /// What the simulated gap did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -115,6 +121,9 @@ pub struct SimGap {
     state: GapState,
     /// The move in hand is a rapid: the spark is off, the electrode moves through the open.
     rapid: bool,
+    /// Voltage thresholds (V), see [`GapSensor::volts`].
+    short_v: f64,
+    open_v: f64,
     counters: SimCounters,
 }
 
@@ -169,6 +178,8 @@ impl SimGap {
             hold: None,
             state: GapState::Open,
             rapid: false,
+            short_v: settings.short_v,
+            open_v: settings.open_v,
             counters: SimCounters::default(),
         }
     }
@@ -304,6 +315,23 @@ impl GapSensor for SimGap {
     fn moving_in(&mut self, flags: u8) {
         self.rapid = flags & crate::buffer::StepBlock::RAPID != 0;
     }
+
+    /// The generator's average gap voltage as the model sees it: 0 V shorted, the
+    /// open-circuit voltage open, and across the sparking band (`short_gap` to `open_gap`) a
+    /// linear rise from the short threshold to the open one: a wider gap burns at a higher
+    /// voltage, as a real gap does.
+    fn volts(&self) -> Option<f64> {
+        Some(match self.state {
+            GapState::Short => 0.0,
+            GapState::Open => OPEN_CIRCUIT_V,
+            GapState::Normal => {
+                let p = &self.params;
+                let f = ((self.gap_mm() - p.short_gap_mm) / (p.open_gap_mm - p.short_gap_mm))
+                    .clamp(0.0, 1.0);
+                self.short_v + (self.open_v - self.short_v) * f
+            }
+        })
+    }
 }
 
 #[cfg(test)]
@@ -341,6 +369,8 @@ pub(crate) mod tests {
             params,
             step_mm: [0.001, 0.001, 0.0, 0.0, 0.0, 0.0],
             tick: TickPeriod::from_us(50).unwrap(),
+            short_v: 5.0,
+            open_v: 60.0,
         }
     }
 

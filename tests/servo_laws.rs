@@ -1,0 +1,156 @@
+//! The two servo laws closed around the simulated gap, through the public API in virtual time:
+//! a straight 20 mm cut where the work erodes (40 mm/min) slower than the three-state law's
+//! normal feed (60 mm/min). The three-state law closes in until the gap shorts, turns back and
+//! does it again; the voltage law feeds `gain · (V − V_ref)` and settles where its feed equals
+//! the erosion rate, a few volts above `V_ref`, with no shorts.
+
+use edmd::buffer::{StepBlock, VecSource};
+use edmd::config::Config;
+use edmd::fine::{FineSettings, Interpolator};
+use edmd::gap::{GapSensor, GapState};
+use edmd::geometry::MAX_AXES;
+use edmd::servo::{Law, ServoState};
+use edmd::sim::{SimGap, SimSettings};
+
+/// 200 blocks of 0.1 mm along X, planned at up to 20 mm/s (the servo decides).
+fn straight_cut() -> Vec<StepBlock> {
+    (0..200)
+        .map(|i| {
+            let mut start = [0i64; MAX_AXES];
+            let mut end = [0i64; MAX_AXES];
+            start[0] = i * 100;
+            end[0] = (i + 1) * 100;
+            StepBlock {
+                seq: i as u64,
+                start,
+                end,
+                length_mm: 0.1,
+                v_entry: if i == 0 { 0.0 } else { 20.0 },
+                v_exit: if i == 199 { 0.0 } else { 20.0 },
+                v_cruise: 20.0,
+                line: 1,
+                u_end: f64::NAN,
+                flags: 0,
+                path_end_mm: 0.1 * (i + 1) as f64,
+                dwell_s: 0.0,
+            }
+        })
+        .collect()
+}
+
+struct Run {
+    shorts: u64,
+    seconds: f64,
+    /// Mean gap voltage over the sparking ticks after the first 2 mm.
+    mean_volts: f64,
+}
+
+fn run(law: &str) -> Run {
+    let config = Config::load(
+        None,
+        &[
+            format!("servo.law=\"{law}\""),
+            "sim.debris_shorts=0".into(),
+            "sim.erosion_mm_per_min=40.0".into(),
+        ],
+    )
+    .unwrap();
+    let settings = FineSettings::from_config(&config);
+    let mut sim = SimGap::new(
+        &SimSettings::from_config(&config),
+        &[(0.0, 20.0)],
+        Vec::new(),
+    );
+    let mut source = VecSource::new(straight_cut(), 16);
+    let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
+    let (mut sum, mut n) = (0.0, 0u64);
+    let mut ticks = 0u64;
+    while fine.state() != ServoState::Done {
+        let gap = sim.sample(ticks).unwrap();
+        let volts = sim.volts();
+        let tick = fine.tick_volts(gap, volts, &mut source);
+        sim.observe(&tick.steps, tick.dir);
+        if gap == GapState::Normal && fine.position()[0] > 2000 {
+            sum += volts.unwrap();
+            n += 1;
+        }
+        ticks += 1;
+        assert!(ticks < 100_000_000, "stuck under the {law} law");
+    }
+    assert_eq!(fine.position()[0], 20_000);
+    Run {
+        shorts: fine.counters().servo.shorts,
+        seconds: ticks as f64 * settings.dt,
+        mean_volts: sum / n.max(1) as f64,
+    }
+}
+
+#[test]
+fn the_voltage_law_holds_the_gap_near_v_ref_without_the_shorts_of_the_three_state_law() {
+    let three = run("three-state");
+    let volt = run("voltage");
+    eprintln!(
+        "three-state: {} shorts, {:.1} s, mean {:.1} V; voltage: {} shorts, {:.1} s, mean {:.1} V",
+        three.shorts, three.seconds, three.mean_volts, volt.shorts, volt.seconds, volt.mean_volts
+    );
+    assert!(
+        three.shorts > 100,
+        "the three-state law should short here: {}",
+        three.shorts
+    );
+    assert!(
+        volt.shorts <= 1,
+        "{} shorts under the voltage law",
+        volt.shorts
+    );
+    // Equilibrium: gain (10 mm/min per V) · (V − 25 V) = 40 mm/min, so V = 29 V.
+    assert!(
+        (27.0..31.0).contains(&volt.mean_volts),
+        "mean {} V",
+        volt.mean_volts
+    );
+    // Cutting at the erosion rate: 20 mm at 40 mm/min is 30 s.
+    assert!((29.0..33.0).contains(&volt.seconds), "{} s", volt.seconds);
+    assert!(volt.seconds < three.seconds);
+}
+
+/// A steady 30 V gap advances, 20 V backs off, 0 V is a dead short, 80 V is open.
+#[test]
+fn the_voltage_law_at_fixed_voltages() {
+    let config = Config::load(
+        None,
+        &["servo.law=\"voltage\"".into(), "gap.kind=\"sim\"".into()],
+    )
+    .unwrap();
+    let settings = FineSettings::from_config(&config);
+    assert!(matches!(settings.law, Law::Voltage { v_ref, .. } if v_ref == 25.0));
+    for (volts, expect) in [(30.0, 1i8), (20.0, -1), (0.0, -1), (80.0, 1)] {
+        let mut blocks = straight_cut();
+        blocks.truncate(20);
+        let mut source = VecSource::new(blocks, 16);
+        let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
+        let mut dir_sum = 0i64;
+        let mut state_short = false;
+        let mut arrived = false;
+        for _ in 0..200_000u64 {
+            // Advance 1 mm at an open gap first, then hold the voltage under test.
+            arrived |= fine.position()[0] >= 1000;
+            let v = if arrived { volts } else { 80.0 };
+            let tick = fine.tick_volts(GapState::Normal, Some(v), &mut source);
+            if arrived {
+                dir_sum += tick.dir as i64;
+                state_short |= fine.state() == ServoState::TurnBack;
+            }
+        }
+        assert_eq!(
+            dir_sum.signum() as i8,
+            expect,
+            "{volts} V: net direction {dir_sum}"
+        );
+        assert_eq!(
+            state_short,
+            volts < 5.0,
+            "{volts} V: turned back as a short"
+        );
+    }
+}
