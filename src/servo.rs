@@ -212,26 +212,22 @@ impl Servo {
 
     /// The turn-back reached the start of the reserved area with the gap still shorted.
     pub fn on_reserved_exhausted(&mut self, here: PathPoint) -> Option<ServoEvent> {
-        (self.state == ServoState::TurnBack).then(|| {
-            self.state = ServoState::Alarm;
-            self.counters.alarms += 1;
-            ServoEvent::Alarm {
-                at: here,
-                depth: self.depth,
-                timed_out: false,
-            }
-        })
+        self.alarm(here, false)
     }
 
     /// The short has lasted `servo.max_short_s` while turning back.
     pub fn on_short_timeout(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        self.alarm(here, true)
+    }
+
+    fn alarm(&mut self, here: PathPoint, timed_out: bool) -> Option<ServoEvent> {
         (self.state == ServoState::TurnBack).then(|| {
             self.state = ServoState::Alarm;
             self.counters.alarms += 1;
             ServoEvent::Alarm {
                 at: here,
                 depth: self.depth,
-                timed_out: true,
+                timed_out,
             }
         })
     }

@@ -110,6 +110,20 @@ impl Daemon {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
+    /// Waits until the log holds `needle` (the supervisor logs events a little after the
+    /// status shows them).
+    fn wait_for_log(&self, needle: &str) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !self.log().contains(needle) {
+            assert!(
+                Instant::now() < deadline,
+                "no {needle:?} in the log:\n{}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// `edmd ctl --socket S --json ARGS`: the reply and the exit code.
     fn ctl(&self, args: &[&str]) -> (Value, i32) {
         let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
@@ -1438,14 +1452,7 @@ fn a_long_short_holds_the_job_and_resume_finishes_it() {
         s["checkpoint"]["reason"] == "hold"
     });
     assert_eq!(ints(&cp["checkpoint"]["position_steps"]), position(&held));
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !daemon
-        .log()
-        .contains("the short outlasted servo.max_short_s")
-    {
-        assert!(Instant::now() < deadline, "{}", daemon.log());
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    daemon.wait_for_log("the short outlasted servo.max_short_s");
     // Wait for the script's short to be over (3 s of job time), then resume.
     daemon.wait_for("the gap to clear", |s| {
         s["job"]["ticks"].as_u64().unwrap_or(0) > 62_000
@@ -1486,11 +1493,7 @@ fn a_collision_in_a_rapid_holds_the_job() {
     assert_eq!(held["job"]["shorts"], 0, "no turn-back: {held}");
     let x = position(&held)[0];
     assert!((4000..6000).contains(&x), "stopped at {x} steps");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !daemon.log().contains("COLLISION") {
-        assert!(Instant::now() < deadline, "{}", daemon.log());
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    daemon.wait_for_log("COLLISION");
     daemon.wait_for("the contact to clear", |s| {
         s["job"]["ticks"].as_u64().unwrap_or(0) > 26_000
     });

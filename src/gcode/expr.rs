@@ -174,7 +174,38 @@ impl<'a> Scanner<'a> {
         true
     }
 
-    fn expect(&mut self, ch: char, what: &'static str) -> Result<(), ExprError> {
+    /// The name inside `< >` (the `<` taken), lower case, spaces dropped, as LinuxCNC reads
+    /// names. `strict`: only letters, digits, `_`, `.` and `-` (parameter names).
+    pub(crate) fn angle_name(
+        &mut self,
+        open_col: usize,
+        unclosed: &'static str,
+        strict: bool,
+    ) -> Result<String, ExprError> {
+        let mut name = String::new();
+        loop {
+            match self.bump() {
+                None => return Err((open_col, GcodeErrorKind::Expression { what: unclosed })),
+                Some('>') => return Ok(name),
+                Some(' ' | '\t') => {}
+                Some(c) if !strict || c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '-') => {
+                    name.push(c.to_ascii_lowercase())
+                }
+                Some(c) => {
+                    return Err((
+                        self.col,
+                        GcodeErrorKind::UnexpectedChar {
+                            ch: c,
+                            hint: " (in a parameter name)",
+                        },
+                    ));
+                }
+            }
+        }
+    }
+
+    /// Takes `ch` (after spaces) or fails with `what` at the column where it was expected.
+    pub(crate) fn expect(&mut self, ch: char, what: &'static str) -> Result<(), ExprError> {
         self.skip_ws();
         if self.peek() == Some(ch) {
             self.bump();
@@ -191,33 +222,7 @@ pub(crate) fn param_ref(sc: &mut Scanner, env: &dyn Env) -> Result<ParamRef, Exp
     let col = sc.next_col();
     if sc.peek() == Some('<') {
         sc.bump();
-        let mut name = String::new();
-        loop {
-            match sc.bump() {
-                None => {
-                    return Err((
-                        col,
-                        GcodeErrorKind::Expression {
-                            what: "named parameter without its closing `>`",
-                        },
-                    ));
-                }
-                Some('>') => break,
-                Some(' ' | '\t') => {}
-                Some(c) if c.is_ascii_alphanumeric() || c == '_' || c == '.' || c == '-' => {
-                    name.push(c.to_ascii_lowercase());
-                }
-                Some(c) => {
-                    return Err((
-                        sc.col,
-                        GcodeErrorKind::UnexpectedChar {
-                            ch: c,
-                            hint: " (in a parameter name)",
-                        },
-                    ));
-                }
-            }
-        }
+        let name = sc.angle_name(col, "named parameter without its closing `>`", true)?;
         if name.is_empty() {
             return Err((
                 col,

@@ -178,16 +178,10 @@ pub(crate) fn lex(
                     return Err((pc, GcodeErrorKind::MisplacedPercent));
                 }
                 let target = expr::param_ref(&mut sc, env)?;
-                sc.skip_ws();
-                if sc.peek() != Some('=') {
-                    return Err((
-                        sc.next_col(),
-                        GcodeErrorKind::Expression {
-                            what: "`=` expected: a parameter on its own is assigned with #n = value",
-                        },
-                    ));
-                }
-                sc.bump();
+                sc.expect(
+                    '=',
+                    "`=` expected: a parameter on its own is assigned with #n = value",
+                )?;
                 let value = expr::value(&mut sc, env)?;
                 assigns.push(Assign { target, value });
             }
@@ -285,22 +279,7 @@ fn oword_after_o(sc: &mut Scanner, col: usize) -> Result<Option<OWord>, LexError
     sc.skip_ws();
     let label = if sc.peek() == Some('<') {
         sc.bump();
-        let mut name = String::new();
-        loop {
-            match sc.bump() {
-                None => {
-                    return Err((
-                        col,
-                        GcodeErrorKind::Expression {
-                            what: "O-word name without its closing `>`",
-                        },
-                    ));
-                }
-                Some('>') => break,
-                Some(' ' | '\t') => {}
-                Some(c) => name.push(c.to_ascii_lowercase()),
-            }
-        }
+        let name = sc.angle_name(col, "O-word name without its closing `>`", false)?;
         Label::Name(name)
     } else {
         let start = sc.pos;

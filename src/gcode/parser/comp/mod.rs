@@ -42,6 +42,16 @@ struct Piece {
     template: Block,
 }
 
+impl Piece {
+    /// A straight move from `a` to `b` (the entry and exit moves).
+    fn line(a: V2, b: V2, template: Block) -> Piece {
+        Piece {
+            prims: vec![Prim::Line { a, b }],
+            template,
+        }
+    }
+}
+
 /// What went wrong, at which source line.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct CompError {
@@ -150,15 +160,8 @@ impl Compensator {
                         "the first move after G41/G42 (the entry) must be a straight move".into(),
                     ));
                 }
-                let n = left(unit(sub(p1, p0)));
-                let piece = Piece {
-                    prims: vec![Prim::Line {
-                        a: p0,
-                        b: add(p1, scale(n, sd)),
-                    }],
-                    template: block,
-                };
-                self.pending = Some(piece);
+                let n = scale(left(unit(sub(p1, p0))), sd);
+                self.pending = Some(Piece::line(p0, add(p1, n), block));
                 self.phase = Phase::On;
             }
             Phase::On => {
@@ -171,15 +174,8 @@ impl Compensator {
                         "the first move after G40 (the exit) must be a straight move".into(),
                     ));
                 }
-                let n = left(unit(sub(p1, p0)));
-                let piece = Piece {
-                    prims: vec![Prim::Line {
-                        a: add(p0, scale(n, sd)),
-                        b: p1,
-                    }],
-                    template: block,
-                };
-                self.join(piece, out)?;
+                let n = scale(left(unit(sub(p1, p0))), sd);
+                self.join(Piece::line(add(p0, n), p1, block), out)?;
                 if let Some(last) = self.pending.take() {
                     self.emit(last, out).map_err(|m| CompError {
                         line: 0,
