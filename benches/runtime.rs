@@ -64,6 +64,9 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 flags: 0,
                 path_end_mm: 0.0,
                 dwell_s: 0.0,
+                condition: 0,
+                condition_feed: 0.0,
+                condition_v_ref: 0.0,
             };
             at = end;
             b

@@ -69,6 +69,12 @@ pub struct StepBlock {
     pub path_end_mm: f64,
     /// `G4` dwell before the move, s (first move of its G-code block only).
     pub dwell_s: f64,
+    /// The machining condition in force (`E<number>`; 0 none), and what it sets for the
+    /// servo: the sparking feed (mm/s) and the voltage law's reference (V); 0 keeps the
+    /// `[servo]` settings.
+    pub condition: u16,
+    pub condition_feed: f32,
+    pub condition_v_ref: f32,
 }
 
 impl StepBlock {
@@ -95,6 +101,9 @@ impl StepBlock {
         flags: 0,
         path_end_mm: 0.0,
         dwell_s: 0.0,
+        condition: 0,
+        condition_feed: 0.0,
+        condition_v_ref: 0.0,
     };
 
     /// Signed step count of each axis.

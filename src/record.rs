@@ -93,11 +93,11 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
         Ok(())
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        let rapid = flags & crate::buffer::StepBlock::RAPID != 0;
+    fn moving_in(&mut self, now: crate::output::Activity) {
+        let rapid = now.flags & crate::buffer::StepBlock::RAPID != 0;
         self.kind_changed |= rapid != self.rapid;
         self.rapid = rapid;
-        self.inner.moving_in(flags);
+        self.inner.moving_in(now);
     }
 
     fn finish(&mut self) -> Result<(), OutputError> {

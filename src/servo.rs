@@ -116,6 +116,9 @@ pub enum ServoEvent {
     /// The gap shorted during a rapid (`G0`): the electrode touched something while
     /// positioning with the spark off. Motion stopped at `at`; the interpolator holds.
     Collision { at: PathPoint },
+    /// The machining condition (`E<number>`) in force changed with the move in hand
+    /// (reported by the consumer's thread loop).
+    Condition { number: u16 },
     /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
     /// consumer's thread loop, which tells the output).
     Flushing { on: bool },

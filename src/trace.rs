@@ -164,8 +164,8 @@ impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
         self.inner.sync()
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        self.inner.moving_in(flags)
+    fn moving_in(&mut self, now: crate::output::Activity) {
+        self.inner.moving_in(now)
     }
 }
 

@@ -597,3 +597,75 @@ fn run_reads_the_gap_voltage_through_iio() {
         "{stderr}"
     );
 }
+
+/// Machining conditions: `E<n>` selects one (modal); its feed drives the three-state servo, the
+/// pulse log's `spark` is off on the rapid and `condition` follows the program; an undefined
+/// number is an error naming the line.
+#[test]
+fn conditions_set_the_feed_and_show_in_the_pulse_log() {
+    let dir = temp_dir("conditions");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("e.ngc");
+    std::fs::write(&program, "G21 G90\nG0 X1\nE2 G1 X2 F600\nE4 G1 X3\nM2\n").unwrap();
+    let pulses = dir.join("pulses.csv");
+    let out = edmd(&[
+        "run",
+        program.to_str().unwrap(),
+        "--set",
+        "gap.kind=\"none\"",
+        "--set",
+        "output.kind=\"file\"",
+        "--set",
+        &format!("output.path=\"{}\"", pulses.display()),
+        "--set",
+        "log.format=\"plain\"",
+    ]);
+    let (stdout, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("e.ngc:3: machining condition E2"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("e.ngc:4: machining condition E4"),
+        "{stderr}"
+    );
+    let (header, rows) = edmd::output::read_pulse_log(&pulses).unwrap();
+    assert_eq!(header.tick_us, 50);
+    // X position in steps at each row, and the ticks spent per millimetre of each condition.
+    let mut x = 0i64;
+    let mut first_tick_at = std::collections::BTreeMap::new();
+    for r in &rows {
+        x += r.steps[0] as i64;
+        // (The tick that takes the rapid's last step already belongs to the cut.)
+        if x < 1000 && r.steps[0] != 0 {
+            assert!(!r.spark, "spark on during the rapid at tick {}", r.tick);
+            assert_eq!(r.condition, 0);
+        }
+        if r.steps[0] != 0 {
+            first_tick_at.entry(x).or_insert(r.tick);
+        }
+        if x > 1000 && x < 2000 && r.steps[0] != 0 {
+            assert!(r.spark && r.condition == 2, "{r:?}");
+        }
+        if x > 2000 && x < 3000 && r.steps[0] != 0 {
+            assert!(r.spark && r.condition == 4, "{r:?}");
+        }
+    }
+    assert_eq!(x, 3000);
+    let secs = |a: i64, b: i64| (first_tick_at[&b] - first_tick_at[&a]) as f64 * 50e-6;
+    // E2 cuts at 25 mm/min, E4 at 90 mm/min: the feed over the middle of each millimetre.
+    let e2 = 0.8 / secs(1100, 1900) * 60.0;
+    let e4 = 0.8 / secs(2100, 2900) * 60.0;
+    assert!((e2 - 25.0).abs() < 0.5, "E2 feed {e2} mm/min");
+    assert!((e4 - 90.0).abs() < 1.0, "E4 feed {e4} mm/min");
+
+    std::fs::write(&program, "G21 G90\nE7 G1 X1 F60\nM2\n").unwrap();
+    let out = edmd(&["check", program.to_str().unwrap()]);
+    let (stdout, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("e.ngc:2:1: E7: no such machining condition (generator.condition defines E1, E2, E3, E4, E5)"),
+        "{stderr}"
+    );
+}

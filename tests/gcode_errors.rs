@@ -75,10 +75,17 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "unknown letter",
+            "G1 X1 H5 F10\n",
+            1,
+            7,
+            "word H is not used with G1",
+        ),
+        case(
+            "undefined machining condition",
             "G1 X1 E5 F10\n",
             1,
             7,
-            "word E is not used with G1",
+            "E5: no such machining condition (generator.condition defines none)",
         ),
         case("pallet change", "M60\n", 1, 1, "unknown M word M60"),
         case(

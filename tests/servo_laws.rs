@@ -33,6 +33,9 @@ fn straight_cut() -> Vec<StepBlock> {
                 flags: 0,
                 path_end_mm: 0.1 * (i + 1) as f64,
                 dwell_s: 0.0,
+                condition: 0,
+                condition_feed: 0.0,
+                condition_v_ref: 0.0,
             }
         })
         .collect()

@@ -212,6 +212,19 @@ pub struct DaemonConfig {
     pub report_dir: Option<PathBuf>,
 }
 
+/// One machining condition of the generator (`[generator] condition`), selected by `E<number>`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Condition {
+    pub number: u32,
+    pub on_us: f64,
+    pub off_us: f64,
+    pub current_a: f64,
+    /// The voltage law's reference while this condition runs, V.
+    pub v_ref: f64,
+    /// The advance feed while sparking (three-state law), mm/min.
+    pub feed_mm_per_min: f64,
+}
+
 /// `[compensation]`: the wire offset registers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompensationConfig {
@@ -252,6 +265,8 @@ pub struct Config {
     pub log: LogConfig,
     pub program: ProgramConfig,
     pub compensation: CompensationConfig,
+    /// `[generator] condition`, by number.
+    pub conditions: Vec<Condition>,
 }
 
 impl Default for Config {

@@ -24,6 +24,24 @@ pub(super) struct RawConfig {
     pub(super) log: RawLog,
     pub(super) program: RawProgram,
     pub(super) compensation: RawCompensation,
+    pub(super) generator: RawGenerator,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawGenerator {
+    pub(super) condition: Vec<RawCondition>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawCondition {
+    pub(super) number: i64,
+    pub(super) on_us: f64,
+    pub(super) off_us: f64,
+    pub(super) current_a: f64,
+    pub(super) v_ref: f64,
+    pub(super) feed_mm_per_min: f64,
 }
 
 #[derive(Debug, Deserialize)]

@@ -111,6 +111,7 @@ impl ProgramOptions {
             max_loop_iterations: p.max_loop_iterations,
             d_mm: config.compensation.d_mm.clone(),
             offset_tolerance_mm: config.interpolation.chord_tolerance_mm,
+            conditions: config.conditions.iter().map(|c| c.number).collect(),
         }
     }
 }

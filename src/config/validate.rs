@@ -408,6 +408,22 @@ impl RawConfig {
             }
         }
         let compensation = CompensationConfig { d_mm };
+        let mut conditions: Vec<Condition> = Vec::new();
+        for c in self.generator.condition {
+            let key = "generator.condition";
+            let number = in_range(key, c.number, 1, 999)? as u32;
+            if conditions.iter().any(|x| x.number == number) {
+                return Err((key, format!("E{number} is defined twice")));
+            }
+            conditions.push(Condition {
+                number,
+                on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
+                off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
+                current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,
+                v_ref: positive(key, c.v_ref, 1e4, "V (v_ref)")?,
+                feed_mm_per_min: positive(key, c.feed_mm_per_min, 1e6, "mm/min (feed_mm_per_min)")?,
+            });
+        }
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
@@ -427,6 +443,7 @@ impl RawConfig {
             log,
             program,
             compensation,
+            conditions,
         })
     }
 }

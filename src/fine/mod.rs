@@ -405,11 +405,26 @@ impl Interpolator {
             } else {
                 self.short_ticks = 0;
             }
-            if self.volts.is_finite() {
-                self.servo
-                    .voltage_motion(gap, self.volts, &self.settings.law)
+            let (dir, feed) = if self.volts.is_finite() {
+                let mut law = self.settings.law;
+                if let Law::Voltage { v_ref, .. } = &mut law
+                    && self.block.condition_v_ref > 0.0
+                {
+                    *v_ref = self.block.condition_v_ref as f64;
+                }
+                self.servo.voltage_motion(gap, self.volts, &law)
             } else {
                 self.servo.motion(gap)
+            };
+            // A machining condition sets the sparking feed of the three-state law.
+            let sparking = gap == GapState::Normal
+                && dir > 0
+                && self.settings.law == Law::ThreeState
+                && self.block.condition_feed > 0.0;
+            if sparking {
+                (dir, self.block.condition_feed as f64)
+            } else {
+                (dir, feed)
             }
         };
         if want_dir == 0 {

@@ -42,6 +42,9 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
                 flags: 0,
                 path_end_mm: 0.0,
                 dwell_s: 0.0,
+                condition: 0,
+                condition_feed: 0.0,
+                condition_v_ref: 0.0,
             }
         })
         .collect()

@@ -165,6 +165,8 @@ pub struct ProgramOptions {
     pub d_mm: Vec<f64>,
     /// How far a NURBS curve's offset polyline may stray from the true offset, mm.
     pub offset_tolerance_mm: f64,
+    /// The machining conditions `E<number>` may select.
+    pub conditions: Vec<u32>,
 }
 
 impl Default for ProgramOptions {
@@ -176,6 +178,7 @@ impl Default for ProgramOptions {
             max_loop_iterations: 1_000_000,
             d_mm: vec![0.0],
             offset_tolerance_mm: 0.001,
+            conditions: Vec::new(),
         }
     }
 }
@@ -206,6 +209,8 @@ pub struct Block {
     pub pause: Option<(u64, Pause)>,
     /// Flushing (`M7`/`M8` on, `M9` off) during the motion.
     pub flushing: bool,
+    /// The machining condition (`E<number>`, modal) in force; 0 before any.
+    pub condition: u32,
 }
 
 impl Block {
@@ -224,6 +229,7 @@ impl Block {
             dwell_s: 0.0,
             pause: None,
             flushing: false,
+            condition: 0,
         }
     }
 

@@ -44,8 +44,8 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
         self.inner.sync()
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        self.inner.moving_in(flags)
+    fn moving_in(&mut self, now: super::Activity) {
+        self.inner.moving_in(now)
     }
 }
 

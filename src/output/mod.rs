@@ -83,9 +83,21 @@ pub trait PulseOutput {
         Ok(())
     }
 
-    /// The move in hand changed to one with these `StepBlock` flags (a rapid, say); the
-    /// steps written from now on belong to it. Devices have nothing to do; a recorder notes it.
-    fn moving_in(&mut self, _flags: u8) {}
+    /// What the machine is doing changed (the move in hand's `StepBlock` flags, the spark,
+    /// the machining condition); the steps written from now on belong to it. A pulse log
+    /// writes it down, the port drives its flushing pin, a recorder notes rapids.
+    fn moving_in(&mut self, _now: Activity) {}
+}
+
+/// What the machine is doing, as the consumer's thread loop tells the output when it changes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Activity {
+    /// The move in hand's `StepBlock` flags (rapid, flushing, …).
+    pub flags: u8,
+    /// The generator sparks: a cutting move in hand, not held, not over.
+    pub spark: bool,
+    /// The machining condition in force (`E<number>`; 0 none).
+    pub condition: u16,
 }
 
 /// `output.kind = "null"`: discards everything.
@@ -120,7 +132,7 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
         (**self).sync()
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        (**self).moving_in(flags)
+    fn moving_in(&mut self, now: Activity) {
+        (**self).moving_in(now)
     }
 }

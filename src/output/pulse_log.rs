@@ -2,16 +2,18 @@
 //!
 //! ```text
 //! # edmd pulse log; axes=X,Y; step_mm=0.001,0.001; tick_us=50; start=0,0
-//! tick,x,y,gap
-//! 0,0,0,normal
-//! 17,1,0,normal
-//! 3012,-1,-1,short
+//! tick,x,y,gap,spark,condition
+//! 0,0,0,normal,1,0
+//! 17,1,0,normal,1,2
+//! 3012,-1,-1,short,1,2
 //! ```
 //!
-//! One row per tick that stepped on some axis or whose gap state differs from the previous
-//! row's (the state before the first row is `normal`); each axis column holds that tick's
-//! signed step (-1, 0 or 1). The sum of a column plus the start is the axis' final position:
-//! the log is the pulse ledger, written down.
+//! One row per tick that stepped on some axis or whose gap state, spark or machining condition
+//! differs from the previous row's (before the first row: `normal`, spark off, condition 0);
+//! each axis column holds that tick's signed step (-1, 0 or 1). The sum of a column plus the
+//! start is the axis' final position: the log is the pulse ledger, written down. `spark` is 1
+//! while the generator sparks (off on rapids, holds and after the end) and `condition` the
+//! `E<number>` in force (0: none). A log of the older format (no `spark,condition`) reads too.
 
 use std::fs::File;
 use std::io::{BufRead, BufWriter, Write};
@@ -38,6 +40,9 @@ pub struct PulseLog {
     path: String,
     axes: usize,
     last_gap: GapState,
+    /// What the rows say now, and what the last row said.
+    now: super::Activity,
+    last: (bool, u16),
     line: Vec<u8>,
 }
 
@@ -54,11 +59,13 @@ impl PulseLog {
             path: name.clone(),
             axes: header.axes.len(),
             last_gap: GapState::Normal,
+            now: super::Activity::default(),
+            last: (false, 0),
             line: Vec::with_capacity(64),
         };
         let join = |v: Vec<String>| v.join(",");
         let text = format!(
-            "# edmd pulse log; axes={}; step_mm={}; tick_us={}; start={}\ntick,{},gap\n",
+            "# edmd pulse log; axes={}; step_mm={}; tick_us={}; start={}\ntick,{},gap,spark,condition\n",
             join(header.axes.iter().map(|a| a.to_string()).collect()),
             join(header.step_mm.iter().map(|s| s.to_string()).collect()),
             header.tick_us,
@@ -106,10 +113,12 @@ impl PulseOutput for PulseLog {
         gap: GapState,
     ) -> Result<(), OutputError> {
         let moved = steps[..self.axes].iter().any(|&s| s != 0);
-        if !moved && gap == self.last_gap {
+        let state = (self.now.spark, self.now.condition);
+        if !moved && gap == self.last_gap && state == self.last {
             return Ok(());
         }
         self.last_gap = gap;
+        self.last = state;
         self.line.clear();
         push_u64(&mut self.line, tick);
         for &s in &steps[..self.axes] {
@@ -121,6 +130,9 @@ impl PulseOutput for PulseLog {
         }
         self.line.push(b',');
         self.line.extend_from_slice(gap.name().as_bytes());
+        self.line
+            .extend_from_slice(if state.0 { b",1," } else { b",0," });
+        push_u64(&mut self.line, state.1 as u64);
         self.line.push(b'\n');
         let result = self.out.write_all(&self.line);
         result.map_err(|e| self.io(e))
@@ -128,6 +140,10 @@ impl PulseOutput for PulseLog {
 
     fn finish(&mut self) -> Result<(), OutputError> {
         self.sync()
+    }
+
+    fn moving_in(&mut self, now: super::Activity) {
+        self.now = now;
     }
 
     fn sync(&mut self) -> Result<(), OutputError> {
@@ -155,6 +171,10 @@ pub struct PulseLogRow {
     pub tick: u64,
     pub steps: Vec<i8>,
     pub gap: GapState,
+    /// The generator sparks (`false` in logs of the older format).
+    pub spark: bool,
+    /// The machining condition (`E<number>`; 0 none).
+    pub condition: u16,
 }
 
 /// Reads a pulse log back (for replay in tests and tools). Errors are `line: message`.
@@ -215,11 +235,15 @@ pub fn read_pulse_log(path: &Path) -> Result<(PulseLogHeader, Vec<PulseLogRow>),
             .collect::<Vec<_>>()
             .join(",")
     );
-    if columns != expected {
-        return Err(format!(
-            "line 2: columns {columns:?}, expected {expected:?}"
-        ));
-    }
+    let with_spark = match columns.strip_prefix(expected.as_str()) {
+        Some("") => false,
+        Some(",spark,condition") => true,
+        _ => {
+            return Err(format!(
+                "line 2: columns {columns:?}, expected {expected:?} (and ,spark,condition)"
+            ));
+        }
+    };
     let mut rows = Vec::new();
     for (index, line) in lines.enumerate() {
         let line = line.map_err(|e| e.to_string())?;
@@ -244,7 +268,27 @@ pub fn read_pulse_log(path: &Path) -> Result<(PulseLogHeader, Vec<PulseLogRow>),
             .next()
             .and_then(GapState::from_name)
             .ok_or_else(|| bad("bad gap state"))?;
-        rows.push(PulseLogRow { tick, steps, gap });
+        let (spark, condition) = if with_spark {
+            let spark = match cells.next() {
+                Some("1") => true,
+                Some("0") => false,
+                _ => return Err(bad("bad spark (0 or 1)")),
+            };
+            let condition = cells
+                .next()
+                .and_then(|c| c.parse().ok())
+                .ok_or_else(|| bad("bad condition"))?;
+            (spark, condition)
+        } else {
+            (false, 0)
+        };
+        rows.push(PulseLogRow {
+            tick,
+            steps,
+            gap,
+            spark,
+            condition,
+        });
     }
     Ok((header, rows))
 }
@@ -254,7 +298,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn rows_only_on_steps_and_gap_changes_and_it_reads_back() {
+    fn rows_only_on_steps_and_state_changes_and_it_reads_back() {
         let dir = std::env::temp_dir().join(format!("edmd-pulse-log-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("p.csv");
@@ -271,18 +315,36 @@ mod tests {
         log.write(2, &s(0, 0), GapState::Short).unwrap();
         log.write(3, &s(0, 0), GapState::Short).unwrap();
         log.write(4, &s(-1, 1), GapState::Short).unwrap();
-        log.write(5, &s(0, 0), GapState::Normal).unwrap();
+        // The spark comes on with condition E2: a row even without a step.
+        log.moving_in(crate::output::Activity {
+            flags: 0,
+            spark: true,
+            condition: 2,
+        });
+        log.write(5, &s(0, 0), GapState::Short).unwrap();
+        log.write(6, &s(0, 0), GapState::Normal).unwrap();
         log.finish().unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(
             text,
             "# edmd pulse log; axes=X,Z; step_mm=0.001,0.0005; tick_us=50; start=3,-4\n\
-             tick,x,z,gap\n1,1,0,normal\n2,0,0,short\n4,-1,1,short\n5,0,0,normal\n"
+             tick,x,z,gap,spark,condition\n1,1,0,normal,0,0\n2,0,0,short,0,0\n\
+             4,-1,1,short,0,0\n5,0,0,short,1,2\n6,0,0,normal,1,2\n"
         );
         let (read, rows) = read_pulse_log(&path).unwrap();
         assert_eq!(read, header);
-        assert_eq!(rows.len(), 4);
+        assert_eq!(rows.len(), 5);
         assert_eq!(rows[2].steps, vec![-1, 1]);
+        assert_eq!((rows[3].spark, rows[3].condition), (true, 2));
+        // The older format (no spark and condition columns) still reads.
+        std::fs::write(
+            &path,
+            "# edmd pulse log; axes=X,Z; step_mm=0.001,0.0005; tick_us=50; start=3,-4\n\
+             tick,x,z,gap\n1,1,0,normal\n",
+        )
+        .unwrap();
+        let (_, rows) = read_pulse_log(&path).unwrap();
+        assert_eq!((rows[0].steps.clone(), rows[0].spark), (vec![1, 0], false));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -247,9 +247,9 @@ impl<P: Port, C: Clock> PulseOutput for ParportOutput<P, C> {
         Ok(())
     }
 
-    fn moving_in(&mut self, flags: u8) {
+    fn moving_in(&mut self, now: crate::output::Activity) {
         self.encoder
-            .set_flush(flags & crate::buffer::StepBlock::FLUSH != 0);
+            .set_flush(now.flags & crate::buffer::StepBlock::FLUSH != 0);
     }
 
     fn finish(&mut self) -> Result<(), OutputError> {

@@ -98,12 +98,15 @@ fn the_flushing_pin_follows_the_moves_and_idles_off() {
     map.flush = Some(16); // C2, active low here
     let bench = Bench::new();
     let mut out = output(&bench, map.clone(), TIMING);
-    out.moving_in(crate::buffer::StepBlock::FLUSH);
+    out.moving_in(crate::output::Activity {
+        flags: crate::buffer::StepBlock::FLUSH,
+        ..Default::default()
+    });
     bench.set_now(TICK_NS);
     out.write(1, &[0; MAX_AXES], GapState::Normal).unwrap();
     bench.set_now(2 * TICK_NS);
     out.write(2, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
-    out.moving_in(0);
+    out.moving_in(crate::output::Activity::default());
     bench.set_now(3 * TICK_NS);
     out.write(3, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
     drop(out);

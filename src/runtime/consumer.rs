@@ -28,7 +28,7 @@ use crate::buffer::{BlockSource, StepBlock};
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
-use crate::output::{OutputError, PulseOutput};
+use crate::output::{Activity, OutputError, PulseOutput};
 use crate::servo::{PathPoint, ServoCounters, ServoEvent, ServoState};
 use crate::sys;
 
@@ -470,8 +470,8 @@ where
     let period = settings.tick_ns;
     let mut deadline = started + period;
     let mut tick_no: u64 = 0;
-    // The flags of the move in hand, as the output was last told them.
-    let mut move_flags = 0u8;
+    // What the machine is doing, as the output was last told.
+    let mut activity = Activity::default();
     loop {
         if let Some(histogram) = latency.as_mut() {
             sys::sleep_until_ns(deadline);
@@ -498,24 +498,41 @@ where
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
         let tick = fine.tick_volts(gap, sensor.volts(), source);
-        let flags = fine.block().map_or(0, |b| b.flags);
-        if flags != move_flags {
-            let flush = flags & StepBlock::FLUSH;
-            if flush != move_flags & StepBlock::FLUSH
-                && published
-                    .events
-                    .push(EventRecord {
-                        tick: tick_no,
-                        line: fine.line(),
-                        event: ServoEvent::Flushing { on: flush != 0 },
-                    })
-                    .is_err()
-            {
-                published.events_dropped.fetch_add(1, Ordering::Relaxed);
+        let block = fine.block();
+        let flags = block.map_or(0, |b| b.flags);
+        let now = Activity {
+            flags,
+            spark: block.is_some_and(|b| b.flags & StepBlock::RAPID == 0)
+                && !fine.held()
+                && !fine.state().is_final(),
+            condition: block.map_or(activity.condition, |b| b.condition),
+        };
+        if now != activity {
+            let tell = |event| {
+                let record = EventRecord {
+                    tick: tick_no,
+                    line: fine.line(),
+                    event,
+                };
+                if published.events.push(record).is_err() {
+                    published.events_dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            };
+            if (flags ^ activity.flags) & StepBlock::FLUSH != 0 {
+                tell(ServoEvent::Flushing {
+                    on: flags & StepBlock::FLUSH != 0,
+                });
             }
-            move_flags = flags;
-            output.moving_in(flags);
-            sensor.moving_in(flags);
+            if now.condition != activity.condition {
+                tell(ServoEvent::Condition {
+                    number: now.condition,
+                });
+            }
+            if flags != activity.flags {
+                sensor.moving_in(flags);
+            }
+            activity = now;
+            output.moving_in(now);
         }
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
             if !e.step_taken() && tick.moved() {

@@ -120,6 +120,9 @@ impl BlockSource for SquarePath {
             flags: 0,
             path_end_mm: 0.0,
             dwell_s: 0.0,
+            condition: 0,
+            condition_feed: 0.0,
+            condition_v_ref: 0.0,
         };
         self.at = end;
         self.next_seq += 1;

@@ -147,6 +147,12 @@ fn log_event(program: &str, record: &EventRecord, tick: TickPeriod, pauses: bool
                 ""
             }
         ),
+        ServoEvent::Condition { number } => tracing::info!(
+            edmd_event = "condition",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: machining condition E{number} from t={t:.4} s"
+        ),
         ServoEvent::Flushing { on } => tracing::info!(
             edmd_event = "flushing",
             edmd_program = program,
@@ -209,6 +215,7 @@ fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventR
                 ServoEvent::Done => ("done", None),
                 ServoEvent::Paused { .. } => ("pause", None),
                 ServoEvent::Collision { .. } => ("collision", None),
+                ServoEvent::Condition { number } => ("condition", Some(number as u64)),
                 ServoEvent::Flushing { on: true } => ("flush_on", None),
                 ServoEvent::Flushing { on: false } => ("flush_off", None),
             };

@@ -73,6 +73,8 @@ pub struct BlockMaker {
     path_mm: f64,
     /// The next segment is the first of its G-code block (it carries the block's stops).
     first_of_block: bool,
+    /// `[generator] condition`: number, sparking feed (mm/s), reference voltage (V).
+    conditions: Vec<(u32, f32, f32)>,
 }
 
 impl BlockMaker {
@@ -85,6 +87,11 @@ impl BlockMaker {
             last_end: [0; MAX_AXES],
             path_mm: 0.0,
             first_of_block: true,
+            conditions: config
+                .conditions
+                .iter()
+                .map(|c| (c.number, (c.feed_mm_per_min / 60.0) as f32, c.v_ref as f32))
+                .collect(),
         }
     }
 
@@ -128,7 +135,19 @@ impl BlockMaker {
             flags,
             path_end_mm: self.path_mm + segment.length,
             dwell_s: if first { segment.block.dwell_s } else { 0.0 },
+            condition: segment.block.condition as u16,
+            condition_feed: 0.0,
+            condition_v_ref: 0.0,
         };
+        let mut block = block;
+        if let Some(&(_, feed, v_ref)) = self
+            .conditions
+            .iter()
+            .find(|c| c.0 == segment.block.condition)
+        {
+            block.condition_feed = feed;
+            block.condition_v_ref = v_ref;
+        }
         self.path_mm += segment.length;
         self.seq += 1;
         self.last_end = end;

@@ -103,6 +103,8 @@ pub struct BlockReader<R> {
     pending_pause: Option<(u64, super::Pause)>,
     /// M7/M8 on, M9 off.
     flushing: bool,
+    /// `E<number>` in force (0: none yet).
+    condition: u32,
     /// G41/G42 wire offset, and the moves it has made final, waiting to be handed out.
     comp: Compensator,
     queue: VecDeque<Block>,
@@ -158,6 +160,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             pending_dwell: 0.0,
             pending_pause: None,
             flushing: false,
+            condition: 0,
             source_name: source_name.into(),
             axes: axes.to_vec(),
             modal: Modal {

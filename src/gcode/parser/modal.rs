@@ -212,6 +212,31 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 );
             }
         }
+        if let Some(e) = letters.get('E') {
+            let n = whole(e, 0.0, 999.0)? as u32;
+            if !self.options.conditions.contains(&n) {
+                let defined: Vec<String> = self
+                    .options
+                    .conditions
+                    .iter()
+                    .map(|c| format!("E{c}"))
+                    .collect();
+                return Err((
+                    e.col,
+                    GcodeErrorKind::Control(format!(
+                        "E{}: no such machining condition (generator.condition defines {})",
+                        e.text,
+                        if defined.is_empty() {
+                            "none".to_string()
+                        } else {
+                            defined.join(", ")
+                        }
+                    )),
+                )
+                    .into());
+            }
+            self.condition = n;
+        }
         if let Some(f) = letters.get('F') {
             // The lexer only yields finite numbers, so this also covers the sign.
             if f.value <= 0.0 {
@@ -316,6 +341,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         block.dwell_s = std::mem::take(&mut self.pending_dwell);
         block.pause = self.pending_pause.take();
         block.flushing = self.flushing;
+        block.condition = self.condition;
         block
     }
 
@@ -466,7 +492,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         context: &str,
     ) -> Step<()> {
         for w in letters.present() {
-            if extra.contains(w.letter) || "GMNFST".contains(w.letter) {
+            if extra.contains(w.letter) || "GMNFSTE".contains(w.letter) {
                 continue; // a form's own word (G38's C) wins over an axis letter
             }
             if self.machine_axis(w)?.is_some() && allow_axes {

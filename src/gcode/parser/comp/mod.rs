@@ -415,6 +415,7 @@ impl Compensator {
         let mut push = |kind: BlockKind, curve: NurbsCurve| {
             let mut b = Block::new(t.line, kind, curve, t.feed_mm_per_min);
             b.flushing = t.flushing;
+            b.condition = t.condition;
             if std::mem::take(&mut first) {
                 b.dwell_s = t.dwell_s;
                 b.pause = t.pause;
