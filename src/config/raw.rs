@@ -128,6 +128,8 @@ pub(super) struct RawParport {
     pub(super) dir_pins: Vec<i64>,
     pub(super) enable_pin: i64,
     pub(super) flush_pin: i64,
+    pub(super) spark_pin: i64,
+    pub(super) condition_pins: Vec<i64>,
     pub(super) invert_pins: Vec<i64>,
     pub(super) step_length_ns: i64,
     pub(super) step_space_ns: i64,

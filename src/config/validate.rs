@@ -490,6 +490,21 @@ impl RawParport {
             OUTPUTS,
         )?;
         let flush_pin = optional("parport.flush_pin", self.flush_pin, is_output_pin, OUTPUTS)?;
+        let spark_pin = optional("parport.spark_pin", self.spark_pin, is_output_pin, OUTPUTS)?;
+        let condition_pins = self
+            .condition_pins
+            .iter()
+            .map(|&p| output_pin("parport.condition_pins", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        if condition_pins.len() > 10 {
+            return Err((
+                "parport.condition_pins",
+                format!(
+                    "{} pins; at most 10 (conditions up to 1023)",
+                    condition_pins.len()
+                ),
+            ));
+        }
         let short_pin = optional("parport.short_pin", self.short_pin, is_input_pin, INPUTS)?;
         let open_pin = optional("parport.open_pin", self.open_pin, is_input_pin, INPUTS)?;
         let mut seen: Vec<(u8, &'static str)> = Vec::new();
@@ -499,6 +514,12 @@ impl RawParport {
             .chain(dir_pins.iter().map(|&p| (p, "parport.dir_pins")))
             .chain(enable_pin.map(|p| (p, "parport.enable_pin")))
             .chain(flush_pin.map(|p| (p, "parport.flush_pin")))
+            .chain(spark_pin.map(|p| (p, "parport.spark_pin")))
+            .chain(
+                condition_pins
+                    .iter()
+                    .map(|&p| (p, "parport.condition_pins")),
+            )
             .chain(short_pin.map(|p| (p, "parport.short_pin")))
             .chain(open_pin.map(|p| (p, "parport.open_pin")));
         for (pin, key) in signals {
@@ -526,6 +547,8 @@ impl RawParport {
             dir_pins,
             enable_pin,
             flush_pin,
+            spark_pin,
+            condition_pins,
             invert_pins,
             step_length_ns: in_range(
                 "parport.step_length_ns",

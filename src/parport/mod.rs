@@ -47,7 +47,7 @@ use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
 
 pub use ioctl::Ppdev;
-pub use pins::{PinLevels, PinMap, StepEncoder, StepTiming};
+pub use pins::{CONDITION_BITS, PinLevels, PinMap, StepEncoder, StepTiming};
 
 /// The port's settings (`[parport]`, validated by the configuration): pins are DB-25 pin
 /// numbers, times in ns.
@@ -58,6 +58,10 @@ pub struct ParportConfig {
     pub enable_pin: Option<u8>,
     /// Flushing output, active while the program's flushing is on (`M7`/`M8`).
     pub flush_pin: Option<u8>,
+    /// Spark-enable output, active while the generator may spark.
+    pub spark_pin: Option<u8>,
+    /// The machining condition's number in binary, least significant bit first.
+    pub condition_pins: Vec<u8>,
     pub invert_pins: Vec<u8>,
     pub step_length_ns: u64,
     pub step_space_ns: u64,
@@ -248,8 +252,11 @@ impl<P: Port, C: Clock> PulseOutput for ParportOutput<P, C> {
     }
 
     fn moving_in(&mut self, now: crate::output::Activity) {
-        self.encoder
-            .set_flush(now.flags & crate::buffer::StepBlock::FLUSH != 0);
+        self.encoder.set_process(
+            now.flags & crate::buffer::StepBlock::FLUSH != 0,
+            now.spark,
+            now.condition,
+        );
     }
 
     fn finish(&mut self) -> Result<(), OutputError> {
@@ -354,6 +361,15 @@ impl PinMap {
             dir,
             enable: p.enable_pin,
             flush: p.flush_pin,
+            spark: p.spark_pin,
+            condition: {
+                let mut pins = [0; CONDITION_BITS];
+                for (slot, &pin) in pins.iter_mut().zip(&p.condition_pins) {
+                    *slot = pin;
+                }
+                pins
+            },
+            condition_bits: p.condition_pins.len().min(CONDITION_BITS) as u8,
             inverted: p.invert_pins.iter().fold(0, |m, &pin| m | 1 << pin),
             short: p.short_pin,
             open: p.open_pin,

@@ -128,6 +128,9 @@ pub fn status_register(levels: PinLevels) -> u8 {
     (reg ^ STATUS_HW_INVERTED) | 0b111
 }
 
+/// Most condition-select pins.
+pub const CONDITION_BITS: usize = 10;
+
 /// Which pin carries which signal, and which pins are active low. Validated by the
 /// configuration: every pin exists, outputs are outputs, no pin is used twice.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -139,6 +142,11 @@ pub struct PinMap {
     pub enable: Option<Pin>,
     /// Flushing on (`M7`/`M8`) while active; inactive when idle.
     pub flush: Option<Pin>,
+    /// Spark enable while active; inactive when idle.
+    pub spark: Option<Pin>,
+    /// Condition-select pins, least significant bit first (the first `condition_bits`).
+    pub condition: [Pin; CONDITION_BITS],
+    pub condition_bits: u8,
     /// Bit `p` set: pin `p` is active low.
     pub inverted: u32,
     pub short: Option<Pin>,
@@ -146,6 +154,10 @@ pub struct PinMap {
 }
 
 impl PinMap {
+    pub fn condition_pins(&self) -> &[Pin] {
+        &self.condition[..self.condition_bits as usize]
+    }
+
     pub fn is_inverted(&self, pin: Pin) -> bool {
         self.inverted >> pin & 1 == 1
     }
@@ -164,7 +176,10 @@ impl PinMap {
             levels.set(self.step[axis], self.level(self.step[axis], false));
             levels.set(self.dir[axis], self.level(self.dir[axis], false));
         }
-        for pin in [self.enable, self.flush].into_iter().flatten() {
+        for pin in [self.enable, self.flush, self.spark].into_iter().flatten() {
+            levels.set(pin, self.level(pin, false));
+        }
+        for &pin in self.condition_pins() {
             levels.set(pin, self.level(pin, false));
         }
         levels
@@ -207,7 +222,7 @@ impl StepTiming {
 /// edge means the step was taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
-    /// The flushing pin changes in a tick without steps.
+    /// The process pins (flushing, spark, condition) change in a tick without steps.
     Flush,
     Direction,
     StepEdge,
@@ -217,7 +232,7 @@ pub enum Phase {
 impl Phase {
     pub fn name(self) -> &'static str {
         match self {
-            Phase::Flush => "setting the flushing pin",
+            Phase::Flush => "setting the process pins (flushing, spark, condition)",
             Phase::Direction => "setting the direction pins",
             Phase::StepEdge => "raising the step pins",
             Phase::StepRelease => "releasing the step pins",
@@ -274,8 +289,8 @@ pub struct StepEncoder {
     levels: PinLevels,
     /// The direction each dir pin shows: 1 positive, -1 negative, 0 never driven.
     dir: [i8; MAX_AXES],
-    /// The flushing pin changed since the last write.
-    flush_changed: bool,
+    /// A process pin (flushing, spark, condition) changed since the last write.
+    process_changed: bool,
 }
 
 impl StepEncoder {
@@ -285,17 +300,27 @@ impl StepEncoder {
             map,
             timing,
             dir: [0; MAX_AXES],
-            flush_changed: false,
+            process_changed: false,
         }
     }
 
-    /// Flushing on or off from the next tick on (nothing without a flushing pin).
-    pub fn set_flush(&mut self, on: bool) {
-        if let Some(pin) = self.map.flush {
-            let level = self.map.level(pin, on);
-            if self.levels.is_high(pin) != level {
-                self.levels.set(pin, level);
-                self.flush_changed = true;
+    /// The process outputs from the next tick on: flushing, spark enable, and the condition
+    /// number on the condition-select pins (pins the map does not have are skipped).
+    pub fn set_process(&mut self, flush: bool, spark: bool, condition: u16) {
+        let mut wanted: [(Option<Pin>, bool); 2 + CONDITION_BITS] =
+            [(None, false); 2 + CONDITION_BITS];
+        wanted[0] = (self.map.flush, flush);
+        wanted[1] = (self.map.spark, spark);
+        for (bit, &pin) in self.map.condition_pins().iter().enumerate() {
+            wanted[2 + bit] = (Some(pin), condition >> bit & 1 == 1);
+        }
+        for (pin, active) in wanted {
+            if let Some(pin) = pin {
+                let level = self.map.level(pin, active);
+                if self.levels.is_high(pin) != level {
+                    self.levels.set(pin, level);
+                    self.process_changed = true;
+                }
             }
         }
     }
@@ -312,9 +337,9 @@ impl StepEncoder {
     /// The writes for a tick with these steps (-1, 0, 1 per axis); empty when nothing steps.
     pub fn tick(&mut self, steps: &[i8; MAX_AXES]) -> TickWrites {
         let mut out = TickWrites::default();
-        let flush_changed = std::mem::take(&mut self.flush_changed);
+        let process_changed = std::mem::take(&mut self.process_changed);
         if steps[..self.map.axes].iter().all(|&s| s == 0) {
-            if flush_changed {
+            if process_changed {
                 out.push(TimedWrite {
                     offset_ns: 0,
                     levels: self.levels,
@@ -422,6 +447,9 @@ mod tests {
             dir: [3, 5, 7, 9, 0, 0],
             enable: Some(1),
             flush: None,
+            spark: None,
+            condition: [0; CONDITION_BITS],
+            condition_bits: 0,
             inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
             short: Some(10),
             open: Some(11),

@@ -23,6 +23,9 @@ fn stepconf_map(axes: usize, inverted: &[Pin]) -> PinMap {
         dir: [3, 5, 7, 9, 0, 0],
         enable: Some(14),
         flush: None,
+        spark: None,
+        condition: [0; crate::parport::CONDITION_BITS],
+        condition_bits: 0,
         inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
         short: Some(10),
         open: Some(11),
@@ -90,42 +93,61 @@ fn stepconf_pins_dir_before_step_high_then_low() {
     check_waveform(&map, TIMING, &bench).unwrap();
 }
 
-/// The flushing pin (M7/M8) follows the move's flag, changes in a tick without steps too, and
-/// is inactive again when the port is let go.
+/// The process pins follow the machine: flushing (M7/M8), spark enable and the condition
+/// number in binary; they change in a tick without steps too, and are inactive again when the
+/// port is let go.
 #[test]
-fn the_flushing_pin_follows_the_moves_and_idles_off() {
+fn the_process_pins_follow_the_machine_and_idle_off() {
     let mut map = stepconf_map(1, &[16]);
     map.flush = Some(16); // C2, active low here
+    map.spark = Some(4);
+    map.condition = [5, 6, 7, 0, 0, 0, 0, 0, 0, 0];
+    map.condition_bits = 3;
     let bench = Bench::new();
     let mut out = output(&bench, map.clone(), TIMING);
     out.moving_in(crate::output::Activity {
         flags: crate::buffer::StepBlock::FLUSH,
-        ..Default::default()
+        spark: true,
+        condition: 5,
     });
     bench.set_now(TICK_NS);
     out.write(1, &[0; MAX_AXES], GapState::Normal).unwrap();
     bench.set_now(2 * TICK_NS);
     out.write(2, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
-    out.moving_in(crate::output::Activity::default());
+    out.moving_in(crate::output::Activity {
+        flags: 0,
+        spark: false,
+        condition: 2,
+    });
     bench.set_now(3 * TICK_NS);
     out.write(3, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
     drop(out);
     let wave = bench.waveform(map.idle());
-    let flushing = |t: u64| {
-        let levels = wave.iter().rev().find(|(at, _)| *at <= t).unwrap().1;
-        !levels.is_high(16)
+    let at = |t: u64| wave.iter().rev().find(|(at, _)| *at <= t).unwrap().1;
+    let state = |t: u64| {
+        let l = at(t);
+        let condition =
+            (l.is_high(5) as u8) | (l.is_high(6) as u8) << 1 | (l.is_high(7) as u8) << 2;
+        (!l.is_high(16), l.is_high(4), condition)
     };
-    assert!(!flushing(0), "off before the program asks");
-    assert!(flushing(TICK_NS), "on in a tick without steps");
-    assert!(
-        flushing(2 * TICK_NS + TIMING.dir_setup_ns),
-        "held through the steps"
+    assert_eq!(
+        state(0),
+        (false, false, 0),
+        "all off before the program asks"
     );
-    assert!(!flushing(3 * TICK_NS + TIMING.dir_setup_ns), "off after M9");
-    assert!(
-        wave.last().unwrap().1.is_high(16),
-        "let go: inactive (active low: high)"
+    assert_eq!(
+        state(TICK_NS),
+        (true, true, 5),
+        "on in a tick without steps"
     );
+    assert_eq!(
+        state(2 * TICK_NS + TIMING.dir_setup_ns),
+        (true, true, 5),
+        "held through steps"
+    );
+    assert_eq!(state(3 * TICK_NS + TIMING.dir_setup_ns), (false, false, 2));
+    let last = wave.last().unwrap().1;
+    assert!(last.is_high(16) && !last.is_high(4) && !last.is_high(5) && !last.is_high(6));
 }
 
 #[test]
@@ -228,6 +250,9 @@ fn arb_map() -> impl Strategy<Value = PinMap> {
                 dir,
                 enable: enable.then_some(pins[8]),
                 flush: None,
+                spark: None,
+                condition: [0; crate::parport::CONDITION_BITS],
+                condition_bits: 0,
                 inverted: invert_bits & 0x3_43fe,
                 short: None,
                 open: None,
