@@ -537,6 +537,25 @@ fn rapids_run_at_rapid_speed_and_a_short_in_one_is_a_collision() {
         .unwrap_or_else(|| panic!("no program end in {stderr}"));
     // 100 mm of rapids at the one-step-per-tick cap (20 mm/s) and 1 mm cut at 1 mm/s.
     assert!((5.9..6.2).contains(&end), "took {end} s");
+    // `plan` uses the same model: its planned time is the executed one.
+    let out_dir = dir.join("plan");
+    let out = edmd(&[
+        "plan",
+        program.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+    let planned: f64 = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("planned time"))
+        .and_then(|t| t.trim().trim_end_matches(" s").parse().ok())
+        .unwrap_or_else(|| panic!("no planned time in {stdout}"));
+    assert!(
+        (planned - end).abs() < 0.02 * end,
+        "planned {planned} s, ran {end} s"
+    );
 
     // The gap shorts 1 s into the first rapid (tick 20000): a collision at X = 20 mm or so.
     let script = dir.join("gap.txt");

@@ -37,6 +37,9 @@ impl PlanSettings {
             max_segment: i.max_segment_mm,
             period: i.period_ms / 1000.0,
             max_feed: m.max_feed_mm_per_min / 60.0,
+            // One step per axis per tick: the coarsest axis along its own direction.
+            rapid_feed: (m.max_feed_mm_per_min / 60.0)
+                .min(m.step_mm.iter().cloned().fold(0.0, f64::max) / config.fine.tick.secs()),
             max_normal_accel: m.max_normal_accel_mm_per_s2,
             max_tangential_accel: m.max_tangential_accel_mm_per_s2,
             lookahead: i.lookahead_segments,

@@ -59,6 +59,9 @@ pub struct PlanSettings {
     pub period: f64,
     /// Machine maximum feed (mm/s).
     pub max_feed: f64,
+    /// Rapid (`G0`) speed (mm/s): the machine's maximum as far as the output can step it,
+    /// so that planned rapid times are the executed ones.
+    pub rapid_feed: f64,
     /// mm/s².
     pub max_normal_accel: f64,
     /// mm/s².

@@ -114,6 +114,9 @@ impl Segmenter {
 
     /// Feed limit of a block in mm/s: the programmed feed clamped by the machine's maximum.
     fn block_feed(&self, block: &Block) -> f64 {
+        if block.kind == crate::gcode::BlockKind::Rapid {
+            return self.settings.rapid_feed;
+        }
         let max = self.settings.max_feed;
         block.feed_mm_per_min.map_or(max, |f| (f / 60.0).min(max))
     }
