@@ -1505,3 +1505,69 @@ fn a_collision_in_a_rapid_holds_the_job() {
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
 }
+
+/// `edmd run --checkpoint FILE`: a job that ends on an alarm (a short longer than
+/// `servo.max_short_s`) exits 1 and leaves a checkpoint where the electrode stands; a daemon
+/// with that file as its checkpoint resumes the job and ends it on the program's end point,
+/// the two pulse logs together being the uninterrupted run's, step for step.
+#[test]
+fn an_alarm_in_edmd_run_leaves_a_checkpoint_the_daemon_resumes() {
+    let dir = scratch("run-checkpoint");
+    let reference = uninterrupted(&dir);
+    std::fs::write(dir.join("gap.txt"), "0 normal\n20000 short\n").unwrap();
+    let checkpoint = dir.join("checkpoint.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("run")
+        .arg(dir.join("programs").join(PROGRAM))
+        .arg("--checkpoint")
+        .arg(&checkpoint)
+        .args([
+            "--set",
+            "gap.kind=\"script\"",
+            "--set",
+            "servo.max_short_s=0.2",
+        ])
+        .arg("--set")
+        .arg(format!("gap.script=\"{}\"", dir.join("gap.txt").display()))
+        .args(["--set", "output.kind=\"file\""])
+        .arg("--set")
+        .arg(format!(
+            "output.path=\"{}\"",
+            dir.join("first.csv").display()
+        ))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the short outlasted servo.max_short_s"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("checkpoint written to"), "{stderr}");
+    let cp: Value = serde_json::from_str(&std::fs::read_to_string(&checkpoint).unwrap()).unwrap();
+    assert_eq!(
+        (cp["reason"].as_str(), cp["still"].as_bool()),
+        (Some("alarm"), Some(true))
+    );
+
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
+    assert_eq!(daemon.status()["checkpoint"]["reason"], "alarm");
+    daemon.ok(&["resume"]);
+    let idle = daemon.wait_for("the resumed job's end", |s| s["state"] == "idle");
+    assert_eq!(
+        idle["last_job"]["outcome"],
+        "done",
+        "{idle}\n{}",
+        daemon.log()
+    );
+    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
+    // The alarm run turned back while shorted: its net moves and the resumed run's add up to
+    // the uninterrupted run's end, and the resumed run's moves are the reference's tail.
+    let second = moves(&dir.join("second.csv"));
+    assert!(
+        reference.ends_with(&second),
+        "the resumed run is not the rest of the path"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}

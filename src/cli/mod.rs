@@ -196,6 +196,10 @@ struct RunArgs {
     /// events.csv, summary.json
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    /// When the job does not finish (alarm, collision, stop, device error), write a
+    /// checkpoint there: `edmd serve` with this file as `daemon.checkpoint` resumes it
+    #[arg(long, value_name = "FILE")]
+    checkpoint: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -511,6 +515,18 @@ fn run_job(args: &RunArgs) -> ExitCode {
             return ExitCode::from(EXIT_RUNTIME);
         }
     }
+    if let (Some(path), Some(at)) = (&args.checkpoint, &summary.stopped_at) {
+        match write_run_checkpoint(path, args, &cfg, &summary, at) {
+            Ok(()) => eprintln!("edmd: checkpoint written to {}", path.display()),
+            Err(e) => {
+                eprintln!(
+                    "edmd: error: {}: cannot write the checkpoint: {e}",
+                    path.display()
+                );
+                return ExitCode::from(EXIT_RUNTIME);
+            }
+        }
+    }
     match summary.outcome {
         Outcome::Done => ExitCode::SUCCESS,
         _ => {
@@ -520,6 +536,48 @@ fn run_job(args: &RunArgs) -> ExitCode {
             ExitCode::from(EXIT_RUNTIME)
         }
     }
+}
+
+/// The checkpoint of an `edmd run` job that stopped at `at` (a standstill: exact), in the
+/// daemon's format, so that `edmd serve` resumes it.
+fn write_run_checkpoint(
+    path: &Path,
+    args: &RunArgs,
+    cfg: &Config,
+    summary: &runtime::JobSummary,
+    at: &runtime::StopPoint,
+) -> std::io::Result<()> {
+    use crate::checkpoint::{self, Checkpoint, Reason};
+    let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
+        .map(|(_, keys)| keys)
+        .unwrap_or_default();
+    let reason = match summary.outcome {
+        Outcome::Alarm | Outcome::Collision => Reason::Alarm,
+        Outcome::Stopped => Reason::Stop,
+        _ => Reason::Error,
+    };
+    let unix_now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let cp = Checkpoint {
+        version: checkpoint::VERSION,
+        program: std::fs::canonicalize(&args.program)?,
+        program_sha256: at.program_sha256.clone(),
+        motion_sha256: checkpoint::motion_hash(cfg),
+        motion_settings: checkpoint::motion_settings(&keys),
+        reason,
+        still: true,
+        line: at.line,
+        segment: at.segment,
+        step: at.step,
+        segment_steps: at.segment_steps,
+        parameter: at.parameter,
+        axes: cfg.machine.axis_names(),
+        position_steps: summary.end_steps.clone(),
+        position_mm: summary.end_mm.clone(),
+        written_unix_s: unix_now,
+    };
+    cp.write_atomic(path)
 }
 
 fn run_serve(args: &ServeArgs) -> ExitCode {

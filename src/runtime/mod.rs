@@ -55,7 +55,7 @@ pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
-pub use summary::{JobSummary, Outcome, axis_list};
+pub use summary::{JobSummary, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
 #[derive(Debug, thiserror::Error)]
@@ -579,6 +579,16 @@ pub fn run_job_with(
         events_dropped: published.events_dropped.load(Ordering::Relaxed),
         trace_dropped: tracer.as_ref().map_or(0, |t| t.dropped()),
         rt_refused: report.rt_refused,
+        stopped_at: (outcome != Outcome::Done && outcome != Outcome::ResumeRefused).then(|| {
+            StopPoint {
+                line: stopped_at.line,
+                segment: stopped_at.here.seq,
+                step: stopped_at.here.event,
+                segment_steps: stopped_at.events,
+                parameter: stopped_at.u_end.is_finite().then_some(stopped_at.u_end),
+                program_sha256: program.sha256.clone(),
+            }
+        }),
     };
     JobEnd {
         summary,

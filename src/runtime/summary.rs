@@ -51,6 +51,19 @@ impl Outcome {
     }
 }
 
+/// Where along the program a job that did not finish stopped (a standstill): what a checkpoint
+/// needs to resume it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StopPoint {
+    pub line: u64,
+    pub segment: u64,
+    pub step: i64,
+    pub segment_steps: i64,
+    pub parameter: Option<f64>,
+    /// SHA-256 of the program's bytes the job ran.
+    pub program_sha256: String,
+}
+
 /// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSummary {
@@ -103,6 +116,9 @@ pub struct JobSummary {
     pub trace_dropped: u64,
     /// Real-time features the system refused.
     pub rt_refused: Vec<String>,
+    /// Where a job that did not finish stopped (none when it was done).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopped_at: Option<StopPoint>,
 }
 
 impl JobSummary {
