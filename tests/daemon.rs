@@ -110,6 +110,21 @@ impl Daemon {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
+    /// `resume`, then waits for the job to end done at `end` (steps), and stops the daemon.
+    fn resume_to_the_end(self, end: &[i64]) {
+        self.ok(&["resume"]);
+        let idle = self.wait_for("the job's end", |s| s["state"] == "idle");
+        assert_eq!(
+            idle["last_job"]["outcome"],
+            "done",
+            "{idle}\n{}",
+            self.log()
+        );
+        assert_eq!(ints(&idle["last_job"]["end_steps"]), end.to_vec());
+        self.signal(libc::SIGTERM);
+        assert_eq!(self.wait().0, 0);
+    }
+
     /// Waits until the log holds `needle` (the supervisor logs events a little after the
     /// status shows them).
     fn wait_for_log(&self, needle: &str) {
@@ -1457,17 +1472,7 @@ fn a_long_short_holds_the_job_and_resume_finishes_it() {
     daemon.wait_for("the gap to clear", |s| {
         s["job"]["ticks"].as_u64().unwrap_or(0) > 62_000
     });
-    daemon.ok(&["resume"]);
-    let idle = daemon.wait_for("the end", |s| s["state"] == "idle");
-    assert_eq!(
-        idle["last_job"]["outcome"],
-        "done",
-        "{idle}\n{}",
-        daemon.log()
-    );
-    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
-    daemon.signal(libc::SIGTERM);
-    assert_eq!(daemon.wait().0, 0);
+    daemon.resume_to_the_end(&PROGRAM_END);
 }
 
 /// A short during a rapid holds the daemon's job (a collision: no turn-back), and `resume`
@@ -1498,12 +1503,7 @@ fn a_collision_in_a_rapid_holds_the_job() {
         s["job"]["ticks"].as_u64().unwrap_or(0) > 26_000
     });
     assert_eq!(position(&daemon.status())[0], x, "moved while held");
-    daemon.ok(&["resume"]);
-    let idle = daemon.wait_for("the end", |s| s["state"] == "idle");
-    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
-    assert_eq!(ints(&idle["last_job"]["end_steps"]), vec![0, 0]);
-    daemon.signal(libc::SIGTERM);
-    assert_eq!(daemon.wait().0, 0);
+    daemon.resume_to_the_end(&[0, 0]);
 }
 
 /// `edmd run --checkpoint FILE`: a job that ends on an alarm (a short longer than
