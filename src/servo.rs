@@ -87,6 +87,16 @@ pub enum Law {
         /// Filter time constant (s); 0 for none.
         tau: f64,
     },
+    /// Open and short ratios per sampling window (fractions of the window's discharge
+    /// pulses): a short ratio from `short_limit` up is a short (turn back), an open ratio from
+    /// `open_limit` up is open (`Feeds::open`); in between the feed is
+    /// `gain · (open − short − r_ref)` (mm/s per unit of ratio), negative backing off.
+    Ratio {
+        r_ref: f64,
+        gain: f64,
+        short_limit: f64,
+        open_limit: f64,
+    },
 }
 
 /// Something the servo did that the outside world wants to hear about (logged by a normal
@@ -268,15 +278,18 @@ impl Servo {
         })
     }
 
-    /// Direction and feed under the voltage law for a sparking gap at `volts` (filtered):
-    /// `gain · (V − v_ref)`, backing off (negative) at up to the retract feed.
+    /// Direction and feed under a proportional law for a sparking gap whose signal is `volts`
+    /// (the filtered voltage, or the ratio law's `open − short`): `gain · (signal − reference)`,
+    /// backing off (negative) at up to the retract feed.
     pub fn voltage_motion(&self, gap: GapState, volts: f64, law: &Law) -> (i8, f64) {
-        let Law::Voltage { v_ref, gain, .. } = *law else {
-            return self.motion(gap);
+        let (reference, gain) = match *law {
+            Law::Voltage { v_ref, gain, .. } => (v_ref, gain),
+            Law::Ratio { r_ref, gain, .. } => (r_ref, gain),
+            Law::ThreeState => return self.motion(gap),
         };
         match (self.state, gap) {
             (ServoState::Forward | ServoState::ReAdvance, GapState::Normal) => {
-                let feed = gain * (volts - v_ref);
+                let feed = gain * (volts - reference);
                 if feed >= 0.0 {
                     (1, feed)
                 } else {

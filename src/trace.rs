@@ -214,6 +214,10 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
     fn volts(&self) -> Option<f64> {
         self.inner.volts()
     }
+
+    fn ratios(&self) -> Option<(f64, f64)> {
+        self.inner.ratios()
+    }
 }
 
 #[cfg(test)]

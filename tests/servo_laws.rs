@@ -44,7 +44,8 @@ fn straight_cut() -> Vec<StepBlock> {
 struct Run {
     shorts: u64,
     seconds: f64,
-    /// Mean gap voltage over the sparking ticks after the first 2 mm.
+    /// Mean gap voltage (ratio law: open − short ratio) over the sparking ticks after the
+    /// first 2 mm.
     mean_volts: f64,
 }
 
@@ -71,10 +72,16 @@ fn run(law: &str) -> Run {
     while fine.state() != ServoState::Done {
         let gap = sim.sample(ticks).unwrap();
         let volts = sim.volts();
-        let tick = fine.tick_volts(gap, volts, &mut source);
+        let ratios = sim.ratios();
+        let tick = fine.tick_measured(gap, volts, ratios, &mut source);
         sim.observe(&tick.steps, tick.dir);
         if gap == GapState::Normal && fine.position()[0] > 2000 {
-            sum += volts.unwrap();
+            sum += if law == "ratio" {
+                let (open, short) = ratios.unwrap();
+                open - short
+            } else {
+                volts.unwrap()
+            };
             n += 1;
         }
         ticks += 1;
@@ -115,6 +122,31 @@ fn the_voltage_law_holds_the_gap_near_v_ref_without_the_shorts_of_the_three_stat
     // Cutting at the erosion rate: 20 mm at 40 mm/min is 30 s.
     assert!((29.0..33.0).contains(&volt.seconds), "{} s", volt.seconds);
     assert!(volt.seconds < three.seconds);
+}
+
+/// The ratio law on the same cut: it keeps the open ratio where its feed equals the erosion
+/// rate, `ratio_ref + erosion / gain` = 0.1 + 40/300, without the three-state law's shorts.
+#[test]
+fn the_ratio_law_holds_its_set_point_without_shorts() {
+    let three = run("three-state");
+    let ratio = run("ratio");
+    eprintln!(
+        "ratio: {} shorts, {:.1} s, mean open - short {:.3}",
+        ratio.shorts, ratio.seconds, ratio.mean_volts
+    );
+    assert!(
+        ratio.shorts <= 1,
+        "{} shorts under the ratio law",
+        ratio.shorts
+    );
+    assert!(three.shorts > 100);
+    let set_point = 0.1 + 40.0 / 300.0;
+    assert!(
+        (ratio.mean_volts - set_point).abs() < 0.03,
+        "mean {}",
+        ratio.mean_volts
+    );
+    assert!((29.0..33.0).contains(&ratio.seconds), "{} s", ratio.seconds);
 }
 
 /// A steady 30 V gap advances, 20 V backs off, 0 V is a dead short, 80 V is open.

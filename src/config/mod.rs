@@ -183,6 +183,10 @@ pub struct ServoConfig {
     pub v_ref: f64,
     pub voltage_gain_mm_per_min_per_v: f64,
     pub voltage_filter_ms: f64,
+    pub ratio_ref: f64,
+    pub ratio_gain_mm_per_min: f64,
+    pub ratio_short_limit: f64,
+    pub ratio_open_limit: f64,
 }
 
 /// `servo.law`.
@@ -191,6 +195,7 @@ pub struct ServoConfig {
 pub enum ServoLaw {
     ThreeState,
     Voltage,
+    Ratio,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -151,6 +151,10 @@ pub(super) struct RawServo {
     pub(super) v_ref: f64,
     pub(super) voltage_gain_mm_per_min_per_v: f64,
     pub(super) voltage_filter_ms: f64,
+    pub(super) ratio_ref: f64,
+    pub(super) ratio_gain_mm_per_min: f64,
+    pub(super) ratio_short_limit: f64,
+    pub(super) ratio_open_limit: f64,
 }
 
 #[derive(Debug, Deserialize)]

@@ -72,6 +72,12 @@ impl FineSettings {
                     open_v: config.gap.iio.open_above_v,
                     tau: servo.voltage_filter_ms / 1000.0,
                 },
+                ServoLaw::Ratio => Law::Ratio {
+                    r_ref: servo.ratio_ref,
+                    gain: servo.ratio_gain_mm_per_min / 60.0,
+                    short_limit: servo.ratio_short_limit,
+                    open_limit: servo.ratio_open_limit,
+                },
             },
         }
     }

@@ -14,6 +14,18 @@ type Invalid = (&'static str, String);
 
 /// A physical quantity: greater than 0 and at most `max` (a bound no machine reaches, so a
 /// typo such as `1e300` is caught here with its unit rather than misbehaving later).
+/// A fraction in (0, 1].
+fn fraction(key: &'static str, v: f64) -> Result<f64, Invalid> {
+    if v.is_finite() && v > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err((
+            key,
+            format!("must be a fraction above 0 and at most 1, got {v}"),
+        ))
+    }
+}
+
 fn positive(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
     if value.is_finite() && value > 0.0 && value <= max {
         Ok(value)
@@ -250,6 +262,14 @@ impl RawConfig {
             trace: self.gap.trace,
             iio,
         };
+        if self.servo.law == ServoLaw::Ratio && gap.kind != GapKind::Sim {
+            return Err((
+                "servo.law",
+                "\"ratio\" needs pulse counts per window: gap.kind = \"sim\" (no hardware input \
+                 counts them yet)"
+                    .to_string(),
+            ));
+        }
         if self.servo.law == ServoLaw::Voltage && !matches!(gap.kind, GapKind::Iio | GapKind::Sim) {
             return Err((
                 "servo.law",
@@ -313,6 +333,15 @@ impl RawConfig {
                     format!("must be 0 to 10000 ms, got {}", s.voltage_filter_ms),
                 ));
             },
+            ratio_ref: fraction("servo.ratio_ref", s.ratio_ref)?,
+            ratio_gain_mm_per_min: positive(
+                "servo.ratio_gain_mm_per_min",
+                s.ratio_gain_mm_per_min,
+                1e6,
+                "mm/min",
+            )?,
+            ratio_short_limit: fraction("servo.ratio_short_limit", s.ratio_short_limit)?,
+            ratio_open_limit: fraction("servo.ratio_open_limit", s.ratio_open_limit)?,
         };
 
         let m = self.sim;

@@ -300,6 +300,41 @@ impl Interpolator {
         self.volts.is_finite().then_some(self.volts)
     }
 
+    /// One tick with what the gap input measured beside its state: the voltage (voltage
+    /// law) or the open and short ratios of its last window (ratio law). Each law takes what
+    /// it reads; the three-state law takes the state alone.
+    #[inline]
+    pub fn tick_measured<S: BlockSource + ?Sized>(
+        &mut self,
+        gap: GapState,
+        volts: Option<f64>,
+        ratios: Option<(f64, f64)>,
+        source: &mut S,
+    ) -> Tick {
+        if let (
+            Law::Ratio {
+                short_limit,
+                open_limit,
+                ..
+            },
+            Some((open, short)),
+        ) = (self.settings.law, ratios)
+        {
+            // The proportional signal is open − short, kept where the voltage law keeps its
+            // filtered voltage.
+            self.volts = open - short;
+            let gap = if short >= short_limit {
+                GapState::Short
+            } else if open >= open_limit {
+                GapState::Open
+            } else {
+                GapState::Normal
+            };
+            return self.tick(gap, source);
+        }
+        self.tick_volts(gap, volts, source)
+    }
+
     /// One tick with the gap's voltage (V, when the input measures one) and the state the
     /// input reports. Under the voltage law the state comes from the filtered voltage and the
     /// feed is proportional; under the three-state law the voltage is ignored.

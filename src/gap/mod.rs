@@ -53,6 +53,12 @@ pub trait GapSensor {
     fn volts(&self) -> Option<f64> {
         None
     }
+
+    /// The open and short ratios (fractions of discharge pulses) of the last sampling window,
+    /// for inputs that count them (the simulator); `None` otherwise.
+    fn ratios(&self) -> Option<(f64, f64)> {
+        None
+    }
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -80,5 +86,9 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn volts(&self) -> Option<f64> {
         (**self).volts()
+    }
+
+    fn ratios(&self) -> Option<(f64, f64)> {
+        (**self).ratios()
     }
 }

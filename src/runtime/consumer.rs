@@ -497,7 +497,7 @@ where
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
-        let tick = fine.tick_volts(gap, sensor.volts(), source);
+        let tick = fine.tick_measured(gap, sensor.volts(), sensor.ratios(), source);
         let block = fine.block();
         let flags = block.map_or(0, |b| b.flags);
         let now = Activity {

@@ -80,6 +80,8 @@ pub struct SimSettings {
 
 /// The simulated generator's open-circuit voltage (V): what an open gap reads.
 pub const OPEN_CIRCUIT_V: f64 = 80.0;
+/// Ticks per sampling window of the simulated pulse counters (1 ms at 50 µs).
+pub const RATIO_WINDOW_TICKS: u32 = 20;
 
 /// What the simulated gap did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -124,6 +126,10 @@ pub struct SimGap {
     /// Voltage thresholds (V), see [`GapSensor::volts`].
     short_v: f64,
     open_v: f64,
+    /// The ratio counters of the window in progress (open, short, ticks) and the last
+    /// window's ratios, see [`GapSensor::ratios`].
+    window: (f64, f64, u32),
+    ratios: (f64, f64),
     counters: SimCounters,
 }
 
@@ -180,6 +186,8 @@ impl SimGap {
             rapid: false,
             short_v: settings.short_v,
             open_v: settings.open_v,
+            window: (0.0, 0.0, 0),
+            ratios: (1.0, 0.0),
             counters: SimCounters::default(),
         }
     }
@@ -249,27 +257,28 @@ impl SimGap {
     }
 }
 
-impl GapSensor for SimGap {
-    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+impl SimGap {
+    /// The gap state of tick `tick` from the model (scripted holds, debris, rapids, distance).
+    fn sample_state(&mut self, tick: u64) -> GapState {
         self.apply_events(tick);
         if let Some((state, until)) = self.hold {
             if tick < until {
                 self.state = state;
-                return Ok(state);
+                return state;
             }
             self.hold = None;
         }
         if let Some(until) = self.debris_until {
             if self.progress > until {
                 self.state = GapState::Short;
-                return Ok(self.state);
+                return self.state;
             }
             self.debris_until = None;
         }
         if self.rapid {
             // The spark is off while positioning: nothing discharges.
             self.state = GapState::Open;
-            return Ok(self.state);
+            return self.state;
         }
         let gap = self.gap_mm();
         let previous = self.state;
@@ -292,7 +301,39 @@ impl GapSensor for SimGap {
                 self.state = GapState::Short;
             }
         }
-        Ok(self.state)
+        self.state
+    }
+
+    /// Counts the tick into the pulse-ratio window: an open gap is all open pulses, a shorted
+    /// one all short, a sparking one open in proportion to how far across the sparking band the
+    /// gap is (a wider gap fails to ignite more often).
+    fn count_pulses(&mut self, state: GapState) {
+        let open = match state {
+            GapState::Open => 1.0,
+            GapState::Short => 0.0,
+            GapState::Normal => {
+                let p = &self.params;
+                ((self.gap_mm() - p.short_gap_mm) / (p.open_gap_mm - p.short_gap_mm))
+                    .clamp(0.0, 1.0)
+            }
+        };
+        let short = if state == GapState::Short { 1.0 } else { 0.0 };
+        self.window.0 += open;
+        self.window.1 += short;
+        self.window.2 += 1;
+        if self.window.2 >= RATIO_WINDOW_TICKS {
+            let n = self.window.2 as f64;
+            self.ratios = (self.window.0 / n, self.window.1 / n);
+            self.window = (0.0, 0.0, 0);
+        }
+    }
+}
+
+impl GapSensor for SimGap {
+    fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        let state = self.sample_state(tick);
+        self.count_pulses(state);
+        Ok(state)
     }
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
@@ -331,6 +372,10 @@ impl GapSensor for SimGap {
                 self.short_v + (self.open_v - self.short_v) * f
             }
         })
+    }
+
+    fn ratios(&self) -> Option<(f64, f64)> {
+        Some(self.ratios)
     }
 }
 
