@@ -1552,22 +1552,11 @@ fn an_alarm_in_edmd_run_leaves_a_checkpoint_the_daemon_resumes() {
 
     let daemon = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
     assert_eq!(daemon.status()["checkpoint"]["reason"], "alarm");
-    daemon.ok(&["resume"]);
-    let idle = daemon.wait_for("the resumed job's end", |s| s["state"] == "idle");
-    assert_eq!(
-        idle["last_job"]["outcome"],
-        "done",
-        "{idle}\n{}",
-        daemon.log()
-    );
-    assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
-    // The alarm run turned back while shorted: its net moves and the resumed run's add up to
-    // the uninterrupted run's end, and the resumed run's moves are the reference's tail.
+    daemon.resume_to_the_end(&PROGRAM_END);
+    // The resumed run's moves are the rest of the uninterrupted run's, step for step.
     let second = moves(&dir.join("second.csv"));
     assert!(
         reference.ends_with(&second),
         "the resumed run is not the rest of the path"
     );
-    daemon.signal(libc::SIGTERM);
-    assert_eq!(daemon.wait().0, 0);
 }
