@@ -226,3 +226,25 @@ fn the_shipped_defaults_hand_down_what_the_lower_floors_unit_tests_assume() {
     assert_eq!(fine.dt, c.fine.tick.secs());
     assert_eq!(fine.feeds.normal, c.servo.normal_feed_mm_per_min / 60.0);
 }
+
+#[test]
+fn generator_conditions_as_tables_replace_the_shipped_list() {
+    let c = load(
+        "[[generator.condition]]\nnumber = 7\non_us = 3.0\noff_us = 9.0\ncurrent_a = 4.0\n\
+         v_ref = 28.0\nfeed_mm_per_min = 40.0\n",
+        &[],
+    )
+    .unwrap();
+    assert_eq!(c.conditions.len(), 1);
+    assert_eq!((c.conditions[0].number, c.conditions[0].v_ref), (7, 28.0));
+    assert_eq!(Config::default().conditions.len(), 5, "E1-E5 shipped");
+    let e = load(
+        "[[generator.condition]]\nnumber = 2\non_us = 1.0\noff_us = 1.0\ncurrent_a = 1.0\n\
+         v_ref = 1.0\nfeed_mm_per_min = 1.0\n[[generator.condition]]\nnumber = 2\non_us = 1.0\n\
+         off_us = 1.0\ncurrent_a = 1.0\nv_ref = 1.0\nfeed_mm_per_min = 1.0\n",
+        &[],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("E2 is defined twice"), "{e}");
+}

@@ -199,6 +199,8 @@ impl Core {
         let config = self.config.clone();
         let blocks = check.blocks;
         let path_total_mm = check.path_mm;
+        let rapid_spans = check.rapid_spans.clone();
+        let rapid_feed = crate::preprocess::PlanSettings::from_config(&config).rapid_feed;
         let start = resume
             .as_ref()
             .map(|r| r.position.clone())
@@ -288,7 +290,7 @@ impl Core {
             config,
             report,
             motion_settings: checkpoint::motion_settings(&self.keys),
-            progress: runtime::ProgressTracker::new(path_total_mm),
+            progress: runtime::ProgressTracker::with_rapids(path_total_mm, rapid_spans, rapid_feed),
         });
         Ok(text)
     }

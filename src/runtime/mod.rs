@@ -444,7 +444,11 @@ pub fn run_job_with(
         ));
         recorder = Some(queue);
     }
-    let mut tracker = ProgressTracker::new(check.path_mm);
+    let mut tracker = ProgressTracker::with_rapids(
+        check.path_mm,
+        check.rapid_spans.clone(),
+        crate::preprocess::PlanSettings::from_config(config).rapid_feed,
+    );
     let mut last_progress = Instant::now();
 
     let (producer, done) = std::thread::scope(|s| {

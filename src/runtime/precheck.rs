@@ -21,6 +21,9 @@ pub struct Precheck {
     pub cutting_spans: Vec<(f64, f64)>,
     /// Path length of the whole program (mm): the denominator of a job's progress.
     pub path_mm: f64,
+    /// Where the rapids lie along the path (`(from, to)`, mm; consecutive rapids merged): the
+    /// ETA counts them at rapid speed, not at the cutting feed.
+    pub rapid_spans: Vec<(f64, f64)>,
 }
 
 /// How many blocks the check reads between looks at its cancel flag.
@@ -45,6 +48,7 @@ pub fn precheck(
     let mut end_steps = [0; MAX_AXES];
     let mut path_mm = 0.0;
     let mut cutting_spans = Vec::new();
+    let mut rapid_spans: Vec<(f64, f64)> = Vec::new();
     let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
     for item in reader.by_ref() {
         let block = item?;
@@ -59,6 +63,12 @@ pub fn precheck(
             match cutting_spans.last_mut() {
                 Some((_, to)) if *to == path_mm => *to += length,
                 _ => cutting_spans.push((path_mm, path_mm + length)),
+            }
+        }
+        if block.kind == gcode::BlockKind::Rapid {
+            match rapid_spans.last_mut() {
+                Some((_, to)) if *to == path_mm => *to += length,
+                _ => rapid_spans.push((path_mm, path_mm + length)),
             }
         }
         path_mm += length;
@@ -85,5 +95,6 @@ pub fn precheck(
         end_steps,
         cutting_spans,
         path_mm,
+        rapid_spans,
     })
 }

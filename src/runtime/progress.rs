@@ -17,6 +17,9 @@ pub const ETA_WINDOW: Duration = Duration::from_secs(20);
 #[derive(Debug, Clone)]
 pub struct ProgressTracker {
     total_mm: f64,
+    /// Rapids along the path (mm) and the speed they run at (mm/s): the ETA counts them so.
+    rapid_spans: Vec<(f64, f64)>,
+    rapid_feed: f64,
     fraction: f64,
     recent: VecDeque<(Instant, f64)>,
 }
@@ -24,8 +27,21 @@ pub struct ProgressTracker {
 impl ProgressTracker {
     /// A job whose program is `total_mm` long (the precheck's path length).
     pub fn new(total_mm: f64) -> ProgressTracker {
+        ProgressTracker::with_rapids(total_mm, Vec::new(), f64::INFINITY)
+    }
+
+    /// A tracker that knows where the rapids are (`Precheck::rapid_spans`) and their speed
+    /// (`PlanSettings::rapid_feed`, mm/s): the ETA is the cutting still to do at the recent
+    /// cutting feed plus the rapids still to do at rapid speed, the model `plan` uses.
+    pub fn with_rapids(
+        total_mm: f64,
+        rapid_spans: Vec<(f64, f64)>,
+        rapid_feed: f64,
+    ) -> ProgressTracker {
         ProgressTracker {
             total_mm,
+            rapid_spans,
+            rapid_feed,
             fraction: 0.0,
             recent: VecDeque::new(),
         }
@@ -73,8 +89,32 @@ impl ProgressTracker {
 
     /// Seconds to the end at the recent feed (none while nothing advances).
     pub fn eta_s(&self) -> Option<f64> {
-        let feed = self.recent_feed()?;
-        (feed > 1e-9).then(|| (self.total_mm - self.done_mm()).max(0.0) / feed)
+        let (&(t0, p0), &(t1, p1)) = (self.recent.front()?, self.recent.back()?);
+        let dt = t1.duration_since(t0).as_secs_f64();
+        if dt < 1.0 {
+            return None;
+        }
+        let done = self.done_mm();
+        let rapid_left = self.rapid_mm_before(self.total_mm) - self.rapid_mm_before(done);
+        let cut_left = ((self.total_mm - done) - rapid_left).max(0.0);
+        let rapid_time = if self.rapid_feed.is_finite() && self.rapid_feed > 0.0 {
+            rapid_left / self.rapid_feed
+        } else {
+            0.0
+        };
+        if cut_left <= 1e-9 {
+            return Some(rapid_time);
+        }
+        let cut_feed = ((p1 - self.rapid_mm_before(p1)) - (p0 - self.rapid_mm_before(p0))) / dt;
+        (cut_feed > 1e-9).then(|| cut_left / cut_feed + rapid_time)
+    }
+
+    /// Rapid path length between the start and path position `x` (mm).
+    fn rapid_mm_before(&self, x: f64) -> f64 {
+        self.rapid_spans
+            .iter()
+            .map(|&(from, to)| (to.min(x) - from).max(0.0))
+            .sum()
     }
 }
 
@@ -107,5 +147,26 @@ mod tests {
         assert_eq!(p.eta_s(), None);
         p.finish();
         assert_eq!(p.done_mm(), 100.0);
+    }
+
+    /// Rapids count at rapid speed: 40 mm of cutting at a recent 1 mm/s and 50 mm of rapids at
+    /// 20 mm/s still to go is 40 + 2.5 s, and a window spent in a rapid does not make the
+    /// cutting look fast.
+    #[test]
+    fn the_eta_counts_rapids_at_rapid_speed() {
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        // Path: 10 mm cut, 50 mm rapid (10..60), 40 mm cut.
+        let mut p = ProgressTracker::with_rapids(100.0, vec![(10.0, 60.0)], 20.0);
+        p.track(0.0, at(0.0));
+        p.track(5.0, at(5.0));
+        assert_eq!(p.eta_s(), Some(5.0 + 40.0 + 2.5));
+        // Through the rapid: 5 more mm of cut, then 50 mm of rapid in 2.5 s.
+        p.track(10.0, at(10.0));
+        p.track(60.0, at(12.5));
+        p.track(62.0, at(14.5));
+        let eta = p.eta_s().unwrap();
+        // Over the window (0 to 14.5 s) 12 mm were cut: 12/14.5 mm/s for the 38 mm left.
+        assert!((eta - 38.0 / (12.0 / 14.5)).abs() < 1e-9, "{eta}");
     }
 }
