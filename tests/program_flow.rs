@@ -273,7 +273,7 @@ fn errors_name_the_line_and_the_calls() {
     );
     assert_eq!(
         error("o<missing> call\nM2\n"),
-        "t.ngc:1:1: no subroutine o<missing> in the program"
+        "t.ngc:1:1: no subroutine o<missing> in the program (edmd reads subroutines from the program's own file only)"
     );
     assert!(error("G0 X1\nM99\n").starts_with("t.ngc:2:1: M99 outside a subprogram"));
     assert!(error("o1 endif\n").contains("O1 endif: without its if"));

@@ -134,7 +134,10 @@ pub enum GcodeErrorKind {
     #[error("subroutine calls nested deeper than {limit}")]
     CallDepth { limit: usize },
     #[error("no subroutine {label} in the program{searched}")]
-    SubroutineNotFound { label: String, searched: String },
+    SubroutineNotFound {
+        label: String,
+        searched: &'static str,
+    },
 }
 
 /// A program error with its place: `source:line:col: message`, then the line with a caret.

@@ -644,7 +644,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 col,
                 GcodeErrorKind::SubroutineNotFound {
                     label: name.to_string(),
-                    searched: String::new(),
+                    searched: " (edmd reads subroutines from the program's own file only)",
                 },
             ))
         })
