@@ -249,6 +249,24 @@ fn moves(path: &Path) -> Vec<Vec<i8>> {
 }
 
 /// The reference: the same program uninterrupted through `edmd run` (virtual time).
+/// [`base_sets`] with the gap read from the script `dir/gap.txt`.
+fn script_sets(dir: &Path, pulses: &str) -> Vec<String> {
+    let mut sets = base_sets(dir, pulses);
+    sets.retain(|s| !s.starts_with("gap.kind"));
+    sets.push("gap.kind=\"script\"".into());
+    sets.push(format!("gap.script=\"{}\"", dir.join("gap.txt").display()));
+    sets
+}
+
+/// The stopped run's pulses (`first.csv`) followed by the resumed run's (`second.csv`) are,
+/// step for step, the uninterrupted run's.
+fn assert_joined_is(dir: &Path, reference: &[Vec<i8>]) {
+    let mut joined = moves(&dir.join("first.csv"));
+    joined.extend(moves(&dir.join("second.csv")));
+    assert_eq!(joined.len(), reference.len());
+    assert!(joined == reference, "the pulse sequences differ");
+}
+
 fn uninterrupted(dir: &Path) -> Vec<Vec<i8>> {
     uninterrupted_run(dir, PROGRAM)
 }
@@ -1244,9 +1262,7 @@ fn after_an_output_fault_a_restart_and_resume_finish_the_job_exactly() {
     assert_eq!(ints(&idle["last_job"]["end_steps"]), PROGRAM_END.to_vec());
     // The pulses the drives received before the fault, then after the resume: the
     // uninterrupted run's, step for step.
-    let mut joined = moves(&dir.join("first.csv"));
-    joined.extend(moves(&dir.join("second.csv")));
-    assert!(joined == reference, "the pulse sequences differ");
+    assert_joined_is(&dir, &reference);
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
 }
@@ -1436,10 +1452,7 @@ fn a_job_stopped_inside_a_subroutine_resumes_exactly_and_m0_pauses_it() {
     assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
     assert_eq!(ints(&idle["last_job"]["end_steps"]), vec![1000, 11000]);
 
-    let mut joined = moves(&dir.join("first.csv"));
-    joined.extend(moves(&dir.join("second.csv")));
-    assert_eq!(joined.len(), reference.len());
-    assert!(joined == reference, "the pulse sequences differ");
+    assert_joined_is(&dir, &reference);
     second.signal(libc::SIGTERM);
     assert_eq!(second.wait().0, 0);
 }
@@ -1452,10 +1465,7 @@ fn a_long_short_holds_the_job_and_resume_finishes_it() {
     let dir = scratch("long-short");
     // Shorted from 0.5 s to 3 s of the job's time (ticks of 50 µs).
     std::fs::write(dir.join("gap.txt"), "0 normal\n10000 short\n60000 normal\n").unwrap();
-    let mut sets = base_sets(&dir, "pulses.csv");
-    sets.retain(|s| !s.starts_with("gap.kind"));
-    sets.push("gap.kind=\"script\"".into());
-    sets.push(format!("gap.script=\"{}\"", dir.join("gap.txt").display()));
+    let mut sets = script_sets(&dir, "pulses.csv");
     sets.push("servo.max_short_s=0.5".into());
     let daemon = Daemon::start(&dir, &sets, &[]);
     daemon.ok(&["run", PROGRAM]);
@@ -1487,10 +1497,7 @@ fn a_collision_in_a_rapid_holds_the_job() {
     .unwrap();
     // Contact 0.25 s into the first rapid, for 1 s.
     std::fs::write(dir.join("gap.txt"), "0 normal\n5000 short\n25000 normal\n").unwrap();
-    let mut sets = base_sets(&dir, "pulses.csv");
-    sets.retain(|s| !s.starts_with("gap.kind"));
-    sets.push("gap.kind=\"script\"".into());
-    sets.push(format!("gap.script=\"{}\"", dir.join("gap.txt").display()));
+    let sets = script_sets(&dir, "pulses.csv");
     let daemon = Daemon::start(&dir, &sets, &[]);
     daemon.ok(&["run", "rapid.ngc"]);
     let held = daemon.wait_for("the collision's hold", |s| s["state"] == "held");
