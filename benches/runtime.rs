@@ -39,6 +39,7 @@ fn settings(feed: f64) -> FineSettings {
         step_mm: [0.001; MAX_AXES],
         max_short_ticks: 0,
         law: edmd::servo::Law::ThreeState,
+        excursions: edmd::fine::ExcursionSettings::OFF,
     }
 }
 
@@ -67,6 +68,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 condition: 0,
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
+                condition_jump: [f32::NAN; 3],
             };
             at = end;
             b

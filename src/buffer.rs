@@ -75,6 +75,9 @@ pub struct StepBlock {
     pub condition: u16,
     pub condition_feed: f32,
     pub condition_v_ref: f32,
+    /// The condition's jumps: interval (s), height (mm) and feed (mm/s); NaN keeps the
+    /// `[servo]` setting, an interval of 0 turns jumps off.
+    pub condition_jump: [f32; 3],
 }
 
 impl StepBlock {
@@ -86,6 +89,15 @@ impl StepBlock {
     pub const PAUSE: u8 = 4;
     /// Flushing is on (`M7`/`M8`) during this move.
     pub const FLUSH: u8 = 8;
+    /// A probing move (`G38.x`, `G31`): it stops where contact happens (or ends).
+    pub const PROBE: u8 = 16;
+    /// With `PROBE`: until contact is lost (`G38.4`/`G38.5`), not until it is made.
+    pub const PROBE_AWAY: u8 = 32;
+    /// With `PROBE`: reaching the end point without contact is an error (`G38.2`/`G38.4`).
+    pub const PROBE_MUST: u8 = 64;
+    /// Not a block's: the consumer adds it to what it tells the gap input while the
+    /// generator is off for an excursion (jump, rethread).
+    pub const SPARK_OFF: u8 = 128;
 
     /// An all-zero block (a placeholder for preallocated storage).
     pub const EMPTY: StepBlock = StepBlock {
@@ -104,6 +116,7 @@ impl StepBlock {
         condition: 0,
         condition_feed: 0.0,
         condition_v_ref: 0.0,
+        condition_jump: [f32::NAN; 3],
     };
 
     /// Signed step count of each axis.
@@ -314,6 +327,11 @@ impl LoopBuffer {
         drop(ring);
         self.space.notify_all();
         self.data.notify_all();
+    }
+
+    /// The job is being torn down (a producer waiting for something else gives up).
+    pub fn aborted(&self) -> bool {
+        self.ring.lock().aborted
     }
 
     /// Supervisor: a stop was asked for. A consumer waiting for the producer (virtual time,

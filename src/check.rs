@@ -13,6 +13,8 @@ pub struct Totals {
     pub line: u64,
     pub arc: u64,
     pub nurbs: u64,
+    /// Probing moves (`G38.x`, `G31`).
+    pub probe: u64,
     /// Control points over all NURBS blocks.
     pub nurbs_points: u64,
     /// Path length of feed moves, mm.
@@ -27,7 +29,7 @@ pub struct Totals {
 
 impl Totals {
     pub fn blocks(&self) -> u64 {
-        self.rapid + self.line + self.arc + self.nurbs
+        self.rapid + self.line + self.arc + self.nurbs + self.probe
     }
 
     /// Adds a block whose path length is `length_mm`.
@@ -40,6 +42,7 @@ impl Totals {
                 self.nurbs += 1;
                 self.nurbs_points += block.curve.num_points() as u64;
             }
+            BlockKind::Probe(_) => self.probe += 1,
         }
         if block.kind == BlockKind::Rapid {
             self.rapid_length_mm += length_mm;
@@ -82,6 +85,15 @@ pub fn describe_block(block: &Block, length_mm: f64, axes: &[Axis]) -> String {
                 "{} -> {}",
                 format_point(&block.start(), axes),
                 format_point(&block.end(), axes)
+            )
+        }
+        BlockKind::Probe(p) => {
+            format!(
+                "{} {} -> {} (or where contact {})",
+                p.g_code(),
+                format_point(&block.start(), axes),
+                format_point(&block.end(), axes),
+                if p.away { "is lost" } else { "happens" }
             )
         }
         BlockKind::Arc {
@@ -133,6 +145,13 @@ pub fn describe_totals(t: &Totals, axes: &[Axis], max_feed_mm_per_min: f64) -> S
         t.feed_length_mm,
         t.rapid_length_mm
     );
+    if t.probe > 0 {
+        let _ = write!(
+            s,
+            "\nprobing moves: {} (measured as far as their end points)",
+            t.probe
+        );
+    }
     if let Some((lo, hi)) = t.feed_range_mm_per_min {
         let _ = write!(s, "\nfeed: {lo} to {hi} mm/min");
         if hi > max_feed_mm_per_min {

@@ -9,6 +9,10 @@
 //!     │                (short ──┘ too)                          │
 //!     └──────────────── back at the point of the short ────────┘
 //!   Forward ── program end ──► Done          TurnBack ── reserved area exhausted ──► Alarm
+//!
+//!   Forward ── jump interval ──► Retreat ── height gone ──► Return ── at the mark ──► Forward
+//!   Forward/ReAdvance ── wire break ──► WireBroken ── rethread ──► Retreat ── start hole ──►
+//!       Threading ── resume ──► Return ── at the mark ──► Forward      (Return: short ──► TurnBack)
 //! ```
 //!
 //! - **Forward**: along the program at min(planned feed, gap feed): the normal feed while
@@ -20,6 +24,15 @@
 //! - **Hold**: forward motion but no block to execute (a starvation in real time).
 //! - **Alarm**: shorted after the whole reserved area; motion stops and the position is kept.
 //! - **Done**: the program's last block is executed.
+//! - **Retreat**: backwards along the executed path on purpose, spark off: a sinker's jump
+//!   (by `servo.jump_height_mm`, to flush the debris out) or the way back to the start hole
+//!   after a wire break. The interpolator decides where it ends ([`Servo::on_retreat_done`]).
+//! - **Return**: forwards again to the mark, spark off, at the jump or rethread feed; a short
+//!   on the way turns back as in a re-advance.
+//! - **WireBroken**: the wire broke (a sensor, or an open gap over `servo.max_open_mm` of
+//!   cutting): motion stops at once and waits for the operator's rethread.
+//! - **Threading**: parked for threading (at the start hole, or where the wire broke), until
+//!   the operator resumes.
 //!
 //! The machine only decides; the fine interpolator moves, and reports back where it is
 //! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
@@ -43,6 +56,19 @@ pub enum ServoState {
     ReAdvance,
     Alarm,
     Done,
+    Retreat,
+    Return,
+    WireBroken,
+    Threading,
+}
+
+/// Why the servo retreats along the path on purpose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Excursion {
+    /// A sinker's jump: up by the jump height, back down, sparking again.
+    Jump,
+    /// Back to the start hole to re-thread a broken wire.
+    Rethread,
 }
 
 impl ServoState {
@@ -54,7 +80,27 @@ impl ServoState {
             ServoState::ReAdvance => "re-advance",
             ServoState::Alarm => "alarm",
             ServoState::Done => "done",
+            ServoState::Retreat => "retreat",
+            ServoState::Return => "return",
+            ServoState::WireBroken => "wire-break",
+            ServoState::Threading => "threading",
         }
+    }
+
+    /// The generator is off whatever the move: jumps, rethreading and the ways there and back.
+    pub fn spark_off(self) -> bool {
+        matches!(
+            self,
+            ServoState::Retreat
+                | ServoState::Return
+                | ServoState::WireBroken
+                | ServoState::Threading
+        )
+    }
+
+    /// Parked after a wire break, waiting for the operator.
+    pub fn wire_parked(self) -> bool {
+        matches!(self, ServoState::WireBroken | ServoState::Threading)
     }
 
     /// No more motion will happen.
@@ -132,6 +178,33 @@ pub enum ServoEvent {
     /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
     /// consumer's thread loop, which tells the output).
     Flushing { on: bool },
+    /// A jump began at `at` (the electrode lifts along the path, spark off).
+    Jump { at: PathPoint },
+    /// The retreat of a jump or a rethread ended at `at`, `mm` of path behind the mark.
+    Retreated {
+        why: Excursion,
+        at: PathPoint,
+        mm: f64,
+        /// Stopped at the oldest executed block kept (`buffer.reserved`), short of the
+        /// start of the cut.
+        exhausted: bool,
+    },
+    /// Back at the mark after a jump or a rethread: sparking again.
+    Returned { why: Excursion, at: PathPoint },
+    /// The wire broke at `at`: by the sensor, or (`open`) by an open gap over
+    /// `servo.max_open_mm` of cutting travel. Motion stopped; the interpolator holds.
+    WireBreak { at: PathPoint, open: bool },
+    /// A probing move touched (or, probing away, left) the work at `at`; `steps` is the
+    /// pulse ledger there. `contact: false`: it reached its end point without.
+    Probed {
+        at: PathPoint,
+        steps: [i64; crate::geometry::MAX_AXES],
+        contact: bool,
+        /// Probing away (`G38.4`/`G38.5`): the contact was lost rather than made.
+        away: bool,
+    },
+    /// A `G38.2`/`G38.4` reached its end point without contact: the job cannot go on.
+    ProbeMissed { at: PathPoint },
 }
 
 /// Counters kept by the servo.
@@ -144,6 +217,12 @@ pub struct ServoCounters {
     pub starvations: u64,
     /// Shorts during rapids (collisions).
     pub collisions: u64,
+    /// Jumps begun.
+    pub jumps: u64,
+    /// Wire breaks detected.
+    pub wire_breaks: u64,
+    /// Probing moves finished (with or without contact).
+    pub probes: u64,
 }
 
 /// The state machine.
@@ -155,6 +234,8 @@ pub struct Servo {
     mark: PathPoint,
     /// Blocks entered backwards in the current turn-back episode.
     depth: u64,
+    /// What the current retreat or return is for.
+    excursion: Excursion,
     pub counters: ServoCounters,
 }
 
@@ -165,6 +246,7 @@ impl Servo {
             feeds,
             mark: PathPoint::default(),
             depth: 0,
+            excursion: Excursion::Jump,
             counters: ServoCounters::default(),
         }
     }
@@ -184,7 +266,9 @@ impl Servo {
                 self.mark = here;
                 self.start_turn_back(here)
             }
-            (ServoState::ReAdvance, GapState::Short) => self.start_turn_back(here),
+            (ServoState::ReAdvance | ServoState::Return, GapState::Short) => {
+                self.start_turn_back(here)
+            }
             (ServoState::TurnBack, GapState::Normal | GapState::Open) => {
                 self.state = ServoState::ReAdvance;
                 Some(ServoEvent::Cleared { depth: self.depth })
@@ -207,6 +291,13 @@ impl Servo {
             ServoState::ReAdvance if here >= self.mark => {
                 self.state = ServoState::Forward;
                 Some(ServoEvent::Resumed { at: here })
+            }
+            ServoState::Return if here >= self.mark => {
+                self.state = ServoState::Forward;
+                Some(ServoEvent::Returned {
+                    why: self.excursion,
+                    at: here,
+                })
             }
             ServoState::Forward => {
                 self.mark = here;
@@ -278,6 +369,94 @@ impl Servo {
         })
     }
 
+    /// The jump interval has passed while cutting forward at `here`: lift along the path.
+    pub fn start_jump(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        (self.state == ServoState::Forward).then(|| {
+            self.mark = here;
+            self.state = ServoState::Retreat;
+            self.excursion = Excursion::Jump;
+            self.counters.jumps += 1;
+            ServoEvent::Jump { at: here }
+        })
+    }
+
+    /// What the current retreat or return is for.
+    pub fn excursion(&self) -> Excursion {
+        self.excursion
+    }
+
+    /// The retreat ended at `here`, `mm` of path behind the mark: a jump comes back down, a
+    /// rethread parks for threading.
+    /// `exhausted`: it stopped at the oldest executed block the loop buffer keeps, short of
+    /// where it was going.
+    pub fn on_retreat_done(
+        &mut self,
+        here: PathPoint,
+        mm: f64,
+        exhausted: bool,
+    ) -> Option<ServoEvent> {
+        (self.state == ServoState::Retreat).then(|| {
+            self.state = match self.excursion {
+                Excursion::Jump => ServoState::Return,
+                Excursion::Rethread => ServoState::Threading,
+            };
+            ServoEvent::Retreated {
+                why: self.excursion,
+                at: here,
+                mm,
+                exhausted,
+            }
+        })
+    }
+
+    /// The wire broke at `here` while it was cutting (or closing in). The mark stays the
+    /// farthest point cut, where the return after threading ends.
+    pub fn on_wire_break(&mut self, here: PathPoint, open: bool) -> Option<ServoEvent> {
+        let cutting = matches!(
+            self.state,
+            ServoState::Forward | ServoState::ReAdvance | ServoState::TurnBack | ServoState::Hold
+        );
+        cutting.then(|| {
+            if self.state == ServoState::Forward || here > self.mark {
+                self.mark = here;
+            }
+            self.state = ServoState::WireBroken;
+            self.counters.wire_breaks += 1;
+            ServoEvent::WireBreak { at: here, open }
+        })
+    }
+
+    /// The operator asked for a rethread: back along the path to the start hole
+    /// (`to_start`), or threading where the wire broke.
+    pub fn rethread(&mut self, to_start: bool) -> bool {
+        if self.state != ServoState::WireBroken {
+            return false;
+        }
+        self.excursion = Excursion::Rethread;
+        self.state = if to_start {
+            ServoState::Retreat
+        } else {
+            ServoState::Threading
+        };
+        true
+    }
+
+    /// The operator resumed after threading: return along the path to the mark (at `here`
+    /// already: cutting again at once).
+    pub fn resume_threaded(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        if self.state != ServoState::Threading {
+            return None;
+        }
+        self.state = ServoState::Return;
+        self.on_forward(here)
+    }
+
+    /// A probing move that had to touch reached its end point without contact: the job
+    /// cannot go on (final, like an alarm).
+    pub fn on_probe_missed(&mut self) {
+        self.state = ServoState::Alarm;
+    }
+
     /// Direction and feed under a proportional law for a sparking gap whose signal is `volts`
     /// (the filtered voltage, or the ratio law's `open − short`): `gain · (signal − reference)`,
     /// backing off (negative) at up to the retract feed.
@@ -309,7 +488,14 @@ impl Servo {
         match self.state {
             ServoState::Forward | ServoState::ReAdvance => (1, gap_feed),
             ServoState::TurnBack => (-1, self.feeds.retract),
-            ServoState::Hold | ServoState::Alarm | ServoState::Done => (0, 0.0),
+            // The interpolator sets the feed of an excursion.
+            ServoState::Retreat => (-1, self.feeds.retract),
+            ServoState::Return => (1, self.feeds.open),
+            ServoState::Hold
+            | ServoState::Alarm
+            | ServoState::Done
+            | ServoState::WireBroken
+            | ServoState::Threading => (0, 0.0),
         }
     }
 }

@@ -211,6 +211,14 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.moving_in(flags)
     }
 
+    fn wire_broken(&self) -> bool {
+        self.inner.wire_broken()
+    }
+
+    fn rethreaded(&mut self) {
+        self.inner.rethreaded()
+    }
+
     fn volts(&self) -> Option<f64> {
         self.inner.volts()
     }

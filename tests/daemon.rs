@@ -1567,3 +1567,73 @@ fn an_alarm_in_edmd_run_leaves_a_checkpoint_the_daemon_resumes() {
         "the resumed run is not the rest of the path"
     );
 }
+
+/// A wire break (scripted on the wire-break input) holds the job where it broke; `resume` is
+/// refused until a rethread; `rethread` goes back along the cut path with the spark off to
+/// the start hole (the end of the rapid) and parks for threading; `resume` returns along the
+/// path to the break point and the job ends exactly on the program's end point, every step
+/// of the way back matched by one on the way forward.
+#[test]
+fn a_wire_break_holds_rethread_returns_to_the_start_hole_and_resume_finishes_exactly() {
+    let dir = scratch("wire-break");
+    std::fs::write(
+        dir.join("programs/contour.ngc"),
+        "G21 G90\nG0 X1\nG1 X6 F300\nG1 Y4\nG1 X2\nM2\n",
+    )
+    .unwrap();
+    // The wire breaks 1.4 s into the job (ticks of 50 µs): on the second cut.
+    std::fs::write(dir.join("gap.txt"), "0 normal\n28000 wire-break\n").unwrap();
+    let sets = script_sets(&dir, "pulses.csv");
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", "contour.ngc"]);
+    let broken = daemon.wait_for("the wire break's hold", |s| {
+        s["state"] == "wire-break" && s["job"]["feed_mm_per_min"] == 0.0
+    });
+    assert_eq!(broken["job"]["wire_breaks"], 1, "{broken}");
+    let at_break = position(&broken);
+    assert_eq!(at_break[0], 6000, "on the second cut: {broken}");
+    assert!((1..4000).contains(&at_break[1]), "{broken}");
+    daemon.wait_for_log("WIRE BREAK");
+    daemon.wait_for("the hold checkpoint", |s| {
+        s["checkpoint"]["reason"] == "hold" && s["checkpoint"]["still"] == true
+    });
+    let (refused, code) = daemon.ctl(&["resume"]);
+    assert_eq!(
+        (refused["ok"].as_bool(), code),
+        (Some(false), 1),
+        "{refused}"
+    );
+    assert!(
+        refused["error"].as_str().unwrap().contains("rethread"),
+        "{refused}"
+    );
+    assert_eq!(position(&daemon.status()), at_break, "moved while broken");
+
+    daemon.ok(&["rethread"]);
+    let threading = daemon.wait_for("the start hole", |s| s["state"] == "threading");
+    assert_eq!(position(&threading), vec![1000, 0], "{threading}");
+    daemon.wait_for_log("thread the wire, then `edmd ctl resume`");
+    daemon.resume_to_the_end(&[2000, 4000]);
+
+    // The pulse record: 1 mm of rapid, the cut to the break, back to X1 Y0 and forward
+    // again to the break (spark off both ways), the rest of the cut: every pulse accounted.
+    let yb = at_break[1];
+    let (_, rows) = read_pulse_log(&dir.join("pulses.csv")).unwrap();
+    let moving: Vec<_> = rows
+        .iter()
+        .filter(|r| r.steps.iter().any(|&s| s != 0))
+        .collect();
+    let pulses = |axis: usize| -> i64 { moving.iter().map(|r| r.steps[axis].abs() as i64).sum() };
+    assert_eq!(
+        (pulses(0), pulses(1)),
+        (1000 + 5000 + 4000 + 2 * 5000, 4000 + 2 * yb)
+    );
+    // A row's spark is the one in force after its step: the step that arrives where
+    // cutting starts (the rapid's last, the return's last) already carries the spark.
+    let spark_off = moving.iter().filter(|r| !r.spark).count() as i64;
+    let expected = 1000 + 2 * (5000 + yb);
+    assert!(
+        (expected - 2..=expected).contains(&spark_off),
+        "{spark_off} spark-off steps: rapid, way back and return are {expected}"
+    );
+}

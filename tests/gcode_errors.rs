@@ -182,7 +182,20 @@ fn cases() -> Vec<Case> {
             4,
             "dwell P (s) out of range",
         ),
-        case("probing is not G38", "G38.2 X1\n", 1, 1, "probing"),
+        case(
+            "probing without a feed",
+            "G38.2 X1\n",
+            1,
+            1,
+            "G38.2 needs a feed F (the probing speed)",
+        ),
+        case(
+            "probing to where it is",
+            "G1 X1 F10\nG38.3 X1\n",
+            2,
+            1,
+            "G38.3 needs an end point away from where it starts",
+        ),
         case(
             "undefined named parameter",
             "G1 X#<width> F1\n",

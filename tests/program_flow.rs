@@ -338,3 +338,61 @@ M2
     let (blocks, _) = read(program);
     assert_eq!(ends(&blocks), vec![(8, 4712.0, 0.0), (10, 246.0, 0.0)]);
 }
+
+/// `G38.2`…`G38.5` are modal probing moves (as in LinuxCNC), `G31` a one-shot one (as on a
+/// Fanuc): straight moves at the programmed feed, to their end points as far as the reader
+/// knows; `probed` tells it where the machine stopped, the program goes on from there and
+/// `#5061`… (program coordinates) and `#5070` say so.
+#[test]
+fn probing_moves_and_their_results() {
+    use edmd::gcode::{BlockKind, Probe};
+    let program = "G1 X1 F10\nG38.2 X3 F5\nY1\nG92 X0\nG31 X2\nY2\n\
+                   G1 X[#5061 + 1] Y[#5062 + #5070]\n";
+    let mut reader = BlockReader::new(Cursor::new(program.as_bytes()), "t.ngc", XY);
+    let mut kinds = Vec::new();
+    let mut blocks = Vec::new();
+    while let Some(block) = reader.next() {
+        let block = block.unwrap_or_else(|e| panic!("{e}"));
+        if let BlockKind::Probe(p) = block.kind {
+            kinds.push(p);
+            if block.line == 5 {
+                // The G31 touched 0.5 mm short of its end point (machine X 1.5 + 1.5).
+                let mut at = block.end();
+                at[0] -= 0.5;
+                reader.probed(&at, true);
+            }
+        }
+        blocks.push(block);
+    }
+    let probe = |away, must_touch| Probe { away, must_touch };
+    // G38.2 twice (modal: `Y1` probes too), G31 (G38.3's semantics), then `Y2`: after the
+    // one-shot G31 the motion mode is G38.2 again.
+    assert_eq!(
+        kinds,
+        vec![
+            probe(false, true),
+            probe(false, true),
+            probe(false, false),
+            probe(false, true)
+        ]
+    );
+    assert_eq!(blocks[1].feed_mm_per_min, Some(5.0));
+    assert_eq!(blocks[4].start()[0], 4.5, "from where the probe stopped");
+    // G92 X0 at machine X3: the probe stopped at machine 4.5 = program 1.5, #5070 = 1.
+    let last = blocks.last().unwrap();
+    assert_eq!((last.end()[0], last.end()[1]), (3.0 + 1.5 + 1.0, 1.0 + 1.0));
+}
+
+#[test]
+fn no_probing_under_a_wire_offset() {
+    let options = ProgramOptions {
+        d_mm: vec![0.0, 0.1],
+        ..ProgramOptions::default()
+    };
+    let e = read_with("G1 X1 F10\nG41 D1\nG1 X2\nG31 X5\n", options).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.starts_with("t.ngc:4:1: G38.3 under a wire offset"),
+        "{text}"
+    );
+}

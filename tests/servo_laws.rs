@@ -36,6 +36,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 condition: 0,
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
+                condition_jump: [f32::NAN; 3],
             }
         })
         .collect()

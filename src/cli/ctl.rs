@@ -48,6 +48,13 @@ pub(super) enum CtlCommand {
     },
     /// Brake to a standstill and end the job (checkpoint kept)
     Abort,
+    /// After a wire break: go back along the cut path to the start hole with the spark off
+    /// and wait there for threading; `resume` then returns to the break point and cuts on
+    Rethread {
+        /// Thread the wire where it broke instead of at the start hole
+        #[arg(long)]
+        here: bool,
+    },
     /// Print what the daemon is doing
     Status,
     /// A status line every interval (one JSON status per line with --json), until N lines
@@ -84,6 +91,7 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
         CtlCommand::Hold => (Request::Hold {}, false),
         CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
         CtlCommand::Abort => (Request::Abort {}, false),
+        CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
     };
     let reply = match crate::daemon::socket::request(&socket, &request) {

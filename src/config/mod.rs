@@ -14,6 +14,7 @@
 //! offending value came from: `file:line:col` for the file, the `--set` argument for an override.
 
 mod overrides;
+mod parport;
 mod raw;
 mod settings;
 #[cfg(test)]
@@ -187,6 +188,22 @@ pub struct ServoConfig {
     pub ratio_gain_mm_per_min: f64,
     pub ratio_short_limit: f64,
     pub ratio_open_limit: f64,
+    /// Sinker jumps: every so many seconds of cutting (0: off), this high along the path, at
+    /// this feed.
+    pub jumps: Jumps,
+    /// Cutting travel through an open gap that counts as a wire break, mm (0: off).
+    pub max_open_mm: f64,
+    /// Feed back to the start hole after a wire break and back to the break point, mm/min.
+    pub rethread_feed_mm_per_min: f64,
+}
+
+/// Jump settings (`[servo]`, or a machining condition's where it gives them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Jumps {
+    /// Seconds of cutting between jumps; 0: no jumps.
+    pub interval_s: f64,
+    pub height_mm: f64,
+    pub feed_mm_per_min: f64,
 }
 
 /// `servo.law`.
@@ -228,6 +245,10 @@ pub struct Condition {
     pub v_ref: f64,
     /// The advance feed while sparking (three-state law), mm/min.
     pub feed_mm_per_min: f64,
+    /// Jumps while this condition runs: each `None` keeps the `[servo]` setting.
+    pub jump_interval_s: Option<f64>,
+    pub jump_height_mm: Option<f64>,
+    pub jump_feed_mm_per_min: Option<f64>,
 }
 
 /// `[compensation]`: the wire offset registers.

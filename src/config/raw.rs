@@ -42,6 +42,12 @@ pub(super) struct RawCondition {
     pub(super) current_a: f64,
     pub(super) v_ref: f64,
     pub(super) feed_mm_per_min: f64,
+    #[serde(default)]
+    pub(super) jump_interval_s: Option<f64>,
+    #[serde(default)]
+    pub(super) jump_height_mm: Option<f64>,
+    #[serde(default)]
+    pub(super) jump_feed_mm_per_min: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -137,6 +143,8 @@ pub(super) struct RawParport {
     pub(super) dir_hold_ns: i64,
     pub(super) short_pin: i64,
     pub(super) open_pin: i64,
+    pub(super) probe_pin: i64,
+    pub(super) wire_break_pin: i64,
     pub(super) gap_filter_ticks: i64,
 }
 
@@ -155,6 +163,11 @@ pub(super) struct RawServo {
     pub(super) ratio_gain_mm_per_min: f64,
     pub(super) ratio_short_limit: f64,
     pub(super) ratio_open_limit: f64,
+    pub(super) jump_interval_s: f64,
+    pub(super) jump_height_mm: f64,
+    pub(super) jump_feed_mm_per_min: f64,
+    pub(super) max_open_mm: f64,
+    pub(super) rethread_feed_mm_per_min: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -168,6 +181,7 @@ pub(super) struct RawSim {
     pub(super) debris_shorts: i64,
     pub(super) debris_shorts_per_s: f64,
     pub(super) debris_clear_um: f64,
+    pub(super) wire_breaks_per_m: f64,
     pub(super) events: String,
 }
 

@@ -62,6 +62,14 @@ impl FineSettings {
                 retract: servo.retract_feed_mm_per_min / 60.0,
             },
             step_mm: step_mm(config),
+            excursions: crate::fine::ExcursionSettings {
+                jump_interval_ticks: (servo.jumps.interval_s / config.fine.tick.secs()).round()
+                    as u64,
+                jump_height_mm: servo.jumps.height_mm,
+                jump_feed: servo.jumps.feed_mm_per_min / 60.0,
+                max_open_mm: servo.max_open_mm,
+                rethread_feed: servo.rethread_feed_mm_per_min / 60.0,
+            },
             max_short_ticks: (servo.max_short_s / config.fine.tick.secs()).round() as u64,
             law: match servo.law {
                 ServoLaw::ThreeState => Law::ThreeState,

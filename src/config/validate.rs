@@ -4,13 +4,11 @@
 
 use std::path::PathBuf;
 
-use super::raw::{RawConfig, RawParport};
+use super::raw::RawConfig;
 use super::*;
 use crate::geometry::MAX_AXES;
-use crate::parport::StepTiming;
-use crate::parport::pins::{is_input_pin, is_output_pin};
 
-type Invalid = (&'static str, String);
+pub(super) type Invalid = (&'static str, String);
 
 /// A physical quantity: greater than 0 and at most `max` (a bound no machine reaches, so a
 /// typo such as `1e300` is caught here with its unit rather than misbehaving later).
@@ -51,7 +49,19 @@ fn short(value: f64) -> String {
     }
 }
 
-fn in_range(key: &'static str, value: i64, lo: i64, hi: i64) -> Result<i64, Invalid> {
+/// A quantity that may be 0 (off): from 0 to `max`.
+fn at_most(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
+    if value.is_finite() && (0.0..=max).contains(&value) {
+        Ok(value)
+    } else {
+        Err((
+            key,
+            format!("must be 0 to {} {unit}, got {}", short(max), short(value)),
+        ))
+    }
+}
+
+pub(super) fn in_range(key: &'static str, value: i64, lo: i64, hi: i64) -> Result<i64, Invalid> {
     if (lo..=hi).contains(&value) {
         Ok(value)
     } else {
@@ -342,7 +352,30 @@ impl RawConfig {
             )?,
             ratio_short_limit: fraction("servo.ratio_short_limit", s.ratio_short_limit)?,
             ratio_open_limit: fraction("servo.ratio_open_limit", s.ratio_open_limit)?,
+            jumps: Jumps {
+                interval_s: at_most("servo.jump_interval_s", s.jump_interval_s, 86_400.0, "s")?,
+                height_mm: at_most("servo.jump_height_mm", s.jump_height_mm, 1000.0, "mm")?,
+                feed_mm_per_min: positive(
+                    "servo.jump_feed_mm_per_min",
+                    s.jump_feed_mm_per_min,
+                    1e6,
+                    "mm/min",
+                )?,
+            },
+            max_open_mm: at_most("servo.max_open_mm", s.max_open_mm, 1e6, "mm")?,
+            rethread_feed_mm_per_min: positive(
+                "servo.rethread_feed_mm_per_min",
+                s.rethread_feed_mm_per_min,
+                1e6,
+                "mm/min",
+            )?,
         };
+        if servo.jumps.interval_s > 0.0 && servo.jumps.height_mm <= 0.0 {
+            return Err((
+                "servo.jump_height_mm",
+                "must be above 0 when servo.jump_interval_s turns jumps on".to_string(),
+            ));
+        }
 
         let m = self.sim;
         let non_negative = |key: &'static str, value: f64| {
@@ -375,6 +408,7 @@ impl RawConfig {
             debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
             debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")?
                 / 1000.0,
+            wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,
             events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
         };
         let d = self.daemon;
@@ -451,6 +485,18 @@ impl RawConfig {
                 current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,
                 v_ref: positive(key, c.v_ref, 1e4, "V (v_ref)")?,
                 feed_mm_per_min: positive(key, c.feed_mm_per_min, 1e6, "mm/min (feed_mm_per_min)")?,
+                jump_interval_s: c
+                    .jump_interval_s
+                    .map(|v| at_most(key, v, 86_400.0, "s (jump_interval_s)"))
+                    .transpose()?,
+                jump_height_mm: c
+                    .jump_height_mm
+                    .map(|v| at_most(key, v, 1000.0, "mm (jump_height_mm)"))
+                    .transpose()?,
+                jump_feed_mm_per_min: c
+                    .jump_feed_mm_per_min
+                    .map(|v| positive(key, v, 1e6, "mm/min (jump_feed_mm_per_min)"))
+                    .transpose()?,
             });
         }
         let program = ProgramConfig {
@@ -474,169 +520,5 @@ impl RawConfig {
             compensation,
             conditions,
         })
-    }
-}
-
-impl RawParport {
-    /// Pins must exist and be of the right kind, and no pin may carry two signals, whatever
-    /// the output; the number of axes and the timing against the tick only matter when the
-    /// port is in use (a simulation with a short tick must not trip over the port's timing).
-    fn validate(
-        self,
-        machine: &MachineConfig,
-        fine: &FineConfig,
-        output: &OutputConfig,
-        gap: &GapConfig,
-    ) -> Result<ParportConfig, Invalid> {
-        const OUTPUTS: &str = "an output pin: 1-9, 14, 16 or 17";
-        const INPUTS: &str = "an input pin: 10, 11, 12, 13 or 15";
-        let output_pin = |key: &'static str, pin: i64| {
-            if is_output_pin(pin) {
-                Ok(pin as u8)
-            } else {
-                Err((key, format!("{pin} is not {OUTPUTS}")))
-            }
-        };
-        let optional = |key: &'static str, pin: i64, ok: fn(i64) -> bool, what: &str| match pin {
-            0 => Ok(None),
-            p if ok(p) => Ok(Some(p as u8)),
-            p => Err((key, format!("{p} is not {what} (or 0 for none)"))),
-        };
-        let step_pins = self
-            .step_pins
-            .iter()
-            .map(|&p| output_pin("parport.step_pins", p))
-            .collect::<Result<Vec<_>, _>>()?;
-        let dir_pins = self
-            .dir_pins
-            .iter()
-            .map(|&p| output_pin("parport.dir_pins", p))
-            .collect::<Result<Vec<_>, _>>()?;
-        let enable_pin = optional(
-            "parport.enable_pin",
-            self.enable_pin,
-            is_output_pin,
-            OUTPUTS,
-        )?;
-        let flush_pin = optional("parport.flush_pin", self.flush_pin, is_output_pin, OUTPUTS)?;
-        let spark_pin = optional("parport.spark_pin", self.spark_pin, is_output_pin, OUTPUTS)?;
-        let condition_pins = self
-            .condition_pins
-            .iter()
-            .map(|&p| output_pin("parport.condition_pins", p))
-            .collect::<Result<Vec<_>, _>>()?;
-        if condition_pins.len() > 10 {
-            return Err((
-                "parport.condition_pins",
-                format!(
-                    "{} pins; at most 10 (conditions up to 1023)",
-                    condition_pins.len()
-                ),
-            ));
-        }
-        let short_pin = optional("parport.short_pin", self.short_pin, is_input_pin, INPUTS)?;
-        let open_pin = optional("parport.open_pin", self.open_pin, is_input_pin, INPUTS)?;
-        let mut seen: Vec<(u8, &'static str)> = Vec::new();
-        let signals = step_pins
-            .iter()
-            .map(|&p| (p, "parport.step_pins"))
-            .chain(dir_pins.iter().map(|&p| (p, "parport.dir_pins")))
-            .chain(enable_pin.map(|p| (p, "parport.enable_pin")))
-            .chain(flush_pin.map(|p| (p, "parport.flush_pin")))
-            .chain(spark_pin.map(|p| (p, "parport.spark_pin")))
-            .chain(
-                condition_pins
-                    .iter()
-                    .map(|&p| (p, "parport.condition_pins")),
-            )
-            .chain(short_pin.map(|p| (p, "parport.short_pin")))
-            .chain(open_pin.map(|p| (p, "parport.open_pin")));
-        for (pin, key) in signals {
-            if let Some((_, first)) = seen.iter().find(|(p, _)| *p == pin) {
-                return Err((key, format!("pin {pin} is already used by {first}")));
-            }
-            seen.push((pin, key));
-        }
-        let mut invert_pins = Vec::with_capacity(self.invert_pins.len());
-        for &pin in &self.invert_pins {
-            if !is_output_pin(pin) && !is_input_pin(pin) {
-                return Err((
-                    "parport.invert_pins",
-                    format!("{pin} is not a signal pin (1-17; 18-25 are ground)"),
-                ));
-            }
-            if invert_pins.contains(&(pin as u8)) {
-                return Err(("parport.invert_pins", format!("pin {pin} is listed twice")));
-            }
-            invert_pins.push(pin as u8);
-        }
-        let ns = |key: &'static str, v: i64| in_range(key, v, 0, 1_000_000_000).map(|v| v as u64);
-        let p = ParportConfig {
-            step_pins,
-            dir_pins,
-            enable_pin,
-            flush_pin,
-            spark_pin,
-            condition_pins,
-            invert_pins,
-            step_length_ns: in_range(
-                "parport.step_length_ns",
-                self.step_length_ns,
-                1,
-                1_000_000_000,
-            )? as u64,
-            step_space_ns: ns("parport.step_space_ns", self.step_space_ns)?,
-            dir_setup_ns: ns("parport.dir_setup_ns", self.dir_setup_ns)?,
-            dir_hold_ns: ns("parport.dir_hold_ns", self.dir_hold_ns)?,
-            short_pin,
-            open_pin,
-            gap_filter_ticks: in_range("parport.gap_filter_ticks", self.gap_filter_ticks, 1, 1000)?
-                as u32,
-        };
-        if output.kind == OutputKind::Parport {
-            let axes = machine.axes.len();
-            for (key, pins) in [
-                ("parport.step_pins", &p.step_pins),
-                ("parport.dir_pins", &p.dir_pins),
-            ] {
-                if pins.len() < axes {
-                    return Err((
-                        key,
-                        format!(
-                            "has {} pins but machine.axes has {axes} axes; give one pin per axis",
-                            pins.len()
-                        ),
-                    ));
-                }
-            }
-            let timing = StepTiming {
-                step_length_ns: p.step_length_ns,
-                step_space_ns: p.step_space_ns,
-                dir_setup_ns: p.dir_setup_ns,
-                dir_hold_ns: p.dir_hold_ns,
-            };
-            if timing.min_tick_ns() > fine.tick.ns() {
-                return Err((
-                    "fine.tick_us",
-                    format!(
-                        "{} µs is too short for the drives' step timing: dir_setup_ns + \
-                         step_length_ns + dir_hold_ns = {} ns and step_length_ns + step_space_ns \
-                         = {} ns must both fit in one tick; raise fine.tick_us to at least {} or \
-                         shorten the [parport] times",
-                        fine.tick.us(),
-                        p.dir_setup_ns + p.step_length_ns + p.dir_hold_ns,
-                        p.step_length_ns + p.step_space_ns,
-                        timing.min_tick_ns().div_ceil(1000)
-                    ),
-                ));
-            }
-        }
-        if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
-            return Err((
-                "parport.short_pin",
-                "gap.kind = \"parport\" needs parport.short_pin or parport.open_pin".to_string(),
-            ));
-        }
-        Ok(p)
     }
 }

@@ -13,8 +13,10 @@ use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
 use crate::config::{Config, GapKind, OutputKind};
 use crate::record::Recording;
+use crate::runtime::consumer::{RETHREAD_AT_START, RETHREAD_HERE};
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
+use crate::servo::ServoState;
 
 /// A program copied and checked: ready to run.
 pub(super) type Checked = (JobProgram, runtime::Precheck);
@@ -393,7 +395,15 @@ impl Core {
             if job.stop.load(Ordering::Relaxed) {
                 return Err("the job is stopping".to_string());
             }
-            if !job.published.hold.swap(false, Ordering::Relaxed) {
+            let state = job.published.snapshot().state;
+            if state == ServoState::WireBroken {
+                return Err(
+                    "the wire is broken: `edmd ctl rethread` goes back to the start hole \
+                            for threading (`--here`: thread where it broke), then `resume`"
+                        .to_string(),
+                );
+            }
+            if !job.published.hold.swap(false, Ordering::Release) {
                 return Err("the job is not held".to_string());
             }
             job.hold_checkpointed = false;
@@ -458,6 +468,50 @@ impl Core {
         ))
     }
 
+    /// After a wire break: back to the start hole along the path (or threading in place);
+    /// `resume` then returns to the break point.
+    pub(super) fn rethread(&mut self, here: bool) -> Result<String, String> {
+        let Some(job) = &mut self.job else {
+            return Err("no job is running".to_string());
+        };
+        if job.stop.load(Ordering::Relaxed) {
+            return Err("the job is stopping".to_string());
+        }
+        let state = job.published.snapshot().state;
+        if state != ServoState::WireBroken {
+            return Err(format!(
+                "the wire is not broken (the servo is {}): nothing to rethread",
+                state.name()
+            ));
+        }
+        let (request, message) = if here {
+            (
+                RETHREAD_HERE,
+                "thread the wire where it broke, then `edmd ctl resume`",
+            )
+        } else {
+            (
+                RETHREAD_AT_START,
+                "going back along the path to the start hole (spark off); thread the wire \
+                 there, then `edmd ctl resume`",
+            )
+        };
+        // The request first, then the hold's release: the consumer takes them in that order.
+        job.published.rethread.store(request, Ordering::Release);
+        if !here {
+            job.published.hold.store(false, Ordering::Release);
+        }
+        job.hold_checkpointed = false;
+        job.report_event("rethread");
+        tracing::info!(
+            edmd_event = "rethread",
+            edmd_program = job.program.display().to_string(),
+            "rethread: {}: {message}",
+            job.program.display()
+        );
+        Ok(format!("rethread: {message}"))
+    }
+
     pub(super) fn abort(&mut self) -> Result<String, String> {
         if let Some(check) = &self.check {
             check.progress.cancel();
@@ -490,11 +544,12 @@ impl Core {
         let reason = match summary.outcome {
             Outcome::Done => None,
             Outcome::ResumeRefused => None,
-            Outcome::Alarm | Outcome::Collision => Some(Reason::Alarm),
+            Outcome::Alarm | Outcome::Collision | Outcome::WireBreak => Some(Reason::Alarm),
             Outcome::Stopped => Some(job.stop_reason.unwrap_or(Reason::Stop)),
-            Outcome::OutputError | Outcome::GapError | Outcome::ProducerError => {
-                Some(Reason::Error)
-            }
+            Outcome::OutputError
+            | Outcome::GapError
+            | Outcome::ProducerError
+            | Outcome::ProbeMissed => Some(Reason::Error),
         };
         let text = summary.text();
         let mut lines = text.lines();

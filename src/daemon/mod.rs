@@ -333,6 +333,7 @@ impl Core {
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),
+            Request::Rethread { here } => self.rethread(here),
         };
         self.notify_status();
         match result {

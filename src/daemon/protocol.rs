@@ -3,6 +3,7 @@
 //! ```text
 //! → {"cmd":"run","program":"part.nc"}          ← {"ok":true,"message":"…","status":{…}}
 //! → {"cmd":"hold"} | {"cmd":"resume","force":false} | {"cmd":"abort"} | {"cmd":"status"}
+//! → {"cmd":"rethread","here":false}
 //! ← {"ok":false,"error":"request:1:9: unknown command \"fly\", expected one of …"}
 //! ```
 //!
@@ -37,6 +38,12 @@ pub enum Request {
     /// Brake to a standstill and end the job (checkpoint kept).
     Abort {},
     Status {},
+    /// After a wire break: back along the path to the start hole (`here`: thread where the
+    /// wire broke) and wait there for `resume`.
+    Rethread {
+        #[serde(default)]
+        here: bool,
+    },
 }
 
 impl Request {
@@ -119,6 +126,12 @@ pub enum DaemonState {
     Paused,
     /// Braking to end the job (abort, SIGTERM).
     Stopping,
+    /// The wire broke: held where it broke until `rethread`.
+    WireBreak,
+    /// Going back along the path to the start hole for a rethread.
+    Rethreading,
+    /// Parked for threading (at the start hole or where the wire broke) until `resume`.
+    Threading,
 }
 
 impl DaemonState {
@@ -131,6 +144,9 @@ impl DaemonState {
             DaemonState::Held => "held",
             DaemonState::Paused => "paused",
             DaemonState::Stopping => "stopping",
+            DaemonState::WireBreak => "wire-break",
+            DaemonState::Rethreading => "rethreading",
+            DaemonState::Threading => "threading",
         }
     }
 }
@@ -209,6 +225,18 @@ pub struct JobStatus {
     /// Shorts during rapids (each holds the job).
     #[serde(default)]
     pub collisions: u64,
+    /// Sinker jumps, wire breaks and probing moves so far.
+    #[serde(default)]
+    pub jumps: u64,
+    #[serde(default)]
+    pub wire_breaks: u64,
+    #[serde(default)]
+    pub probes: u64,
+    /// Where the last probing move ended (mm per axis), and whether it touched.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_mm: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_contact: Option<bool>,
     pub overruns: u64,
     pub pulses: Vec<u64>,
     pub ticks: u64,

@@ -6,6 +6,7 @@ use std::sync::atomic::Ordering;
 
 use super::Core;
 use super::protocol::{CheckStatus, CheckpointStatus, DaemonState, JobStatus, Status};
+use crate::servo::{Excursion, ServoState};
 
 impl Core {
     pub(super) fn state(&self) -> DaemonState {
@@ -16,6 +17,14 @@ impl Core {
                 let snap = job.published.snapshot();
                 if job.stop.load(Ordering::Relaxed) {
                     DaemonState::Stopping
+                } else if snap.state == ServoState::WireBroken {
+                    DaemonState::WireBreak
+                } else if snap.state == ServoState::Threading {
+                    DaemonState::Threading
+                } else if snap.state == ServoState::Retreat
+                    && snap.excursion == Some(Excursion::Rethread)
+                {
+                    DaemonState::Rethreading
                 } else if job.published.hold.load(Ordering::Relaxed) {
                     if snap.still && job.published.paused_line.load(Ordering::Relaxed) != 0 {
                         DaemonState::Paused
@@ -57,6 +66,14 @@ impl Core {
                 alarms: snap.servo.alarms,
                 starvations: snap.servo.starvations,
                 collisions: snap.servo.collisions,
+                jumps: snap.servo.jumps,
+                wire_breaks: snap.servo.wire_breaks,
+                probes: snap.servo.probes,
+                probe_mm: p
+                    .probe
+                    .last()
+                    .map(|r| mm(&r.steps[..axes], &job.config.machine.step_mm)),
+                probe_contact: p.probe.last().map(|r| r.contact),
                 overruns: p.overruns.load(Ordering::Relaxed),
                 pulses: snap.pulses[..axes].to_vec(),
                 ticks: snap.tick,

@@ -38,6 +38,9 @@
 //! turn-back, or walking over it to a checkpoint, does not repeat them.
 
 pub mod bresenham;
+mod excursion;
+mod laws;
+mod skip;
 
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::geometry::MAX_AXES;
@@ -45,6 +48,8 @@ use crate::servo::{Feeds, Law, PathPoint, Servo, ServoCounters, ServoEvent, Serv
 use crate::vocab::GapState;
 
 pub use bresenham::Bresenham;
+pub use excursion::ExcursionSettings;
+pub use skip::SkipError;
 
 /// The fine interpolator's fixed parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,6 +65,8 @@ pub struct FineSettings {
     pub max_short_ticks: u64,
     /// The servo law (the voltage law reads [`Interpolator::tick_volts`]'s voltage).
     pub law: Law,
+    /// Jumps, wire-break detection and rethreading.
+    pub excursions: ExcursionSettings,
 }
 
 /// What one tick produced.
@@ -120,29 +127,26 @@ pub struct Interpolator {
     short_ticks: u64,
     /// The voltage law's filtered gap voltage (V); NaN before the first reading.
     volts: f64,
+    /// Jumps of the block in hand: every so many ticks of cutting (0: none), how far (mm),
+    /// how fast (mm/s).
+    jump_every: u64,
+    jump_height: f64,
+    jump_feed: f64,
+    /// Ticks cut forward since the last jump.
+    cut_ticks: u64,
+    /// Path gone back in the current retreat (mm).
+    retreat_mm: f64,
+    /// Cutting travel since the gap was last not open (mm).
+    open_mm: f64,
+    /// The wire-break input, as the thread loop last read it.
+    wire_input: bool,
+    /// The probing move in hand found its contact (or its end): the rest of it is dropped.
+    probe_hit: bool,
+    /// Travel left (mm) over which a short is still the last probe's contact.
+    contact_grace_mm: f64,
+    /// An event met outside a tick (a resume at the mark), reported by the next tick.
+    pending: Option<ServoEvent>,
     counters: FineCounters,
-}
-
-/// Why a resumed job could not walk to its checkpoint.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum SkipError {
-    #[error("the program ends before segment {seq}, step {event} of the checkpoint")]
-    PastEnd { seq: u64, event: i64 },
-    #[error(
-        "segment {seq} of the program has {events} steps, not the checkpoint's step {event}: \
-         the program or the motion settings are not those of the checkpoint"
-    )]
-    NoSuchPoint { seq: u64, event: i64, events: i64 },
-    #[error(
-        "segment {seq}, step {event} of the program is at {found:?} steps, the checkpoint says \
-         {expected:?}: the program or the motion settings are not those of the checkpoint"
-    )]
-    Position {
-        seq: u64,
-        event: i64,
-        found: Vec<i64>,
-        expected: Vec<i64>,
-    },
 }
 
 impl Interpolator {
@@ -166,6 +170,16 @@ impl Interpolator {
             paused: false,
             short_ticks: 0,
             volts: f64::NAN,
+            jump_every: 0,
+            jump_height: 0.0,
+            jump_feed: 0.0,
+            cut_ticks: 0,
+            retreat_mm: 0.0,
+            open_mm: 0.0,
+            wire_input: false,
+            probe_hit: false,
+            contact_grace_mm: 0.0,
+            pending: None,
             counters: FineCounters::default(),
         }
     }
@@ -176,10 +190,23 @@ impl Interpolator {
     /// Releasing a hold after an alarm (a short that outlasted `max_short_ticks` or the
     /// reserved history) re-advances towards the point of the short: if the gap is still
     /// shorted there, the alarm comes straight back.
+    ///
+    /// Releasing it while parked for threading returns along the path to where the wire
+    /// broke; while the wire is still broken (no rethread asked for) nothing moves.
     pub fn set_hold(&mut self, hold: bool) {
-        if self.hold && !hold && self.servo.state() == ServoState::Alarm {
-            self.servo.release_alarm();
-            self.short_ticks = 0;
+        if self.hold && !hold {
+            match self.servo.state() {
+                ServoState::Alarm => {
+                    self.servo.release_alarm();
+                    self.short_ticks = 0;
+                }
+                ServoState::Threading => {
+                    let event = self.servo.resume_threaded(self.here());
+                    self.pending = self.pending.or(event);
+                    self.open_mm = 0.0;
+                }
+                _ => {}
+            }
         }
         self.hold = hold;
     }
@@ -191,65 +218,6 @@ impl Interpolator {
     /// Held and at a standstill: nothing moves until the hold is released.
     pub fn still(&self) -> bool {
         self.speed == 0.0 && (self.hold || self.servo.state().is_final())
-    }
-
-    /// Before the first tick of a resumed job: walks forward along the program, emitting
-    /// nothing, to `target` and checks that the ledger there is `expected`. The blocks passed
-    /// go through the source as if executed, so the reserved area behind the electrode is
-    /// full again for turn-back. Pulse counters are not touched: nothing was emitted.
-    pub fn skip_to<S: BlockSource + ?Sized>(
-        &mut self,
-        target: PathPoint,
-        expected: &[i64],
-        source: &mut S,
-    ) -> Result<(), SkipError> {
-        let mut scratch = [0i8; MAX_AXES];
-        while !(self.has_block && self.block.seq >= target.seq) {
-            if self.has_block {
-                while !self.walk.at_end() {
-                    self.walk.forward(&mut scratch);
-                    self.add_steps(&scratch);
-                }
-            }
-            // The source waits for the producer, so `Empty` means the job was aborted.
-            if self.fetch_forward(source) != Fetch::Block {
-                return Err(SkipError::PastEnd {
-                    seq: target.seq,
-                    event: target.event,
-                });
-            }
-        }
-        if self.block.seq != target.seq || target.event > self.walk.events() {
-            return Err(SkipError::NoSuchPoint {
-                seq: target.seq,
-                event: target.event,
-                events: if self.block.seq == target.seq {
-                    self.walk.events()
-                } else {
-                    0
-                },
-            });
-        }
-        while self.walk.event() < target.event {
-            self.walk.forward(&mut scratch);
-            self.add_steps(&scratch);
-        }
-        let n = expected.len().min(MAX_AXES);
-        if self.position[..n] != expected[..n] {
-            return Err(SkipError::Position {
-                seq: target.seq,
-                event: target.event,
-                found: self.position[..n].to_vec(),
-                expected: expected[..n].to_vec(),
-            });
-        }
-        self.servo.on_block();
-        self.servo.on_forward(self.here());
-        // The first run honoured every stop up to here.
-        self.dwell_left = 0;
-        self.paused = false;
-        self.hold = false;
-        Ok(())
     }
 
     fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
@@ -300,79 +268,6 @@ impl Interpolator {
         self.volts.is_finite().then_some(self.volts)
     }
 
-    /// One tick with what the gap input measured beside its state: the voltage (voltage
-    /// law) or the open and short ratios of its last window (ratio law). Each law takes what
-    /// it reads; the three-state law takes the state alone.
-    #[inline]
-    pub fn tick_measured<S: BlockSource + ?Sized>(
-        &mut self,
-        gap: GapState,
-        volts: Option<f64>,
-        ratios: Option<(f64, f64)>,
-        source: &mut S,
-    ) -> Tick {
-        if let (
-            Law::Ratio {
-                short_limit,
-                open_limit,
-                ..
-            },
-            Some((open, short)),
-        ) = (self.settings.law, ratios)
-        {
-            // The proportional signal is open − short, kept where the voltage law keeps its
-            // filtered voltage.
-            self.volts = open - short;
-            let gap = if short >= short_limit {
-                GapState::Short
-            } else if open >= open_limit {
-                GapState::Open
-            } else {
-                GapState::Normal
-            };
-            return self.tick(gap, source);
-        }
-        self.tick_volts(gap, volts, source)
-    }
-
-    /// One tick with the gap's voltage (V, when the input measures one) and the state the
-    /// input reports. Under the voltage law the state comes from the filtered voltage and the
-    /// feed is proportional; under the three-state law the voltage is ignored.
-    #[inline]
-    pub fn tick_volts<S: BlockSource + ?Sized>(
-        &mut self,
-        gap: GapState,
-        volts: Option<f64>,
-        source: &mut S,
-    ) -> Tick {
-        let gap = match (self.settings.law, volts) {
-            (
-                Law::Voltage {
-                    short_v,
-                    open_v,
-                    tau,
-                    ..
-                },
-                Some(v),
-            ) => {
-                self.volts = if !self.volts.is_finite() || tau <= 0.0 {
-                    v
-                } else {
-                    self.volts + (v - self.volts) * (self.settings.dt / tau).min(1.0)
-                };
-                if self.volts < short_v {
-                    GapState::Short
-                } else if self.volts > open_v {
-                    GapState::Open
-                } else {
-                    GapState::Normal
-                }
-            }
-            _ => gap,
-        };
-        self.tick(gap, source)
-    }
-
     /// One tick with gap state `gap`.
     #[inline]
     pub fn tick<S: BlockSource + ?Sized>(&mut self, gap: GapState, source: &mut S) -> Tick {
@@ -400,6 +295,16 @@ impl Interpolator {
         if self.take_pause(&mut tick) {
             return tick;
         }
+        if let Some(event) = self.pending.take() {
+            tick.event = Some(event);
+        }
+        if self.probe_hit && !self.drop_probe_rest(&mut tick, source) {
+            return tick;
+        }
+        if self.wire_break_input(&mut tick) {
+            return tick;
+        }
+        let (contact, gap) = (gap, self.past_contact(gap));
         if self.dwell_left > 0 && self.servo.state() == ServoState::Forward {
             // G4: the electrode stays where the dwell began while the gap sparks.
             self.dwell_left -= 1;
@@ -411,7 +316,18 @@ impl Interpolator {
         let rapid = self.has_block
             && self.block.flags & StepBlock::RAPID != 0
             && self.servo.state() == ServoState::Forward;
-        let (want_dir, feed) = if rapid {
+        let probing = self.has_block
+            && self.block.flags & StepBlock::PROBE != 0
+            && self.servo.state() == ServoState::Forward;
+        let excursion = self.servo.state().spark_off();
+        let (want_dir, feed) = if probing || excursion {
+            // A probe reads the contact as it is.
+            let gap = if probing { contact } else { gap };
+            match self.excursion_motion(gap, probing, &mut tick) {
+                Some(motion) => motion,
+                None => return tick,
+            }
+        } else if rapid {
             // Positioning with the spark off: no gap servo, the planned speed. A short here is
             // a collision: stop on the spot (no turn-back into a move that is not a cut) and
             // hold until released.
@@ -456,10 +372,17 @@ impl Interpolator {
                 && dir > 0
                 && self.settings.law == Law::ThreeState
                 && self.block.condition_feed > 0.0;
-            if sparking {
+            let motion = if sparking {
                 (dir, self.block.condition_feed as f64)
             } else {
                 (dir, feed)
+            };
+            if gap != GapState::Open {
+                self.open_mm = 0.0;
+            }
+            match self.jump_due(&mut tick) {
+                Some(jump) => jump,
+                None => motion,
             }
         };
         if want_dir == 0 {
@@ -505,11 +428,21 @@ impl Interpolator {
         }
         self.phase = (self.phase - 1.0).min(0.999_999);
         if self.dir > 0 {
+            let cutting_open = gap == GapState::Open
+                && self.servo.state() == ServoState::Forward
+                && self.block.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0;
             self.step_forward(&mut tick, source);
+            if cutting_open {
+                self.open_travel(&mut tick);
+            }
+            self.contact_grace_mm = (self.contact_grace_mm - self.event_mm).max(0.0);
         } else {
             self.walk.backward(&mut tick.steps);
             self.apply(&mut tick);
             self.counters.events_backward += 1;
+            if self.servo.state() == ServoState::Retreat {
+                self.retreated(&mut tick);
+            }
         }
         tick
     }
@@ -565,7 +498,9 @@ impl Interpolator {
             self.paused = false;
             event = Some(ServoEvent::Paused { at: self.here() });
         }
-        if self.walk.at_end() {
+        // A probing move waits at its end point for the next tick's contact check.
+        let probe_end = StepBlock::PROBE | StepBlock::LAST_OF_BLOCK;
+        if self.walk.at_end() && self.block.flags & probe_end != probe_end {
             match self.fetch_forward(source) {
                 Fetch::Block => {
                     if let Some(e) = self.servo.on_forward(self.here()) {
@@ -591,11 +526,18 @@ impl Interpolator {
     fn retreat<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
         loop {
             if !source.previous(&mut self.block) {
-                self.speed = 0.0;
-                self.phase = 0.0;
-                if let Some(event) = self.servo.on_reserved_exhausted(self.here()) {
-                    tick.event = Some(event);
+                self.retreat_blocked(tick, true);
+                return false;
+            }
+            if self.is_barrier() {
+                // Back out of it: the block this retreat came from is handed out again, and
+                // the electrode stands at its start, where it was.
+                if source.next(&mut self.block) == Fetch::Block {
+                    self.enter_block(false);
+                } else {
+                    self.has_block = false;
                 }
+                self.retreat_blocked(tick, false);
                 return false;
             }
             self.servo.on_block_back();
@@ -634,6 +576,7 @@ impl Interpolator {
 
     fn enter_block(&mut self, at_end: bool) {
         self.has_block = true;
+        self.block_jumps();
         let delta = self.block.delta();
         self.walk = Bresenham::new(&delta, at_end);
         let mut len2 = 0.0;

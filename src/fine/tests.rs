@@ -3,7 +3,7 @@ use proptest::prelude::*;
 use super::*;
 use crate::buffer::VecSource;
 
-const SETTINGS: FineSettings = FineSettings {
+pub(crate) const SETTINGS: FineSettings = FineSettings {
     dt: 50e-6,
     accel: 2400.0,
     feeds: Feeds {
@@ -14,6 +14,7 @@ const SETTINGS: FineSettings = FineSettings {
     step_mm: [0.001; MAX_AXES],
     max_short_ticks: 0,
     law: crate::servo::Law::ThreeState,
+    excursions: ExcursionSettings::OFF,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.
@@ -45,12 +46,13 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
                 condition: 0,
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
+                condition_jump: [f32::NAN; 3],
             }
         })
         .collect()
 }
 
-fn p2(x: i64, y: i64) -> [i64; MAX_AXES] {
+pub(crate) fn p2(x: i64, y: i64) -> [i64; MAX_AXES] {
     [x, y, 0, 0, 0, 0]
 }
 
@@ -79,12 +81,12 @@ fn run(
     (path, fine)
 }
 
-type Move = ([i64; MAX_AXES], bool);
+pub(crate) type Move = ([i64; MAX_AXES], bool);
 
 /// Checks the retrace rule on a move sequence: every backward move goes back to the point
 /// before on the forward path, and forward moves after a retrace revisit exactly the points
 /// retraced, in reverse. Returns the number of backward moves.
-fn assert_retraces(path: &[Move]) -> usize {
+pub(crate) fn assert_retraces(path: &[Move]) -> usize {
     let mut stack = vec![path[0].0];
     let mut undone: Vec<[i64; MAX_AXES]> = Vec::new();
     let mut pops = 0;

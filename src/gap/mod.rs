@@ -59,6 +59,15 @@ pub trait GapSensor {
     fn ratios(&self) -> Option<(f64, f64)> {
         None
     }
+
+    /// The wire-break input at the last [`sample`](Self::sample): a broken-wire sensor, or
+    /// the simulator's broken wire. `false` for inputs without one.
+    fn wire_broken(&self) -> bool {
+        false
+    }
+
+    /// The operator asked for a rethread: the simulator's wire is whole again.
+    fn rethreaded(&mut self) {}
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -90,5 +99,13 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn ratios(&self) -> Option<(f64, f64)> {
         (**self).ratios()
+    }
+
+    fn wire_broken(&self) -> bool {
+        (**self).wire_broken()
+    }
+
+    fn rethreaded(&mut self) {
+        (**self).rethreaded()
     }
 }

@@ -8,7 +8,8 @@
 //! ```
 //!
 //! The state holds from its tick until the next line's; before the first line the gap is
-//! normal. Ticks must not decrease. The whole script is read and checked before the job starts,
+//! normal. `wire-break` is not a state but an event: from its tick the wire is broken (the
+//! gap reads open and the wire-break input is set) until the operator's rethread. Ticks must not decrease. The whole script is read and checked before the job starts,
 //! so a bad line is an error with `file:line:col`, never a surprise mid-job.
 
 use std::path::Path;
@@ -78,6 +79,10 @@ pub struct ScriptGap {
     changes: Vec<(u64, GapState)>,
     next: usize,
     state: GapState,
+    /// Ticks of the `wire-break` lines, and how many of them have happened.
+    breaks: Vec<u64>,
+    breaks_done: usize,
+    broken: bool,
 }
 
 impl ScriptGap {
@@ -89,6 +94,7 @@ impl ScriptGap {
     /// Parses script text; `name` is used in error messages.
     pub fn parse(text: &str, name: &str) -> Result<ScriptGap, ScriptError> {
         let mut changes: Vec<(u64, GapState)> = Vec::new();
+        let mut breaks: Vec<u64> = Vec::new();
         for (index, raw) in crate::vocab::without_bom(text).lines().enumerate() {
             let line = index + 1;
             let content = raw.split('#').next().unwrap_or("");
@@ -108,13 +114,8 @@ impl ScriptGap {
                             format!("\"{tick}\" is not a tick number (a whole number >= 0)"),
                         )
                     })?;
-                    let state = GapState::from_name(state).ok_or_else(|| {
-                        invalid(
-                            *state_col,
-                            format!("\"{state}\" is not a gap state; use normal, open or short"),
-                        )
-                    })?;
-                    if let Some(&(last, _)) = changes.last()
+                    let last = changes.last().map(|c| c.0).max(breaks.last().copied());
+                    if let Some(last) = last
                         && tick < last
                     {
                         return Err(invalid(
@@ -122,6 +123,19 @@ impl ScriptGap {
                             format!("tick {tick} comes before the previous line's tick {last}"),
                         ));
                     }
+                    if *state == "wire-break" {
+                        breaks.push(tick);
+                        continue;
+                    }
+                    let state = GapState::from_name(state).ok_or_else(|| {
+                        invalid(
+                            *state_col,
+                            format!(
+                                "\"{state}\" is not a gap state; use normal, open or short (or \
+                                 wire-break)"
+                            ),
+                        )
+                    })?;
                     changes.push((tick, state));
                 }
                 [(col, _)] => {
@@ -142,6 +156,9 @@ impl ScriptGap {
             changes,
             next: 0,
             state: GapState::Normal,
+            breaks,
+            breaks_done: 0,
+            broken: false,
         })
     }
 
@@ -152,6 +169,9 @@ impl ScriptGap {
             changes,
             next: 0,
             state: GapState::Normal,
+            breaks: Vec::new(),
+            breaks_done: 0,
+            broken: false,
         }
     }
 }
@@ -166,7 +186,27 @@ impl GapSensor for ScriptGap {
             self.state = state;
             self.next += 1;
         }
-        Ok(self.state)
+        while self
+            .breaks
+            .get(self.breaks_done)
+            .is_some_and(|&at| at <= tick)
+        {
+            self.broken = true;
+            self.breaks_done += 1;
+        }
+        Ok(if self.broken {
+            GapState::Open
+        } else {
+            self.state
+        })
+    }
+
+    fn wire_broken(&self) -> bool {
+        self.broken
+    }
+
+    fn rethreaded(&mut self) {
+        self.broken = false;
     }
 }
 
@@ -187,6 +227,19 @@ mod tests {
     }
 
     #[test]
+    fn a_wire_break_holds_until_the_rethread() {
+        let mut gap = ScriptGap::parse("0 normal\n10 wire-break\n20 short\n", "g").unwrap();
+        assert_eq!(gap.sample(9).unwrap(), GapState::Normal);
+        assert!(!gap.wire_broken());
+        assert_eq!(gap.sample(10).unwrap(), GapState::Open);
+        assert!(gap.wire_broken());
+        assert_eq!(gap.sample(25).unwrap(), GapState::Open, "no wire, no short");
+        gap.rethreaded();
+        assert!(!gap.wire_broken());
+        assert_eq!(gap.sample(26).unwrap(), GapState::Short);
+    }
+
+    #[test]
     fn a_byte_order_mark_is_skipped() {
         let mut gap = ScriptGap::parse("\u{feff}10 short\n", "g").unwrap();
         assert_eq!(gap.sample(10).unwrap(), GapState::Short);
@@ -201,7 +254,8 @@ mod tests {
         );
         assert_eq!(
             err("10 shorted\n"),
-            "gap.txt:1:4: \"shorted\" is not a gap state; use normal, open or short"
+            "gap.txt:1:4: \"shorted\" is not a gap state; use normal, open or short (or \
+             wire-break)"
         );
         assert_eq!(
             err("-3 short\n"),

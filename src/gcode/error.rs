@@ -129,6 +129,8 @@ pub enum GcodeErrorKind {
     Control(String),
     #[error("wire offset: {0}")]
     WireOffset(String),
+    #[error("{0}")]
+    Probing(String),
     #[error("{label} ran more than {limit} times (program.max_loop_iterations)")]
     LoopLimit { label: String, limit: u64 },
     #[error("subroutine calls nested deeper than {limit}")]

@@ -138,6 +138,29 @@ pub enum BlockKind {
     Nurbs {
         form: NurbsForm,
     },
+    /// `G38.2`…`G38.5`, `G31`: a straight move toward (or away from) contact.
+    Probe(Probe),
+}
+
+/// What a probing move looks for (LinuxCNC's `G38.x`, Fanuc's `G31`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Probe {
+    /// Until contact is lost (`G38.4`, `G38.5`), not until it is made.
+    pub away: bool,
+    /// Reaching the end point without contact is an error (`G38.2`, `G38.4`).
+    pub must_touch: bool,
+}
+
+impl Probe {
+    /// `G38.2`, `G38.3`, `G38.4` or `G38.5` (`G31` reads as `G38.3`).
+    pub fn g_code(self) -> &'static str {
+        match (self.away, self.must_touch) {
+            (false, true) => "G38.2",
+            (false, false) => "G38.3",
+            (true, true) => "G38.4",
+            (true, false) => "G38.5",
+        }
+    }
 }
 
 impl BlockKind {
@@ -148,6 +171,7 @@ impl BlockKind {
             BlockKind::Line => "line",
             BlockKind::Arc { .. } => "arc",
             BlockKind::Nurbs { .. } => "nurbs",
+            BlockKind::Probe(_) => "probe",
         }
     }
 }

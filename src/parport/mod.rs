@@ -69,6 +69,10 @@ pub struct ParportConfig {
     pub dir_hold_ns: u64,
     pub short_pin: Option<u8>,
     pub open_pin: Option<u8>,
+    /// Probe input: contact during a probing move (read unfiltered, like a probe).
+    pub probe_pin: Option<u8>,
+    /// Wire-break sensor input.
+    pub wire_break_pin: Option<u8>,
     pub gap_filter_ticks: u32,
 }
 
@@ -291,6 +295,10 @@ pub struct ParportGap<P: Port> {
     seen: u32,
     /// The believed state; `None` before the first reading.
     state: Option<GapState>,
+    /// A probing move is in hand: the probe pin, if wired, is the contact.
+    probing: bool,
+    /// The wire-break input at the last reading.
+    wire_broken: bool,
     path: String,
 }
 
@@ -303,6 +311,8 @@ impl<P: Port> ParportGap<P> {
             candidate: GapState::Normal,
             seen: 0,
             state: None,
+            probing: false,
+            wire_broken: false,
             path: path.to_string(),
         }
     }
@@ -330,6 +340,16 @@ impl<P: Port> GapSensor for ParportGap<P> {
                 path: self.path.clone(),
                 source,
             })?;
+        let active = |pin: Option<u8>| pin.is_some_and(|p| self.map.input_active(status, p));
+        self.wire_broken = active(self.map.wire_break);
+        if self.probing && self.map.probe.is_some() {
+            // A probe's contact is believed at once: the move stops within the tick.
+            return Ok(if active(self.map.probe) {
+                GapState::Short
+            } else {
+                GapState::Open
+            });
+        }
         let reading = self.decode(status);
         if reading == self.candidate {
             self.seen = self.seen.saturating_add(1);
@@ -342,6 +362,14 @@ impl<P: Port> GapSensor for ParportGap<P> {
             self.state = Some(reading);
         }
         Ok(self.state.unwrap_or(reading))
+    }
+
+    fn moving_in(&mut self, flags: u8) {
+        self.probing = flags & crate::buffer::StepBlock::PROBE != 0;
+    }
+
+    fn wire_broken(&self) -> bool {
+        self.wire_broken
     }
 }
 
@@ -373,6 +401,8 @@ impl PinMap {
             inverted: p.invert_pins.iter().fold(0, |m, &pin| m | 1 << pin),
             short: p.short_pin,
             open: p.open_pin,
+            probe: p.probe_pin,
+            wire_break: p.wire_break_pin,
         }
     }
 }

@@ -151,6 +151,8 @@ pub struct PinMap {
     pub inverted: u32,
     pub short: Option<Pin>,
     pub open: Option<Pin>,
+    pub probe: Option<Pin>,
+    pub wire_break: Option<Pin>,
 }
 
 impl PinMap {
@@ -453,6 +455,8 @@ mod tests {
             inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
             short: Some(10),
             open: Some(11),
+            probe: None,
+            wire_break: None,
         }
     }
 

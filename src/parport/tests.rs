@@ -29,6 +29,8 @@ fn stepconf_map(axes: usize, inverted: &[Pin]) -> PinMap {
         inverted: inverted.iter().fold(0, |m, &p| m | 1 << p),
         short: Some(10),
         open: Some(11),
+        probe: None,
+        wire_break: None,
     }
 }
 
@@ -230,6 +232,37 @@ fn gap_pins_decode_with_inversion_priority_and_filter() {
     );
 }
 
+/// The probe pin is the contact during probing moves only, read at once; the wire-break pin
+/// is read whatever the move.
+#[test]
+fn probe_and_wire_break_pins() {
+    let bench = Bench::new();
+    let mut map = stepconf_map(2, &[]);
+    map.probe = Some(12);
+    map.wire_break = Some(13);
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let mut gap = ParportGap::new(port, map, 5, "fake");
+    let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
+    bench.set_inputs(levels(&[12]));
+    assert_eq!(gap.sample(0).unwrap(), GapState::Normal, "not probing");
+    gap.moving_in(crate::buffer::StepBlock::PROBE);
+    assert_eq!(
+        gap.sample(1).unwrap(),
+        GapState::Short,
+        "contact, unfiltered"
+    );
+    bench.set_inputs(levels(&[]));
+    assert_eq!(gap.sample(2).unwrap(), GapState::Open, "no contact");
+    assert!(!gap.wire_broken());
+    gap.moving_in(0);
+    bench.set_inputs(levels(&[13]));
+    gap.sample(3).unwrap();
+    assert!(gap.wire_broken());
+    bench.set_inputs(levels(&[]));
+    gap.sample(4).unwrap();
+    assert!(!gap.wire_broken());
+}
+
 fn arb_map() -> impl Strategy<Value = PinMap> {
     (
         1usize..=4,
@@ -256,6 +289,8 @@ fn arb_map() -> impl Strategy<Value = PinMap> {
                 inverted: invert_bits & 0x3_43fe,
                 short: None,
                 open: None,
+                probe: None,
+                wire_break: None,
             }
         })
 }

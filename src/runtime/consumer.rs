@@ -18,18 +18,21 @@
 //! skipped rather than caught up: catching up would fire several ticks back to back, a burst
 //! of steps faster than the planned speed. Motion simply pauses for the missed periods.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering, fence};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
 use super::histogram::LatencyHistogram;
+use super::probe::{ProbeLink, ProbeResult};
+use super::snapshot::SeqLock;
+pub use super::snapshot::Snapshot;
 use crate::buffer::{BlockSource, StepBlock};
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor};
 use crate::geometry::MAX_AXES;
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::servo::{PathPoint, ServoCounters, ServoEvent, ServoState};
+use crate::servo::{Excursion, PathPoint, ServoEvent, ServoState};
 use crate::sys;
 
 /// How the loop runs.
@@ -102,7 +105,17 @@ pub struct Published {
     /// Source line of the move a programmed stop (`M0`/`M1`) holds before; 0 for none.
     /// Set by the consumer's loop, cleared by whoever releases the hold.
     pub paused_line: AtomicU64,
+    /// Set by the supervisor after a wire break: [`RETHREAD_AT_START`] or
+    /// [`RETHREAD_HERE`]; the consumer's loop takes it (and clears it) before the hold.
+    pub rethread: AtomicU8,
+    /// Where probing moves ended, for the producer.
+    pub probe: ProbeLink,
 }
+
+/// `Published::rethread`: back along the path to the start hole.
+pub const RETHREAD_AT_START: u8 = 1;
+/// `Published::rethread`: thread where the wire broke.
+pub const RETHREAD_HERE: u8 = 2;
 
 impl Published {
     pub fn new(event_capacity: usize) -> Published {
@@ -122,6 +135,8 @@ impl Published {
             finished: AtomicBool::new(false),
             output_synced: AtomicBool::new(false),
             paused_line: AtomicU64::new(0),
+            rethread: AtomicU8::new(0),
+            probe: ProbeLink::default(),
         }
     }
 
@@ -138,203 +153,6 @@ impl Published {
     #[inline]
     pub fn publish(&self, tick: u64, fine: &Interpolator) {
         self.snapshot.write(&Snapshot::of(tick, fine).encode());
-    }
-}
-
-/// The interpolator's state as the other threads see it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Snapshot {
-    pub tick: u64,
-    pub state: ServoState,
-    /// The hold is in force (the operator's, not a starvation).
-    pub held: bool,
-    /// Held (or finished) and at a standstill.
-    pub still: bool,
-    /// The pulse ledger (steps).
-    pub position: [i64; MAX_AXES],
-    /// Where along the program: segment and Bresenham step.
-    pub here: PathPoint,
-    /// Steps of the segment in hand.
-    pub events: i64,
-    /// Source line of the segment in hand.
-    pub line: u64,
-    /// Curve parameter at the end of the segment in hand (NaN outside NURBS).
-    pub u_end: f64,
-    /// Path speed (mm/s).
-    pub speed: f64,
-    pub servo: ServoCounters,
-    /// Pulses emitted per axis.
-    pub pulses: [u64; MAX_AXES],
-    /// Path length from the program's start to the electrode (mm), along the segment in
-    /// hand: goes back during a turn-back.
-    pub path_mm: f64,
-}
-
-impl Default for Snapshot {
-    fn default() -> Self {
-        Snapshot {
-            tick: 0,
-            state: ServoState::Hold,
-            held: false,
-            still: true,
-            position: [0; MAX_AXES],
-            here: PathPoint::default(),
-            events: 0,
-            line: 0,
-            u_end: f64::NAN,
-            speed: 0.0,
-            servo: ServoCounters::default(),
-            pulses: [0; MAX_AXES],
-            path_mm: 0.0,
-        }
-    }
-}
-
-const WORDS: usize = 2 + MAX_AXES + 6 + 6 + MAX_AXES + 1;
-const STATES: [ServoState; 6] = [
-    ServoState::Forward,
-    ServoState::Hold,
-    ServoState::TurnBack,
-    ServoState::ReAdvance,
-    ServoState::Alarm,
-    ServoState::Done,
-];
-
-impl Snapshot {
-    pub fn of(tick: u64, fine: &Interpolator) -> Snapshot {
-        let c = fine.counters();
-        let (events, u_end) = fine
-            .block()
-            .map_or((0, f64::NAN), |b| (b.events() as i64, b.u_end));
-        let here = fine.here();
-        let path_mm = fine.block().map_or(0.0, |b| {
-            let left = if events > 0 {
-                (events - here.event).clamp(0, events) as f64 / events as f64
-            } else {
-                0.0
-            };
-            b.path_end_mm - b.length_mm * left
-        });
-        Snapshot {
-            tick,
-            state: fine.state(),
-            held: fine.held(),
-            still: fine.still(),
-            position: fine.position(),
-            here: fine.here(),
-            events,
-            line: fine.line(),
-            u_end,
-            speed: fine.speed(),
-            servo: c.servo,
-            pulses: c.pulses,
-            path_mm,
-        }
-    }
-
-    fn encode(&self) -> [u64; WORDS] {
-        let mut w = [0u64; WORDS];
-        let state = STATES.iter().position(|s| *s == self.state).unwrap_or(1) as u64;
-        w[0] = self.tick;
-        w[1] = state | (self.held as u64) << 8 | (self.still as u64) << 9;
-        for i in 0..MAX_AXES {
-            w[2 + i] = self.position[i] as u64;
-            w[2 + MAX_AXES + 12 + i] = self.pulses[i];
-        }
-        let m = 2 + MAX_AXES;
-        w[m] = self.here.seq;
-        w[m + 1] = self.here.event as u64;
-        w[m + 2] = self.events as u64;
-        w[m + 3] = self.line;
-        w[m + 4] = self.u_end.to_bits();
-        w[m + 5] = self.speed.to_bits();
-        let c = &self.servo;
-        w[m + 6..m + 12].copy_from_slice(&[
-            c.shorts,
-            c.turn_backs,
-            c.deepest_turn_back_blocks,
-            c.alarms,
-            c.starvations,
-            c.collisions,
-        ]);
-        w[WORDS - 1] = self.path_mm.to_bits();
-        w
-    }
-
-    fn decode(w: &[u64; WORDS]) -> Snapshot {
-        let m = 2 + MAX_AXES;
-        Snapshot {
-            tick: w[0],
-            state: STATES[(w[1] & 0xff) as usize % STATES.len()],
-            held: w[1] & 1 << 8 != 0,
-            still: w[1] & 1 << 9 != 0,
-            position: std::array::from_fn(|i| w[2 + i] as i64),
-            here: PathPoint {
-                seq: w[m],
-                event: w[m + 1] as i64,
-            },
-            events: w[m + 2] as i64,
-            line: w[m + 3],
-            u_end: f64::from_bits(w[m + 4]),
-            speed: f64::from_bits(w[m + 5]),
-            servo: ServoCounters {
-                shorts: w[m + 6],
-                turn_backs: w[m + 7],
-                deepest_turn_back_blocks: w[m + 8],
-                alarms: w[m + 9],
-                starvations: w[m + 10],
-                collisions: w[m + 11],
-            },
-            pulses: std::array::from_fn(|i| w[m + 12 + i]),
-            path_mm: f64::from_bits(w[WORDS - 1]),
-        }
-    }
-}
-
-/// A single-writer sequence lock over a few words: the writer never waits, a reader retries
-/// while a write is in progress or happened under it.
-#[derive(Debug)]
-struct SeqLock {
-    version: AtomicU64,
-    words: [AtomicU64; WORDS],
-}
-
-impl Default for SeqLock {
-    fn default() -> Self {
-        let lock = SeqLock {
-            version: AtomicU64::new(0),
-            words: std::array::from_fn(|_| AtomicU64::new(0)),
-        };
-        lock.write(&Snapshot::default().encode());
-        lock
-    }
-}
-
-impl SeqLock {
-    #[inline]
-    fn write(&self, data: &[u64; WORDS]) {
-        let v = self.version.load(Ordering::Relaxed);
-        self.version.store(v.wrapping_add(1), Ordering::Relaxed);
-        fence(Ordering::Release);
-        for (slot, &d) in self.words.iter().zip(data) {
-            slot.store(d, Ordering::Relaxed);
-        }
-        self.version.store(v.wrapping_add(2), Ordering::Release);
-    }
-
-    fn read(&self) -> [u64; WORDS] {
-        loop {
-            let before = self.version.load(Ordering::Acquire);
-            if before & 1 == 1 {
-                std::hint::spin_loop();
-                continue;
-            }
-            let data = std::array::from_fn(|i| self.words[i].load(Ordering::Relaxed));
-            fence(Ordering::Acquire);
-            if self.version.load(Ordering::Relaxed) == before {
-                return data;
-            }
-        }
     }
 }
 
@@ -364,6 +182,13 @@ pub struct LoopReport {
     pub stopped: bool,
     /// A collision during a rapid ended a job without an operator: where, and the line.
     pub collision: Option<(PathPoint, u64)>,
+    /// The wire broke in a job without an operator: where, the line, and whether an open
+    /// gap (not the sensor) told.
+    pub wire_break: Option<(PathPoint, u64, bool)>,
+    /// A `G38.2`/`G38.4` reached its end point without contact: where, and the line.
+    pub probe_missed: Option<(PathPoint, u64)>,
+    /// Where the last probing move ended.
+    pub last_probe: Option<ProbeResult>,
     /// Real-time features the system refused, with the reason.
     pub rt_refused: Vec<String>,
 }
@@ -383,6 +208,9 @@ impl LoopReport {
             gap_error: None,
             stopped: false,
             collision: None,
+            wire_break: None,
+            probe_missed: None,
+            last_probe: None,
             rt_refused: Vec::new(),
         }
     }
@@ -486,7 +314,11 @@ where
             // CPU go rather than spin through ticks.
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
-        fine.set_hold(published.hold.load(Ordering::Relaxed));
+        let rethread = published.rethread.swap(0, Ordering::Acquire);
+        if rethread != 0 && fine.rethread(rethread == RETHREAD_AT_START) {
+            sensor.rethreaded();
+        }
+        fine.set_hold(published.hold.load(Ordering::Acquire));
         let gap = match sensor.sample(tick_no) {
             Ok(gap) => gap,
             Err(e) => {
@@ -497,12 +329,15 @@ where
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
+        fine.set_wire_input(sensor.wire_broken());
         let tick = fine.tick_measured(gap, sensor.volts(), sensor.ratios(), source);
         let block = fine.block();
-        let flags = block.map_or(0, |b| b.flags);
+        let excursion = fine.state().spark_off();
+        let flags = block.map_or(0, |b| b.flags) | if excursion { StepBlock::SPARK_OFF } else { 0 };
         let now = Activity {
             flags,
-            spark: block.is_some_and(|b| b.flags & StepBlock::RAPID == 0)
+            spark: block.is_some_and(|b| b.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0)
+                && !excursion
                 && !fine.held()
                 && !fine.state().is_final(),
             condition: block.map_or(activity.condition, |b| b.condition),
@@ -562,6 +397,23 @@ where
                 published.hold.store(true, Ordering::Relaxed);
             }
             Some(ServoEvent::Collision { at }) => report.collision = Some((at, fine.line())),
+            // A wire break, or a rethread's arrival at the start hole, waits for the operator.
+            Some(
+                ServoEvent::WireBreak { .. }
+                | ServoEvent::Retreated {
+                    why: Excursion::Rethread,
+                    ..
+                },
+            ) if settings.program_pauses => published.hold.store(true, Ordering::Relaxed),
+            Some(ServoEvent::WireBreak { at, open }) => {
+                report.wire_break = Some((at, fine.line(), open))
+            }
+            Some(ServoEvent::Probed { steps, contact, .. }) => {
+                let result = ProbeResult { steps, contact };
+                report.last_probe = Some(result);
+                published.probe.publish(&result);
+            }
+            Some(ServoEvent::ProbeMissed { at }) => report.probe_missed = Some((at, fine.line())),
             _ => {}
         }
         if let Some(event) = tick.event
@@ -600,7 +452,10 @@ where
         }
         let state = fine.state();
         let alarm_held = state == ServoState::Alarm && settings.program_pauses;
-        if (state.is_final() && !alarm_held) || report.collision.is_some() {
+        let ended = report.collision.is_some()
+            || report.wire_break.is_some()
+            || report.probe_missed.is_some();
+        if (state.is_final() && !alarm_held) || ended {
             break;
         }
         if published.stop.load(Ordering::Relaxed) {
@@ -624,6 +479,7 @@ where
     report.latency = latency;
     published.ticks.store(tick_no, Ordering::Relaxed);
     published.publish(tick_no, fine);
+    published.probe.close();
     published.finished.store(true, Ordering::Release);
     report
 }

@@ -123,6 +123,7 @@ impl BlockSource for SquarePath {
             condition: 0,
             condition_feed: 0.0,
             condition_v_ref: 0.0,
+            condition_jump: [f32::NAN; 3],
         };
         self.at = end;
         self.next_seq += 1;

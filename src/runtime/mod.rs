@@ -20,13 +20,16 @@
 
 pub mod consumer;
 mod devices;
+mod events;
 pub mod fine_thread;
 mod histogram;
 pub mod latency;
 mod precheck;
+pub mod probe;
 pub mod producer;
 pub mod program;
 pub mod progress;
+mod snapshot;
 mod summary;
 
 use std::path::Path;
@@ -43,7 +46,6 @@ use crate::geometry::MAX_AXES;
 use crate::output::OutputError;
 use crate::parport::ParportError;
 use crate::record::{RecordedOutput, Recorder, Recording};
-use crate::servo::ServoEvent;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
 use crate::vocab::TickPeriod;
 
@@ -83,97 +85,6 @@ pub enum JobError {
     Cancelled { program: String },
 }
 
-/// Logs one servo event (from the main thread, never the consumer).
-/// `pauses`: a programmed stop holds the job (the daemon) rather than being passed (`edmd run`).
-fn log_event(program: &str, record: &EventRecord, tick: TickPeriod, pauses: bool) {
-    let t = tick.ticks_to_secs(record.tick);
-    let line = record.line;
-    match record.event {
-        ServoEvent::Short { at } => tracing::info!(
-            edmd_event = "short",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: short circuit at t={t:.4} s (segment {}, step {}): turning back",
-            at.seq,
-            at.event
-        ),
-        ServoEvent::Cleared { depth } => tracing::info!(
-            edmd_event = "turn_back",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: gap cleared at t={t:.4} s after turning back over {depth} blocks: re-advancing"
-        ),
-        ServoEvent::Resumed { .. } => {
-            tracing::debug!("{program}:{line}: back at the short at t={t:.4} s: machining on")
-        }
-        ServoEvent::Starved { at } => tracing::warn!(
-            "{program}:{line}: loop buffer empty at t={t:.4} s (segment {}): holding",
-            at.seq
-        ),
-        ServoEvent::Alarm {
-            at,
-            depth,
-            timed_out,
-        } => tracing::error!(
-            edmd_event = "alarm",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: ALARM at t={t:.4} s: {} ({depth} blocks back, segment {}); motion \
-             stopped, position kept{}",
-            if timed_out {
-                "the short outlasted servo.max_short_s while turning back"
-            } else {
-                "still shorted after turning back over the whole reserved area"
-            },
-            at.seq,
-            if pauses {
-                "; the job holds: flush the gap, then `edmd ctl resume` re-advances"
-            } else {
-                ""
-            }
-        ),
-        ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
-        ServoEvent::Collision { at } => tracing::error!(
-            edmd_event = "collision",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: COLLISION at t={t:.4} s: the gap shorted during a rapid (segment {}, \
-             step {}); motion stopped, position kept{}",
-            at.seq,
-            at.event,
-            if pauses {
-                "; the job holds until `edmd ctl resume`"
-            } else {
-                ""
-            }
-        ),
-        ServoEvent::Condition { number } => tracing::info!(
-            edmd_event = "condition",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: machining condition E{number} from t={t:.4} s"
-        ),
-        ServoEvent::Flushing { on } => tracing::info!(
-            edmd_event = "flushing",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: flushing {} at t={t:.4} s",
-            if on { "on" } else { "off" }
-        ),
-        ServoEvent::Paused { .. } => tracing::warn!(
-            edmd_event = "pause",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: programmed stop (M0/M1) before this line at t={t:.4} s: {}",
-            if pauses {
-                "paused until `edmd ctl resume`"
-            } else {
-                "not waiting (edmd run has no operator channel; edmd serve holds the job here)"
-            }
-        ),
-    }
-}
-
 /// Logs one trace record (from the main thread).
 fn log_trace(config: &Config, record: &TraceRecord, tick: TickPeriod) {
     let t = tick.ticks_to_secs(record.tick);
@@ -200,34 +111,6 @@ fn log_trace(config: &Config, record: &TraceRecord, tick: TickPeriod) {
 
 /// A report's recorder samples the motion at most this often (and at every gap change).
 const RECORD_EVERY_TICKS: u64 = 20;
-
-/// Hands a batch of samples and servo events to the recording, in tick order.
-fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventRecord]) {
-    let mut events = events.iter().peekable();
-    let mut take_events = |recording: &mut Recording, before: u64| {
-        while let Some(e) = events.next_if(|e| e.tick <= before) {
-            let (kind, depth) = match e.event {
-                ServoEvent::Short { .. } => ("short", None),
-                ServoEvent::Cleared { depth } => ("turn_back", Some(depth)),
-                ServoEvent::Resumed { .. } => ("resumed", None),
-                ServoEvent::Starved { .. } => ("starved", None),
-                ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
-                ServoEvent::Done => ("done", None),
-                ServoEvent::Paused { .. } => ("pause", None),
-                ServoEvent::Collision { .. } => ("collision", None),
-                ServoEvent::Condition { number } => ("condition", Some(number as u64)),
-                ServoEvent::Flushing { on: true } => ("flush_on", None),
-                ServoEvent::Flushing { on: false } => ("flush_off", None),
-            };
-            recording.event(e.tick, e.line, kind, depth);
-        }
-    };
-    recorder.drain(|sample| {
-        take_events(recording, sample.tick.saturating_sub(1));
-        recording.sample(sample);
-    });
-    take_events(recording, u64::MAX);
-}
 
 /// How long a controlled stop lets a consumer that waits for the producer keep waiting.
 const STOP_WAKE: Duration = Duration::from_millis(200);
@@ -452,7 +335,7 @@ pub fn run_job_with(
     let mut last_progress = Instant::now();
 
     let (producer, done) = std::thread::scope(|s| {
-        let producer = s.spawn(|| producer::produce(program, config, &buffer));
+        let producer = s.spawn(|| producer::produce(program, config, &buffer, &published.probe));
         let result = fine_thread.submit(FineJob {
             buffer: buffer.clone(),
             published: published.clone(),
@@ -466,13 +349,13 @@ pub fn run_job_with(
         let drain = || {
             let mut events = Vec::new();
             while let Some(record) = published.events.pop() {
-                log_event(&name, &record, tick, program_pauses);
+                events::log_event(&name, &record, config, program_pauses);
                 if recording.is_some() {
                     events.push(record);
                 }
             }
             if let (Some(recording), Some(recorder)) = (&recording, &recorder) {
-                record_batch(&mut recording.lock(), recorder, &events);
+                events::record_batch(&mut recording.lock(), recorder, &events);
             }
             if let Some(tracer) = &tracer {
                 tracer.drain(|record| log_trace(config, record, tick));
@@ -568,6 +451,17 @@ pub fn run_job_with(
         alarms: counters.servo.alarms,
         starvations: counters.servo.starvations,
         collisions: counters.servo.collisions,
+        jumps: counters.servo.jumps,
+        wire_breaks: counters.servo.wire_breaks,
+        probes: counters.servo.probes,
+        probe_mm: report.last_probe.map(|p| {
+            p.steps[..axes]
+                .iter()
+                .zip(&config.machine.step_mm)
+                .map(|(s, mm)| *s as f64 * mm)
+                .collect()
+        }),
+        probe_contact: report.last_probe.map(|p| p.contact),
         overruns: report.overruns,
         missed_deadlines: report.missed_deadlines,
         latency_us: report.latency.as_ref().map(|h| h.summary()),

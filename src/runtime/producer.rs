@@ -8,6 +8,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::probe::ProbeLink;
 use super::program::JobProgram;
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::config::Config;
@@ -73,8 +74,9 @@ pub struct BlockMaker {
     path_mm: f64,
     /// The next segment is the first of its G-code block (it carries the block's stops).
     first_of_block: bool,
-    /// `[generator] condition`: number, sparking feed (mm/s), reference voltage (V).
-    conditions: Vec<(u32, f32, f32)>,
+    /// `[generator] condition`: number, sparking feed (mm/s), reference voltage (V), jump
+    /// interval (s), height (mm) and feed (mm/s) (NaN: the `[servo]` setting).
+    conditions: Vec<(u32, f32, f32, [f32; 3])>,
 }
 
 impl BlockMaker {
@@ -90,9 +92,27 @@ impl BlockMaker {
             conditions: config
                 .conditions
                 .iter()
-                .map(|c| (c.number, (c.feed_mm_per_min / 60.0) as f32, c.v_ref as f32))
+                .map(|c| {
+                    let jump = [
+                        c.jump_interval_s.map_or(f32::NAN, |v| v as f32),
+                        c.jump_height_mm.map_or(f32::NAN, |v| v as f32),
+                        c.jump_feed_mm_per_min
+                            .map_or(f32::NAN, |v| (v / 60.0) as f32),
+                    ];
+                    (
+                        c.number,
+                        (c.feed_mm_per_min / 60.0) as f32,
+                        c.v_ref as f32,
+                        jump,
+                    )
+                })
                 .collect(),
         }
+    }
+
+    /// A probing move ended at `steps`: the next block starts there.
+    pub fn probed(&mut self, steps: &[i64; MAX_AXES]) {
+        self.last_end = *steps;
     }
 
     pub fn make(&mut self, segment: &Segment) -> Result<StepBlock, ProducerError> {
@@ -114,6 +134,15 @@ impl BlockMaker {
         }
         if segment.block.flushing {
             flags |= StepBlock::FLUSH;
+        }
+        if let BlockKind::Probe(p) = segment.block.kind {
+            flags |= StepBlock::PROBE;
+            if p.away {
+                flags |= StepBlock::PROBE_AWAY;
+            }
+            if p.must_touch {
+                flags |= StepBlock::PROBE_MUST;
+            }
         }
         let first = std::mem::replace(&mut self.first_of_block, segment.last_of_block);
         if first && segment.block.pause.is_some() {
@@ -138,15 +167,17 @@ impl BlockMaker {
             condition: segment.block.condition as u16,
             condition_feed: 0.0,
             condition_v_ref: 0.0,
+            condition_jump: [f32::NAN; 3],
         };
         let mut block = block;
-        if let Some(&(_, feed, v_ref)) = self
+        if let Some(&(_, feed, v_ref, jump)) = self
             .conditions
             .iter()
             .find(|c| c.0 == segment.block.condition)
         {
             block.condition_feed = feed;
             block.condition_v_ref = v_ref;
+            block.condition_jump = jump;
         }
         self.path_mm += segment.length;
         self.seq += 1;
@@ -157,12 +188,16 @@ impl BlockMaker {
 
 /// Streams `program` into `buffer`; closes the buffer at the end (also after an error, so the
 /// consumer finishes what it has and stops).
+///
+/// After a probing move it plans the path to a standstill at the move's end, pushes it and
+/// waits for `probe` to say where the move really ended, then reads on from there.
 pub fn produce(
     program: &JobProgram,
     config: &Config,
     buffer: &LoopBuffer,
+    probe: &ProbeLink,
 ) -> Result<ProducerReport, ProducerError> {
-    let result = produce_inner(program, config, buffer);
+    let result = produce_inner(program, config, buffer, probe);
     buffer.close();
     result
 }
@@ -171,8 +206,9 @@ fn produce_inner(
     program: &JobProgram,
     config: &Config,
     buffer: &LoopBuffer,
+    probe: &ProbeLink,
 ) -> Result<ProducerReport, ProducerError> {
-    let reader = gcode::open_program_as(
+    let mut reader = gcode::open_program_as(
         &program.path,
         &program.name,
         &config.machine.axes,
@@ -180,48 +216,87 @@ fn produce_inner(
         |f| f,
     )?;
     let mut pre = Preprocessor::new(PlanSettings::from_config(config));
-    let mut maker = BlockMaker::new(config, &program.name);
-    let mut report = ProducerReport::default();
-    let mut failed: Option<ProducerError> = None;
     let started = Instant::now();
-    let mut waited = Duration::ZERO;
-    let mut push = |segment: Segment, report: &mut ProducerReport| {
-        if failed.is_some() || report.aborted {
-            return;
-        }
-        match maker.make(&segment) {
-            Ok(block) => {
-                // Only a push that finds the ring full is timed: the clock stays off the
-                // common path.
-                let pushed = buffer.try_push(&block) || {
-                    let waiting = Instant::now();
-                    let pushed = buffer.push(&block).is_ok();
-                    waited += waiting.elapsed();
-                    pushed
-                };
-                if pushed {
-                    report.pushed += 1;
-                } else {
-                    report.aborted = true;
-                }
-            }
-            Err(e) => failed = Some(e),
-        }
+    let mut out = Pusher {
+        maker: BlockMaker::new(config, &program.name),
+        buffer,
+        report: ProducerReport::default(),
+        failed: None,
+        waited: Duration::ZERO,
     };
-    for item in reader {
+    let mut probes = 0;
+    while let Some(item) = reader.next() {
         let block = item?;
-        pre.push_block(Arc::new(block), |s| push(s, &mut report));
-        if report.aborted {
+        let probing = matches!(block.kind, BlockKind::Probe(_));
+        pre.push_block(Arc::new(block), |s| out.push(s));
+        if probing && !out.report.aborted && out.failed.is_none() {
+            // The rest of the program starts where the probe stops: plan to a standstill at
+            // its end, hand everything over, and wait for the consumer to say where.
+            pre.finish(|s| out.push(s));
+            probes += 1;
+            let waiting = Instant::now();
+            let result = probe.wait(probes, || buffer.aborted());
+            out.waited += waiting.elapsed();
+            match result {
+                Some(result) => {
+                    let step_mm = &config.machine.step_mm;
+                    let mm = Point::from_fn(|i, _| {
+                        step_mm.get(i).map_or(0.0, |s| result.steps[i] as f64 * s)
+                    });
+                    reader.probed(&mm, result.contact);
+                    out.maker.probed(&result.steps);
+                }
+                None => out.report.aborted = true,
+            }
+        }
+        if out.report.aborted {
             break;
         }
     }
-    if !report.aborted {
-        pre.finish(|s| push(s, &mut report));
+    if !out.report.aborted {
+        pre.finish(|s| out.push(s));
     }
-    if let Some(e) = failed {
+    if let Some(e) = out.failed {
         return Err(e);
     }
+    let mut report = out.report;
     report.stats = pre.stats();
-    report.busy_ns = started.elapsed().saturating_sub(waited).as_nanos() as u64;
+    report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
     Ok(report)
+}
+
+/// Turns segments into step blocks and pushes them, timing only the waits.
+struct Pusher<'b> {
+    maker: BlockMaker,
+    buffer: &'b LoopBuffer,
+    report: ProducerReport,
+    failed: Option<ProducerError>,
+    /// Time spent waiting for buffer space or a probe result.
+    waited: Duration,
+}
+
+impl Pusher<'_> {
+    fn push(&mut self, segment: Segment) {
+        if self.failed.is_some() || self.report.aborted {
+            return;
+        }
+        match self.maker.make(&segment) {
+            Ok(block) => {
+                // Only a push that finds the ring full is timed: the clock stays off the
+                // common path.
+                let pushed = self.buffer.try_push(&block) || {
+                    let waiting = Instant::now();
+                    let pushed = self.buffer.push(&block).is_ok();
+                    self.waited += waiting.elapsed();
+                    pushed
+                };
+                if pushed {
+                    self.report.pushed += 1;
+                } else {
+                    self.report.aborted = true;
+                }
+            }
+            Err(e) => self.failed = Some(e),
+        }
+    }
 }

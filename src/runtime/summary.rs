@@ -34,6 +34,10 @@ pub enum Outcome {
     /// The gap shorted during a rapid and no operator could release the hold (`edmd run`):
     /// stopped there, position kept.
     Collision,
+    /// The wire broke and no operator could rethread it (`edmd run`): stopped there.
+    WireBreak,
+    /// A `G38.2`/`G38.4` reached its end point without contact: stopped there.
+    ProbeMissed,
 }
 
 impl Outcome {
@@ -47,6 +51,8 @@ impl Outcome {
             Outcome::Stopped => "stopped",
             Outcome::ResumeRefused => "resume refused",
             Outcome::Collision => "collision",
+            Outcome::WireBreak => "wire break",
+            Outcome::ProbeMissed => "probe missed",
         }
     }
 }
@@ -92,6 +98,20 @@ pub struct JobSummary {
     /// Shorts during rapids.
     #[serde(default)]
     pub collisions: u64,
+    /// Sinker jumps made.
+    #[serde(default)]
+    pub jumps: u64,
+    /// Wire breaks detected.
+    #[serde(default)]
+    pub wire_breaks: u64,
+    /// Probing moves finished.
+    #[serde(default)]
+    pub probes: u64,
+    /// Where the last probing move ended, per axis (mm), and whether it touched.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_mm: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_contact: Option<bool>,
     pub overruns: u64,
     pub missed_deadlines: u64,
     /// Real time only.
@@ -158,6 +178,25 @@ impl JobSummary {
                 String::new()
             }
         );
+        if self.jumps + self.wire_breaks + self.probes > 0 {
+            let _ = writeln!(
+                t,
+                "  excursions:       {} jumps, {} wire breaks, {} probes",
+                self.jumps, self.wire_breaks, self.probes
+            );
+        }
+        if let Some(mm) = &self.probe_mm {
+            let text = axis_list(mm, &self.axes, |v| format!("{v:.4}"));
+            let _ = writeln!(
+                t,
+                "  last probe:       {text} mm ({})",
+                if self.probe_contact == Some(true) {
+                    "contact"
+                } else {
+                    "no contact"
+                }
+            );
+        }
         let _ = writeln!(
             t,
             "  events:           {} forward, {} backward",
@@ -264,6 +303,30 @@ pub(super) fn outcome(
             Some(format!(
                 "line {line}: the gap shorted during a rapid (segment {}, step {}): motion \
                  stopped, position kept",
+                at.seq, at.event
+            )),
+        )
+    } else if let Some((at, line, open)) = report.wire_break {
+        (
+            Outcome::WireBreak,
+            Some(format!(
+                "line {line}: the wire broke ({}; segment {}, step {}): motion stopped, position \
+                 kept; `edmd serve` holds such a job for a rethread",
+                if open {
+                    "the gap stayed open over servo.max_open_mm of cutting"
+                } else {
+                    "the wire-break input"
+                },
+                at.seq,
+                at.event
+            )),
+        )
+    } else if let Some((at, line)) = report.probe_missed {
+        (
+            Outcome::ProbeMissed,
+            Some(format!(
+                "line {line}: the probing move reached its end point without contact (segment \
+                 {}, step {}): the program cannot go on",
                 at.seq, at.event
             )),
         )

@@ -62,6 +62,8 @@ pub struct SimConfig {
     pub debris_shorts: u32,
     pub debris_shorts_per_s: f64,
     pub debris_clear_mm: f64,
+    /// Wire breaks per metre of cutting travel (a seeded Poisson process; 0: none).
+    pub wire_breaks_per_m: f64,
     /// Scripted events file.
     pub events: Option<PathBuf>,
 }
@@ -92,6 +94,8 @@ pub struct SimCounters {
     pub proximity_shorts: u64,
     /// Ticks the gap spent sparking.
     pub sparking_ticks: u64,
+    /// Wire breaks.
+    pub wire_breaks: u64,
 }
 
 /// `gap.kind = "sim"`: the closed-loop gap model.
@@ -123,6 +127,18 @@ pub struct SimGap {
     state: GapState,
     /// The move in hand is a rapid: the spark is off, the electrode moves through the open.
     rapid: bool,
+    /// The generator is off while the electrode moves (a probing move, a jump, a rethread):
+    /// the gap is only the distance, nothing erodes and no debris forms.
+    spark_off: bool,
+    /// Probing away from the work: forward motion opens the gap.
+    away: bool,
+    /// Cutting travel so far, and where along it the wire breaks next (mm; infinite: never).
+    cut_mm: f64,
+    next_break_mm: f64,
+    /// The wire breaks' own generator, so that turning them on leaves the debris as it was.
+    break_rng: SplitMix64,
+    /// The wire is broken: the gap reads open and the wire-break input is set.
+    broken: bool,
     /// Voltage thresholds (V), see [`GapSensor::volts`].
     short_v: f64,
     open_v: f64,
@@ -166,7 +182,15 @@ impl SimGap {
                 cutting_spans.last().map_or(0.0, |&(_, to)| to)
             })
             .collect();
+        let mut break_rng = SplitMix64::new(params.seed ^ 0x5749_5245_4252_4b21);
+        let next_break_mm = next_break(&mut break_rng, params.wire_breaks_per_m, 0.0);
         SimGap {
+            spark_off: false,
+            away: false,
+            cut_mm: 0.0,
+            next_break_mm,
+            break_rng,
+            broken: false,
             debris_per_tick: -(-params.debris_shorts_per_s * dt).exp_m1(),
             rng,
             front: params.initial_gap_mm,
@@ -257,6 +281,16 @@ impl SimGap {
     }
 }
 
+/// Where along the cutting travel the wire breaks next: exponentially distributed at `per_m`
+/// breaks per metre after `from_mm` (never when the rate is 0).
+fn next_break(rng: &mut SplitMix64, per_m: f64, from_mm: f64) -> f64 {
+    if per_m <= 0.0 {
+        return f64::INFINITY;
+    }
+    let u = 1.0 - rng.next_f64();
+    from_mm - u.ln() / per_m * 1000.0
+}
+
 impl SimGap {
     /// The gap state of tick `tick` from the model (scripted holds, debris, rapids, distance).
     fn sample_state(&mut self, tick: u64) -> GapState {
@@ -275,8 +309,8 @@ impl SimGap {
             }
             self.debris_until = None;
         }
-        if self.rapid {
-            // The spark is off while positioning: nothing discharges.
+        if self.rapid || self.broken {
+            // The spark is off while positioning (and no wire, no discharge): open.
             self.state = GapState::Open;
             return self.state;
         }
@@ -292,7 +326,7 @@ impl SimGap {
         if self.state == GapState::Short && previous != GapState::Short {
             self.counters.proximity_shorts += 1;
         }
-        if self.state == GapState::Normal {
+        if self.state == GapState::Normal && !self.spark_off {
             self.counters.sparking_ticks += 1;
             self.front += self.erosion * self.dt;
             if let Some(clear) = self.debris_forming() {
@@ -345,7 +379,19 @@ impl GapSensor for SimGap {
             let d = *s as f64 * mm;
             len2 += d * d;
         }
-        self.progress += dir as f64 * len2.sqrt();
+        let len = len2.sqrt();
+        self.progress += dir as f64 * len;
+        if self.away {
+            // Probing away: the electrode leaves the work as it advances.
+            self.front += 2.0 * dir as f64 * len;
+        }
+        if dir > 0 && !self.rapid && !self.spark_off && !self.broken {
+            self.cut_mm += len;
+            if self.cut_mm >= self.next_break_mm {
+                self.broken = true;
+                self.counters.wire_breaks += 1;
+            }
+        }
         if self.rapid && dir > 0 {
             // Positioning through the open: the next cut starts at the initial gap. (A
             // turn-back through a rapid retraces it and leaves the front where it is.)
@@ -354,7 +400,25 @@ impl GapSensor for SimGap {
     }
 
     fn moving_in(&mut self, flags: u8) {
-        self.rapid = flags & crate::buffer::StepBlock::RAPID != 0;
+        use crate::buffer::StepBlock;
+        self.rapid = flags & StepBlock::RAPID != 0;
+        self.spark_off = flags & (StepBlock::PROBE | StepBlock::SPARK_OFF) != 0;
+        self.away = flags & StepBlock::PROBE_AWAY != 0 && flags & StepBlock::SPARK_OFF == 0;
+    }
+
+    fn wire_broken(&self) -> bool {
+        self.broken
+    }
+
+    fn rethreaded(&mut self) {
+        if self.broken {
+            self.broken = false;
+            self.next_break_mm = next_break(
+                &mut self.break_rng,
+                self.params.wire_breaks_per_m,
+                self.cut_mm,
+            );
+        }
     }
 
     /// The generator's average gap voltage as the model sees it: 0 V shorted, the
@@ -396,6 +460,7 @@ pub(crate) mod tests {
             debris_shorts: 5,
             debris_shorts_per_s: 0.0,
             debris_clear_mm: 300.0 / 1000.0,
+            wire_breaks_per_m: 0.0,
             events: None,
         };
         for o in overrides {
@@ -407,6 +472,7 @@ pub(crate) mod tests {
                 "sim.debris_shorts" => params.debris_shorts = v as u32,
                 "sim.debris_shorts_per_s" => params.debris_shorts_per_s = v,
                 "sim.debris_clear_um" => params.debris_clear_mm = v / 1000.0,
+                "sim.wire_breaks_per_m" => params.wire_breaks_per_m = v,
                 other => panic!("no test override for {other}"),
             }
         }

@@ -13,6 +13,16 @@ pub(super) enum Motion {
     Linear,
     Cw,
     Ccw,
+    /// `G38.2`…`G38.5`, `G31`: a straight move that stops at contact.
+    Probe(Probing),
+}
+
+/// What a probing move looks for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Probing {
+    pub(super) probe: crate::gcode::Probe,
+    /// `G31` (Fanuc's skip) holds for its block only; `G38.x` is modal, as in LinuxCNC.
+    pub(super) one_shot: bool,
 }
 
 /// What a G word does.
@@ -186,11 +196,20 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
             return unsupported("homing and reference points (G28/G30) need a homed machine");
         }
         330 | 331 | 760 => return unsupported("threading"),
-        382..=385 => {
-            return unsupported(
-                "probing (edmd's G38 without a decimal is the seed-000 NURBS block)",
-            );
-        }
+        382..=385 => GCode::Motion(Motion::Probe(Probing {
+            probe: crate::gcode::Probe {
+                away: tenths >= 384,
+                must_touch: tenths.is_multiple_of(2),
+            },
+            one_shot: false,
+        })),
+        310 => GCode::Motion(Motion::Probe(Probing {
+            probe: crate::gcode::Probe {
+                away: false,
+                must_touch: false,
+            },
+            one_shot: true,
+        })),
         730 | 740 | 810..=890 => return unsupported("canned cycles"),
         960 | 970 => GCode::SpindleMode,
         _ => {

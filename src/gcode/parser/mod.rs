@@ -19,7 +19,7 @@ use std::io::{BufRead, Seek};
 use std::sync::Arc;
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
-use super::expr::{Env, Params};
+use super::expr::{Env, ParamRef, Params};
 use super::lexer::{Assign, Word, lex, program_number_of};
 use super::lines::{Line, LineSource, MAX_LINE_BYTES};
 use super::{Block, Plane, ProgramOptions};
@@ -38,6 +38,8 @@ pub const MAX_CURVE_POINTS: usize = 100_000;
 /// How close the first control point of a curve must be to the current position, mm.
 pub const CURVE_START_TOLERANCE_MM: f64 = 0.0005;
 pub(super) const MM_PER_INCH: f64 = 25.4;
+/// LinuxCNC's probe result: `#5061`… per axis (`X Y Z A B C U V W`), `#5070` success.
+const PROBE_PARAMS: usize = 5061;
 /// Largest coordinate magnitude accepted, mm.
 pub(super) const MAX_COORD_MM: f64 = 1.0e6;
 
@@ -194,6 +196,24 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// Current position in mm, machine axis order.
     pub fn position(&self) -> Point {
         self.position
+    }
+
+    /// The probing move just read ended at `at` (mm, machine axes; with `contact`, or at its
+    /// end point without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C
+    /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
+    pub fn probed(&mut self, at: &Point, contact: bool) {
+        self.position = *at;
+        let scale = self.scale();
+        for (i, axis) in self.axes.iter().enumerate() {
+            if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
+                let v = (at[i] - self.offset[i]) / scale;
+                self.params.set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
+            }
+        }
+        self.params.set(
+            &ParamRef::Numbered(PROBE_PARAMS + 9),
+            if contact { 1.0 } else { 0.0 },
+        );
     }
 
     /// The line of the M2/M30 that ended the program, if one did.

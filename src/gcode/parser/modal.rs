@@ -5,13 +5,13 @@
 
 use std::io::{BufRead, Seek};
 
-use super::codes::{GCode, Motion, OffsetCode, classify_g, g_code_tenths};
+use super::codes::{GCode, Motion, OffsetCode, Probing, classify_g, g_code_tenths};
 use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -264,7 +264,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 None
             }
             Some((GCode::Motion(m), w)) => {
-                self.modal.motion = Some(m);
+                if !matches!(m, Motion::Probe(Probing { one_shot: true, .. })) {
+                    self.modal.motion = Some(m);
+                }
                 if self.moves(m, letters)? {
                     self.motion_block(m, line_no, letters, w.col)?
                 } else {
@@ -603,7 +605,47 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Motion::Cw | Motion::Ccw => {
                 self.arc_block(motion == Motion::Ccw, line_no, letters, col)
             }
+            Motion::Probe(p) => self.probe_block(p.probe, line_no, letters, col).map(Some),
         }
+    }
+
+    /// A probing move: straight, at the programmed feed, never under a wire offset.
+    fn probe_block(
+        &mut self,
+        probe: Probe,
+        line_no: u64,
+        letters: &Letters,
+        col: usize,
+    ) -> Step<Block> {
+        let code = probe.g_code();
+        self.check_letters(letters, true, "", "with a probing move")?;
+        let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
+        if self.comp.engaged() {
+            return Err(fail(format!(
+                "{code} under a wire offset: cancel G41/G42 with G40 before probing"
+            )));
+        }
+        let Some(feed) = self.modal.feed else {
+            return Err(fail(format!("{code} needs a feed F (the probing speed)")));
+        };
+        let (target, _) = self.target(&self.position, letters, "")?;
+        if target == self.position {
+            return Err(fail(format!(
+                "{code} needs an end point away from where it starts"
+            )));
+        }
+        let curve = NurbsCurve::line(self.axes.len(), &self.position, &target)
+            .map_err(|e| Fail::from((col, e.into())))?;
+        self.warn_once_about(
+            "probing",
+            col,
+            format!(
+                "{code}: the check and the plan take the probing move to its end point; the \
+                 machine goes on from where contact happens"
+            ),
+        );
+        self.position = target;
+        Ok(self.block(line_no, BlockKind::Probe(probe), curve, Some(feed)))
     }
 }
 

@@ -207,7 +207,8 @@ impl Compensator {
         let (s, e) = (block.start(), block.end());
         let (p0, p1) = ((s[ix], s[iy]), (e[ix], e[iy]));
         let prims = match &block.kind {
-            BlockKind::Line | BlockKind::Rapid => {
+            // Probing refuses a wire offset before it gets here.
+            BlockKind::Line | BlockKind::Rapid | BlockKind::Probe(_) => {
                 let n = scale(left(unit(sub(p1, p0))), sd);
                 vec![Prim::Line {
                     a: add(p0, n),

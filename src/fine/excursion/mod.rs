@@ -1,0 +1,323 @@
+//! Excursions from the cut: sinker jumps, probing moves, wire breaks and rethreading.
+//!
+//! All of them move only over lattice points the program already has, so the pulse ledger
+//! stays exact whatever happens on the way:
+//!
+//! - A **jump** (`servo.jump_interval_s`, per machining condition where one sets it) lifts
+//!   the electrode back along the executed path by the jump height at the jump feed with the
+//!   spark off (on a plunge that is straight up the plunge), then comes back to the point it
+//!   left and the servo takes over again. The retreat brakes so that it stops at the height;
+//!   it stops early at the start of the cut (a rapid or a probing move behind it, or the end
+//!   of the reserved area). Coming back down is a re-advance with the spark off: a short on
+//!   the way turns back as usual.
+//! - A **probing move** (`G38.2`…`G38.5`, `G31`) runs at its programmed feed with the servo
+//!   out of the loop; contact is the gap reading `short` (the gap input may map a probe pin
+//!   onto it). On contact (or, probing away, on losing it) the move stops within the tick and
+//!   the rest of it is dropped: the producer plans the program on from the contact point.
+//!   Reaching the end point without contact is an error for `G38.2`/`G38.4`.
+//! - A **wire break** (the wire-break input, or an open gap over `servo.max_open_mm` of
+//!   cutting travel) stops the motion on the spot and parks. The operator's rethread goes
+//!   back along the path to the contour's start (the first move after a rapid or a probing
+//!   move: the start hole) or threads in place; the resume returns along the path to the
+//!   break point with the spark off and cutting carries on there.
+
+use super::{Interpolator, Tick};
+use crate::buffer::StepBlock;
+use crate::servo::{Excursion, ServoEvent, ServoState};
+use crate::vocab::GapState;
+
+/// Jumps, wire-break detection and rethreading, in the interpolator's units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExcursionSettings {
+    /// Ticks of cutting between two jumps; 0: no jumps.
+    pub jump_interval_ticks: u64,
+    /// How far a jump lifts, along the path (mm).
+    pub jump_height_mm: f64,
+    /// Feed of the jump, up and down (mm/s).
+    pub jump_feed: f64,
+    /// Cutting travel with the gap open that counts as a wire break (mm); 0: never.
+    pub max_open_mm: f64,
+    /// Feed of the way back to the start hole and of the return to the break point (mm/s).
+    pub rethread_feed: f64,
+}
+
+impl ExcursionSettings {
+    /// No jumps, no open-gap wire-break detection.
+    pub const OFF: ExcursionSettings = ExcursionSettings {
+        jump_interval_ticks: 0,
+        jump_height_mm: 0.0,
+        jump_feed: 1.0,
+        max_open_mm: 0.0,
+        rethread_feed: 5.0,
+    };
+}
+
+/// After a probe touched, the gap reading `short` is the contact itself, not a collision or
+/// a short to turn back from, until it reads otherwise or the electrode has moved this far
+/// (mm): the move after a probe leaves the work (a program that drives on into it gets the
+/// short, and its turn-back or collision, after this distance).
+pub const PROBE_RELEASE_MM: f64 = 0.1;
+
+impl Interpolator {
+    /// The gap as the servo should take it: a short just after a probe's contact is the
+    /// contact (read as open) until the electrode has left it.
+    pub(super) fn past_contact(&mut self, gap: GapState) -> GapState {
+        if self.contact_grace_mm <= 0.0 {
+            return gap;
+        }
+        if gap == GapState::Short {
+            GapState::Open
+        } else {
+            self.contact_grace_mm = 0.0;
+            gap
+        }
+    }
+
+    /// The wire-break input as the thread loop read it this tick (a sensor, or the
+    /// simulator's broken wire).
+    pub fn set_wire_input(&mut self, broken: bool) {
+        self.wire_input = broken;
+    }
+
+    /// The operator's rethread after a wire break: back along the path to the start hole
+    /// (`to_start`), or threading where the electrode stands. `false` unless the wire is
+    /// broken. Moving back needs the hold released.
+    pub fn rethread(&mut self, to_start: bool) -> bool {
+        if !self.servo.rethread(to_start) {
+            return false;
+        }
+        self.retreat_mm = 0.0;
+        self.phase = 0.0;
+        true
+    }
+
+    /// What the current retreat or return is for.
+    pub fn excursion(&self) -> Excursion {
+        self.servo.excursion()
+    }
+
+    /// Takes the jump settings of the block entered: its machining condition's where it
+    /// sets them, the `[servo]` ones otherwise.
+    pub(super) fn block_jumps(&mut self) {
+        let s = &self.settings.excursions;
+        let [interval, height, feed] = self.block.condition_jump;
+        self.jump_every = if interval.is_nan() {
+            s.jump_interval_ticks
+        } else {
+            (interval as f64 / self.settings.dt).round() as u64
+        };
+        self.jump_height = if height.is_nan() {
+            s.jump_height_mm
+        } else {
+            height as f64
+        };
+        self.jump_feed = if feed.is_nan() {
+            s.jump_feed
+        } else {
+            feed as f64
+        };
+        if self.jump_height <= 0.0 {
+            self.jump_every = 0;
+        }
+    }
+
+    /// A retreat may not walk back into this block: a probing move (its steps are the
+    /// programmed ones, not the ones taken) and, on purpose, a rapid (the start of the cut).
+    pub(super) fn is_barrier(&self) -> bool {
+        let purposeful = self.servo.state() == ServoState::Retreat;
+        self.block.flags & StepBlock::PROBE != 0
+            || (purposeful && self.block.flags & StepBlock::RAPID != 0)
+    }
+
+    /// The way back ends here (start of the reserved area or a barrier): a short's turn-back
+    /// raises the alarm, a jump or a rethread has gone as far as it can.
+    /// `exhausted`: the reserved area ran out (not the start of the cut).
+    pub(super) fn retreat_blocked(&mut self, tick: &mut Tick, exhausted: bool) {
+        self.speed = 0.0;
+        self.phase = 0.0;
+        let here = self.here();
+        let event = if self.servo.state() == ServoState::Retreat {
+            self.servo.on_retreat_done(here, self.retreat_mm, exhausted)
+        } else {
+            self.servo.on_reserved_exhausted(here)
+        };
+        if event.is_some() {
+            tick.event = event;
+        }
+    }
+
+    /// One backward event of a retreat: a jump ends at its height.
+    pub(super) fn retreated(&mut self, tick: &mut Tick) {
+        self.retreat_mm += self.event_mm;
+        // The height to the nearest lattice point (a condition's height is an f32).
+        let reached = self.retreat_mm >= self.jump_height - 0.5 * self.event_mm;
+        if self.servo.excursion() == Excursion::Jump && reached {
+            // The retreat braked on its way here and arrives at creep speed: it stops on this
+            // point, so every jump lifts exactly its height.
+            self.speed = 0.0;
+            self.phase = 0.0;
+            tick.event = self
+                .servo
+                .on_retreat_done(self.here(), self.retreat_mm, false);
+        }
+    }
+
+    /// The wire-break input fired while cutting: stop on the spot and park.
+    pub(super) fn wire_break_input(&mut self, tick: &mut Tick) -> bool {
+        if !self.wire_input || self.servo.state().wire_parked() {
+            return false;
+        }
+        self.wire_break(tick, false)
+    }
+
+    fn wire_break(&mut self, tick: &mut Tick, open: bool) -> bool {
+        match self.servo.on_wire_break(self.here(), open) {
+            Some(event) => {
+                self.speed = 0.0;
+                self.phase = 0.0;
+                self.open_mm = 0.0;
+                self.hold = true;
+                tick.event = Some(event);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A forward event cut through an open gap: over `servo.max_open_mm` of it, the wire
+    /// has broken.
+    pub(super) fn open_travel(&mut self, tick: &mut Tick) {
+        let max = self.settings.excursions.max_open_mm;
+        if max <= 0.0 {
+            return;
+        }
+        self.open_mm += self.event_mm;
+        if self.open_mm >= max && tick.event.is_none() {
+            self.wire_break(tick, true);
+        }
+    }
+
+    /// Counts a tick of cutting; when the jump interval is up, starts a jump.
+    pub(super) fn jump_due(&mut self, tick: &mut Tick) -> Option<(i8, f64)> {
+        let cutting = self.servo.state() == ServoState::Forward
+            && self.has_block
+            && self.block.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0
+            && !self.hold
+            && self.dwell_left == 0;
+        if self.jump_every == 0 || !cutting {
+            return None;
+        }
+        self.cut_ticks += 1;
+        if self.cut_ticks < self.jump_every || tick.event.is_some() {
+            return None;
+        }
+        self.cut_ticks = 0;
+        self.retreat_mm = 0.0;
+        tick.event = self.servo.start_jump(self.here());
+        Some((-1, self.jump_feed))
+    }
+
+    /// Direction and feed of a probing move or an excursion (spark off); `None`: the tick
+    /// ends here (contact made).
+    pub(super) fn excursion_motion(
+        &mut self,
+        gap: GapState,
+        probing: bool,
+        tick: &mut Tick,
+    ) -> Option<(i8, f64)> {
+        let here = self.here();
+        if probing {
+            let away = self.block.flags & StepBlock::PROBE_AWAY != 0;
+            let contact = (gap == GapState::Short) != away;
+            let end = self.walk.at_end() && self.block.flags & StepBlock::LAST_OF_BLOCK != 0;
+            if contact || end {
+                self.probe_found(tick, contact);
+                return None;
+            }
+            return Some((1, f64::INFINITY));
+        }
+        let feed = match self.servo.excursion() {
+            Excursion::Jump => self.jump_feed,
+            Excursion::Rethread => self.settings.excursions.rethread_feed,
+        };
+        match self.servo.state() {
+            ServoState::Retreat if self.servo.excursion() == Excursion::Jump => {
+                // Brake so as to stop at the height, never below the creep speed.
+                let left = (self.jump_height - self.retreat_mm).max(0.0);
+                let braking = (2.0 * self.settings.accel * left).sqrt();
+                Some((-1, feed.min(braking)))
+            }
+            ServoState::Retreat => Some((-1, feed)),
+            ServoState::Return => {
+                if let Some(event) = self.servo.on_gap(gap, here) {
+                    tick.event = Some(event);
+                    return Some(self.servo.motion(gap));
+                }
+                Some((1, feed))
+            }
+            _ => Some((0, 0.0)),
+        }
+    }
+
+    /// The probing move ends at this point: stop, report, drop the rest of the move.
+    fn probe_found(&mut self, tick: &mut Tick, contact: bool) {
+        self.speed = 0.0;
+        self.phase = 0.0;
+        self.probe_hit = true;
+        if contact && self.block.flags & StepBlock::PROBE_AWAY == 0 {
+            // The electrode rests on the work: the move after the probe starts shorted.
+            self.contact_grace_mm = PROBE_RELEASE_MM;
+        }
+        let at = self.here();
+        if !contact && self.block.flags & StepBlock::PROBE_MUST != 0 {
+            self.servo.on_probe_missed();
+            tick.event = Some(ServoEvent::ProbeMissed { at });
+            return;
+        }
+        self.servo.counters.probes += 1;
+        tick.event = Some(ServoEvent::Probed {
+            at,
+            steps: self.position,
+            contact,
+            away: self.block.flags & StepBlock::PROBE_AWAY != 0,
+        });
+    }
+
+    /// After a probing move ended: the next move starts where it ended (the producer planned
+    /// it from there). `false`: none yet, the tick ends.
+    pub(super) fn drop_probe_rest<S: crate::buffer::BlockSource + ?Sized>(
+        &mut self,
+        tick: &mut Tick,
+        source: &mut S,
+    ) -> bool {
+        use crate::buffer::Fetch;
+        self.probe_hit = false;
+        // The probing move's other segments are already in the buffer: pass over them (they
+        // stay in the reserved area as barriers) to the first move planned from here.
+        while self.has_block
+            && self.block.flags & StepBlock::PROBE != 0
+            && self.block.flags & StepBlock::LAST_OF_BLOCK == 0
+        {
+            if source.next(&mut self.block) != Fetch::Block {
+                // The producer closed the buffer or the job was torn down.
+                self.has_block = false;
+                return false;
+            }
+            self.counters.blocks_entered += 1;
+        }
+        match self.fetch_forward(source) {
+            Fetch::Block => {
+                self.servo.on_block();
+                true
+            }
+            Fetch::Empty => false,
+            Fetch::End => {
+                tick.event = self.servo.on_end();
+                false
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,234 @@
+//! Servo events, from the consumer's queue to the log and the job's recording (the main
+//! thread; never the consumer).
+
+use super::consumer::EventRecord;
+use crate::config::Config;
+use crate::record::{Recorder, Recording};
+use crate::servo::{Excursion, ServoEvent};
+
+/// Logs one servo event (from the main thread, never the consumer).
+/// `pauses`: a programmed stop holds the job (the daemon) rather than being passed (`edmd run`).
+pub(super) fn log_event(program: &str, record: &EventRecord, config: &Config, pauses: bool) {
+    let t = config.fine.tick.ticks_to_secs(record.tick);
+    let line = record.line;
+    match record.event {
+        ServoEvent::Short { at } => tracing::info!(
+            edmd_event = "short",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: short circuit at t={t:.4} s (segment {}, step {}): turning back",
+            at.seq,
+            at.event
+        ),
+        ServoEvent::Cleared { depth } => tracing::info!(
+            edmd_event = "turn_back",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: gap cleared at t={t:.4} s after turning back over {depth} blocks: re-advancing"
+        ),
+        ServoEvent::Resumed { .. } => {
+            tracing::debug!("{program}:{line}: back at the short at t={t:.4} s: machining on")
+        }
+        ServoEvent::Starved { at } => tracing::warn!(
+            "{program}:{line}: loop buffer empty at t={t:.4} s (segment {}): holding",
+            at.seq
+        ),
+        ServoEvent::Alarm {
+            at,
+            depth,
+            timed_out,
+        } => tracing::error!(
+            edmd_event = "alarm",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: ALARM at t={t:.4} s: {} ({depth} blocks back, segment {}); motion \
+             stopped, position kept{}",
+            if timed_out {
+                "the short outlasted servo.max_short_s while turning back"
+            } else {
+                "still shorted after turning back over the whole reserved area"
+            },
+            at.seq,
+            if pauses {
+                "; the job holds: flush the gap, then `edmd ctl resume` re-advances"
+            } else {
+                ""
+            }
+        ),
+        ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+        ServoEvent::Collision { at } => tracing::error!(
+            edmd_event = "collision",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: COLLISION at t={t:.4} s: the gap shorted during a rapid (segment {}, \
+             step {}); motion stopped, position kept{}",
+            at.seq,
+            at.event,
+            if pauses {
+                "; the job holds until `edmd ctl resume`"
+            } else {
+                ""
+            }
+        ),
+        ServoEvent::Condition { number } => tracing::info!(
+            edmd_event = "condition",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: machining condition E{number} from t={t:.4} s"
+        ),
+        ServoEvent::Flushing { on } => tracing::info!(
+            edmd_event = "flushing",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: flushing {} at t={t:.4} s",
+            if on { "on" } else { "off" }
+        ),
+        ServoEvent::Paused { .. } => tracing::warn!(
+            edmd_event = "pause",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: programmed stop (M0/M1) before this line at t={t:.4} s: {}",
+            if pauses {
+                "paused until `edmd ctl resume`"
+            } else {
+                "not waiting (edmd run has no operator channel; edmd serve holds the job here)"
+            }
+        ),
+        ServoEvent::Jump { at } => tracing::debug!(
+            "{program}:{line}: jump at t={t:.4} s (segment {}, step {})",
+            at.seq,
+            at.event
+        ),
+        ServoEvent::Retreated {
+            why: Excursion::Jump,
+            mm,
+            ..
+        } => tracing::debug!("{program}:{line}: jump up {mm:.4} mm at t={t:.4} s: coming down"),
+        ServoEvent::Retreated {
+            why: Excursion::Rethread,
+            at,
+            mm,
+            exhausted,
+        } => tracing::warn!(
+            edmd_event = "rethread",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: back {mm:.3} mm along the path at t={t:.4} s (segment {}, step {}){}: \
+             thread the wire, then `edmd ctl resume` returns to the break point",
+            at.seq,
+            at.event,
+            if exhausted {
+                ", as far as the executed blocks kept go (buffer.reserved): short of the start hole"
+            } else {
+                ", at the start hole"
+            }
+        ),
+        ServoEvent::Returned {
+            why: Excursion::Jump,
+            ..
+        } => tracing::trace!("{program}:{line}: down from the jump at t={t:.4} s"),
+        ServoEvent::Returned {
+            why: Excursion::Rethread,
+            at,
+        } => tracing::info!(
+            edmd_event = "rethreaded",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: back at the break point at t={t:.4} s (segment {}, step {}): \
+             cutting on",
+            at.seq,
+            at.event
+        ),
+        ServoEvent::WireBreak { at, open } => tracing::error!(
+            edmd_event = "wire_break",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: WIRE BREAK at t={t:.4} s ({}; segment {}, step {}): motion \
+             stopped, position kept{}",
+            if open {
+                "the gap stayed open over servo.max_open_mm of cutting"
+            } else {
+                "the wire-break input"
+            },
+            at.seq,
+            at.event,
+            if pauses {
+                "; the job holds: `edmd ctl rethread` goes back to the start hole (`--here`: \
+                 thread where it broke), then `edmd ctl resume`"
+            } else {
+                ""
+            }
+        ),
+        ServoEvent::Probed {
+            steps,
+            contact,
+            away,
+            ..
+        } => tracing::info!(
+            edmd_event = "probe",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: probe {} at t={t:.4} s: {}",
+            match (contact, away) {
+                (true, false) => "contact",
+                (true, true) => "contact lost",
+                (false, false) => "reached its end point without contact",
+                (false, true) => "reached its end point still in contact",
+            },
+            probe_position(config, &steps)
+        ),
+        ServoEvent::ProbeMissed { .. } => tracing::error!(
+            edmd_event = "probe_missed",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: the probing move reached its end point without contact at \
+             t={t:.4} s: the job stops"
+        ),
+    }
+}
+
+/// `X1.234 Y5.678` (mm) of a step position.
+pub(super) fn probe_position(config: &Config, steps: &[i64]) -> String {
+    config
+        .machine
+        .axes
+        .iter()
+        .zip(steps)
+        .zip(&config.machine.step_mm)
+        .map(|((a, &s), mm)| format!("{}{:.4}", a.letter(), s as f64 * mm))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Hands a batch of samples and servo events to the recording, in tick order.
+pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventRecord]) {
+    let mut events = events.iter().peekable();
+    let mut take_events = |recording: &mut Recording, before: u64| {
+        while let Some(e) = events.next_if(|e| e.tick <= before) {
+            let (kind, depth) = match e.event {
+                ServoEvent::Short { .. } => ("short", None),
+                ServoEvent::Cleared { depth } => ("turn_back", Some(depth)),
+                ServoEvent::Resumed { .. } => ("resumed", None),
+                ServoEvent::Starved { .. } => ("starved", None),
+                ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
+                ServoEvent::Done => ("done", None),
+                ServoEvent::Paused { .. } => ("pause", None),
+                ServoEvent::Collision { .. } => ("collision", None),
+                ServoEvent::Condition { number } => ("condition", Some(number as u64)),
+                ServoEvent::Flushing { on: true } => ("flush_on", None),
+                ServoEvent::Flushing { on: false } => ("flush_off", None),
+                ServoEvent::Jump { .. } => ("jump", None),
+                ServoEvent::Retreated { .. } | ServoEvent::Returned { .. } => continue,
+                ServoEvent::WireBreak { .. } => ("wire_break", None),
+                ServoEvent::Probed { contact, .. } => ("probe", Some(contact as u64)),
+                ServoEvent::ProbeMissed { .. } => ("probe_missed", None),
+            };
+            recording.event(e.tick, e.line, kind, depth);
+        }
+    };
+    recorder.drain(|sample| {
+        take_events(recording, sample.tick.saturating_sub(1));
+        recording.sample(sample);
+    });
+    take_events(recording, u64::MAX);
+}
