@@ -210,6 +210,8 @@ pub struct Jumps {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ServoLaw {
+    /// `"three-state"`, also spelled `"state"`.
+    #[serde(alias = "state")]
     ThreeState,
     Voltage,
     Ratio,

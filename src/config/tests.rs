@@ -248,3 +248,9 @@ fn generator_conditions_as_tables_replace_the_shipped_list() {
     .to_string();
     assert!(e.contains("E2 is defined twice"), "{e}");
 }
+
+#[test]
+fn the_three_state_law_may_be_spelled_state() {
+    let c = Config::load(None, &["servo.law=\"state\"".to_string()]).unwrap();
+    assert_eq!(c.servo.law, ServoLaw::ThreeState);
+}

@@ -347,6 +347,36 @@ impl Status {
                     "paused:       programmed stop (M0/M1) before line {line}; `edmd ctl resume` continues"
                 );
             }
+            match self.state {
+                DaemonState::WireBreak => {
+                    let _ = writeln!(
+                        t,
+                        "wire:         broken; `edmd ctl rethread` goes back to the start hole \
+                         (`--here`: thread here), then `edmd ctl resume`"
+                    );
+                }
+                DaemonState::Threading => {
+                    let _ = writeln!(
+                        t,
+                        "wire:         parked for threading; `edmd ctl resume` returns to the \
+                         break point and cuts on"
+                    );
+                }
+                _ => {}
+            }
+            if j.jumps + j.wire_breaks + j.probes > 0 {
+                let _ = writeln!(
+                    t,
+                    "excursions:   {} jumps, {} wire breaks, {} probes{}",
+                    j.jumps,
+                    j.wire_breaks,
+                    j.probes,
+                    j.probe_mm
+                        .as_ref()
+                        .map(|mm| format!("; last probe {} mm", list(mm)))
+                        .unwrap_or_default()
+                );
+            }
             let _ = writeln!(
                 t,
                 "position:     {} mm; servo {}, feed {:.2} mm/min",
