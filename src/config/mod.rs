@@ -234,6 +234,10 @@ pub struct DaemonConfig {
     pub max_clients: usize,
     /// Where each job's report of what ran goes (`<dir>/<job>/`); `None`: no reports.
     pub report_dir: Option<PathBuf>,
+    /// Where the web page, API and metrics listen; `None`: off.
+    pub http: Option<std::net::SocketAddr>,
+    /// The bearer token every control request over HTTP needs (created when missing).
+    pub http_token_file: PathBuf,
 }
 
 /// One machining condition of the generator (`[generator] condition`), selected by `E<number>`.

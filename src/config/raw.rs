@@ -197,6 +197,8 @@ pub(super) struct RawDaemon {
     pub(super) status_interval_s: f64,
     pub(super) max_clients: i64,
     pub(super) report_dir: String,
+    pub(super) http: String,
+    pub(super) http_token_file: String,
 }
 
 #[derive(Debug, Deserialize)]

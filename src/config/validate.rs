@@ -437,6 +437,19 @@ impl RawConfig {
                 .then_some(d.status_interval_s),
             max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
             report_dir: (!d.report_dir.trim().is_empty()).then(|| PathBuf::from(d.report_dir)),
+            http: match d.http.trim() {
+                "" => None,
+                addr => Some(addr.parse().map_err(|_| {
+                    (
+                        "daemon.http",
+                        format!(
+                            "{addr:?} is not an address and port such as \"127.0.0.1:8080\" \
+                             (\"\" turns HTTP off)"
+                        ),
+                    )
+                })?),
+            },
+            http_token_file: non_empty("daemon.http_token_file", d.http_token_file)?,
         };
         let log = LogConfig {
             level: self.log.level,

@@ -379,6 +379,7 @@ impl Core {
         if job.published.hold.swap(true, Ordering::Relaxed) {
             return Ok("already held".to_string());
         }
+        job.published.holds.fetch_add(1, Ordering::Relaxed);
         job.hold_checkpointed = false;
         job.report_event("hold");
         tracing::info!(
@@ -534,6 +535,9 @@ impl Core {
         let Some(job) = self.job.take() else {
             return;
         };
+        self.finished = self
+            .finished
+            .plus(&super::status::job_counters(&job.published));
         if job.config.output.kind == OutputKind::Parport {
             self.port_output = Some(end.output);
         }

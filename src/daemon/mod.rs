@@ -29,6 +29,7 @@
 //! second one stops at once, position kept). SIGHUP reloads the configuration (see
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
+pub mod http;
 mod jobs;
 pub mod notify;
 pub mod protocol;
@@ -75,6 +76,13 @@ pub enum DaemonError {
     Job(Box<JobError>),
     #[error("cannot start a daemon thread: {0}")]
     Thread(std::io::Error),
+    #[error("daemon.http = {addr}: cannot listen there: {source}")]
+    Http {
+        addr: std::net::SocketAddr,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Token(#[from] http::token::TokenError),
 }
 
 /// A message to the control loop.
@@ -140,6 +148,8 @@ struct Core {
     last_check: Option<protocol::CheckStatus>,
     next_check_id: u64,
     last: Option<JobSummary>,
+    /// Counts of the jobs that ended (the running one's are added when asked).
+    finished: protocol::Counters,
     checkpoint: Option<Checkpoint>,
     /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
     checkpoint_error: Option<String>,
@@ -194,6 +204,23 @@ pub fn serve(
     socket::spawn_listener(listener, to_core.clone(), max_clients.clone())
         .map_err(DaemonError::Thread)?;
     spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
+    if let Some(addr) = config.daemon.http {
+        let token = http::token::load_or_create(&config.daemon.http_token_file)?;
+        let server = http::spawn(
+            addr,
+            token,
+            config.daemon.program_dir.clone(),
+            config.machine.axes.clone(),
+            crate::gcode::ProgramOptions::from_config(&config),
+            to_core.clone(),
+        )
+        .map_err(|source| DaemonError::Http { addr, source })?;
+        tracing::info!(
+            "http: the page, API and metrics on http://{} (control needs the token in {})",
+            server.addr,
+            config.daemon.http_token_file.display()
+        );
+    }
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -221,6 +248,7 @@ pub fn serve(
         last_check: None,
         next_check_id: 0,
         last: None,
+        finished: protocol::Counters::default(),
         checkpoint,
         checkpoint_error,
         notifier,

@@ -171,6 +171,61 @@ pub struct Status {
     pub check: Option<CheckStatus>,
     /// Real-time features the system refused.
     pub rt_refused: Vec<String>,
+    /// Counts over the daemon's life: the jobs that ended plus the running one.
+    #[serde(default)]
+    pub counters: Counters,
+}
+
+/// Counts over the daemon's life (the jobs that ended plus the running one), only ever
+/// growing: what Prometheus counters and the histogram of `/metrics` are made of.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Counters {
+    /// Jobs started.
+    pub jobs: u64,
+    pub shorts: u64,
+    pub turn_backs: u64,
+    pub alarms: u64,
+    pub collisions: u64,
+    pub holds: u64,
+    pub overruns: u64,
+    pub starvations: u64,
+    pub jumps: u64,
+    pub wire_breaks: u64,
+    pub probes: u64,
+    pub ticks: u64,
+    /// Ticks by the gap state read: normal, open, short.
+    pub gap_ticks: [u64; 3],
+    /// Real time: wake-up latency counts per bucket of `runtime::consumer::LATENCY_BUCKETS_US`,
+    /// the last above them all; and the sum (µs).
+    pub latency_buckets: Vec<u64>,
+    pub latency_sum_us: f64,
+}
+
+impl Counters {
+    /// These counts plus `other`'s.
+    pub fn plus(&self, other: &Counters) -> Counters {
+        let n = self.latency_buckets.len().max(other.latency_buckets.len());
+        let bucket = |v: &Vec<u64>, i: usize| v.get(i).copied().unwrap_or(0);
+        Counters {
+            jobs: self.jobs + other.jobs,
+            shorts: self.shorts + other.shorts,
+            turn_backs: self.turn_backs + other.turn_backs,
+            alarms: self.alarms + other.alarms,
+            collisions: self.collisions + other.collisions,
+            holds: self.holds + other.holds,
+            overruns: self.overruns + other.overruns,
+            starvations: self.starvations + other.starvations,
+            jumps: self.jumps + other.jumps,
+            wire_breaks: self.wire_breaks + other.wire_breaks,
+            probes: self.probes + other.probes,
+            ticks: self.ticks + other.ticks,
+            gap_ticks: std::array::from_fn(|i| self.gap_ticks[i] + other.gap_ticks[i]),
+            latency_buckets: (0..n)
+                .map(|i| bucket(&self.latency_buckets, i) + bucket(&other.latency_buckets, i))
+                .collect(),
+            latency_sum_us: self.latency_sum_us + other.latency_sum_us,
+        }
+    }
 }
 
 /// A `run` (or `resume`) is answered at once; its program is then copied and checked on a

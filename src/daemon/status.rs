@@ -5,7 +5,8 @@
 use std::sync::atomic::Ordering;
 
 use super::Core;
-use super::protocol::{CheckStatus, CheckpointStatus, DaemonState, JobStatus, Status};
+use super::protocol::{CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, Status};
+use crate::runtime::Published;
 use crate::servo::{Excursion, ServoState};
 
 impl Core {
@@ -127,6 +128,10 @@ impl Core {
                 None => self.last_check.clone(),
             },
             rt_refused: self.fine.rt_refused().to_vec(),
+            counters: match &self.job {
+                Some(job) => self.finished.plus(&job_counters(&job.published)),
+                None => self.finished.clone(),
+            },
         }
     }
 
@@ -148,4 +153,28 @@ pub(super) fn mm(steps: &[i64], step_mm: &[f64]) -> Vec<f64> {
         .zip(step_mm)
         .map(|(s, m)| *s as f64 * m)
         .collect()
+}
+
+/// One job's counts so far, from what its consumer publishes.
+pub(super) fn job_counters(p: &Published) -> Counters {
+    let snap = p.snapshot();
+    let c = &snap.servo;
+    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    Counters {
+        jobs: 1,
+        shorts: c.shorts,
+        turn_backs: c.turn_backs,
+        alarms: c.alarms,
+        collisions: c.collisions,
+        holds: load(&p.holds),
+        overruns: load(&p.overruns),
+        starvations: c.starvations,
+        jumps: c.jumps,
+        wire_breaks: c.wire_breaks,
+        probes: c.probes,
+        ticks: load(&p.ticks),
+        gap_ticks: std::array::from_fn(|i| load(&p.gap_ticks[i])),
+        latency_buckets: p.latency_buckets.iter().map(load).collect(),
+        latency_sum_us: load(&p.latency_sum_ns) as f64 / 1000.0,
+    }
 }

@@ -29,7 +29,7 @@ use super::snapshot::SeqLock;
 pub use super::snapshot::Snapshot;
 use crate::buffer::{BlockSource, StepBlock};
 use crate::fine::Interpolator;
-use crate::gap::{GapError, GapSensor};
+use crate::gap::{GapError, GapSensor, GapState};
 use crate::geometry::MAX_AXES;
 use crate::output::{Activity, OutputError, PulseOutput};
 use crate::servo::{Excursion, PathPoint, ServoEvent, ServoState};
@@ -88,6 +88,14 @@ pub struct Published {
     pub latency_sum_ns: AtomicU64,
     pub latency_samples: AtomicU64,
     pub latency_max_ns: AtomicU64,
+    /// Real time only: wake-up latency per bucket of [`LATENCY_BUCKETS_US`] (the last:
+    /// above them all), for a Prometheus histogram.
+    pub latency_buckets: [AtomicU64; LATENCY_BUCKETS_US.len() + 1],
+    /// Ticks by the gap state the input read (normal, open, short).
+    pub gap_ticks: [AtomicU64; 3],
+    /// Times the job was held: by the operator, a programmed stop, a collision, an alarm
+    /// or a wire break.
+    pub holds: AtomicU64,
     snapshot: SeqLock,
     /// Loop-buffer fill, refreshed by the job's supervisor (not the consumer).
     pub buffer_unprocessed: AtomicU64,
@@ -112,6 +120,10 @@ pub struct Published {
     pub probe: ProbeLink,
 }
 
+/// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
+pub const LATENCY_BUCKETS_US: [u64; 13] =
+    [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000];
+
 /// `Published::rethread`: back along the path to the start hole.
 pub const RETHREAD_AT_START: u8 = 1;
 /// `Published::rethread`: thread where the wire broke.
@@ -127,6 +139,9 @@ impl Published {
             latency_sum_ns: AtomicU64::new(0),
             latency_samples: AtomicU64::new(0),
             latency_max_ns: AtomicU64::new(0),
+            latency_buckets: std::array::from_fn(|_| AtomicU64::new(0)),
+            gap_ticks: std::array::from_fn(|_| AtomicU64::new(0)),
+            holds: AtomicU64::new(0),
             snapshot: SeqLock::default(),
             buffer_unprocessed: AtomicU64::new(0),
             buffer_reserved: AtomicU64::new(0),
@@ -213,6 +228,14 @@ impl LoopReport {
             last_probe: None,
             rt_refused: Vec::new(),
         }
+    }
+}
+
+/// Holds the job (the consumer's own holds: a programmed stop, a collision, an alarm, a
+/// wire break), counting it.
+fn hold(published: &Published) {
+    if !published.hold.swap(true, Ordering::Relaxed) {
+        published.holds.fetch_add(1, Ordering::Relaxed);
     }
 }
 
@@ -309,6 +332,11 @@ where
             published.latency_sum_ns.fetch_add(late, Ordering::Relaxed);
             published.latency_samples.fetch_add(1, Ordering::Relaxed);
             published.latency_max_ns.fetch_max(late, Ordering::Relaxed);
+            let bucket = LATENCY_BUCKETS_US
+                .iter()
+                .position(|&le| late <= le * 1000)
+                .unwrap_or(LATENCY_BUCKETS_US.len());
+            published.latency_buckets[bucket].fetch_add(1, Ordering::Relaxed);
         } else if fine.held() && fine.still() {
             // Held in virtual time: nothing can change but the operator's mind, so let the
             // CPU go rather than spin through ticks.
@@ -326,6 +354,12 @@ where
                 break;
             }
         };
+        let gap_index = match gap {
+            GapState::Normal => 0,
+            GapState::Open => 1,
+            GapState::Short => 2,
+        };
+        published.gap_ticks[gap_index].fetch_add(1, Ordering::Relaxed);
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
@@ -388,13 +422,13 @@ where
         match tick.event {
             Some(ServoEvent::Paused { .. }) if settings.program_pauses => {
                 published.paused_line.store(fine.line(), Ordering::Relaxed);
-                published.hold.store(true, Ordering::Relaxed);
+                hold(published);
             }
             // A collision or an alarm holds a job that has an operator; otherwise it ends it.
             Some(ServoEvent::Collision { .. } | ServoEvent::Alarm { .. })
                 if settings.program_pauses =>
             {
-                published.hold.store(true, Ordering::Relaxed);
+                hold(published);
             }
             Some(ServoEvent::Collision { at }) => report.collision = Some((at, fine.line())),
             // A wire break, or a rethread's arrival at the start hole, waits for the operator.
@@ -404,7 +438,7 @@ where
                     why: Excursion::Rethread,
                     ..
                 },
-            ) if settings.program_pauses => published.hold.store(true, Ordering::Relaxed),
+            ) if settings.program_pauses => hold(published),
             Some(ServoEvent::WireBreak { at, open }) => {
                 report.wire_break = Some((at, fine.line(), open))
             }

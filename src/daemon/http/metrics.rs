@@ -1,0 +1,283 @@
+//! `GET /metrics`: the status in Prometheus' text exposition format (version 0.0.4), every
+//! name prefixed `edmd_`, base units (seconds, ratios; lengths in mm as the machine's unit).
+//! Counters are the daemon's life-long [`Counters`] (finished jobs plus the running one), so
+//! they only grow; the job's own figures are gauges. Checked by `promtool check metrics` and
+//! scraped by a real Prometheus in `tests/http.rs`.
+
+use std::fmt::Write;
+
+use crate::daemon::protocol::{DaemonState, Status};
+use crate::runtime::consumer::LATENCY_BUCKETS_US;
+
+const STATES: [DaemonState; 10] = [
+    DaemonState::Idle,
+    DaemonState::Checking,
+    DaemonState::Running,
+    DaemonState::Holding,
+    DaemonState::Held,
+    DaemonState::Paused,
+    DaemonState::Stopping,
+    DaemonState::WireBreak,
+    DaemonState::Rethreading,
+    DaemonState::Threading,
+];
+
+struct Out(String);
+
+impl Out {
+    fn family(&mut self, name: &str, kind: &str, help: &str) {
+        let _ = writeln!(self.0, "# HELP edmd_{name} {help}");
+        let _ = writeln!(self.0, "# TYPE edmd_{name} {kind}");
+    }
+
+    fn sample(&mut self, name: &str, labels: &str, value: f64) {
+        let value = if value.is_finite() {
+            format!("{value}")
+        } else if value.is_nan() {
+            "NaN".to_string()
+        } else if value > 0.0 {
+            "+Inf".to_string()
+        } else {
+            "-Inf".to_string()
+        };
+        if labels.is_empty() {
+            let _ = writeln!(self.0, "edmd_{name} {value}");
+        } else {
+            let _ = writeln!(self.0, "edmd_{name}{{{labels}}} {value}");
+        }
+    }
+
+    fn one(&mut self, name: &str, kind: &str, help: &str, value: f64) {
+        self.family(name, kind, help);
+        self.sample(name, "", value);
+    }
+}
+
+/// Label value escaping of the text format.
+fn label(value: &str) -> String {
+    value
+        .replace('\\', "\\\\")
+        .replace('"', "\\\"")
+        .replace('\n', "\\n")
+}
+
+pub fn render(status: &Status) -> String {
+    let mut o = Out(String::with_capacity(4096));
+    o.one("up", "gauge", "1 while the daemon answers.", 1.0);
+    o.one(
+        "uptime_seconds",
+        "gauge",
+        "Seconds since the daemon started.",
+        status.uptime_s,
+    );
+    o.family(
+        "state",
+        "gauge",
+        "The daemon's state: 1 for the one it is in, 0 for the others.",
+    );
+    for state in &STATES {
+        let labels = format!("state=\"{}\"", state.name());
+        o.sample(
+            "state",
+            &labels,
+            f64::from(u8::from(*state == status.state)),
+        );
+    }
+    let job = status.job.as_ref();
+    o.one(
+        "job_running",
+        "gauge",
+        "1 while a job is in hand (cutting, held or stopping).",
+        f64::from(u8::from(job.is_some())),
+    );
+    if let Some(j) = job {
+        let program = format!("program=\"{}\"", label(&j.program));
+        o.family("job_info", "gauge", "The job in hand, as labels.");
+        o.sample(
+            "job_info",
+            &format!("{program},servo=\"{}\"", label(&j.servo)),
+            1.0,
+        );
+        o.one(
+            "job_progress_ratio",
+            "gauge",
+            "Fraction of the program's path done (0 to 1).",
+            j.progress,
+        );
+        o.one(
+            "job_path_done_mm",
+            "gauge",
+            "Path length done, mm.",
+            j.path_done_mm,
+        );
+        o.one(
+            "job_path_total_mm",
+            "gauge",
+            "Path length of the whole program, mm.",
+            j.path_total_mm,
+        );
+        if let Some(eta) = j.eta_s {
+            o.one(
+                "job_eta_seconds",
+                "gauge",
+                "Seconds to the program's end at the recent feed.",
+                eta,
+            );
+        }
+        o.one(
+            "job_line",
+            "gauge",
+            "Source line of the move in hand.",
+            j.line as f64,
+        );
+        o.family(
+            "position_mm",
+            "gauge",
+            "Position per axis (the pulse ledger), mm.",
+        );
+        for (axis, mm) in status.axes.iter().zip(&j.position_mm) {
+            o.sample("position_mm", &format!("axis=\"{}\"", label(axis)), *mm);
+        }
+        o.one(
+            "feed_mm_per_minute",
+            "gauge",
+            "Path speed, mm/min.",
+            j.feed_mm_per_min,
+        );
+        o.family("buffer_blocks", "gauge", "Loop-buffer blocks by area.");
+        o.sample(
+            "buffer_blocks",
+            "area=\"unprocessed\"",
+            j.buffer_unprocessed as f64,
+        );
+        o.sample(
+            "buffer_blocks",
+            "area=\"reserved\"",
+            j.buffer_reserved as f64,
+        );
+        o.one(
+            "buffer_capacity_blocks",
+            "gauge",
+            "Loop-buffer capacity, blocks.",
+            j.buffer_capacity as f64,
+        );
+    }
+    let c = &status.counters;
+    let counters: [(&str, &str, u64); 11] = [
+        ("jobs_total", "Jobs started.", c.jobs),
+        ("shorts_total", "Short circuits.", c.shorts),
+        (
+            "turn_backs_total",
+            "Turn-backs along the executed path.",
+            c.turn_backs,
+        ),
+        (
+            "alarms_total",
+            "Alarms (shorts the turn-back could not clear).",
+            c.alarms,
+        ),
+        ("collisions_total", "Shorts during rapids.", c.collisions),
+        (
+            "holds_total",
+            "Holds: operator, programmed stop, collision, alarm, wire break.",
+            c.holds,
+        ),
+        (
+            "overruns_total",
+            "Ticks whose work ended after the next deadline.",
+            c.overruns,
+        ),
+        (
+            "starvations_total",
+            "Times the loop buffer ran dry.",
+            c.starvations,
+        ),
+        ("jumps_total", "Sinker jumps.", c.jumps),
+        ("wire_breaks_total", "Wire breaks.", c.wire_breaks),
+        ("probes_total", "Probing moves finished.", c.probes),
+    ];
+    for (name, help, value) in counters {
+        o.one(name, "counter", help, value as f64);
+    }
+    o.one(
+        "ticks_total",
+        "counter",
+        "Fine-interpolation ticks.",
+        c.ticks as f64,
+    );
+    o.family("gap_ticks_total", "counter", "Ticks by the gap state read.");
+    for (state, n) in ["normal", "open", "short"].iter().zip(c.gap_ticks) {
+        o.sample("gap_ticks_total", &format!("state=\"{state}\""), n as f64);
+    }
+    o.family(
+        "tick_latency_seconds",
+        "histogram",
+        "Wake-up latency of the real-time ticks (none in virtual time).",
+    );
+    let mut cumulative = 0;
+    for (i, le) in LATENCY_BUCKETS_US.iter().enumerate() {
+        cumulative += c.latency_buckets.get(i).copied().unwrap_or(0);
+        let labels = format!("le=\"{}\"", *le as f64 * 1e-6);
+        o.sample("tick_latency_seconds_bucket", &labels, cumulative as f64);
+    }
+    cumulative += c
+        .latency_buckets
+        .get(LATENCY_BUCKETS_US.len())
+        .copied()
+        .unwrap_or(0);
+    o.sample(
+        "tick_latency_seconds_bucket",
+        "le=\"+Inf\"",
+        cumulative as f64,
+    );
+    o.sample("tick_latency_seconds_sum", "", c.latency_sum_us * 1e-6);
+    o.sample("tick_latency_seconds_count", "", cumulative as f64);
+    o.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::daemon::protocol::Counters;
+
+    fn status() -> Status {
+        Status {
+            state: DaemonState::Held,
+            version: "0".into(),
+            uptime_s: 12.5,
+            axes: vec!["X".into(), "Y".into()],
+            job: None,
+            last_job: None,
+            checkpoint: None,
+            check: None,
+            rt_refused: Vec::new(),
+            counters: Counters {
+                jobs: 2,
+                shorts: 7,
+                gap_ticks: [10, 20, 30],
+                latency_buckets: vec![5, 0, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1],
+                latency_sum_us: 40.0,
+                ..Counters::default()
+            },
+        }
+    }
+
+    #[test]
+    fn states_counters_and_a_cumulative_histogram() {
+        let text = render(&status());
+        assert!(text.contains("edmd_state{state=\"held\"} 1\n"), "{text}");
+        assert!(text.contains("edmd_state{state=\"idle\"} 0\n"));
+        assert!(text.contains("# TYPE edmd_shorts_total counter\nedmd_shorts_total 7\n"));
+        assert!(text.contains("edmd_gap_ticks_total{state=\"short\"} 30\n"));
+        assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"0.000001\"} 5\n"));
+        assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"0.000005\"} 8\n"));
+        assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"+Inf\"} 9\n"));
+        assert!(text.contains("edmd_tick_latency_seconds_count 9\n"));
+        assert_eq!(text.matches("edmd_state{").count(), 10);
+    }
+
+    #[test]
+    fn label_values_are_escaped() {
+        assert_eq!(label("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
+    }
+}

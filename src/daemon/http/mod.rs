@@ -1,0 +1,474 @@
+//! `daemon.http`: the machine's own web page, a JSON API and Prometheus metrics.
+//!
+//! ```text
+//!  browser / curl / Prometheus ──► axum on a 2-thread tokio runtime ("edmd-http")
+//!        GET  /              the page (one self-contained document: no outside URLs)
+//!        GET  /api/status    = `edmd ctl status --json`        ─┐
+//!        GET  /api/events    Server-Sent Events: the same reply   │ CoreMsg::Request, exactly
+//!                            on every change, at least every 1 s  │ as a socket client sends
+//!        POST /api/run|hold|resume|abort|rethread (bearer token) ─┘ (one control loop decides)
+//!        GET  /api/programs  the files under daemon.program_dir
+//!        GET  /api/path      the running job's programmed path (X, Y), for the backplot
+//!        GET  /metrics       Prometheus text format, `edmd_` metrics
+//! ```
+//!
+//! **Why through the control loop.** Every request becomes the [`Request`] a socket client
+//! sends and waits for the control loop's [`Reply`], so the socket and HTTP can never
+//! disagree about what the daemon is doing or what it accepts. The loop answers in
+//! microseconds and never waits on a client; nothing here touches the real-time thread, whose
+//! only link to any of it is the job's `Published` atomics the loop reads.
+//!
+//! **Safety.** Reading is open (status, programs, metrics); every `POST` needs
+//! `Authorization: Bearer <token>` with the token of `daemon.http_token_file`, compared in
+//! constant time, or gets 401. Program paths go through the same [`super::confine`] as on the
+//! socket. Bodies above [`MAX_BODY_BYTES`] are refused with 413; hyper bounds the request
+//! head (its read buffer, 100 headers at most). Server-Sent Event streams are limited to
+//! [`MAX_EVENT_STREAMS`] at once.
+
+// The handlers' helpers return the error response itself (`Result<T, Response>`): large, but
+// built once per refused request, far from any hot path.
+#![allow(clippy::result_large_err)]
+
+mod metrics;
+mod path;
+pub mod token;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{DefaultBodyLimit, Query, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use crossbeam::channel::Sender;
+use serde::Deserialize;
+
+use super::CoreMsg;
+use super::protocol::{Reply, Request};
+
+/// Largest request body accepted (bytes): a `run` names a program, nothing more.
+pub const MAX_BODY_BYTES: usize = 16 * 1024;
+/// Server-Sent Event streams served at once.
+pub const MAX_EVENT_STREAMS: usize = 16;
+/// How long a request waits for the control loop's reply.
+const CORE_TIMEOUT: Duration = Duration::from_secs(10);
+/// How often an event stream looks at the status, and the longest it stays silent.
+const EVENT_POLL: Duration = Duration::from_millis(100);
+const EVENT_HEARTBEAT: Duration = Duration::from_secs(1);
+
+const PAGE: &str = include_str!("page.html");
+
+/// What the handlers share.
+struct App {
+    to_core: Sender<CoreMsg>,
+    token: String,
+    program_dir: PathBuf,
+    axes: Vec<crate::vocab::Axis>,
+    /// How the daemon's jobs read programs (conditions, `D` registers), for the backplot.
+    options: crate::gcode::ProgramOptions,
+    streams: AtomicUsize,
+}
+
+/// The running HTTP server (it lives as long as the daemon's process).
+#[derive(Debug)]
+pub struct HttpServer {
+    pub addr: SocketAddr,
+}
+
+/// Binds `addr` (so a taken port is an error at startup) and serves on a thread of its own.
+pub fn spawn(
+    addr: SocketAddr,
+    token: String,
+    program_dir: PathBuf,
+    axes: Vec<crate::vocab::Axis>,
+    options: crate::gcode::ProgramOptions,
+    to_core: Sender<CoreMsg>,
+) -> std::io::Result<HttpServer> {
+    let listener = std::net::TcpListener::bind(addr)?;
+    listener.set_nonblocking(true)?;
+    let bound = listener.local_addr()?;
+    let app = Arc::new(App {
+        to_core,
+        token,
+        program_dir,
+        axes,
+        options,
+        streams: AtomicUsize::new(0),
+    });
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .max_blocking_threads(8)
+        .thread_name("edmd-http")
+        .enable_all()
+        .build()?;
+    std::thread::Builder::new()
+        .name("edmd-http".to_string())
+        .spawn(move || {
+            runtime.block_on(async move {
+                let listener = match tokio::net::TcpListener::from_std(listener) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        tracing::error!("http: {e}");
+                        return;
+                    }
+                };
+                if let Err(e) = axum::serve(listener, router(app)).await {
+                    tracing::error!("http: {e}");
+                }
+            })
+        })?;
+    Ok(HttpServer { addr: bound })
+}
+
+fn router(app: Arc<App>) -> Router {
+    Router::new()
+        .route("/", get(page))
+        .route("/api/status", get(status))
+        .route("/api/events", get(events))
+        .route("/api/programs", get(programs))
+        .route("/api/path", get(planned_path))
+        .route("/metrics", get(metrics))
+        .route("/api/run", post(run))
+        .route("/api/hold", post(|s, h, b| control(s, h, b, "hold")))
+        .route("/api/resume", post(|s, h, b| control(s, h, b, "resume")))
+        .route("/api/abort", post(|s, h, b| control(s, h, b, "abort")))
+        .route(
+            "/api/rethread",
+            post(|s, h, b| control(s, h, b, "rethread")),
+        )
+        .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page") })
+        // The limit makes an oversized body a `BytesRejection`, answered below as JSON.
+        .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .with_state(app)
+}
+
+/// A JSON error in the socket's shape: `{"ok": false, "error": "…"}`.
+fn error(code: StatusCode, message: impl Into<String>) -> Response {
+    let body = Reply::error(message, None);
+    (code, axum::Json(body)).into_response()
+}
+
+/// Asks the control loop, as a socket client does.
+async fn ask(app: &App, request: Request) -> Result<Reply, Response> {
+    let (tx, rx) = crossbeam::channel::bounded(1);
+    if app.to_core.send(CoreMsg::Request(request, tx)).is_err() {
+        return Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the daemon is shutting down",
+        ));
+    }
+    match tokio::task::spawn_blocking(move || rx.recv_timeout(CORE_TIMEOUT)).await {
+        Ok(Ok(reply)) => Ok(reply),
+        _ => Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the daemon did not answer",
+        )),
+    }
+}
+
+async fn page() -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, "text/html; charset=utf-8"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        PAGE,
+    )
+        .into_response()
+}
+
+async fn status(State(app): State<Arc<App>>) -> Response {
+    match ask(&app, Request::Status {}).await {
+        Ok(reply) => axum::Json(reply).into_response(),
+        Err(e) => e,
+    }
+}
+
+async fn metrics(State(app): State<Arc<App>>) -> Response {
+    match ask(&app, Request::Status {}).await {
+        Ok(Reply {
+            status: Some(status),
+            ..
+        }) => (
+            [(
+                header::CONTENT_TYPE,
+                "text/plain; version=0.0.4; charset=utf-8",
+            )],
+            metrics::render(&status),
+        )
+            .into_response(),
+        Ok(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "no status in the reply"),
+        Err(e) => e,
+    }
+}
+
+/// The status reply on every change (position, state, counters: anything but the clocks)
+/// and at least every second.
+async fn events(State(app): State<Arc<App>>) -> Response {
+    if app.streams.fetch_add(1, Ordering::AcqRel) >= MAX_EVENT_STREAMS {
+        app.streams.fetch_sub(1, Ordering::AcqRel);
+        return error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("{MAX_EVENT_STREAMS} event streams are open already"),
+        );
+    }
+    let stream = EventStream {
+        app: app.clone(),
+        last: None,
+        sent_at: Instant::now(),
+    };
+    let events = futures_util::stream::unfold(stream, |mut s| async move {
+        let event = s.next().await?;
+        Some((Ok::<_, std::convert::Infallible>(event), s))
+    });
+    Sse::new(events)
+        .keep_alive(KeepAlive::default())
+        .into_response()
+}
+
+/// One client's stream; counts itself out when the client goes.
+struct EventStream {
+    app: Arc<App>,
+    /// The last reply sent, without its clocks.
+    last: Option<serde_json::Value>,
+    sent_at: Instant,
+}
+
+impl EventStream {
+    async fn next(&mut self) -> Option<Event> {
+        loop {
+            // At most one event per poll period, however fast the status changes.
+            if self.last.is_some() {
+                tokio::time::sleep(EVENT_POLL).await;
+            }
+            let reply = ask(&self.app, Request::Status {}).await.ok()?;
+            let mut json = serde_json::to_value(&reply).ok()?;
+            let mut key = json.clone();
+            if let Some(s) = key.get_mut("status").and_then(|s| s.as_object_mut()) {
+                s.remove("uptime_s");
+                if let Some(j) = s.get_mut("job").and_then(|j| j.as_object_mut()) {
+                    j.remove("elapsed_s");
+                }
+            }
+            let changed = self.last.as_ref() != Some(&key);
+            if changed || self.last.is_none() || self.sent_at.elapsed() >= EVENT_HEARTBEAT {
+                self.last = Some(key);
+                self.sent_at = Instant::now();
+                let data = std::mem::take(&mut json).to_string();
+                return Some(Event::default().event("status").data(data));
+            }
+        }
+    }
+}
+
+impl Drop for EventStream {
+    fn drop(&mut self) {
+        self.app.streams.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// The files under the program directory (four levels deep at most, 2000 at most).
+async fn programs(State(app): State<Arc<App>>) -> Response {
+    let dir = app.program_dir.clone();
+    let listed = tokio::task::spawn_blocking(move || path::list_programs(&dir)).await;
+    match listed {
+        Ok(Ok(list)) => axum::Json(serde_json::json!({ "programs": list })).into_response(),
+        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    }
+}
+
+#[derive(Deserialize)]
+struct PathQuery {
+    program: Option<String>,
+}
+
+/// The programmed path of `?program=` or of the running job, decimated, for the backplot.
+async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -> Response {
+    let name = match q.program {
+        Some(name) => name,
+        None => match ask(&app, Request::Status {}).await {
+            Ok(Reply {
+                status: Some(status),
+                ..
+            }) => match status.job {
+                Some(job) => job.program,
+                None => return error(StatusCode::CONFLICT, "no job is running"),
+            },
+            Ok(_) => return error(StatusCode::INTERNAL_SERVER_ERROR, "no status"),
+            Err(e) => return e,
+        },
+    };
+    let file = match program_file(&app, &name) {
+        Ok(file) => file,
+        Err(e) => return e,
+    };
+    let (axes, options) = (app.axes.clone(), app.options.clone());
+    let plot = move || path::programmed_path(&file, &name, &axes, options);
+    match tokio::task::spawn_blocking(plot).await {
+        Ok(Ok(path)) => axum::Json(path).into_response(),
+        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    }
+}
+
+/// A program named by a client, confined as on the socket: 404 when there is no such file,
+/// 400 when the name leaves the program directory.
+fn program_file(app: &App, name: &str) -> Result<PathBuf, Response> {
+    let escapes = std::path::Path::new(name)
+        .components()
+        .any(|c| c == std::path::Component::ParentDir);
+    let joined = app.program_dir.join(name);
+    if !escapes && !joined.exists() {
+        return Err(error(
+            StatusCode::NOT_FOUND,
+            format!("{name}: no such program in {}", app.program_dir.display()),
+        ));
+    }
+    super::confine(&app.program_dir, name).map_err(|e| error(StatusCode::BAD_REQUEST, e))
+}
+
+/// `Authorization: Bearer <token>`, compared in constant time.
+fn authorised(app: &App, headers: &HeaderMap) -> Result<(), Response> {
+    let given = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .map(str::trim);
+    match given {
+        Some(t) if token::same(t.as_bytes(), app.token.as_bytes()) => Ok(()),
+        _ => {
+            let mut response = error(
+                StatusCode::UNAUTHORIZED,
+                "control needs `Authorization: Bearer <token>` with the token of \
+                 daemon.http_token_file",
+            );
+            response.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                header::HeaderValue::from_static("Bearer"),
+            );
+            Err(response)
+        }
+    }
+}
+
+/// A request body as JSON of `T` (an empty body is `{}`); 413 over the limit, 400 if bad.
+fn body<T: serde::de::DeserializeOwned>(
+    body: Result<Bytes, BytesRejection>,
+) -> Result<T, Response> {
+    let bytes = body.map_err(|e| {
+        if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            error(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the request body is over {MAX_BODY_BYTES} bytes"),
+            )
+        } else {
+            error(StatusCode::BAD_REQUEST, e.body_text())
+        }
+    })?;
+    let text = if bytes.iter().all(u8::is_ascii_whitespace) {
+        &b"{}"[..]
+    } else {
+        &bytes[..]
+    };
+    serde_json::from_slice(text).map_err(|e| {
+        error(
+            StatusCode::BAD_REQUEST,
+            format!("request body:{}:{}: {e}", e.line(), e.column()),
+        )
+    })
+}
+
+/// The control loop's verdict: 200 with its reply, or 409 (the daemon's state does not allow
+/// it) with the socket's message.
+fn verdict(reply: Reply) -> Response {
+    let code = if reply.ok {
+        StatusCode::OK
+    } else {
+        StatusCode::CONFLICT
+    };
+    (code, axum::Json(reply)).into_response()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RunBody {
+    program: String,
+}
+
+async fn run(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    raw: Result<Bytes, BytesRejection>,
+) -> Response {
+    if let Err(e) = authorised(&app, &headers) {
+        return e;
+    }
+    let RunBody { program } = match body(raw) {
+        Ok(b) => b,
+        Err(e) => return e,
+    };
+    if let Err(e) = program_file(&app, &program) {
+        return e;
+    }
+    match ask(&app, Request::Run { program }).await {
+        Ok(reply) => verdict(reply),
+        Err(e) => e,
+    }
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ControlBody {
+    #[serde(default)]
+    force: Option<bool>,
+    #[serde(default)]
+    here: Option<bool>,
+}
+
+async fn control(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    raw: Result<Bytes, BytesRejection>,
+    command: &'static str,
+) -> Response {
+    if let Err(e) = authorised(&app, &headers) {
+        return e;
+    }
+    let b: ControlBody = match body(raw) {
+        Ok(b) => b,
+        Err(e) => return e,
+    };
+    let misplaced = match command {
+        "resume" => b.here.map(|_| "here"),
+        "rethread" => b.force.map(|_| "force"),
+        _ => b.force.map(|_| "force").or(b.here.map(|_| "here")),
+    };
+    if let Some(field) = misplaced {
+        return error(
+            StatusCode::BAD_REQUEST,
+            format!("request body: `{field}` is not a field of {command}"),
+        );
+    }
+    let request = match command {
+        "hold" => Request::Hold {},
+        "resume" => Request::Resume {
+            force: b.force.unwrap_or(false),
+        },
+        "abort" => Request::Abort {},
+        _ => Request::Rethread {
+            here: b.here.unwrap_or(false),
+        },
+    };
+    match ask(&app, request).await {
+        Ok(reply) => verdict(reply),
+        Err(e) => e,
+    }
+}

@@ -1,0 +1,693 @@
+//! The daemon's web side end to end: the real `edmd serve` with `daemon.http` on a free
+//! loopback port, the API over HTTP, `/metrics` read by Prometheus' own `promtool` and
+//! scraped by a real Prometheus server, and the page in headless Chromium driven through
+//! ChromeDriver (a screenshot and the DOM after its scripts ran).
+//!
+//! `.ci/run` installs Chromium, ChromeDriver and Prometheus from Debian and sets
+//! `EDMD_WEB_TESTS=1`, which makes those parts required; elsewhere a test whose tool is
+//! missing says so and checks the rest.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+/// A running `edmd serve` with HTTP on; killed on drop.
+struct Daemon {
+    child: Child,
+    log: PathBuf,
+    base: String,
+    token: String,
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start(name: &str, sets: &[&str]) -> (Daemon, PathBuf) {
+    let dir = common::scratch("http", name);
+    let programs = dir.join("programs");
+    std::fs::create_dir_all(&programs).unwrap();
+    std::fs::copy(
+        common::repo().join("tests/data/runtime-path.nc"),
+        programs.join("runtime-path.nc"),
+    )
+    .unwrap();
+    std::fs::write(programs.join("short.nc"), "G21 G90\nG1 X0.2 F60\nM2\n").unwrap();
+    let token_file = dir.join("http-token");
+    let _ = std::fs::remove_file(&token_file);
+    let log = dir.join("serve.log");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_edmd"));
+    cmd.arg("serve")
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap())
+        .env_remove("NOTIFY_SOCKET")
+        .env_remove("WATCHDOG_USEC")
+        .env_remove("RUST_LOG");
+    let mut all = vec![
+        format!("daemon.socket=\"{}\"", dir.join("edmd.sock").display()),
+        format!("daemon.program_dir=\"{}\"", programs.display()),
+        format!("daemon.checkpoint=\"{}\"", dir.join("cp.json").display()),
+        "daemon.http=\"127.0.0.1:0\"".to_string(),
+        format!("daemon.http_token_file=\"{}\"", token_file.display()),
+        "fine.virtual_time=false".to_string(),
+        "gap.kind=\"none\"".to_string(),
+        "output.kind=\"file\"".to_string(),
+        format!("output.path=\"{}\"", dir.join("pulses.csv").display()),
+        "servo.normal_feed_mm_per_min=120.0".to_string(),
+        "log.format=\"plain\"".to_string(),
+    ];
+    all.extend(sets.iter().map(|s| s.to_string()));
+    for s in &all {
+        cmd.args(["--set", s]);
+    }
+    let child = cmd.spawn().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let base = loop {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        if let Some(at) = text.find("on http://") {
+            let rest = &text[at + "on http://".len()..];
+            let addr = rest.split_whitespace().next().unwrap();
+            break format!("http://{addr}");
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no HTTP address in the log:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let token = std::fs::read_to_string(&token_file)
+        .unwrap()
+        .trim()
+        .to_string();
+    (
+        Daemon {
+            child,
+            log,
+            base,
+            token,
+        },
+        dir,
+    )
+}
+
+impl Daemon {
+    /// A request: the status code and the JSON body (`Null` when it is not JSON).
+    fn call(
+        &self,
+        method: &str,
+        path: &str,
+        token: Option<&str>,
+        body: Option<&str>,
+    ) -> (u16, Value) {
+        let (code, text) = self.raw(method, path, token, body);
+        (code, serde_json::from_str(&text).unwrap_or(Value::Null))
+    }
+
+    fn raw(
+        &self,
+        method: &str,
+        path: &str,
+        token: Option<&str>,
+        body: Option<&str>,
+    ) -> (u16, String) {
+        let mut req = ureq::request(method, &format!("{}{path}", self.base));
+        if let Some(t) = token {
+            req = req.set("Authorization", &format!("Bearer {t}"));
+        }
+        let result = match body {
+            Some(b) => req.set("Content-Type", "application/json").send_string(b),
+            None => req.call(),
+        };
+        let response = match result {
+            Ok(r) => r,
+            Err(ureq::Error::Status(_, r)) => r,
+            Err(e) => panic!("{method} {path}: {e}\n{}", self.log()),
+        };
+        let code = response.status();
+        (code, response.into_string().unwrap())
+    }
+
+    fn post(&self, path: &str, body: &str) -> (u16, Value) {
+        let token = self.token.clone();
+        self.call("POST", path, Some(&token), Some(body))
+    }
+
+    fn status(&self) -> Value {
+        let (code, reply) = self.call("GET", "/api/status", None, None);
+        assert_eq!(code, 200);
+        reply["status"].clone()
+    }
+
+    fn wait_for(&self, what: &str, pred: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let s = self.status();
+            if pred(&s) {
+                return s;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "waiting for {what}: {s}\n{}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(25));
+        }
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    fn port(&self) -> u16 {
+        self.base.rsplit(':').next().unwrap().parse().unwrap()
+    }
+}
+
+/// Whether the web tools are required here (CI), or may be missing.
+fn required() -> bool {
+    std::env::var_os("EDMD_WEB_TESTS").is_some_and(|v| v == "1")
+}
+
+fn tool(name: &str) -> Option<PathBuf> {
+    let found = std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
+        .map(|d| d.join(name))
+        .find(|p| p.is_file());
+    if found.is_none() {
+        assert!(
+            !required(),
+            "{name} is not installed (EDMD_WEB_TESTS=1 needs it)"
+        );
+        eprintln!("{name} is not installed: that part of the test is skipped");
+    }
+    found
+}
+
+#[test]
+fn the_api_answers_as_the_socket_does_and_control_needs_the_token() {
+    let (d, dir) = start("api", &[]);
+    // The token file: 256 bits in hex, readable by its owner only.
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(dir.join("http-token"))
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!((d.token.len(), mode & 0o777), (64, 0o600));
+
+    // GET /api/status is `edmd ctl status --json`'s reply.
+    let (code, reply) = d.call("GET", "/api/status", None, None);
+    assert_eq!((code, reply["ok"].as_bool()), (200, Some(true)));
+    assert_eq!(reply["status"]["state"], "idle");
+    let ctl = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--json", "--socket"])
+        .arg(dir.join("edmd.sock"))
+        .arg("status")
+        .output()
+        .unwrap();
+    let ctl: Value = serde_json::from_slice(&ctl.stdout).unwrap();
+    let keys = |v: &Value| {
+        let mut k: Vec<String> = v["status"].as_object().unwrap().keys().cloned().collect();
+        k.sort();
+        k
+    };
+    assert_eq!(keys(&ctl), keys(&reply));
+
+    let (code, list) = d.call("GET", "/api/programs", None, None);
+    assert_eq!(code, 200);
+    let names: Vec<&str> = list["programs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["runtime-path.nc", "short.nc"]);
+
+    // Control without the token, or with another: 401, and nothing happens.
+    let run = r#"{"program":"runtime-path.nc"}"#;
+    let (code, reply) = d.call("POST", "/api/run", None, Some(run));
+    assert_eq!(code, 401, "{reply}");
+    assert!(
+        reply["error"].as_str().unwrap().contains("Bearer"),
+        "{reply}"
+    );
+    let wrong = "0".repeat(64);
+    assert_eq!(d.call("POST", "/api/run", Some(&wrong), Some(run)).0, 401);
+    assert_eq!(d.call("POST", "/api/hold", None, None).0, 401);
+    assert_eq!(d.status()["state"], "idle");
+
+    // Bad requests: 404 no such program, 400 outside the directory or malformed, 413 too big,
+    // 409 the wrong state.
+    let (code, reply) = d.post("/api/run", r#"{"program":"nope.nc"}"#);
+    assert_eq!(code, 404, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("nope.nc: no such program")
+    );
+    let (code, reply) = d.post("/api/run", r#"{"program":"../http-token"}"#);
+    assert_eq!(code, 400, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("`..` is not allowed"),
+        "{reply}"
+    );
+    let (code, reply) = d.post("/api/run", r#"{"program": 7}"#);
+    assert_eq!(code, 400, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .starts_with("request body:1:"),
+        "{reply}"
+    );
+    let (code, reply) = d.post("/api/run", r#"{"program":"short.nc","fly":1}"#);
+    assert_eq!(code, 400, "{reply}");
+    let big = format!(r#"{{"program":"{}"}}"#, "a".repeat(20_000));
+    let (code, reply) = d.post("/api/run", &big);
+    assert_eq!(code, 413, "{reply}");
+    assert_eq!(reply["ok"], false);
+    let (code, reply) = d.post("/api/hold", "");
+    assert_eq!(
+        (code, reply["error"].as_str()),
+        (409, Some("no job is running"))
+    );
+    let (code, reply) = d.post("/api/rethread", r#"{"here":true}"#);
+    assert_eq!(code, 409, "{reply}");
+    assert_eq!(d.call("GET", "/nothing", None, None).0, 404);
+
+    // A job through HTTP: run, 409 for a second run, hold, resume, abort.
+    let (code, reply) = d.post("/api/run", run);
+    assert_eq!(code, 200, "{reply}");
+    d.wait_for("the job", |s| s["state"] == "running");
+    assert_eq!(d.post("/api/run", run).0, 409);
+    assert_eq!(d.post("/api/hold", "{}").0, 200);
+    d.wait_for("the hold", |s| s["state"] == "held");
+    let (code, reply) = d.post("/api/resume", r#"{"force":false}"#);
+    assert_eq!(code, 200, "{reply}");
+    d.wait_for("running again", |s| s["state"] == "running");
+    assert_eq!(d.post("/api/abort", "").0, 200);
+    let idle = d.wait_for("the abort", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "stopped");
+    assert_eq!(idle["counters"]["jobs"], 1);
+    // The operator's hold (an abort brakes to a stop: not a hold).
+    assert_eq!(idle["counters"]["holds"].as_u64(), Some(1), "{idle}");
+}
+
+/// `/api/events` sends the status at least every second when nothing changes, and on every
+/// change (at most ten a second) while a job moves.
+#[test]
+fn server_sent_events_carry_the_status() {
+    let (d, _dir) = start("events", &[]);
+    let count = |d: &Daemon, secs: f64| -> Vec<Value> {
+        let mut stream = TcpStream::connect(d.base.trim_start_matches("http://")).unwrap();
+        write!(
+            stream,
+            "GET /api/events HTTP/1.1\r\nHost: x\r\nAccept: text/event-stream\r\n\r\n"
+        )
+        .unwrap();
+        stream
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .unwrap();
+        let mut reader = BufReader::new(stream);
+        let until = Instant::now() + Duration::from_secs_f64(secs);
+        let mut events = Vec::new();
+        let mut line = String::new();
+        while Instant::now() < until {
+            line.clear();
+            match reader.read_line(&mut line) {
+                Ok(0) => break,
+                Ok(_) => {
+                    if let Some(data) = line.trim_end().strip_prefix("data: ") {
+                        events.push(serde_json::from_str(data).unwrap());
+                    }
+                }
+                Err(_) => continue,
+            }
+        }
+        events
+    };
+    let idle = count(&d, 2.5);
+    assert!(
+        (2..=4).contains(&idle.len()),
+        "{} events while idle",
+        idle.len()
+    );
+    assert_eq!(idle[0]["status"]["state"], "idle");
+    assert_eq!(
+        d.post("/api/run", r#"{"program":"runtime-path.nc"}"#).0,
+        200
+    );
+    d.wait_for("the job", |s| s["state"] == "running");
+    let moving = count(&d, 1.0);
+    assert!(
+        moving.len() >= 5,
+        "{} events in a second of motion",
+        moving.len()
+    );
+    let x = |e: &Value| e["status"]["job"]["position_mm"][0].as_f64().unwrap_or(0.0);
+    assert!(
+        x(moving.last().unwrap()) > x(&moving[0]),
+        "the position moves"
+    );
+}
+
+#[test]
+fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
+    let (d, dir) = start("metrics", &[]);
+    // While a job runs, its gauges are there too.
+    assert_eq!(
+        d.post("/api/run", r#"{"program":"runtime-path.nc"}"#).0,
+        200
+    );
+    d.wait_for("the job's ETA", |s| s["job"]["eta_s"].is_number());
+    let (_, running) = d.raw("GET", "/metrics", None, None);
+    for needle in [
+        "edmd_job_progress_ratio ",
+        "edmd_position_mm{axis=\"X\"} ",
+        "edmd_job_info{",
+    ] {
+        assert!(running.contains(needle), "no {needle:?} in\n{running}");
+    }
+    assert_eq!(d.post("/api/abort", "").0, 200);
+    d.wait_for("the abort", |s| s["state"] == "idle");
+    assert_eq!(d.post("/api/run", r#"{"program":"short.nc"}"#).0, 200);
+    d.wait_for("the job's end", |s| s["last_job"]["outcome"] == "done");
+    let (code, text) = d.raw("GET", "/metrics", None, None);
+    assert_eq!(code, 200);
+    for needle in [
+        "edmd_up 1\n",
+        "edmd_state{state=\"idle\"} 1\n",
+        "edmd_jobs_total 2\n",
+        "edmd_shorts_total 0\n",
+        "edmd_gap_ticks_total{state=\"normal\"}",
+        "edmd_tick_latency_seconds_bucket{le=\"+Inf\"}",
+        "# TYPE edmd_tick_latency_seconds histogram",
+    ] {
+        assert!(text.contains(needle), "no {needle:?} in\n{text}");
+    }
+    // Every tick of the job is in the histogram and in the gap counts.
+    let value = |name: &str| -> f64 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name).and_then(|r| r.trim().parse().ok()))
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    let ticks = value("edmd_ticks_total ");
+    assert!(ticks > 0.0);
+    assert_eq!(value("edmd_tick_latency_seconds_count "), ticks);
+    assert_eq!(value("edmd_gap_ticks_total{state=\"normal\"} "), ticks);
+
+    // Every metric the shipped Grafana dashboard queries exists.
+    let dashboard =
+        std::fs::read_to_string(common::repo().join("contrib/grafana-dashboard.json")).unwrap();
+    let mut queried = 0;
+    for (at, _) in dashboard.match_indices("edmd_") {
+        let name: String = dashboard[at..]
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect();
+        let exposed = |t: &str| t.contains(&format!("\n{name}"));
+        assert!(
+            exposed(&text) || exposed(&running),
+            "the dashboard queries {name}"
+        );
+        queried += 1;
+    }
+    assert!(queried >= 9, "{queried} metrics in the dashboard");
+
+    if let Some(promtool) = tool("promtool") {
+        let mut check = Command::new(&promtool)
+            .args(["check", "metrics"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        check
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(text.as_bytes())
+            .unwrap();
+        let out = check.wait_with_output().unwrap();
+        let config = common::repo().join("contrib/prometheus.yml");
+        let checked = Command::new(&promtool)
+            .args(["check", "config"])
+            .arg(config)
+            .output();
+        assert!(checked.unwrap().status.success(), "contrib/prometheus.yml");
+        assert!(
+            out.status.success(),
+            "promtool: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let Some(prometheus) = tool("prometheus") else {
+        return;
+    };
+    let config = dir.join("prometheus.yml");
+    std::fs::write(
+        &config,
+        format!(
+            "global:\n  scrape_interval: 1s\nscrape_configs:\n  - job_name: edmd\n    \
+             static_configs:\n      - targets: ['127.0.0.1:{}']\n",
+            d.port()
+        ),
+    )
+    .unwrap();
+    let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listen.local_addr().unwrap().port();
+    drop(listen);
+    let mut server = Command::new(prometheus)
+        .arg(format!("--config.file={}", config.display()))
+        .arg(format!(
+            "--storage.tsdb.path={}",
+            dir.join("tsdb").display()
+        ))
+        .arg(format!("--web.listen-address=127.0.0.1:{port}"))
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("prometheus.log")).unwrap())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(40);
+    let found = loop {
+        let url = format!("http://127.0.0.1:{port}/api/v1/query?query=edmd_jobs_total");
+        if let Ok(r) = ureq::get(&url).call() {
+            let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
+            if let Some(sample) = v["data"]["result"].get(0) {
+                break sample["value"][1].as_str().map(str::to_string);
+            }
+        }
+        if Instant::now() > deadline {
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(250));
+    };
+    let _ = server.kill();
+    let _ = server.wait();
+    assert_eq!(
+        found.as_deref(),
+        Some("2"),
+        "Prometheus did not scrape edmd_jobs_total:\n{}",
+        std::fs::read_to_string(dir.join("prometheus.log")).unwrap_or_default()
+    );
+}
+
+/// A WebDriver session on a ChromeDriver of our own.
+struct Browser {
+    driver: Child,
+    url: String,
+    session: String,
+}
+
+impl Browser {
+    fn start(chromedriver: &Path) -> Browser {
+        let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listen.local_addr().unwrap().port();
+        drop(listen);
+        let driver = Command::new(chromedriver)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let url = format!("http://127.0.0.1:{port}");
+        let caps = json!({"capabilities": {"alwaysMatch": {"goog:chromeOptions": {
+            "binary": "/usr/bin/chromium",
+            "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync", "--window-size=1280,800"]
+        }}}});
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let session = loop {
+            if let Ok(r) = ureq::post(&format!("{url}/session"))
+                .set("Content-Type", "application/json")
+                .send_string(&caps.to_string())
+            {
+                let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
+                break v["value"]["sessionId"].as_str().unwrap().to_string();
+            }
+            assert!(
+                Instant::now() < deadline,
+                "ChromeDriver did not start a session"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        Browser {
+            driver,
+            url,
+            session,
+        }
+    }
+
+    fn command(&self, method: &str, path: &str, body: Option<Value>) -> Value {
+        let url = format!("{}/session/{}{path}", self.url, self.session);
+        let req = ureq::request(method, &url);
+        let r = match body {
+            Some(b) => req
+                .set("Content-Type", "application/json")
+                .send_string(&b.to_string()),
+            None => req.call(),
+        }
+        .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
+        let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
+        v["value"].clone()
+    }
+
+    fn eval(&self, script: &str) -> Value {
+        self.command(
+            "POST",
+            "/execute/sync",
+            Some(json!({"script": script, "args": []})),
+        )
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let url = format!("{}/session/{}", self.url, self.session);
+        let _ = ureq::request("DELETE", &url).call();
+        let _ = self.driver.kill();
+        let _ = self.driver.wait();
+    }
+}
+
+/// The page in a real browser: live state over SSE, the program list, the backplot with
+/// the programmed path under the executed one, and the controls through the API with the
+/// token the page keeps.
+#[test]
+fn the_page_in_headless_chromium() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start("page", &["servo.normal_feed_mm_per_min=60.0"]);
+    let browser = Browser::start(&chromedriver);
+    browser.command("POST", "/url", Some(json!({"url": format!("{}/", d.base)})));
+    let wait = |what: &str, script: &str| -> Value {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let v = browser.eval(script);
+            if v != Value::Null && v != Value::Bool(false) {
+                return v;
+            }
+            assert!(Instant::now() < deadline, "the page never showed {what}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    wait(
+        "the idle state",
+        "return document.getElementById('state').textContent === 'idle'",
+    );
+    let options = browser.eval(
+        "return Array.from(document.getElementById('program-list').options).map(o => o.value)",
+    );
+    assert_eq!(options, json!(["runtime-path.nc", "short.nc"]));
+    // Run from the page: the token is asked for once (a prompt, answered here by the page's
+    // own storage) and kept.
+    browser.eval(&format!(
+        "localStorage.setItem('edmd-token', '{}'); document.getElementById('program-list').value = 'runtime-path.nc'; document.getElementById('run').click(); return true",
+        d.token
+    ));
+    wait(
+        "the running state",
+        "return document.getElementById('state').textContent === 'running'",
+    );
+    let plot = wait(
+        "the backplot",
+        "const b = document.getElementById('backplot').dataset; \
+         return Number(b.plannedPoints) > 10 && Number(b.executedPoints) > 5 ? b : false",
+    );
+    let progress = wait(
+        "progress",
+        "const t = document.getElementById('progress').textContent; return t.endsWith('%') ? t : false",
+    );
+    let shot = browser.command("GET", "/screenshot", None);
+    let png = base64_decode(shot.as_str().unwrap());
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    std::fs::write(dir.join("page.png"), &png).unwrap();
+    let dom = browser.command("GET", "/source", None);
+    let dom = dom.as_str().unwrap();
+    assert!(dom.contains("data-state=\"running\""), "{dom}");
+    // Hold from the page: the daemon holds (the socket says so too).
+    browser.eval("document.getElementById('hold').click(); return true");
+    d.wait_for("the hold", |s| s["state"] == "held");
+    wait(
+        "held on the page",
+        "return document.getElementById('state').textContent === 'held'",
+    );
+    eprintln!(
+        "backplot {plot}, progress {progress}, screenshot {}",
+        dir.join("page.png").display()
+    );
+    let mut page = String::new();
+    ureq::get(&format!("{}/", d.base))
+        .call()
+        .unwrap()
+        .into_reader()
+        .read_to_string(&mut page)
+        .unwrap();
+    for outside in ["src=\"http", "href=\"http", "url(http", "@import"] {
+        assert!(
+            !page.contains(outside),
+            "the page refers outside: {outside}"
+        );
+    }
+}
+
+fn base64_decode(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => (c - b'A') as u32,
+            b'a'..=b'z' => (c - b'a' + 26) as u32,
+            b'0'..=b'9' => (c - b'0' + 52) as u32,
+            b'+' => 62,
+            _ => 63,
+        }
+    };
+    let clean: Vec<u8> = text
+        .bytes()
+        .filter(|&c| c != b'=' && !c.is_ascii_whitespace())
+        .collect();
+    let mut out = Vec::with_capacity(clean.len() * 3 / 4);
+    for chunk in clean.chunks(4) {
+        let mut n = 0u32;
+        for (i, &c) in chunk.iter().enumerate() {
+            n |= value(c) << (18 - 6 * i);
+        }
+        let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
+        out.extend_from_slice(&bytes[..chunk.len() - 1]);
+    }
+    out
+}
