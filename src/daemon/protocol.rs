@@ -280,18 +280,9 @@ pub struct JobStatus {
     /// Shorts during rapids (each holds the job).
     #[serde(default)]
     pub collisions: u64,
-    /// Sinker jumps, wire breaks and probing moves so far.
-    #[serde(default)]
-    pub jumps: u64,
-    #[serde(default)]
-    pub wire_breaks: u64,
-    #[serde(default)]
-    pub probes: u64,
-    /// Where the last probing move ended (mm per axis), and whether it touched.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub probe_mm: Option<Vec<f64>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub probe_contact: Option<bool>,
+    /// Jumps, wire breaks and probes so far (flat in the JSON).
+    #[serde(flatten)]
+    pub excursions: crate::runtime::Excursions,
     pub overruns: u64,
     pub pulses: Vec<u64>,
     pub ticks: u64,
@@ -419,14 +410,15 @@ impl Status {
                 }
                 _ => {}
             }
-            if j.jumps + j.wire_breaks + j.probes > 0 {
+            let x = &j.excursions;
+            if x.jumps + x.wire_breaks + x.probes > 0 {
                 let _ = writeln!(
                     t,
                     "excursions:   {} jumps, {} wire breaks, {} probes{}",
-                    j.jumps,
-                    j.wire_breaks,
-                    j.probes,
-                    j.probe_mm
+                    x.jumps,
+                    x.wire_breaks,
+                    x.probes,
+                    x.probe_mm
                         .as_ref()
                         .map(|mm| format!("; last probe {} mm", list(mm)))
                         .unwrap_or_default()

@@ -67,14 +67,11 @@ impl Core {
                 alarms: snap.servo.alarms,
                 starvations: snap.servo.starvations,
                 collisions: snap.servo.collisions,
-                jumps: snap.servo.jumps,
-                wire_breaks: snap.servo.wire_breaks,
-                probes: snap.servo.probes,
-                probe_mm: p
-                    .probe
-                    .last()
-                    .map(|r| mm(&r.steps[..axes], &job.config.machine.step_mm)),
-                probe_contact: p.probe.last().map(|r| r.contact),
+                excursions: crate::runtime::Excursions::new(
+                    &snap.servo,
+                    p.probe.last().as_ref(),
+                    &job.config.machine.step_mm[..axes],
+                ),
                 overruns: p.overruns.load(Ordering::Relaxed),
                 pulses: snap.pulses[..axes].to_vec(),
                 ticks: snap.tick,

@@ -57,7 +57,7 @@ pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
-pub use summary::{JobSummary, Outcome, StopPoint, axis_list};
+pub use summary::{Excursions, JobSummary, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
 #[derive(Debug, thiserror::Error)]
@@ -451,17 +451,11 @@ pub fn run_job_with(
         alarms: counters.servo.alarms,
         starvations: counters.servo.starvations,
         collisions: counters.servo.collisions,
-        jumps: counters.servo.jumps,
-        wire_breaks: counters.servo.wire_breaks,
-        probes: counters.servo.probes,
-        probe_mm: report.last_probe.map(|p| {
-            p.steps[..axes]
-                .iter()
-                .zip(&config.machine.step_mm)
-                .map(|(s, mm)| *s as f64 * mm)
-                .collect()
-        }),
-        probe_contact: report.last_probe.map(|p| p.contact),
+        excursions: summary::Excursions::new(
+            &counters.servo,
+            report.last_probe.as_ref(),
+            &config.machine.step_mm,
+        ),
         overruns: report.overruns,
         missed_deadlines: report.missed_deadlines,
         latency_us: report.latency.as_ref().map(|h| h.summary()),

@@ -70,6 +70,48 @@ pub struct StopPoint {
     pub program_sha256: String,
 }
 
+/// What a job did besides cutting: the same fields in the summary and the daemon's status.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Excursions {
+    /// Sinker jumps made.
+    #[serde(default)]
+    pub jumps: u64,
+    /// Wire breaks detected.
+    #[serde(default)]
+    pub wire_breaks: u64,
+    /// Probing moves finished.
+    #[serde(default)]
+    pub probes: u64,
+    /// Where the last probing move ended, per axis (mm), and whether it touched.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_mm: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_contact: Option<bool>,
+}
+
+impl Excursions {
+    /// The counts of `servo` and the last probe (`steps` times `step_mm`).
+    pub fn new(
+        servo: &crate::servo::ServoCounters,
+        probe: Option<&super::probe::ProbeResult>,
+        step_mm: &[f64],
+    ) -> Excursions {
+        Excursions {
+            jumps: servo.jumps,
+            wire_breaks: servo.wire_breaks,
+            probes: servo.probes,
+            probe_mm: probe.map(|p| {
+                p.steps
+                    .iter()
+                    .zip(step_mm)
+                    .map(|(s, mm)| *s as f64 * mm)
+                    .collect()
+            }),
+            probe_contact: probe.map(|p| p.contact),
+        }
+    }
+}
+
 /// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSummary {
@@ -98,20 +140,9 @@ pub struct JobSummary {
     /// Shorts during rapids.
     #[serde(default)]
     pub collisions: u64,
-    /// Sinker jumps made.
-    #[serde(default)]
-    pub jumps: u64,
-    /// Wire breaks detected.
-    #[serde(default)]
-    pub wire_breaks: u64,
-    /// Probing moves finished.
-    #[serde(default)]
-    pub probes: u64,
-    /// Where the last probing move ended, per axis (mm), and whether it touched.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub probe_mm: Option<Vec<f64>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub probe_contact: Option<bool>,
+    /// Jumps, wire breaks and probes (flat in the JSON).
+    #[serde(flatten)]
+    pub excursions: Excursions,
     pub overruns: u64,
     pub missed_deadlines: u64,
     /// Real time only.
@@ -178,19 +209,20 @@ impl JobSummary {
                 String::new()
             }
         );
-        if self.jumps + self.wire_breaks + self.probes > 0 {
+        let x = &self.excursions;
+        if x.jumps + x.wire_breaks + x.probes > 0 {
             let _ = writeln!(
                 t,
                 "  excursions:       {} jumps, {} wire breaks, {} probes",
-                self.jumps, self.wire_breaks, self.probes
+                x.jumps, x.wire_breaks, x.probes
             );
         }
-        if let Some(mm) = &self.probe_mm {
+        if let Some(mm) = &x.probe_mm {
             let text = axis_list(mm, &self.axes, |v| format!("{v:.4}"));
             let _ = writeln!(
                 t,
                 "  last probe:       {text} mm ({})",
-                if self.probe_contact == Some(true) {
+                if x.probe_contact == Some(true) {
                     "contact"
                 } else {
                     "no contact"

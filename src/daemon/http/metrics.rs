@@ -217,7 +217,7 @@ pub fn render(status: &Status) -> String {
     let mut cumulative = 0;
     for (i, le) in LATENCY_BUCKETS_US.iter().enumerate() {
         cumulative += c.latency_buckets.get(i).copied().unwrap_or(0);
-        let labels = format!("le=\"{}\"", *le as f64 * 1e-6);
+        let labels = format!("le=\"{}\"", *le as f64 / 1e6);
         o.sample("tick_latency_seconds_bucket", &labels, cumulative as f64);
     }
     cumulative += c
