@@ -234,6 +234,40 @@ fn probing_stops_at_contact_and_the_program_goes_on_from_there() {
     );
 }
 
+/// `G38.2` toward a scripted contact (the gap reads short from tick 3000): the probe reports
+/// the point where the pulses stood when contact came, to the step, and the next move leaves
+/// from there (the contact it rests on is not taken for a collision).
+#[test]
+fn a_scripted_contact_stops_the_probe_where_the_pulses_stood() {
+    let dir = scratch("scripted-contact");
+    std::fs::write(dir.join("gap.txt"), "0 normal\n3000 short\n3040 normal\n").unwrap();
+    let script = format!("gap.script=\"{}\"", dir.join("gap.txt").display());
+    let job = run(
+        &dir,
+        "G21 G90\nG38.2 X5 F30\nG0 X0\nM2\n",
+        &["gap.kind=\"script\"", &script],
+    );
+    assert_eq!(job.summary["outcome"], "done", "{}", job.stderr);
+    let (_, rows) = read_pulse_log(&dir.join("pulses.csv")).unwrap();
+    let before: i64 = rows
+        .iter()
+        .filter(|r| r.tick < 3000)
+        .map(|r| r.steps[0] as i64)
+        .sum();
+    let probed = floats(&job.summary["probe_mm"])[0];
+    // 30 mm/min for 0.15 s, less the start's acceleration: about 75 µm.
+    assert!(
+        (60..=76).contains(&before),
+        "{before} steps before the contact"
+    );
+    assert!(
+        (probed * 1000.0 - before as f64).abs() <= 1.0,
+        "probe at {probed} mm, the pulses at {before} steps"
+    );
+    assert_eq!(job.summary["collisions"], 0);
+    assert_eq!(ints(&job.summary["end_steps"]), vec![0, 0, 0]);
+}
+
 /// `G38.2` that never touches is an error at its line; `G38.3` goes on with `#5070` = 0.
 #[test]
 fn a_probe_without_contact() {

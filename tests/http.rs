@@ -651,6 +651,19 @@ fn the_page_in_headless_chromium() {
         "backplot {plot}, progress {progress}, screenshot {}",
         dir.join("page.png").display()
     );
+    // A phone: nothing wider than the screen, the controls still there.
+    browser.command(
+        "POST",
+        "/window/rect",
+        Some(json!({"width": 390, "height": 844})),
+    );
+    let fits = wait(
+        "the phone layout",
+        "return document.documentElement.scrollWidth <= window.innerWidth + 1 \
+         && document.getElementById('hold').getBoundingClientRect().width > 0 \
+         ? [document.documentElement.scrollWidth, window.innerWidth] : false",
+    );
+    eprintln!("on a phone: {fits}");
     let mut page = String::new();
     ureq::get(&format!("{}/", d.base))
         .call()

@@ -17,7 +17,8 @@
 //!    distance `s` into a block of length `L` is the planner's trapezoid,
 //!    `min(v_cruise, sqrt(v_entry² + 2 a s), sqrt(v_exit² + 2 a (L − s)))`, mirrored when
 //!    moving backwards, and never below a creep speed `sqrt(a · step)` so the last steps before
-//!    a stop are always taken. Reversing first brakes to zero. A block's speed is capped at one
+//!    a stop are always taken (nor above `v_cruise`: a slow programmed feed stays slow).
+//!    Reversing first brakes to zero. A block's speed is capped at one
 //!    event per tick: the pulse outputs take at most one step per axis per tick.
 //! 3. **DDA**: a phase accumulator adds `v · dt / ds` per tick (`ds`: the lattice distance of
 //!    one event); on reaching one it fires one Bresenham event ([`bresenham`]) forward or
@@ -467,7 +468,7 @@ impl Interpolator {
         let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
         let creep = (self.settings.accel * self.event_mm).sqrt();
         let cap = self.event_mm / self.settings.dt;
-        v2.sqrt().min(b.v_cruise).max(creep).min(cap)
+        v2.sqrt().max(creep).min(b.v_cruise).min(cap)
     }
 
     fn step_forward<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) {

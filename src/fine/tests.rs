@@ -632,3 +632,22 @@ fn a_long_short_alarms_and_a_release_re_advances_to_the_end() {
     assert_eq!(fine.position()[0], 900);
     assert_eq!(fine.counters().servo.alarms, 1);
 }
+
+/// A programmed feed below the creep speed (`sqrt(a · step)`, 1.55 mm/s here) is kept: the
+/// creep floor only lifts the braking tail, never the cruise (F30 ran at 93 mm/min before).
+#[test]
+fn a_slow_programmed_feed_is_not_lifted_to_the_creep_speed() {
+    let blocks = chain(&[p2(0, 0), p2(400, 0)], 0.5);
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+    let mut max = 0.0f64;
+    for _ in 0..40_000 {
+        fine.tick(GapState::Normal, &mut source);
+        max = max.max(fine.speed());
+        if fine.state().is_final() {
+            break;
+        }
+    }
+    assert_eq!(fine.position(), p2(400, 0));
+    assert!(max <= 0.5 + 1e-9, "ran at {max} mm/s, programmed 0.5");
+}

@@ -234,7 +234,9 @@ impl Interpolator {
                 self.probe_found(tick, contact);
                 return None;
             }
-            return Some((1, f64::INFINITY));
+            // The programmed probing feed (the planned limit alone is lifted to the creep
+            // speed near a standstill, faster than a slow probing feed).
+            return Some((1, self.block.v_cruise));
         }
         let feed = match self.servo.excursion() {
             Excursion::Jump => self.jump_feed,
