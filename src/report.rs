@@ -2,10 +2,11 @@
 //! [`Recording`] its supervisor gathered, where `edmd plan` shows what was planned.
 //!
 //! - `path.svg`: the executed X–Y path, the stretches turned back over and re-advanced marked,
-//!   the start point and the direction it leaves in;
+//!   the short circuits, jumps, wire breaks and probe contacts as dots, the start point and
+//!   the direction it leaves in;
 //! - `feed.svg`: the feed along the path and the gap state against machine time;
-//! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, end) with
-//!   its machine time, source line and position;
+//! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, jump, wire
+//!   break, probe, end) with its machine time, source line and position;
 //! - `summary.json`: the job's summary, as `--summary` writes it.
 //!
 //! Every series is decimated to a fixed number of points, so a report's size does not grow
@@ -83,6 +84,27 @@ pub fn write_report(
                     .map(|e| (e.position_mm[0], e.position_mm[1]))
                     .collect(),
             },
+            dots(
+                recording,
+                "jump",
+                "#6f42c1",
+                "jumps",
+                summary.excursions.jumps,
+            ),
+            dots(
+                recording,
+                "wire_break",
+                "#000000",
+                "wire breaks",
+                summary.excursions.wire_breaks,
+            ),
+            dots(
+                recording,
+                "probe",
+                "#1f6feb",
+                "probe contacts",
+                summary.excursions.probes,
+            ),
         ],
         equal_axes: true,
         start: recording
@@ -121,6 +143,21 @@ pub fn write_report(
         ..Chart::default()
     };
     write("feed.svg", &feed.render())
+}
+
+/// The events of `kind` as dots where they happened, named with their count.
+fn dots(recording: &Recording, kind: &str, color: &'static str, what: &str, count: u64) -> Series {
+    Series {
+        name: format!("{what} ({count})"),
+        color,
+        style: Style::Dots,
+        points: recording
+            .events
+            .iter()
+            .filter(|e| e.kind == kind && e.position_mm.len() >= 2)
+            .map(|e| (e.position_mm[0], e.position_mm[1]))
+            .collect(),
+    }
 }
 
 /// `tick,time_s,line,event,depth,<axis>_mm...`, one row per event.

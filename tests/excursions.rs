@@ -160,9 +160,22 @@ fn a_plunge_with_jumps_ends_exactly_and_every_jump_is_in_the_pulse_log() {
             "sim.debris_shorts=0",
             "--set",
             "servo.jump_interval_s=0.2",
+            "--report",
         ])
+        .arg(dir.join("report"))
         .output()
         .unwrap();
+    // The run report marks them and lists them.
+    let svg = std::fs::read_to_string(dir.join("report/path.svg")).unwrap();
+    assert!(
+        svg.contains(&format!("jumps ({jumps})")),
+        "no jumps in path.svg"
+    );
+    let events = std::fs::read_to_string(dir.join("report/events.csv")).unwrap();
+    assert_eq!(
+        events.lines().filter(|l| l.contains(",jump,")).count() as u64,
+        jumps
+    );
     let stdout = String::from_utf8_lossy(&text.stdout);
     assert!(
         stdout.contains(&format!("excursions:       {jumps} jumps")),

@@ -437,7 +437,7 @@ proptest! {
 /// until released; neither repeats when a turn-back brings the block back.
 #[test]
 fn dwell_and_pause_hold_at_the_block_start_once() {
-    let mut blocks = chain(&[p2(0, 0), p2(40, 0), p2(80, 0), p2(120, 0)], 0.2);
+    let mut blocks = chain(&[p2(0, 0), p2(40, 0), p2(80, 0), p2(120, 0)], 2.0);
     blocks[1].dwell_s = 0.01; // 200 ticks at 50 µs
     blocks[1].v_entry = 0.0;
     blocks[0].v_exit = 0.0;
