@@ -535,9 +535,10 @@ impl Core {
         let Some(job) = self.job.take() else {
             return;
         };
-        self.finished = self
-            .finished
-            .plus(&super::status::job_counters(&job.published));
+        self.finished = self.finished.plus(&super::status::job_counters(
+            &job.published,
+            &job.published.snapshot(),
+        ));
         if job.config.output.kind == OutputKind::Parport {
             self.port_output = Some(end.output);
         }

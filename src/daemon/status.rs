@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 
 use super::Core;
 use super::protocol::{CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, Status};
-use crate::runtime::Published;
+use crate::runtime::{Published, Snapshot};
 use crate::servo::{Excursion, ServoState};
 
 impl Core {
@@ -43,57 +43,62 @@ impl Core {
 
     pub(super) fn status(&self) -> Status {
         let config = &self.config;
-        let job = self.job.as_ref().map(|job| {
-            let p = &job.published;
-            let snap = p.snapshot();
-            let axes = job.config.machine.axes.len();
-            let samples = p.latency_samples.load(Ordering::Relaxed);
-            JobStatus {
-                program: job.program.display().to_string(),
-                line: snap.line,
-                segment: snap.here.seq,
-                step: snap.here.event,
-                parameter: snap.u_end.is_finite().then_some(snap.u_end),
-                servo: snap.state.name().to_string(),
-                position_steps: snap.position[..axes].to_vec(),
-                position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
-                feed_mm_per_min: snap.speed * 60.0,
-                buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
-                buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
-                buffer_capacity: job.config.buffer.capacity as u64,
-                shorts: snap.servo.shorts,
-                turn_backs: snap.servo.turn_backs,
-                deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
-                alarms: snap.servo.alarms,
-                starvations: snap.servo.starvations,
-                collisions: snap.servo.collisions,
-                excursions: crate::runtime::Excursions::new(
-                    &snap.servo,
-                    p.probe.last().as_ref(),
-                    &job.config.machine.step_mm[..axes],
-                ),
-                overruns: p.overruns.load(Ordering::Relaxed),
-                pulses: snap.pulses[..axes].to_vec(),
-                ticks: snap.tick,
-                machine_time_s: job.config.fine.tick.ticks_to_secs(snap.tick),
-                elapsed_s: job.started.elapsed().as_secs_f64(),
-                latency_mean_us: (samples > 0).then(|| {
-                    p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
-                }),
-                latency_max_us: (samples > 0)
-                    .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
-                resumed: job.resumed,
-                progress: job.progress.fraction(),
-                path_done_mm: job.progress.done_mm(),
-                path_total_mm: job.progress.total_mm(),
-                eta_s: job.progress.eta_s(),
-                recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
-                paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
-                    0 => None,
-                    line => Some(line),
-                },
-            }
-        });
+        // One snapshot for the job's view and its counts, so the two agree.
+        let snapshot = self.job.as_ref().map(|job| job.published.snapshot());
+        let job = self
+            .job
+            .as_ref()
+            .zip(snapshot.as_ref())
+            .map(|(job, &snap)| {
+                let p = &job.published;
+                let axes = job.config.machine.axes.len();
+                let samples = p.latency_samples.load(Ordering::Relaxed);
+                JobStatus {
+                    program: job.program.display().to_string(),
+                    line: snap.line,
+                    segment: snap.here.seq,
+                    step: snap.here.event,
+                    parameter: snap.u_end.is_finite().then_some(snap.u_end),
+                    servo: snap.state.name().to_string(),
+                    position_steps: snap.position[..axes].to_vec(),
+                    position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
+                    feed_mm_per_min: snap.speed * 60.0,
+                    buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
+                    buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
+                    buffer_capacity: job.config.buffer.capacity as u64,
+                    shorts: snap.servo.shorts,
+                    turn_backs: snap.servo.turn_backs,
+                    deepest_turn_back_blocks: snap.servo.deepest_turn_back_blocks,
+                    alarms: snap.servo.alarms,
+                    starvations: snap.servo.starvations,
+                    collisions: snap.servo.collisions,
+                    excursions: crate::runtime::Excursions::new(
+                        &snap.servo,
+                        p.probe.last().as_ref(),
+                        &job.config.machine.step_mm[..axes],
+                    ),
+                    overruns: p.overruns.load(Ordering::Relaxed),
+                    pulses: snap.pulses[..axes].to_vec(),
+                    ticks: snap.tick,
+                    machine_time_s: job.config.fine.tick.ticks_to_secs(snap.tick),
+                    elapsed_s: job.started.elapsed().as_secs_f64(),
+                    latency_mean_us: (samples > 0).then(|| {
+                        p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
+                    }),
+                    latency_max_us: (samples > 0)
+                        .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
+                    resumed: job.resumed,
+                    progress: job.progress.fraction(),
+                    path_done_mm: job.progress.done_mm(),
+                    path_total_mm: job.progress.total_mm(),
+                    eta_s: job.progress.eta_s(),
+                    recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
+                    paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
+                        0 => None,
+                        line => Some(line),
+                    },
+                }
+            });
         Status {
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
@@ -125,8 +130,8 @@ impl Core {
                 None => self.last_check.clone(),
             },
             rt_refused: self.fine.rt_refused().to_vec(),
-            counters: match &self.job {
-                Some(job) => self.finished.plus(&job_counters(&job.published)),
+            counters: match self.job.as_ref().zip(snapshot.as_ref()) {
+                Some((job, snap)) => self.finished.plus(&job_counters(&job.published, snap)),
                 None => self.finished.clone(),
             },
         }
@@ -152,9 +157,8 @@ pub(super) fn mm(steps: &[i64], step_mm: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// One job's counts so far, from what its consumer publishes.
-pub(super) fn job_counters(p: &Published) -> Counters {
-    let snap = p.snapshot();
+/// One job's counts so far, from what its consumer publishes (`snap`: its snapshot).
+pub(super) fn job_counters(p: &Published, snap: &Snapshot) -> Counters {
     let c = &snap.servo;
     let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
     Counters {
