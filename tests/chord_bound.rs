@@ -22,7 +22,7 @@ use edmd::gcode::{Block, BlockKind, NurbsForm};
 use edmd::geometry::{NurbsCurve, Point, point};
 use edmd::preprocess::{PlanSettings, Preprocessor, Segment};
 use edmd::rng::SplitMix64;
-use edmd::vocab::Segmentation;
+use edmd::vocab::{Predictor, Segmentation};
 use oracle::dist_to_segment;
 
 const TOLERANCES: [f64; 3] = [1e-4, 1e-3, 1e-2];
@@ -330,6 +330,45 @@ fn random_curves_stay_within_the_tolerance_and_their_certified_bounds() {
     let (worst, ratios) = sweep(0x005e_ed18, 48, 4, false);
     assert!(worst.segments > 1000, "{} segments checked", worst.segments);
     assert!(!ratios.is_empty());
+}
+
+/// With a length cap that binds (a twentieth of the curve), either predictor keeps every chord
+/// within the cap and within the tolerance: the cap is a hard limit, never traded for the
+/// chord error or the other way round.
+#[test]
+fn a_binding_length_cap_holds_with_either_predictor_on_random_curves() {
+    let mut rng = SplitMix64::new(0x0ca9_1e17);
+    let mut capped_total = 0;
+    for i in 0..24 {
+        let (name, curve, _) = random_curve(&mut rng, i);
+        let cap = curve.length() / 20.0;
+        for predictor in [Predictor::Taylor, Predictor::Hamming] {
+            let tol = TOLERANCES[i % TOLERANCES.len()];
+            let mut s = settings(tol, Segmentation::Chord);
+            s.max_segment = cap;
+            s.predictor = predictor;
+            let (_, segments) = plan(&curve, &s);
+            let mut u0 = curve.u_min();
+            for seg in &segments {
+                let chord = (seg.end - seg.start).norm();
+                assert!(
+                    chord <= cap,
+                    "{name}, {predictor:?}: a chord of {chord} mm, cap {cap}"
+                );
+                let err = measured_error(&curve, u0, seg.u_end, &seg.start, &seg.end);
+                assert!(
+                    err <= tol * (1.0 + 1e-9),
+                    "{name}, {predictor:?}: {err} mm over {tol}"
+                );
+                capped_total += usize::from(chord >= cap * (1.0 - 1e-3));
+                u0 = seg.u_end;
+            }
+        }
+    }
+    assert!(
+        capped_total > 100,
+        "the cap bound only {capped_total} chords"
+    );
 }
 
 #[test]

@@ -202,6 +202,76 @@ fn segments_chain_exactly_and_respect_the_length_cap() {
     assert_eq!(segs[0].v_entry, 0.0, "and starts at rest");
 }
 
+/// The length cap is a hard limit whatever the predictor (the Hamming extrapolation once ran
+/// three times past it on seed 001's curve), and a capped chord fills it: within 0.1 % of the
+/// cap, so the cap costs no more segments than its length says.
+#[test]
+fn both_predictors_keep_the_length_cap_and_fill_it() {
+    let blocks = parse("programs/jin-table1-g06_2.nc");
+    for predictor in [Predictor::Taylor, Predictor::Hamming] {
+        for cap in [0.25, 1.0, 3.0] {
+            let mut s = settings(1e-3, cap);
+            s.predictor = predictor;
+            let segs = run(&blocks, &s);
+            let longest = segs
+                .iter()
+                .map(|g| (g.end - g.start).norm())
+                .fold(0.0, f64::max);
+            assert!(
+                longest <= cap,
+                "{predictor:?} cap {cap}: a chord of {longest} mm"
+            );
+            // Every chord short of the window ends a piece or is held by the tolerance.
+            let (mut capped, mut short) = (0, 0);
+            for g in &segs {
+                let len = (g.end - g.start).norm();
+                if len >= cap * (1.0 - 1e-3) {
+                    capped += 1;
+                } else if g.chord_error < 0.9 * s.tolerance && !g.last_of_block {
+                    short += 1;
+                }
+            }
+            assert!(
+                capped > segs.len() / 10,
+                "{predictor:?} cap {cap}: {capped} capped of {}",
+                segs.len()
+            );
+            assert_eq!(
+                short, 0,
+                "{predictor:?} cap {cap}: chords short of both limits"
+            );
+        }
+    }
+}
+
+/// A rational line runs unevenly in its parameter (weights 1 and 4: four times as fast at one
+/// end), yet its parts come out equal, within the cap and as few as the cap allows.
+#[test]
+fn a_rational_line_is_cut_into_equal_parts_within_the_cap() {
+    let line = NurbsCurve::new(
+        1,
+        2,
+        &[point(&[0.0, 0.0]), point(&[10.0, 0.0])],
+        &[1.0, 4.0],
+        vec![0.0, 0.0, 1.0, 1.0],
+    )
+    .unwrap();
+    for cap in [0.3, 1.0, 2.5] {
+        let segs = run(&[block_of(line.clone())], &settings(1e-3, cap));
+        let want = (10.0f64 / cap).ceil() as usize;
+        assert_eq!(segs.len(), want, "cap {cap}");
+        for g in &segs {
+            let len = (g.end - g.start).norm();
+            assert!(len <= cap * (1.0 + 1e-9), "cap {cap}: a part of {len} mm");
+            let equal = 10.0 / want as f64;
+            assert!(
+                (len - equal).abs() < 1e-12,
+                "cap {cap}: a part of {len} mm, not {equal}"
+            );
+        }
+    }
+}
+
 struct Figures {
     segments: usize,
     time: f64,

@@ -111,6 +111,21 @@ impl Segment {
     }
 }
 
+/// How far the control points of a short Bézier piece stand out from the chord compared with
+/// the curve itself, at a parabola-like bulge: `p / (p - 1)` for even degree `p`, `(p + 1) / p`
+/// for odd (the Bernstein coefficients of `s (1 - s)` peak at `i (p - i) / (p (p - 1))` against
+/// the curve's `1/4`): 2 for a quadratic, 4/3 for a cubic. The segmenter uses it to decide
+/// whether a cut at the farthest point is worth making before the first bound; it has no part
+/// in soundness.
+pub fn hull_excess(degree: usize) -> f64 {
+    let p = degree.max(2) as f64;
+    if degree.is_multiple_of(2) {
+        p / (p - 1.0)
+    } else {
+        (p + 1.0) / p
+    }
+}
+
 /// What floating point may have lost in the distances, for a piece of degree `degree` whose
 /// chord runs from `a` to `b`, measured against `tol`.
 ///
@@ -289,6 +304,45 @@ mod tests {
         // A wrong hint costs pieces, never soundness.
         let wrong = certify(&arc, u0, u1, &a, &b, tol, u0 + 0.9 * (u1 - u0));
         assert!(wrong.holds(tol) && wrong.bound >= truth);
+    }
+
+    #[test]
+    fn an_uncut_bound_stands_out_from_a_parabola_by_the_hull_excess() {
+        // y = x (1 - x) on [0, 1] as a quadratic, and degree-elevated to a cubic and a quartic:
+        // the curve peaks at 1/4 over its chord, the control points stand higher.
+        let elevated = [
+            vec![(0.0, 0.0), (0.5, 0.5), (1.0, 0.0)],
+            vec![
+                (0.0, 0.0),
+                (1.0 / 3.0, 1.0 / 3.0),
+                (2.0 / 3.0, 1.0 / 3.0),
+                (1.0, 0.0),
+            ],
+            vec![
+                (0.0, 0.0),
+                (0.25, 0.25),
+                (0.5, 1.0 / 3.0),
+                (0.75, 0.25),
+                (1.0, 0.0),
+            ],
+        ];
+        for pts in elevated {
+            let degree = pts.len() - 1;
+            let points: Vec<Point> = pts.iter().map(|&(x, y)| point(&[x, y])).collect();
+            let knots = crate::geometry::clamped_uniform_knots(points.len(), degree);
+            let curve =
+                NurbsCurve::new(degree, 2, &points, &vec![1.0; points.len()], knots).unwrap();
+            let (a, b) = (curve.point(0.0), curve.point(1.0));
+            assert!((Segment::new(&a, &b).distance(&curve.point(0.5)) - 0.25).abs() < 1e-12);
+            let c = certify(&curve, 0.0, 1.0, &a, &b, 10.0, f64::NAN);
+            assert_eq!(c.pieces, 1);
+            let excess = c.bound / 0.25;
+            assert!(
+                (excess - hull_excess(degree)).abs() < 1e-9,
+                "degree {degree}: {excess} against {}",
+                hull_excess(degree)
+            );
+        }
     }
 
     #[test]

@@ -3,17 +3,22 @@
 //!
 //! Per step, from the current point `a` (with `C'`, `C''`):
 //! 1. target length: the circle formula `2 sqrt(2 rho h - h²)` at a slightly lower aim than the
-//!    tolerance, capped by `max_segment_mm`;
+//!    tolerance, or just under `max_segment_mm` where that is shorter;
 //! 2. predicted parameter increment: Taylor (errata form) or Hamming from the last corrected
-//!    parameters;
+//!    parameters; where the length cap binds, Taylor to the cap (an extrapolation of
+//!    parameters knows nothing of lengths);
 //! 3. evaluate the end `b`, measure the true chord error on `[a, b]` ([`chord_error`]);
 //! 4. where the measurement is within the tolerance, certify it: the segment counts as within
 //!    only when the certified bound ([`certify`](super::certify)) is, so a measurement the
 //!    curve fooled cannot let a segment through;
-//! 5. accept when the error is in the band just below the tolerance (or the piece, or the
-//!    length cap, is reached); otherwise rescale the increment by `sqrt(aim / error)` (the
-//!    sagitta grows with the square of the length, seed 001 eq. 5) inside a bracket of known good
-//!    and known bad increments, falling back to halving (seed 000 Fig. 3).
+//! 5. accept when the error is in the band just below the tolerance (or the piece's end, or
+//!    the last 0.1 % below the length cap, is reached); otherwise rescale the increment by
+//!    `sqrt(aim / error)` (the sagitta grows with the square of the length, seed 001 eq. 5), or
+//!    by `aim / length` for a chord over the cap, inside a bracket of known good and known bad
+//!    increments, falling back to halving (seed 000 Fig. 3).
+//!
+//! The length cap is as hard as the tolerance: no chord is ever longer than `max_segment_mm`
+//! (it bounds what one loop-buffer block reaches, and so how finely a turn-back retraces).
 //!
 //! The measurement aims (it is close to the truth, so chords come out near the longest
 //! possible); the bound decides. Every emitted segment carries its certified bound.
@@ -24,7 +29,7 @@
 
 use std::sync::Arc;
 
-use super::certify::certify;
+use super::certify::{certify, hull_excess};
 use super::chord::{ChordError, Sample, chord_error, chord_length_limit};
 use super::predictor::{History, hamming_increments, taylor_increment};
 use super::{GeoSegment, PlanSettings, corner_speed};
@@ -44,6 +49,15 @@ const BAND: f64 = 0.97;
 const MAX_TRIES: u32 = 12;
 /// Halvings after that before giving up on a pathological piece.
 const MAX_HALVINGS: u32 = 60;
+/// A length-capped chord is accepted anywhere in `[1 - CAP_WINDOW, 1] × max_segment_mm`, and
+/// predictions aim at the middle of that window: a second-order prediction lands inside it
+/// first time (its length is off by about 1e-5 relative on a 1 mm step), where aiming at the
+/// cap itself left half the steps a hair short of it and cost a second try. The cap is a hard
+/// limit: a chord over it is refused.
+const CAP_WINDOW: f64 = 1e-3;
+/// A certificate cuts at the measured farthest point first when the uncut piece's bound
+/// (the measurement times [`hull_excess`]) would exceed this fraction of the tolerance.
+const HINT_ABOVE: f64 = 0.95;
 /// Measurements up to this multiple of the tolerance are certified before a chord is refused:
 /// the measurement's model can overshoot, the bound cannot be fooled.
 const CERTIFY_ABOVE: f64 = 1.25;
@@ -142,21 +156,26 @@ impl Segmenter {
         self.history.reset();
         self.history.push(lo);
         self.gain = 1.0;
-        let (mut piece_end, mut piece_len) = (Point::zeros(), 0.0);
+        let mut line = None;
         if straight {
-            // Equal pieces no longer than the cap.
-            piece_end = curve.point(hi);
+            let end = curve.point(hi);
             self.stats.evals += 1;
-            let len = (piece_end - a.d.point).norm();
-            piece_len = len / (len / self.settings.max_segment).ceil().max(1.0);
+            line = Some(StraightPiece::new(
+                curve,
+                lo,
+                hi,
+                &a.d.point,
+                &end,
+                self.settings.max_segment,
+            ));
         }
         let mut first_of_piece = true;
         let mut rho_start = a.d.curvature_radius();
         loop {
-            let (b, err, bound, tried) = if straight {
-                straight_step(curve, &a, hi, &piece_end, piece_len)
+            let (b, err, bound, tried) = if let Some(line) = &mut line {
+                line.step(curve)
             } else {
-                self.curved_step(curve, &a, hi)
+                self.curved_step(curve, &a, rho_start, hi)
             };
             let at_end = b.u >= hi;
             let rho_end = b.d.curvature_radius();
@@ -235,7 +254,14 @@ impl Segmenter {
         if err.max > CERTIFY_ABOVE * tol {
             return Err(err.max);
         }
-        let c = certify(curve, a.u, b.u, &a.d.point, &b.d.point, tol, err.at);
+        // A cut at the farthest point pays only where the whole piece's control points would
+        // stand over the tolerance; far below it the uncut piece certifies alone.
+        let farthest = if err.max * hull_excess(curve.degree()) > HINT_ABOVE * tol {
+            err.at
+        } else {
+            f64::NAN
+        };
+        let c = certify(curve, a.u, b.u, &a.d.point, &b.d.point, tol, farthest);
         self.stats.certified_pieces += u64::from(c.pieces);
         if c.holds(tol) {
             err.max = err.max.min(c.bound);
@@ -248,22 +274,31 @@ impl Segmenter {
         }
     }
 
-    /// One chord-bounded step on a curved piece. Returns the end sample, its measured chord
-    /// error, its certified bound and the number of end-point evaluations spent.
+    /// One chord-bounded step on a curved piece from `a`, whose radius of curvature is `rho`.
+    /// Returns the end sample, its measured chord error, its certified bound and the number of
+    /// end-point evaluations spent.
     fn curved_step(
         &mut self,
         curve: &NurbsCurve,
         a: &Sample,
+        rho: f64,
         hi: f64,
     ) -> (Sample, ChordError, f64, u32) {
         let s = &self.settings;
         let tol = s.tolerance;
+        let cap = s.max_segment;
+        let cap_aim = cap * (1.0 - 0.5 * CAP_WINDOW);
+        let cap_floor = cap * (1.0 - CAP_WINDOW);
         let remaining = hi - a.u;
-        let rho = a.d.curvature_radius();
-        let target = chord_length_limit(rho, AIM * tol / self.gain).min(s.max_segment);
+        let by_chord = chord_length_limit(rho, AIM * tol / self.gain);
+        let taylor = taylor_increment(a, by_chord.min(cap_aim));
         let predicted = match (s.predictor, self.history.full()) {
-            (Predictor::Hamming, Some(hist)) => Some(hamming_increments(hist).0),
-            _ => taylor_increment(a, target),
+            // The extrapolation knows nothing of the length cap: where the cap binds, the step
+            // is a length, which is what the Taylor update predicts.
+            (Predictor::Hamming, Some(hist)) if by_chord <= cap_aim => {
+                Some(hamming_increments(hist).0)
+            }
+            _ => taylor,
         };
         let mut du = match predicted {
             Some(du) if du > 0.0 && du.is_finite() => du,
@@ -279,51 +314,49 @@ impl Segmenter {
         let (mut lo, mut bad) = (0.0f64, f64::INFINITY);
         for attempt in 0..MAX_TRIES {
             let at_end = du >= remaining;
-            let b = if at_end {
-                Sample {
-                    u: hi,
-                    d: curve.derivs_from_left(hi),
-                }
-            } else {
-                Sample::at(curve, a.u + du)
-            };
+            let b = self.end_sample(curve, a, du, hi);
             evals += 1;
-            let mut err = chord_error(curve, a, &b, tol);
             let len = (b.d.point - a.d.point).norm();
-            let max_segment = self.settings.max_segment;
-            let capped = len >= max_segment * (1.0 - 1e-9);
-            // Only a chord about to be accepted is certified: one that would only grow the
-            // bracket is certified if it is ever taken (below). Over the tolerance, only the
-            // piece's end is certified (a model overshoot there would leave a sliver).
-            let accepting = at_end || capped || err.max >= BAND * tol;
-            let verdict = if err.max <= tol && !accepting {
-                Ok(f64::NAN)
-            } else if err.max <= tol || at_end {
-                self.within(curve, a, &b, &mut err)
+            let next = if len > cap {
+                // Over the length cap whatever its error: shorten in proportion.
+                bad = du;
+                du * (cap_aim / len).max(0.1)
             } else {
-                Err(err.max)
-            };
-            let next;
-            match verdict {
-                Ok(bound) => {
-                    if accepting {
+                let mut err = chord_error(curve, a, &b, tol);
+                let capped = len >= cap_floor;
+                // Only a chord about to be accepted is certified: one that would only grow
+                // the bracket is certified if it is ever taken (below). Over the tolerance,
+                // only the piece's end is certified (a model overshoot there would leave a
+                // sliver).
+                let accepting = at_end || capped || err.max >= BAND * tol;
+                let verdict = if err.max <= tol && !accepting {
+                    Ok(f64::NAN)
+                } else if err.max <= tol || at_end {
+                    self.within(curve, a, &b, &mut err)
+                } else {
+                    Err(err.max)
+                };
+                match verdict {
+                    Ok(bound) if accepting => {
                         self.learn(rho, len, err.max);
                         return (b, err, bound, evals);
                     }
-                    lo = du;
-                    good = Some((b, err, du));
-                    let grow = (AIM * tol / err.max.max(1e-4 * tol)).sqrt().min(4.0);
-                    let mut g = du * grow;
-                    if len * grow > max_segment {
-                        g = du * (max_segment / len).max(1.0 + 1e-6);
+                    Ok(_) => {
+                        lo = du;
+                        good = Some((b, err, du));
+                        let grow = (AIM * tol / err.max.max(1e-4 * tol)).sqrt().min(4.0);
+                        if len * grow > cap_aim {
+                            du * (cap_aim / len).max(1.0 + 1e-6)
+                        } else {
+                            du * grow
+                        }
                     }
-                    next = g;
+                    Err(over) => {
+                        bad = du;
+                        du * (AIM * tol / over).sqrt().max(0.1)
+                    }
                 }
-                Err(over) => {
-                    bad = du;
-                    next = du * (AIM * tol / over).sqrt().max(0.1);
-                }
-            }
+            };
             if attempt == 0 {
                 self.stats.rescaled += 1;
             }
@@ -350,14 +383,17 @@ impl Segmenter {
                 Err(_) => bad = good_du,
             }
         }
-        // Seed 000 Fig. 3: halve until it holds.
+        // Seed 000 Fig. 3: halve until it holds (and is within the length cap).
         self.stats.halvings += 1;
         let mut du = if bad.is_finite() { bad } else { du };
         let mut last = None;
-        for _ in 0..MAX_HALVINGS {
+        for halving in 1..=MAX_HALVINGS {
             du *= 0.5;
             let b = Sample::at(curve, a.u + du);
             evals += 1;
+            if (b.d.point - a.d.point).norm() > cap && halving < MAX_HALVINGS {
+                continue;
+            }
             let mut err = chord_error(curve, a, &b, tol);
             let verdict = self.within(curve, a, &b, &mut err);
             let bound = match verdict {
@@ -368,8 +404,21 @@ impl Segmenter {
                 break;
             }
         }
-        let (b, err, bound) = last.expect("at least one halving");
+        let (b, err, bound) = last.expect("the last halving is always measured");
         (b, err, bound, evals)
+    }
+
+    /// The sample `du` past `a`, or the piece's end (its derivatives from the left) when that
+    /// reaches or passes `hi`.
+    fn end_sample(&self, curve: &NurbsCurve, a: &Sample, du: f64, hi: f64) -> Sample {
+        if du >= hi - a.u {
+            Sample {
+                u: hi,
+                d: curve.derivs_from_left(hi),
+            }
+        } else {
+            Sample::at(curve, a.u + du)
+        }
     }
 }
 
@@ -386,35 +435,74 @@ impl Segmenter {
     }
 }
 
-/// One step along a straight piece: the next of its equal parts (lengths need only be roughly
-/// equal; a rational line is not uniform in `u`, the Taylor step absorbs most of that).
+/// A straight piece (degree 1 between corner knots: one knot span) cut into the fewest equal
+/// parts the length cap allows.
 ///
-/// Its certified bound is zero: a degree-1 piece between corner knots is one knot span, a
-/// rational line whose points between two parameters lie on the segment joining them.
-fn straight_step(
-    curve: &NurbsCurve,
-    a: &Sample,
+/// A rational line runs unevenly in `u`, but in closed form: with end weights `w0`, `w1` the
+/// point at local parameter `t` lies the fraction `f = t w1 / ((1 - t) w0 + t w1)` along the
+/// segment, so the part ends are `t = f w0 / (w1 (1 - f) + f w0)` at `f = k / n`, exact to
+/// rounding whatever the weights (a polynomial line has `w0 = w1` and `t = f`).
+///
+/// Its certified bound is zero: the points of a rational line between two parameters lie on
+/// the segment joining them.
+#[derive(Debug)]
+struct StraightPiece {
+    lo: f64,
     hi: f64,
-    end: &Point,
-    len: f64,
-) -> (Sample, ChordError, f64, u32) {
-    let remaining = (end - a.d.point).norm();
-    let b = if remaining <= len * (1.0 + 1e-6) {
-        Sample {
-            u: hi,
-            d: curve.derivs_from_left(hi),
+    w0: f64,
+    w1: f64,
+    parts: usize,
+    done: usize,
+}
+
+impl StraightPiece {
+    fn new(curve: &NurbsCurve, lo: f64, hi: f64, start: &Point, end: &Point, cap: f64) -> Self {
+        let len = (end - start).norm();
+        let parts = (len / cap).ceil().max(1.0);
+        // Rounding in len / cap may leave a part a hair over the cap: one more part then.
+        let parts = if len / parts > cap {
+            parts + 1.0
+        } else {
+            parts
+        } as usize;
+        // The piece's end weights: its one Bézier piece's (any knot of a degree-1 curve is a
+        // corner knot, so the piece is one span).
+        let (mut w0, mut w1, mut spans) = (1.0, 1.0, 0);
+        curve.bezier_pieces::<8>(lo, hi, |bz, _, _| {
+            (w0, w1) = (bz.weight(0), bz.weight(1));
+            spans += 1;
+        });
+        debug_assert_eq!(spans, 1, "a straight piece is one knot span");
+        StraightPiece {
+            lo,
+            hi,
+            w0,
+            w1,
+            parts,
+            done: 0,
         }
-    } else {
-        let du = taylor_increment(a, len).unwrap_or((hi - a.u) / 2.0);
-        Sample::at(curve, (a.u + du).min(hi))
-    };
-    let straight = ChordError {
-        max: 0.0,
-        at: f64::NAN,
-        rho_min: f64::INFINITY,
-        evals: 0,
-    };
-    (b, straight, 0.0, 1)
+    }
+
+    fn step(&mut self, curve: &NurbsCurve) -> (Sample, ChordError, f64, u32) {
+        self.done += 1;
+        let b = if self.done >= self.parts {
+            Sample {
+                u: self.hi,
+                d: curve.derivs_from_left(self.hi),
+            }
+        } else {
+            let f = self.done as f64 / self.parts as f64;
+            let t = f * self.w0 / (self.w1 * (1.0 - f) + f * self.w0);
+            Sample::at(curve, self.lo + t * (self.hi - self.lo))
+        };
+        let straight = ChordError {
+            max: 0.0,
+            at: f64::NAN,
+            rho_min: f64::INFINITY,
+            evals: 0,
+        };
+        (b, straight, 0.0, 1)
+    }
 }
 
 /// Unit vector along `v` (zero stays zero).
