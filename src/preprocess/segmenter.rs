@@ -145,7 +145,6 @@ impl Segmenter {
         emit: &mut F,
     ) {
         let curve = &block.curve;
-        let straight = curve.degree() == 1;
         let mut a = Sample::at(curve, lo);
         self.stats.evals += 1;
         let tangent = unit(&a.d.d1);
@@ -156,19 +155,11 @@ impl Segmenter {
         self.history.reset();
         self.history.push(lo);
         self.gain = 1.0;
-        let mut line = None;
-        if straight {
-            let end = curve.point(hi);
+        let mut line = (curve.degree() == 1).then(|| {
             self.stats.evals += 1;
-            line = Some(StraightPiece::new(
-                curve,
-                lo,
-                hi,
-                &a.d.point,
-                &end,
-                self.settings.max_segment,
-            ));
-        }
+            let end = curve.point(hi);
+            StraightPiece::new(curve, lo, hi, &a.d.point, &end, self.settings.max_segment)
+        });
         let mut first_of_piece = true;
         let mut rho_start = a.d.curvature_radius();
         loop {
