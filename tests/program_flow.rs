@@ -265,11 +265,12 @@ fn errors_name_the_line_and_the_calls() {
     );
     assert_eq!(
         error("#1 = 0\no7 while [1]\n#1 = [#1 + 1]\no7 endwhile\n"),
-        "t.ngc:2:1: the loop O7 at line 2 ran more than 1000000 times (program.max_loop_iterations)"
+        "t.ngc:2:1: the loop O7 at line 2: the program has run 1000000 loop iterations and \
+         subroutine calls in all, its budget (program.max_loop_iterations); a runaway loop?"
     );
     assert_eq!(
         error("G0 X1\no1 if [1]\nG0 X2\n"),
-        "t.ngc:2:1: O1 at line 2 is never closed: endif expected before the end of the file"
+        "t.ngc:2:1: O1 if at line 2 is never closed: O1 endif expected"
     );
     assert_eq!(
         error("o<missing> call\nM2\n"),
@@ -297,8 +298,161 @@ fn errors_name_the_line_and_the_calls() {
         max_loop_iterations: 10,
         ..ProgramOptions::default()
     };
-    let e = read_with("o1 repeat [11]\nG91 G1 X1 F1\no1 endrepeat\nM2\n", options).unwrap_err();
-    assert!(e.to_string().contains("more than 10 times"), "{e}");
+    let e = read_with(
+        "o1 repeat [11]\nG91 G1 X1 F1\no1 endrepeat\nM2\n",
+        options.clone(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("t.ngc:1:10: the loop O1 at line 1 asks for 11 runs"),
+        "{e}"
+    );
+    let e = read_with("M98 P1 L11\nM30\nO1\nM99\n", options).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("t.ngc:1:8: M98 P1 at line 1 asks for 11 runs"),
+        "{e}"
+    );
+}
+
+/// The budget is the whole program's: loops inside loops, calls and `M98 L` repeats all spend
+/// from one count, so two nested loops of a million (10^12 runs) stop at the first million.
+#[test]
+fn nested_loops_calls_and_m98_spend_one_budget() {
+    let options = ProgramOptions {
+        max_loop_iterations: 100,
+        ..ProgramOptions::default()
+    };
+    let run = |program: &str| read_with(program, options.clone());
+    // 10 x 9 = 90 inner runs + 10 outer = 100: exactly the budget.
+    let inner = "o1 repeat [10]\no2 repeat [9]\n#1 = [#1 + 1]\no2 endrepeat\no1 endrepeat\nG1 X#1 F60\nM2\n";
+    let (blocks, _) = run(inner).unwrap();
+    assert_eq!(blocks[0].end()[0], 90.0);
+    // One more inner run is over it, however the runs are split between the loops.
+    let over = inner.replace("[9]", "[10]");
+    let e = run(&over).unwrap_err().to_string();
+    assert!(
+        e.contains("the loop O2 at line 2: the program has run 100 loop iterations"),
+        "{e}"
+    );
+    // Calls count: 50 loop runs + 50 calls = 100; a 51st call is over.
+    let calls = |n: u32| {
+        format!(
+            "o<s> sub\n#<_n> = [#<_n> + 1]\no<s> endsub\n#<_n> = 0\no1 repeat [{n}]\no<s> call\no1 endrepeat\nG1 X#<_n> F60\nM2\n"
+        )
+    };
+    assert_eq!(run(&calls(50)).unwrap().0[0].end()[0], 50.0);
+    // Without the calls, 51 runs would be far inside the budget.
+    let e = run(&calls(51)).unwrap_err().to_string();
+    assert!(e.contains("the program has run 100 loop iterations"), "{e}");
+    let e = run(&calls(50).replace("o1 repeat [50]", "o1 repeat [49]\no<s> call")).unwrap_err();
+    assert!(
+        e.to_string().contains("the call of o<s> at line 6"),
+        "the call that overspends is named: {e}"
+    );
+    // M98 L: each run of the subprogram counts.
+    let fanuc = |l: u32| {
+        format!(
+            "o1 repeat [10]\nM98 P7 L{l}\no1 endrepeat\nG1 X#1 F60\nM30\nO7\n#1 = [#1 + 1]\nM99\n"
+        )
+    };
+    assert_eq!(run(&fanuc(9)).unwrap().0[0].end()[0], 90.0);
+    let e = run(&fanuc(10)).unwrap_err().to_string();
+    assert!(e.contains("the program has run 100 loop iterations"), "{e}");
+}
+
+/// The reader gives up at the next line once its cancel flag is set, however long the
+/// program runs without producing a block.
+#[test]
+fn a_cancelled_reader_stops_inside_a_loop_that_moves_nothing() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let program = "o1 while [1]\n#1 = [#1 + 1]\no1 endwhile\nM2\n";
+    let options = ProgramOptions {
+        max_loop_iterations: 1_000_000_000,
+        ..ProgramOptions::default()
+    };
+    let mut reader =
+        BlockReader::with_options(Cursor::new(program.as_bytes()), "t.ngc", XY, options);
+    let flag = Arc::new(AtomicBool::new(false));
+    reader.cancel_on(flag.clone());
+    let started = std::time::Instant::now();
+    let canceller = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        flag.store(true, Ordering::Relaxed);
+        std::time::Instant::now()
+    });
+    let e = reader.next().expect("an item").unwrap_err();
+    let cancelled_at = canceller.join().unwrap();
+    assert!(e.to_string().contains("cancelled"), "{e}");
+    let late = cancelled_at.elapsed();
+    assert!(
+        late < std::time::Duration::from_millis(100),
+        "gave up {late:?} after the cancel"
+    );
+    assert!(started.elapsed() >= std::time::Duration::from_millis(100));
+}
+
+/// Expressions nest at most MAX_NESTING levels; anything deeper is a located error, never a
+/// stack overflow. The deepest accepted expression of each kind parses on a thread of
+/// PARSER_STACK_BYTES, and a quarter of it: the limit fits the stack with room to spare.
+#[test]
+fn expression_depth_is_bounded_and_fits_the_parser_stack() {
+    use edmd::gcode::{MAX_NESTING, PARSER_STACK_BYTES};
+    let n = MAX_NESTING;
+    // Each kind at the limit: brackets with an operator at every level (the deepest
+    // recursion per level), functions, ATAN's two values, parameter indirection, EXISTS.
+    let kinds: Vec<(String, String)> = vec![
+        ("brackets", format!("{}1{}", "[1+".repeat(n), "]".repeat(n))),
+        (
+            "functions",
+            format!("{}1{}", "ABS[".repeat(n), "]".repeat(n)),
+        ),
+        (
+            "atan",
+            format!("{}1{}", "ATAN[".repeat(n), "]/[1]".repeat(n)),
+        ),
+        ("indirection", format!("{}1", "#".repeat(n))),
+        (
+            "signs and brackets",
+            format!("{}1{}", "-[-".repeat(n), "]".repeat(n)),
+        ),
+    ]
+    .into_iter()
+    .map(|(k, e)| (k.to_string(), e))
+    .collect();
+    for (kind, expr) in &kinds {
+        // Parameter #1 holds 1, so `##…#1` is 1 at any depth.
+        let program = format!("#1 = 1\n#2 = {expr}\nG1 X[#2 GT 0] F60\nM2\n");
+        for stack in [PARSER_STACK_BYTES, PARSER_STACK_BYTES / 4] {
+            let text = program.clone();
+            let result = std::thread::Builder::new()
+                .stack_size(stack)
+                .spawn(move || read_with(&text, ProgramOptions::default()).map(|(b, _)| b.len()))
+                .unwrap()
+                .join()
+                .expect("no overflow");
+            assert_eq!(result.unwrap(), 1, "{kind} at depth {n}, stack {stack}");
+        }
+        // One level more is refused, where the 257th level opens.
+        let deeper = match kind.as_str() {
+            "brackets" => format!("[1+{expr}]"),
+            "functions" => format!("ABS[{expr}]"),
+            "atan" => format!("ATAN[{expr}]/[1]"),
+            "indirection" => format!("#{expr}"),
+            _ => format!("-[-{expr}]"),
+        };
+        let e = error(&format!("#1 = 1\n#2 = {deeper}\nM2\n"));
+        assert!(
+            e.contains(&format!("expression nested deeper than {n} levels")),
+            "{kind}: {e}"
+        );
+        assert!(e.starts_with("t.ngc:2:"), "{kind}: {e}");
+    }
+    // 60,000 signs cost no depth at all.
+    let signs = format!("#1 = {}1\nG1 X#1 F60\nM2\n", "-".repeat(60_000));
+    assert_eq!(read(&signs).0[0].end()[0], 1.0);
 }
 
 /// A loop of a million iterations reads a file of a few lines: the reader seeks back and keeps

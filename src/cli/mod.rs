@@ -224,13 +224,21 @@ struct LatencyArgs {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Check(args) => run_check(&args),
-        Command::Plan(args) => run_plan(&args),
+        // Parsing runs on a stack of a known size, whatever the main thread's limit is.
+        Command::Check(args) => on_parser_stack("edmd-check", || run_check(&args)),
+        Command::Plan(args) => on_parser_stack("edmd-plan", || run_plan(&args)),
         Command::Run(args) => run_job(&args),
         Command::Serve(args) => run_serve(&args),
         Command::Ctl(args) => run_ctl(&args),
         Command::Latency(args) => run_latency(args),
     }
+}
+
+fn on_parser_stack(name: &str, work: impl FnOnce() -> ExitCode + Send) -> ExitCode {
+    gcode::on_parser_stack(name, work).unwrap_or_else(|e| {
+        eprintln!("edmd: error: cannot start the {name} thread: {e}");
+        ExitCode::from(EXIT_RUNTIME)
+    })
 }
 
 /// Sets up logging as configured; returns the way to change the level later (SIGHUP).

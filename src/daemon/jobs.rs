@@ -125,6 +125,7 @@ impl Core {
         let worker_progress = progress.clone();
         let spawned = std::thread::Builder::new()
             .name("edmd-check".to_string())
+            .stack_size(crate::gcode::PARSER_STACK_BYTES)
             .spawn(move || {
                 let result =
                     copy_and_check(source, &dir, &config, expect.as_deref(), &worker_progress);

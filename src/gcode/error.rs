@@ -3,6 +3,8 @@
 use std::fmt;
 use std::sync::Arc;
 
+use crate::vocab::Num;
+
 use crate::geometry::NurbsError;
 
 /// What is wrong with a program. The location and text are in [`GcodeError`].
@@ -62,7 +64,7 @@ pub enum GcodeErrorKind {
         "arc radius inconsistent with its centre: {start:.6} mm to the start, {end:.6} mm to the end"
     )]
     ArcRadiusMismatch { start: f64, end: f64 },
-    #[error("arc radius {radius} mm is less than half the chord ({half_chord:.6} mm)")]
+    #[error("arc radius {} mm is less than half the chord ({} mm)", Num(*.radius), Num(*.half_chord))]
     ArcRadiusTooSmall { radius: f64, half_chord: f64 },
     #[error("arc centre coincides with its start point (zero radius)")]
     ArcZeroRadius,
@@ -77,16 +79,27 @@ pub enum GcodeErrorKind {
         b: char,
         axes: String,
     },
-    #[error("{what} out of range: {value} (allowed {min} to {max})")]
+    #[error("{what} out of range: {} (allowed {} to {})", Num(*.value), Num(*.min), Num(*.max))]
     OutOfRange {
         what: &'static str,
         value: f64,
         min: f64,
         max: f64,
     },
-    #[error("weight {letter}{value} must be greater than 0")]
+    #[error("weight {letter}{} must be greater than 0", Num(*.value))]
     BadWeight { letter: char, value: f64 },
-    #[error("knots decrease: K{value} is less than the previous knot {previous}")]
+    #[error(
+        "weight {}: the curve's weights would range from {} to {}, further apart than {} (the \
+         largest over the smallest), which double precision cannot evaluate faithfully",
+        Num(*.weight), Num(*.low), Num(*.high), Num(*.max)
+    )]
+    WeightRatio {
+        weight: f64,
+        low: f64,
+        high: f64,
+        max: f64,
+    },
+    #[error("knots decrease: K{} is less than the previous knot {}", Num(*.value), Num(*.previous))]
     KnotsDecreasing { value: f64, previous: f64 },
     #[error("wrong knot count: {0}")]
     KnotCount(String),
@@ -119,8 +132,12 @@ pub enum GcodeErrorKind {
     Nurbs(#[from] NurbsError),
     #[error("expression: {what}")]
     Expression { what: &'static str },
-    #[error("parameter number {value} out of range (1 to {max})")]
+    #[error("expression nested deeper than {limit} levels (brackets, functions and #)")]
+    NestedTooDeep { limit: usize },
+    #[error("parameter number {} out of range (1 to {max})", Num(*.value))]
     ParameterNumber { value: f64, max: usize },
+    #[error("parameter {name} is read-only: it is the interpreter's own value")]
+    ReadOnlyParameter { name: String },
     #[error("parameter {name} is not set")]
     UndefinedParameter { name: String },
     #[error("{function}: argument outside the function's domain")]
@@ -131,8 +148,22 @@ pub enum GcodeErrorKind {
     WireOffset(String),
     #[error("{0}")]
     Probing(String),
-    #[error("{label} ran more than {limit} times (program.max_loop_iterations)")]
-    LoopLimit { label: String, limit: u64 },
+    #[error(
+        "{label} asks for {runs} runs, more than the whole program may make \
+         (program.max_loop_iterations = {limit})"
+    )]
+    LoopLimit {
+        label: String,
+        runs: u64,
+        limit: u64,
+    },
+    #[error(
+        "{at}: the program has run {limit} loop iterations and subroutine calls in all, its \
+         budget (program.max_loop_iterations); a runaway loop?"
+    )]
+    FlowBudget { at: String, limit: u64 },
+    #[error("reading the program was cancelled")]
+    Cancelled,
     #[error("subroutine calls nested deeper than {limit}")]
     CallDepth { limit: usize },
     #[error("no subroutine {label} in the program{searched}")]

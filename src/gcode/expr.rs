@@ -16,6 +16,13 @@
 //!
 //! Evaluation never panics and never yields NaN or infinity: a division by zero, a function
 //! outside its domain or an overflow is an error at the column of the operator or function.
+//!
+//! **Bounded depth.** The evaluator is recursive descent, so a line nested deep enough would
+//! overflow any thread's stack and abort the process (a 12 KB line of brackets did, on a 2 MiB
+//! thread). Brackets, functions and parameter indirection (`##…`) nest at most
+//! [`MAX_NESTING`] levels, counted on the [`Scanner`]; signs are read in a loop and cost no
+//! depth. Every thread that parses runs on [`PARSER_STACK_BYTES`] of stack, which a test
+//! shows holds the deepest accepted expression with room to spare.
 
 use std::collections::HashMap;
 
@@ -25,6 +32,14 @@ use super::error::GcodeErrorKind;
 pub const NUMBERED_MAX: usize = 5602;
 /// Numbered parameters that carry a subroutine's arguments.
 pub(crate) const ARGUMENTS: usize = 30;
+/// Deepest nesting of brackets, functions and parameter indirection in one value. LinuxCNC's
+/// programs nest a handful of levels; a line nested deeper is refused rather than allowed to
+/// exhaust the stack.
+pub const MAX_NESTING: usize = 256;
+/// The stack of every thread that parses programs. The deepest accepted expression
+/// ([`MAX_NESTING`] levels of the costliest kind) needs a fraction of it in a debug build
+/// (`tests/program_flow.rs` parses it on a thread of exactly this size); the rest is margin.
+pub const PARSER_STACK_BYTES: usize = 8 << 20;
 
 pub(crate) type ExprError = (usize, GcodeErrorKind);
 
@@ -36,10 +51,23 @@ pub(crate) enum ParamRef {
     Named(String),
 }
 
+impl std::fmt::Display for ParamRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ParamRef::Numbered(n) => write!(f, "#{n}"),
+            ParamRef::Named(name) => write!(f, "#<{name}>"),
+        }
+    }
+}
+
 /// Where parameter values come from.
 pub(crate) trait Env {
     fn numbered(&self, n: usize) -> f64;
     fn named(&self, name: &str) -> Option<f64>;
+    /// The parameter is the interpreter's own and a program may not assign it.
+    fn read_only(&self, _param: &ParamRef) -> bool {
+        false
+    }
 }
 
 /// The parameter store: numbered, global and per-call local named parameters.
@@ -120,11 +148,36 @@ pub(crate) struct Scanner<'a> {
     pub(crate) pos: usize,
     /// Column of the last character taken (0 before the first).
     pub(crate) col: usize,
+    /// Brackets, functions and indirections open around the position ([`MAX_NESTING`]).
+    depth: usize,
 }
 
 impl<'a> Scanner<'a> {
     pub(crate) fn new(s: &'a str) -> Self {
-        Self { s, pos: 0, col: 0 }
+        Self::at(s, 0, 0)
+    }
+
+    /// A scanner over `s` whose next character is at byte `pos`, column `col + 1`.
+    pub(crate) fn at(s: &'a str, pos: usize, col: usize) -> Self {
+        Self {
+            s,
+            pos,
+            col,
+            depth: 0,
+        }
+    }
+
+    /// Opens one level of nesting at `col`, refused past [`MAX_NESTING`].
+    fn enter(&mut self, col: usize) -> Result<(), ExprError> {
+        if self.depth >= MAX_NESTING {
+            return Err((col, GcodeErrorKind::NestedTooDeep { limit: MAX_NESTING }));
+        }
+        self.depth += 1;
+        Ok(())
+    }
+
+    fn leave(&mut self) {
+        self.depth -= 1;
     }
 
     pub(crate) fn peek(&self) -> Option<char> {
@@ -262,36 +315,47 @@ fn read_param(sc: &mut Scanner, env: &dyn Env, col: usize) -> Result<f64, ExprEr
 
 /// A real value: signs, then a number, parameter, bracketed expression or function.
 pub(crate) fn value(sc: &mut Scanner, env: &dyn Env) -> Result<f64, ExprError> {
-    sc.skip_ws();
+    // Signs in a loop, not by recursion: `- - - … 1` costs no stack.
+    let mut negative = false;
+    loop {
+        sc.skip_ws();
+        match sc.peek() {
+            Some('-') => negative = !negative,
+            Some('+') => {}
+            _ => break,
+        }
+        sc.bump();
+    }
     let col = sc.next_col();
-    match sc.peek() {
-        Some('-') => {
-            sc.bump();
-            Ok(-value(sc, env)?)
-        }
-        Some('+') => {
-            sc.bump();
-            value(sc, env)
-        }
+    let v = match sc.peek() {
         Some('#') => {
             sc.bump();
-            read_param(sc, env, col)
+            sc.enter(col)?;
+            let v = read_param(sc, env, col)?;
+            sc.leave();
+            v
         }
         Some('[') => {
             sc.bump();
+            sc.enter(col)?;
             let v = expression(sc, env)?;
             sc.expect(']', "`]` expected to close the expression")?;
-            Ok(v)
+            sc.leave();
+            v
         }
-        Some(c) if c.is_ascii_digit() || c == '.' => number(sc),
-        Some(c) if c.is_ascii_alphabetic() => function(sc, env, col),
-        _ => Err((
-            col,
-            GcodeErrorKind::Expression {
-                what: "a number, parameter or `[` expected",
-            },
-        )),
-    }
+        Some(c) if c.is_ascii_digit() || c == '.' => number(sc)?,
+        // A function's argument is bracketed, and the bracket counts the level.
+        Some(c) if c.is_ascii_alphabetic() => function(sc, env, col)?,
+        _ => {
+            return Err((
+                col,
+                GcodeErrorKind::Expression {
+                    what: "a number, parameter or `[` expected",
+                },
+            ));
+        }
+    };
+    Ok(if negative { -v } else { v })
 }
 
 /// A plain decimal literal (digits with at most one point).
@@ -302,6 +366,17 @@ fn number(sc: &mut Scanner) -> Result<f64, ExprError> {
         sc.bump();
     }
     let text = &sc.s[start..sc.pos];
+    if matches!(sc.peek(), Some('e' | 'E'))
+        && matches!(sc.peek2(), Some(c) if c.is_ascii_digit() || c == '+' || c == '-')
+    {
+        return Err((
+            sc.next_col(),
+            GcodeErrorKind::UnexpectedChar {
+                ch: sc.peek().unwrap_or('e'),
+                hint: " (exponent notation such as 1e3 is not G-code: write the number out)",
+            },
+        ));
+    }
     let digits = text.chars().filter(char::is_ascii_digit).count();
     if digits == 0 || text.matches('.').count() > 1 || text.len() > 32 {
         return Err((
@@ -347,7 +422,9 @@ fn function(sc: &mut Scanner, env: &dyn Env, col: usize) -> Result<f64, ExprErro
         ));
     }
     if name == "EXISTS" {
+        // Its bracket is read here, not by `value`: the level is counted here.
         sc.bump();
+        sc.enter(col)?;
         sc.skip_ws();
         if sc.peek() != Some('#') {
             return Err((
@@ -363,6 +440,7 @@ fn function(sc: &mut Scanner, env: &dyn Env, col: usize) -> Result<f64, ExprErro
             ParamRef::Numbered(_) => true,
         };
         sc.expect(']', "`]` expected after EXISTS's parameter")?;
+        sc.leave();
         return Ok(if exists { 1.0 } else { 0.0 });
     }
     let arg = value(sc, env)?;

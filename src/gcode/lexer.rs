@@ -178,6 +178,14 @@ pub(crate) fn lex(
                     return Err((pc, GcodeErrorKind::MisplacedPercent));
                 }
                 let target = expr::param_ref(&mut sc, env)?;
+                if env.read_only(&target) {
+                    return Err((
+                        col,
+                        GcodeErrorKind::ReadOnlyParameter {
+                            name: target.to_string(),
+                        },
+                    ));
+                }
                 sc.expect(
                     '=',
                     "`=` expected: a parameter on its own is assigned with #n = value",
@@ -292,20 +300,20 @@ fn oword_after_o(sc: &mut Scanner, col: usize) -> Result<Option<OWord>, LexError
         }
     };
     sc.skip_ws();
-    let keyword = Keyword::ALL.iter().find(|(name, _)| {
-        let rest = &sc.s[sc.pos..];
-        rest.len() >= name.len()
-            && rest[..name.len()].eq_ignore_ascii_case(name)
-            && !rest[name.len()..]
-                .chars()
-                .next()
-                .is_some_and(|c| c.is_ascii_alphabetic())
+    // LinuxCNC drops spaces before it reads a line, so `else if` is `elseif` and `end sub`
+    // is `endsub` (LinuxCNC's own probing macros write `else if`).
+    let keyword = Keyword::ALL.iter().find_map(|&(name, keyword)| {
+        let mut probe = sc.clone();
+        if !probe.eat_word(name) {
+            return None;
+        }
+        let rest = probe.clone();
+        probe.skip_ws();
+        (!probe.peek().is_some_and(|c| c.is_ascii_alphabetic())).then_some((keyword, rest))
     });
     match (keyword, &label) {
-        (Some(&(name, keyword)), _) => {
-            for _ in 0..name.len() {
-                sc.bump();
-            }
+        (Some((keyword, rest)), _) => {
+            *sc = rest;
             Ok(Some(OWord {
                 col,
                 label,

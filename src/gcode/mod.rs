@@ -29,7 +29,7 @@ use std::io::BufReader;
 use std::path::Path;
 
 pub use error::{GcodeError, GcodeErrorKind, Warning};
-pub use expr::NUMBERED_MAX;
+pub use expr::{MAX_NESTING, NUMBERED_MAX, PARSER_STACK_BYTES};
 pub use lines::MAX_LINE_BYTES;
 pub use parser::{
     ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CALL_DEPTH,
@@ -264,6 +264,20 @@ impl Block {
     pub fn end(&self) -> Point {
         self.curve.end_point()
     }
+}
+
+/// Runs `work` on a thread named `name` with [`PARSER_STACK_BYTES`] of stack and returns
+/// its result: what parses a program runs there, whatever stack the calling thread has.
+pub fn on_parser_stack<T: Send>(name: &str, work: impl FnOnce() -> T + Send) -> std::io::Result<T> {
+    std::thread::scope(|s| {
+        let handle = std::thread::Builder::new()
+            .name(name.to_string())
+            .stack_size(PARSER_STACK_BYTES)
+            .spawn_scoped(s, work)?;
+        Ok(handle
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    })
 }
 
 /// Opens `path` for streaming with the default [`ProgramOptions`]. Errors name the path as

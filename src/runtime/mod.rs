@@ -172,11 +172,15 @@ pub fn copy_and_check(
 ) -> Result<(TempCopy, Precheck), JobError> {
     let progress = Progress::new();
     std::thread::scope(|s| {
-        let work = s.spawn(|| {
-            let copy = TempCopy::new_with(program, &progress)?;
-            let check = precheck(&copy.0, config, &progress)?;
-            Ok((copy, check))
-        });
+        let work = std::thread::Builder::new()
+            .name("edmd-check".to_string())
+            .stack_size(crate::gcode::PARSER_STACK_BYTES)
+            .spawn_scoped(s, || {
+                let copy = TempCopy::new_with(program, &progress)?;
+                let check = precheck(&copy.0, config, &progress)?;
+                Ok((copy, check))
+            })
+            .map_err(JobError::Thread)?;
         while !work.is_finished() {
             if stop.load(Ordering::Relaxed) {
                 progress.cancel();
@@ -334,8 +338,20 @@ pub fn run_job_with(
     );
     let mut last_progress = Instant::now();
 
+    let producer_cancel = Arc::new(AtomicBool::new(false));
     let (producer, done) = std::thread::scope(|s| {
-        let producer = s.spawn(|| producer::produce(program, config, &buffer, &published.probe));
+        let producer = std::thread::Builder::new()
+            .name("edmd-producer".to_string())
+            .stack_size(crate::gcode::PARSER_STACK_BYTES)
+            .spawn_scoped(s, || {
+                let cancel = producer_cancel.clone();
+                producer::produce(program, config, &buffer, &published.probe, cancel)
+            })
+            .map_err(|e| {
+                // No producer: the fine thread finds an empty, closed buffer and ends.
+                buffer.close();
+                ProducerError::Thread(e)
+            });
         let result = fine_thread.submit(FineJob {
             buffer: buffer.clone(),
             published: published.clone(),
@@ -399,10 +415,12 @@ pub fn run_job_with(
             std::thread::park_timeout(Duration::from_millis(10));
         };
         drain();
+        // The consumer is gone: a producer still reading has no one to read for.
+        producer_cancel.store(true, Ordering::Relaxed);
         if done.is_none() {
             buffer.abort();
         }
-        let producer = producer.join().expect("the producer thread panicked");
+        let producer = producer.and_then(|p| p.join().expect("the producer thread panicked"));
         (producer, done)
     });
     let Some(FineDone {

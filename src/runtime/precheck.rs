@@ -26,9 +26,6 @@ pub struct Precheck {
     pub rapid_spans: Vec<(f64, f64)>,
 }
 
-/// How many blocks the check reads between looks at its cancel flag.
-const CANCEL_EVERY: u64 = 1024;
-
 /// Parses the whole program and checks every end point fits a step counter. Reports the
 /// bytes read to `progress` and gives up with [`JobError::Cancelled`] when it is cancelled.
 pub fn precheck(
@@ -44,19 +41,27 @@ pub fn precheck(
         gcode::ProgramOptions::from_config(config),
         |f| CountingReader::new(f, progress),
     )?;
+    reader.cancel_on(progress.cancel_flag());
     let mut blocks = 0;
     let mut end_steps = [0; MAX_AXES];
     let mut path_mm = 0.0;
     let mut cutting_spans = Vec::new();
     let mut rapid_spans: Vec<(f64, f64)> = Vec::new();
     let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
+    let cancelled = || JobError::Cancelled {
+        program: program.name.clone(),
+    };
     for item in reader.by_ref() {
-        let block = item?;
+        let block = match item {
+            Ok(block) => block,
+            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => return Err(cancelled()),
+            Err(e) => return Err(e.into()),
+        };
         blocks += 1;
-        if blocks % CANCEL_EVERY == 0 && progress.cancelled() {
-            return Err(JobError::Cancelled {
-                program: program.name.clone(),
-            });
+        // The reader looks at the flag on every line; a block's own work (the length of a
+        // curve of 100,000 points) is looked at here.
+        if progress.cancelled() {
+            return Err(cancelled());
         }
         let length = block.curve.length();
         if measure && block.kind != gcode::BlockKind::Rapid {

@@ -6,6 +6,7 @@
 //! (never accumulated), so a block's start is bit-for-bit the previous block's end.
 
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use super::probe::ProbeLink;
@@ -35,6 +36,8 @@ pub enum ProducerError {
         mm: f64,
         steps: f64,
     },
+    #[error("cannot start the producer thread: {0}")]
+    Thread(std::io::Error),
 }
 
 /// What the producer did.
@@ -196,8 +199,9 @@ pub fn produce(
     config: &Config,
     buffer: &LoopBuffer,
     probe: &ProbeLink,
+    cancel: Arc<AtomicBool>,
 ) -> Result<ProducerReport, ProducerError> {
-    let result = produce_inner(program, config, buffer, probe);
+    let result = produce_inner(program, config, buffer, probe, cancel);
     buffer.close();
     result
 }
@@ -207,6 +211,7 @@ fn produce_inner(
     config: &Config,
     buffer: &LoopBuffer,
     probe: &ProbeLink,
+    cancel: Arc<AtomicBool>,
 ) -> Result<ProducerReport, ProducerError> {
     let mut reader = gcode::open_program_as(
         &program.path,
@@ -215,6 +220,8 @@ fn produce_inner(
         gcode::ProgramOptions::from_config(config),
         |f| f,
     )?;
+    // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
+    reader.cancel_on(cancel);
     let mut pre = Preprocessor::new(PlanSettings::from_config(config));
     let started = Instant::now();
     let mut out = Pusher {
@@ -226,7 +233,14 @@ fn produce_inner(
     };
     let mut probes = 0;
     while let Some(item) = reader.next() {
-        let block = item?;
+        let block = match item {
+            Ok(block) => block,
+            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
+                out.report.aborted = true;
+                break;
+            }
+            Err(e) => return Err(e.into()),
+        };
         let probing = matches!(block.kind, BlockKind::Probe(_));
         pre.push_block(Arc::new(block), |s| out.push(s));
         if probing && !out.report.aborted && out.failed.is_none() {

@@ -19,6 +19,7 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use sha2::{Digest, Sha256};
@@ -56,7 +57,8 @@ pub struct Progress {
     phase: AtomicU8,
     done: AtomicU64,
     total: AtomicU64,
-    cancel: AtomicBool,
+    /// Shared with the program reader of the check, which looks at it on every line.
+    cancel: Arc<AtomicBool>,
 }
 
 /// The phases of a check.
@@ -114,6 +116,11 @@ impl Progress {
 
     pub fn cancelled(&self) -> bool {
         self.cancel.load(Ordering::Relaxed)
+    }
+
+    /// The cancel flag, for a program reader to look at ([`crate::gcode::BlockReader::cancel_on`]).
+    pub fn cancel_flag(&self) -> Arc<AtomicBool> {
+        self.cancel.clone()
     }
 }
 

@@ -16,7 +16,11 @@
 //! ([`super::super::expr::Params`]). `M98 P<n> L<k>` runs the subprogram `O<n>` (up to its
 //! `M99`) k times in the caller's scope, as Fanuc does.
 //!
-//! Guards: a loop that runs more than `max_loop_iterations` times is an error naming it, and
+//! Guards: the whole program runs at most `max_loop_iterations` loop iterations and
+//! subroutine calls **in all** (each run of a loop's body, each `call`, each run of an
+//! `M98 … L` subprogram counts one), so nested loops multiply into the budget instead of
+//! each passing its own limit (two nested `repeat [1000000]` would be 10^12 runs); a
+//! `repeat` or `M98 L` asking for more than the whole budget is refused before its first run;
 //! calls nest at most [`MAX_CALL_DEPTH`] deep (a recursion that never ends). Because the flow
 //! depends only on the program's text and its parameters, replaying a program from its start
 //! reaches the same line in the same loop iteration and call: that is how a checkpoint inside
@@ -116,6 +120,8 @@ pub(super) struct Flow {
     pub(super) skip: Option<Skip>,
     /// A `while` loop going round: its label and iterations so far.
     reenter: Option<(Label, u64)>,
+    /// Loop iterations and calls run so far, against `max_loop_iterations`.
+    spent: u64,
 }
 
 impl Flow {
@@ -240,11 +246,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// Values of `[…]` arguments after the keyword, as many as there are.
     fn arguments(&self, text: &str, o: &OWord) -> Step<Vec<f64>> {
-        let mut sc = Scanner {
-            s: text,
-            pos: o.rest,
-            col: o.rest_col,
-        };
+        let mut sc = Scanner::at(text, o.rest, o.rest_col);
         let env = self.env();
         let mut args = Vec::new();
         loop {
@@ -291,17 +293,35 @@ impl<R: BufRead + Seek> BlockReader<R> {
         Ok(self.one_argument(text, o, true)? != Some(0.0))
     }
 
-    /// A loop's body is about to run for the `runs`-th time.
-    fn count_iteration(&self, label: &Label, runs: u64, line: u64) -> Step<()> {
-        if runs > self.options.max_loop_iterations {
+    /// One more run of a loop's body or of a subroutine (`what` names it for the error):
+    /// spent from the program's budget.
+    fn spend(&mut self, what: impl FnOnce() -> String) -> Step<()> {
+        self.flow.spent += 1;
+        if self.flow.spent > self.options.max_loop_iterations {
             return Err(Fail {
                 col: 1,
-                kind: GcodeErrorKind::LoopLimit {
-                    label: format!("the loop {label} at line {line}"),
+                kind: GcodeErrorKind::FlowBudget {
+                    at: what(),
                     limit: self.options.max_loop_iterations,
                 },
                 at: None,
             });
+        }
+        Ok(())
+    }
+
+    /// A count asked for up front (`repeat [n]`, `M98 L<n>`) that alone exceeds the budget.
+    fn count_fits(&self, what: impl FnOnce() -> String, runs: u64, col: usize) -> Step<()> {
+        if runs > self.options.max_loop_iterations {
+            return Err((
+                col,
+                GcodeErrorKind::LoopLimit {
+                    label: what(),
+                    runs,
+                    limit: self.options.max_loop_iterations,
+                },
+            )
+                .into());
         }
         Ok(())
     }
@@ -355,6 +375,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     )?,
                 };
                 self.check_depth(o.col)?;
+                let line = self.line_no;
+                self.spend(|| format!("the call of {label} at line {line}"))?;
                 let saved = Box::new(self.params.enter(&args));
                 self.push_frame(CallKind::OWord { label, saved });
                 self.seek(body)?;
@@ -388,11 +410,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     let top = self.flow.loops.last_mut().expect("checked above");
                     if truth {
                         top.iterations += 1;
-                        let (iterations, line) = (top.iterations, top.line);
+                        let line = top.line;
                         let LoopKind::Do { body } = top.kind else {
                             unreachable!("checked above")
                         };
-                        self.count_iteration(&label, iterations + 1, line)?;
+                        self.spend(|| format!("the loop {label} at line {line}"))?;
                         self.seek(body)?;
                     } else {
                         self.flow.loops.pop();
@@ -404,7 +426,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     _ => 0,
                 };
                 if truth {
-                    self.count_iteration(&label, iterations + 1, self.line_no)?;
+                    let line = self.line_no;
+                    self.spend(|| format!("the loop {label} at line {line}"))?;
                     let at = Pos {
                         offset: self.line_start,
                         line: self.line_no,
@@ -420,6 +443,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 }
             }
             Keyword::Do => {
+                let line = self.line_no;
+                self.spend(|| format!("the loop {label} at line {line}"))?;
                 let body = self.lines.position();
                 self.flow.loops.push(Loop {
                     label,
@@ -433,7 +458,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 if n < 1.0 {
                     self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
                 } else {
-                    self.count_iteration(&label, n as u64, self.line_no)?;
+                    let line = self.line_no;
+                    let what = || format!("the loop {label} at line {line}");
+                    self.count_fits(what, n as u64, o.rest_col + 1)?;
+                    self.spend(what)?;
                     let body = self.lines.position();
                     self.flow.loops.push(Loop {
                         label,
@@ -467,6 +495,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                                 body,
                                 remaining: remaining - 1,
                             };
+                            let line = top.line;
+                            self.spend(|| format!("the loop {label} at line {line}"))?;
                             self.seek(body)?;
                         } else {
                             self.flow.loops.pop();
@@ -540,11 +570,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.seek(frame.return_to)
     }
 
-    /// `M98 P<number> L<count>`.
-    pub(super) fn call_fanuc(&mut self, number: u32, count: u64, col: usize) -> Step<()> {
+    /// `M98 P<number> L<count>` at column `col`, the count at `count_col`.
+    pub(super) fn call_fanuc(
+        &mut self,
+        number: u32,
+        count: u64,
+        col: usize,
+        count_col: usize,
+    ) -> Step<()> {
         if count == 0 {
             return Ok(());
         }
+        let line = self.line_no;
+        let what = || format!("M98 P{number} at line {line}");
+        self.count_fits(what, count, count_col)?;
+        self.spend(what)?;
         let body = match self.flow.fanuc_subs.get(&number) {
             Some(&p) => p,
             None => self.find_ahead(
@@ -573,6 +613,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 if *remaining > 0 {
                     *remaining -= 1;
                     let body = *body;
+                    let line = self.flow.frames.last().map_or(0, |f| f.call_line);
+                    self.spend(|| format!("the M98 at line {line}"))?;
                     return self.seek(body);
                 }
                 self.return_from_call()
@@ -617,19 +659,23 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let line_no = self.line_no;
         let io = |e| Fail::from((col, GcodeErrorKind::Io(e)));
         let result = loop {
-            let Some((_, line)) = self.lines.next_line().map_err(io)? else {
+            self.cancelled()?;
+            let start = self.lines.position().offset;
+            let Some((line_no, line)) = self.lines.next_line().map_err(io)? else {
                 break None;
             };
             let Line::Text(text) = line else { continue };
+            let text = text.to_string();
+            self.note_structure(start, line_no, &text)?;
             if let Some(OWord {
                 label,
                 keyword: Keyword::Sub,
                 ..
-            }) = oword_of(text)
+            }) = oword_of(&text)
             {
                 let body = self.lines.position();
                 self.flow.subs.entry(label).or_insert(body);
-            } else if let Some(n) = program_number_of(text) {
+            } else if let Some(n) = program_number_of(&text) {
                 let body = self.lines.position();
                 self.flow.fanuc_subs.entry(n).or_insert(body);
             }

@@ -13,15 +13,17 @@ mod comp;
 mod control;
 mod modal;
 mod nurbs;
+mod structure;
 
 use std::collections::VecDeque;
 use std::io::{BufRead, Seek};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
 use super::expr::{Env, ParamRef, Params};
-use super::lexer::{Assign, Word, lex, program_number_of};
-use super::lines::{Line, LineSource, MAX_LINE_BYTES};
+use super::lexer::{Assign, Word, lex, oword_of, program_number_of};
+use super::lines::{Line, LineSource, MAX_LINE_BYTES, Pos};
 use super::{Block, Plane, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
@@ -29,6 +31,7 @@ use comp::Compensator;
 use control::Flow;
 use modal::Modal;
 use nurbs::PendingCurve;
+use structure::Structure;
 
 pub use arc::ARC_RADIUS_TOLERANCE_MM;
 pub use control::MAX_CALL_DEPTH;
@@ -93,6 +96,10 @@ pub struct BlockReader<R> {
     options: ProgramOptions,
     params: Params,
     flow: Flow,
+    /// The O-word structure of the text, checked once per line in file order.
+    structure: Structure,
+    /// The first line not yet shown to `structure`.
+    scanned: Pos,
     assigns: Vec<Assign>,
     /// G92 offset, mm: machine position = program position + offset.
     offset: Point,
@@ -124,6 +131,8 @@ pub struct BlockReader<R> {
     words: Vec<Word>,
     saw_content: bool,
     ended_at: Option<u64>,
+    /// Set by another thread to make the reader give up at its next line.
+    cancel: Option<Arc<AtomicBool>>,
     /// The line of the `%` that closed the program (a tape mark after its first block).
     closed_at: Option<u64>,
     /// A block was read (a `%` alone is not one).
@@ -155,6 +164,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             options,
             params: Params::default(),
             flow: Flow::default(),
+            structure: Structure::default(),
+            scanned: Pos { offset: 0, line: 1 },
             assigns: Vec::new(),
             offset: Point::zeros(),
             saved_offset: None,
@@ -182,9 +193,26 @@ impl<R: BufRead + Seek> BlockReader<R> {
             words: Vec::new(),
             saw_content: false,
             ended_at: None,
+            cancel: None,
             closed_at: None,
             saw_block: false,
             done: false,
+        }
+    }
+
+    /// Makes the reader give up, with [`GcodeErrorKind::Cancelled`], at the first line it
+    /// reads after `flag` is set: however long the program runs between blocks (loops that
+    /// move nothing), a cancel is seen within one line.
+    pub fn cancel_on(&mut self, flag: Arc<AtomicBool>) {
+        self.cancel = Some(flag);
+    }
+
+    fn cancelled(&self) -> Step<()> {
+        match &self.cancel {
+            Some(flag) if flag.load(Ordering::Relaxed) => {
+                Err((1, GcodeErrorKind::Cancelled).into())
+            }
+            _ => Ok(()),
         }
     }
 
@@ -249,6 +277,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             if self.done {
                 return Ok(None);
             }
+            if let Err(fail) = self.cancelled() {
+                return Err(self.error(self.line_no, "", fail));
+            }
             self.line_start = self.lines.position().offset;
             let next = self.lines.next_line().map_err(|e| GcodeError {
                 source_name: self.source_name.clone(),
@@ -302,6 +333,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     }
                 }
             };
+            if let Err(fail) = self.note_structure(self.line_start, line_no, &text) {
+                return Err(self.error(line_no, &text, fail));
+            }
             if let Some(col) = latin1_at {
                 self.line_no = line_no;
                 self.warn_once_about(
@@ -346,6 +380,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         if let Err(e) = self.comp.finish(&mut self.queue) {
             return Err(self.comp_error(e));
+        }
+        if let Err(fail) = self.scan_to_the_end() {
+            return Err(self.error(0, "", fail));
+        }
+        if let Some((line, message)) = self.structure.unclosed() {
+            let fail = Fail {
+                col: 1,
+                kind: GcodeErrorKind::Control(message),
+                at: Some((line, String::new())),
+            };
+            return Err(self.error(0, "", fail));
         }
         if self.ended_at.is_none()
             && let Some(fail) = self.unclosed()
@@ -464,6 +509,56 @@ impl<R: BufRead + Seek> BlockReader<R> {
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
+    /// Shows `text`, line `line_no` starting at byte `start`, to the structure check if the
+    /// reader meets it for the first time (loops and calls read lines again; the check sees
+    /// each line once, in file order).
+    fn note_structure(&mut self, start: u64, line_no: u64, text: &str) -> Step<()> {
+        if start < self.scanned.offset {
+            return Ok(());
+        }
+        self.scanned = self.lines.position();
+        if self.options.block_delete && text.trim_start().starts_with('/') {
+            return Ok(());
+        }
+        match oword_of(text) {
+            Some(o) => self
+                .structure
+                .note(&o, line_no)
+                .map_err(|(col, message)| Fail {
+                    col,
+                    kind: GcodeErrorKind::Control(message),
+                    at: Some((line_no, text.to_string())),
+                }),
+            None => Ok(()),
+        }
+    }
+
+    /// After the program's end (`M2`/`M30`), the lines the flow never reached are still part
+    /// of the program's text (subroutines live there): their structure is checked up to the
+    /// end of the file or a closing `%`.
+    fn scan_to_the_end(&mut self) -> Step<()> {
+        if self.closed_at.is_some() {
+            return Ok(());
+        }
+        let io = |e| Fail::from((1, GcodeErrorKind::Io(e)));
+        if self.lines.position().offset < self.scanned.offset {
+            self.lines.seek(self.scanned).map_err(io)?;
+        }
+        loop {
+            self.cancelled()?;
+            let start = self.lines.position().offset;
+            let Some((line_no, line)) = self.lines.next_line().map_err(io)? else {
+                return Ok(());
+            };
+            let Line::Text(text) = line else { continue };
+            if text.trim_start().starts_with('%') {
+                return Ok(());
+            }
+            let text = text.to_string();
+            self.note_structure(start, line_no, &text)?;
+        }
+    }
+
     /// A line after the program's end (M2/M30 or the closing `%`): ignored with a warning,
     /// and reading stops, as LinuxCNC and Fanuc do. Subprograms there are found by their calls.
     fn after_end(&mut self, line_no: u64, text: &str, col: usize) -> Step<Option<Block>> {
@@ -499,6 +594,69 @@ struct ReaderEnv<'a, R> {
 
 const SYSTEM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
 
+/// LinuxCNC's read-only numbered parameters: the tool's data (`#5400`…`#5413`) and the
+/// position (`#5420`…`#5428`).
+const READ_ONLY_NUMBERED: [std::ops::RangeInclusive<usize>; 2] = [5400..=5413, 5420..=5428];
+
+/// LinuxCNC's read-only named parameters (its `interp_namedparams.cc`), `_x`…`_w` and
+/// `_abs_x`…`_abs_w` aside: a program that assigns one is refused, as LinuxCNC refuses it,
+/// whether or not edmd gives it a value.
+const READ_ONLY_NAMED: [&str; 42] = [
+    "_vmajor",
+    "_vminor",
+    "_metric_machine",
+    "_line",
+    "_motion_mode",
+    "_plane",
+    "_ccomp",
+    "_metric",
+    "_imperial",
+    "_absolute",
+    "_incremental",
+    "_inverse_time",
+    "_units_per_minute",
+    "_units_per_rev",
+    "_coord_system",
+    "_tool_offset",
+    "_retract_r_plane",
+    "_retract_old_z",
+    "_spindle_rpm_mode",
+    "_spindle_css_mode",
+    "_ijk_absolute_mode",
+    "_lathe_diameter_mode",
+    "_lathe_radius_mode",
+    "_spindle_on",
+    "_spindle_cw",
+    "_mist",
+    "_flood",
+    "_speed_override",
+    "_feed_override",
+    "_adaptive_feed",
+    "_feed_hold",
+    "_feed",
+    "_rpm",
+    "_current_tool",
+    "_current_pocket",
+    "_selected_pocket",
+    "_selected_tool",
+    "_value",
+    "_value_returned",
+    "_task",
+    "_call_level",
+    "_remap_level",
+];
+
+/// `name` (lower case, no `#< >`) is one of LinuxCNC's read-only named parameters.
+fn read_only_name(name: &str) -> bool {
+    let axis = |s: &str| {
+        let mut c = s.chars();
+        matches!((c.next(), c.next()), (Some(a), None) if SYSTEM_AXES.contains(&a.to_ascii_uppercase()))
+    };
+    READ_ONLY_NAMED.contains(&name)
+        || name.strip_prefix("_abs_").is_some_and(axis)
+        || name.strip_prefix('_').is_some_and(axis)
+}
+
 impl<R> ReaderEnv<'_, R> {
     /// Position on the axis `letter` in program units and coordinates (0 if not on the machine).
     fn axis_position(&self, letter: char) -> f64 {
@@ -512,6 +670,13 @@ impl<R> ReaderEnv<'_, R> {
 }
 
 impl<R> Env for ReaderEnv<'_, R> {
+    fn read_only(&self, param: &ParamRef) -> bool {
+        match param {
+            ParamRef::Numbered(n) => READ_ONLY_NUMBERED.iter().any(|r| r.contains(n)),
+            ParamRef::Named(name) => read_only_name(name),
+        }
+    }
+
     fn numbered(&self, n: usize) -> f64 {
         match n {
             5420..=5428 => self.axis_position(SYSTEM_AXES[n - 5420]),
@@ -547,6 +712,18 @@ impl<R> Env for ReaderEnv<'_, R> {
 
 /// The word's value as a whole number in `[min, max]`.
 pub(super) fn whole(w: &Word, min: f64, max: f64) -> Step<f64> {
+    let what = match w.letter {
+        'O' => "degree O",
+        'P' | 'L' => "order",
+        'C' => "control point count C",
+        'N' => "line number N",
+        _ => "value",
+    };
+    whole_as(w, min, max, what)
+}
+
+/// [`whole`], the value named `what` in the error.
+pub(super) fn whole_as(w: &Word, min: f64, max: f64, what: &'static str) -> Step<f64> {
     if w.value.fract() != 0.0 {
         return Err((
             w.col,
@@ -561,13 +738,7 @@ pub(super) fn whole(w: &Word, min: f64, max: f64) -> Step<f64> {
         return Err((
             w.col,
             GcodeErrorKind::OutOfRange {
-                what: match w.letter {
-                    'O' => "degree O",
-                    'P' | 'L' => "order",
-                    'C' => "control point count C",
-                    'N' => "line number N",
-                    _ => "value",
-                },
+                what,
                 value: w.value,
                 min,
                 max,

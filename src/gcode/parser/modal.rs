@@ -7,7 +7,9 @@ use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, Motion, OffsetCode, Probing, classify_g, g_code_tenths};
 use super::nurbs::curve_letters;
-use super::{BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole};
+use super::{
+    BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole, whole_as,
+};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
@@ -64,7 +66,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Some(m) => {
                 let call = letters_p_l(letters, m)?;
                 kept = kept.without(&['P', 'L']);
-                Some((m.col, call))
+                // An error about the count points at L, any other at M98.
+                let count_col = letters.get('L').map_or(m.col, |l| l.col);
+                Some((m.col, count_col, call))
             }
             None => None,
         };
@@ -297,8 +301,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         if let Some(p) = pause {
             self.pending_pause = Some((line_no, p));
         }
-        if let Some((col, (number, count))) = m98 {
-            self.call_fanuc(number, count, col)?;
+        if let Some((col, count_col, (number, count))) = m98 {
+            self.call_fanuc(number, count, col, count_col)?;
         }
         if let Some(col) = m99 {
             self.return_fanuc(col)?;
@@ -660,9 +664,9 @@ fn letters_p_l(letters: &Letters, m: &Word) -> Step<(u32, u64)> {
         )
             .into());
     };
-    let number = whole(p, 0.0, 99_999_999.0)? as u32;
+    let number = whole_as(p, 0.0, 99_999_999.0, "M98's subprogram number P")? as u32;
     let count = match letters.get('L') {
-        Some(l) => whole(l, 0.0, 1e9)? as u64,
+        Some(l) => whole_as(l, 0.0, 1e9, "M98's repeat count L")? as u64,
         None => 1,
     };
     Ok((number, count))

@@ -27,6 +27,7 @@
 
 mod prim;
 
+use crate::vocab::Num;
 use std::collections::VecDeque;
 
 use crate::gcode::{Block, BlockKind, NurbsForm, Plane};
@@ -226,9 +227,10 @@ impl Compensator {
                 let r = radius - sd * sweep.signum();
                 if r <= self.tolerance {
                     return Err(format!(
-                        "the wire offset {} mm is not smaller than the arc's radius {radius} mm \
-                         on the inside of the turn: it cannot be cut",
-                        self.d
+                        "the wire offset {} mm is not smaller than the arc's radius {} mm on \
+                         the inside of the turn: it cannot be cut",
+                        Num(self.d),
+                        Num(*radius)
                     ));
                 }
                 vec![Prim::Arc {
@@ -268,10 +270,10 @@ impl Compensator {
             let k = cross(t, (d.d2[ix], d.d2[iy])) / (speed * speed * speed);
             if self.side * k > 0.0 && 1.0 / k.abs() < self.d {
                 return Err(format!(
-                    "the curve turns tighter (radius {:.4} mm) than the wire offset {} mm on its \
+                    "the curve turns tighter (radius {} mm) than the wire offset {} mm on its \
                      inner side: it cannot be cut",
-                    1.0 / k.abs(),
-                    self.d
+                    Num(1.0 / k.abs()),
+                    Num(self.d)
                 ));
             }
             let n = left(scale(t, 1.0 / speed));

@@ -248,7 +248,8 @@ pub(super) fn join_prims(
         }
     }
     Err(format!(
-        "the wire offset of {d} mm cuts into the part at this corner (the offset paths do not \
-         meet): the offset is larger than the contour allows"
+        "the wire offset of {} mm cuts into the part at this corner (the offset paths do not \
+         meet): the offset is larger than the contour allows",
+        crate::vocab::Num(d)
     ))
 }
