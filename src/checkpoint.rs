@@ -11,12 +11,20 @@
 //!
 //! **Atomic write**: the JSON goes to `FILE.tmp`, is flushed to disk, renamed over `FILE` and
 //! the directory is synced, so a power cut leaves either the old or the new checkpoint, never
-//! a torn one.
+//! a torn one; a write that fails removes its temporary file.
 //!
 //! **Still or moving**: checkpoints written at a standstill (hold, stop, abort, alarm, end of a
 //! failed job) are exact. The periodic ones written while cutting lag the electrode by up to
 //! a status period; after a crash the electrode is somewhere past them, so resuming from one
 //! needs the operator's `--force`.
+//!
+//! **Write-ahead**: a standstill's checkpoint stays true only while the electrode stands, so
+//! the daemon replaces it with a moving one ([`Reason::Moving`]), synced, *before* motion
+//! leaves the standstill (a job's first step, a hold's release, a rethread), and does not
+//! start the motion if that write fails. Whatever kills the daemon, the file on disk is either
+//! exact (still) or says it is not (moving): a resume either continues from where the machine
+//! is or asks for `--force`. A `G4` dwell stopped part-way keeps its remaining time
+//! ([`Checkpoint::dwell_s`]).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -45,6 +53,9 @@ pub enum Reason {
     Error,
     /// Written while cutting, every `daemon.checkpoint_interval_s`.
     Periodic,
+    /// Written just before motion left a standstill (a job's start, a hold's release, a
+    /// rethread), replacing the standstill's checkpoint: the electrode is past it from then on.
+    Moving,
 }
 
 impl Reason {
@@ -56,6 +67,7 @@ impl Reason {
             Reason::Alarm => "alarm",
             Reason::Error => "error",
             Reason::Periodic => "periodic",
+            Reason::Moving => "moving",
         }
     }
 }
@@ -87,6 +99,10 @@ pub struct Checkpoint {
     pub segment_steps: i64,
     /// Curve parameter at the end of the segment (NURBS blocks only).
     pub parameter: Option<f64>,
+    /// Seconds of a `G4` dwell still owed at the point: the resumed job dwells them before
+    /// it moves on (absent: none).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dwell_s: f64,
     pub axes: Vec<String>,
     /// The pulse ledger (steps from the job's start), per axis.
     pub position_steps: Vec<i64>,
@@ -136,17 +152,20 @@ pub enum CheckpointError {
 impl Checkpoint {
     /// Writes the checkpoint atomically (temporary file, fsync, rename, directory fsync).
     pub fn write_atomic(&self, path: &Path) -> std::io::Result<()> {
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = PathBuf::from(tmp);
+        let tmp = temporary_path(path);
         let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
-        {
+        let written = (|| {
             let mut file = std::fs::File::create(&tmp)?;
             file.write_all(json.as_bytes())?;
             file.write_all(b"\n")?;
             file.sync_all()?;
+            std::fs::rename(&tmp, path)
+        })();
+        if let Err(e) = written {
+            // A full disk leaves a short temporary file: it is no checkpoint, remove it.
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e);
         }
-        std::fs::rename(&tmp, path)?;
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
@@ -157,6 +176,12 @@ impl Checkpoint {
             let _ = d.sync_all();
         }
         Ok(())
+    }
+
+    /// Removes a temporary file a write interrupted by a crash left beside `path`; `true`
+    /// if there was one.
+    pub fn remove_leftover(path: &Path) -> bool {
+        std::fs::remove_file(temporary_path(path)).is_ok()
     }
 
     /// Reads the checkpoint at `path`; `None` when there is none.
@@ -269,6 +294,17 @@ impl Checkpoint {
     }
 }
 
+/// Where a checkpoint is written before it is renamed over `path`.
+fn temporary_path(path: &Path) -> PathBuf {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    PathBuf::from(tmp)
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 fn hex(bytes: &[u8]) -> String {
     use std::fmt::Write;
     bytes.iter().fold(String::new(), |mut s, b| {
@@ -318,6 +354,7 @@ mod tests {
             step: 3,
             segment_steps: 9,
             parameter: Some(0.25),
+            dwell_s: 1.25,
             axes: vec!["X".into(), "Y".into()],
             position_steps: vec![100, -7],
             position_mm: vec![0.1, -0.007],
@@ -397,6 +434,35 @@ mod tests {
                 .contains("(interpolation.chord_tolerance_mm: 0.001 -> 0.002)"),
             "{err}"
         );
+    }
+
+    /// A full disk (the temporary file is `/dev/full`, through a symlink): the write fails
+    /// with the kernel's ENOSPC, the old checkpoint stays, no temporary file is left.
+    #[test]
+    fn a_write_on_a_full_disk_fails_cleanly() {
+        let dir = scratch("full");
+        let program = dir.join("p.nc");
+        std::fs::write(&program, "G1 X1 F60\n").unwrap();
+        let config = Config::default();
+        let path = dir.join("checkpoint.json");
+        let old = sample(program.clone(), &config);
+        old.write_atomic(&path).unwrap();
+        let tmp = dir.join("checkpoint.json.tmp");
+        std::os::unix::fs::symlink("/dev/full", &tmp).unwrap();
+        let mut new = old.clone();
+        new.still = false;
+        new.reason = Reason::Moving;
+        let err = new.write_atomic(&path).unwrap_err();
+        assert_eq!(err.raw_os_error(), Some(libc::ENOSPC), "{err}");
+        assert!(
+            std::fs::symlink_metadata(&tmp).is_err(),
+            "the temporary file is gone"
+        );
+        assert_eq!(Checkpoint::load(&path).unwrap().unwrap(), old);
+        // A leftover of a crash mid-write is found and removed at startup.
+        std::fs::write(&tmp, "").unwrap();
+        assert!(Checkpoint::remove_leftover(&path));
+        assert!(!Checkpoint::remove_leftover(&path));
     }
 
     #[test]

@@ -597,6 +597,8 @@ fn fault_then_resume(
     let point = runtime::ResumePoint {
         here: first.stopped_at.here,
         position: first.summary.end_steps.clone(),
+        dwell_s: 0.0,
+        line: first.stopped_at.line,
     };
     let second = job(Box::new(edmd::output::NullOutput), Some(point));
     (first.summary, second.summary)

@@ -580,6 +580,7 @@ fn write_run_checkpoint(
         step: at.step,
         segment_steps: at.segment_steps,
         parameter: at.parameter,
+        dwell_s: at.dwell_s,
         axes: cfg.machine.axis_names(),
         position_steps: summary.end_steps.clone(),
         position_mm: summary.end_mm.clone(),

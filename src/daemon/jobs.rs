@@ -223,26 +223,78 @@ impl Core {
             io.recording = Some(recording.clone());
             (dir.join(format!("{}-{stem}", unix_now())), recording)
         });
+        // The report's folder is made now: a job must not learn at its end that its report
+        // has nowhere to go.
+        if let Some((dir, _)) = &report
+            && let Err(e) = std::fs::create_dir_all(dir)
+        {
+            self.give_back_io(&config, io);
+            return Err(format!(
+                "daemon.report_dir: cannot make {}: {e}; the job does not start without its \
+                 report",
+                dir.display()
+            ));
+        }
         let resumed = resume.is_some();
+        let published = Arc::new(Published::new(4096));
+        let stop = Arc::new(AtomicBool::new(false));
+        let job = Job {
+            program: PathBuf::from(&program.name),
+            program_sha256: program.sha256.clone(),
+            published: published.clone(),
+            stop: stop.clone(),
+            stop_reason: None,
+            started: Instant::now(),
+            resumed,
+            hold_checkpointed: false,
+            last_checkpoint: Instant::now(),
+            overruns_seen: 0,
+            last_overrun_report: Instant::now(),
+            config: config.clone(),
+            report,
+            motion_settings: checkpoint::motion_settings(&self.keys),
+            progress: runtime::ProgressTracker::with_rapids(path_total_mm, rapid_spans, rapid_feed),
+            resumed_from: if resumed {
+                self.checkpoint.clone()
+            } else {
+                None
+            },
+        };
+        // Write-ahead: before the first step the checkpoint on disk says this job is moving,
+        // from where it starts; a job that cannot record that does not start.
+        let old = self.checkpoint.clone();
+        let mut at = Snapshot {
+            still: false,
+            ..Snapshot::default()
+        };
+        if let Some(r) = &resume {
+            at.here = r.here;
+            at.line = r.line;
+            at.dwell_left = (r.dwell_s / config.fine.tick.secs()).round() as u64;
+            for (p, s) in at.position.iter_mut().zip(&r.position) {
+                *p = *s;
+            }
+        }
+        if let Err(e) = self.write_checkpoint(&job, &at, Reason::Moving, false) {
+            self.give_back_io(&config, io);
+            return Err(format!(
+                "{e}: the job does not start without its checkpoint"
+            ));
+        }
         // A new job replaces the checkpoint of an old one, and only now that it really starts.
         let mut message = String::new();
-        if !resumed && let Some(old) = self.checkpoint.take() {
+        if !resumed && let Some(old) = old {
             tracing::warn!(
-                "checkpoint of {} (line {}) discarded: a new job starts",
+                "checkpoint of {} (line {}) replaced: a new job starts",
                 old.program.display(),
                 old.line
             );
-            if let Err(e) = Checkpoint::remove(&self.config.daemon.checkpoint) {
-                tracing::error!("{}: {e}", self.config.daemon.checkpoint.display());
-            }
             message = format!(
                 "; the checkpoint of {} was discarded",
                 old.program.display()
             );
         }
         self.prune_copies(Some(&program.sha256));
-        let published = Arc::new(Published::new(4096));
-        let stop = Arc::new(AtomicBool::new(false));
         let (fine, tx) = (self.fine.clone(), self.to_core.clone());
         let (job_published, job_stop, job_config, job_program) = (
             published.clone(),
@@ -278,24 +330,18 @@ impl Core {
         } else {
             format!("running {}: {blocks} blocks{message}", program.name)
         };
-        self.job = Some(Job {
-            program: PathBuf::from(&program.name),
-            program_sha256: program.sha256,
-            published,
-            stop,
-            stop_reason: None,
-            started: Instant::now(),
-            resumed,
-            hold_checkpointed: false,
-            last_checkpoint: Instant::now(),
-            overruns_seen: 0,
-            last_overrun_report: Instant::now(),
-            config,
-            report,
-            motion_settings: checkpoint::motion_settings(&self.keys),
-            progress: runtime::ProgressTracker::with_rapids(path_total_mm, rapid_spans, rapid_feed),
-        });
+        self.job = Some(job);
         Ok(text)
+    }
+
+    /// A job that does not start after all hands the claimed parallel port back.
+    fn give_back_io(&mut self, config: &Config, io: JobIo) {
+        if config.output.kind == OutputKind::Parport {
+            self.port_output = Some(io.output);
+        }
+        if config.gap.kind == GapKind::Parport {
+            self.port_gap = Some(io.gap);
+        }
     }
 
     /// Removes the program copies no job or checkpoint needs (and half-written ones).
@@ -393,26 +439,10 @@ impl Core {
     }
 
     pub(super) fn resume(&mut self, force: bool) -> Result<String, String> {
-        if let Some(job) = &mut self.job {
-            if job.stop.load(Ordering::Relaxed) {
-                return Err("the job is stopping".to_string());
-            }
-            let state = job.published.snapshot().state;
-            if state == ServoState::WireBroken {
-                return Err(
-                    "the wire is broken: `edmd ctl rethread` goes back to the start hole \
-                            for threading (`--here`: thread where it broke), then `resume`"
-                        .to_string(),
-                );
-            }
-            if !job.published.hold.swap(false, Ordering::Release) {
-                return Err("the job is not held".to_string());
-            }
-            job.hold_checkpointed = false;
-            job.published.paused_line.store(0, Ordering::Relaxed);
-            job.report_event("released");
-            tracing::info!("resume: {} released", job.program.display());
-            return Ok("resumed".to_string());
+        if let Some(mut job) = self.job.take() {
+            let released = self.release(&mut job);
+            self.job = Some(job);
+            return released;
         }
         self.refuse_if_busy()?;
         let Some(cp) = self.checkpoint.clone() else {
@@ -439,6 +469,8 @@ impl Core {
                 event: cp.step,
             },
             position: cp.position_steps.clone(),
+            dwell_s: cp.dwell_s,
+            line: cp.line,
         };
         // The private copy the checkpoint's job ran, if it is still there: the very bytes,
         // whatever became of the original. Otherwise the original, copied again and held to
@@ -470,21 +502,61 @@ impl Core {
         ))
     }
 
-    /// After a wire break: back to the start hole along the path (or threading in place);
-    /// `resume` then returns to the break point.
-    pub(super) fn rethread(&mut self, here: bool) -> Result<String, String> {
-        let Some(job) = &mut self.job else {
-            return Err("no job is running".to_string());
-        };
+    /// `resume` of a held job: the checkpoint becomes a moving one first (write-ahead), then
+    /// the hold is released.
+    fn release(&mut self, job: &mut Job) -> Result<String, String> {
         if job.stop.load(Ordering::Relaxed) {
             return Err("the job is stopping".to_string());
         }
-        let state = job.published.snapshot().state;
-        if state != ServoState::WireBroken {
+        let snap = job.published.snapshot();
+        if snap.state == ServoState::WireBroken {
+            return Err(
+                "the wire is broken: `edmd ctl rethread` goes back to the start hole for \
+                 threading (`--here`: thread where it broke), then `resume`"
+                    .to_string(),
+            );
+        }
+        if !job.published.hold.load(Ordering::Acquire) {
+            return Err("the job is not held".to_string());
+        }
+        self.write_checkpoint(job, &snap, Reason::Moving, false)
+            .map_err(|e| format!("{e}: the job stays held"))?;
+        job.published.hold.store(false, Ordering::Release);
+        job.hold_checkpointed = false;
+        job.last_checkpoint = Instant::now();
+        job.published.paused_line.store(0, Ordering::Relaxed);
+        job.report_event("released");
+        tracing::info!("resume: {} released", job.program.display());
+        Ok("resumed".to_string())
+    }
+
+    /// After a wire break: back to the start hole along the path (or threading in place);
+    /// `resume` then returns to the break point.
+    pub(super) fn rethread(&mut self, here: bool) -> Result<String, String> {
+        let Some(mut job) = self.job.take() else {
+            return Err("no job is running".to_string());
+        };
+        let result = self.rethread_job(&mut job, here);
+        self.job = Some(job);
+        result
+    }
+
+    fn rethread_job(&mut self, job: &mut Job, here: bool) -> Result<String, String> {
+        if job.stop.load(Ordering::Relaxed) {
+            return Err("the job is stopping".to_string());
+        }
+        let snap = job.published.snapshot();
+        if snap.state != ServoState::WireBroken {
             return Err(format!(
                 "the wire is not broken (the servo is {}): nothing to rethread",
-                state.name()
+                snap.state.name()
             ));
+        }
+        if !here {
+            // The way back to the start hole leaves the standstill: write-ahead.
+            self.write_checkpoint(job, &snap, Reason::Moving, false)
+                .map_err(|e| format!("{e}: the wire stays where it broke"))?;
+            job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
             (
@@ -594,7 +666,9 @@ impl Core {
                 for (p, s) in at.position.iter_mut().zip(&summary.end_steps) {
                     *p = *s;
                 }
-                self.write_checkpoint(&job, &at, reason, true);
+                // A failure is logged and in the status; the file on disk stays the moving
+                // one written when motion started, which a resume refuses without --force.
+                let _ = self.write_checkpoint(&job, &at, reason, true);
             }
             None if summary.outcome == Outcome::Done => {
                 if let Err(e) = Checkpoint::remove(&checkpoint_path) {
@@ -602,7 +676,23 @@ impl Core {
                 }
                 self.checkpoint = None;
             }
-            None => {}
+            None => {
+                // A refused resume moved nothing: the checkpoint it started from is true
+                // again, as it was.
+                if let Some(cp) = &job.resumed_from {
+                    match cp.write_atomic(&checkpoint_path) {
+                        Ok(()) => self.checkpoint = Some(cp.clone()),
+                        Err(e) => {
+                            let error = format!(
+                                "{}: cannot put the checkpoint back: {e}",
+                                checkpoint_path.display()
+                            );
+                            tracing::error!("{error}");
+                            self.checkpoint_write_error = Some(error);
+                        }
+                    }
+                }
+            }
         }
         if let Some((dir, recording)) = &job.report {
             match crate::report::write_report(dir, &mut recording.lock(), &summary) {
@@ -615,13 +705,16 @@ impl Core {
         self.notify_status();
     }
 
+    /// Writes the checkpoint of `job` at `at`. A failure is logged (once per run of equal
+    /// failures), shown in the status (`checkpoint_write_error`) and returned: the caller
+    /// decides whether motion may go on.
     pub(super) fn write_checkpoint(
         &mut self,
         job: &Job,
         at: &Snapshot,
         reason: Reason,
         still: bool,
-    ) {
+    ) -> Result<(), String> {
         let machine = &job.config.machine;
         let axes = machine.axes.len();
         let cp = Checkpoint {
@@ -637,6 +730,7 @@ impl Core {
             step: at.here.event,
             segment_steps: at.events,
             parameter: at.u_end.is_finite().then_some(at.u_end),
+            dwell_s: job.config.fine.tick.ticks_to_secs(at.dwell_left),
             axes: machine.axis_names(),
             position_steps: at.position[..axes].to_vec(),
             position_mm: mm(&at.position[..axes], &machine.step_mm),
@@ -663,8 +757,24 @@ impl Core {
                 }
                 self.checkpoint = Some(cp);
                 self.checkpoint_error = None;
+                self.checkpoint_write_error = None;
+                Ok(())
             }
-            Err(e) => tracing::error!("{}: cannot write the checkpoint: {e}", path.display()),
+            Err(e) => {
+                let error = format!(
+                    "{}: cannot write the checkpoint ({}): {e}",
+                    path.display(),
+                    reason.name()
+                );
+                if self.checkpoint_write_error.as_ref() != Some(&error) {
+                    tracing::error!(edmd_event = "checkpoint_failed", "{error}");
+                } else {
+                    tracing::debug!("{error}");
+                }
+                self.finished.checkpoint_failures += 1;
+                self.checkpoint_write_error = Some(error.clone());
+                Err(error)
+            }
         }
     }
 }

@@ -129,6 +129,9 @@ struct Job {
     report: Option<(PathBuf, Arc<parking_lot::Mutex<crate::record::Recording>>)>,
     /// The job's path-shaping settings (`machine.*`, `interpolation.*`) for its checkpoints.
     motion_settings: crate::config::KeyValues,
+    /// A resumed job's checkpoint as it was before the write-ahead replaced it: put back if
+    /// the resume is refused before anything moved.
+    resumed_from: Option<Checkpoint>,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -153,6 +156,8 @@ struct Core {
     checkpoint: Option<Checkpoint>,
     /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
     checkpoint_error: Option<String>,
+    /// Why the last checkpoint write failed (cleared by the next one that succeeds).
+    checkpoint_write_error: Option<String>,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
     last_status_line: Instant,
@@ -170,6 +175,12 @@ pub fn serve(
     set_log_level: SetLogLevel,
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
+    if Checkpoint::remove_leftover(&config.daemon.checkpoint) {
+        tracing::warn!(
+            "{}: removed the temporary file of a checkpoint write that did not finish",
+            config.daemon.checkpoint.display()
+        );
+    }
     let (checkpoint, checkpoint_error) = match Checkpoint::load(&config.daemon.checkpoint) {
         Ok(c) => (c, None),
         Err(e) => {
@@ -251,6 +262,7 @@ pub fn serve(
         finished: protocol::Counters::default(),
         checkpoint,
         checkpoint_error,
+        checkpoint_write_error: None,
         notifier,
         watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
         last_status_line: Instant::now(),
@@ -463,8 +475,12 @@ impl Core {
                 && job.published.output_synced.load(Ordering::Acquire)
                 && !stopping
                 && !job.hold_checkpointed
+                && self
+                    .write_checkpoint(&job, &snap, Reason::Hold, true)
+                    .is_ok()
             {
-                self.write_checkpoint(&job, &snap, Reason::Hold, true);
+                // A failed write is tried again on the next round (the disk may free up); the
+                // moving checkpoint on disk meanwhile says what it should.
                 job.hold_checkpointed = true;
                 job.last_checkpoint = now;
                 tracing::info!(
@@ -480,7 +496,7 @@ impl Core {
                 && !snap.state.is_final()
                 && now.duration_since(job.last_checkpoint).as_secs_f64() >= interval
             {
-                self.write_checkpoint(&job, &snap, Reason::Periodic, false);
+                let _ = self.write_checkpoint(&job, &snap, Reason::Periodic, false);
                 job.last_checkpoint = now;
             }
             job.progress.track(snap.path_mm, now);

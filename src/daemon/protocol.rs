@@ -166,6 +166,9 @@ pub struct Status {
     /// The checkpoint on disk: what `resume` would continue.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointStatus>,
+    /// Why the last checkpoint write failed; absent once a write succeeds again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint_write_error: Option<String>,
     /// The check in progress, or the verdict of the last one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub check: Option<CheckStatus>,
@@ -193,6 +196,9 @@ pub struct Counters {
     pub wire_breaks: u64,
     pub probes: u64,
     pub ticks: u64,
+    /// Checkpoint writes that failed.
+    #[serde(default)]
+    pub checkpoint_failures: u64,
     /// Ticks by the gap state read: normal, open, short.
     pub gap_ticks: [u64; 3],
     /// Real time: wake-up latency counts per bucket of `runtime::consumer::LATENCY_BUCKETS_US`,
@@ -219,6 +225,7 @@ impl Counters {
             wire_breaks: self.wire_breaks + other.wire_breaks,
             probes: self.probes + other.probes,
             ticks: self.ticks + other.ticks,
+            checkpoint_failures: self.checkpoint_failures + other.checkpoint_failures,
             gap_ticks: std::array::from_fn(|i| self.gap_ticks[i] + other.gap_ticks[i]),
             latency_buckets: (0..n)
                 .map(|i| bucket(&self.latency_buckets, i) + bucket(&other.latency_buckets, i))

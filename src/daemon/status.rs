@@ -22,11 +22,8 @@ impl Core {
                     DaemonState::WireBreak
                 } else if snap.state == ServoState::Threading {
                     DaemonState::Threading
-                } else if snap.state == ServoState::Retreat
-                    && snap.excursion == Some(Excursion::Rethread)
-                {
-                    DaemonState::Rethreading
                 } else if job.published.hold.load(Ordering::Relaxed) {
+                    // An operator's hold during the way back to the start hole is a hold.
                     if snap.still && job.published.paused_line.load(Ordering::Relaxed) != 0 {
                         DaemonState::Paused
                     } else if snap.still {
@@ -34,6 +31,10 @@ impl Core {
                     } else {
                         DaemonState::Holding
                     }
+                } else if snap.state == ServoState::Retreat
+                    && snap.excursion == Some(Excursion::Rethread)
+                {
+                    DaemonState::Rethreading
                 } else {
                     DaemonState::Running
                 }
@@ -113,6 +114,7 @@ impl Core {
                 still: c.still,
                 position_steps: c.position_steps.clone(),
             }),
+            checkpoint_write_error: self.checkpoint_write_error.clone(),
             check: match &self.check {
                 Some(c) => {
                     let (phase, done, total) = c.progress.get();
@@ -174,6 +176,7 @@ pub(super) fn job_counters(p: &Published, snap: &Snapshot) -> Counters {
         wire_breaks: c.wire_breaks,
         probes: c.probes,
         ticks: load(&p.ticks),
+        checkpoint_failures: 0,
         gap_ticks: std::array::from_fn(|i| load(&p.gap_ticks[i])),
         latency_buckets: p.latency_buckets.iter().map(load).collect(),
         latency_sum_us: load(&p.latency_sum_ns) as f64 / 1000.0,

@@ -216,6 +216,17 @@ impl Interpolator {
         self.hold
     }
 
+    /// Ticks of a `G4` dwell still to wait where the electrode stands.
+    pub fn dwell_left(&self) -> u64 {
+        self.dwell_left
+    }
+
+    /// A resumed job (after [`Interpolator::skip_to`]) owes the rest of the dwell its first
+    /// run was in when it stopped: `ticks` more before it moves on.
+    pub fn resume_dwell(&mut self, ticks: u64) {
+        self.dwell_left = ticks;
+    }
+
     /// Held and at a standstill: nothing moves until the hold is released.
     pub fn still(&self) -> bool {
         self.speed == 0.0 && (self.hold || self.servo.state().is_final())

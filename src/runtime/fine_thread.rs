@@ -39,6 +39,10 @@ pub struct ResumePoint {
     pub here: PathPoint,
     /// Steps per configured axis.
     pub position: Vec<i64>,
+    /// Seconds of a `G4` dwell the first run still owed there.
+    pub dwell_s: f64,
+    /// The source line there (for the checkpoint a resumed job writes before it moves).
+    pub line: u64,
 }
 
 /// One job for the fine thread.
@@ -169,7 +173,9 @@ fn run(job: FineJob, rt_refused: &[String]) -> FineDone {
     // ticks yet, so waiting costs no deadline.
     let mut source = buffer.consumer(true);
     let skip = match &resume {
-        Some(point) => fine.skip_to(point.here, &point.position, &mut source),
+        Some(point) => fine
+            .skip_to(point.here, &point.position, &mut source)
+            .map(|()| fine.resume_dwell((point.dwell_s / settings.dt).round() as u64)),
         None => Ok(()),
     };
     source.set_wait_for_producer(loop_settings.virtual_time);

@@ -435,7 +435,14 @@ pub fn run_job_with(
         panic!("the fine interpolation thread panicked");
     };
 
-    let (counters, position) = summary::delivered(&fine, &report);
+    let (counters, mut position) = summary::delivered(&fine, &report);
+    if let (Err(_), Some(point)) = (&skip, &resume) {
+        // Nothing moved: the walk towards the checkpoint emits nothing, so the machine
+        // stands where the checkpoint says, whatever point the walk reached.
+        for (p, s) in position.iter_mut().zip(&point.position) {
+            *p = *s;
+        }
+    }
     let axes = config.machine.axes.len();
     let (outcome, error) = summary::outcome(&skip, &report, &finished, fine.state(), &producer);
     let producer = producer.unwrap_or_default();
@@ -496,6 +503,7 @@ pub fn run_job_with(
                 step: stopped_at.here.event,
                 segment_steps: stopped_at.events,
                 parameter: stopped_at.u_end.is_finite().then_some(stopped_at.u_end),
+                dwell_s: tick.ticks_to_secs(stopped_at.dwell_left),
                 program_sha256: program.sha256.clone(),
             }
         }),

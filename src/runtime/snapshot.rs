@@ -36,6 +36,8 @@ pub struct Snapshot {
     pub path_mm: f64,
     /// What a retreat or return is for (in those states).
     pub excursion: Option<Excursion>,
+    /// Ticks of a `G4` dwell still to wait here (a checkpoint keeps them).
+    pub dwell_left: u64,
 }
 
 impl Default for Snapshot {
@@ -55,11 +57,12 @@ impl Default for Snapshot {
             pulses: [0; MAX_AXES],
             path_mm: 0.0,
             excursion: None,
+            dwell_left: 0,
         }
     }
 }
 
-pub(super) const WORDS: usize = 2 + MAX_AXES + 6 + 6 + MAX_AXES + 4;
+pub(super) const WORDS: usize = 2 + MAX_AXES + 6 + 6 + MAX_AXES + 5;
 const STATES: [ServoState; 10] = [
     ServoState::Forward,
     ServoState::Hold,
@@ -104,6 +107,7 @@ impl Snapshot {
             path_mm,
             excursion: matches!(fine.state(), ServoState::Retreat | ServoState::Return)
                 .then(|| fine.excursion()),
+            dwell_left: fine.dwell_left(),
         }
     }
 
@@ -137,6 +141,7 @@ impl Snapshot {
             c.starvations,
             c.collisions,
         ]);
+        w[WORDS - 5] = self.dwell_left;
         w[WORDS - 4] = c.jumps;
         w[WORDS - 3] = c.wire_breaks;
         w[WORDS - 2] = c.probes;
@@ -178,6 +183,7 @@ impl Snapshot {
             },
             pulses: std::array::from_fn(|i| w[m + 12 + i]),
             path_mm: f64::from_bits(w[WORDS - 1]),
+            dwell_left: w[WORDS - 5],
         }
     }
 }

@@ -66,6 +66,9 @@ pub struct StopPoint {
     pub step: i64,
     pub segment_steps: i64,
     pub parameter: Option<f64>,
+    /// Seconds of a `G4` dwell still owed at the point (0 outside a dwell).
+    #[serde(default)]
+    pub dwell_s: f64,
     /// SHA-256 of the program's bytes the job ran.
     pub program_sha256: String,
 }

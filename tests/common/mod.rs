@@ -1,5 +1,7 @@
 //! Helpers shared by the integration tests.
 
+pub mod daemon;
+
 use std::path::PathBuf;
 
 /// The repository root (where `edmd` runs in the tests).

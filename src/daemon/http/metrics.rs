@@ -163,7 +163,7 @@ pub fn render(status: &Status) -> String {
         );
     }
     let c = &status.counters;
-    let counters: [(&str, &str, u64); 11] = [
+    let counters: [(&str, &str, u64); 12] = [
         ("jobs_total", "Jobs started.", c.jobs),
         ("shorts_total", "Short circuits.", c.shorts),
         (
@@ -195,6 +195,11 @@ pub fn render(status: &Status) -> String {
         ("jumps_total", "Sinker jumps.", c.jumps),
         ("wire_breaks_total", "Wire breaks.", c.wire_breaks),
         ("probes_total", "Probing moves finished.", c.probes),
+        (
+            "checkpoint_failures_total",
+            "Checkpoint writes that failed (motion waits for the write-ahead ones).",
+            c.checkpoint_failures,
+        ),
     ];
     for (name, help, value) in counters {
         o.one(name, "counter", help, value as f64);
@@ -249,6 +254,7 @@ mod tests {
             job: None,
             last_job: None,
             checkpoint: None,
+            checkpoint_write_error: None,
             check: None,
             rt_refused: Vec::new(),
             counters: Counters {
