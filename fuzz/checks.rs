@@ -15,7 +15,7 @@
 
 #![allow(dead_code)] // each fuzz target uses one of these
 
-use std::io::{BufReader, Cursor};
+use std::io::{BufRead, BufReader, Cursor, Read};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -117,7 +117,20 @@ pub fn config(data: &[u8]) {
 /// request; `run` paths confined to a program directory.
 pub fn protocol(data: &[u8]) {
     let mut reader = BufReader::new(Cursor::new(data));
-    while let Ok(Some(line)) = edmd::daemon::socket::read_request_line(&mut reader) {
+    let limit = edmd::daemon::protocol::MAX_REQUEST_BYTES as u64 + 1;
+    loop {
+        // As the daemon reads: at most the limit, up to a newline.
+        let mut bytes = Vec::new();
+        if (&mut reader)
+            .take(limit)
+            .read_until(b'\n', &mut bytes)
+            .is_err()
+        {
+            break;
+        }
+        let Some(line) = edmd::daemon::socket::request_line(bytes) else {
+            break;
+        };
         let Ok(line) = line else {
             continue; // not UTF-8 or too long: answered with an error, as the tests show
         };

@@ -186,7 +186,7 @@ impl Checkpoint {
 
     /// Reads the checkpoint at `path`; `None` when there is none.
     pub fn load(path: &Path) -> Result<Option<Checkpoint>, CheckpointError> {
-        let text = match std::fs::read_to_string(path) {
+        let text = match crate::sys::read_regular(path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(source) => {

@@ -33,6 +33,7 @@ const ALLOWED_UPWARD: &[(&str, &str)] = &[];
 const UNSAFE_FILES: &[&str] = &[
     "sys/clock.rs",
     "sys/group.rs",
+    "sys/limits.rs",
     "sys/rt.rs",
     "parport/ioctl.rs",
 ];

@@ -287,11 +287,14 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
         "{}",
         errors[2]
     );
-    assert!(errors[3].contains("`..` is not allowed"), "{}", errors[3]);
-    assert!(
-        errors[4].contains("outside the program directory"),
-        "{}",
-        errors[4]
+    // `..` and a link out of the directory: the same answer as a missing program.
+    assert_eq!(
+        errors[3],
+        "../secret.nc: no such program in the program directory"
+    );
+    assert_eq!(
+        errors[4],
+        "escape.nc: no such program in the program directory"
     );
     assert_eq!(replies[5]["ok"], true, "the connection still works");
     assert_eq!(replies[5]["status"]["state"], "idle");
@@ -314,7 +317,7 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
     assert!(!dir.join("pulses.csv").exists());
 
     // Two clients fill the daemon (each retried until served: a finished client's thread may
-    // still hold its slot for a moment); the third is told so; the first still works.
+    // still hold its slot for a moment); a third makes room by closing the quietest of them.
     let served = || loop {
         let stream = UnixStream::connect(&daemon.socket).unwrap();
         if exchange(&stream, r#"{"cmd":"status"}"#)["ok"] == true {
@@ -322,34 +325,21 @@ fn bad_requests_escapes_vanishing_and_too_many_clients() {
         }
         std::thread::sleep(Duration::from_millis(50));
     };
-    let a = served();
-    let b = served();
-    // The reserved slot: the emergency commands only, one request.
-    let c = UnixStream::connect(&daemon.socket).unwrap();
-    let refused = exchange(&c, r#"{"cmd":"run","program":"runtime-path.nc"}"#);
-    assert!(
-        refused["error"]
-            .as_str()
-            .unwrap()
-            .contains("status, hold and abort only"),
-        "{refused}"
-    );
-    // The slot is free again once the refused client's thread has let it go; with it taken,
-    // the next client is told there is no room.
     std::thread::sleep(Duration::from_millis(300));
-    let c = UnixStream::connect(&daemon.socket).unwrap();
-    let d = UnixStream::connect(&daemon.socket).unwrap();
-    d.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    let mut answer = String::new();
-    let _ = BufReader::new(d).read_line(&mut answer);
-    assert!(
-        answer.contains("too many clients"),
-        "{answer:?}\n{}",
-        daemon.log()
-    );
+    let a = served();
+    std::thread::sleep(Duration::from_millis(20));
+    let b = served();
+    std::thread::sleep(Duration::from_millis(20));
+    let c = served();
     assert_eq!(exchange(&c, r#"{"cmd":"status"}"#)["ok"], true);
-    drop(b);
-    assert_eq!(exchange(&a, r#"{"cmd":"status"}"#)["ok"], true);
+    assert_eq!(exchange(&b, r#"{"cmd":"status"}"#)["ok"], true);
+    // `a` asked nothing for the longest: it was closed for `c`.
+    a.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut writer = &a;
+    let _ = writeln!(writer, r#"{{"cmd":"status"}}"#);
+    let mut answer = String::new();
+    let _ = BufReader::new(&a).read_line(&mut answer);
+    assert!(answer.is_empty(), "the evicted client got {answer:?}");
 
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
@@ -517,71 +507,6 @@ fn edits_of_the_program_change_nothing_about_the_motion() {
     assert!(events.trim_end().ends_with("done,,7.5,8.25"), "{events}");
     for file in ["path.svg", "feed.svg", "summary.json"] {
         assert!(report.join(file).exists(), "{file}");
-    }
-    daemon.signal(libc::SIGTERM);
-    assert_eq!(daemon.wait().0, 0);
-}
-
-#[test]
-fn idle_clients_never_lock_out_hold_and_abort() {
-    let dir = scratch("idle");
-    let mut sets = base_sets(&dir, "pulses.csv");
-    sets.push("daemon.max_clients=2".to_string());
-    let daemon = Daemon::start(&dir, &sets, &[]);
-    daemon.ok(&["run", PROGRAM]);
-    daemon.wait_for("cutting", is_moving);
-    // Every ordinary slot held by a client that, once served, only ever sends blank lines.
-    // (The status polls' connections are given a moment to close first.)
-    std::thread::sleep(Duration::from_millis(300));
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let idlers: Vec<_> = (0..2)
-        .map(|_| {
-            let stream = UnixStream::connect(&daemon.socket).unwrap();
-            assert_eq!(exchange(&stream, r#"{"cmd":"status"}"#)["ok"], true);
-            let stop = stop.clone();
-            std::thread::spawn(move || {
-                let mut stream = stream;
-                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                    if stream.write_all(b"\n").is_err() {
-                        return;
-                    }
-                    std::thread::sleep(Duration::from_millis(100));
-                }
-            })
-        })
-        .collect();
-    std::thread::sleep(Duration::from_millis(300));
-    // The emergency path: status, hold and abort all get through.
-    assert_eq!(daemon.status()["state"], "running");
-    daemon.ok(&["hold"]);
-    daemon.wait_for("held", |s| s["state"] == "held");
-    daemon.ok(&["abort"]);
-    daemon.wait_for("idle", |s| s["state"] == "idle");
-    // A client on the reserved slot that sends only blank lines is dropped after its idle
-    // time (5 s) all the same.
-    let lingering = UnixStream::connect(&daemon.socket).unwrap();
-    lingering
-        .set_read_timeout(Some(Duration::from_secs(20)))
-        .unwrap();
-    let started = Instant::now();
-    let mut writer = lingering.try_clone().unwrap();
-    let keep = std::thread::spawn(move || {
-        while writer.write_all(b"\n").is_ok() {
-            std::thread::sleep(Duration::from_millis(200));
-        }
-    });
-    let mut rest = String::new();
-    let _ = BufReader::new(lingering).read_line(&mut rest);
-    let held_for = started.elapsed();
-    assert!(rest.is_empty(), "closed without a reply: {rest:?}");
-    assert!(
-        held_for >= Duration::from_secs(4) && held_for < Duration::from_secs(10),
-        "dropped after {held_for:?}"
-    );
-    keep.join().unwrap();
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    for idler in idlers {
-        idler.join().unwrap();
     }
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);

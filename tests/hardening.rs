@@ -311,3 +311,354 @@ fn a_resume_refused_past_a_probe_leaves_the_checkpoint_and_the_position_true() {
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
 }
+
+/// Clients that stay connected and ask nothing (monitors, forgotten sessions) and reconnect
+/// the moment they are closed, `attackers` of them, against `max_clients`, plus one that
+/// connects and drops in a loop: `status`, `hold` and `abort` each answer within half a
+/// second.
+fn controls_get_through_idle_clients(name: &str, max_clients: usize, attackers: usize) {
+    use std::io::Write;
+    use std::os::unix::net::UnixStream;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let dir = scratch(name);
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(format!("daemon.max_clients={max_clients}"));
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut threads: Vec<_> = (0..attackers)
+        .map(|_| {
+            let (socket, stop) = (daemon.socket.clone(), stop.clone());
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    let Ok(mut stream) = UnixStream::connect(&socket) else {
+                        std::thread::sleep(Duration::from_millis(1));
+                        continue;
+                    };
+                    // Blank lines are not requests: the client stays idle.
+                    while !stop.load(Ordering::Relaxed) && stream.write_all(b"\n").is_ok() {
+                        std::thread::sleep(Duration::from_millis(50));
+                    }
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            })
+        })
+        .collect();
+    let (socket, churn_stop) = (daemon.socket.clone(), stop.clone());
+    threads.push(std::thread::spawn(move || {
+        while !churn_stop.load(Ordering::Relaxed) {
+            let _ = UnixStream::connect(&socket);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }));
+    std::thread::sleep(Duration::from_millis(500));
+    for command in ["status", "hold", "abort"] {
+        let started = Instant::now();
+        daemon.ok(&[command]);
+        let took = started.elapsed();
+        assert!(took < Duration::from_millis(500), "{command} took {took:?}");
+        if command == "hold" {
+            daemon.wait_for("held", |s| s["state"] == "held");
+        }
+    }
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    stop.store(true, Ordering::Relaxed);
+    for t in threads {
+        t.join().unwrap();
+    }
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}
+
+/// A hundred idle clients under the default limit: none is even closed.
+#[test]
+fn a_hundred_idle_clients_never_lock_out_hold_and_abort() {
+    controls_get_through_idle_clients("idle-clients", 256, 100);
+}
+
+/// Twice as many reconnecting idle clients as the limit: the quietest makes room each time
+/// and the operator's client, the newest, is served.
+#[test]
+fn reconnecting_idle_clients_past_the_limit_never_lock_out_hold_and_abort() {
+    controls_get_through_idle_clients("reconnecting-clients", 8, 16);
+}
+
+/// 12 KB of nested brackets sent through `ctl run` while another job cuts: the run is
+/// refused at the place, the cut carries on, the daemon lives; `edmd check` says the same
+/// with exit 2 for 32,000 brackets or 60,000 signs.
+#[test]
+fn a_program_nested_too_deep_is_refused_and_kills_nothing() {
+    let dir = scratch("deep");
+    let deep = format!(
+        "#1={}1{}\nG1 X#1 F60\nM2\n",
+        "[".repeat(6000),
+        "]".repeat(6000)
+    );
+    std::fs::write(dir.join("programs/deep.nc"), &deep).unwrap();
+    std::fs::write(dir.join("programs/other.nc"), CONTOUR).unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", "other.nc"]);
+    daemon.wait_for("cutting", |s| position(s)[0] > 1000);
+    daemon.ok(&["hold"]);
+    daemon.wait_for("held", |s| s["state"] == "held");
+    daemon.ok(&["abort"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    let (refused, code) = daemon.ctl(&["run", "deep.nc"]);
+    assert_eq!(
+        (refused["ok"].as_bool(), code),
+        (Some(false), 1),
+        "{refused}"
+    );
+    let error = refused["error"].as_str().unwrap();
+    assert!(
+        error.contains("deep.nc:1:260: expression nested deeper than 256 levels"),
+        "{error}"
+    );
+    assert_eq!(daemon.status()["state"], "idle");
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    for (name, text) in [
+        (
+            "brackets",
+            format!("#1={}1{}\nM2\n", "[".repeat(32_000), "]".repeat(32_000)),
+        ),
+        (
+            "signs",
+            format!("#1={}1\nG1 X#1 F60\nM2\n", "-".repeat(60_000)),
+        ),
+        ("hashes", format!("#1={}1\nM2\n", "#".repeat(60_000))),
+    ] {
+        let file = dir.join(format!("{name}.nc"));
+        std::fs::write(&file, text).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["check", "--quiet"])
+            .arg(&file)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if name == "signs" {
+            // Signs cost no depth: 60,000 of them are just a sign.
+            assert_eq!(out.status.code(), Some(0), "{stderr}");
+        } else {
+            assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
+            assert!(stderr.contains("nested deeper than 256 levels"), "{stderr}");
+        }
+    }
+}
+
+/// The IIO input replaced by a FIFO mid-job: the job stops on the gap error, and the daemon
+/// stays answerable and ends on SIGTERM at once. A FIFO as the token file is an error at
+/// startup, not a daemon waiting for a writer.
+#[test]
+fn a_fifo_in_place_of_a_device_or_token_file_blocks_nothing() {
+    let dir = scratch("fifo");
+    let dev = dir.join("iio:device0");
+    std::fs::create_dir_all(&dev).unwrap();
+    std::fs::write(dev.join("in_voltage0_raw"), "1500\n").unwrap();
+    std::fs::write(dev.join("in_voltage_scale"), "1.000000\n").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.retain(|s| !s.starts_with("gap.kind"));
+    sets.extend([
+        "gap.kind=\"iio\"".to_string(),
+        format!("gap.iio_device=\"{}\"", dev.display()),
+        "gap.iio_gain=20.0".to_string(),
+    ]);
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("cutting", is_moving);
+    let fifo = dir.join("fifo");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    std::fs::rename(&fifo, dev.join("in_voltage0_raw")).unwrap();
+    let ended = daemon.wait_for("the gap error", |s| s["state"] == "idle");
+    assert_eq!(ended["last_job"]["outcome"], "gap-error", "{ended}");
+    assert!(
+        ended["last_job"]["error"]
+            .as_str()
+            .unwrap()
+            .contains("a FIFO, not a regular file"),
+        "{ended}"
+    );
+    let signalled = Instant::now();
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+    assert!(signalled.elapsed() < Duration::from_secs(2));
+
+    let token = dir.join("token-fifo");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&token)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let started = Instant::now();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("serve")
+        .args([
+            "--set",
+            &format!("daemon.socket=\"{}\"", dir.join("t.sock").display()),
+        ])
+        .args([
+            "--set",
+            &format!("daemon.program_dir=\"{}\"", dir.join("programs").display()),
+        ])
+        .args([
+            "--set",
+            &format!("daemon.checkpoint=\"{}\"", dir.join("t.json").display()),
+        ])
+        .args(["--set", "daemon.http=\"127.0.0.1:0\""])
+        .args([
+            "--set",
+            &format!("daemon.http_token_file=\"{}\"", token.display()),
+        ])
+        .output()
+        .unwrap();
+    assert!(started.elapsed() < Duration::from_secs(5));
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("a FIFO, not a regular file"), "{stderr}");
+}
+
+/// The address families a systemd unit's `RestrictAddressFamilies=` allows.
+fn unit_families(unit: &str) -> Vec<i32> {
+    let line = unit
+        .lines()
+        .find_map(|l| l.strip_prefix("RestrictAddressFamilies="))
+        .expect("the unit restricts address families");
+    line.split_whitespace()
+        .map(|f| match f {
+            "AF_UNIX" => libc::AF_UNIX,
+            "AF_INET" => libc::AF_INET,
+            "AF_INET6" => libc::AF_INET6,
+            "AF_NETLINK" => libc::AF_NETLINK,
+            other => panic!("an address family this test does not know: {other}"),
+        })
+        .collect()
+}
+
+/// A seccomp filter that does what systemd's `RestrictAddressFamilies=` does: `socket(2)`
+/// with a family not in `allowed` fails with EAFNOSUPPORT.
+fn restrict_address_families(cmd: &mut std::process::Command, allowed: &[i32]) {
+    use std::os::unix::process::CommandExt;
+    #[cfg(target_arch = "x86_64")]
+    const ARCH: u32 = 0xc000_003e;
+    #[cfg(target_arch = "aarch64")]
+    const ARCH: u32 = 0xc000_00b7;
+    const LD_ABS: u16 = 0x20; // BPF_LD | BPF_W | BPF_ABS
+    const JEQ: u16 = 0x15; // BPF_JMP | BPF_JEQ | BPF_K
+    const RET: u16 = 0x06; // BPF_RET | BPF_K
+    const ALLOW: u32 = 0x7fff_0000;
+    const ERRNO: u32 = 0x0005_0000;
+    let n = allowed.len();
+    let allow_at = 6 + n;
+    let op = |code, jt, jf, k| libc::sock_filter { code, jt, jf, k };
+    let mut filter = vec![
+        op(LD_ABS, 0, 0, 4),
+        op(JEQ, 0, (allow_at - 2) as u8, ARCH),
+        op(LD_ABS, 0, 0, 0),
+        op(JEQ, 0, (allow_at - 4) as u8, libc::SYS_socket as u32),
+        op(LD_ABS, 0, 0, 16),
+    ];
+    for (k, family) in allowed.iter().enumerate() {
+        filter.push(op(JEQ, (allow_at - (5 + k + 1)) as u8, 0, *family as u32));
+    }
+    filter.push(op(RET, 0, 0, ERRNO | libc::EAFNOSUPPORT as u32));
+    filter.push(op(RET, 0, 0, ALLOW));
+    let filter = Box::leak(filter.into_boxed_slice());
+    let program = Box::leak(Box::new(libc::sock_fprog {
+        len: filter.len() as u16,
+        filter: filter.as_mut_ptr(),
+    }));
+    let program = program as *const libc::sock_fprog as usize;
+    // SAFETY: prctl is async-signal-safe; the filter program lives for the whole test
+    // (leaked above) and is only read by the kernel.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0) != 0
+                || libc::prctl(libc::PR_SET_SECCOMP, libc::SECCOMP_MODE_FILTER, program) != 0
+            {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+}
+
+/// Under the shipped unit's `RestrictAddressFamilies=` (the kernel's seccomp filter, as
+/// systemd installs it) the daemon serves HTTP; under the old setting (`AF_UNIX` alone) it
+/// refuses to start and names the setting.
+#[test]
+fn the_shipped_unit_lets_http_work_and_a_stricter_one_is_named() {
+    let dir = scratch("unit");
+    let unit = std::fs::read_to_string(common::repo().join("systemd/edmd.service")).unwrap();
+    let serve = |families: &[i32], log: &str| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"));
+        cmd.arg("serve")
+            .args([
+                "--set",
+                &format!("daemon.socket=\"{}\"", dir.join("u.sock").display()),
+            ])
+            .args([
+                "--set",
+                &format!("daemon.program_dir=\"{}\"", dir.join("programs").display()),
+            ])
+            .args([
+                "--set",
+                &format!("daemon.checkpoint=\"{}\"", dir.join("u.json").display()),
+            ])
+            .args(["--set", "daemon.http=\"127.0.0.1:0\""])
+            .args([
+                "--set",
+                &format!("daemon.http_token_file=\"{}\"", dir.join("token").display()),
+            ])
+            .args(["--set", "log.format=\"plain\""])
+            .env_remove("NOTIFY_SOCKET")
+            .stdout(std::process::Stdio::null())
+            .stderr(std::fs::File::create(dir.join(log)).unwrap());
+        restrict_address_families(&mut cmd, families);
+        cmd.spawn().unwrap()
+    };
+    let mut child = serve(&unit_families(&unit), "shipped.log");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let addr = loop {
+        let log = std::fs::read_to_string(dir.join("shipped.log")).unwrap_or_default();
+        if let Some(at) = log.find("on http://") {
+            break log[at + 10..]
+                .split_whitespace()
+                .next()
+                .unwrap()
+                .to_string();
+        }
+        assert!(child.try_wait().unwrap().is_none(), "it stopped:\n{log}");
+        assert!(Instant::now() < deadline, "{log}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let body = ureq::get(&format!("http://{addr}/api/status"))
+        .call()
+        .unwrap()
+        .into_string()
+        .unwrap();
+    let reply: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(reply["status"]["state"], "idle");
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    assert_eq!(child.wait().unwrap().code(), Some(0));
+
+    let mut child = serve(&[libc::AF_UNIX], "strict.log");
+    assert_eq!(child.wait().unwrap().code(), Some(1));
+    let log = std::fs::read_to_string(dir.join("strict.log")).unwrap();
+    assert!(
+        log.contains("Address family not supported")
+            && log.contains("RestrictAddressFamilies= must allow AF_INET and AF_INET6"),
+        "{log}"
+    );
+}

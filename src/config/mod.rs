@@ -238,6 +238,10 @@ pub struct DaemonConfig {
     pub http: Option<std::net::SocketAddr>,
     /// The bearer token every control request over HTTP needs (created when missing).
     pub http_token_file: PathBuf,
+    /// Host names the web side answers to besides IP addresses and `localhost`.
+    pub http_allowed_hosts: Vec<String>,
+    /// HTTP connections at once (the daemon keeps it below its descriptor limit too).
+    pub http_max_connections: usize,
 }
 
 /// One machining condition of the generator (`[generator] condition`), selected by `E<number>`.

@@ -199,6 +199,8 @@ pub(super) struct RawDaemon {
     pub(super) report_dir: String,
     pub(super) http: String,
     pub(super) http_token_file: String,
+    pub(super) http_allowed_hosts: Vec<String>,
+    pub(super) http_max_connections: i64,
 }
 
 #[derive(Debug, Deserialize)]

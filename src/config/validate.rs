@@ -450,6 +450,27 @@ impl RawConfig {
                 })?),
             },
             http_token_file: non_empty("daemon.http_token_file", d.http_token_file)?,
+            http_allowed_hosts: d
+                .http_allowed_hosts
+                .iter()
+                .map(|h| {
+                    let name = h.trim().trim_end_matches('.').to_ascii_lowercase();
+                    let ok = !name.is_empty()
+                        && name
+                            .chars()
+                            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.');
+                    ok.then_some(name).ok_or((
+                        "daemon.http_allowed_hosts",
+                        format!("{h:?} is not a host name (letters, digits, `-` and `.`)"),
+                    ))
+                })
+                .collect::<Result<_, _>>()?,
+            http_max_connections: in_range(
+                "daemon.http_max_connections",
+                d.http_max_connections,
+                1,
+                65_536,
+            )? as usize,
         };
         let log = LogConfig {
             level: self.log.level,

@@ -29,6 +29,7 @@
 //! second one stops at once, position kept). SIGHUP reloads the configuration (see
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
+mod checkpoints;
 pub mod http;
 mod jobs;
 pub mod notify;
@@ -76,7 +77,10 @@ pub enum DaemonError {
     Job(Box<JobError>),
     #[error("cannot start a daemon thread: {0}")]
     Thread(std::io::Error),
-    #[error("daemon.http = {addr}: cannot listen there: {source}")]
+    #[error(
+        "daemon.http = {addr}: cannot listen there: {source}{}",
+        unit_hint(source)
+    )]
     Http {
         addr: std::net::SocketAddr,
         source: std::io::Error,
@@ -85,9 +89,25 @@ pub enum DaemonError {
     Token(#[from] http::token::TokenError),
 }
 
+/// What to add to a listening error that a service manager's sandbox causes.
+fn unit_hint(e: &std::io::Error) -> &'static str {
+    match e.raw_os_error() {
+        Some(libc::EAFNOSUPPORT) => {
+            " (under systemd, the unit's RestrictAddressFamilies= must allow AF_INET and \
+             AF_INET6 for daemon.http; the shipped unit does: see README, \"Running as a service\")"
+        }
+        Some(libc::EACCES) => {
+            " (a port below 1024 needs CAP_NET_BIND_SERVICE: use a port such as 8080)"
+        }
+        _ => "",
+    }
+}
+
 /// A message to the control loop.
 pub enum CoreMsg {
-    Request(Request, Sender<Reply>),
+    /// A client's request and where its reply goes: the client's task awaits it (a socket
+    /// client's or an HTTP request's), holding no thread while it waits.
+    Request(Request, tokio::sync::oneshot::Sender<Reply>),
     Signal(i32),
     JobDone(Box<JobEnd>),
     /// A check worker's verdict on check `id`.
@@ -165,6 +185,8 @@ struct Core {
     max_clients: Arc<AtomicUsize>,
     to_core: Sender<CoreMsg>,
     shutting_down: bool,
+    /// The web side, when `daemon.http` is on.
+    http: Option<http::HttpServer>,
 }
 
 /// Runs the daemon until a signal stops it. `Ok` is exit 0.
@@ -215,23 +237,49 @@ pub fn serve(
     socket::spawn_listener(listener, to_core.clone(), max_clients.clone())
         .map_err(DaemonError::Thread)?;
     spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
-    if let Some(addr) = config.daemon.http {
-        let token = http::token::load_or_create(&config.daemon.http_token_file)?;
-        let server = http::spawn(
-            addr,
-            token,
-            config.daemon.program_dir.clone(),
-            config.machine.axes.clone(),
-            crate::gcode::ProgramOptions::from_config(&config),
-            to_core.clone(),
-        )
-        .map_err(|source| DaemonError::Http { addr, source })?;
-        tracing::info!(
-            "http: the page, API and metrics on http://{} (control needs the token in {})",
-            server.addr,
-            config.daemon.http_token_file.display()
-        );
-    }
+    // Network clients are served: the soft descriptor limit goes up to the hard one, and
+    // HTTP stays well below it (checkpoints and the socket keep their reserve).
+    let descriptors = match crate::sys::raise_descriptor_limit() {
+        Ok(n) => n,
+        Err(e) => {
+            tracing::warn!("cannot read the descriptor limit ({e}); assuming 1024");
+            1024
+        }
+    };
+    let http = match config.daemon.http {
+        Some(addr) => {
+            let token = http::token::load_or_create(&config.daemon.http_token_file)?;
+            let max_connections = http::connection_cap(
+                config.daemon.http_max_connections,
+                descriptors,
+                config.daemon.max_clients,
+            );
+            let settings = http::HttpSettings {
+                addr,
+                max_connections,
+                reloadable: http::Reloadable {
+                    token,
+                    program_dir: config.daemon.program_dir.clone(),
+                    allowed_hosts: config.daemon.http_allowed_hosts.clone(),
+                },
+            };
+            let server = http::spawn(
+                settings,
+                config.machine.axes.clone(),
+                crate::gcode::ProgramOptions::from_config(&config),
+                to_core.clone(),
+            )
+            .map_err(|source| DaemonError::Http { addr, source })?;
+            tracing::info!(
+                "http: the page, API and metrics on http://{} (control needs the token in {}; \
+                 {max_connections} connections at most, descriptor limit {descriptors})",
+                server.addr,
+                config.daemon.http_token_file.display()
+            );
+            Some(server)
+        }
+        None => None,
+    };
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -270,6 +318,7 @@ pub fn serve(
         max_clients,
         to_core,
         shutting_down: false,
+        http,
     };
     core.prune_copies(None);
     core.notifier.send("READY=1");
@@ -296,17 +345,33 @@ fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Resolves a `run` request's path inside `program_dir`: no `..` component, and the real
-/// path (symlinks followed) must lie below the real program directory.
+/// `text` holds a control character (a newline in a name would forge a log line).
+pub fn has_control(text: &str) -> bool {
+    text.chars().any(char::is_control)
+}
+
+/// Resolves a program a client names inside `program_dir`: no `..` component, and the real
+/// path (symlinks followed) must be a regular file below the real program directory. A name
+/// that is missing, leaves the directory or is not a file gets one answer, with no path in
+/// it, so that a client learns nothing of the machine's other files; the daemon's log says
+/// which it was.
 pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, String> {
-    let path = Path::new(requested);
     if requested.is_empty() {
-        return Err("an empty program path".to_string());
+        return Err("an empty program name".to_string());
     }
-    if path.components().any(|c| c == Component::ParentDir) {
+    if has_control(requested) {
         return Err(format!(
-            "{requested}: `..` is not allowed in a program path"
+            "{:?}: a program name has no control characters",
+            requested
         ));
+    }
+    let refuse = |why: String| {
+        tracing::warn!("program {requested:?} refused: {why}");
+        format!("{requested}: no such program in the program directory")
+    };
+    let path = Path::new(requested);
+    if path.components().any(|c| c == Component::ParentDir) {
+        return Err(refuse("`..` in the name".to_string()));
     }
     let dir = program_dir
         .canonicalize()
@@ -316,21 +381,18 @@ pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, String> {
     } else {
         dir.join(path)
     };
-    let real = joined.canonicalize().map_err(|e| {
-        format!(
-            "{requested}: {e} (programs are read from {})",
-            dir.display()
-        )
-    })?;
+    let real = joined
+        .canonicalize()
+        .map_err(|e| refuse(format!("{}: {e}", joined.display())))?;
     if !real.starts_with(&dir) {
-        return Err(format!(
-            "{requested}: resolves to {}, outside the program directory {}",
+        return Err(refuse(format!(
+            "it resolves to {}, outside {}",
             real.display(),
             dir.display()
-        ));
+        )));
     }
     if !real.is_file() {
-        return Err(format!("{requested}: not a file"));
+        return Err(refuse(format!("{} is not a regular file", real.display())));
     }
     Ok(real)
 }
@@ -451,6 +513,7 @@ impl Core {
                     }
                     Err(e) => tracing::error!("reload refused, configuration unchanged: {e}"),
                 }
+                self.reload_http();
                 self.notify_status();
             }
             SIGUSR1 => {
@@ -459,6 +522,27 @@ impl Core {
                 }
             }
             _ => {}
+        }
+    }
+
+    /// SIGHUP: the token file is read again (whether or not its name changed) and the web
+    /// side takes it, the program directory and the host list in force. A token the file no
+    /// longer holds validly leaves the old one in force.
+    fn reload_http(&mut self) {
+        let Some(server) = &self.http else {
+            return;
+        };
+        let d = &self.config.daemon;
+        match http::token::load_or_create(&d.http_token_file) {
+            Ok(token) => {
+                server.reload(http::Reloadable {
+                    token,
+                    program_dir: d.program_dir.clone(),
+                    allowed_hosts: d.http_allowed_hosts.clone(),
+                });
+                tracing::info!("reload: http: token, program directory and hosts in force");
+            }
+            Err(e) => tracing::error!("reload: http: {e}; the previous token stays in force"),
         }
     }
 
@@ -570,18 +654,31 @@ mod tests {
         let abs = real.join("a.nc").display().to_string();
         assert_eq!(confine(&dir, &abs).unwrap(), real.join("a.nc"));
 
-        for (bad, why) in [
-            ("../secret.nc", "`..`"),
-            ("sub/../../secret.nc", "`..`"),
-            ("escape.nc", "outside the program directory"),
-            ("missing.nc", "No such file"),
-            ("sub", "not a file"),
-            ("", "empty"),
+        // Missing, outside, `..` and not-a-file: one answer, no path in it.
+        for bad in [
+            "../secret.nc",
+            "sub/../../secret.nc",
+            "escape.nc",
+            "missing.nc",
+            "sub",
         ] {
             let e = confine(&dir, bad).unwrap_err();
-            assert!(e.contains(why), "{bad}: {e}");
+            assert_eq!(
+                e,
+                format!("{bad}: no such program in the program directory")
+            );
         }
         let outside = root.join("secret.nc").display().to_string();
-        assert!(confine(&dir, &outside).unwrap_err().contains("outside"));
+        assert_eq!(
+            confine(&dir, &outside).unwrap_err(),
+            format!("{outside}: no such program in the program directory")
+        );
+        assert!(confine(&dir, "").unwrap_err().contains("empty"));
+        let forged = "a.nc\n2026-11-23T00:00:00Z INFO edmd: job end: done";
+        assert!(
+            confine(&dir, forged)
+                .unwrap_err()
+                .contains("no control characters")
+        );
     }
 }

@@ -61,7 +61,7 @@ impl Request {
 }
 
 /// serde_json appends " at line L column C" to its messages; the prefix says it already.
-fn strip_location(e: &serde_json::Error) -> String {
+pub fn strip_location(e: &serde_json::Error) -> String {
     let text = e.to_string();
     match text.rfind(" at line ") {
         Some(i) => text[..i].to_string(),

@@ -5,9 +5,9 @@
 //!
 //! | class | keys | while a job runs | idle |
 //! |---|---|---|---|
-//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients` | applied | applied |
+//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients`, `daemon.http_token_file`, `daemon.http_allowed_hosts` | applied | applied |
 //! | job | everything that shapes or times motion: `machine.*`, `interpolation.*`, `buffer.*`, `fine.tick_us`, `servo.*`, `gap.*`, `sim.*`, `output.path`, … | refused | applied (next job) |
-//! | restart | what was set up at startup: `daemon.socket*`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
+//! | restart | what was set up at startup: `daemon.socket*`, `daemon.http`, `daemon.http_max_connections`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
 //!
 //! A reload is all or nothing: if any change is refused, none is applied, and the log says
 //! which keys and why. What changed is logged as `key: old -> new`.
@@ -30,10 +30,14 @@ pub fn classify(key: &str) -> KeyClass {
         | "daemon.status_interval_s"
         | "daemon.checkpoint_interval_s"
         | "daemon.report_dir"
-        | "daemon.max_clients" => KeyClass::Live,
+        | "daemon.max_clients"
+        | "daemon.http_token_file"
+        | "daemon.http_allowed_hosts" => KeyClass::Live,
         "daemon.socket"
         | "daemon.socket_mode"
         | "daemon.socket_group"
+        | "daemon.http"
+        | "daemon.http_max_connections"
         | "log.format"
         | "fine.virtual_time"
         | "fine.rt_priority"
@@ -123,7 +127,7 @@ mod tests {
         assert_eq!(
             lines,
             vec![
-                "daemon.max_clients: 8 -> 3".to_string(),
+                "daemon.max_clients: 64 -> 3".to_string(),
                 "log.level: \"info\" -> \"debug\"".to_string()
             ]
         );

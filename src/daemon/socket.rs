@@ -1,25 +1,37 @@
 //! The control socket: a Unix-domain stream socket speaking JSON lines ([`super::protocol`]).
 //!
-//! One thread accepts; each client gets a thread of its own, at most `daemon.max_clients` at
-//! once. A client thread reads a line, hands the request to the daemon's control loop and
-//! writes the reply. A request counts only when its newline arrives: a client that vanishes
-//! mid-line has asked for nothing. A client that asks nothing for [`CLIENT_IDLE`] is dropped;
-//! blank lines are not requests and do not keep it.
+//! The clients are served by one thread (`edmd-listen`) running a single-threaded tokio
+//! runtime: each connection is a task, so an idle client costs a descriptor and a few
+//! hundred bytes, not a thread, and up to `daemon.max_clients` of them (256 by default, never
+//! more than the descriptor limit allows) can stay connected at once. A task reads a line,
+//! hands the request to the daemon's control loop and writes the reply. A request counts
+//! only when its newline arrives: a client that vanishes mid-line has asked for nothing. A
+//! client that asks nothing for [`CLIENT_IDLE`] is dropped; blank lines are not requests and
+//! do not keep it.
 //!
-//! **The emergency path is reserved.** Past `max_clients`, one more connection is served on a
-//! reserved slot that takes `status`, `hold` and `abort` only, one request, within
-//! [`EMERGENCY_IDLE`]: however many idle clients hold the ordinary slots, an operator can
-//! always stop the machine. Only past that is a client told "too many clients".
+//! **The emergency path cannot be locked out.** Idle clients hold no thread, so however many
+//! monitors and forgotten sessions stay connected, a new client's `hold` is read and sent
+//! to the control loop at once. If the clients do reach `max_clients`, the one that has asked
+//! nothing for the longest (never one whose request is with the control loop) is closed to
+//! make room for the newcomer: the operator's client is always the newest, and the runtime
+//! reads its request before it has accepted more than a few hundred others, so a client
+//! flooding the socket with connections that reconnect the moment they are closed does not
+//! starve it either (tested with a hundred of them). `edmd ctl` asks again when it was closed
+//! before its request was read (it never reached the control loop, so that is safe).
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Write};
 use std::os::unix::fs::{FileTypeExt, PermissionsExt};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use crossbeam::channel::{self, Sender};
+use crossbeam::channel::Sender;
+use parking_lot::Mutex;
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt};
+use tokio::sync::Notify;
 
 use super::protocol::{MAX_REQUEST_BYTES, Reply, Request};
 use super::{CoreMsg, DaemonError};
@@ -27,10 +39,10 @@ use crate::config::DaemonConfig;
 
 /// A client that sends no request for this long is disconnected (blank lines do not count).
 pub const CLIENT_IDLE: Duration = Duration::from_secs(60);
-/// The reserved slot's client must send its request within this.
-pub const EMERGENCY_IDLE: Duration = Duration::from_secs(5);
 /// Longest wait for the control loop's answer.
 const REPLY_TIMEOUT: Duration = Duration::from_secs(30);
+/// Longest a reply may take to be written to a client that does not read.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Binds the socket at `config.socket` with the configured mode and group. A stale socket
 /// (nobody answers) is replaced; a live one means another daemon runs.
@@ -74,166 +86,212 @@ pub fn remove(path: &Path) {
     }
 }
 
-/// Accepts clients for ever on a thread of its own.
+/// One connected client, as the listener sees it.
+struct Client {
+    /// When it last asked something (or connected).
+    last_request: Instant,
+    /// Its request is with the control loop: never evicted.
+    busy: bool,
+    close: Arc<Notify>,
+}
+
+/// The clients connected.
+#[derive(Default)]
+struct Clients {
+    next: u64,
+    open: HashMap<u64, Client>,
+}
+
+impl Clients {
+    /// Closes the idle client that asked nothing for the longest; `false` if every client
+    /// is busy.
+    fn evict_quietest(&mut self) -> bool {
+        let quietest = self
+            .open
+            .iter()
+            .filter(|(_, c)| !c.busy)
+            .min_by_key(|(_, c)| c.last_request)
+            .map(|(&id, _)| id);
+        match quietest.and_then(|id| self.open.remove(&id)) {
+            Some(client) => {
+                client.close.notify_one();
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// A client's place in [`Clients`]; leaving frees it.
+struct Seat {
+    id: u64,
+    clients: Arc<Mutex<Clients>>,
+}
+
+impl Seat {
+    /// Its request is with the control loop (`true`) or answered (`false`).
+    fn busy(&self, busy: bool) {
+        if let Some(client) = self.clients.lock().open.get_mut(&self.id) {
+            client.busy = busy;
+            client.last_request = Instant::now();
+        }
+    }
+}
+
+impl Drop for Seat {
+    fn drop(&mut self) {
+        self.clients.lock().open.remove(&self.id);
+    }
+}
+
+/// Accepts and serves clients for ever on a thread of its own (`edmd-listen`).
 pub fn spawn_listener(
     listener: UnixListener,
     core: Sender<CoreMsg>,
     max_clients: Arc<AtomicUsize>,
 ) -> std::io::Result<()> {
-    let active = Arc::new(AtomicUsize::new(0));
-    let emergency = Arc::new(AtomicBool::new(false));
+    listener.set_nonblocking(true)?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
     std::thread::Builder::new()
         .name("edmd-listen".to_string())
         .spawn(move || {
-            for stream in listener.incoming() {
-                let Ok(mut stream) = stream else { continue };
-                let busy = active.load(Ordering::Relaxed);
-                tracing::debug!("control client connected ({busy} already served)");
-                let slot = if busy < max_clients.load(Ordering::Relaxed) {
-                    active.fetch_add(1, Ordering::Relaxed);
-                    Slot::Ordinary(active.clone())
-                } else if !emergency.swap(true, Ordering::AcqRel) {
-                    Slot::Emergency(emergency.clone())
-                } else {
-                    let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
-                    let limit = max_clients.load(Ordering::Relaxed);
-                    let reply = Reply::error(
-                        format!("too many clients (daemon.max_clients = {limit}); try again"),
-                        None,
-                    );
-                    let _ = stream.write_all(reply.to_line().as_bytes());
-                    continue;
-                };
-                let core = core.clone();
-                let spawned = std::thread::Builder::new()
-                    .name("edmd-client".to_string())
-                    .spawn(move || {
-                        serve_client(stream, &core, slot);
-                    });
-                if spawned.is_err() {
-                    tracing::warn!("cannot start a thread for a control client; dropped");
+            runtime.block_on(async move {
+                match tokio::net::UnixListener::from_std(listener) {
+                    Ok(listener) => accept(listener, core, max_clients).await,
+                    Err(e) => tracing::error!("control socket: {e}"),
                 }
-            }
+            })
         })?;
     Ok(())
 }
 
-/// The slot a client holds; dropping it frees the slot.
-enum Slot {
-    Ordinary(Arc<AtomicUsize>),
-    Emergency(Arc<AtomicBool>),
-}
-
-impl Slot {
-    fn is_emergency(&self) -> bool {
-        matches!(self, Slot::Emergency(_))
-    }
-}
-
-impl Drop for Slot {
-    fn drop(&mut self) {
-        match self {
-            Slot::Ordinary(active) => {
-                active.fetch_sub(1, Ordering::Relaxed);
+async fn accept(
+    listener: tokio::net::UnixListener,
+    core: Sender<CoreMsg>,
+    max_clients: Arc<AtomicUsize>,
+) {
+    let clients = Arc::new(Mutex::new(Clients::default()));
+    loop {
+        let stream = match listener.accept().await {
+            Ok((stream, _)) => stream,
+            Err(e) => {
+                // Out of descriptors: make room rather than spin.
+                tracing::warn!("control socket: accept failed: {e}");
+                clients.lock().evict_quietest();
+                tokio::time::sleep(Duration::from_millis(20)).await;
+                continue;
             }
-            Slot::Emergency(taken) => taken.store(false, Ordering::Release),
-        }
+        };
+        let close = Arc::new(Notify::new());
+        let seat = {
+            let mut all = clients.lock();
+            let limit = max_clients.load(Ordering::Relaxed);
+            // Every client busy: the newcomer is served all the same (their requests are
+            // answered in microseconds), a little over the limit.
+            while all.open.len() >= limit && all.evict_quietest() {}
+            let id = all.next;
+            all.next += 1;
+            all.open.insert(
+                id,
+                Client {
+                    last_request: Instant::now(),
+                    busy: false,
+                    close: close.clone(),
+                },
+            );
+            Seat {
+                id,
+                clients: clients.clone(),
+            }
+        };
+        tokio::spawn(serve_client(stream, core.clone(), seat, close));
     }
 }
 
 /// Reads one request line of at most [`MAX_REQUEST_BYTES`]. `Ok(None)`: the client is gone (or sent
 /// a partial line and went).
-pub fn read_request_line(
-    reader: &mut impl BufRead,
+pub async fn read_request_line<R: tokio::io::AsyncBufRead + Unpin>(
+    reader: &mut R,
 ) -> std::io::Result<Option<Result<String, String>>> {
     let mut line = Vec::new();
     reader
         .take(MAX_REQUEST_BYTES as u64 + 1)
-        .read_until(b'\n', &mut line)?;
-    if line.last() != Some(&b'\n') {
-        if line.len() > MAX_REQUEST_BYTES {
-            return Ok(Some(Err(format!(
-                "request longer than {MAX_REQUEST_BYTES} bytes; closing"
-            ))));
-        }
-        return Ok(None);
-    }
-    line.pop();
-    Ok(Some(
-        String::from_utf8(line).map_err(|_| "request:1:1: not UTF-8".to_string()),
-    ))
+        .read_until(b'\n', &mut line)
+        .await?;
+    Ok(request_line(line))
 }
 
-fn serve_client(stream: UnixStream, core: &Sender<CoreMsg>, slot: Slot) {
-    let emergency = slot.is_emergency();
-    let mut slot = Some(slot);
-    let idle = if emergency {
-        EMERGENCY_IDLE
-    } else {
-        CLIENT_IDLE
-    };
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(5)));
-    let Ok(read_half) = stream.try_clone() else {
-        return;
-    };
-    let mut reader = BufReader::new(read_half);
-    let mut writer = stream;
+/// What the bytes read for one line (at most [`MAX_REQUEST_BYTES`] + 1, up to and with its
+/// newline) are: `None` a partial line (the client went), `Err` a line too long or not
+/// UTF-8, `Ok` the request's text.
+pub fn request_line(mut line: Vec<u8>) -> Option<Result<String, String>> {
+    if line.last() != Some(&b'\n') {
+        if line.len() > MAX_REQUEST_BYTES {
+            return Some(Err(format!(
+                "request longer than {MAX_REQUEST_BYTES} bytes; closing"
+            )));
+        }
+        return None;
+    }
+    line.pop();
+    Some(String::from_utf8(line).map_err(|_| "request:1:1: not UTF-8".to_string()))
+}
+
+async fn serve_client(
+    stream: tokio::net::UnixStream,
+    core: Sender<CoreMsg>,
+    seat: Seat,
+    close: Arc<Notify>,
+) {
+    let (read_half, mut writer) = stream.into_split();
+    let mut reader = tokio::io::BufReader::new(read_half);
     let mut last_request = Instant::now();
     loop {
         // The idle clock runs from the last request, not the last byte: blank lines and
-        // dribbled partial lines do not keep a slot.
-        let left = idle.saturating_sub(last_request.elapsed());
-        if left.is_zero() || writer.set_read_timeout(Some(left)).is_err() {
-            return;
-        }
-        let line = match read_request_line(&mut reader) {
+        // dribbled partial lines do not keep a client.
+        let left = CLIENT_IDLE.saturating_sub(last_request.elapsed());
+        let line = tokio::select! {
+            line = read_request_line(&mut reader) => line,
+            () = tokio::time::sleep(left) => return,
+            () = close.notified() => return,
+        };
+        let line = match line {
             Ok(Some(line)) => line,
             Ok(None) | Err(_) => return,
         };
-        let (reply, close) = match line {
+        let (reply, close_after) = match line {
             Err(e) => (Reply::error(e, None), true),
             Ok(line) if line.trim().is_empty() => continue,
             Ok(line) => match Request::parse(&line) {
-                Err(e) => (Reply::error(e, None), emergency),
-                Ok(request)
-                    if emergency
-                        && !matches!(
-                            request,
-                            Request::Status {} | Request::Hold {} | Request::Abort {}
-                        ) =>
-                {
-                    let reply = Reply::error(
-                        "every client slot is taken (daemon.max_clients); the reserved one \
-                         takes status, hold and abort only",
-                        None,
-                    );
-                    (reply, true)
-                }
+                Err(e) => (Reply::error(e, None), false),
                 Ok(request) => {
                     last_request = Instant::now();
-                    let (tx, rx) = channel::bounded(1);
+                    seat.busy(true);
+                    let (tx, rx) = tokio::sync::oneshot::channel();
                     if core.send(CoreMsg::Request(request, tx)).is_err() {
                         return;
                     }
-                    match rx.recv_timeout(REPLY_TIMEOUT) {
-                        Ok(reply) => (reply, emergency),
-                        Err(_) => (Reply::error("the daemon did not answer", None), true),
-                    }
+                    let answer = match tokio::time::timeout(REPLY_TIMEOUT, rx).await {
+                        Ok(Ok(reply)) => (reply, false),
+                        _ => (Reply::error("the daemon did not answer", None), true),
+                    };
+                    seat.busy(false);
+                    answer
                 }
             },
         };
-        if close {
-            // Free the slot before the last reply goes out: an operator's next command may
-            // connect the moment it has read this one.
-            drop(slot.take());
-        }
-        if writer.write_all(reply.to_line().as_bytes()).is_err() || close {
+        let written =
+            tokio::time::timeout(WRITE_TIMEOUT, writer.write_all(reply.to_line().as_bytes())).await;
+        if !matches!(written, Ok(Ok(()))) || close_after {
             return;
         }
     }
 }
 
-/// How long `edmd ctl` keeps trying while the daemon says every slot is taken.
+/// How long `edmd ctl` keeps trying while the daemon says every slot is taken, or closes the
+/// connection before reading the request.
 const BUSY_RETRY: Duration = Duration::from_secs(2);
 
 /// The client side (`edmd ctl`): sends one request, returns the reply. A daemon whose slots
@@ -242,7 +300,16 @@ const BUSY_RETRY: Duration = Duration::from_secs(2);
 pub fn request(socket: &Path, request: &Request) -> Result<Reply, ClientError> {
     let started = Instant::now();
     loop {
-        let reply = request_once(socket, request)?;
+        // A connection closed with no answer was closed before its request was read (the
+        // daemon made room for a newer client; it never closes one whose request is with the
+        // control loop): the request never arrived, so asking again is safe.
+        let reply = match request_once(socket, request) {
+            Err(e) if e.closed_unread() && started.elapsed() < BUSY_RETRY => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+            other => other?,
+        };
         let busy = !reply.ok
             && reply.status.is_none()
             && reply
@@ -359,26 +426,52 @@ pub enum ClientError {
     Reply { path: PathBuf, message: String },
 }
 
+impl ClientError {
+    /// The daemon closed the connection without a reply (cleanly or with a reset): it did
+    /// so before the request was read.
+    fn closed_unread(&self) -> bool {
+        match self {
+            ClientError::Closed { .. } => true,
+            ClientError::Io { source, .. } => matches!(
+                source.kind(),
+                std::io::ErrorKind::ConnectionReset | std::io::ErrorKind::BrokenPipe
+            ),
+            _ => false,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn lines_are_bounded_and_partial_lines_are_nothing() {
-        let mut r = BufReader::new(&b"{\"cmd\":\"status\"}\n{\"cmd\":\"ho"[..]);
-        assert_eq!(
-            read_request_line(&mut r).unwrap(),
-            Some(Ok("{\"cmd\":\"status\"}".into()))
-        );
-        assert_eq!(
-            read_request_line(&mut r).unwrap(),
-            None,
-            "a partial line is no request"
-        );
-        let long = vec![b'x'; MAX_REQUEST_BYTES + 10];
-        let mut r = BufReader::new(&long[..]);
-        assert!(matches!(read_request_line(&mut r).unwrap(), Some(Err(_))));
-        let mut r = BufReader::new(&b"\xff\xfe\n"[..]);
-        assert!(matches!(read_request_line(&mut r).unwrap(), Some(Err(_))));
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        runtime.block_on(async {
+            let mut r = tokio::io::BufReader::new(&b"{\"cmd\":\"status\"}\n{\"cmd\":\"ho"[..]);
+            assert_eq!(
+                read_request_line(&mut r).await.unwrap(),
+                Some(Ok("{\"cmd\":\"status\"}".into()))
+            );
+            assert_eq!(
+                read_request_line(&mut r).await.unwrap(),
+                None,
+                "a partial line is no request"
+            );
+            let long = vec![b'x'; MAX_REQUEST_BYTES + 10];
+            let mut r = tokio::io::BufReader::new(&long[..]);
+            assert!(matches!(
+                read_request_line(&mut r).await.unwrap(),
+                Some(Err(_))
+            ));
+            let mut r = tokio::io::BufReader::new(&b"\xff\xfe\n"[..]);
+            assert!(matches!(
+                read_request_line(&mut r).await.unwrap(),
+                Some(Err(_))
+            ));
+        });
     }
 }

@@ -99,23 +99,25 @@ struct Attribute {
 
 impl Attribute {
     fn open(path: PathBuf) -> std::io::Result<Attribute> {
-        std::fs::File::open(&path)?;
+        crate::sys::open_regular(&path)?;
         Ok(Attribute {
             path,
             buf: String::with_capacity(32),
         })
     }
 
-    /// The attribute's value; `Ok(None)` when it is not a number.
+    /// The attribute's value; `Ok(None)` when it is not a number. A sysfs attribute is a
+    /// regular file: anything else in its place (a FIFO) is an error at once, never a read
+    /// that waits for ever.
     fn read(&mut self) -> std::io::Result<Option<f64>> {
         self.buf.clear();
-        std::fs::File::open(&self.path)?.read_to_string(&mut self.buf)?;
+        crate::sys::open_regular(&self.path)?.read_to_string(&mut self.buf)?;
         Ok(self.buf.trim().parse().ok())
     }
 }
 
 fn number(path: &Path) -> Result<Option<f64>, IioError> {
-    match std::fs::read_to_string(path) {
+    match crate::sys::read_regular(path) {
         Err(_) => Ok(None),
         Ok(text) => text
             .trim()
@@ -271,10 +273,22 @@ impl GapSensor for IioGap {
     }
 }
 
+/// How long dropping the input waits for its sampler to end before leaving it behind.
+const SAMPLER_JOIN: Duration = Duration::from_millis(500);
+
 impl Drop for IioGap {
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
-        if let Some(thread) = self.thread.take() {
+        let Some(thread) = self.thread.take() else {
+            return;
+        };
+        // A sampler stuck in a driver's read must not hold up the job's end (and with it
+        // the daemon's control loop): it is waited for a while, then left to end on its own.
+        let deadline = Instant::now() + SAMPLER_JOIN;
+        while !thread.is_finished() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if thread.is_finished() {
             let _ = thread.join();
         }
     }
@@ -387,5 +401,40 @@ mod tests {
             e.contains("in_voltage0_raw") && e.contains("garbage"),
             "{e}"
         );
+    }
+
+    /// The channel's file replaced by a FIFO (which `open` would wait on for a writer): the
+    /// sampler fails at once with the file named, and dropping the input does not wait.
+    #[test]
+    fn a_fifo_in_the_channels_place_fails_at_once() {
+        let dir = fake_device("fifo", "1500", Some("1"));
+        let mut gap = IioGap::open(&settings(&dir)).unwrap();
+        // Made aside and renamed over the channel: the sampler sees the file or the FIFO.
+        let fifo = dir.join("fifo");
+        assert!(
+            std::process::Command::new("mkfifo")
+                .arg(&fifo)
+                .status()
+                .unwrap()
+                .success()
+        );
+        std::fs::rename(&fifo, dir.join("in_voltage0_raw")).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let e = loop {
+            match gap.sample(0) {
+                Err(e) => break e.to_string(),
+                Ok(_) => {
+                    assert!(Instant::now() < deadline, "no error");
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+            }
+        };
+        assert!(e.contains("in_voltage0_raw") && e.contains("FIFO"), "{e}");
+        let dropping = Instant::now();
+        drop(gap);
+        assert!(dropping.elapsed() < Duration::from_secs(1));
+        // Opened on a FIFO from the start: refused with the channel named.
+        let e = IioGap::open(&settings(&dir)).unwrap_err().to_string();
+        assert!(e.contains("a FIFO, not a regular file"), "{e}");
     }
 }

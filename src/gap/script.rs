@@ -42,7 +42,9 @@ pub(crate) fn read_script(
     what: &'static str,
 ) -> Result<(String, String), ScriptError> {
     let name = path.display().to_string();
-    match std::fs::read_to_string(path) {
+    // Read without blocking: a FIFO in the script's place is an error, not a job start that
+    // waits for a writer.
+    match crate::sys::read_regular(path) {
         Ok(text) => Ok((crate::vocab::without_bom(&text).to_string(), name)),
         Err(source) => Err(ScriptError::Io {
             path: name,

@@ -1,7 +1,8 @@
 //! The kernel calls edmd makes, each behind a tiny safe wrapper (rppal's `ioctl.rs`
 //! pattern): the monotonic clock and absolute-deadline sleep ([`clock`]), the real-time
-//! settings of a thread ([`rt`]), looking up a group ([`group`]), and what `/proc` says of
-//! this process ([`proc`]).
+//! settings of a thread ([`rt`]), looking up a group ([`group`]), what `/proc` says of
+//! this process ([`proc`]), the descriptor limit ([`limits`]), and opening files that may
+//! have been swapped for a FIFO without blocking ([`files`]).
 //!
 //! With `parport/ioctl.rs` (the ppdev ioctls, kept beside the device they drive), these are
 //! the only modules allowed `unsafe`: `src/lib.rs` denies it everywhere else, and each
@@ -13,14 +14,19 @@
 
 #[allow(unsafe_code)]
 mod clock;
+mod files;
 #[allow(unsafe_code)]
 mod group;
+#[allow(unsafe_code)]
+mod limits;
 mod proc;
 #[allow(unsafe_code)]
 mod rt;
 
 pub use clock::{monotonic_ns, sleep_until_ns};
+pub use files::{open_regular, read_regular};
 pub use group::group_id;
+pub use limits::raise_descriptor_limit;
 pub use proc::peak_rss_kib;
 pub use rt::{
     hold_zero_cpu_wakeup_latency, lock_all_memory, minimise_timer_slack, pin_to_cpu,

@@ -1,62 +1,82 @@
 //! `daemon.http`: the machine's own web page, a JSON API and Prometheus metrics.
 //!
 //! ```text
-//!  browser / curl / Prometheus ──► axum on a 2-thread tokio runtime ("edmd-http")
+//!  browser / curl / Prometheus ──► connections (server.rs: cap, timeouts, eviction)
+//!     ──► guard (Host allow-list, security headers) ──► axum router on 2 tokio threads
 //!        GET  /              the page (one self-contained document: no outside URLs)
 //!        GET  /api/status    = `edmd ctl status --json`        ─┐
 //!        GET  /api/events    Server-Sent Events: the same reply   │ CoreMsg::Request, exactly
 //!                            on every change, at least every 1 s  │ as a socket client sends
 //!        POST /api/run|hold|resume|abort|rethread (bearer token) ─┘ (one control loop decides)
 //!        GET  /api/programs  the files under daemon.program_dir
-//!        GET  /api/path      the running job's programmed path (X, Y), for the backplot
+//!        GET  /api/path      a program's path (X, Y), for the backplot (bounded work)
 //!        GET  /metrics       Prometheus text format, `edmd_` metrics
 //! ```
 //!
 //! **Why through the control loop.** Every request becomes the [`Request`] a socket client
 //! sends and waits for the control loop's [`Reply`], so the socket and HTTP can never
 //! disagree about what the daemon is doing or what it accepts. The loop answers in
-//! microseconds and never waits on a client; nothing here touches the real-time thread, whose
-//! only link to any of it is the job's `Published` atomics the loop reads.
+//! microseconds and never waits on a client; a handler awaits its reply on a oneshot channel,
+//! so status, hold, abort and metrics never wait for a thread. Nothing here touches the
+//! real-time thread, whose only link to any of it is the job's `Published` atomics.
 //!
-//! **Safety.** Reading is open (status, programs, metrics); every `POST` needs
-//! `Authorization: Bearer <token>` with the token of `daemon.http_token_file`, compared in
-//! constant time, or gets 401. Program paths go through the same [`super::confine`] as on the
-//! socket. Bodies above [`MAX_BODY_BYTES`] are refused with 413; hyper bounds the request
-//! head (its read buffer, 100 headers at most). Server-Sent Event streams are limited to
-//! [`MAX_EVENT_STREAMS`] at once.
+//! **Work that is not the machine's waits its turn.** Drawing a program's path
+//! ([`path::programmed_path`]) and listing programs run on tokio's blocking threads, at most
+//! [`MAX_PREVIEWS`] and [`MAX_LISTINGS`] at once (more get 503 at once), each drawing within
+//! [`PREVIEW_TIME`] and [`path::MAX_POINTS`]; the blocking pool is larger than both together.
+//!
+//! **Safety.** Reading is open (status, programs, metrics) to clients that name the machine
+//! in `Host` ([`guard`]); every `POST` needs `Authorization: Bearer <token>` with the token
+//! of `daemon.http_token_file` (at least 128 bits; reloaded on SIGHUP), compared in constant
+//! time, or gets 401. Program names go through the same [`super::confine`] as on the socket:
+//! a missing program and one outside the program directory get the same 404. Bodies above
+//! [`MAX_BODY_BYTES`] are refused with 413; request heads are bounded by size and time
+//! ([`server`]). Server-Sent Event streams are limited to [`MAX_EVENT_STREAMS`] at once.
 
 // The handlers' helpers return the error response itself (`Result<T, Response>`): large, but
 // built once per refused request, far from any hot path.
 #![allow(clippy::result_large_err)]
 
+mod guard;
 mod metrics;
 mod path;
+mod server;
 pub mod token;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{DefaultBodyLimit, Query, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::extract::{DefaultBodyLimit, Query, Request as HttpRequest, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::middleware::Next;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use crossbeam::channel::Sender;
+use parking_lot::RwLock;
 use serde::Deserialize;
+use tokio::sync::Semaphore;
 
 use super::CoreMsg;
 use super::protocol::{Reply, Request};
+
+pub use server::connection_cap;
 
 /// Largest request body accepted (bytes): a `run` names a program, nothing more.
 pub const MAX_BODY_BYTES: usize = 16 * 1024;
 /// Server-Sent Event streams served at once.
 pub const MAX_EVENT_STREAMS: usize = 16;
+/// Path drawings and program listings computed at once.
+pub const MAX_PREVIEWS: usize = 2;
+pub const MAX_LISTINGS: usize = 2;
+/// The longest a path drawing may take; it then returns what it has, marked partial.
+pub const PREVIEW_TIME: Duration = Duration::from_secs(2);
 /// How long a request waits for the control loop's reply.
 const CORE_TIMEOUT: Duration = Duration::from_secs(10);
 /// How often an event stream looks at the status, and the longest it stays silent.
@@ -65,66 +85,100 @@ const EVENT_HEARTBEAT: Duration = Duration::from_secs(1);
 
 const PAGE: &str = include_str!("page.html");
 
+/// What HTTP takes from the configuration; the part SIGHUP may change is [`Reloadable`].
+#[derive(Debug, Clone)]
+pub struct HttpSettings {
+    pub addr: SocketAddr,
+    /// Connections at once (already capped below the descriptor limit).
+    pub max_connections: usize,
+    pub reloadable: Reloadable,
+}
+
+/// What a reload (SIGHUP) changes under a running server.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reloadable {
+    pub token: String,
+    pub program_dir: PathBuf,
+    /// Host names besides IP literals and `localhost` (`daemon.http_allowed_hosts`).
+    pub allowed_hosts: Vec<String>,
+}
+
 /// What the handlers share.
 struct App {
     to_core: Sender<CoreMsg>,
-    token: String,
-    program_dir: PathBuf,
+    live: RwLock<Reloadable>,
     axes: Vec<crate::vocab::Axis>,
     /// How the daemon's jobs read programs (conditions, `D` registers), for the backplot.
     options: crate::gcode::ProgramOptions,
     streams: AtomicUsize,
+    previews: Semaphore,
+    listings: Semaphore,
+    /// The Content Security Policy of every response.
+    csp: HeaderValue,
 }
 
 /// The running HTTP server (it lives as long as the daemon's process).
-#[derive(Debug)]
 pub struct HttpServer {
     pub addr: SocketAddr,
+    app: Arc<App>,
+}
+
+impl HttpServer {
+    /// Puts a reloaded token, program directory and host list in force for the next request.
+    pub fn reload(&self, settings: Reloadable) {
+        *self.app.live.write() = settings;
+    }
+}
+
+/// Why `daemon.http` could not listen.
+pub fn bind_error(addr: SocketAddr, e: std::io::Error) -> super::DaemonError {
+    super::DaemonError::Http { addr, source: e }
 }
 
 /// Binds `addr` (so a taken port is an error at startup) and serves on a thread of its own.
 pub fn spawn(
-    addr: SocketAddr,
-    token: String,
-    program_dir: PathBuf,
+    settings: HttpSettings,
     axes: Vec<crate::vocab::Axis>,
     options: crate::gcode::ProgramOptions,
     to_core: Sender<CoreMsg>,
 ) -> std::io::Result<HttpServer> {
-    let listener = std::net::TcpListener::bind(addr)?;
+    let listener = std::net::TcpListener::bind(settings.addr)?;
     listener.set_nonblocking(true)?;
     let bound = listener.local_addr()?;
+    let csp = HeaderValue::from_str(&guard::content_security_policy(PAGE))
+        .map_err(std::io::Error::other)?;
     let app = Arc::new(App {
         to_core,
-        token,
-        program_dir,
+        live: RwLock::new(settings.reloadable),
         axes,
         options,
         streams: AtomicUsize::new(0),
+        previews: Semaphore::new(MAX_PREVIEWS),
+        listings: Semaphore::new(MAX_LISTINGS),
+        csp,
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
-        .max_blocking_threads(8)
+        // Room for every preview and listing at once, and then some.
+        .max_blocking_threads(MAX_PREVIEWS + MAX_LISTINGS + 4)
+        // The blocking threads parse programs.
+        .thread_stack_size(crate::gcode::PARSER_STACK_BYTES)
         .thread_name("edmd-http")
         .enable_all()
         .build()?;
+    let router = router(app.clone());
+    let max_connections = settings.max_connections;
     std::thread::Builder::new()
         .name("edmd-http".to_string())
         .spawn(move || {
             runtime.block_on(async move {
-                let listener = match tokio::net::TcpListener::from_std(listener) {
-                    Ok(l) => l,
-                    Err(e) => {
-                        tracing::error!("http: {e}");
-                        return;
-                    }
-                };
-                if let Err(e) = axum::serve(listener, router(app)).await {
-                    tracing::error!("http: {e}");
+                match tokio::net::TcpListener::from_std(listener) {
+                    Ok(listener) => server::serve(listener, router, max_connections).await,
+                    Err(e) => tracing::error!("http: {e}"),
                 }
             })
         })?;
-    Ok(HttpServer { addr: bound })
+    Ok(HttpServer { addr: bound, app })
 }
 
 fn router(app: Arc<App>) -> Router {
@@ -146,7 +200,31 @@ fn router(app: Arc<App>) -> Router {
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page") })
         // The limit makes an oversized body a `BytesRejection`, answered below as JSON.
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .layer(axum::middleware::from_fn_with_state(app.clone(), guarded))
         .with_state(app)
+}
+
+/// Every request: its `Host` must name this machine; every response: the security headers.
+async fn guarded(State(app): State<Arc<App>>, request: HttpRequest, next: Next) -> Response {
+    let allowed = {
+        let live = app.live.read();
+        guard::host_allowed(request.headers(), &live.allowed_hosts)
+    };
+    let mut response = if allowed {
+        next.run(request).await
+    } else {
+        let host = guard::host_name(request.headers()).unwrap_or_default();
+        tracing::warn!("http: refused a request for host {host:?}");
+        error(
+            StatusCode::FORBIDDEN,
+            format!(
+                "the host {host:?} is not a name of this machine: use its address, or add the \
+                 name to daemon.http_allowed_hosts"
+            ),
+        )
+    };
+    guard::secure(response.headers_mut(), &app.csp);
+    response
 }
 
 /// A JSON error in the socket's shape: `{"ok": false, "error": "…"}`.
@@ -155,16 +233,17 @@ fn error(code: StatusCode, message: impl Into<String>) -> Response {
     (code, axum::Json(body)).into_response()
 }
 
-/// Asks the control loop, as a socket client does.
+/// Asks the control loop, as a socket client does, and awaits the reply without taking a
+/// thread.
 async fn ask(app: &App, request: Request) -> Result<Reply, Response> {
-    let (tx, rx) = crossbeam::channel::bounded(1);
+    let (tx, rx) = tokio::sync::oneshot::channel();
     if app.to_core.send(CoreMsg::Request(request, tx)).is_err() {
         return Err(error(
             StatusCode::SERVICE_UNAVAILABLE,
             "the daemon is shutting down",
         ));
     }
-    match tokio::task::spawn_blocking(move || rx.recv_timeout(CORE_TIMEOUT)).await {
+    match tokio::time::timeout(CORE_TIMEOUT, rx).await {
         Ok(Ok(reply)) => Ok(reply),
         _ => Err(error(
             StatusCode::SERVICE_UNAVAILABLE,
@@ -276,7 +355,10 @@ impl Drop for EventStream {
 
 /// The files under the program directory (four levels deep at most, 2000 at most).
 async fn programs(State(app): State<Arc<App>>) -> Response {
-    let dir = app.program_dir.clone();
+    let Ok(_turn) = app.listings.try_acquire() else {
+        return busy("program listings");
+    };
+    let dir = app.live.read().program_dir.clone();
     let listed = tokio::task::spawn_blocking(move || path::list_programs(&dir)).await;
     match listed {
         Ok(Ok(list)) => axum::Json(serde_json::json!({ "programs": list })).into_response(),
@@ -285,12 +367,25 @@ async fn programs(State(app): State<Arc<App>>) -> Response {
     }
 }
 
+/// 503: the work of this kind already in progress is all there may be at once.
+fn busy(what: &str) -> Response {
+    let mut response = error(
+        StatusCode::SERVICE_UNAVAILABLE,
+        format!("busy: as many {what} as may run at once are running; try again shortly"),
+    );
+    response
+        .headers_mut()
+        .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+    response
+}
+
 #[derive(Deserialize)]
 struct PathQuery {
     program: Option<String>,
 }
 
-/// The programmed path of `?program=` or of the running job, decimated, for the backplot.
+/// The programmed path of `?program=` or of the running job, thinned, for the backplot:
+/// at most [`MAX_PREVIEWS`] at once, each within [`PREVIEW_TIME`].
 async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -> Response {
     let name = match q.program {
         Some(name) => name,
@@ -310,53 +405,63 @@ async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -
         Ok(file) => file,
         Err(e) => return e,
     };
-    let (axes, options) = (app.axes.clone(), app.options.clone());
-    let plot = move || path::programmed_path(&file, &name, &axes, options);
-    match tokio::task::spawn_blocking(plot).await {
+    let Ok(_turn) = app.previews.try_acquire() else {
+        return busy("path drawings");
+    };
+    let budget = path::Budget {
+        cancel: Arc::new(AtomicBool::new(false)),
+        max_blocks: path::MAX_BLOCKS,
+    };
+    let (axes, options, cancel) = (app.axes.clone(), app.options.clone(), budget.cancel.clone());
+    let plot = move || path::programmed_path(&file, &name, &axes, options, &budget);
+    let work = tokio::task::spawn_blocking(plot);
+    tokio::pin!(work);
+    let done = tokio::select! {
+        done = &mut work => done,
+        () = tokio::time::sleep(PREVIEW_TIME) => {
+            // Out of time: the reader gives up at its next line, with what it drew.
+            cancel.store(true, Ordering::Relaxed);
+            work.await
+        }
+    };
+    match done {
         Ok(Ok(path)) => axum::Json(path).into_response(),
         Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
     }
 }
 
-/// A program named by a client, confined as on the socket: 404 when there is no such file,
-/// 400 when the name leaves the program directory.
+/// A program named by a client, confined as on the socket: 404 whether it is missing or
+/// outside the program directory (the reply names no path), 400 for a name that is no name.
 fn program_file(app: &App, name: &str) -> Result<PathBuf, Response> {
-    let escapes = std::path::Path::new(name)
-        .components()
-        .any(|c| c == std::path::Component::ParentDir);
-    let joined = app.program_dir.join(name);
-    if !escapes && !joined.exists() {
-        return Err(error(
-            StatusCode::NOT_FOUND,
-            format!("{name}: no such program in {}", app.program_dir.display()),
-        ));
-    }
-    super::confine(&app.program_dir, name).map_err(|e| error(StatusCode::BAD_REQUEST, e))
+    let dir = app.live.read().program_dir.clone();
+    super::confine(&dir, name).map_err(|e| {
+        let code = if name.is_empty() || super::has_control(name) {
+            StatusCode::BAD_REQUEST
+        } else {
+            StatusCode::NOT_FOUND
+        };
+        error(code, e)
+    })
 }
 
-/// `Authorization: Bearer <token>`, compared in constant time.
+/// `Authorization: Bearer <token>` (the scheme in any case), compared in constant time.
 fn authorised(app: &App, headers: &HeaderMap) -> Result<(), Response> {
-    let given = headers
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .map(str::trim);
-    match given {
-        Some(t) if token::same(t.as_bytes(), app.token.as_bytes()) => Ok(()),
-        _ => {
-            let mut response = error(
-                StatusCode::UNAUTHORIZED,
-                "control needs `Authorization: Bearer <token>` with the token of \
-                 daemon.http_token_file",
-            );
-            response.headers_mut().insert(
-                header::WWW_AUTHENTICATE,
-                header::HeaderValue::from_static("Bearer"),
-            );
-            Err(response)
-        }
+    let given = guard::bearer(headers);
+    let ok = given.is_some_and(|t| token::same(t.as_bytes(), app.live.read().token.as_bytes()));
+    if ok {
+        return Ok(());
     }
+    let mut response = error(
+        StatusCode::UNAUTHORIZED,
+        "control needs `Authorization: Bearer <token>` with the token of \
+         daemon.http_token_file",
+    );
+    response.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        header::HeaderValue::from_static("Bearer"),
+    );
+    Err(response)
 }
 
 /// A request body as JSON of `T` (an empty body is `{}`); 413 over the limit, 400 if bad.
@@ -381,7 +486,12 @@ fn body<T: serde::de::DeserializeOwned>(
     serde_json::from_slice(text).map_err(|e| {
         error(
             StatusCode::BAD_REQUEST,
-            format!("request body:{}:{}: {e}", e.line(), e.column()),
+            format!(
+                "request body:{}:{}: {}",
+                e.line(),
+                e.column(),
+                super::protocol::strip_location(&e)
+            ),
         )
     })
 }

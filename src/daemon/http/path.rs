@@ -1,16 +1,40 @@
 //! What the page draws besides the live state: the programs it can run, and the programmed
-//! path of one of them (X and Y, decimated) under the executed one.
+//! path of one of them (two axes, thinned) under the executed one.
+//!
+//! **A drawing's worth of points, whatever the program.** A backplot is a picture: past a
+//! few thousand points nothing more can be seen, and a program that loops a million times
+//! round the same circle draws the same circle. So the path is thinned in the plane, not
+//! along the program: a point is kept when it enters a cell of a square grid that no kept
+//! point has entered yet; a stretch that only retraces cells already drawn lifts the pen
+//! (a new stroke starts where the path leaves them). When the kept points pass
+//! [`MAX_POINTS`], the grid's cell doubles and the kept strokes are thinned again the same
+//! way. Memory is bounded by the points kept, never by the program's length, and retracing
+//! cannot alias (keeping every n-th point of a path that repeats every n points would keep
+//! one spot of it).
+//!
+//! **A budget.** Reading a program runs its loops; [`programmed_path`] stops at a deadline
+//! (its reader is cancelled through [`Budget::cancel`]) or at [`MAX_BLOCKS`] blocks and
+//! returns what it drew so far, marked `partial`.
 
-use std::path::Path;
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde::Serialize;
 
+use crate::gcode::GcodeErrorKind;
 use crate::vocab::Axis;
 
-/// Points of a programmed path sent at most (every n-th is kept beyond it).
-const MAX_POINTS: usize = 20_000;
-/// Blocks read at most for a backplot (a larger program is drawn in part).
-const MAX_BLOCKS: usize = 500_000;
+/// Points of a drawn path at most.
+pub const MAX_POINTS: usize = 20_000;
+/// Blocks read at most for one drawing.
+pub const MAX_BLOCKS: usize = 500_000;
+/// The first grid cell (mm): finer than any screen shows a part.
+const FIRST_CELL_MM: f64 = 1e-4;
+/// Programs listed at most, and how deep below the program directory.
+const MAX_LISTED: usize = 2000;
+const MAX_DEPTH: usize = 3;
 
 #[derive(Debug, Serialize)]
 pub struct ProgramEntry {
@@ -18,33 +42,60 @@ pub struct ProgramEntry {
     pub bytes: u64,
 }
 
-/// Regular files under `dir`, four levels deep at most, at most 2000, sorted by name.
+/// The regular files under `dir` that a `run` can name: four levels deep at most, at most
+/// [`MAX_LISTED`], sorted by name. Hidden names, names with control characters, symbolic
+/// links that leave `dir` (or dangle) and linked directories are left out: the list never
+/// shows what `run` would refuse, and never walks out of the directory.
 pub fn list_programs(dir: &Path) -> Result<Vec<ProgramEntry>, String> {
+    let root = dir
+        .canonicalize()
+        .map_err(|e| format!("the program directory: {e}"))?;
     let mut out = Vec::new();
-    walk(dir, dir, 0, &mut out).map_err(|e| format!("{}: {e}", dir.display()))?;
+    walk(&root, &root, 0, &mut out).map_err(|e| format!("the program directory: {e}"))?;
     out.sort_by(|a, b| a.name.cmp(&b.name));
     Ok(out)
 }
 
 fn walk(root: &Path, dir: &Path, depth: usize, out: &mut Vec<ProgramEntry>) -> std::io::Result<()> {
     for entry in std::fs::read_dir(dir)? {
-        if out.len() >= 2000 {
+        if out.len() >= MAX_LISTED {
             return Ok(());
         }
-        let entry = entry?;
-        let path = entry.path();
-        let meta = std::fs::metadata(&path)?;
-        let hidden = entry.file_name().to_string_lossy().starts_with('.');
-        if hidden {
+        let Ok(entry) = entry else { continue };
+        let file_name = entry.file_name();
+        let Some(name) = file_name.to_str() else {
+            continue;
+        };
+        if name.starts_with('.') || super::super::has_control(name) {
             continue;
         }
-        if meta.is_dir() && depth < 3 {
-            walk(root, &path, depth + 1, out)?;
-        } else if meta.is_file() {
-            let name = path.strip_prefix(root).unwrap_or(&path);
+        let path = entry.path();
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if meta.is_dir() {
+            if depth < MAX_DEPTH {
+                walk(root, &path, depth + 1, out)?;
+            }
+            continue;
+        }
+        let target: PathBuf = if meta.file_type().is_symlink() {
+            // Followed only to a regular file inside the directory.
+            match path.canonicalize() {
+                Ok(real) if real.starts_with(root) => real,
+                _ => continue,
+            }
+        } else {
+            path.clone()
+        };
+        let Ok(real) = std::fs::metadata(&target) else {
+            continue;
+        };
+        if real.is_file() {
+            let shown = path.strip_prefix(root).unwrap_or(&path);
             out.push(ProgramEntry {
-                name: name.display().to_string(),
-                bytes: meta.len(),
+                name: shown.display().to_string(),
+                bytes: real.len(),
             });
         }
     }
@@ -58,39 +109,159 @@ pub struct PlannedPath {
     pub axes: [String; 2],
     /// Polylines: each is a run of points `[a, b]` (mm); a rapid is its own polyline.
     pub strokes: Vec<Stroke>,
-    /// Blocks read, and whether the path was cut short or thinned.
+    /// Blocks read, and whether the drawing stops short of the program's end (the block or
+    /// time budget ran out).
     pub blocks: usize,
     pub partial: bool,
+    /// The grid cell the drawing was thinned to (mm).
+    pub cell_mm: f64,
 }
 
-#[derive(Debug, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Stroke {
     pub rapid: bool,
     pub points: Vec<[f64; 2]>,
 }
 
-/// The programmed path of `file` (named `name` in errors) as strokes in two axes.
+/// How long and how far one drawing may go: the reader is cancelled through `cancel` (a
+/// timer sets it).
+#[derive(Debug, Clone)]
+pub struct Budget {
+    pub cancel: Arc<AtomicBool>,
+    pub max_blocks: usize,
+}
+
+/// A cell of the grid.
+type Cell = (i64, i64);
+
+/// The drawing being made: strokes thinned on a grid.
+struct Drawing {
+    cell: f64,
+    strokes: Vec<Stroke>,
+    /// The steps between two cells already drawn (either way round).
+    edges: HashSet<(Cell, Cell)>,
+    points: usize,
+    /// The last point offered, its cell, and whether the current stroke ends in that cell
+    /// (the pen is down).
+    last: Option<([f64; 2], Cell, bool)>,
+}
+
+impl Drawing {
+    fn new() -> Drawing {
+        Drawing {
+            cell: FIRST_CELL_MM,
+            strokes: Vec::new(),
+            edges: HashSet::new(),
+            points: 0,
+            last: None,
+        }
+    }
+
+    fn cell_of(&self, p: [f64; 2]) -> Cell {
+        (
+            (p[0] / self.cell).floor() as i64,
+            (p[1] / self.cell).floor() as i64,
+        )
+    }
+
+    /// Offers the next point of the path (of a rapid move or not).
+    fn offer(&mut self, p: [f64; 2], rapid: bool) {
+        self.take(p, rapid);
+        if self.points > MAX_POINTS {
+            self.coarsen();
+        }
+    }
+
+    /// Keeps `p` if the step to it from the last point is one not drawn yet.
+    fn take(&mut self, p: [f64; 2], rapid: bool) {
+        let c = self.cell_of(p);
+        let Some((q, qc, down)) = self.last else {
+            self.strokes.push(Stroke {
+                rapid,
+                points: vec![p],
+            });
+            self.points += 1;
+            self.last = Some((p, c, true));
+            return;
+        };
+        if qc == c {
+            // Inside one cell nothing new can be seen.
+            self.last = Some((p, c, down));
+            return;
+        }
+        let fresh = self.edges.insert(if qc < c { (qc, c) } else { (c, qc) });
+        if fresh {
+            match self.strokes.last_mut() {
+                Some(s) if down && s.rapid == rapid => {
+                    s.points.push(p);
+                    self.points += 1;
+                }
+                _ => {
+                    // The pen comes down where the path leaves what is drawn.
+                    self.strokes.push(Stroke {
+                        rapid,
+                        points: vec![q, p],
+                    });
+                    self.points += 2;
+                }
+            }
+        }
+        self.last = Some((p, c, fresh));
+    }
+
+    /// Doubles the cell until the kept points fit in half the budget, thinning the kept
+    /// strokes the same way.
+    fn coarsen(&mut self) {
+        let last = self.last;
+        while self.points > MAX_POINTS / 2 {
+            let strokes = std::mem::take(&mut self.strokes);
+            self.cell *= 2.0;
+            self.edges.clear();
+            self.points = 0;
+            for s in strokes {
+                // Each kept stroke is redrawn on its own: the pen lifts between them.
+                self.last = None;
+                for p in s.points {
+                    self.take(p, s.rapid);
+                }
+            }
+        }
+        // The path goes on from where it was, pen up.
+        self.last = last.map(|(p, _, _)| (p, self.cell_of(p), false));
+    }
+}
+
+/// The programmed path of `file` (named `name` in errors) as strokes in two axes, within
+/// `budget`.
 pub fn programmed_path(
     file: &Path,
     name: &str,
     axes: &[Axis],
     options: crate::gcode::ProgramOptions,
+    budget: &Budget,
 ) -> Result<PlannedPath, String> {
     let index = |a: Axis| axes.iter().position(|&x| x == a);
     let (ia, ib) = match (index(Axis::X), index(Axis::Y)) {
         (Some(x), Some(y)) => (x, y),
         _ => (0, 1.min(axes.len().saturating_sub(1))),
     };
-    let reader = crate::gcode::open_program_as(file, name, axes, options, |f| f)
+    let mut reader = crate::gcode::open_program_as(file, name, axes, options, |f| f)
         .map_err(|e| e.to_string())?;
-    let mut strokes: Vec<Stroke> = Vec::new();
+    reader.cancel_on(budget.cancel.clone());
+    let mut drawing = Drawing::new();
     let mut blocks = 0;
-    let mut points = 0;
     let mut partial = false;
     for item in reader {
-        let block = item.map_err(|e| e.to_string())?;
+        let block = match item {
+            Ok(block) => block,
+            Err(e) if matches!(e.kind, GcodeErrorKind::Cancelled) => {
+                partial = true;
+                break;
+            }
+            Err(e) => return Err(e.to_string()),
+        };
         blocks += 1;
-        if blocks > MAX_BLOCKS {
+        if blocks > budget.max_blocks || budget.cancel.load(Ordering::Relaxed) {
             partial = true;
             break;
         }
@@ -99,32 +270,11 @@ pub fn programmed_path(
         let (lo, hi) = (c.u_min(), c.u_max());
         let n = if c.degree() == 1 { 1 } else { 24 };
         let start = block.start();
-        let same_kind = strokes.last().is_some_and(|s| s.rapid == rapid);
-        if !same_kind {
-            strokes.push(Stroke {
-                rapid,
-                points: vec![[start[ia], start[ib]]],
-            });
-            points += 1;
-        }
-        let stroke = strokes.last_mut().expect("pushed above");
+        drawing.offer([start[ia], start[ib]], rapid);
         for k in 1..=n {
             let u = lo + (hi - lo) * k as f64 / n as f64;
             let p = c.point(u);
-            stroke.points.push([p[ia], p[ib]]);
-            points += 1;
-        }
-    }
-    if points > MAX_POINTS {
-        partial = true;
-        let keep = points.div_ceil(MAX_POINTS);
-        for s in &mut strokes {
-            let last = *s.points.last().expect("a stroke has points");
-            let mut thinned: Vec<[f64; 2]> = s.points.iter().step_by(keep).copied().collect();
-            if thinned.last() != Some(&last) {
-                thinned.push(last);
-            }
-            s.points = thinned;
+            drawing.offer([p[ia], p[ib]], rapid);
         }
     }
     let letter = |i: usize| {
@@ -134,7 +284,8 @@ pub fn programmed_path(
     Ok(PlannedPath {
         program: name.to_string(),
         axes: [letter(ia), letter(ib)],
-        strokes,
+        cell_mm: drawing.cell,
+        strokes: drawing.strokes,
         blocks,
         partial,
     })

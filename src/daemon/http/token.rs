@@ -1,14 +1,22 @@
 //! The bearer token of `daemon.http_token_file`: made once (256 random bits from the kernel,
-//! hex, mode 0600), read at every start, compared in constant time.
+//! hex, mode 0600), read at every start and on SIGHUP, compared in constant time.
+//!
+//! A token an operator wrote must be worth guessing against: at least [`MIN_TOKEN_CHARS`]
+//! characters (128 bits as hex) of the RFC 6750 token alphabet, or the daemon refuses it.
+//! The file must be a regular file: a FIFO put in its place is an error, not a daemon
+//! waiting for a writer.
 
 use std::io::{Read, Write};
 use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
 use std::path::Path;
 
-/// Why the token file could not be read or made.
+/// Fewest characters a token may have: 128 bits written as hex.
+pub const MIN_TOKEN_CHARS: usize = 32;
+
+/// Why the token file could not be read or made, or what is wrong with the token in it.
 #[derive(Debug, thiserror::Error)]
 pub enum TokenError {
-    #[error("{path}: cannot read the HTTP token: {source}")]
+    #[error("{path}: cannot read the HTTP token (daemon.http_token_file): {source}")]
     Read {
         path: String,
         source: std::io::Error,
@@ -18,19 +26,24 @@ pub enum TokenError {
         path: String,
         source: std::io::Error,
     },
-    #[error("{path}: the HTTP token file is empty; delete it to have a new token made")]
-    Empty { path: String },
+    #[error(
+        "{path}: the HTTP token is {chars} characters; a token needs at least {MIN_TOKEN_CHARS} \
+         (128 bits as hex). Delete the file to have a new one made, or write a longer one"
+    )]
+    TooShort { path: String, chars: usize },
+    #[error(
+        "{path}: the HTTP token holds {found:?}; a token is letters, digits and - . _ ~ + / \
+         (RFC 6750), on one line"
+    )]
+    BadCharacter { path: String, found: char },
 }
 
 /// The token in `path`; a new one (64 hex digits) written there first when there is none.
 pub fn load_or_create(path: &Path) -> Result<String, TokenError> {
     let name = path.display().to_string();
-    match std::fs::read_to_string(path) {
+    match crate::sys::read_regular(path) {
         Ok(text) => {
-            let token = text.trim().to_string();
-            if token.is_empty() {
-                return Err(TokenError::Empty { path: name });
-            }
+            let token = validate(&name, text.trim())?;
             if let Ok(meta) = std::fs::metadata(path)
                 && meta.permissions().mode() & 0o077 != 0
             {
@@ -44,6 +57,27 @@ pub fn load_or_create(path: &Path) -> Result<String, TokenError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => create(path),
         Err(source) => Err(TokenError::Read { path: name, source }),
     }
+}
+
+/// The token if it is long enough and of the token alphabet.
+fn validate(path: &str, token: &str) -> Result<String, TokenError> {
+    if let Some(found) = token
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || "-._~+/=".contains(*c)))
+    {
+        return Err(TokenError::BadCharacter {
+            path: path.to_string(),
+            found,
+        });
+    }
+    let chars = token.chars().count();
+    if chars < MIN_TOKEN_CHARS {
+        return Err(TokenError::TooShort {
+            path: path.to_string(),
+            chars,
+        });
+    }
+    Ok(token.to_string())
 }
 
 fn create(path: &Path) -> Result<String, TokenError> {
@@ -95,11 +129,30 @@ mod tests {
         assert_eq!(load_or_create(&path).unwrap(), made);
         let other = dir.join("other");
         assert_ne!(load_or_create(&other).unwrap(), made, "random, not fixed");
-        std::fs::write(&path, "\n").unwrap();
-        assert!(matches!(
-            load_or_create(&path),
-            Err(TokenError::Empty { .. })
-        ));
+
+        // Written by hand: too short, or not a token, is refused.
+        for (text, why) in [
+            ("\n", "is 0 characters"),
+            ("abc\n", "is 3 characters"),
+            ("0123456789abcdef0123456789abcde\n", "is 31 characters"),
+            ("0123456789abcdef 0123456789abcdef\n", "holds ' '"),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let e = load_or_create(&path).unwrap_err().to_string();
+            assert!(e.contains(why), "{text:?}: {e}");
+        }
+        std::fs::write(&path, "0123456789abcdef0123456789abcdef\n").unwrap();
+        assert_eq!(load_or_create(&path).unwrap().len(), 32);
+
+        // A FIFO in its place is an error at once.
+        std::fs::remove_file(&path).unwrap();
+        let made = std::process::Command::new("mkfifo")
+            .arg(&path)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let e = load_or_create(&path).unwrap_err().to_string();
+        assert!(e.contains("a FIFO, not a regular file"), "{e}");
     }
 
     #[test]

@@ -1,0 +1,158 @@
+//! The interpreter's own parameters, as LinuxCNC names them: what expressions read besides
+//! the program's store (the position as `#<_x>`…`#<_w>` and `#5420`…`#5428`, the modes as
+//! `#<_metric>`…, the feed, the line), the parameters a program may not assign, and the
+//! probe's results (`#5061`…`#5070`), which a probing move writes.
+
+use std::io::{BufRead, Seek};
+
+use super::{BlockReader, MM_PER_INCH};
+use crate::gcode::expr::{Env, ParamRef};
+use crate::geometry::Point;
+
+/// LinuxCNC's probe result: `#5061`… per axis (`X Y Z A B C U V W`), `#5070` success.
+const PROBE_PARAMS: usize = 5061;
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// The probing move just read ended at `at` (mm, machine axes; with `contact`, or at its
+    /// end point without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C
+    /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
+    pub fn probed(&mut self, at: &Point, contact: bool) {
+        self.position = *at;
+        let scale = self.scale();
+        for (i, axis) in self.axes.iter().enumerate() {
+            if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
+                let v = (at[i] - self.offset[i]) / scale;
+                self.params.set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
+            }
+        }
+        self.params.set(
+            &ParamRef::Numbered(PROBE_PARAMS + 9),
+            if contact { 1.0 } else { 0.0 },
+        );
+    }
+}
+
+/// Parameters as expressions see them: the store, plus read-only system values as LinuxCNC
+/// names them (`#<_x>`…`#<_w>` and `#5420`…`#5428` the position in program units and
+/// coordinates, `#<_metric>`, `#<_imperial>`, `#<_absolute>`, `#<_incremental>`, `#<_feed>`).
+pub(super) struct ReaderEnv<'a, R> {
+    pub(super) reader: &'a BlockReader<R>,
+}
+
+const SYSTEM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
+
+/// LinuxCNC's read-only numbered parameters: the tool's data (`#5400`…`#5413`) and the
+/// position (`#5420`…`#5428`).
+const READ_ONLY_NUMBERED: [std::ops::RangeInclusive<usize>; 2] = [5400..=5413, 5420..=5428];
+
+/// LinuxCNC's read-only named parameters (its `interp_namedparams.cc`), `_x`…`_w` and
+/// `_abs_x`…`_abs_w` aside: a program that assigns one is refused, as LinuxCNC refuses it,
+/// whether or not edmd gives it a value.
+const READ_ONLY_NAMED: [&str; 42] = [
+    "_vmajor",
+    "_vminor",
+    "_metric_machine",
+    "_line",
+    "_motion_mode",
+    "_plane",
+    "_ccomp",
+    "_metric",
+    "_imperial",
+    "_absolute",
+    "_incremental",
+    "_inverse_time",
+    "_units_per_minute",
+    "_units_per_rev",
+    "_coord_system",
+    "_tool_offset",
+    "_retract_r_plane",
+    "_retract_old_z",
+    "_spindle_rpm_mode",
+    "_spindle_css_mode",
+    "_ijk_absolute_mode",
+    "_lathe_diameter_mode",
+    "_lathe_radius_mode",
+    "_spindle_on",
+    "_spindle_cw",
+    "_mist",
+    "_flood",
+    "_speed_override",
+    "_feed_override",
+    "_adaptive_feed",
+    "_feed_hold",
+    "_feed",
+    "_rpm",
+    "_current_tool",
+    "_current_pocket",
+    "_selected_pocket",
+    "_selected_tool",
+    "_value",
+    "_value_returned",
+    "_task",
+    "_call_level",
+    "_remap_level",
+];
+
+/// `name` (lower case, no `#< >`) is one of LinuxCNC's read-only named parameters.
+fn read_only_name(name: &str) -> bool {
+    let axis = |s: &str| {
+        let mut c = s.chars();
+        matches!((c.next(), c.next()), (Some(a), None) if SYSTEM_AXES.contains(&a.to_ascii_uppercase()))
+    };
+    READ_ONLY_NAMED.contains(&name)
+        || name.strip_prefix("_abs_").is_some_and(axis)
+        || name.strip_prefix('_').is_some_and(axis)
+}
+
+impl<R> ReaderEnv<'_, R> {
+    /// Position on the axis `letter` in program units and coordinates (0 if not on the machine).
+    fn axis_position(&self, letter: char) -> f64 {
+        let r = self.reader;
+        let scale = if r.modal.inch { MM_PER_INCH } else { 1.0 };
+        r.axes
+            .iter()
+            .position(|a| a.letter() == letter)
+            .map_or(0.0, |i| (r.position[i] - r.offset[i]) / scale)
+    }
+}
+
+impl<R> Env for ReaderEnv<'_, R> {
+    fn read_only(&self, param: &ParamRef) -> bool {
+        match param {
+            ParamRef::Numbered(n) => READ_ONLY_NUMBERED.iter().any(|r| r.contains(n)),
+            ParamRef::Named(name) => read_only_name(name),
+        }
+    }
+
+    fn numbered(&self, n: usize) -> f64 {
+        match n {
+            5420..=5428 => self.axis_position(SYSTEM_AXES[n - 5420]),
+            _ => self.reader.params.numbered(n),
+        }
+    }
+
+    fn named(&self, name: &str) -> Option<f64> {
+        let r = self.reader;
+        let truth = |b: bool| Some(if b { 1.0 } else { 0.0 });
+        match name {
+            "_metric" => truth(!r.modal.inch),
+            "_imperial" => truth(r.modal.inch),
+            "_absolute" => truth(!r.modal.incremental),
+            "_incremental" => truth(r.modal.incremental),
+            "_feed" => {
+                Some(r.modal.feed.unwrap_or(0.0) / if r.modal.inch { MM_PER_INCH } else { 1.0 })
+            }
+            "_line" => Some(r.line_no as f64),
+            _ => {
+                let mut chars = name.chars();
+                if let (Some('_'), Some(c), None) = (chars.next(), chars.next(), chars.next()) {
+                    let upper = c.to_ascii_uppercase();
+                    if SYSTEM_AXES.contains(&upper) {
+                        return Some(self.axis_position(upper));
+                    }
+                }
+                r.params.named(name)
+            }
+        }
+    }
+}

@@ -1,0 +1,89 @@
+//! Opening files that someone else may have replaced: a file the daemon reads (its token, a
+//! sysfs attribute, a gap script, a program) can be swapped for a FIFO, which an ordinary
+//! `open` would wait on for ever (until a writer comes) and a `read` after it too. These
+//! open without blocking and refuse anything that is not a regular file, so a FIFO (or a
+//! device, or a directory) is an error at once, not a wedged thread.
+
+use std::fs::File;
+use std::io;
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::Path;
+
+/// Opens `path` for reading without waiting on it, and only if it is a regular file (a
+/// symbolic link is followed to what it names).
+pub fn open_regular(path: &Path) -> io::Result<File> {
+    // O_NONBLOCK: opening a FIFO with no writer returns at once instead of waiting. On a
+    // regular file the flag changes nothing.
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    let kind = file.metadata()?.file_type();
+    if !kind.is_file() {
+        use std::os::unix::fs::FileTypeExt;
+        let what = if kind.is_fifo() {
+            "a FIFO"
+        } else if kind.is_dir() {
+            "a directory"
+        } else if kind.is_char_device() || kind.is_block_device() {
+            "a device"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            "not a file"
+        };
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{what}, not a regular file"),
+        ));
+    }
+    Ok(file)
+}
+
+/// The whole of the regular file at `path`, as text (see [`open_regular`]).
+pub fn read_regular(path: &Path) -> io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    open_regular(path)?.read_to_string(&mut text)?;
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fifo_is_refused_at_once() {
+        let dir = std::env::temp_dir().join(format!("edmd-files-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("fifo");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let started = std::time::Instant::now();
+        let err = read_regular(&fifo).unwrap_err();
+        assert!(started.elapsed() < std::time::Duration::from_secs(1));
+        assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
+        assert_eq!(err.to_string(), "a FIFO, not a regular file");
+        assert!(
+            read_regular(&dir)
+                .unwrap_err()
+                .to_string()
+                .contains("directory")
+        );
+        assert!(
+            read_regular(Path::new("/dev/null"))
+                .unwrap_err()
+                .to_string()
+                .contains("device")
+        );
+        let file = dir.join("token");
+        std::fs::write(&file, "abc\n").unwrap();
+        assert_eq!(read_regular(&file).unwrap(), "abc\n");
+        std::os::unix::fs::symlink(&file, dir.join("link")).unwrap();
+        assert_eq!(read_regular(&dir.join("link")).unwrap(), "abc\n");
+    }
+}
