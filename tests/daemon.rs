@@ -1192,11 +1192,7 @@ fn an_alarm_in_edmd_run_leaves_a_checkpoint_the_daemon_resumes() {
 #[test]
 fn a_wire_break_holds_rethread_returns_to_the_start_hole_and_resume_finishes_exactly() {
     let dir = scratch("wire-break");
-    std::fs::write(
-        dir.join("programs/contour.ngc"),
-        "G21 G90\nG0 X1\nG1 X6 F300\nG1 Y4\nG1 X2\nM2\n",
-    )
-    .unwrap();
+    std::fs::write(dir.join("programs/contour.ngc"), CONTOUR).unwrap();
     // The wire breaks 1.4 s into the job (ticks of 50 µs): on the second cut.
     std::fs::write(dir.join("gap.txt"), "0 normal\n28000 wire-break\n").unwrap();
     let sets = script_sets(&dir, "pulses.csv");
@@ -1229,7 +1225,7 @@ fn a_wire_break_holds_rethread_returns_to_the_start_hole_and_resume_finishes_exa
     let threading = daemon.wait_for("the start hole", |s| s["state"] == "threading");
     assert_eq!(position(&threading), vec![1000, 0], "{threading}");
     daemon.wait_for_log("thread the wire, then `edmd ctl resume`");
-    daemon.resume_to_the_end(&[2000, 4000]);
+    daemon.resume_to_the_end(&CONTOUR_END);
 
     // The pulse record: 1 mm of rapid, the cut to the break, back to X1 Y0 and forward
     // again to the break (spark off both ways), the rest of the cut: every pulse accounted.

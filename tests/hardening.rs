@@ -18,10 +18,6 @@ fn checkpoint(dir: &Path) -> Value {
     serde_json::from_str(&text).unwrap()
 }
 
-/// A wire-cut contour that ends at X2 Y4 (steps 2000, 4000), cut in about 3 s.
-const CONTOUR: &str = "G21 G90\nG0 X1\nG1 X6 F300\nG1 Y4\nG1 X2\nM2\n";
-const CONTOUR_END: [i64; 2] = [2000, 4000];
-
 /// Sets without periodic checkpoints: what is on disk is only what the write-ahead rule and
 /// the standstills wrote.
 fn sets_without_periodic(dir: &Path) -> Vec<String> {

@@ -382,21 +382,26 @@ mod tests {
         assert!((gap.volts() - 20.0).abs() < 1e-12);
     }
 
-    #[test]
-    fn a_reading_that_turns_bad_stops_the_job_with_the_file_named() {
-        let dir = fake_device("runtime", "1500", Some("1"));
-        let mut gap = IioGap::open(&settings(&dir)).unwrap();
-        set_raw(&dir, "garbage");
+    /// The first error the input reports, within 5 s.
+    fn first_error(gap: &mut IioGap) -> String {
         let deadline = Instant::now() + Duration::from_secs(5);
-        let e = loop {
+        loop {
             match gap.sample(0) {
-                Err(e) => break e.to_string(),
+                Err(e) => return e.to_string(),
                 Ok(_) => {
                     assert!(Instant::now() < deadline, "no error");
                     std::thread::sleep(Duration::from_millis(2));
                 }
             }
-        };
+        }
+    }
+
+    #[test]
+    fn a_reading_that_turns_bad_stops_the_job_with_the_file_named() {
+        let dir = fake_device("runtime", "1500", Some("1"));
+        let mut gap = IioGap::open(&settings(&dir)).unwrap();
+        set_raw(&dir, "garbage");
+        let e = first_error(&mut gap);
         assert!(
             e.contains("in_voltage0_raw") && e.contains("garbage"),
             "{e}"
@@ -419,16 +424,7 @@ mod tests {
                 .success()
         );
         std::fs::rename(&fifo, dir.join("in_voltage0_raw")).unwrap();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        let e = loop {
-            match gap.sample(0) {
-                Err(e) => break e.to_string(),
-                Ok(_) => {
-                    assert!(Instant::now() < deadline, "no error");
-                    std::thread::sleep(Duration::from_millis(2));
-                }
-            }
-        };
+        let e = first_error(&mut gap);
         assert!(e.contains("in_voltage0_raw") && e.contains("FIFO"), "{e}");
         let dropping = Instant::now();
         drop(gap);

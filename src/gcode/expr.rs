@@ -366,17 +366,7 @@ fn number(sc: &mut Scanner) -> Result<f64, ExprError> {
         sc.bump();
     }
     let text = &sc.s[start..sc.pos];
-    if matches!(sc.peek(), Some('e' | 'E'))
-        && matches!(sc.peek2(), Some(c) if c.is_ascii_digit() || c == '+' || c == '-')
-    {
-        return Err((
-            sc.next_col(),
-            GcodeErrorKind::UnexpectedChar {
-                ch: sc.peek().unwrap_or('e'),
-                hint: " (exponent notation such as 1e3 is not G-code: write the number out)",
-            },
-        ));
-    }
+    no_exponent(sc)?;
     let digits = text.chars().filter(char::is_ascii_digit).count();
     if digits == 0 || text.matches('.').count() > 1 || text.len() > 32 {
         return Err((
@@ -394,6 +384,23 @@ fn number(sc: &mut Scanner) -> Result<f64, ExprError> {
             },
         )
     })
+}
+
+/// After the digits of a number: `1e300` is not G-code (LinuxCNC reads the `e` as an unknown
+/// operation or word); say so where the exponent starts, rather than "`]` expected".
+pub(crate) fn no_exponent(sc: &Scanner) -> Result<(), ExprError> {
+    if matches!(sc.peek(), Some('e' | 'E'))
+        && matches!(sc.peek2(), Some(c) if c.is_ascii_digit() || c == '+' || c == '-')
+    {
+        return Err((
+            sc.next_col(),
+            GcodeErrorKind::UnexpectedChar {
+                ch: sc.peek().unwrap_or('e'),
+                hint: " (exponent notation such as 1e3 is not G-code: write the number out)",
+            },
+        ));
+    }
+    Ok(())
 }
 
 const FUNCTIONS: [&str; 14] = [

@@ -239,19 +239,10 @@ pub(crate) fn lex(
                     sc.bump();
                 }
                 let text = line[start..sc.pos].to_string();
-                // `X1e308`: an exponent glued to a number is not a word `E`, and G-code has no
-                // exponent notation; say so rather than "word E is not used".
-                if !text.is_empty()
-                    && matches!(sc.peek(), Some('e' | 'E'))
-                    && matches!(sc.peek2(), Some(c) if c.is_ascii_digit() || c == '+' || c == '-')
-                {
-                    return Err((
-                        sc.next_col(),
-                        GcodeErrorKind::UnexpectedChar {
-                            ch: sc.peek().unwrap_or('e'),
-                            hint: " (exponent notation such as 1e3 is not G-code: write the number out)",
-                        },
-                    ));
+                // `X1e308`: an exponent glued to a number is not a word `E`; say so rather
+                // than "word E is not used".
+                if !text.is_empty() {
+                    expr::no_exponent(&sc)?;
                 }
                 words.push(number_word(letter, col, text)?);
             }

@@ -21,6 +21,10 @@ use edmd::output::read_pulse_log;
 pub const PROGRAM: &str = "runtime-path.nc";
 /// The program's end in steps (1 µm).
 pub const PROGRAM_END: [i64; 2] = [7500, 8250];
+/// A wire-cut contour from a start hole at X1: a rapid, three cuts, in about 3 s.
+pub const CONTOUR: &str = "G21 G90\nG0 X1\nG1 X6 F300\nG1 Y4\nG1 X2\nM2\n";
+/// Its end in steps.
+pub const CONTOUR_END: [i64; 2] = [2000, 4000];
 
 pub fn scratch(name: &str) -> PathBuf {
     let dir = super::scratch("daemon", name);
