@@ -658,3 +658,35 @@ fn the_shipped_unit_lets_http_work_and_a_stricter_one_is_named() {
         "{log}"
     );
 }
+
+/// A report folder that cannot be made refuses the job before it moves, not at its end.
+#[test]
+fn a_report_folder_that_cannot_be_made_refuses_the_job_at_its_start() {
+    let dir = scratch("report-dir");
+    std::fs::write(dir.join("not-a-folder"), "").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(format!(
+        "daemon.report_dir=\"{}\"",
+        dir.join("not-a-folder/reports").display()
+    ));
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    let (refused, code) = daemon.ctl(&["run", PROGRAM]);
+    assert_eq!(
+        (refused["ok"].as_bool(), code),
+        (Some(false), 1),
+        "{refused}"
+    );
+    let error = refused["error"].as_str().unwrap();
+    assert!(
+        error.starts_with("daemon.report_dir: cannot make ")
+            && error.contains("without its report"),
+        "{error}"
+    );
+    assert!(!dir.join("pulses.csv").exists(), "nothing moved");
+    assert!(
+        !dir.join("checkpoint.json").exists(),
+        "no job, no checkpoint"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+}

@@ -550,3 +550,13 @@ fn no_probing_under_a_wire_offset() {
         "{text}"
     );
 }
+
+/// LinuxCNC drops spaces before it reads a line: `else if` is `elseif` (its own probing
+/// macros write it so), `end if` is `endif`. Checked against `rs274`: the branch taken is
+/// the `elseif`'s.
+#[test]
+fn spaces_inside_o_word_keywords_count_for_nothing() {
+    let program = "#1 = 2\no1 if [#1 EQ 1]\nG1 X1 F60\no1 else if [#1 EQ 2]\nG1 X2 F60\no1 else\nG1 X3 F60\no1 end if\nM2\n";
+    let (blocks, _) = read(program);
+    assert_eq!(ends(&blocks), vec![(5, 2.0, 0.0)]);
+}

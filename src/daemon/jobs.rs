@@ -197,33 +197,33 @@ impl Core {
             .as_ref()
             .map(|r| r.position.clone())
             .unwrap_or_default();
+        // A report of what this job runs, when the configuration asks for one. Its folder is
+        // made first: a job must not learn at its end that its report has nowhere to go.
+        let report = match &config.daemon.report_dir {
+            Some(dir) => {
+                let stem = Path::new(&program.name)
+                    .file_stem()
+                    .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
+                let dir = dir.join(format!("{}-{stem}", unix_now()));
+                std::fs::create_dir_all(&dir).map_err(|e| {
+                    format!(
+                        "daemon.report_dir: cannot make {}: {e}; the job does not start \
+                         without its report",
+                        dir.display()
+                    )
+                })?;
+                let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
+                    &config.machine.step_mm,
+                    config.fine.tick,
+                )));
+                Some((dir, recording))
+            }
+            None => None,
+        };
         let mut io = self
             .job_io(&config, &check, &start)
             .map_err(|e| e.to_string())?;
-        // A report of what this job runs, when the configuration asks for one.
-        let report = config.daemon.report_dir.as_ref().map(|dir| {
-            let stem = Path::new(&program.name)
-                .file_stem()
-                .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
-            let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
-                &config.machine.step_mm,
-                config.fine.tick,
-            )));
-            io.recording = Some(recording.clone());
-            (dir.join(format!("{}-{stem}", unix_now())), recording)
-        });
-        // The report's folder is made now: a job must not learn at its end that its report
-        // has nowhere to go.
-        if let Some((dir, _)) = &report
-            && let Err(e) = std::fs::create_dir_all(dir)
-        {
-            self.give_back_io(&config, io);
-            return Err(format!(
-                "daemon.report_dir: cannot make {}: {e}; the job does not start without its \
-                 report",
-                dir.display()
-            ));
-        }
+        io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
         let published = Arc::new(Published::new(4096));
         let stop = Arc::new(AtomicBool::new(false));

@@ -127,7 +127,7 @@ mod tests {
         assert_eq!(
             lines,
             vec![
-                "daemon.max_clients: 64 -> 3".to_string(),
+                "daemon.max_clients: 256 -> 3".to_string(),
                 "log.level: \"info\" -> \"debug\"".to_string()
             ]
         );
