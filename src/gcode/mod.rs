@@ -280,6 +280,22 @@ pub fn on_parser_stack<T: Send>(name: &str, work: impl FnOnce() -> T + Send) -> 
     })
 }
 
+/// A reader of the program in `file`, already open (by a caller that checked what it
+/// opened); errors name the program `name`.
+pub fn read_program(
+    file: File,
+    name: &str,
+    axes: &[Axis],
+    options: ProgramOptions,
+) -> BlockReader<BufReader<File>> {
+    BlockReader::with_options(
+        BufReader::with_capacity(64 * 1024, file),
+        name,
+        axes,
+        options,
+    )
+}
+
 /// Opens `path` for streaming with the default [`ProgramOptions`]. Errors name the path as
 /// given.
 pub fn open_program(

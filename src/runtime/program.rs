@@ -142,7 +142,9 @@ pub enum CopyError {
 }
 
 /// Copies `original` into `dir` as `<sha256>.nc` (read-only, synced), streaming and hashing
-/// in one pass. A copy with that name already there holds the same bytes and is kept.
+/// in one pass. A copy with that name already there holds the same bytes and is kept. A
+/// program is a regular file: a FIFO in its place (swapped in after the daemon confined the
+/// name) is refused at once rather than waited on for ever.
 pub fn copy_program(
     original: &Path,
     dir: &Path,
@@ -157,7 +159,7 @@ pub fn copy_program(
         dir: dir.to_path_buf(),
         source,
     };
-    let mut source = File::open(original).map_err(read_error)?;
+    let mut source = crate::sys::open_regular(original).map_err(read_error)?;
     let size = source.metadata().map_err(read_error)?.len();
     progress.start(Phase::Copying, size);
     std::fs::create_dir_all(dir).map_err(write_error)?;

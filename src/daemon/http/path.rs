@@ -245,8 +245,10 @@ pub fn programmed_path(
         (Some(x), Some(y)) => (x, y),
         _ => (0, 1.min(axes.len().saturating_sub(1))),
     };
-    let mut reader = crate::gcode::open_program_as(file, name, axes, options, |f| f)
-        .map_err(|e| e.to_string())?;
+    // Opened without blocking and only if still a regular file: a FIFO swapped in after the
+    // name was confined would hold this drawing's thread for ever.
+    let opened = crate::sys::open_regular(file).map_err(|e| format!("{name}: {e}"))?;
+    let mut reader = crate::gcode::read_program(opened, name, axes, options);
     reader.cancel_on(budget.cancel.clone());
     let mut drawing = Drawing::new();
     let mut blocks = 0;
