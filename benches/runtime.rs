@@ -15,13 +15,13 @@ use edmd::buffer::{BlockSource, Fetch, LoopBuffer, StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{Bresenham, FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
-use edmd::geometry::MAX_AXES;
 use edmd::output::PulseOutput;
 use edmd::parport::{
     Clock, ParportGap, ParportOutput, PinMap, Port, PortWriter, SpinClock, StepTiming,
 };
 use edmd::servo::Feeds;
 use edmd::sim::{SimGap, SimSettings};
+use edmd::vocab::MAX_AXES;
 use parking_lot::Mutex;
 
 /// Ticks per measured batch.

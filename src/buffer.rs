@@ -39,7 +39,7 @@
 
 use parking_lot::{Condvar, Mutex};
 
-use crate::geometry::MAX_AXES;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// One block of the loop buffer (seed 000 Fig. 4): a straight move between two lattice points.
 ///
@@ -50,8 +50,8 @@ use crate::geometry::MAX_AXES;
 pub struct StepBlock {
     /// Position in the program's sequence of blocks (0-based).
     pub seq: u64,
-    pub start: [i64; MAX_AXES],
-    pub end: [i64; MAX_AXES],
+    pub start: Steps,
+    pub end: Steps,
     /// Length of the move in mm (the chord between the exact end points).
     pub length_mm: f64,
     /// Planned speeds (mm/s): at the start, at the end, and the cruise limit in between.
@@ -120,7 +120,7 @@ impl StepBlock {
     };
 
     /// Signed step count of each axis.
-    pub fn delta(&self) -> [i64; MAX_AXES] {
+    pub fn delta(&self) -> Steps {
         std::array::from_fn(|i| self.end[i] - self.start[i])
     }
 

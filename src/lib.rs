@@ -5,12 +5,15 @@
 //! own floor or below (`tests/architecture.rs` checks it).
 //!
 //! `unsafe` is denied everywhere except the kernel-facing modules that allow it by name:
-//! [`sys`]'s clock, real-time and group look-up wrappers and [`parport::ioctl`].
+//! [`sys`]'s clock, real-time, group look-up and descriptor-limit wrappers and
+//! [`parport::ioctl`].
 
 #![deny(unsafe_code)]
 #![warn(clippy::undocumented_unsafe_blocks)]
 
-// Floor 0: vocabulary and kernel calls, importing nothing of edmd's.
+// Floor 0: vocabulary, kernel calls, the seeded generator and SVG charts, importing nothing
+// of edmd's.
+pub mod plot;
 pub mod rng;
 pub mod sys;
 pub mod vocab;
@@ -25,21 +28,20 @@ pub mod buffer;
 // Floor 5: the tick core and its servo.
 pub mod fine;
 pub mod servo;
-// Floor 6: the machine's two sides (pulse outputs, gap inputs) and their devices.
+// Floor 6: the machine's two sides (pulse outputs, gap inputs), their devices and wrappers.
 pub mod gap;
 pub mod output;
 pub mod parport;
 pub mod record;
-pub mod report;
 pub mod sim;
 pub mod trace;
 // Floor 7: configuration, read at the edge and handed down as plain values.
 pub mod config;
-// Floor 8: reports and the job runner.
+// Floor 8: reports, checkpoints and the job runner.
 pub mod check;
 pub mod checkpoint;
 pub mod plan;
-pub mod plot;
+pub mod report;
 pub mod runtime;
 // Floor 9: the daemon.
 pub mod daemon;

@@ -16,17 +16,17 @@
 use std::sync::Arc;
 
 use crate::gap::GapState;
-use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
 use crate::plot::Decimated;
 use crate::trace::Handoff;
 use crate::vocab::TickPeriod;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// Where the machine was at one tick.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     pub tick: u64,
-    pub position: [i64; MAX_AXES],
+    pub position: Steps,
     pub gap: GapState,
     /// Part of a rapid (G0).
     pub rapid: bool,
@@ -41,7 +41,7 @@ pub struct RecordedOutput<O> {
     inner: O,
     recorder: Arc<Recorder>,
     every: u64,
-    position: [i64; MAX_AXES],
+    position: Steps,
     last_gap: Option<GapState>,
     next: u64,
     rapid: bool,
@@ -52,7 +52,7 @@ pub struct RecordedOutput<O> {
 impl<O> RecordedOutput<O> {
     /// A sample at every gap change and at most every `every` ticks of motion; `start` is the
     /// position in steps the job starts from.
-    pub fn new(inner: O, recorder: Arc<Recorder>, every: u64, start: [i64; MAX_AXES]) -> Self {
+    pub fn new(inner: O, recorder: Arc<Recorder>, every: u64, start: Steps) -> Self {
         RecordedOutput {
             inner,
             recorder,
@@ -186,7 +186,7 @@ impl Recording {
         (u128::from(ticks) * u128::from(self.tick.ns())) as f64 * 1e-9
     }
 
-    fn mm(&self, position: &[i64; MAX_AXES], axis: usize) -> f64 {
+    fn mm(&self, position: &Steps, axis: usize) -> f64 {
         self.step_mm
             .get(axis)
             .map_or(0.0, |s| position[axis] as f64 * s)

@@ -198,7 +198,7 @@ pub enum ServoEvent {
     /// pulse ledger there. `contact: false`: it reached its end point without.
     Probed {
         at: PathPoint,
-        steps: [i64; crate::geometry::MAX_AXES],
+        steps: [i64; crate::vocab::MAX_AXES],
         contact: bool,
         /// Probing away (`G38.4`/`G38.5`): the contact was lost rather than made.
         away: bool,

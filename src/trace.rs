@@ -21,8 +21,8 @@ use std::thread::Thread;
 use crossbeam::queue::ArrayQueue;
 
 use crate::gap::{GapError, GapSensor, GapState};
-use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
+use crate::vocab::MAX_AXES;
 
 /// A change of state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -11,6 +11,13 @@
 
 use serde::Deserialize;
 
+/// Most axes a machine (and so a curve) can have.
+pub const MAX_AXES: usize = 6;
+
+/// A position in steps, one count per axis (the axes a machine lacks stay 0): the unit of the
+/// pulse ledger, of step blocks and of checkpoints.
+pub type Steps = [i64; MAX_AXES];
+
 /// A machine axis letter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Axis {

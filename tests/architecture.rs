@@ -40,6 +40,29 @@ const UNSAFE_FILES: &[&str] = &[
 
 /// Longest file under `src/`, its tests aside.
 const MAX_LINES: usize = 700;
+/// Longest function under `src/`, tests aside: past it a function does several things.
+const MAX_FN_LINES: usize = 120;
+/// Functions still over the limit, being split (this list only shrinks).
+const LONG_FUNCTIONS_TO_SPLIT: &[&str] = &[
+    "config/parport.rs:validate",
+    "config/validate.rs:validate",
+    "daemon/http/metrics.rs:render",
+    "daemon/jobs.rs:start_job",
+    "daemon/mod.rs:serve",
+    "daemon/protocol.rs:text",
+    "fine/mod.rs:tick",
+    "gcode/lexer.rs:lex",
+    "gcode/parser/arc.rs:arc_block",
+    "gcode/parser/control.rs:statement",
+    "gcode/parser/modal.rs:start_block",
+    "plan/charts.rs:write_reports",
+    "plan/mod.rs:plan_program",
+    "plot.rs:render",
+    "preprocess/segmenter.rs:curved_step",
+    "runtime/consumer.rs:run_loop",
+    "runtime/events.rs:log_event",
+    "runtime/mod.rs:run_job_with",
+];
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -500,6 +523,95 @@ fn no_file_under_src_is_longer_than_the_limit_tests_aside() {
         "files over {MAX_LINES} lines:\n  {}",
         long.join("\n  ")
     );
+}
+
+/// The functions of `text` (tests aside) as (name, first line, lines): a `fn` line and the
+/// line that closes it at the same indentation.
+fn functions(text: &str) -> Vec<(String, usize, usize)> {
+    let code = code_only(text);
+    let lines: Vec<&str> = code.lines().take(lines_before_tests(text)).collect();
+    let mut found = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let trimmed = line.trim_start();
+        let indent = line.len() - trimmed.len();
+        let head = trimmed
+            .trim_start_matches("pub(crate) ")
+            .trim_start_matches("pub(super) ")
+            .trim_start_matches("pub ")
+            .trim_start_matches("const ")
+            .trim_start_matches("async ")
+            .trim_start_matches("unsafe ");
+        let Some(rest) = head.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = rest
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        // A declaration without a body (a trait's) ends on its own line.
+        let closing = format!("{}}}", " ".repeat(indent));
+        if let Some(end) = lines[i..].iter().position(|l| {
+            l.trim_end() == closing
+                || (l.trim_end().ends_with(';') && !l.contains('{') && *l == lines[i])
+        }) {
+            found.push((name, i + 1, end + 1));
+        }
+    }
+    found
+}
+
+#[test]
+fn no_function_under_src_is_longer_than_the_limit_tests_aside() {
+    let mut long = Vec::new();
+    for path in rust_files(&root().join("src")) {
+        let rel = rel(&path);
+        if rel.ends_with("/tests.rs") {
+            continue;
+        }
+        for (name, line, n) in functions(&std::fs::read_to_string(&path).unwrap()) {
+            if n > MAX_FN_LINES
+                && !LONG_FUNCTIONS_TO_SPLIT.contains(&format!("{rel}:{name}").as_str())
+            {
+                long.push(format!("src/{rel}:{line}: fn {name}: {n} lines"));
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "functions over {MAX_FN_LINES} lines:\n  {}",
+        long.join("\n  ")
+    );
+}
+
+/// `src/lib.rs` lists the modules floor by floor (`// Floor N:` comments): the same floors
+/// as the table here (and so as ARCHITECTURE.md's).
+#[test]
+fn lib_rs_lists_the_same_floors() {
+    let text = std::fs::read_to_string(root().join("src/lib.rs")).unwrap();
+    let mut floor: Option<usize> = None;
+    let mut listed: Vec<BTreeSet<String>> = vec![BTreeSet::new(); FLOORS.len()];
+    for line in text.lines() {
+        if let Some(rest) = line.trim().strip_prefix("// Floor ") {
+            let n: String = rest.chars().take_while(char::is_ascii_digit).collect();
+            floor = n.parse().ok();
+        } else if let Some(module) = line
+            .trim()
+            .strip_prefix("pub mod ")
+            .and_then(|m| m.strip_suffix(';'))
+        {
+            let f =
+                floor.unwrap_or_else(|| panic!("src/lib.rs: `{module}` under no floor comment"));
+            assert!(f < FLOORS.len(), "src/lib.rs: floor {f} does not exist");
+            listed[f].insert(module.to_string());
+        }
+    }
+    let table: Vec<BTreeSet<String>> = FLOORS
+        .iter()
+        .map(|f| f.iter().map(|m| m.to_string()).collect())
+        .collect();
+    for (n, (lib, want)) in listed.iter().zip(&table).enumerate() {
+        assert_eq!(lib, want, "src/lib.rs floor {n}");
+    }
 }
 
 #[test]

@@ -12,11 +12,11 @@ use std::sync::Arc;
 
 use edmd::config::Config;
 use edmd::gap::{GapError, GapSensor, GapState, ScriptGap};
-use edmd::geometry::MAX_AXES;
 use edmd::output::{OutputError, PulseOutput, read_pulse_log};
 use edmd::parport::fake::{Bench, RecordingPort, VirtualClock};
 use edmd::parport::{ParportOutput, PinMap, PortWriter, StepTiming};
 use edmd::runtime::{self, Outcome};
+use edmd::vocab::MAX_AXES;
 use parking_lot::Mutex;
 
 const PROGRAM: &str = "tests/data/runtime-path.nc";

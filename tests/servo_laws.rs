@@ -8,9 +8,9 @@ use edmd::buffer::{StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
-use edmd::geometry::MAX_AXES;
 use edmd::servo::{Law, ServoState};
 use edmd::sim::{SimGap, SimSettings};
+use edmd::vocab::MAX_AXES;
 
 /// 200 blocks of 0.1 mm along X, planned at up to 20 mm/s (the servo decides).
 fn straight_cut() -> Vec<StepBlock> {

@@ -10,11 +10,11 @@ use super::Config;
 use super::ServoLaw;
 use crate::fine::FineSettings;
 use crate::gcode::ProgramOptions;
-use crate::geometry::MAX_AXES;
 use crate::parport::{PinMap, StepTiming};
 use crate::preprocess::PlanSettings;
 use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
+use crate::vocab::MAX_AXES;
 
 /// `machine.step_mm` as a fixed array, unused axes 0.
 pub(super) fn step_mm(config: &Config) -> [f64; MAX_AXES] {

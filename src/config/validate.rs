@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use super::raw::RawConfig;
 use super::*;
-use crate::geometry::MAX_AXES;
+use crate::vocab::MAX_AXES;
 
 pub(super) type Invalid = (&'static str, String);
 

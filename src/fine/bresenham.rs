@@ -14,7 +14,7 @@
 //! on a carry, backward subtracts and steps on a borrow. Since `|d_i| <= n` an event moves each
 //! axis by at most one step, and the long axis by exactly one.
 
-use crate::geometry::MAX_AXES;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// The walk along one block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -24,16 +24,16 @@ pub struct Bresenham {
     /// Current event, `0..=n`.
     k: i64,
     /// `2 |d_i|`.
-    rise: [i64; MAX_AXES],
+    rise: Steps,
     sign: [i8; MAX_AXES],
     /// `(2 |d_i| k + n) mod 2n`.
-    err: [i64; MAX_AXES],
+    err: Steps,
 }
 
 impl Bresenham {
     /// A walk over `delta` steps per axis, positioned at event `0` (or at event `n` when
     /// `at_end`, for a block entered backwards).
-    pub fn new(delta: &[i64; MAX_AXES], at_end: bool) -> Bresenham {
+    pub fn new(delta: &Steps, at_end: bool) -> Bresenham {
         let n = delta.iter().map(|d| d.abs()).max().unwrap_or(0);
         let mut walk = Bresenham {
             n,
@@ -108,7 +108,7 @@ impl Bresenham {
 
     /// The position offset from the block's start at event `k`, from the closed form (for
     /// tests and for checking the incremental walk).
-    pub fn offset_at(delta: &[i64; MAX_AXES], k: i64) -> [i64; MAX_AXES] {
+    pub fn offset_at(delta: &Steps, k: i64) -> Steps {
         let n = delta.iter().map(|d| d.abs()).max().unwrap_or(0);
         if n == 0 {
             return [0; MAX_AXES];
@@ -125,7 +125,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn delta_strategy() -> impl Strategy<Value = [i64; MAX_AXES]> {
+    fn delta_strategy() -> impl Strategy<Value = Steps> {
         (
             1usize..=MAX_AXES,
             proptest::collection::vec(-300i64..300, MAX_AXES),
@@ -133,7 +133,7 @@ mod tests {
             .prop_map(|(axes, v)| std::array::from_fn(|i| if i < axes { v[i] } else { 0 }))
     }
 
-    fn add(pos: &mut [i64; MAX_AXES], steps: &[i8; MAX_AXES]) {
+    fn add(pos: &mut Steps, steps: &[i8; MAX_AXES]) {
         for i in 0..MAX_AXES {
             pos[i] += steps[i] as i64;
         }
@@ -196,7 +196,7 @@ mod tests {
         #[test]
         fn chains_stay_exact(points in proptest::collection::vec(
             proptest::collection::vec(-1000i64..1000, 3), 2..20)) {
-            let lattice: Vec<[i64; MAX_AXES]> = points
+            let lattice: Vec<Steps> = points
                 .iter()
                 .map(|p| std::array::from_fn(|i| if i < 3 { p[i] } else { 0 }))
                 .collect();

@@ -44,9 +44,9 @@ mod laws;
 mod skip;
 
 use crate::buffer::{BlockSource, Fetch, StepBlock};
-use crate::geometry::MAX_AXES;
 use crate::servo::{Feeds, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
 use crate::vocab::GapState;
+use crate::vocab::{MAX_AXES, Steps};
 
 pub use bresenham::Bresenham;
 pub use excursion::ExcursionSettings;
@@ -110,7 +110,7 @@ pub struct Interpolator {
     /// Lattice length of the block in hand (mm).
     lattice_mm: f64,
     /// Believed position in steps: the pulse ledger.
-    position: [i64; MAX_AXES],
+    position: Steps,
     /// Path speed (mm/s), always >= 0; `dir` gives its sense.
     speed: f64,
     dir: i8,
@@ -152,7 +152,7 @@ pub struct Interpolator {
 
 impl Interpolator {
     /// A stopped interpolator at `start` (steps), waiting for its first block.
-    pub fn new(settings: FineSettings, start: [i64; MAX_AXES]) -> Interpolator {
+    pub fn new(settings: FineSettings, start: Steps) -> Interpolator {
         Interpolator {
             settings,
             servo: Servo::new(settings.feeds),
@@ -243,7 +243,7 @@ impl Interpolator {
     }
 
     /// The pulse ledger: the believed position in steps.
-    pub fn position(&self) -> [i64; MAX_AXES] {
+    pub fn position(&self) -> Steps {
         self.position
     }
 

@@ -2,8 +2,8 @@
 
 use super::Interpolator;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
-use crate::geometry::MAX_AXES;
 use crate::servo::PathPoint;
+use crate::vocab::MAX_AXES;
 
 /// Why a resumed job could not walk to its checkpoint.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

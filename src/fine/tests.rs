@@ -2,6 +2,7 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::buffer::VecSource;
+use crate::vocab::Steps;
 
 pub(crate) const SETTINGS: FineSettings = FineSettings {
     dt: 50e-6,
@@ -18,7 +19,7 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.
-pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
+pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
     let n = points.len() - 1;
     points
         .windows(2)
@@ -52,7 +53,7 @@ pub(crate) fn chain(points: &[[i64; MAX_AXES]], v: f64) -> Vec<StepBlock> {
         .collect()
 }
 
-pub(crate) fn p2(x: i64, y: i64) -> [i64; MAX_AXES] {
+pub(crate) fn p2(x: i64, y: i64) -> Steps {
     [x, y, 0, 0, 0, 0]
 }
 
@@ -81,14 +82,14 @@ fn run(
     (path, fine)
 }
 
-pub(crate) type Move = ([i64; MAX_AXES], bool);
+pub(crate) type Move = (Steps, bool);
 
 /// Checks the retrace rule on a move sequence: every backward move goes back to the point
 /// before on the forward path, and forward moves after a retrace revisit exactly the points
 /// retraced, in reverse. Returns the number of backward moves.
 pub(crate) fn assert_retraces(path: &[Move]) -> usize {
     let mut stack = vec![path[0].0];
-    let mut undone: Vec<[i64; MAX_AXES]> = Vec::new();
+    let mut undone: Vec<Steps> = Vec::new();
     let mut pops = 0;
     for &(q, backward) in &path[1..] {
         if backward {
@@ -288,10 +289,7 @@ proptest! {
 }
 
 /// Positions of every moving tick of a run that is held over `hold` ticks, and the run.
-fn run_with_hold(
-    blocks: Vec<StepBlock>,
-    hold: std::ops::Range<u64>,
-) -> (Vec<[i64; MAX_AXES]>, Interpolator) {
+fn run_with_hold(blocks: Vec<StepBlock>, hold: std::ops::Range<u64>) -> (Vec<Steps>, Interpolator) {
     let mut source = VecSource::new(blocks, 4);
     let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
     let mut path = Vec::new();

@@ -11,7 +11,7 @@
 mod iio;
 mod script;
 
-use crate::geometry::MAX_AXES;
+use crate::vocab::MAX_AXES;
 
 /// The gap state is shared vocabulary (the servo and the tick core read it too).
 pub use crate::vocab::GapState;

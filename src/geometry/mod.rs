@@ -22,8 +22,7 @@ pub use nurbs::{CurveDerivs, CurveEnd, NurbsCurve, NurbsError};
 /// Highest curve degree accepted (order 10).
 pub const MAX_DEGREE: usize = 9;
 
-/// Most axes a machine (and so a curve) can have.
-pub const MAX_AXES: usize = 6;
+pub use crate::vocab::MAX_AXES;
 
 /// A point or vector in machine space (mm); components past the curve's `dim` are zero.
 pub type Point = nalgebra::SVector<f64, MAX_AXES>;

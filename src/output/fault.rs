@@ -2,7 +2,7 @@
 
 use super::{OutputError, PulseOutput};
 use crate::gap::GapState;
-use crate::geometry::MAX_AXES;
+use crate::vocab::MAX_AXES;
 
 /// Passes writes to `inner` until tick `fail_at`, then fails every write (without passing it
 /// on, so the failed tick's steps are not taken). `finish` still reaches `inner`, so a pulse

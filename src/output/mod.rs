@@ -21,7 +21,7 @@ pub use fault::FaultInjector;
 pub use pulse_log::{PulseLog, PulseLogHeader, PulseLogRow, read_pulse_log};
 
 use crate::gap::GapState;
-use crate::geometry::MAX_AXES;
+use crate::vocab::MAX_AXES;
 
 /// An output that failed: which one and why.
 #[derive(Debug, thiserror::Error)]

@@ -21,8 +21,8 @@ use std::path::Path;
 
 use super::{OutputError, PulseOutput};
 use crate::gap::GapState;
-use crate::geometry::MAX_AXES;
 use crate::vocab::Axis;
+use crate::vocab::MAX_AXES;
 
 /// What the `#` line says.
 #[derive(Debug, Clone, PartialEq)]

@@ -43,8 +43,8 @@ use std::sync::Arc;
 use parking_lot::Mutex;
 
 use crate::gap::{GapError, GapSensor, GapState};
-use crate::geometry::MAX_AXES;
 use crate::output::{OutputError, PulseOutput};
+use crate::vocab::MAX_AXES;
 
 pub use ioctl::Ppdev;
 pub use pins::{CONDITION_BITS, PinLevels, PinMap, StepEncoder, StepTiming};

@@ -16,7 +16,7 @@
 //! active-low steps) are a second, separate layer: [`PinMap::level`] turns a logical signal
 //! (step active, direction positive, short present) into a pin level.
 
-use crate::geometry::MAX_AXES;
+use crate::vocab::MAX_AXES;
 
 /// A DB-25 pin number.
 pub type Pin = u8;

@@ -72,7 +72,7 @@ impl Segment {
             a: *a,
             dir: if len > 0.0 { v / len } else { Point::zeros() },
             len,
-            dim: crate::geometry::MAX_AXES,
+            dim: crate::vocab::MAX_AXES,
         }
     }
 

@@ -30,10 +30,10 @@ pub use super::snapshot::Snapshot;
 use crate::buffer::{BlockSource, StepBlock};
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor, GapState};
-use crate::geometry::MAX_AXES;
 use crate::output::{Activity, OutputError, PulseOutput};
 use crate::servo::{Excursion, PathPoint, ServoEvent, ServoState};
 use crate::sys;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// How the loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -160,7 +160,7 @@ impl Published {
         Snapshot::decode(&self.snapshot.read())
     }
 
-    pub fn position(&self) -> [i64; MAX_AXES] {
+    pub fn position(&self) -> Steps {
         self.snapshot().position
     }
 

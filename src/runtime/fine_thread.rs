@@ -26,9 +26,9 @@ use super::consumer::{self, LoopReport, LoopSettings, Published};
 use super::{BoxedGap, BoxedOutput};
 use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
-use crate::geometry::MAX_AXES;
 use crate::output::OutputError;
 use crate::servo::PathPoint;
+use crate::vocab::MAX_AXES;
 
 /// How often the idle thread proves it is alive.
 const IDLE_BEAT: Duration = Duration::from_millis(100);

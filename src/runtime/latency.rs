@@ -17,8 +17,8 @@ use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::config::Config;
 use crate::fine::{FineSettings, Interpolator};
 use crate::gap::AlwaysNormal;
-use crate::geometry::MAX_AXES;
 use crate::output::NullOutput;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// What [`measure`] measured.
 #[derive(Debug)]
@@ -85,7 +85,7 @@ struct SquarePath {
     side_mm: f64,
     feed: f64,
     next_seq: u64,
-    at: [i64; MAX_AXES],
+    at: Steps,
 }
 
 impl SquarePath {

@@ -42,11 +42,11 @@ use crate::config::Config;
 use crate::fine::FineSettings;
 use crate::gap::ScriptError;
 use crate::gcode::GcodeError;
-use crate::geometry::MAX_AXES;
 use crate::output::OutputError;
 use crate::parport::ParportError;
 use crate::record::{RecordedOutput, Recorder, Recording};
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
+use crate::vocab::MAX_AXES;
 use crate::vocab::TickPeriod;
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};

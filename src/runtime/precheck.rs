@@ -7,13 +7,13 @@ use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
 use crate::config::{Config, GapKind};
 use crate::gcode;
-use crate::geometry::MAX_AXES;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// What the check before the job found.
 #[derive(Debug, Clone)]
 pub struct Precheck {
     pub blocks: u64,
-    pub end_steps: [i64; MAX_AXES],
+    pub end_steps: Steps,
     /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
     /// length from the program's start, consecutive cutting moves merged into one span (so
     /// this grows with the number of rapids, not of blocks). Measured only for the simulated

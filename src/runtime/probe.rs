@@ -9,13 +9,13 @@
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::time::Duration;
 
-use crate::geometry::MAX_AXES;
+use crate::vocab::{MAX_AXES, Steps};
 
 /// Where a probing move ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ProbeResult {
     /// The pulse ledger there (steps).
-    pub steps: [i64; MAX_AXES],
+    pub steps: Steps,
     /// Contact was made (or, probing away, lost); `false`: the move reached its end point.
     pub contact: bool,
 }

@@ -14,8 +14,9 @@ use super::program::JobProgram;
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::config::Config;
 use crate::gcode::{self, BlockKind, GcodeError};
-use crate::geometry::{MAX_AXES, Point};
+use crate::geometry::Point;
 use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment};
+use crate::vocab::{MAX_AXES, Steps};
 
 /// Largest step position accepted: beyond 2^53 an `f64` no longer holds every integer.
 const MAX_STEPS: f64 = 9.0e15;
@@ -54,7 +55,7 @@ pub struct ProducerReport {
 }
 
 /// Rounds a point in mm to absolute step positions.
-pub fn to_steps(point: &Point, step_mm: &[f64]) -> Result<[i64; MAX_AXES], (usize, f64, f64)> {
+pub fn to_steps(point: &Point, step_mm: &[f64]) -> Result<Steps, (usize, f64, f64)> {
     let mut steps = [0i64; MAX_AXES];
     for (i, &step) in step_mm.iter().enumerate() {
         let exact = point[i] / step;
@@ -73,7 +74,7 @@ pub struct BlockMaker {
     axes: Vec<char>,
     program: String,
     seq: u64,
-    last_end: [i64; MAX_AXES],
+    last_end: Steps,
     path_mm: f64,
     /// The next segment is the first of its G-code block (it carries the block's stops).
     first_of_block: bool,
@@ -114,7 +115,7 @@ impl BlockMaker {
     }
 
     /// A probing move ended at `steps`: the next block starts there.
-    pub fn probed(&mut self, steps: &[i64; MAX_AXES]) {
+    pub fn probed(&mut self, steps: &Steps) {
         self.last_end = *steps;
     }
 

@@ -4,8 +4,8 @@
 use std::sync::atomic::{AtomicU64, Ordering, fence};
 
 use crate::fine::Interpolator;
-use crate::geometry::MAX_AXES;
 use crate::servo::{Excursion, PathPoint, ServoCounters, ServoState};
+use crate::vocab::{MAX_AXES, Steps};
 
 /// The interpolator's state as the other threads see it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,7 +17,7 @@ pub struct Snapshot {
     /// Held (or finished) and at a standstill.
     pub still: bool,
     /// The pulse ledger (steps).
-    pub position: [i64; MAX_AXES],
+    pub position: Steps,
     /// Where along the program: segment and Bresenham step.
     pub here: PathPoint,
     /// Steps of the segment in hand.

@@ -8,9 +8,9 @@ use super::LatencySummary;
 use super::consumer::LoopReport;
 use super::producer::{ProducerError, ProducerReport};
 use crate::fine::{FineCounters, Interpolator, SkipError};
-use crate::geometry::MAX_AXES;
 use crate::output::OutputError;
 use crate::servo::ServoState;
+use crate::vocab::Steps;
 
 /// How a job ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -294,10 +294,7 @@ pub fn axis_list<T>(values: &[T], axes: &[String], format: impl Fn(&T) -> String
 
 /// The counters and the pulse ledger as the drives received them: a tick whose write failed
 /// before its step edge never reached them, so its steps are taken back.
-pub(super) fn delivered(
-    fine: &Interpolator,
-    report: &LoopReport,
-) -> (FineCounters, [i64; MAX_AXES]) {
+pub(super) fn delivered(fine: &Interpolator, report: &LoopReport) -> (FineCounters, Steps) {
     let mut counters = fine.counters();
     let mut position = fine.position();
     if let Some((steps, dir)) = report.untaken {

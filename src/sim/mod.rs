@@ -43,8 +43,8 @@ pub mod events;
 use std::path::PathBuf;
 
 use crate::gap::{GapError, GapSensor, GapState, ScriptError};
-use crate::geometry::MAX_AXES;
 use crate::rng::SplitMix64;
+use crate::vocab::MAX_AXES;
 use crate::vocab::TickPeriod;
 
 pub use events::SimEvent;
