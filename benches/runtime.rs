@@ -4,6 +4,7 @@
 //!
 //! `cargo bench --bench runtime`
 
+use edmd::buffer::BlockFlags;
 use std::hint::black_box;
 use std::path::Path;
 use std::sync::Arc;
@@ -62,7 +63,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 v_cruise: 1e3,
                 line: 1,
                 u_end: f64::NAN,
-                flags: 0,
+                flags: BlockFlags::NONE,
                 path_end_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,

@@ -63,7 +63,7 @@ pub struct StepBlock {
     /// Curve parameter at the move's end, in the program's knot units (NURBS blocks; NaN for
     /// lines and arcs). Checkpoints report it; motion never uses it.
     pub u_end: f64,
-    pub flags: u8,
+    pub flags: BlockFlags,
     /// Path length from the program's start to the move's end (mm, forward, chords summed):
     /// how far along the job this move ends, for progress and ETA.
     pub path_end_mm: f64,
@@ -80,25 +80,67 @@ pub struct StepBlock {
     pub condition_jump: [f32; 3],
 }
 
-impl StepBlock {
-    /// Last move of its G-code block.
-    pub const LAST_OF_BLOCK: u8 = 1;
-    /// Part of a rapid (G0).
-    pub const RAPID: u8 = 2;
-    /// `M0`/`M1`: stop before this move and wait for the operator (first move of its block).
-    pub const PAUSE: u8 = 4;
-    /// Flushing is on (`M7`/`M8`) during this move.
-    pub const FLUSH: u8 = 8;
-    /// A probing move (`G38.x`, `G31`): it stops where contact happens (or ends).
-    pub const PROBE: u8 = 16;
-    /// With `PROBE`: until contact is lost (`G38.4`/`G38.5`), not until it is made.
-    pub const PROBE_AWAY: u8 = 32;
-    /// With `PROBE`: reaching the end point without contact is an error (`G38.2`/`G38.4`).
-    pub const PROBE_MUST: u8 = 64;
-    /// Not a block's: the consumer adds it to what it tells the gap input while the
-    /// generator is off for an excursion (jump, rethread).
-    pub const SPARK_OFF: u8 = 128;
+/// What a move is besides its geometry: a small set of flags, one byte in the ring.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct BlockFlags(u8);
 
+impl BlockFlags {
+    pub const NONE: BlockFlags = BlockFlags(0);
+    /// Last move of its G-code block.
+    pub const LAST_OF_BLOCK: BlockFlags = BlockFlags(1);
+    /// Part of a rapid (G0).
+    pub const RAPID: BlockFlags = BlockFlags(2);
+    /// `M0`/`M1`: stop before this move and wait for the operator (first move of its block).
+    pub const PAUSE: BlockFlags = BlockFlags(4);
+    /// Flushing is on (`M7`/`M8`) during this move.
+    pub const FLUSH: BlockFlags = BlockFlags(8);
+    /// A probing move (`G38.x`, `G31`): it stops where contact happens (or ends).
+    pub const PROBE: BlockFlags = BlockFlags(16);
+    /// With `PROBE`: until contact is lost (`G38.4`/`G38.5`), not until it is made.
+    pub const PROBE_AWAY: BlockFlags = BlockFlags(32);
+    /// With `PROBE`: reaching the end point without contact is an error (`G38.2`/`G38.4`).
+    pub const PROBE_MUST: BlockFlags = BlockFlags(64);
+
+    /// Every flag of `other` is set.
+    pub const fn contains(self, other: BlockFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Some flag of `other` is set.
+    pub const fn intersects(self, other: BlockFlags) -> bool {
+        self.0 & other.0 != 0
+    }
+}
+
+impl std::ops::BitOr for BlockFlags {
+    type Output = BlockFlags;
+    fn bitor(self, other: BlockFlags) -> BlockFlags {
+        BlockFlags(self.0 | other.0)
+    }
+}
+
+impl std::ops::BitOrAssign for BlockFlags {
+    fn bitor_assign(&mut self, other: BlockFlags) {
+        self.0 |= other.0;
+    }
+}
+
+/// What the machine is doing, as the consumer's thread loop tells the output and the gap
+/// input when it changes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Activity {
+    /// The move in hand's flags (rapid, flushing, probing, …).
+    pub flags: BlockFlags,
+    /// The generator is off for an excursion (a jump, a rethread and the ways there and
+    /// back), whatever the move.
+    pub excursion: bool,
+    /// The generator sparks: a cutting move in hand, not held, not over, no excursion.
+    pub spark: bool,
+    /// The machining condition in force (`E<number>`; 0 none).
+    pub condition: u16,
+}
+
+impl StepBlock {
     /// An all-zero block (a placeholder for preallocated storage).
     pub const EMPTY: StepBlock = StepBlock {
         seq: 0,
@@ -110,7 +152,7 @@ impl StepBlock {
         v_cruise: 0.0,
         line: 0,
         u_end: f64::NAN,
-        flags: 0,
+        flags: BlockFlags::NONE,
         path_end_mm: 0.0,
         dwell_s: 0.0,
         condition: 0,

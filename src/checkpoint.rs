@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::config::{Config, KeyValues};
+use crate::runtime::Outcome;
 
 /// Format version written into every checkpoint.
 pub const VERSION: u32 = 1;
@@ -59,6 +60,22 @@ pub enum Reason {
 }
 
 impl Reason {
+    /// Why a job that ended with `outcome` leaves a checkpoint, `None` for a job that leaves
+    /// none (done, or a resume refused before anything moved). A stop is `asked` (an abort or
+    /// a signal), a plain stop when nobody said which. The one mapping, for the daemon and
+    /// `edmd run --checkpoint` alike.
+    pub fn of_outcome(outcome: Outcome, asked: Option<Reason>) -> Option<Reason> {
+        match outcome {
+            Outcome::Done | Outcome::ResumeRefused => None,
+            Outcome::Alarm | Outcome::Collision | Outcome::WireBreak => Some(Reason::Alarm),
+            Outcome::Stopped => Some(asked.unwrap_or(Reason::Stop)),
+            Outcome::OutputError
+            | Outcome::GapError
+            | Outcome::ProducerError
+            | Outcome::ProbeMissed => Some(Reason::Error),
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Reason::Hold => "hold",

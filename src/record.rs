@@ -13,6 +13,7 @@
 //! the tracer does). The supervisor drains the queue into a [`Recording`]: a decimated path
 //! and feed, the gap state over time, and the servo events it logs anyway.
 
+use crate::buffer::BlockFlags;
 use std::sync::Arc;
 
 use crate::gap::GapState;
@@ -94,7 +95,7 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
     }
 
     fn moving_in(&mut self, now: crate::output::Activity) {
-        let rapid = now.flags & crate::buffer::StepBlock::RAPID != 0;
+        let rapid = now.flags.contains(BlockFlags::RAPID);
         self.kind_changed |= rapid != self.rapid;
         self.rapid = rapid;
         self.inner.moving_in(now);

@@ -62,6 +62,15 @@ pub enum ServoState {
     Threading,
 }
 
+/// Where the wire is threaded again after a break.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Rethread {
+    /// Back along the path to the start hole first.
+    AtStart,
+    /// Where the wire broke.
+    Here,
+}
+
 /// Why the servo retreats along the path on purpose.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Excursion {
@@ -426,17 +435,16 @@ impl Servo {
         })
     }
 
-    /// The operator asked for a rethread: back along the path to the start hole
-    /// (`to_start`), or threading where the wire broke.
-    pub fn rethread(&mut self, to_start: bool) -> bool {
+    /// The operator asked for a rethread: back along the path to the start hole, or
+    /// threading where the wire broke.
+    pub fn rethread(&mut self, at: Rethread) -> bool {
         if self.state != ServoState::WireBroken {
             return false;
         }
         self.excursion = Excursion::Rethread;
-        self.state = if to_start {
-            ServoState::Retreat
-        } else {
-            ServoState::Threading
+        self.state = match at {
+            Rethread::AtStart => ServoState::Retreat,
+            Rethread::Here => ServoState::Threading,
         };
         true
     }

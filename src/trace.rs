@@ -207,8 +207,8 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.observe(steps, dir)
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        self.inner.moving_in(flags)
+    fn moving_in(&mut self, now: crate::buffer::Activity) {
+        self.inner.moving_in(now)
     }
 
     fn wire_broken(&self) -> bool {

@@ -4,6 +4,7 @@
 //! does it again; the voltage law feeds `gain · (V − V_ref)` and settles where its feed equals
 //! the erosion rate, a few volts above `V_ref`, with no shorts.
 
+use edmd::buffer::BlockFlags;
 use edmd::buffer::{StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
@@ -30,7 +31,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 v_cruise: 20.0,
                 line: 1,
                 u_end: f64::NAN,
-                flags: 0,
+                flags: BlockFlags::NONE,
                 path_end_mm: 0.1 * (i + 1) as f64,
                 dwell_s: 0.0,
                 condition: 0,

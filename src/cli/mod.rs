@@ -559,11 +559,8 @@ fn write_run_checkpoint(
     let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
         .map(|(_, keys)| keys)
         .unwrap_or_default();
-    let reason = match summary.outcome {
-        Outcome::Alarm | Outcome::Collision => Reason::Alarm,
-        Outcome::Stopped => Reason::Stop,
-        _ => Reason::Error,
-    };
+    // Only a job that did not finish leaves a checkpoint, so there is a reason.
+    let reason = Reason::of_outcome(summary.outcome, None).unwrap_or(Reason::Error);
     let unix_now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());

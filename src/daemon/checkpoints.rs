@@ -51,16 +51,7 @@ impl Core {
         stopped_at: Snapshot,
         summary: &JobSummary,
     ) {
-        let reason = match summary.outcome {
-            Outcome::Done => None,
-            Outcome::ResumeRefused => None,
-            Outcome::Alarm | Outcome::Collision | Outcome::WireBreak => Some(Reason::Alarm),
-            Outcome::Stopped => Some(job.stop_reason.unwrap_or(Reason::Stop)),
-            Outcome::OutputError
-            | Outcome::GapError
-            | Outcome::ProducerError
-            | Outcome::ProbeMissed => Some(Reason::Error),
-        };
+        let reason = Reason::of_outcome(summary.outcome, job.stop_reason);
         let checkpoint_path = job.config.daemon.checkpoint.clone();
         match reason {
             Some(reason) => {

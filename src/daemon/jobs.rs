@@ -12,10 +12,9 @@ use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Reason};
 use crate::config::{Config, GapKind, OutputKind};
 use crate::record::Recording;
-use crate::runtime::consumer::{RETHREAD_AT_START, RETHREAD_HERE};
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
-use crate::servo::ServoState;
+use crate::servo::{Rethread, ServoState};
 
 /// A program copied and checked: ready to run.
 pub(super) type Checked = (JobProgram, runtime::Precheck);
@@ -527,18 +526,18 @@ impl Core {
         }
         let (request, message) = if here {
             (
-                RETHREAD_HERE,
+                Rethread::Here,
                 "thread the wire where it broke, then `edmd ctl resume`",
             )
         } else {
             (
-                RETHREAD_AT_START,
+                Rethread::AtStart,
                 "going back along the path to the start hole (spark off); thread the wire \
                  there, then `edmd ctl resume`",
             )
         };
         // The request first, then the hold's release: the consumer takes them in that order.
-        job.published.rethread.store(request, Ordering::Release);
+        job.published.rethread.ask(request);
         if !here {
             job.published.hold.store(false, Ordering::Release);
         }

@@ -43,6 +43,7 @@ mod excursion;
 mod laws;
 mod skip;
 
+use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::servo::{Feeds, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
 use crate::vocab::GapState;
@@ -326,10 +327,10 @@ impl Interpolator {
         }
         let here = self.here();
         let rapid = self.has_block
-            && self.block.flags & StepBlock::RAPID != 0
+            && self.block.flags.contains(BlockFlags::RAPID)
             && self.servo.state() == ServoState::Forward;
         let probing = self.has_block
-            && self.block.flags & StepBlock::PROBE != 0
+            && self.block.flags.contains(BlockFlags::PROBE)
             && self.servo.state() == ServoState::Forward;
         let excursion = self.servo.state().spark_off();
         let (want_dir, feed) = if probing || excursion {
@@ -442,7 +443,10 @@ impl Interpolator {
         if self.dir > 0 {
             let cutting_open = gap == GapState::Open
                 && self.servo.state() == ServoState::Forward
-                && self.block.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0;
+                && !self
+                    .block
+                    .flags
+                    .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
             self.step_forward(&mut tick, source);
             if cutting_open {
                 self.open_travel(&mut tick);
@@ -511,8 +515,8 @@ impl Interpolator {
             event = Some(ServoEvent::Paused { at: self.here() });
         }
         // A probing move waits at its end point for the next tick's contact check.
-        let probe_end = StepBlock::PROBE | StepBlock::LAST_OF_BLOCK;
-        if self.walk.at_end() && self.block.flags & probe_end != probe_end {
+        let probe_end = BlockFlags::PROBE | BlockFlags::LAST_OF_BLOCK;
+        if self.walk.at_end() && !self.block.flags.contains(probe_end) {
             match self.fetch_forward(source) {
                 Fetch::Block => {
                     if let Some(e) = self.servo.on_forward(self.here()) {
@@ -575,7 +579,7 @@ impl Interpolator {
                 if self.block.dwell_s > 0.0 {
                     self.dwell_left += (self.block.dwell_s / self.settings.dt).round() as u64;
                 }
-                if self.block.flags & StepBlock::PAUSE != 0 {
+                if self.block.flags.contains(BlockFlags::PAUSE) {
                     self.hold = true;
                     self.paused = true;
                 }

@@ -1,7 +1,8 @@
 //! Resuming a job: the walk along the program, emitting nothing, to a checkpoint's point.
 
 use super::Interpolator;
-use crate::buffer::{BlockSource, Fetch, StepBlock};
+use crate::buffer::BlockFlags;
+use crate::buffer::{BlockSource, Fetch};
 use crate::servo::PathPoint;
 use crate::vocab::MAX_AXES;
 
@@ -58,7 +59,7 @@ impl Interpolator {
                     event: target.event,
                 });
             }
-            if self.block.flags & StepBlock::PROBE != 0 {
+            if self.block.flags.contains(BlockFlags::PROBE) {
                 return Err(SkipError::Probed {
                     line: self.block.line,
                 });

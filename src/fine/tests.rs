@@ -1,6 +1,7 @@
 use proptest::prelude::*;
 
 use super::*;
+use crate::buffer::BlockFlags;
 use crate::buffer::VecSource;
 use crate::vocab::Steps;
 
@@ -41,7 +42,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 v_cruise: v,
                 line: i as u64 + 1,
                 u_end: f64::NAN,
-                flags: 0,
+                flags: BlockFlags::NONE,
                 path_end_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
@@ -439,7 +440,7 @@ fn dwell_and_pause_hold_at_the_block_start_once() {
     blocks[1].dwell_s = 0.01; // 200 ticks at 50 µs
     blocks[1].v_entry = 0.0;
     blocks[0].v_exit = 0.0;
-    blocks[2].flags |= StepBlock::PAUSE;
+    blocks[2].flags |= BlockFlags::PAUSE;
     blocks[2].v_entry = 0.0;
     blocks[1].v_exit = 0.0;
     let mut source = VecSource::new(blocks, 4);
@@ -521,7 +522,7 @@ fn dwell_and_pause_hold_at_the_block_start_once() {
 #[test]
 fn rapids_ignore_the_servo_and_a_short_in_one_is_a_collision() {
     let mut blocks = chain(&[p2(0, 0), p2(2000, 0), p2(2100, 0)], 15.0);
-    blocks[0].flags |= StepBlock::RAPID;
+    blocks[0].flags |= BlockFlags::RAPID;
     blocks[1].v_cruise = 0.5;
     blocks[1].v_entry = 0.0;
     blocks[0].v_exit = 0.0;
@@ -543,7 +544,7 @@ fn rapids_ignore_the_servo_and_a_short_in_one_is_a_collision() {
         assert!(tick.dir >= 0, "no turn-back in a rapid");
         if fine
             .block()
-            .is_some_and(|b| b.flags & StepBlock::RAPID != 0)
+            .is_some_and(|b| b.flags.contains(BlockFlags::RAPID))
         {
             top_speed = top_speed.max(fine.speed());
         }

@@ -46,7 +46,7 @@ pub trait GapSensor {
 
     /// The kind of move in hand changed (`StepBlock` flags: rapid, flushing): a simulated gap
     /// knows the spark is off on a rapid; a real sensor ignores it.
-    fn moving_in(&mut self, _flags: u8) {}
+    fn moving_in(&mut self, _now: crate::buffer::Activity) {}
 
     /// The gap voltage (V) at the last [`sample`](Self::sample), for inputs that measure one
     /// (the IIO ADC, the simulator); `None` for state-only inputs.
@@ -89,8 +89,8 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
         (**self).observe(steps, dir)
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        (**self).moving_in(flags)
+    fn moving_in(&mut self, now: crate::buffer::Activity) {
+        (**self).moving_in(now)
     }
 
     fn volts(&self) -> Option<f64> {

@@ -89,16 +89,7 @@ pub trait PulseOutput {
     fn moving_in(&mut self, _now: Activity) {}
 }
 
-/// What the machine is doing, as the consumer's thread loop tells the output when it changes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Activity {
-    /// The move in hand's `StepBlock` flags (rapid, flushing, …).
-    pub flags: u8,
-    /// The generator sparks: a cutting move in hand, not held, not over.
-    pub spark: bool,
-    /// The machining condition in force (`E<number>`; 0 none).
-    pub condition: u16,
-}
+pub use crate::buffer::Activity;
 
 /// `output.kind = "null"`: discards everything.
 #[derive(Debug, Clone, Copy, Default)]

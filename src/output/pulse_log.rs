@@ -317,9 +317,9 @@ mod tests {
         log.write(4, &s(-1, 1), GapState::Short).unwrap();
         // The spark comes on with condition E2: a row even without a step.
         log.moving_in(crate::output::Activity {
-            flags: 0,
             spark: true,
             condition: 2,
+            ..Default::default()
         });
         log.write(5, &s(0, 0), GapState::Short).unwrap();
         log.write(6, &s(0, 0), GapState::Normal).unwrap();

@@ -36,6 +36,7 @@ pub mod fake;
 pub mod ioctl;
 pub mod pins;
 
+use crate::buffer::BlockFlags;
 use std::io;
 use std::path::Path;
 use std::sync::Arc;
@@ -257,7 +258,7 @@ impl<P: Port, C: Clock> PulseOutput for ParportOutput<P, C> {
 
     fn moving_in(&mut self, now: crate::output::Activity) {
         self.encoder.set_process(
-            now.flags & crate::buffer::StepBlock::FLUSH != 0,
+            now.flags.contains(BlockFlags::FLUSH),
             now.spark,
             now.condition,
         );
@@ -364,8 +365,8 @@ impl<P: Port> GapSensor for ParportGap<P> {
         Ok(self.state.unwrap_or(reading))
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        self.probing = flags & crate::buffer::StepBlock::PROBE != 0;
+    fn moving_in(&mut self, now: crate::buffer::Activity) {
+        self.probing = now.flags.contains(crate::buffer::BlockFlags::PROBE);
     }
 
     fn wire_broken(&self) -> bool {

@@ -108,18 +108,18 @@ fn the_process_pins_follow_the_machine_and_idle_off() {
     let bench = Bench::new();
     let mut out = output(&bench, map.clone(), TIMING);
     out.moving_in(crate::output::Activity {
-        flags: crate::buffer::StepBlock::FLUSH,
+        flags: crate::buffer::BlockFlags::FLUSH,
         spark: true,
         condition: 5,
+        ..Default::default()
     });
     bench.set_now(TICK_NS);
     out.write(1, &[0; MAX_AXES], GapState::Normal).unwrap();
     bench.set_now(2 * TICK_NS);
     out.write(2, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
     out.moving_in(crate::output::Activity {
-        flags: 0,
-        spark: false,
         condition: 2,
+        ..Default::default()
     });
     bench.set_now(3 * TICK_NS);
     out.write(3, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
@@ -245,7 +245,10 @@ fn probe_and_wire_break_pins() {
     let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
     bench.set_inputs(levels(&[12]));
     assert_eq!(gap.sample(0).unwrap(), GapState::Normal, "not probing");
-    gap.moving_in(crate::buffer::StepBlock::PROBE);
+    gap.moving_in(crate::buffer::Activity {
+        flags: crate::buffer::BlockFlags::PROBE,
+        ..Default::default()
+    });
     assert_eq!(
         gap.sample(1).unwrap(),
         GapState::Short,
@@ -254,7 +257,7 @@ fn probe_and_wire_break_pins() {
     bench.set_inputs(levels(&[]));
     assert_eq!(gap.sample(2).unwrap(), GapState::Open, "no contact");
     assert!(!gap.wire_broken());
-    gap.moving_in(0);
+    gap.moving_in(crate::buffer::Activity::default());
     bench.set_inputs(levels(&[13]));
     gap.sample(3).unwrap();
     assert!(gap.wire_broken());

@@ -18,6 +18,7 @@
 //! skipped rather than caught up: catching up would fire several ticks back to back, a burst
 //! of steps faster than the planned speed. Motion simply pauses for the missed periods.
 
+use crate::buffer::BlockFlags;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use crossbeam::queue::ArrayQueue;
@@ -27,11 +28,11 @@ use super::histogram::LatencyHistogram;
 use super::probe::{ProbeLink, ProbeResult};
 use super::snapshot::SeqLock;
 pub use super::snapshot::Snapshot;
-use crate::buffer::{BlockSource, StepBlock};
+use crate::buffer::BlockSource;
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::servo::{Excursion, PathPoint, ServoEvent, ServoState};
+use crate::servo::{Excursion, PathPoint, Rethread, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{MAX_AXES, Steps};
 
@@ -113,9 +114,9 @@ pub struct Published {
     /// Source line of the move a programmed stop (`M0`/`M1`) holds before; 0 for none.
     /// Set by the consumer's loop, cleared by whoever releases the hold.
     pub paused_line: AtomicU64,
-    /// Set by the supervisor after a wire break: [`RETHREAD_AT_START`] or
-    /// [`RETHREAD_HERE`]; the consumer's loop takes it (and clears it) before the hold.
-    pub rethread: AtomicU8,
+    /// Set by the supervisor after a wire break; the consumer's loop takes it (and clears
+    /// it) before the hold.
+    pub rethread: RethreadRequest,
     /// Where probing moves ended, for the producer.
     pub probe: ProbeLink,
 }
@@ -124,10 +125,29 @@ pub struct Published {
 pub const LATENCY_BUCKETS_US: [u64; 13] =
     [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000];
 
-/// `Published::rethread`: back along the path to the start hole.
-pub const RETHREAD_AT_START: u8 = 1;
-/// `Published::rethread`: thread where the wire broke.
-pub const RETHREAD_HERE: u8 = 2;
+/// A rethread asked for by the supervisor and taken by the consumer's loop, once: one
+/// atomic, so the real-time loop never waits for it.
+#[derive(Debug, Default)]
+pub struct RethreadRequest(AtomicU8);
+
+impl RethreadRequest {
+    pub fn ask(&self, at: Rethread) {
+        let code = match at {
+            Rethread::AtStart => 1,
+            Rethread::Here => 2,
+        };
+        self.0.store(code, Ordering::Release);
+    }
+
+    /// The request, if one is waiting (it is taken).
+    pub fn take(&self) -> Option<Rethread> {
+        match self.0.swap(0, Ordering::Acquire) {
+            1 => Some(Rethread::AtStart),
+            2 => Some(Rethread::Here),
+            _ => None,
+        }
+    }
+}
 
 impl Published {
     pub fn new(event_capacity: usize) -> Published {
@@ -150,7 +170,7 @@ impl Published {
             finished: AtomicBool::new(false),
             output_synced: AtomicBool::new(false),
             paused_line: AtomicU64::new(0),
-            rethread: AtomicU8::new(0),
+            rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
         }
     }
@@ -342,8 +362,9 @@ where
             // CPU go rather than spin through ticks.
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
-        let rethread = published.rethread.swap(0, Ordering::Acquire);
-        if rethread != 0 && fine.rethread(rethread == RETHREAD_AT_START) {
+        if let Some(at) = published.rethread.take()
+            && fine.rethread(at)
+        {
             sensor.rethreaded();
         }
         fine.set_hold(published.hold.load(Ordering::Acquire));
@@ -367,10 +388,12 @@ where
         let tick = fine.tick_measured(gap, sensor.volts(), sensor.ratios(), source);
         let block = fine.block();
         let excursion = fine.state().spark_off();
-        let flags = block.map_or(0, |b| b.flags) | if excursion { StepBlock::SPARK_OFF } else { 0 };
+        let flags = block.map_or(BlockFlags::NONE, |b| b.flags);
         let now = Activity {
             flags,
-            spark: block.is_some_and(|b| b.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0)
+            excursion,
+            spark: block
+                .is_some_and(|b| !b.flags.intersects(BlockFlags::RAPID | BlockFlags::PROBE))
                 && !excursion
                 && !fine.held()
                 && !fine.state().is_final(),
@@ -387,9 +410,9 @@ where
                     published.events_dropped.fetch_add(1, Ordering::Relaxed);
                 }
             };
-            if (flags ^ activity.flags) & StepBlock::FLUSH != 0 {
+            if flags.contains(BlockFlags::FLUSH) != activity.flags.contains(BlockFlags::FLUSH) {
                 tell(ServoEvent::Flushing {
-                    on: flags & StepBlock::FLUSH != 0,
+                    on: flags.contains(BlockFlags::FLUSH),
                 });
             }
             if now.condition != activity.condition {
@@ -397,8 +420,8 @@ where
                     number: now.condition,
                 });
             }
-            if flags != activity.flags {
-                sensor.moving_in(flags);
+            if (flags, excursion) != (activity.flags, activity.excursion) {
+                sensor.moving_in(now);
             }
             activity = now;
             output.moving_in(now);

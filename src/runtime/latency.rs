@@ -7,6 +7,7 @@
 //! of a job), and its histogram printed in cyclictest's format, so that
 //! `scripts/latency-vs-cyclictest.sh` can read both with the same code.
 
+use crate::buffer::BlockFlags;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -117,7 +118,7 @@ impl BlockSource for SquarePath {
             v_cruise: self.feed,
             line: 0,
             u_end: f64::NAN,
-            flags: 0,
+            flags: BlockFlags::NONE,
             path_end_mm: 0.0,
             dwell_s: 0.0,
             condition: 0,

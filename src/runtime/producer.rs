@@ -5,6 +5,7 @@
 //! buffer is full. Step positions are rounded once per segment end point, absolutely, from mm
 //! (never accumulated), so a block's start is bit-for-bit the previous block's end.
 
+use crate::buffer::BlockFlags;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
@@ -129,28 +130,28 @@ impl BlockMaker {
                 steps,
             }
         })?;
-        let mut flags = 0;
+        let mut flags = BlockFlags::NONE;
         if segment.last_of_block {
-            flags |= StepBlock::LAST_OF_BLOCK;
+            flags |= BlockFlags::LAST_OF_BLOCK;
         }
         if segment.block.kind == BlockKind::Rapid {
-            flags |= StepBlock::RAPID;
+            flags |= BlockFlags::RAPID;
         }
         if segment.block.flushing {
-            flags |= StepBlock::FLUSH;
+            flags |= BlockFlags::FLUSH;
         }
         if let BlockKind::Probe(p) = segment.block.kind {
-            flags |= StepBlock::PROBE;
+            flags |= BlockFlags::PROBE;
             if p.away {
-                flags |= StepBlock::PROBE_AWAY;
+                flags |= BlockFlags::PROBE_AWAY;
             }
             if p.must_touch {
-                flags |= StepBlock::PROBE_MUST;
+                flags |= BlockFlags::PROBE_MUST;
             }
         }
         let first = std::mem::replace(&mut self.first_of_block, segment.last_of_block);
         if first && segment.block.pause.is_some() {
-            flags |= StepBlock::PAUSE;
+            flags |= BlockFlags::PAUSE;
         }
         let block = StepBlock {
             seq: self.seq,

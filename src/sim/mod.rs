@@ -40,6 +40,7 @@
 
 pub mod events;
 
+use crate::buffer::BlockFlags;
 use std::path::PathBuf;
 
 use crate::gap::{GapError, GapSensor, GapState, ScriptError};
@@ -399,11 +400,11 @@ impl GapSensor for SimGap {
         }
     }
 
-    fn moving_in(&mut self, flags: u8) {
-        use crate::buffer::StepBlock;
-        self.rapid = flags & StepBlock::RAPID != 0;
-        self.spark_off = flags & (StepBlock::PROBE | StepBlock::SPARK_OFF) != 0;
-        self.away = flags & StepBlock::PROBE_AWAY != 0 && flags & StepBlock::SPARK_OFF == 0;
+    fn moving_in(&mut self, now: crate::buffer::Activity) {
+        let flags = now.flags;
+        self.rapid = flags.contains(BlockFlags::RAPID);
+        self.spark_off = flags.contains(BlockFlags::PROBE) || now.excursion;
+        self.away = flags.contains(BlockFlags::PROBE_AWAY) && !now.excursion;
     }
 
     fn wire_broken(&self) -> bool {

@@ -22,8 +22,9 @@
 //!   break point with the spark off and cutting carries on there.
 
 use super::{Interpolator, Tick};
-use crate::buffer::StepBlock;
-use crate::servo::{Excursion, ServoEvent, ServoState};
+use crate::buffer::BlockFlags;
+
+use crate::servo::{Excursion, Rethread, ServoEvent, ServoState};
 use crate::vocab::GapState;
 
 /// Jumps, wire-break detection and rethreading, in the interpolator's units.
@@ -79,11 +80,11 @@ impl Interpolator {
         self.wire_input = broken;
     }
 
-    /// The operator's rethread after a wire break: back along the path to the start hole
-    /// (`to_start`), or threading where the electrode stands. `false` unless the wire is
-    /// broken. Moving back needs the hold released.
-    pub fn rethread(&mut self, to_start: bool) -> bool {
-        if !self.servo.rethread(to_start) {
+    /// The operator's rethread after a wire break: back along the path to the start hole,
+    /// or threading where the electrode stands. `false` unless the wire is broken. Moving
+    /// back needs the hold released.
+    pub fn rethread(&mut self, at: Rethread) -> bool {
+        if !self.servo.rethread(at) {
             return false;
         }
         self.retreat_mm = 0.0;
@@ -125,8 +126,8 @@ impl Interpolator {
     /// programmed ones, not the ones taken) and, on purpose, a rapid (the start of the cut).
     pub(super) fn is_barrier(&self) -> bool {
         let purposeful = self.servo.state() == ServoState::Retreat;
-        self.block.flags & StepBlock::PROBE != 0
-            || (purposeful && self.block.flags & StepBlock::RAPID != 0)
+        self.block.flags.contains(BlockFlags::PROBE)
+            || (purposeful && self.block.flags.contains(BlockFlags::RAPID))
     }
 
     /// The way back ends here (start of the reserved area or a barrier): a short's turn-back
@@ -201,7 +202,10 @@ impl Interpolator {
     pub(super) fn jump_due(&mut self, tick: &mut Tick) -> Option<(i8, f64)> {
         let cutting = self.servo.state() == ServoState::Forward
             && self.has_block
-            && self.block.flags & (StepBlock::RAPID | StepBlock::PROBE) == 0
+            && !self
+                .block
+                .flags
+                .intersects(BlockFlags::RAPID | BlockFlags::PROBE)
             && !self.hold
             && self.dwell_left == 0;
         if self.jump_every == 0 || !cutting {
@@ -227,9 +231,9 @@ impl Interpolator {
     ) -> Option<(i8, f64)> {
         let here = self.here();
         if probing {
-            let away = self.block.flags & StepBlock::PROBE_AWAY != 0;
+            let away = self.block.flags.contains(BlockFlags::PROBE_AWAY);
             let contact = (gap == GapState::Short) != away;
-            let end = self.walk.at_end() && self.block.flags & StepBlock::LAST_OF_BLOCK != 0;
+            let end = self.walk.at_end() && self.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
             if contact || end {
                 self.probe_found(tick, contact);
                 return None;
@@ -266,12 +270,12 @@ impl Interpolator {
         self.speed = 0.0;
         self.phase = 0.0;
         self.probe_hit = true;
-        if contact && self.block.flags & StepBlock::PROBE_AWAY == 0 {
+        if contact && !self.block.flags.contains(BlockFlags::PROBE_AWAY) {
             // The electrode rests on the work: the move after the probe starts shorted.
             self.contact_grace_mm = PROBE_RELEASE_MM;
         }
         let at = self.here();
-        if !contact && self.block.flags & StepBlock::PROBE_MUST != 0 {
+        if !contact && self.block.flags.contains(BlockFlags::PROBE_MUST) {
             self.servo.on_probe_missed();
             tick.event = Some(ServoEvent::ProbeMissed { at });
             return;
@@ -281,7 +285,7 @@ impl Interpolator {
             at,
             steps: self.position,
             contact,
-            away: self.block.flags & StepBlock::PROBE_AWAY != 0,
+            away: self.block.flags.contains(BlockFlags::PROBE_AWAY),
         });
     }
 
@@ -297,8 +301,8 @@ impl Interpolator {
         // The probing move's other segments are already in the buffer: pass over them (they
         // stay in the reserved area as barriers) to the first move planned from here.
         while self.has_block
-            && self.block.flags & StepBlock::PROBE != 0
-            && self.block.flags & StepBlock::LAST_OF_BLOCK == 0
+            && self.block.flags.contains(BlockFlags::PROBE)
+            && !self.block.flags.contains(BlockFlags::LAST_OF_BLOCK)
         {
             if source.next(&mut self.block) != Fetch::Block {
                 // The producer closed the buffer or the job was torn down.

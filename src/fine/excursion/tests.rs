@@ -3,7 +3,7 @@
 //! the ledger against the blocks' end.
 
 use super::*;
-use crate::buffer::VecSource;
+use crate::buffer::{BlockFlags, StepBlock, VecSource};
 use crate::fine::tests::{Move, SETTINGS, assert_retraces, chain, p2};
 use crate::fine::{FineSettings, Tick};
 use crate::servo::PathPoint;
@@ -179,7 +179,7 @@ fn a_break_during_a_re_advance_returns_to_the_farthest_point_cut() {
     d.fine.set_hold(false);
     assert!(!d.tick(GapState::Open).moved());
     assert_eq!(d.fine.state(), ServoState::WireBroken);
-    assert!(d.fine.rethread(false));
+    assert!(d.fine.rethread(Rethread::Here));
     d.fine.set_wire_input(false);
     assert_eq!(d.fine.state(), ServoState::Threading);
     d.fine.set_hold(true);
@@ -205,7 +205,7 @@ fn a_break_during_a_re_advance_returns_to_the_farthest_point_cut() {
 #[test]
 fn a_rethread_goes_back_to_the_end_of_the_rapid() {
     let mut blocks = chain(&[p2(0, 0), p2(300, 0), p2(800, 0), p2(800, 600)], 5.0);
-    blocks[0].flags |= StepBlock::RAPID;
+    blocks[0].flags |= BlockFlags::RAPID;
     let mut d = Driver::new(SETTINGS, blocks);
     while d.fine.position()[1] < 200 {
         d.tick(GapState::Normal);
@@ -214,7 +214,7 @@ fn a_rethread_goes_back_to_the_end_of_the_rapid() {
     d.tick(GapState::Normal);
     let broke_at = d.fine.position();
     assert_eq!(d.fine.state(), ServoState::WireBroken);
-    assert!(d.fine.rethread(true));
+    assert!(d.fine.rethread(Rethread::AtStart));
     d.fine.set_wire_input(false);
     d.fine.set_hold(false);
     d.until(GapState::Open, 20_000, |e| {
