@@ -17,6 +17,7 @@ pub mod plot;
 pub mod rng;
 pub mod sys;
 pub mod vocab;
+pub mod words;
 // Floor 1: curves.
 pub mod geometry;
 // Floor 2: programs.

@@ -110,14 +110,65 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
     }
 }
 
+/// What a report's event says happened: the servo's events, and the daemon operator's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EventKind {
+    Short,
+    /// The gap cleared after turning back.
+    TurnBack,
+    Resumed,
+    Starved,
+    Alarm,
+    Done,
+    Pause,
+    Collision,
+    Condition,
+    FlushOn,
+    FlushOff,
+    Jump,
+    WireBreak,
+    Probe,
+    ProbeMissed,
+    /// The operator's hold, its release, a rethread asked for, an abort.
+    Hold,
+    Released,
+    Rethread,
+    Abort,
+}
+
+impl EventKind {
+    /// The name `events.csv` writes.
+    pub fn name(self) -> &'static str {
+        match self {
+            EventKind::Short => "short",
+            EventKind::TurnBack => "turn_back",
+            EventKind::Resumed => "resumed",
+            EventKind::Starved => "starved",
+            EventKind::Alarm => "alarm",
+            EventKind::Done => "done",
+            EventKind::Pause => "pause",
+            EventKind::Collision => "collision",
+            EventKind::Condition => "condition",
+            EventKind::FlushOn => "flush_on",
+            EventKind::FlushOff => "flush_off",
+            EventKind::Jump => "jump",
+            EventKind::WireBreak => "wire_break",
+            EventKind::Probe => "probe",
+            EventKind::ProbeMissed => "probe_missed",
+            EventKind::Hold => "hold",
+            EventKind::Released => "released",
+            EventKind::Rethread => "rethread",
+            EventKind::Abort => "abort",
+        }
+    }
+}
+
 /// A servo event as the report lists it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordedEvent {
     pub tick: u64,
     pub line: u64,
-    /// `short`, `turn_back` (the gap cleared after turning back), `resumed`, `starved`,
-    /// `alarm`, `done`; from the daemon's operator, `hold`, `released` and `abort`.
-    pub kind: &'static str,
+    pub kind: EventKind,
     /// Blocks turned back over (`turn_back`, `alarm`).
     pub depth: Option<u64>,
     /// Where the electrode was (mm, machine axis order): the last sample before the event.
@@ -238,16 +289,16 @@ impl Recording {
     }
 
     /// Takes one servo event (in tick order, after the samples up to its tick).
-    pub fn event(&mut self, tick: u64, line: u64, kind: &'static str, depth: Option<u64>) {
+    pub fn event(&mut self, tick: u64, line: u64, kind: EventKind, depth: Option<u64>) {
         match kind {
-            "short" if !self.turning_back => {
+            EventKind::Short if !self.turning_back => {
                 self.turning_back = true;
                 if let Some(last) = self.last {
                     let p = (self.mm(&last.position, 0), self.mm(&last.position, 1));
                     self.turn_back.extend([crate::plot::BREAK, p]);
                 }
             }
-            "resumed" | "alarm" | "done" => self.turning_back = false,
+            EventKind::Resumed | EventKind::Alarm | EventKind::Done => self.turning_back = false,
             _ => {}
         }
         if self.events.len() < MAX_EVENTS {
@@ -334,12 +385,12 @@ mod tests {
         };
         r.sample(&s(0, 0, GapState::Normal));
         r.sample(&s(1000, 1000, GapState::Normal));
-        r.event(1000, 3, "short", None);
+        r.event(1000, 3, EventKind::Short, None);
         r.sample(&s(1000, 1000, GapState::Short));
         r.sample(&s(1500, 900, GapState::Normal));
-        r.event(1500, 3, "turn_back", Some(1));
+        r.event(1500, 3, EventKind::TurnBack, Some(1));
         r.sample(&s(1600, 1000, GapState::Normal));
-        r.event(1600, 3, "resumed", None);
+        r.event(1600, 3, EventKind::Resumed, None);
         r.sample(&s(2000, 1400, GapState::Normal));
         assert_eq!(r.start, Some((0.0, 0.0)));
         assert_eq!(r.direction, Some((1.0, 0.0)));

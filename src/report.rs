@@ -16,7 +16,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::plot::{Chart, Series, Style};
-use crate::record::Recording;
+use crate::record::{EventKind, Recording};
 use crate::runtime::JobSummary;
 
 /// A report that could not be written.
@@ -74,36 +74,36 @@ pub fn write_report(
                 points: recording.turn_back.clone(),
             },
             Series {
-                name: format!("short circuits ({})", summary.shorts),
+                name: format!("short circuits ({})", summary.servo.shorts),
                 color: "#d02020",
                 style: Style::Dots,
                 points: recording
                     .events
                     .iter()
-                    .filter(|e| e.kind == "short" && e.position_mm.len() >= 2)
+                    .filter(|e| e.kind == EventKind::Short && e.position_mm.len() >= 2)
                     .map(|e| (e.position_mm[0], e.position_mm[1]))
                     .collect(),
             },
             dots(
                 recording,
-                "jump",
+                EventKind::Jump,
                 "#6f42c1",
                 "jumps",
-                summary.excursions.jumps,
+                summary.servo.jumps,
             ),
             dots(
                 recording,
-                "wire_break",
+                EventKind::WireBreak,
                 "#000000",
                 "wire breaks",
-                summary.excursions.wire_breaks,
+                summary.servo.wire_breaks,
             ),
             dots(
                 recording,
-                "probe",
+                EventKind::Probe,
                 "#1f6feb",
                 "probe contacts",
-                summary.excursions.probes,
+                summary.servo.probes,
             ),
         ],
         equal_axes: true,
@@ -146,7 +146,13 @@ pub fn write_report(
 }
 
 /// The events of `kind` as dots where they happened, named with their count.
-fn dots(recording: &Recording, kind: &str, color: &'static str, what: &str, count: u64) -> Series {
+fn dots(
+    recording: &Recording,
+    kind: EventKind,
+    color: &'static str,
+    what: &str,
+    count: u64,
+) -> Series {
     Series {
         name: format!("{what} ({count})"),
         color,
@@ -174,7 +180,7 @@ fn events_csv(recording: &Recording, axes: &[String]) -> String {
             e.tick,
             recording.secs(e.tick),
             e.line,
-            e.kind,
+            e.kind.name(),
             e.depth.map(|d| d.to_string()).unwrap_or_default()
         );
         for p in &e.position_mm {

@@ -38,6 +38,7 @@
 //! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
 
 use crate::vocab::GapState;
+use crate::words::{Packed, packed_struct};
 
 /// Where the electrode is along the program: block sequence number and Bresenham event.
 /// Ordered along the path (the end of block `s` and the start of block `s + 1` are the same
@@ -96,6 +97,25 @@ impl ServoState {
         }
     }
 
+    /// Every state.
+    pub const ALL: [ServoState; 10] = [
+        ServoState::Forward,
+        ServoState::Hold,
+        ServoState::TurnBack,
+        ServoState::ReAdvance,
+        ServoState::Alarm,
+        ServoState::Done,
+        ServoState::Retreat,
+        ServoState::Return,
+        ServoState::WireBroken,
+        ServoState::Threading,
+    ];
+
+    /// The state a [`name`](Self::name) names.
+    pub fn from_name(name: &str) -> Option<ServoState> {
+        ServoState::ALL.into_iter().find(|s| s.name() == name)
+    }
+
     /// The generator is off whatever the move: jumps, rethreading and the ways there and back.
     pub fn spark_off(self) -> bool {
         matches!(
@@ -115,6 +135,21 @@ impl ServoState {
     /// No more motion will happen.
     pub fn is_final(self) -> bool {
         matches!(self, ServoState::Alarm | ServoState::Done)
+    }
+}
+
+/// In the status JSON a state is its [`name`](ServoState::name).
+impl serde::Serialize for ServoState {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ServoState {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        ServoState::from_name(&name)
+            .ok_or_else(|| serde::de::Error::custom(format!("no servo state {name:?}")))
     }
 }
 
@@ -216,22 +251,119 @@ pub enum ServoEvent {
     ProbeMissed { at: PathPoint },
 }
 
-/// Counters kept by the servo.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// A state travels as its index in [`ServoState::ALL`].
+impl Packed for ServoState {
+    const WORDS: usize = 1;
+    fn pack(&self, out: &mut [u64]) {
+        out[0] = ServoState::ALL.iter().position(|s| s == self).unwrap_or(1) as u64;
+    }
+    fn unpack(words: &[u64]) -> Self {
+        ServoState::ALL[words[0] as usize % ServoState::ALL.len()]
+    }
+}
+
+impl Packed for Option<Excursion> {
+    const WORDS: usize = 1;
+    fn pack(&self, out: &mut [u64]) {
+        out[0] = match self {
+            None => 0,
+            Some(Excursion::Jump) => 1,
+            Some(Excursion::Rethread) => 2,
+        };
+    }
+    fn unpack(words: &[u64]) -> Self {
+        match words[0] {
+            1 => Some(Excursion::Jump),
+            2 => Some(Excursion::Rethread),
+            _ => None,
+        }
+    }
+}
+
+impl Packed for PathPoint {
+    const WORDS: usize = 2;
+    fn pack(&self, out: &mut [u64]) {
+        self.seq.pack(&mut out[..1]);
+        self.event.pack(&mut out[1..]);
+    }
+    fn unpack(words: &[u64]) -> Self {
+        PathPoint {
+            seq: u64::unpack(&words[..1]),
+            event: i64::unpack(&words[1..]),
+        }
+    }
+}
+
+packed_struct! {
+/// Counters kept by the servo: one definition for the summary, the status, the metrics and
+/// the snapshot (flattened into the JSON under these names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct ServoCounters {
     pub shorts: u64,
     pub turn_backs: u64,
+    /// The most blocks one turn-back went back over (a maximum, not a count).
     pub deepest_turn_back_blocks: u64,
     pub alarms: u64,
     pub starvations: u64,
     /// Shorts during rapids (collisions).
+    #[serde(default)]
     pub collisions: u64,
     /// Jumps begun.
+    #[serde(default)]
     pub jumps: u64,
     /// Wire breaks detected.
+    #[serde(default)]
     pub wire_breaks: u64,
     /// Probing moves finished (with or without contact).
+    #[serde(default)]
     pub probes: u64,
+}
+}
+
+impl ServoCounters {
+    /// The counts (everything but the deepest turn-back) with their names and what they
+    /// count, for the metrics: `edmd_<name>_total`.
+    pub fn counts(&self) -> [(&'static str, &'static str, u64); 8] {
+        [
+            ("shorts", "Short circuits.", self.shorts),
+            (
+                "turn_backs",
+                "Turn-backs along the executed path.",
+                self.turn_backs,
+            ),
+            (
+                "alarms",
+                "Alarms (shorts the turn-back could not clear).",
+                self.alarms,
+            ),
+            ("collisions", "Shorts during rapids.", self.collisions),
+            (
+                "starvations",
+                "Times the loop buffer ran dry.",
+                self.starvations,
+            ),
+            ("jumps", "Sinker jumps.", self.jumps),
+            ("wire_breaks", "Wire breaks.", self.wire_breaks),
+            ("probes", "Probing moves finished.", self.probes),
+        ]
+    }
+
+    /// Two jobs' counters together: the counts summed, the deepest turn-back the deeper.
+    pub fn plus(&self, other: &ServoCounters) -> ServoCounters {
+        ServoCounters {
+            shorts: self.shorts + other.shorts,
+            turn_backs: self.turn_backs + other.turn_backs,
+            deepest_turn_back_blocks: self
+                .deepest_turn_back_blocks
+                .max(other.deepest_turn_back_blocks),
+            alarms: self.alarms + other.alarms,
+            starvations: self.starvations + other.starvations,
+            collisions: self.collisions + other.collisions,
+            jumps: self.jumps + other.jumps,
+            wire_breaks: self.wire_breaks + other.wire_breaks,
+            probes: self.probes + other.probes,
+        }
+    }
 }
 
 /// The state machine.

@@ -156,7 +156,7 @@ fn a_whole_job_on_the_port_reaches_the_program_end_with_every_timing_rule() {
     ]);
     let (summary, bench, map, timing) = parport_job(&["gap.kind=script"], gap);
     assert_eq!(summary.outcome, Outcome::Done, "{summary:?}");
-    assert_eq!(summary.shorts, 2);
+    assert_eq!(summary.servo.shorts, 2);
     let seen = bench.drive_steps(&map, timing).unwrap();
     assert_eq!(sums(&seen), PROGRAM_END.to_vec(), "what the drives counted");
     assert_eq!(summary.end_steps, PROGRAM_END.to_vec(), "the ledger");

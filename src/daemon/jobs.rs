@@ -11,7 +11,7 @@ use super::protocol::CheckStatus;
 use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Reason};
 use crate::config::{Config, GapKind, OutputKind};
-use crate::record::Recording;
+use crate::record::{EventKind, Recording};
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
 use crate::servo::{Rethread, ServoState};
@@ -45,7 +45,7 @@ pub(super) struct Check {
 impl Job {
     /// An operator's event (a hold, its release) into the job's report, at the tick and
     /// line the job has reached.
-    fn report_event(&self, kind: &'static str) {
+    fn report_event(&self, kind: EventKind) {
         if let Some((_, recording)) = &self.report {
             let snap = self.published.snapshot();
             recording.lock().event(snap.tick, snap.line, kind, None);
@@ -394,7 +394,7 @@ impl Core {
         }
         job.published.holds.fetch_add(1, Ordering::Relaxed);
         job.hold_checkpointed = false;
-        job.report_event("hold");
+        job.report_event(EventKind::Hold);
         tracing::info!(
             edmd_event = "hold",
             edmd_program = job.program.display().to_string(),
@@ -491,7 +491,7 @@ impl Core {
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
         job.published.paused_line.store(0, Ordering::Relaxed);
-        job.report_event("released");
+        job.report_event(EventKind::Released);
         tracing::info!("resume: {} released", job.program.display());
         Ok("resumed".to_string())
     }
@@ -542,7 +542,7 @@ impl Core {
             job.published.hold.store(false, Ordering::Release);
         }
         job.hold_checkpointed = false;
-        job.report_event("rethread");
+        job.report_event(EventKind::Rethread);
         tracing::info!(
             edmd_event = "rethread",
             edmd_program = job.program.display().to_string(),
@@ -563,7 +563,7 @@ impl Core {
         };
         job.stop_reason.get_or_insert(Reason::Abort);
         job.stop.store(true, Ordering::Relaxed);
-        job.report_event("abort");
+        job.report_event(EventKind::Abort);
         tracing::info!("abort: {} braking to a standstill", job.program.display());
         Ok("aborting: braking to a standstill, then the job ends".to_string())
     }

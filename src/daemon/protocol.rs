@@ -185,16 +185,12 @@ pub struct Status {
 pub struct Counters {
     /// Jobs started.
     pub jobs: u64,
-    pub shorts: u64,
-    pub turn_backs: u64,
-    pub alarms: u64,
-    pub collisions: u64,
+    /// The servo's counts over all jobs (flat in the JSON; the deepest turn-back the deepest
+    /// of any job).
+    #[serde(flatten)]
+    pub servo: crate::servo::ServoCounters,
     pub holds: u64,
     pub overruns: u64,
-    pub starvations: u64,
-    pub jumps: u64,
-    pub wire_breaks: u64,
-    pub probes: u64,
     pub ticks: u64,
     /// Checkpoint writes that failed.
     #[serde(default)]
@@ -214,16 +210,9 @@ impl Counters {
         let bucket = |v: &Vec<u64>, i: usize| v.get(i).copied().unwrap_or(0);
         Counters {
             jobs: self.jobs + other.jobs,
-            shorts: self.shorts + other.shorts,
-            turn_backs: self.turn_backs + other.turn_backs,
-            alarms: self.alarms + other.alarms,
-            collisions: self.collisions + other.collisions,
+            servo: self.servo.plus(&other.servo),
             holds: self.holds + other.holds,
             overruns: self.overruns + other.overruns,
-            starvations: self.starvations + other.starvations,
-            jumps: self.jumps + other.jumps,
-            wire_breaks: self.wire_breaks + other.wire_breaks,
-            probes: self.probes + other.probes,
             ticks: self.ticks + other.ticks,
             checkpoint_failures: self.checkpoint_failures + other.checkpoint_failures,
             gap_ticks: std::array::from_fn(|i| self.gap_ticks[i] + other.gap_ticks[i]),
@@ -272,24 +261,19 @@ pub struct JobStatus {
     pub step: i64,
     pub parameter: Option<f64>,
     /// The servo's state: forward, turn-back, re-advance, hold (starved), alarm, done.
-    pub servo: String,
+    pub servo: crate::servo::ServoState,
     pub position_steps: Vec<i64>,
     pub position_mm: Vec<f64>,
     pub feed_mm_per_min: f64,
     pub buffer_unprocessed: u64,
     pub buffer_reserved: u64,
     pub buffer_capacity: u64,
-    pub shorts: u64,
-    pub turn_backs: u64,
-    pub deepest_turn_back_blocks: u64,
-    pub alarms: u64,
-    pub starvations: u64,
-    /// Shorts during rapids (each holds the job).
-    #[serde(default)]
-    pub collisions: u64,
-    /// Jumps, wire breaks and probes so far (flat in the JSON).
+    /// Shorts, turn-backs, alarms, jumps, … so far (flat in the JSON).
     #[serde(flatten)]
-    pub excursions: crate::runtime::Excursions,
+    pub servo_counters: crate::servo::ServoCounters,
+    /// The last probe (flat in the JSON).
+    #[serde(flatten)]
+    pub last_probe: crate::runtime::LastProbe,
     pub overruns: u64,
     pub pulses: Vec<u64>,
     pub ticks: u64,
@@ -355,7 +339,7 @@ impl Status {
                     self.state.name(),
                     j.program,
                     j.line,
-                    j.servo,
+                    j.servo.name(),
                     j.feed_mm_per_min,
                     j.progress * 100.0,
                     j.eta_s
@@ -363,8 +347,8 @@ impl Status {
                         .unwrap_or_default(),
                     j.buffer_unprocessed,
                     j.buffer_capacity,
-                    j.shorts,
-                    j.starvations,
+                    j.servo_counters.shorts,
+                    j.servo_counters.starvations,
                     j.overruns
                 )
             }
@@ -417,15 +401,16 @@ impl Status {
                 }
                 _ => {}
             }
-            let x = &j.excursions;
-            if x.jumps + x.wire_breaks + x.probes > 0 {
+            let c = &j.servo_counters;
+            if c.jumps + c.wire_breaks + c.probes > 0 {
                 let _ = writeln!(
                     t,
                     "excursions:   {} jumps, {} wire breaks, {} probes{}",
-                    x.jumps,
-                    x.wire_breaks,
-                    x.probes,
-                    x.probe_mm
+                    c.jumps,
+                    c.wire_breaks,
+                    c.probes,
+                    j.last_probe
+                        .probe_mm
                         .as_ref()
                         .map(|mm| format!("; last probe {} mm", list(mm)))
                         .unwrap_or_default()
@@ -435,7 +420,7 @@ impl Status {
                 t,
                 "position:     {} mm; servo {}, feed {:.2} mm/min",
                 list(&j.position_mm),
-                j.servo,
+                j.servo.name(),
                 j.feed_mm_per_min
             );
             let eta = match j.eta_s {
@@ -459,7 +444,7 @@ impl Status {
             let _ = writeln!(
                 t,
                 "servo:        {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
-                j.shorts, j.turn_backs, j.deepest_turn_back_blocks, j.alarms, j.starvations
+                c.shorts, c.turn_backs, c.deepest_turn_back_blocks, c.alarms, c.starvations
             );
             let latency = match (j.latency_mean_us, j.latency_max_us) {
                 (Some(mean), Some(max)) => {

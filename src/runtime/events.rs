@@ -3,7 +3,7 @@
 
 use super::consumer::EventRecord;
 use crate::config::Config;
-use crate::record::{Recorder, Recording};
+use crate::record::{EventKind, Recorder, Recording};
 use crate::servo::{Excursion, ServoEvent};
 
 /// Logs one servo event (from the main thread, never the consumer).
@@ -206,22 +206,22 @@ pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, event
     let mut take_events = |recording: &mut Recording, before: u64| {
         while let Some(e) = events.next_if(|e| e.tick <= before) {
             let (kind, depth) = match e.event {
-                ServoEvent::Short { .. } => ("short", None),
-                ServoEvent::Cleared { depth } => ("turn_back", Some(depth)),
-                ServoEvent::Resumed { .. } => ("resumed", None),
-                ServoEvent::Starved { .. } => ("starved", None),
-                ServoEvent::Alarm { depth, .. } => ("alarm", Some(depth)),
-                ServoEvent::Done => ("done", None),
-                ServoEvent::Paused { .. } => ("pause", None),
-                ServoEvent::Collision { .. } => ("collision", None),
-                ServoEvent::Condition { number } => ("condition", Some(number as u64)),
-                ServoEvent::Flushing { on: true } => ("flush_on", None),
-                ServoEvent::Flushing { on: false } => ("flush_off", None),
-                ServoEvent::Jump { .. } => ("jump", None),
+                ServoEvent::Short { .. } => (EventKind::Short, None),
+                ServoEvent::Cleared { depth } => (EventKind::TurnBack, Some(depth)),
+                ServoEvent::Resumed { .. } => (EventKind::Resumed, None),
+                ServoEvent::Starved { .. } => (EventKind::Starved, None),
+                ServoEvent::Alarm { depth, .. } => (EventKind::Alarm, Some(depth)),
+                ServoEvent::Done => (EventKind::Done, None),
+                ServoEvent::Paused { .. } => (EventKind::Pause, None),
+                ServoEvent::Collision { .. } => (EventKind::Collision, None),
+                ServoEvent::Condition { number } => (EventKind::Condition, Some(number as u64)),
+                ServoEvent::Flushing { on: true } => (EventKind::FlushOn, None),
+                ServoEvent::Flushing { on: false } => (EventKind::FlushOff, None),
+                ServoEvent::Jump { .. } => (EventKind::Jump, None),
                 ServoEvent::Retreated { .. } | ServoEvent::Returned { .. } => continue,
-                ServoEvent::WireBreak { .. } => ("wire_break", None),
-                ServoEvent::Probed { contact, .. } => ("probe", Some(contact as u64)),
-                ServoEvent::ProbeMissed { .. } => ("probe_missed", None),
+                ServoEvent::WireBreak { .. } => (EventKind::WireBreak, None),
+                ServoEvent::Probed { contact, .. } => (EventKind::Probe, Some(contact as u64)),
+                ServoEvent::ProbeMissed { .. } => (EventKind::ProbeMissed, None),
             };
             recording.event(e.tick, e.line, kind, depth);
         }

@@ -57,7 +57,7 @@ pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
-pub use summary::{Excursions, JobSummary, Outcome, StopPoint, axis_list};
+pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
 #[derive(Debug, thiserror::Error)]
@@ -470,17 +470,8 @@ pub fn run_job_with(
             .collect(),
         events_forward: counters.events_forward,
         events_backward: counters.events_backward,
-        shorts: counters.servo.shorts,
-        turn_backs: counters.servo.turn_backs,
-        deepest_turn_back_blocks: counters.servo.deepest_turn_back_blocks,
-        alarms: counters.servo.alarms,
-        starvations: counters.servo.starvations,
-        collisions: counters.servo.collisions,
-        excursions: summary::Excursions::new(
-            &counters.servo,
-            report.last_probe.as_ref(),
-            &config.machine.step_mm,
-        ),
+        servo: counters.servo,
+        last_probe: summary::LastProbe::new(report.last_probe.as_ref(), &config.machine.step_mm),
         overruns: report.overruns,
         missed_deadlines: report.missed_deadlines,
         latency_us: report.latency.as_ref().map(|h| h.summary()),

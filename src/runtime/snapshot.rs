@@ -6,8 +6,11 @@ use std::sync::atomic::{AtomicU64, Ordering, fence};
 use crate::fine::Interpolator;
 use crate::servo::{Excursion, PathPoint, ServoCounters, ServoState};
 use crate::vocab::{MAX_AXES, Steps};
+use crate::words::{Packed, packed_struct};
 
-/// The interpolator's state as the other threads see it.
+packed_struct! {
+/// The interpolator's state as the other threads see it. It travels through the seqlock
+/// field by field, in this order: the one list of its fields ([`crate::words`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Snapshot {
     pub tick: u64,
@@ -39,6 +42,7 @@ pub struct Snapshot {
     /// Ticks of a `G4` dwell still to wait here (a checkpoint keeps them).
     pub dwell_left: u64,
 }
+}
 
 impl Default for Snapshot {
     fn default() -> Self {
@@ -62,19 +66,8 @@ impl Default for Snapshot {
     }
 }
 
-pub(super) const WORDS: usize = 2 + MAX_AXES + 6 + 6 + MAX_AXES + 5;
-const STATES: [ServoState; 10] = [
-    ServoState::Forward,
-    ServoState::Hold,
-    ServoState::TurnBack,
-    ServoState::ReAdvance,
-    ServoState::Alarm,
-    ServoState::Done,
-    ServoState::Retreat,
-    ServoState::Return,
-    ServoState::WireBroken,
-    ServoState::Threading,
-];
+/// Words of a snapshot in the seqlock.
+pub(super) const WORDS: usize = <Snapshot as Packed>::WORDS;
 
 impl Snapshot {
     pub fn of(tick: u64, fine: &Interpolator) -> Snapshot {
@@ -112,79 +105,13 @@ impl Snapshot {
     }
 
     pub(super) fn encode(&self) -> [u64; WORDS] {
-        let mut w = [0u64; WORDS];
-        let state = STATES.iter().position(|s| *s == self.state).unwrap_or(1) as u64;
-        w[0] = self.tick;
-        let excursion = match self.excursion {
-            None => 0,
-            Some(Excursion::Jump) => 1,
-            Some(Excursion::Rethread) => 2,
-        };
-        w[1] = state | (self.held as u64) << 8 | (self.still as u64) << 9 | excursion << 10;
-        for i in 0..MAX_AXES {
-            w[2 + i] = self.position[i] as u64;
-            w[2 + MAX_AXES + 12 + i] = self.pulses[i];
-        }
-        let m = 2 + MAX_AXES;
-        w[m] = self.here.seq;
-        w[m + 1] = self.here.event as u64;
-        w[m + 2] = self.events as u64;
-        w[m + 3] = self.line;
-        w[m + 4] = self.u_end.to_bits();
-        w[m + 5] = self.speed.to_bits();
-        let c = &self.servo;
-        w[m + 6..m + 12].copy_from_slice(&[
-            c.shorts,
-            c.turn_backs,
-            c.deepest_turn_back_blocks,
-            c.alarms,
-            c.starvations,
-            c.collisions,
-        ]);
-        w[WORDS - 5] = self.dwell_left;
-        w[WORDS - 4] = c.jumps;
-        w[WORDS - 3] = c.wire_breaks;
-        w[WORDS - 2] = c.probes;
-        w[WORDS - 1] = self.path_mm.to_bits();
-        w
+        let mut words = [0u64; WORDS];
+        self.pack(&mut words);
+        words
     }
 
-    pub(super) fn decode(w: &[u64; WORDS]) -> Snapshot {
-        let m = 2 + MAX_AXES;
-        Snapshot {
-            tick: w[0],
-            state: STATES[(w[1] & 0xff) as usize % STATES.len()],
-            held: w[1] & 1 << 8 != 0,
-            still: w[1] & 1 << 9 != 0,
-            excursion: match (w[1] >> 10) & 3 {
-                1 => Some(Excursion::Jump),
-                2 => Some(Excursion::Rethread),
-                _ => None,
-            },
-            position: std::array::from_fn(|i| w[2 + i] as i64),
-            here: PathPoint {
-                seq: w[m],
-                event: w[m + 1] as i64,
-            },
-            events: w[m + 2] as i64,
-            line: w[m + 3],
-            u_end: f64::from_bits(w[m + 4]),
-            speed: f64::from_bits(w[m + 5]),
-            servo: ServoCounters {
-                shorts: w[m + 6],
-                turn_backs: w[m + 7],
-                deepest_turn_back_blocks: w[m + 8],
-                alarms: w[m + 9],
-                starvations: w[m + 10],
-                collisions: w[m + 11],
-                jumps: w[WORDS - 4],
-                wire_breaks: w[WORDS - 3],
-                probes: w[WORDS - 2],
-            },
-            pulses: std::array::from_fn(|i| w[m + 12 + i]),
-            path_mm: f64::from_bits(w[WORDS - 1]),
-            dwell_left: w[WORDS - 5],
-        }
+    pub(super) fn decode(words: &[u64; WORDS]) -> Snapshot {
+        Snapshot::unpack(words)
     }
 }
 
@@ -231,6 +158,59 @@ impl SeqLock {
             if self.version.load(Ordering::Relaxed) == before {
                 return data;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix64;
+
+    /// Every field survives the seqlock's words, whatever its value: random snapshots
+    /// (seeded), each state and excursion, NaN and extreme numbers.
+    #[test]
+    fn a_snapshot_round_trips_through_the_seqlock() {
+        let mut rng = SplitMix64::new(7);
+        let lock = SeqLock::default();
+        // The default's parameter is NaN (no NURBS yet), which compares unequal to itself.
+        let first = Snapshot::decode(&lock.read());
+        assert!(first.u_end.is_nan());
+        assert_eq!(first.encode(), Snapshot::default().encode());
+        for i in 0..1000u64 {
+            let mut r = || rng.next_u64();
+            let snap = Snapshot {
+                tick: r(),
+                state: ServoState::ALL[i as usize % ServoState::ALL.len()],
+                held: i % 2 == 0,
+                still: i % 3 == 0,
+                position: std::array::from_fn(|_| r() as i64),
+                here: PathPoint {
+                    seq: r(),
+                    event: r() as i64,
+                },
+                events: r() as i64,
+                line: r(),
+                u_end: f64::from_bits(r() & !(0x7ff << 52)),
+                speed: (r() % 1000) as f64 / 7.0,
+                servo: ServoCounters {
+                    shorts: r(),
+                    turn_backs: r(),
+                    deepest_turn_back_blocks: r(),
+                    alarms: r(),
+                    starvations: r(),
+                    collisions: r(),
+                    jumps: r(),
+                    wire_breaks: r(),
+                    probes: r(),
+                },
+                pulses: std::array::from_fn(|_| r()),
+                path_mm: -(r() as f64),
+                excursion: [None, Some(Excursion::Jump), Some(Excursion::Rethread)][i as usize % 3],
+                dwell_left: r(),
+            };
+            lock.write(&snap.encode());
+            assert_eq!(Snapshot::decode(&lock.read()), snap);
         }
     }
 }

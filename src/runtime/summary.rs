@@ -9,7 +9,7 @@ use super::consumer::LoopReport;
 use super::producer::{ProducerError, ProducerReport};
 use crate::fine::{FineCounters, Interpolator, SkipError};
 use crate::output::OutputError;
-use crate::servo::ServoState;
+use crate::servo::{ServoCounters, ServoState};
 use crate::vocab::Steps;
 
 /// How a job ended.
@@ -73,36 +73,20 @@ pub struct StopPoint {
     pub program_sha256: String,
 }
 
-/// What a job did besides cutting: the same fields in the summary and the daemon's status.
+/// Where the last probing move ended, per axis (mm), and whether it touched: the same fields
+/// (flat) in the summary and the daemon's status.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Excursions {
-    /// Sinker jumps made.
-    #[serde(default)]
-    pub jumps: u64,
-    /// Wire breaks detected.
-    #[serde(default)]
-    pub wire_breaks: u64,
-    /// Probing moves finished.
-    #[serde(default)]
-    pub probes: u64,
-    /// Where the last probing move ended, per axis (mm), and whether it touched.
+pub struct LastProbe {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe_mm: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe_contact: Option<bool>,
 }
 
-impl Excursions {
-    /// The counts of `servo` and the last probe (`steps` times `step_mm`).
-    pub fn new(
-        servo: &crate::servo::ServoCounters,
-        probe: Option<&super::probe::ProbeResult>,
-        step_mm: &[f64],
-    ) -> Excursions {
-        Excursions {
-            jumps: servo.jumps,
-            wire_breaks: servo.wire_breaks,
-            probes: servo.probes,
+impl LastProbe {
+    /// The last probe's result (`steps` times `step_mm`), if there was one.
+    pub fn new(probe: Option<&super::probe::ProbeResult>, step_mm: &[f64]) -> LastProbe {
+        LastProbe {
             probe_mm: probe.map(|p| {
                 p.steps
                     .iter()
@@ -135,17 +119,12 @@ pub struct JobSummary {
     pub end_mm: Vec<f64>,
     pub events_forward: u64,
     pub events_backward: u64,
-    pub shorts: u64,
-    pub turn_backs: u64,
-    pub deepest_turn_back_blocks: u64,
-    pub alarms: u64,
-    pub starvations: u64,
-    /// Shorts during rapids.
-    #[serde(default)]
-    pub collisions: u64,
-    /// Jumps, wire breaks and probes (flat in the JSON).
+    /// Shorts, turn-backs, alarms, … (flat in the JSON).
     #[serde(flatten)]
-    pub excursions: Excursions,
+    pub servo: ServoCounters,
+    /// The last probe (flat in the JSON).
+    #[serde(flatten)]
+    pub last_probe: LastProbe,
     pub overruns: u64,
     pub missed_deadlines: u64,
     /// Real time only.
@@ -201,25 +180,26 @@ impl JobSummary {
         let _ = writeln!(
             t,
             "  servo:            {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations{}",
-            self.shorts,
-            self.turn_backs,
-            self.deepest_turn_back_blocks,
-            self.alarms,
-            self.starvations,
-            if self.collisions > 0 {
-                format!(", {} collisions", self.collisions)
+            self.servo.shorts,
+            self.servo.turn_backs,
+            self.servo.deepest_turn_back_blocks,
+            self.servo.alarms,
+            self.servo.starvations,
+            if self.servo.collisions > 0 {
+                format!(", {} collisions", self.servo.collisions)
             } else {
                 String::new()
             }
         );
-        let x = &self.excursions;
-        if x.jumps + x.wire_breaks + x.probes > 0 {
+        let c = &self.servo;
+        if c.jumps + c.wire_breaks + c.probes > 0 {
             let _ = writeln!(
                 t,
                 "  excursions:       {} jumps, {} wire breaks, {} probes",
-                x.jumps, x.wire_breaks, x.probes
+                c.jumps, c.wire_breaks, c.probes
             );
         }
+        let x = &self.last_probe;
         if let Some(mm) = &x.probe_mm {
             let text = axis_list(mm, &self.axes, |v| format!("{v:.4}"));
             let _ = writeln!(

@@ -95,7 +95,7 @@ pub fn render(status: &Status) -> String {
         o.family("job_info", "gauge", "The job in hand, as labels.");
         o.sample(
             "job_info",
-            &format!("{program},servo=\"{}\"", label(&j.servo)),
+            &format!("{program},servo=\"{}\"", label(j.servo.name())),
             1.0,
         );
         o.one(
@@ -163,20 +163,11 @@ pub fn render(status: &Status) -> String {
         );
     }
     let c = &status.counters;
-    let counters: [(&str, &str, u64); 12] = [
-        ("jobs_total", "Jobs started.", c.jobs),
-        ("shorts_total", "Short circuits.", c.shorts),
-        (
-            "turn_backs_total",
-            "Turn-backs along the executed path.",
-            c.turn_backs,
-        ),
-        (
-            "alarms_total",
-            "Alarms (shorts the turn-back could not clear).",
-            c.alarms,
-        ),
-        ("collisions_total", "Shorts during rapids.", c.collisions),
+    o.one("jobs_total", "counter", "Jobs started.", c.jobs as f64);
+    for (name, help, value) in c.servo.counts() {
+        o.one(&format!("{name}_total"), "counter", help, value as f64);
+    }
+    let counters: [(&str, &str, u64); 3] = [
         (
             "holds_total",
             "Holds: operator, programmed stop, collision, alarm, wire break.",
@@ -187,14 +178,6 @@ pub fn render(status: &Status) -> String {
             "Ticks whose work ended after the next deadline.",
             c.overruns,
         ),
-        (
-            "starvations_total",
-            "Times the loop buffer ran dry.",
-            c.starvations,
-        ),
-        ("jumps_total", "Sinker jumps.", c.jumps),
-        ("wire_breaks_total", "Wire breaks.", c.wire_breaks),
-        ("probes_total", "Probing moves finished.", c.probes),
         (
             "checkpoint_failures_total",
             "Checkpoint writes that failed (motion waits for the write-ahead ones).",
@@ -259,7 +242,10 @@ mod tests {
             rt_refused: Vec::new(),
             counters: Counters {
                 jobs: 2,
-                shorts: 7,
+                servo: crate::servo::ServoCounters {
+                    shorts: 7,
+                    ..Default::default()
+                },
                 gap_ticks: [10, 20, 30],
                 latency_buckets: vec![5, 0, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1],
                 latency_sum_us: 40.0,
