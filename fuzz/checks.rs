@@ -153,7 +153,10 @@ pub fn protocol(data: &[u8]) {
                     }
                 }
             }
-            Err(err) => assert!(err.starts_with("request:"), "unlocated error: {err}"),
+            Err(err) => assert!(
+                err.to_string().starts_with("request:"),
+                "unlocated error: {err}"
+            ),
         }
     }
 }

@@ -287,11 +287,9 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
         .try_init();
     Box::new(move |level: &str| {
         if from_env {
-            return Err("RUST_LOG is set and takes precedence; level unchanged".to_string());
+            return Err("RUST_LOG is set and takes precedence; level unchanged".into());
         }
-        handle
-            .reload(EnvFilter::new(level))
-            .map_err(|e| e.to_string())
+        handle.reload(EnvFilter::new(level)).map_err(Into::into)
     })
 }
 

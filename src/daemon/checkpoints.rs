@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::refusal::CheckpointWriteError;
 use super::status::mm;
 use super::{Core, Job, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
@@ -77,11 +78,12 @@ impl Core {
                     match cp.write_atomic(&checkpoint_path) {
                         Ok(()) => self.checkpoint = Some(cp.clone()),
                         Err(e) => {
-                            let error = format!(
-                                "{}: cannot put the checkpoint back: {e}",
-                                checkpoint_path.display()
-                            );
-                            tracing::error!("{error}");
+                            let error = CheckpointWriteError {
+                                path: checkpoint_path.clone(),
+                                reason: cp.reason,
+                                message: e.to_string(),
+                            };
+                            tracing::error!("{error} (putting it back)");
                             self.checkpoint_write_error = Some(error);
                         }
                     }
@@ -99,7 +101,7 @@ impl Core {
         at: &Snapshot,
         reason: Reason,
         still: bool,
-    ) -> Result<(), String> {
+    ) -> Result<(), CheckpointWriteError> {
         let machine = &job.config.machine;
         let axes = machine.axes.len();
         let cp = Checkpoint {
@@ -146,15 +148,19 @@ impl Core {
                 Ok(())
             }
             Err(e) => {
-                let error = format!(
-                    "{}: cannot write the checkpoint ({}): {e}",
-                    path.display(),
-                    reason.name()
-                );
-                if self.checkpoint_write_error.as_ref() != Some(&error) {
-                    tracing::error!(edmd_event = "checkpoint_failed", "{error}");
-                } else {
+                let error = CheckpointWriteError {
+                    path: path.clone(),
+                    reason,
+                    message: e.to_string(),
+                };
+                let again = self
+                    .checkpoint_write_error
+                    .as_ref()
+                    .is_some_and(|last| last.message == error.message);
+                if again {
                     tracing::debug!("{error}");
+                } else {
+                    tracing::error!(edmd_event = "checkpoint_failed", "{error}");
                 }
                 self.finished.checkpoint_failures += 1;
                 self.checkpoint_write_error = Some(error.clone());

@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use super::protocol::CheckStatus;
+use super::refusal::{CheckRefusal, Refusal};
 use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Reason};
 use crate::config::{Config, GapKind, OutputKind};
@@ -66,11 +67,9 @@ fn copy_and_check(
     config: &Config,
     expect: Option<&str>,
     progress: &Progress,
-) -> Result<Checked, String> {
+) -> Result<Checked, CheckRefusal> {
     let program = match source {
-        Source::Original(path) => {
-            program::copy_program(&path, dir, progress).map_err(|e| e.to_string())?
-        }
+        Source::Original(path) => program::copy_program(&path, dir, progress)?,
         Source::Copy(program) => program,
     };
     if let Some(expect) = expect
@@ -81,14 +80,14 @@ fn copy_and_check(
             expected: expect.to_string(),
             found: program.sha256,
         }
-        .to_string());
+        .into());
     }
-    let check = runtime::precheck(&program, config, progress).map_err(|e| e.to_string())?;
+    let check = runtime::precheck(&program, config, progress)?;
     Ok((program, check))
 }
 
 impl Core {
-    pub(super) fn run_program(&mut self, requested: &str) -> Result<String, String> {
+    pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let id = self.begin_check(Source::Original(program.clone()), None);
@@ -120,7 +119,7 @@ impl Core {
                 let _ = tx.send(CoreMsg::Checked { id, result });
             });
         if let Err(e) = spawned {
-            let result = Err(format!("cannot start the check thread: {e}"));
+            let result = Err(CheckRefusal::Thread(e));
             let _ = self.to_core.send(CoreMsg::Checked { id, result });
         }
         tracing::info!("check {id}: {name}: copying and checking");
@@ -134,17 +133,19 @@ impl Core {
     }
 
     /// The verdict of a check: start the job, or record why not.
-    pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, String>) {
+    pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, CheckRefusal>) {
         let Some(check) = self.check.take_if(|c| c.id == id) else {
             return;
         };
         let outcome = if self.shutting_down {
-            Err("the daemon is shutting down".to_string())
+            Err(Refusal::ShuttingDown)
         } else {
-            result.and_then(|(program, precheck)| {
-                let resume = check.resume.as_ref().map(|r| r.point.clone());
-                self.start_job(program, precheck, resume)
-            })
+            result
+                .map_err(Refusal::from)
+                .and_then(|(program, precheck)| {
+                    let resume = check.resume.as_ref().map(|r| r.point.clone());
+                    self.start_job(program, precheck, resume)
+                })
         };
         let (bytes_done, bytes_total) = {
             let (_, done, total) = check.progress.get();
@@ -173,7 +174,7 @@ impl Core {
                     "check {id}: refused: {error}"
                 );
                 status.phase = "refused".to_string();
-                status.error = Some(error);
+                status.error = Some(error.to_string());
             }
         }
         self.last_check = Some(status);
@@ -186,7 +187,7 @@ impl Core {
         program: JobProgram,
         check: runtime::Precheck,
         resume: Option<ResumePoint>,
-    ) -> Result<String, String> {
+    ) -> Result<String, Refusal> {
         let config = self.config.clone();
         let blocks = check.blocks;
         let path_total_mm = check.path_mm;
@@ -204,13 +205,9 @@ impl Core {
                     .file_stem()
                     .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
                 let dir = dir.join(format!("{}-{stem}", unix_now()));
-                std::fs::create_dir_all(&dir).map_err(|e| {
-                    format!(
-                        "daemon.report_dir: cannot make {}: {e}; the job does not start \
-                         without its report",
-                        dir.display()
-                    )
-                })?;
+                if let Err(source) = std::fs::create_dir_all(&dir) {
+                    return Err(Refusal::ReportDir { dir, source });
+                }
                 let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
                     &config.machine.step_mm,
                     config.fine.tick,
@@ -219,9 +216,7 @@ impl Core {
             }
             None => None,
         };
-        let mut io = self
-            .job_io(&config, &check, &start)
-            .map_err(|e| e.to_string())?;
+        let mut io = self.job_io(&config, &check, &start)?;
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
         let published = Arc::new(Published::new(4096));
@@ -263,11 +258,12 @@ impl Core {
                 *p = *s;
             }
         }
-        if let Err(e) = self.write_checkpoint(&job, &at, Reason::Moving, false) {
+        if let Err(error) = self.write_checkpoint(&job, &at, Reason::Moving, false) {
             self.give_back_io(&config, io);
-            return Err(format!(
-                "{e}: the job does not start without its checkpoint"
-            ));
+            return Err(Refusal::WriteAhead {
+                error,
+                consequence: "the job does not start without its checkpoint",
+            });
         }
         // A new job replaces the checkpoint of an old one, and only now that it really starts.
         let mut message = String::new();
@@ -305,7 +301,7 @@ impl Core {
                 );
                 let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
             })
-            .map_err(|e| format!("cannot start the job thread: {e}"))?;
+            .map_err(Refusal::JobThread)?;
         tracing::info!(
             edmd_event = "job_start",
             edmd_program = program.name,
@@ -382,12 +378,12 @@ impl Core {
         })
     }
 
-    pub(super) fn hold(&mut self) -> Result<String, String> {
+    pub(super) fn hold(&mut self) -> Result<String, Refusal> {
         let Some(job) = &mut self.job else {
-            return Err("no job is running".to_string());
+            return Err(Refusal::NoJob);
         };
         if job.stop.load(Ordering::Relaxed) {
-            return Err("the job is stopping".to_string());
+            return Err(Refusal::Stopping);
         }
         if job.published.hold.swap(true, Ordering::Relaxed) {
             return Ok("already held".to_string());
@@ -404,7 +400,7 @@ impl Core {
         Ok("holding: braking to a standstill".to_string())
     }
 
-    pub(super) fn resume(&mut self, force: bool) -> Result<String, String> {
+    pub(super) fn resume(&mut self, force: bool) -> Result<String, Refusal> {
         if let Some(mut job) = self.job.take() {
             let released = self.release(&mut job);
             self.job = Some(job);
@@ -412,22 +408,23 @@ impl Core {
         }
         self.refuse_if_busy()?;
         let Some(cp) = self.checkpoint.clone() else {
-            return Err(match &self.checkpoint_error {
-                Some(e) => format!("nothing to resume: {e}"),
-                None => format!(
-                    "nothing to resume: no job and no checkpoint ({})",
-                    self.config.daemon.checkpoint.display()
-                ),
+            return Err(Refusal::NothingToResume {
+                why: match &self.checkpoint_error {
+                    Some(e) => e.clone(),
+                    None => format!(
+                        "no job and no checkpoint ({})",
+                        self.config.daemon.checkpoint.display()
+                    ),
+                },
             });
         };
-        cp.check_resumable(&self.config, &self.keys, force)
-            .map_err(|e| e.to_string())?;
+        cp.check_resumable(&self.config, &self.keys, force)?;
         let axes = self.config.machine.axes.len();
         if cp.position_steps.len() != axes {
-            return Err(format!(
-                "the checkpoint has {} axes, the machine {axes}",
-                cp.position_steps.len()
-            ));
+            return Err(Refusal::AxisCount {
+                found: cp.position_steps.len(),
+                machine: axes,
+            });
         }
         let point = ResumePoint {
             here: crate::servo::PathPoint {
@@ -470,23 +467,22 @@ impl Core {
 
     /// `resume` of a held job: the checkpoint becomes a moving one first (write-ahead), then
     /// the hold is released.
-    fn release(&mut self, job: &mut Job) -> Result<String, String> {
+    fn release(&mut self, job: &mut Job) -> Result<String, Refusal> {
         if job.stop.load(Ordering::Relaxed) {
-            return Err("the job is stopping".to_string());
+            return Err(Refusal::Stopping);
         }
         let snap = job.published.snapshot();
         if snap.state == ServoState::WireBroken {
-            return Err(
-                "the wire is broken: `edmd ctl rethread` goes back to the start hole for \
-                 threading (`--here`: thread where it broke), then `resume`"
-                    .to_string(),
-            );
+            return Err(Refusal::WireBroken);
         }
         if !job.published.hold.load(Ordering::Acquire) {
-            return Err("the job is not held".to_string());
+            return Err(Refusal::NotHeld);
         }
         self.write_checkpoint(job, &snap, Reason::Moving, false)
-            .map_err(|e| format!("{e}: the job stays held"))?;
+            .map_err(|error| Refusal::WriteAhead {
+                error,
+                consequence: "the job stays held",
+            })?;
         job.published.hold.store(false, Ordering::Release);
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
@@ -498,30 +494,30 @@ impl Core {
 
     /// After a wire break: back to the start hole along the path (or threading in place);
     /// `resume` then returns to the break point.
-    pub(super) fn rethread(&mut self, here: bool) -> Result<String, String> {
+    pub(super) fn rethread(&mut self, here: bool) -> Result<String, Refusal> {
         let Some(mut job) = self.job.take() else {
-            return Err("no job is running".to_string());
+            return Err(Refusal::NoJob);
         };
         let result = self.rethread_job(&mut job, here);
         self.job = Some(job);
         result
     }
 
-    fn rethread_job(&mut self, job: &mut Job, here: bool) -> Result<String, String> {
+    fn rethread_job(&mut self, job: &mut Job, here: bool) -> Result<String, Refusal> {
         if job.stop.load(Ordering::Relaxed) {
-            return Err("the job is stopping".to_string());
+            return Err(Refusal::Stopping);
         }
         let snap = job.published.snapshot();
         if snap.state != ServoState::WireBroken {
-            return Err(format!(
-                "the wire is not broken (the servo is {}): nothing to rethread",
-                snap.state.name()
-            ));
+            return Err(Refusal::WireNotBroken { state: snap.state });
         }
         if !here {
             // The way back to the start hole leaves the standstill: write-ahead.
             self.write_checkpoint(job, &snap, Reason::Moving, false)
-                .map_err(|e| format!("{e}: the wire stays where it broke"))?;
+                .map_err(|error| Refusal::WriteAhead {
+                    error,
+                    consequence: "the wire stays where it broke",
+                })?;
             job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
@@ -552,14 +548,14 @@ impl Core {
         Ok(format!("rethread: {message}"))
     }
 
-    pub(super) fn abort(&mut self) -> Result<String, String> {
+    pub(super) fn abort(&mut self) -> Result<String, Refusal> {
         if let Some(check) = &self.check {
             check.progress.cancel();
             tracing::info!("abort: check {} of {} cancelled", check.id, check.name);
             return Ok(format!("cancelling the check of {}", check.name));
         }
         let Some(job) = &mut self.job else {
-            return Err("no job is running".to_string());
+            return Err(Refusal::NoJob);
         };
         job.stop_reason.get_or_insert(Reason::Abort);
         job.stop.store(true, Ordering::Relaxed);

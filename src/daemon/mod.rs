@@ -34,6 +34,7 @@ pub mod http;
 mod jobs;
 pub mod notify;
 pub mod protocol;
+pub mod refusal;
 pub mod reload;
 pub mod socket;
 mod status;
@@ -53,6 +54,7 @@ use crate::runtime::{
 };
 use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{Reply, Request};
+use refusal::{NameRefusal, Refusal};
 
 /// How often the control loop does its periodic work when no message arrives.
 const PERIOD: Duration = Duration::from_millis(250);
@@ -113,12 +115,13 @@ pub enum CoreMsg {
     /// A check worker's verdict on check `id`.
     Checked {
         id: u64,
-        result: Result<jobs::Checked, String>,
+        result: Result<jobs::Checked, refusal::CheckRefusal>,
     },
 }
 
 /// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
-pub type SetLogLevel = Box<dyn Fn(&str) -> Result<(), String> + Send>;
+pub type SetLogLevel =
+    Box<dyn Fn(&str) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + Send>;
 
 /// Where the configuration came from, to reload it the same way.
 pub struct ConfigSource {
@@ -177,7 +180,7 @@ struct Core {
     /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
     checkpoint_error: Option<String>,
     /// Why the last checkpoint write failed (cleared by the next one that succeeds).
-    checkpoint_write_error: Option<String>,
+    checkpoint_write_error: Option<refusal::CheckpointWriteError>,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
     last_status_line: Instant,
@@ -355,19 +358,20 @@ pub fn has_control(text: &str) -> bool {
 /// that is missing, leaves the directory or is not a file gets one answer, with no path in
 /// it, so that a client learns nothing of the machine's other files; the daemon's log says
 /// which it was.
-pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, String> {
+pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, NameRefusal> {
     if requested.is_empty() {
-        return Err("an empty program name".to_string());
+        return Err(NameRefusal::Empty);
     }
     if has_control(requested) {
-        return Err(format!(
-            "{:?}: a program name has no control characters",
-            requested
-        ));
+        return Err(NameRefusal::ControlCharacter {
+            name: requested.to_string(),
+        });
     }
     let refuse = |why: String| {
         tracing::warn!("program {requested:?} refused: {why}");
-        format!("{requested}: no such program in the program directory")
+        NameRefusal::NoSuchProgram {
+            name: requested.to_string(),
+        }
     };
     let path = Path::new(requested);
     if path.components().any(|c| c == Component::ParentDir) {
@@ -375,7 +379,10 @@ pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, String> {
     }
     let dir = program_dir
         .canonicalize()
-        .map_err(|e| format!("daemon.program_dir = {}: {e}", program_dir.display()))?;
+        .map_err(|source| NameRefusal::ProgramDir {
+            dir: program_dir.to_path_buf(),
+            source,
+        })?;
     let joined = if path.is_absolute() {
         path.to_path_buf()
     } else {
@@ -440,26 +447,25 @@ impl Core {
         self.notify_status();
         match result {
             Ok(message) => Reply::ok(message, self.status()),
-            Err(error) => Reply::error(error, Some(self.status())),
+            Err(refusal) => Reply::error(refusal.to_string(), Some(self.status())),
         }
     }
 
-    fn refuse_if_busy(&self) -> Result<(), String> {
+    fn refuse_if_busy(&self) -> Result<(), Refusal> {
         if self.shutting_down {
-            return Err("the daemon is shutting down".to_string());
+            return Err(Refusal::ShuttingDown);
         }
         if let Some(job) = &self.job {
-            return Err(format!(
-                "a job is {}: {}; abort it first",
-                self.state().name(),
-                job.program.display()
-            ));
+            return Err(Refusal::JobRunning {
+                state: self.state().name(),
+                program: job.program.clone(),
+            });
         }
         if let Some(check) = &self.check {
-            return Err(format!(
-                "{} is being checked (check {}); abort cancels it",
-                check.name, check.id
-            ));
+            return Err(Refusal::Checking {
+                name: check.name.clone(),
+                id: check.id,
+            });
         }
         Ok(())
     }
@@ -662,7 +668,7 @@ mod tests {
             "missing.nc",
             "sub",
         ] {
-            let e = confine(&dir, bad).unwrap_err();
+            let e = confine(&dir, bad).unwrap_err().to_string();
             assert_eq!(
                 e,
                 format!("{bad}: no such program in the program directory")
@@ -670,14 +676,15 @@ mod tests {
         }
         let outside = root.join("secret.nc").display().to_string();
         assert_eq!(
-            confine(&dir, &outside).unwrap_err(),
+            confine(&dir, &outside).unwrap_err().to_string(),
             format!("{outside}: no such program in the program directory")
         );
-        assert!(confine(&dir, "").unwrap_err().contains("empty"));
+        assert!(confine(&dir, "").unwrap_err().to_string().contains("empty"));
         let forged = "a.nc\n2026-11-23T00:00:00Z INFO edmd: job end: done";
         assert!(
             confine(&dir, forged)
                 .unwrap_err()
+                .to_string()
                 .contains("no control characters")
         );
     }

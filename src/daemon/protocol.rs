@@ -46,16 +46,22 @@ pub enum Request {
     },
 }
 
+/// A request line that is not a request: where in it, and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("request:{line}:{col}: {what}")]
+pub struct RequestError {
+    pub line: usize,
+    pub col: usize,
+    pub what: String,
+}
+
 impl Request {
     /// Parses one request line; errors are `request:LINE:COL: what`.
-    pub fn parse(line: &str) -> Result<Request, String> {
-        serde_json::from_str(line).map_err(|e| {
-            format!(
-                "request:{}:{}: {}",
-                e.line(),
-                e.column(),
-                strip_location(&e)
-            )
+    pub fn parse(line: &str) -> Result<Request, RequestError> {
+        serde_json::from_str(line).map_err(|e| RequestError {
+            line: e.line(),
+            col: e.column(),
+            what: strip_location(&e),
         })
     }
 }
@@ -534,16 +540,20 @@ mod tests {
             Request::parse(r#"{"cmd":"status"}"#).unwrap(),
             Request::Status {}
         );
-        let e = Request::parse(r#"{"cmd":"fly"}"#).unwrap_err();
+        let e = Request::parse(r#"{"cmd":"fly"}"#).unwrap_err().to_string();
         assert!(
             e.starts_with("request:1:") && e.contains("unknown variant"),
             "{e}"
         );
-        let e = Request::parse(r#"{"cmd":"run"}"#).unwrap_err();
+        let e = Request::parse(r#"{"cmd":"run"}"#).unwrap_err().to_string();
         assert!(e.contains("missing field `program`"), "{e}");
-        let e = Request::parse("{\"cmd\":\n\"hold\",}").unwrap_err();
+        let e = Request::parse("{\"cmd\":\n\"hold\",}")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("request:2:"), "{e}");
-        let e = Request::parse(r#"{"cmd":"hold","extra":1}"#).unwrap_err();
+        let e = Request::parse(r#"{"cmd":"hold","extra":1}"#)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("unknown field"), "{e}");
         assert!(!e.contains(" at line "), "{e}");
     }

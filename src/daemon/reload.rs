@@ -61,15 +61,40 @@ pub fn diff(old: &KeyValues, new: &KeyValues) -> Vec<(String, String, String)> {
     changes
 }
 
+/// A changed key that may not change now.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RefusedKey {
+    pub key: String,
+    /// `Restart`, or `Job` while a job runs.
+    pub class: KeyClass,
+}
+
+impl std::fmt::Display for RefusedKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.class {
+            KeyClass::Restart => write!(f, "{} needs a restart", self.key),
+            _ => write!(f, "{} cannot change while a job runs", self.key),
+        }
+    }
+}
+
+/// Why a reload applied nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum ReloadRefusal {
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error("{}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    Keys(Vec<RefusedKey>),
+}
+
 /// Reads the configuration again and decides. `Ok(None)`: nothing changed; `Ok(Some)`: the
 /// new configuration with the change lines; `Err`: refused, with the reasons.
 pub fn reload(
     source: &ConfigSource,
     keys: &KeyValues,
     job_running: bool,
-) -> Result<Option<(Config, KeyValues, Vec<String>)>, String> {
-    let (config, new_keys) = Config::load_with_keys(source.path.as_deref(), &source.overrides)
-        .map_err(|e| e.to_string())?;
+) -> Result<Option<(Config, KeyValues, Vec<String>)>, ReloadRefusal> {
+    let (config, new_keys) = Config::load_with_keys(source.path.as_deref(), &source.overrides)?;
     decide(keys, config, new_keys, job_running)
 }
 
@@ -78,7 +103,7 @@ fn decide(
     config: Config,
     new_keys: KeyValues,
     job_running: bool,
-) -> Result<Option<(Config, KeyValues, Vec<String>)>, String> {
+) -> Result<Option<(Config, KeyValues, Vec<String>)>, ReloadRefusal> {
     let changes = diff(keys, &new_keys);
     if changes.is_empty() {
         return Ok(None);
@@ -92,16 +117,16 @@ fn decide(
         } else {
             classify(key)
         };
-        match class {
-            KeyClass::Restart => refused.push(format!("{key} needs a restart")),
-            KeyClass::Job if job_running => {
-                refused.push(format!("{key} cannot change while a job runs"))
-            }
-            _ => {}
+        let refuse = class == KeyClass::Restart || (class == KeyClass::Job && job_running);
+        if refuse {
+            refused.push(RefusedKey {
+                key: key.clone(),
+                class,
+            });
         }
     }
     if !refused.is_empty() {
-        return Err(refused.join("; "));
+        return Err(ReloadRefusal::Keys(refused));
     }
     let lines = changes
         .iter()
@@ -133,12 +158,14 @@ mod tests {
         );
 
         let (c, k) = load(&["servo.normal_feed_mm_per_min=9.0"]);
-        let e = decide(&keys, c.clone(), k.clone(), true).unwrap_err();
+        let e = decide(&keys, c.clone(), k.clone(), true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("servo.normal_feed_mm_per_min cannot change while a job runs"));
         assert!(decide(&keys, c, k, false).unwrap().is_some());
 
         let (c, k) = load(&["daemon.socket=\"/tmp/x.sock\"", "log.level=\"debug\""]);
-        let e = decide(&keys, c, k, false).unwrap_err();
+        let e = decide(&keys, c, k, false).unwrap_err().to_string();
         assert_eq!(e, "daemon.socket needs a restart");
 
         let (c, k) = load(&[]);

@@ -214,7 +214,7 @@ async fn accept(
 /// a partial line and went).
 pub async fn read_request_line<R: tokio::io::AsyncBufRead + Unpin>(
     reader: &mut R,
-) -> std::io::Result<Option<Result<String, String>>> {
+) -> std::io::Result<Option<Result<String, LineRefusal>>> {
     let mut line = Vec::new();
     reader
         .take(MAX_REQUEST_BYTES as u64 + 1)
@@ -226,17 +226,24 @@ pub async fn read_request_line<R: tokio::io::AsyncBufRead + Unpin>(
 /// What the bytes read for one line (at most [`MAX_REQUEST_BYTES`] + 1, up to and with its
 /// newline) are: `None` a partial line (the client went), `Err` a line too long or not
 /// UTF-8, `Ok` the request's text.
-pub fn request_line(mut line: Vec<u8>) -> Option<Result<String, String>> {
+pub fn request_line(mut line: Vec<u8>) -> Option<Result<String, LineRefusal>> {
     if line.last() != Some(&b'\n') {
         if line.len() > MAX_REQUEST_BYTES {
-            return Some(Err(format!(
-                "request longer than {MAX_REQUEST_BYTES} bytes; closing"
-            )));
+            return Some(Err(LineRefusal::TooLong));
         }
         return None;
     }
     line.pop();
-    Some(String::from_utf8(line).map_err(|_| "request:1:1: not UTF-8".to_string()))
+    Some(String::from_utf8(line).map_err(|_| LineRefusal::NotUtf8))
+}
+
+/// A request line the daemon cannot read as text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum LineRefusal {
+    #[error("request longer than {MAX_REQUEST_BYTES} bytes; closing")]
+    TooLong,
+    #[error("request:1:1: not UTF-8")]
+    NotUtf8,
 }
 
 async fn serve_client(
@@ -262,10 +269,10 @@ async fn serve_client(
             Ok(None) | Err(_) => return,
         };
         let (reply, close_after) = match line {
-            Err(e) => (Reply::error(e, None), true),
+            Err(e) => (Reply::error(e.to_string(), None), true),
             Ok(line) if line.trim().is_empty() => continue,
             Ok(line) => match Request::parse(&line) {
-                Err(e) => (Reply::error(e, None), false),
+                Err(e) => (Reply::error(e.to_string(), None), false),
                 Ok(request) => {
                     last_request = Instant::now();
                     seat.busy(true);

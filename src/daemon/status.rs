@@ -108,7 +108,7 @@ impl Core {
                 still: c.still,
                 position_steps: c.position_steps.clone(),
             }),
-            checkpoint_write_error: self.checkpoint_write_error.clone(),
+            checkpoint_write_error: self.checkpoint_write_error.as_ref().map(|e| e.to_string()),
             check: match &self.check {
                 Some(c) => {
                     let (phase, done, total) = c.progress.get();

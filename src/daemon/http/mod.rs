@@ -65,6 +65,7 @@ use tokio::sync::Semaphore;
 
 use super::CoreMsg;
 use super::protocol::{Reply, Request};
+use super::refusal::NameRefusal;
 
 pub use server::connection_cap;
 
@@ -362,7 +363,7 @@ async fn programs(State(app): State<Arc<App>>) -> Response {
     let listed = tokio::task::spawn_blocking(move || path::list_programs(&dir)).await;
     match listed {
         Ok(Ok(list)) => axum::Json(serde_json::json!({ "programs": list })).into_response(),
-        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
     }
 }
@@ -426,7 +427,7 @@ async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -
     };
     match done {
         Ok(Ok(path)) => axum::Json(path).into_response(),
-        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e),
+        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.to_string()),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
     }
 }
@@ -436,12 +437,13 @@ async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -
 fn program_file(app: &App, name: &str) -> Result<PathBuf, Response> {
     let dir = app.live.read().program_dir.clone();
     super::confine(&dir, name).map_err(|e| {
-        let code = if name.is_empty() || super::has_control(name) {
-            StatusCode::BAD_REQUEST
-        } else {
-            StatusCode::NOT_FOUND
+        let code = match e {
+            NameRefusal::Empty | NameRefusal::ControlCharacter { .. } => StatusCode::BAD_REQUEST,
+            NameRefusal::NoSuchProgram { .. } | NameRefusal::ProgramDir { .. } => {
+                StatusCode::NOT_FOUND
+            }
         };
-        error(code, e)
+        error(code, e.to_string())
     })
 }
 

@@ -36,6 +36,20 @@ const FIRST_CELL_MM: f64 = 1e-4;
 const MAX_LISTED: usize = 2000;
 const MAX_DEPTH: usize = 3;
 
+/// Why a listing or a drawing could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum PreviewError {
+    #[error("the program directory: {0}")]
+    ProgramDir(std::io::Error),
+    #[error("{name}: {source}")]
+    Open {
+        name: String,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Program(crate::gcode::GcodeError),
+}
+
 #[derive(Debug, Serialize)]
 pub struct ProgramEntry {
     pub name: String,
@@ -46,12 +60,10 @@ pub struct ProgramEntry {
 /// [`MAX_LISTED`], sorted by name. Hidden names, names with control characters, symbolic
 /// links that leave `dir` (or dangle) and linked directories are left out: the list never
 /// shows what `run` would refuse, and never walks out of the directory.
-pub fn list_programs(dir: &Path) -> Result<Vec<ProgramEntry>, String> {
-    let root = dir
-        .canonicalize()
-        .map_err(|e| format!("the program directory: {e}"))?;
+pub fn list_programs(dir: &Path) -> Result<Vec<ProgramEntry>, PreviewError> {
+    let root = dir.canonicalize().map_err(PreviewError::ProgramDir)?;
     let mut out = Vec::new();
-    walk(&root, &root, 0, &mut out).map_err(|e| format!("the program directory: {e}"))?;
+    walk(&root, &root, 0, &mut out).map_err(PreviewError::ProgramDir)?;
     out.sort_by(|a, b| a.name.cmp(&b.name));
     Ok(out)
 }
@@ -239,7 +251,7 @@ pub fn programmed_path(
     axes: &[Axis],
     options: crate::gcode::ProgramOptions,
     budget: &Budget,
-) -> Result<PlannedPath, String> {
+) -> Result<PlannedPath, PreviewError> {
     let index = |a: Axis| axes.iter().position(|&x| x == a);
     let (ia, ib) = match (index(Axis::X), index(Axis::Y)) {
         (Some(x), Some(y)) => (x, y),
@@ -247,7 +259,10 @@ pub fn programmed_path(
     };
     // Opened without blocking and only if still a regular file: a FIFO swapped in after the
     // name was confined would hold this drawing's thread for ever.
-    let opened = crate::sys::open_regular(file).map_err(|e| format!("{name}: {e}"))?;
+    let opened = crate::sys::open_regular(file).map_err(|source| PreviewError::Open {
+        name: name.to_string(),
+        source,
+    })?;
     let mut reader = crate::gcode::read_program(opened, name, axes, options);
     reader.cancel_on(budget.cancel.clone());
     let mut drawing = Drawing::new();
@@ -260,7 +275,7 @@ pub fn programmed_path(
                 partial = true;
                 break;
             }
-            Err(e) => return Err(e.to_string()),
+            Err(e) => return Err(PreviewError::Program(e)),
         };
         blocks += 1;
         if blocks > budget.max_blocks || budget.cancel.load(Ordering::Relaxed) {

@@ -1,0 +1,128 @@
+//! Why the daemon refuses a command or a job: one typed error per reason, each worded for the
+//! operator (the reply's `error` is its text). Nothing in the daemon passes a refusal around
+//! as a bare string.
+
+use std::path::PathBuf;
+
+use crate::checkpoint::{CheckpointError, Reason};
+use crate::runtime::JobError;
+use crate::runtime::program::CopyError;
+use crate::servo::ServoState;
+
+/// A program name a client gave that does not name a runnable program. Missing, outside the
+/// directory, `..` and not-a-file read alike: the reply tells a client nothing of the
+/// machine's other files (the daemon's log says which it was).
+#[derive(Debug, thiserror::Error)]
+pub enum NameRefusal {
+    #[error("an empty program name")]
+    Empty,
+    #[error("{name:?}: a program name has no control characters")]
+    ControlCharacter { name: String },
+    #[error("{name}: no such program in the program directory")]
+    NoSuchProgram { name: String },
+    #[error("daemon.program_dir = {dir}: {source}")]
+    ProgramDir {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// A checkpoint that could not be written: where, why it was being written, what failed.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{}: cannot write the checkpoint ({}): {message}", path.display(), reason.name())]
+pub struct CheckpointWriteError {
+    pub path: PathBuf,
+    pub reason: Reason,
+    /// The system's error, as text (kept to compare one failure with the next).
+    pub message: String,
+}
+
+/// What a check of a program (before its job starts) refused.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckRefusal {
+    #[error(transparent)]
+    Copy(#[from] CopyError),
+    /// A resume's program is not the checkpoint's.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error(transparent)]
+    Program(Box<JobError>),
+    #[error("cannot start the check thread: {0}")]
+    Thread(std::io::Error),
+}
+
+impl From<JobError> for CheckRefusal {
+    fn from(e: JobError) -> Self {
+        CheckRefusal::Program(Box::new(e))
+    }
+}
+
+/// Why a command was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum Refusal {
+    #[error("the daemon is shutting down")]
+    ShuttingDown,
+    #[error("a job is {state}: {program}; abort it first")]
+    JobRunning {
+        state: &'static str,
+        program: PathBuf,
+    },
+    #[error("{name} is being checked (check {id}); abort cancels it")]
+    Checking { name: String, id: u64 },
+    #[error("no job is running")]
+    NoJob,
+    #[error("the job is stopping")]
+    Stopping,
+    #[error("the job is not held")]
+    NotHeld,
+    #[error(
+        "the wire is broken: `edmd ctl rethread` goes back to the start hole for threading \
+         (`--here`: thread where it broke), then `resume`"
+    )]
+    WireBroken,
+    #[error("the wire is not broken (the servo is {}): nothing to rethread", state.name())]
+    WireNotBroken { state: ServoState },
+    #[error(transparent)]
+    Name(#[from] NameRefusal),
+    #[error("nothing to resume: {why}")]
+    NothingToResume { why: String },
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error("the checkpoint has {found} axes, the machine {machine}")]
+    AxisCount { found: usize, machine: usize },
+    /// The write-ahead checkpoint could not be written: the motion it would have let go
+    /// does not start (`consequence` says what stays so).
+    #[error("{error}: {consequence}")]
+    WriteAhead {
+        error: CheckpointWriteError,
+        consequence: &'static str,
+    },
+    #[error(transparent)]
+    Check(Box<CheckRefusal>),
+    #[error(transparent)]
+    Job(Box<JobError>),
+    #[error(
+        "daemon.report_dir: cannot make {}: {source}; the job does not start without its \
+         report",
+        dir.display()
+    )]
+    ReportDir {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot start the job thread: {0}")]
+    JobThread(std::io::Error),
+}
+
+// The large errors travel boxed: a refusal is returned on every command's path.
+impl From<CheckRefusal> for Refusal {
+    fn from(e: CheckRefusal) -> Self {
+        Refusal::Check(Box::new(e))
+    }
+}
+
+impl From<JobError> for Refusal {
+    fn from(e: JobError) -> Self {
+        Refusal::Job(Box::new(e))
+    }
+}
