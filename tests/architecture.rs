@@ -61,7 +61,6 @@ const LONG_FUNCTIONS_TO_SPLIT: &[&str] = &[
     "preprocess/segmenter.rs:curved_step",
     "runtime/consumer.rs:run_loop",
     "runtime/events.rs:log_event",
-    "runtime/mod.rs:run_job_with",
 ];
 
 fn root() -> PathBuf {

@@ -115,16 +115,30 @@ fn job_on(
 ) -> runtime::JobSummary {
     let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
     let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
-    runtime::run_job_on(
-        &program,
-        config,
-        &check,
-        Box::new(output),
-        Box::new(gap),
-        None,
-        None,
+    let spec = runtime::JobSpec::from_config(config, false);
+    let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
+    let io = runtime::JobIo {
+        output: Box::new(output),
+        gap: Box::new(gap),
+        tracer: None,
+        recording: None,
+        progress: None,
+    };
+    let job = runtime::JobRun {
+        program: &program,
+        check: &check,
+        spec: &spec,
+        resume: None,
+    };
+    let never = std::sync::atomic::AtomicBool::new(false);
+    runtime::run(
+        &fine,
+        job,
+        io,
+        Arc::new(runtime::Published::new(4096)),
+        &never,
     )
-    .unwrap()
+    .summary
 }
 
 /// Runs the test program in virtual time through a parport output on the recording fake,
@@ -576,7 +590,8 @@ fn fault_then_resume(
 ) -> (runtime::JobSummary, runtime::JobSummary) {
     let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
     let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
-    let fine = runtime::FineThread::start(&runtime::LoopSettings::from_config(config)).unwrap();
+    let spec = runtime::JobSpec::from_config(config, true);
+    let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
     let never = std::sync::atomic::AtomicBool::new(false);
     let job = |output: runtime::BoxedOutput, resume| {
         let io = runtime::JobIo {
@@ -585,12 +600,15 @@ fn fault_then_resume(
             tracer: None,
             recording: None,
             progress: None,
-            program_pauses: true,
         };
         let published = Arc::new(runtime::Published::new(64));
-        runtime::run_job_with(
-            &fine, &program, config, &check, io, published, &never, resume,
-        )
+        let job = runtime::JobRun {
+            program: &program,
+            check: &check,
+            spec: &spec,
+            resume,
+        };
+        runtime::run(&fine, job, io, published, &never)
     };
     let failing = edmd::output::FaultInjector::new(edmd::output::NullOutput, fault_tick);
     let first = job(Box::new(failing), None);
@@ -615,7 +633,14 @@ fn a_job_cut_short_by_an_output_fault_resumes_exactly_at_any_tick() {
     let mut with_log = config.clone();
     with_log.output.kind = edmd::config::OutputKind::File;
     with_log.output.path = log.clone();
-    runtime::run_job(&repo().join(PROGRAM), &with_log).unwrap();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    runtime::run_file(
+        &repo().join(PROGRAM),
+        &with_log,
+        &never,
+        runtime::Observers::default(),
+    )
+    .unwrap();
     let (_, rows) = read_pulse_log(&log).unwrap();
     let stepping: Vec<u64> = rows
         .iter()

@@ -487,7 +487,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         progress: Some(progress),
         recording: recording.clone(),
     };
-    let result = runtime::run_job_until(&args.program, &cfg, &stop, observers);
+    let result = runtime::run_file(&args.program, &cfg, &stop, observers);
     if terminal {
         eprintln!();
     }

@@ -280,25 +280,20 @@ impl Core {
         }
         self.prune_copies(Some(&program.sha256));
         let (fine, tx) = (self.fine.clone(), self.to_core.clone());
-        let (job_published, job_stop, job_config, job_program) = (
-            published.clone(),
-            stop.clone(),
-            config.clone(),
-            program.clone(),
-        );
+        // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
+        let spec = runtime::JobSpec::from_config(&config, true);
+        let (job_published, job_stop, job_program) =
+            (published.clone(), stop.clone(), program.clone());
         std::thread::Builder::new()
             .name("edmd-job".to_string())
             .spawn(move || {
-                let end = runtime::run_job_with(
-                    &fine,
-                    &job_program,
-                    &job_config,
-                    &check,
-                    io,
-                    job_published,
-                    &job_stop,
+                let job = runtime::JobRun {
+                    program: &job_program,
+                    check: &check,
+                    spec: &spec,
                     resume,
-                );
+                };
+                let end = runtime::run(&fine, job, io, job_published, &job_stop);
                 let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
             })
             .map_err(Refusal::JobThread)?;
@@ -374,7 +369,6 @@ impl Core {
             tracer,
             recording: None,
             progress: None,
-            program_pauses: true,
         })
     }
 

@@ -2,14 +2,16 @@
 //! thread; never the consumer).
 
 use super::consumer::EventRecord;
-use crate::config::Config;
+use super::spec::JobSpec;
 use crate::record::{EventKind, Recorder, Recording};
 use crate::servo::{Excursion, ServoEvent};
 
-/// Logs one servo event (from the main thread, never the consumer).
-/// `pauses`: a programmed stop holds the job (the daemon) rather than being passed (`edmd run`).
-pub(super) fn log_event(program: &str, record: &EventRecord, config: &Config, pauses: bool) {
-    let t = config.fine.tick.ticks_to_secs(record.tick);
+/// Logs one servo event (from the main thread, never the consumer). A programmed stop holds
+/// the job where the spec says an operator is there to resume it (the daemon), and is passed
+/// otherwise (`edmd run`).
+pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
+    let pauses = spec.run_loop.program_pauses;
+    let t = spec.tick.ticks_to_secs(record.tick);
     let line = record.line;
     match record.event {
         ServoEvent::Short { at } => tracing::info!(
@@ -175,7 +177,7 @@ pub(super) fn log_event(program: &str, record: &EventRecord, config: &Config, pa
                 (false, false) => "reached its end point without contact",
                 (false, true) => "reached its end point still in contact",
             },
-            probe_position(config, &steps)
+            spec.position_text(&steps)
         ),
         ServoEvent::ProbeMissed { .. } => tracing::error!(
             edmd_event = "probe_missed",
@@ -185,19 +187,6 @@ pub(super) fn log_event(program: &str, record: &EventRecord, config: &Config, pa
              t={t:.4} s: the job stops"
         ),
     }
-}
-
-/// `X1.234 Y5.678` (mm) of a step position.
-pub(super) fn probe_position(config: &Config, steps: &[i64]) -> String {
-    config
-        .machine
-        .axes
-        .iter()
-        .zip(steps)
-        .zip(&config.machine.step_mm)
-        .map(|((a, &s), mm)| format!("{}{:.4}", a.letter(), s as f64 * mm))
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 /// Hands a batch of samples and servo events to the recording, in tick order.

@@ -12,11 +12,11 @@ use std::time::{Duration, Instant};
 
 use super::probe::ProbeLink;
 use super::program::JobProgram;
+use super::spec::{JobSpec, StepCondition};
 use crate::buffer::{LoopBuffer, StepBlock};
-use crate::config::Config;
 use crate::gcode::{self, BlockKind, GcodeError};
 use crate::geometry::Point;
-use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment};
+use crate::preprocess::{PreprocessStats, Preprocessor, Segment};
 use crate::vocab::{MAX_AXES, Steps};
 
 /// Largest step position accepted: beyond 2^53 an `f64` no longer holds every integer.
@@ -79,39 +79,21 @@ pub struct BlockMaker {
     path_mm: f64,
     /// The next segment is the first of its G-code block (it carries the block's stops).
     first_of_block: bool,
-    /// `[generator] condition`: number, sparking feed (mm/s), reference voltage (V), jump
-    /// interval (s), height (mm) and feed (mm/s) (NaN: the `[servo]` setting).
-    conditions: Vec<(u32, f32, f32, [f32; 3])>,
+    /// `[generator] condition`s as the blocks carry them.
+    conditions: Vec<StepCondition>,
 }
 
 impl BlockMaker {
-    pub fn new(config: &Config, program: &str) -> BlockMaker {
+    pub fn new(spec: &JobSpec, program: &str) -> BlockMaker {
         BlockMaker {
-            step_mm: config.machine.step_mm.clone(),
-            axes: config.machine.axes.iter().map(|a| a.letter()).collect(),
+            step_mm: spec.step_mm.clone(),
+            axes: spec.axes.iter().map(|a| a.letter()).collect(),
             program: program.to_string(),
             seq: 0,
             last_end: [0; MAX_AXES],
             path_mm: 0.0,
             first_of_block: true,
-            conditions: config
-                .conditions
-                .iter()
-                .map(|c| {
-                    let jump = [
-                        c.jump_interval_s.map_or(f32::NAN, |v| v as f32),
-                        c.jump_height_mm.map_or(f32::NAN, |v| v as f32),
-                        c.jump_feed_mm_per_min
-                            .map_or(f32::NAN, |v| (v / 60.0) as f32),
-                    ];
-                    (
-                        c.number,
-                        (c.feed_mm_per_min / 60.0) as f32,
-                        c.v_ref as f32,
-                        jump,
-                    )
-                })
-                .collect(),
+            conditions: spec.conditions.clone(),
         }
     }
 
@@ -175,14 +157,14 @@ impl BlockMaker {
             condition_jump: [f32::NAN; 3],
         };
         let mut block = block;
-        if let Some(&(_, feed, v_ref, jump)) = self
+        if let Some(c) = self
             .conditions
             .iter()
-            .find(|c| c.0 == segment.block.condition)
+            .find(|c| c.number == segment.block.condition)
         {
-            block.condition_feed = feed;
-            block.condition_v_ref = v_ref;
-            block.condition_jump = jump;
+            block.condition_feed = c.feed;
+            block.condition_v_ref = c.v_ref;
+            block.condition_jump = c.jump;
         }
         self.path_mm += segment.length;
         self.seq += 1;
@@ -198,19 +180,19 @@ impl BlockMaker {
 /// waits for `probe` to say where the move really ended, then reads on from there.
 pub fn produce(
     program: &JobProgram,
-    config: &Config,
+    spec: &JobSpec,
     buffer: &LoopBuffer,
     probe: &ProbeLink,
     cancel: Arc<AtomicBool>,
 ) -> Result<ProducerReport, ProducerError> {
-    let result = produce_inner(program, config, buffer, probe, cancel);
+    let result = produce_inner(program, spec, buffer, probe, cancel);
     buffer.close();
     result
 }
 
 fn produce_inner(
     program: &JobProgram,
-    config: &Config,
+    spec: &JobSpec,
     buffer: &LoopBuffer,
     probe: &ProbeLink,
     cancel: Arc<AtomicBool>,
@@ -218,16 +200,16 @@ fn produce_inner(
     let mut reader = gcode::open_program_as(
         &program.path,
         &program.name,
-        &config.machine.axes,
-        gcode::ProgramOptions::from_config(config),
+        &spec.axes,
+        spec.program.clone(),
         |f| f,
     )?;
     // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
     reader.cancel_on(cancel);
-    let mut pre = Preprocessor::new(PlanSettings::from_config(config));
+    let mut pre = Preprocessor::new(spec.plan.clone());
     let started = Instant::now();
     let mut out = Pusher {
-        maker: BlockMaker::new(config, &program.name),
+        maker: BlockMaker::new(spec, &program.name),
         buffer,
         report: ProducerReport::default(),
         failed: None,
@@ -255,7 +237,7 @@ fn produce_inner(
             out.waited += waiting.elapsed();
             match result {
                 Some(result) => {
-                    let step_mm = &config.machine.step_mm;
+                    let step_mm = &spec.step_mm;
                     let mm = Point::from_fn(|i, _| {
                         step_mm.get(i).map_or(0.0, |s| result.steps[i] as f64 * s)
                     });

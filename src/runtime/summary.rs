@@ -154,7 +154,108 @@ pub struct JobSummary {
     pub stopped_at: Option<StopPoint>,
 }
 
+/// What a finished job leaves behind, for its summary.
+pub(super) struct JobFacts<'a> {
+    pub program: &'a super::program::JobProgram,
+    pub check: &'a super::precheck::Precheck,
+    pub spec: &'a super::spec::JobSpec,
+    pub resume: Option<&'a super::fine_thread::ResumePoint>,
+    pub fine: &'a Interpolator,
+    pub report: LoopReport,
+    pub finished: &'a Result<(), OutputError>,
+    pub skip: &'a Result<(), SkipError>,
+    pub producer: Result<ProducerReport, ProducerError>,
+    pub buffer_high_water: u64,
+    pub events_dropped: u64,
+    pub trace_dropped: u64,
+}
+
 impl JobSummary {
+    /// The summary of a finished job, and the snapshot of where it stands (the checkpoint's
+    /// point and ledger).
+    pub(super) fn of(facts: JobFacts<'_>) -> (JobSummary, super::Snapshot) {
+        let JobFacts {
+            program,
+            check,
+            spec,
+            resume,
+            fine,
+            report,
+            finished,
+            skip,
+            producer,
+            buffer_high_water,
+            events_dropped,
+            trace_dropped,
+        } = facts;
+        let (counters, mut position) = delivered(fine, &report);
+        if let (Err(_), Some(point)) = (skip, resume) {
+            // Nothing moved: the walk towards the checkpoint emits nothing, so the machine
+            // stands where the checkpoint says, whatever point the walk reached.
+            for (p, s) in position.iter_mut().zip(&point.position) {
+                *p = *s;
+            }
+        }
+        let axes = spec.axes.len();
+        let tick = spec.tick;
+        let (outcome, error) = outcome(skip, &report, finished, fine.state(), &producer);
+        let producer = producer.unwrap_or_default();
+        let mut stopped_at = super::Snapshot::of(report.ticks, fine);
+        if let Some((here, events)) = report.untaken_from {
+            // The failed tick's step never reached the drives: the checkpoint's point is the
+            // one before it (its ledger is taken back in `delivered`).
+            stopped_at.here = here;
+            stopped_at.events = events;
+        }
+        let summary = JobSummary {
+            program: program.name.clone(),
+            outcome,
+            error,
+            axes: spec.axis_names(),
+            blocks: check.blocks,
+            segments: producer.pushed,
+            steps_per_axis: counters.pulses[..axes].to_vec(),
+            end_steps: position[..axes].to_vec(),
+            program_end_steps: check.end_steps[..axes].to_vec(),
+            end_mm: position[..axes]
+                .iter()
+                .zip(&spec.step_mm)
+                .map(|(p, s)| *p as f64 * s)
+                .collect(),
+            events_forward: counters.events_forward,
+            events_backward: counters.events_backward,
+            servo: counters.servo,
+            last_probe: LastProbe::new(report.last_probe.as_ref(), &spec.step_mm),
+            overruns: report.overruns,
+            missed_deadlines: report.missed_deadlines,
+            latency_us: report.latency.as_ref().map(|h| h.summary()),
+            tick_us: tick.us(),
+            ticks: report.ticks,
+            virtual_time: spec.run_loop.virtual_time,
+            virtual_time_s: tick.ticks_to_secs(report.ticks),
+            wall_time_s: report.wall_ns as f64 * 1e-9,
+            producer_busy_s: producer.busy_ns as f64 * 1e-9,
+            peak_rss_kib: crate::sys::peak_rss_kib(),
+            buffer_capacity: spec.buffer_capacity as u64,
+            buffer_high_water,
+            events_dropped,
+            trace_dropped,
+            rt_refused: report.rt_refused,
+            stopped_at: (outcome != Outcome::Done && outcome != Outcome::ResumeRefused).then(
+                || StopPoint {
+                    line: stopped_at.line,
+                    segment: stopped_at.here.seq,
+                    step: stopped_at.here.event,
+                    segment_steps: stopped_at.events,
+                    parameter: stopped_at.u_end.is_finite().then_some(stopped_at.u_end),
+                    dwell_s: tick.ticks_to_secs(stopped_at.dwell_left),
+                    program_sha256: program.sha256.clone(),
+                },
+            ),
+        };
+        (summary, stopped_at)
+    }
+
     /// The human-readable summary.
     pub fn text(&self) -> String {
         use std::fmt::Write;
@@ -274,7 +375,7 @@ pub fn axis_list<T>(values: &[T], axes: &[String], format: impl Fn(&T) -> String
 
 /// The counters and the pulse ledger as the drives received them: a tick whose write failed
 /// before its step edge never reached them, so its steps are taken back.
-pub(super) fn delivered(fine: &Interpolator, report: &LoopReport) -> (FineCounters, Steps) {
+fn delivered(fine: &Interpolator, report: &LoopReport) -> (FineCounters, Steps) {
     let mut counters = fine.counters();
     let mut position = fine.position();
     if let Some((steps, dir)) = report.untaken {
@@ -294,7 +395,7 @@ pub(super) fn delivered(fine: &Interpolator, report: &LoopReport) -> (FineCounte
 /// How the job ended and why, the first cause winning: a refused resume, then a failed gap
 /// input, a failed output (mid-job, then on finishing), an alarm, a failed producer, a
 /// requested stop.
-pub(super) fn outcome(
+fn outcome(
     skip: &Result<(), SkipError>,
     report: &LoopReport,
     finished: &Result<(), OutputError>,

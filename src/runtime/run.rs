@@ -1,0 +1,309 @@
+//! The runner: one job through both threads, supervised from the calling thread. Every way
+//! into a job ends here ([`run`]): the daemon's jobs, `edmd run`'s, the tests'.
+//!
+//! ```text
+//!  announce ─► buffer, recorder around the output
+//!  ─► producer thread (edmd-producer) ─► fine thread (FineThread::submit)
+//!  ─► supervise until the fine job is done: steer a stop, drain and log events, report
+//!     progress, publish the buffer's fill
+//!  ─► cancel and join the producer ─► the summary and the stop point (JobEnd)
+//! ```
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use crossbeam::channel::{Receiver, TryRecvError};
+
+use super::consumer::{EventRecord, Published};
+use super::events;
+use super::fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
+use super::precheck::Precheck;
+use super::producer::{self, ProducerError, ProducerReport};
+use super::program::JobProgram;
+use super::progress::ProgressTracker;
+use super::spec::JobSpec;
+use super::summary::{self, JobSummary};
+use super::{BoxedOutput, JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
+use crate::buffer::LoopBuffer;
+use crate::record::{RecordedOutput, Recorder, Recording};
+use crate::trace::Tracer;
+use crate::vocab::MAX_AXES;
+
+/// A report's recorder samples the motion at most this often (and at every gap change).
+const RECORD_EVERY_TICKS: u64 = 20;
+
+/// How long a controlled stop lets a consumer that waits for the producer keep waiting.
+const STOP_WAKE: Duration = Duration::from_millis(200);
+
+/// One job to run: the program (a private copy), what its check found, the settings, and
+/// where to start (a checkpoint's point, for a resumed job).
+pub struct JobRun<'a> {
+    pub program: &'a JobProgram,
+    pub check: &'a Precheck,
+    pub spec: &'a JobSpec,
+    pub resume: Option<ResumePoint>,
+}
+
+/// Runs one job on a running [`FineThread`]: the producer on a new thread, the tick loop on
+/// the fine thread, this thread supervising (logging events, turning `stop` into a
+/// controlled stop). Other threads watch and steer the job through `published` (status,
+/// hold). With a resume point the job starts by walking, without emitting, to it.
+pub fn run(
+    fine_thread: &FineThread,
+    job: JobRun<'_>,
+    io: JobIo,
+    published: Arc<Published>,
+    stop: &AtomicBool,
+) -> JobEnd {
+    let spec = job.spec;
+    announce(&job);
+    let buffer = Arc::new(LoopBuffer::new(spec.buffer_capacity, spec.buffer_reserved));
+    let JobIo {
+        output,
+        gap,
+        tracer,
+        recording,
+        progress,
+    } = io;
+    let (output, recorder) = recorded(output, recording.is_some(), &job);
+    let mut supervisor = Supervisor {
+        name: job.program.name.clone(),
+        spec,
+        published: &published,
+        buffer: &buffer,
+        stop,
+        tracer: tracer.as_deref(),
+        recording: recording.as_ref().zip(recorder.as_ref()),
+        progress,
+        tracker: ProgressTracker::with_rapids(
+            job.check.path_mm,
+            job.check.rapid_spans.clone(),
+            spec.plan.rapid_feed,
+        ),
+        last_progress: Instant::now(),
+        stop_asked: None,
+    };
+    let producer_cancel = Arc::new(AtomicBool::new(false));
+    let (producer, done) = std::thread::scope(|s| {
+        let producer = std::thread::Builder::new()
+            .name("edmd-producer".to_string())
+            .stack_size(crate::gcode::PARSER_STACK_BYTES)
+            .spawn_scoped(s, || {
+                let cancel = producer_cancel.clone();
+                producer::produce(job.program, spec, &buffer, &published.probe, cancel)
+            })
+            .map_err(|e| {
+                // No producer: the fine thread finds an empty, closed buffer and ends.
+                buffer.close();
+                ProducerError::Thread(e)
+            });
+        let result = fine_thread.submit(FineJob {
+            buffer: buffer.clone(),
+            published: published.clone(),
+            output,
+            gap,
+            settings: spec.fine,
+            loop_settings: spec.run_loop,
+            resume: job.resume.clone(),
+            supervisor: std::thread::current(),
+        });
+        let done = supervisor.watch(&result);
+        // The consumer is gone: a producer still reading has no one to read for.
+        producer_cancel.store(true, Ordering::Relaxed);
+        if done.is_none() {
+            buffer.abort();
+        }
+        let producer = producer.and_then(|p| p.join().expect("the producer thread panicked"));
+        (producer, done)
+    });
+    let Some(done) = done else {
+        panic!("the fine interpolation thread panicked");
+    };
+    finish(&job, done, producer, &buffer, &published, tracer.as_deref())
+}
+
+/// The job's first log lines: what it runs, and a feed the outputs cannot reach.
+fn announce(job: &JobRun<'_>) {
+    let spec = job.spec;
+    if spec.max_feed_mm_per_min / 60.0 > spec.speed_cap {
+        tracing::info!(
+            "fine.tick_us = {} allows at most one step per axis per tick: path speeds above \
+             about {:.0} mm/min (machine.max_feed_mm_per_min = {}) are not reachable",
+            spec.tick.us(),
+            spec.speed_cap * 60.0,
+            spec.max_feed_mm_per_min
+        );
+    }
+    tracing::info!(
+        "{}: {} blocks; {} time, tick {}",
+        job.program.name,
+        job.check.blocks,
+        if spec.run_loop.virtual_time {
+            "virtual"
+        } else {
+            "real"
+        },
+        spec.tick
+    );
+}
+
+/// The output, wrapped in a recorder when a report is wanted; the recorder's queue.
+fn recorded(
+    output: BoxedOutput,
+    wanted: bool,
+    job: &JobRun<'_>,
+) -> (BoxedOutput, Option<Arc<Recorder>>) {
+    if !wanted {
+        return (output, None);
+    }
+    let queue = Recorder::new(
+        1 << 16,
+        job.spec.run_loop.virtual_time,
+        Some(std::thread::current()),
+    );
+    let start = job.resume.as_ref().map_or([0; MAX_AXES], |r| {
+        std::array::from_fn(|i| r.position.get(i).copied().unwrap_or(0))
+    });
+    let output: BoxedOutput = Box::new(RecordedOutput::new(
+        output,
+        queue.clone(),
+        RECORD_EVERY_TICKS,
+        start,
+    ));
+    (output, Some(queue))
+}
+
+/// The calling thread while a job runs: it logs, steers and reports, never touching the
+/// real-time thread but through `Published`.
+struct Supervisor<'a> {
+    name: String,
+    spec: &'a JobSpec,
+    published: &'a Published,
+    buffer: &'a LoopBuffer,
+    stop: &'a AtomicBool,
+    tracer: Option<&'a Tracer>,
+    /// The report's recording and the recorder's queue that feeds it.
+    recording: Option<(&'a Arc<parking_lot::Mutex<Recording>>, &'a Arc<Recorder>)>,
+    progress: Option<ProgressFn>,
+    tracker: ProgressTracker,
+    last_progress: Instant,
+    /// When a stop was first seen.
+    stop_asked: Option<Instant>,
+}
+
+impl Supervisor<'_> {
+    /// Supervises until the fine job is done (`None`: its thread died).
+    fn watch(&mut self, result: &Receiver<FineDone>) -> Option<FineDone> {
+        let done = loop {
+            self.steer_stop();
+            self.drain();
+            self.report_progress();
+            self.publish_fill();
+            match result.try_recv() {
+                Ok(done) => break Some(done),
+                Err(TryRecvError::Disconnected) => break None,
+                Err(TryRecvError::Empty) => {}
+            }
+            std::thread::park_timeout(Duration::from_millis(10));
+        };
+        self.drain();
+        done
+    }
+
+    /// A controlled stop: hold, and end the loop once it stands still. A consumer that
+    /// waits for the producer (virtual time, the walk to a checkpoint) is told to stop
+    /// waiting if it has not come to a standstill within [`STOP_WAKE`].
+    fn steer_stop(&mut self) {
+        if !self.stop.load(Ordering::Relaxed) {
+            return;
+        }
+        self.published.hold.store(true, Ordering::Relaxed);
+        let asked = *self.stop_asked.get_or_insert_with(Instant::now);
+        if self.published.snapshot().still {
+            self.published.stop.store(true, Ordering::Relaxed);
+        } else if asked.elapsed() >= STOP_WAKE {
+            self.buffer.interrupt();
+        }
+    }
+
+    /// Logs the servo events and trace records queued so far, and hands the events to the
+    /// report's recording.
+    fn drain(&self) {
+        let mut events: Vec<EventRecord> = Vec::new();
+        while let Some(record) = self.published.events.pop() {
+            events::log_event(&self.name, &record, self.spec);
+            if self.recording.is_some() {
+                events.push(record);
+            }
+        }
+        if let Some((recording, recorder)) = self.recording {
+            events::record_batch(&mut recording.lock(), recorder, &events);
+        }
+        if let Some(tracer) = self.tracer {
+            tracer.drain(|record| log_trace(self.spec, record));
+        }
+    }
+
+    fn report_progress(&mut self) {
+        if let Some(report) = self.progress.as_mut()
+            && self.last_progress.elapsed() >= PROGRESS_EVERY
+        {
+            self.last_progress = Instant::now();
+            let snap = self.published.snapshot();
+            self.tracker.track(snap.path_mm, self.last_progress);
+            report(&self.tracker, &snap);
+        }
+    }
+
+    /// The buffer's fill, for the status (the consumer does not count it).
+    fn publish_fill(&self) {
+        let areas = self.buffer.areas();
+        self.published
+            .buffer_unprocessed
+            .store(areas.unprocessed, Ordering::Relaxed);
+        self.published
+            .buffer_reserved
+            .store(areas.reserved, Ordering::Relaxed);
+    }
+}
+
+/// The end of a job: its summary and the point where it stands, with the devices handed
+/// back.
+fn finish(
+    job: &JobRun<'_>,
+    done: FineDone,
+    producer: Result<ProducerReport, ProducerError>,
+    buffer: &LoopBuffer,
+    published: &Published,
+    tracer: Option<&Tracer>,
+) -> JobEnd {
+    let FineDone {
+        fine,
+        report,
+        finished,
+        skip,
+        output,
+        gap,
+    } = done;
+    let (summary, stopped_at) = JobSummary::of(summary::JobFacts {
+        program: job.program,
+        check: job.check,
+        spec: job.spec,
+        resume: job.resume.as_ref(),
+        fine: &fine,
+        report,
+        finished: &finished,
+        skip: &skip,
+        producer,
+        buffer_high_water: buffer.areas().high_water,
+        events_dropped: published.events_dropped.load(Ordering::Relaxed),
+        trace_dropped: tracer.map_or(0, |t| t.dropped()),
+    });
+    JobEnd {
+        summary,
+        stopped_at,
+        output,
+        gap,
+    }
+}

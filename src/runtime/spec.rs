@@ -1,0 +1,99 @@
+//! What a job's threads need, read from the configuration once, when the job starts: plain
+//! settings ([`JobSpec`]), so that no thread of a job (producer, fine thread, supervisor)
+//! sees the `Config` or builds a setting again.
+
+use crate::config::Config;
+use crate::fine::FineSettings;
+use crate::gcode::ProgramOptions;
+use crate::preprocess::PlanSettings;
+use crate::vocab::{Axis, TickPeriod};
+
+use super::consumer::LoopSettings;
+
+/// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
+/// and the voltage law's reference (V) it sets, and its jumps: interval (s), height (mm) and
+/// feed (mm/s), NaN where it keeps the `[servo]` setting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepCondition {
+    pub number: u32,
+    pub feed: f32,
+    pub v_ref: f32,
+    pub jump: [f32; 3],
+}
+
+/// Everything a job's threads need.
+#[derive(Debug, Clone)]
+pub struct JobSpec {
+    pub axes: Vec<Axis>,
+    pub step_mm: Vec<f64>,
+    /// How the producer reads the program.
+    pub program: ProgramOptions,
+    /// How the producer segments and plans it (and the rapid feed the ETA counts).
+    pub plan: PlanSettings,
+    /// The tick core's settings.
+    pub fine: FineSettings,
+    /// The consumer's loop: tick, time mode, real-time settings, whether `M0`/`M1` hold.
+    pub run_loop: LoopSettings,
+    pub tick: TickPeriod,
+    /// Loop-buffer capacity and reserved area (blocks).
+    pub buffer_capacity: usize,
+    pub buffer_reserved: usize,
+    pub conditions: Vec<StepCondition>,
+    /// The fastest path speed the outputs can take (one step per axis per tick), mm/s.
+    pub speed_cap: f64,
+    pub max_feed_mm_per_min: f64,
+}
+
+impl JobSpec {
+    /// The settings of `config` for a job. `program_pauses`: an operator is there to resume
+    /// (the daemon), so `M0`/`M1`, collisions and alarms hold the job instead of passing or
+    /// ending it (`edmd run`).
+    pub fn from_config(config: &Config, program_pauses: bool) -> JobSpec {
+        let mut run_loop = LoopSettings::from_config(config);
+        run_loop.program_pauses = program_pauses;
+        JobSpec {
+            axes: config.machine.axes.clone(),
+            step_mm: config.machine.step_mm.clone(),
+            program: ProgramOptions::from_config(config),
+            plan: PlanSettings::from_config(config),
+            fine: FineSettings::from_config(config),
+            run_loop,
+            tick: config.fine.tick,
+            buffer_capacity: config.buffer.capacity,
+            buffer_reserved: config.buffer.reserved,
+            conditions: config
+                .conditions
+                .iter()
+                .map(|c| StepCondition {
+                    number: c.number,
+                    feed: (c.feed_mm_per_min / 60.0) as f32,
+                    v_ref: c.v_ref as f32,
+                    jump: [
+                        c.jump_interval_s.map_or(f32::NAN, |v| v as f32),
+                        c.jump_height_mm.map_or(f32::NAN, |v| v as f32),
+                        c.jump_feed_mm_per_min
+                            .map_or(f32::NAN, |v| (v / 60.0) as f32),
+                    ],
+                })
+                .collect(),
+            speed_cap: super::fine_speed_cap(config),
+            max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
+        }
+    }
+
+    /// The axis names (`X`, `Y`, …).
+    pub fn axis_names(&self) -> Vec<String> {
+        self.axes.iter().map(|a| a.letter().to_string()).collect()
+    }
+
+    /// `X1.234 Y5.678` (mm) of a step position.
+    pub fn position_text(&self, steps: &[i64]) -> String {
+        self.axes
+            .iter()
+            .zip(steps)
+            .zip(&self.step_mm)
+            .map(|((a, &s), mm)| format!("{}{:.4}", a.letter(), s as f64 * mm))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
