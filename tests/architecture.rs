@@ -50,7 +50,6 @@ const LONG_FUNCTIONS_TO_SPLIT: &[&str] = &[
     "daemon/jobs.rs:start_job",
     "daemon/mod.rs:serve",
     "daemon/protocol.rs:text",
-    "fine/mod.rs:tick",
     "gcode/lexer.rs:lex",
     "gcode/parser/arc.rs:arc_block",
     "gcode/parser/control.rs:statement",
@@ -562,17 +561,30 @@ fn functions(text: &str) -> Vec<(String, usize, usize)> {
 #[test]
 fn no_function_under_src_is_longer_than_the_limit_tests_aside() {
     let mut long = Vec::new();
+    let mut still_long = BTreeSet::new();
     for path in rust_files(&root().join("src")) {
         let rel = rel(&path);
         if rel.ends_with("/tests.rs") {
             continue;
         }
         for (name, line, n) in functions(&std::fs::read_to_string(&path).unwrap()) {
-            if n > MAX_FN_LINES
-                && !LONG_FUNCTIONS_TO_SPLIT.contains(&format!("{rel}:{name}").as_str())
-            {
+            let key = format!("{rel}:{name}");
+            if n <= MAX_FN_LINES {
+                continue;
+            }
+            if LONG_FUNCTIONS_TO_SPLIT.contains(&key.as_str()) {
+                still_long.insert(key);
+            } else {
                 long.push(format!("src/{rel}:{line}: fn {name}: {n} lines"));
             }
+        }
+    }
+    // The list only shrinks: a function split is taken off it.
+    for listed in LONG_FUNCTIONS_TO_SPLIT {
+        if !still_long.contains(*listed) {
+            long.push(format!(
+                "{listed}: split now, take it off LONG_FUNCTIONS_TO_SPLIT"
+            ));
         }
     }
     assert!(

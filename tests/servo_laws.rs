@@ -9,7 +9,7 @@ use edmd::buffer::{StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
-use edmd::servo::{Law, ServoState};
+use edmd::servo::{GapReading, Law, ServoState};
 use edmd::sim::{SimGap, SimSettings};
 use edmd::vocab::MAX_AXES;
 
@@ -75,7 +75,12 @@ fn run(law: &str) -> Run {
         let gap = sim.sample(ticks).unwrap();
         let volts = sim.volts();
         let ratios = sim.ratios();
-        let tick = fine.tick_measured(gap, volts, ratios, &mut source);
+        let reading = GapReading {
+            state: gap,
+            volts,
+            ratios,
+        };
+        let tick = fine.tick_measured(reading, &mut source);
         sim.observe(&tick.steps, tick.dir);
         if gap == GapState::Normal && fine.position()[0] > 2000 {
             sum += if law == "ratio" {
@@ -173,7 +178,12 @@ fn the_voltage_law_at_fixed_voltages() {
             // Advance 1 mm at an open gap first, then hold the voltage under test.
             arrived |= fine.position()[0] >= 1000;
             let v = if arrived { volts } else { 80.0 };
-            let tick = fine.tick_volts(GapState::Normal, Some(v), &mut source);
+            let reading = GapReading {
+                state: GapState::Normal,
+                volts: Some(v),
+                ratios: None,
+            };
+            let tick = fine.tick_measured(reading, &mut source);
             if arrived {
                 dir_sum += tick.dir as i64;
                 state_short |= fine.state() == ServoState::TurnBack;

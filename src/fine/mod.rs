@@ -40,14 +40,20 @@
 
 pub mod bresenham;
 mod excursion;
-mod laws;
+mod motion;
 mod skip;
+mod stops;
 
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
-use crate::servo::{Feeds, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
+use crate::servo::{
+    Feeds, GapReading, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
+};
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
+use excursion::ExcursionState;
+use motion::Motion;
+use stops::Stops;
 
 pub use bresenham::Bresenham;
 pub use excursion::ExcursionSettings;
@@ -65,7 +71,7 @@ pub struct FineSettings {
     pub step_mm: [f64; MAX_AXES],
     /// A short lasting this many ticks raises the alarm (0: only the reserved history does).
     pub max_short_ticks: u64,
-    /// The servo law (the voltage law reads [`Interpolator::tick_volts`]'s voltage).
+    /// The servo law (it reads what [`Interpolator::tick_measured`] is given).
     pub law: Law,
     /// Jumps, wire-break detection and rethreading.
     pub excursions: ExcursionSettings,
@@ -97,90 +103,37 @@ pub struct FineCounters {
     pub servo: ServoCounters,
 }
 
-/// The consumer's per-tick core.
+/// The consumer's per-tick core: the servo (gap law, state machine, counters), the motion
+/// along the program, the stops and the excursions, each a part of its own.
 #[derive(Debug, Clone)]
 pub struct Interpolator {
     settings: FineSettings,
     servo: Servo,
-    block: StepBlock,
-    /// A block is in hand (false before the first block and while starved).
-    has_block: bool,
-    walk: Bresenham,
-    /// Lattice distance of one event of the block in hand (mm).
-    event_mm: f64,
-    /// Lattice length of the block in hand (mm).
-    lattice_mm: f64,
-    /// Believed position in steps: the pulse ledger.
-    position: Steps,
-    /// Path speed (mm/s), always >= 0; `dir` gives its sense.
-    speed: f64,
-    dir: i8,
-    /// Fraction of the next event already covered.
-    phase: f64,
-    /// Held by the operator: brake to a standstill under `a_T` and stay there.
-    hold: bool,
-    /// Ticks of a `G4` dwell still to wait.
-    dwell_left: u64,
-    /// Blocks before this sequence number have had their stops honoured.
-    stops_from: u64,
-    /// A pause was met while fetching: reported by the tick that met it.
-    paused: bool,
-    /// Consecutive ticks the gap has read short while turning back.
-    short_ticks: u64,
-    /// The voltage law's filtered gap voltage (V); NaN before the first reading.
-    volts: f64,
-    /// Jumps of the block in hand: every so many ticks of cutting (0: none), how far (mm),
-    /// how fast (mm/s).
-    jump_every: u64,
-    jump_height: f64,
-    jump_feed: f64,
-    /// Ticks cut forward since the last jump.
-    cut_ticks: u64,
-    /// Path gone back in the current retreat (mm).
-    retreat_mm: f64,
-    /// Cutting travel since the gap was last not open (mm).
-    open_mm: f64,
-    /// The wire-break input, as the thread loop last read it.
-    wire_input: bool,
-    /// The probing move in hand found its contact (or its end): the rest of it is dropped.
-    probe_hit: bool,
-    /// Travel left (mm) over which a short is still the last probe's contact.
-    contact_grace_mm: f64,
+    motion: Motion,
+    stops: Stops,
+    excursions: ExcursionState,
     /// An event met outside a tick (a resume at the mark), reported by the next tick.
     pending: Option<ServoEvent>,
     counters: FineCounters,
 }
+
+/// Where the decision of a tick leaves it: move this way at up to this feed, or stop here.
+type Decision = Option<(i8, f64)>;
 
 impl Interpolator {
     /// A stopped interpolator at `start` (steps), waiting for its first block.
     pub fn new(settings: FineSettings, start: Steps) -> Interpolator {
         Interpolator {
             settings,
-            servo: Servo::new(settings.feeds),
-            block: StepBlock::EMPTY,
-            has_block: false,
-            walk: Bresenham::new(&[0; MAX_AXES], false),
-            event_mm: 0.0,
-            lattice_mm: 0.0,
-            position: start,
-            speed: 0.0,
-            dir: 1,
-            phase: 0.0,
-            hold: false,
-            dwell_left: 0,
-            stops_from: 0,
-            paused: false,
-            short_ticks: 0,
-            volts: f64::NAN,
-            jump_every: 0,
-            jump_height: 0.0,
-            jump_feed: 0.0,
-            cut_ticks: 0,
-            retreat_mm: 0.0,
-            open_mm: 0.0,
-            wire_input: false,
-            probe_hit: false,
-            contact_grace_mm: 0.0,
+            servo: Servo::with_law(
+                settings.feeds,
+                settings.law,
+                settings.max_short_ticks,
+                settings.dt,
+            ),
+            motion: Motion::new(start),
+            stops: Stops::default(),
+            excursions: ExcursionState::default(),
             pending: None,
             counters: FineCounters::default(),
         }
@@ -196,47 +149,38 @@ impl Interpolator {
     /// Releasing it while parked for threading returns along the path to where the wire
     /// broke; while the wire is still broken (no rethread asked for) nothing moves.
     pub fn set_hold(&mut self, hold: bool) {
-        if self.hold && !hold {
+        if self.stops.hold && !hold {
             match self.servo.state() {
-                ServoState::Alarm => {
-                    self.servo.release_alarm();
-                    self.short_ticks = 0;
-                }
+                ServoState::Alarm => self.servo.release_alarm(),
                 ServoState::Threading => {
                     let event = self.servo.resume_threaded(self.here());
                     self.pending = self.pending.or(event);
-                    self.open_mm = 0.0;
+                    self.excursions.open_mm = 0.0;
                 }
                 _ => {}
             }
         }
-        self.hold = hold;
+        self.stops.hold = hold;
     }
 
     pub fn held(&self) -> bool {
-        self.hold
+        self.stops.hold
     }
 
     /// Ticks of a `G4` dwell still to wait where the electrode stands.
     pub fn dwell_left(&self) -> u64 {
-        self.dwell_left
+        self.stops.dwell_left
     }
 
     /// A resumed job (after [`Interpolator::skip_to`]) owes the rest of the dwell its first
     /// run was in when it stopped: `ticks` more before it moves on.
     pub fn resume_dwell(&mut self, ticks: u64) {
-        self.dwell_left = ticks;
+        self.stops.dwell_left = ticks;
     }
 
     /// Held and at a standstill: nothing moves until the hold is released.
     pub fn still(&self) -> bool {
-        self.speed == 0.0 && (self.hold || self.servo.state().is_final())
-    }
-
-    fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
-        for (p, &s) in self.position.iter_mut().zip(steps) {
-            *p += s as i64;
-        }
+        self.motion.speed == 0.0 && (self.stops.hold || self.servo.state().is_final())
     }
 
     pub fn state(&self) -> ServoState {
@@ -245,29 +189,26 @@ impl Interpolator {
 
     /// The pulse ledger: the believed position in steps.
     pub fn position(&self) -> Steps {
-        self.position
+        self.motion.position
     }
 
     pub fn speed(&self) -> f64 {
-        self.speed
+        self.motion.speed
     }
 
     /// Source line of the block in hand (or of the last one).
     pub fn line(&self) -> u64 {
-        self.block.line
+        self.motion.block.line
     }
 
     /// The block in hand, if any.
     pub fn block(&self) -> Option<&StepBlock> {
-        self.has_block.then_some(&self.block)
+        self.motion.has_block.then_some(&self.motion.block)
     }
 
     /// Where along the program the electrode is.
     pub fn here(&self) -> PathPoint {
-        PathPoint {
-            seq: self.block.seq,
-            event: self.walk.event(),
-        }
+        self.motion.here()
     }
 
     pub fn counters(&self) -> FineCounters {
@@ -276,12 +217,28 @@ impl Interpolator {
         c
     }
 
-    /// The voltage law's filtered gap voltage (V), if it has one.
-    pub fn filtered_volts(&self) -> Option<f64> {
-        self.volts.is_finite().then_some(self.volts)
+    /// What the proportional servo law measures, filtered: the gap voltage (V) or the ratio
+    /// law's `open − short`, once it has measured.
+    pub fn law_signal(&self) -> Option<f64> {
+        self.servo.law_signal()
     }
 
-    /// One tick with gap state `gap`.
+    /// One tick with what the gap input read: the servo law classifies it (the voltage law
+    /// filters the voltage, the ratio law reads the ratios, the three-state law takes the
+    /// state), then [`Interpolator::tick`].
+    #[inline]
+    pub fn tick_measured<S: BlockSource + ?Sized>(
+        &mut self,
+        reading: GapReading,
+        source: &mut S,
+    ) -> Tick {
+        let gap = self.servo.classify(&reading);
+        self.tick(gap, source)
+    }
+
+    /// One tick with gap state `gap`, in named phases: acquire a block, honour what stops
+    /// the electrode, decide where to go (the excursion's way, a rapid's, or the servo's),
+    /// and drive there (speed, DDA, step, bookkeeping).
     #[inline]
     pub fn tick<S: BlockSource + ?Sized>(&mut self, gap: GapState, source: &mut S) -> Tick {
         let mut tick = Tick {
@@ -290,204 +247,212 @@ impl Interpolator {
             event: None,
         };
         self.counters.ticks += 1;
-        let state = self.servo.state();
-        if state.is_final() {
+        if self.servo.state().is_final() || !self.acquire(&mut tick, source) {
             return tick;
         }
-        if !self.has_block && state != ServoState::TurnBack {
-            // Before the first block, or held by a starvation: try again.
-            match self.fetch_forward(source) {
-                Fetch::Block => self.servo.on_block(),
-                Fetch::Empty => {}
-                Fetch::End => {
-                    tick.event = self.servo.on_end();
-                    return tick;
-                }
-            }
-        }
-        if self.take_pause(&mut tick) {
+        let Some((contact, gap)) = self.stopped_or_gap(gap, &mut tick, source) else {
             return tick;
-        }
-        if let Some(event) = self.pending.take() {
-            tick.event = Some(event);
-        }
-        if self.probe_hit && !self.drop_probe_rest(&mut tick, source) {
-            return tick;
-        }
-        if self.wire_break_input(&mut tick) {
-            return tick;
-        }
-        let (contact, gap) = (gap, self.past_contact(gap));
-        if self.dwell_left > 0 && self.servo.state() == ServoState::Forward {
-            // G4: the electrode stays where the dwell began while the gap sparks.
-            self.dwell_left -= 1;
-            self.speed = 0.0;
-            self.phase = 0.0;
-            return tick;
-        }
-        let here = self.here();
-        let rapid = self.has_block
-            && self.block.flags.contains(BlockFlags::RAPID)
-            && self.servo.state() == ServoState::Forward;
-        let probing = self.has_block
-            && self.block.flags.contains(BlockFlags::PROBE)
-            && self.servo.state() == ServoState::Forward;
-        let excursion = self.servo.state().spark_off();
-        let (want_dir, feed) = if probing || excursion {
-            // A probe reads the contact as it is.
-            let gap = if probing { contact } else { gap };
-            match self.excursion_motion(gap, probing, &mut tick) {
-                Some(motion) => motion,
-                None => return tick,
-            }
-        } else if rapid {
-            // Positioning with the spark off: no gap servo, the planned speed. A short here is
-            // a collision: stop on the spot (no turn-back into a move that is not a cut) and
-            // hold until released.
-            if gap == GapState::Short {
-                self.speed = 0.0;
-                self.phase = 0.0;
-                if !self.hold {
-                    self.hold = true;
-                    self.servo.counters.collisions += 1;
-                    tick.event = Some(ServoEvent::Collision { at: here });
-                }
-                return tick;
-            }
-            (1, f64::INFINITY)
-        } else {
-            tick.event = self.servo.on_gap(gap, here);
-            if gap == GapState::Short && self.servo.state() == ServoState::TurnBack {
-                self.short_ticks += 1;
-                let max = self.settings.max_short_ticks;
-                if max > 0 && self.short_ticks >= max {
-                    self.speed = 0.0;
-                    self.phase = 0.0;
-                    tick.event = self.servo.on_short_timeout(here).or(tick.event);
-                    return tick;
-                }
-            } else {
-                self.short_ticks = 0;
-            }
-            let (dir, feed) = if self.volts.is_finite() {
-                let mut law = self.settings.law;
-                if let Law::Voltage { v_ref, .. } = &mut law
-                    && self.block.condition_v_ref > 0.0
-                {
-                    *v_ref = self.block.condition_v_ref as f64;
-                }
-                self.servo.voltage_motion(gap, self.volts, &law)
-            } else {
-                self.servo.motion(gap)
-            };
-            // A machining condition sets the sparking feed of the three-state law.
-            let sparking = gap == GapState::Normal
-                && dir > 0
-                && self.settings.law == Law::ThreeState
-                && self.block.condition_feed > 0.0;
-            let motion = if sparking {
-                (dir, self.block.condition_feed as f64)
-            } else {
-                (dir, feed)
-            };
-            if gap != GapState::Open {
-                self.open_mm = 0.0;
-            }
-            match self.jump_due(&mut tick) {
-                Some(jump) => jump,
-                None => motion,
-            }
         };
-        if want_dir == 0 {
-            self.speed = 0.0;
-            self.phase = 0.0;
-            return tick;
-        }
-        if want_dir != self.dir && self.speed == 0.0 {
-            self.dir = want_dir;
-            self.phase = 0.0;
-        }
-        if self.dir < 0
-            && (!self.has_block || self.walk.at_start())
-            && !self.retreat(&mut tick, source)
-        {
-            return tick;
-        }
-        if !self.has_block {
-            return tick;
-        }
-
-        // Speed: brake before reversing, then follow min(feed, planned limit) under a_T.
-        let dv = self.settings.accel * self.settings.dt;
-        let limit = self.planned_limit();
-        let target = if want_dir != self.dir || self.hold {
-            0.0
-        } else {
-            feed.min(limit)
-        };
-        self.speed = if self.speed > target {
-            (self.speed - dv).max(target).min(limit)
-        } else {
-            (self.speed + dv).min(target)
-        };
-        if self.speed <= 0.0 {
-            return tick;
-        }
-
-        // DDA: at most one event per tick (the speed is capped at one event per tick).
-        self.phase += self.speed * self.settings.dt / self.event_mm;
-        if self.phase < 1.0 {
-            return tick;
-        }
-        self.phase = (self.phase - 1.0).min(0.999_999);
-        if self.dir > 0 {
-            let cutting_open = gap == GapState::Open
-                && self.servo.state() == ServoState::Forward
-                && !self
-                    .block
-                    .flags
-                    .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
-            self.step_forward(&mut tick, source);
-            if cutting_open {
-                self.open_travel(&mut tick);
-            }
-            self.contact_grace_mm = (self.contact_grace_mm - self.event_mm).max(0.0);
-        } else {
-            self.walk.backward(&mut tick.steps);
-            self.apply(&mut tick);
-            self.counters.events_backward += 1;
-            if self.servo.state() == ServoState::Retreat {
-                self.retreated(&mut tick);
-            }
+        if let Some((want_dir, feed)) = self.decide(contact, gap, &mut tick) {
+            self.drive(want_dir, feed, gap, &mut tick, source);
         }
         tick
     }
 
-    /// The planner's speed limit at the current point, in the current direction, never below
-    /// the creep speed; capped at one event per tick.
+    /// Phase 1: a block in hand. Before the first block, or held by a starvation, asks the
+    /// source again; `false` when the program has ended.
     #[inline]
-    fn planned_limit(&self) -> f64 {
-        if !self.has_block || self.walk.events() == 0 {
-            return 0.0;
+    fn acquire<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
+        if self.motion.has_block || self.servo.state() == ServoState::TurnBack {
+            return true;
         }
-        let b = &self.block;
-        let a2 = 2.0 * self.settings.accel;
-        let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
-            / self.walk.events() as f64;
-        let s = (done.clamp(0.0, 1.0)) * self.lattice_mm;
-        let (v_behind, v_ahead, to_go, gone) = if self.dir > 0 {
-            (b.v_entry, b.v_exit, self.lattice_mm - s, s)
+        match self.fetch_forward(source) {
+            Fetch::Block => self.servo.on_block(),
+            Fetch::Empty => {}
+            Fetch::End => {
+                tick.event = self.servo.on_end();
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Phase 2: what keeps the electrode where it is this tick (a pause, the rest of a probing
+    /// move, a broken wire, a dwell), and the events owed from outside the tick. Otherwise
+    /// the gap as read (the probe's contact) and as the servo takes it.
+    #[inline]
+    fn stopped_or_gap<S: BlockSource + ?Sized>(
+        &mut self,
+        gap: GapState,
+        tick: &mut Tick,
+        source: &mut S,
+    ) -> Option<(GapState, GapState)> {
+        if tick.event.is_none() && self.stops.take_pause() {
+            tick.event = Some(ServoEvent::Paused { at: self.here() });
+            self.motion.stop();
+            return None;
+        }
+        if let Some(event) = self.pending.take() {
+            tick.event = Some(event);
+        }
+        if self.excursions.probe_hit && !self.drop_probe_rest(tick, source) {
+            return None;
+        }
+        if self.wire_break_input(tick) {
+            return None;
+        }
+        let contact = gap;
+        let gap = self.excursions.past_contact(gap);
+        if self.servo.state() == ServoState::Forward && self.stops.dwell_tick() {
+            // G4: the electrode stays where the dwell began while the gap sparks.
+            self.motion.stop();
+            return None;
+        }
+        Some((contact, gap))
+    }
+
+    /// Phase 3: direction and feed. A probing move or an excursion goes its own way with the
+    /// spark off, a rapid at the planned speed, a cut as the servo law asks.
+    #[inline]
+    fn decide(&mut self, contact: GapState, gap: GapState, tick: &mut Tick) -> Decision {
+        let forward = self.servo.state() == ServoState::Forward;
+        let probing = forward && self.motion.holds(BlockFlags::PROBE);
+        if probing || self.servo.state().spark_off() {
+            // A probe reads the contact as it is.
+            let gap = if probing { contact } else { gap };
+            return self.excursion_motion(gap, probing, tick);
+        }
+        if forward && self.motion.holds(BlockFlags::RAPID) {
+            return self.rapid(gap, tick);
+        }
+        self.cut(gap, tick)
+    }
+
+    /// Positioning with the spark off: no gap servo, the planned speed. A short here is a
+    /// collision: stop on the spot (no turn-back into a move that is not a cut) and hold
+    /// until released.
+    #[inline]
+    fn rapid(&mut self, gap: GapState, tick: &mut Tick) -> Decision {
+        if gap != GapState::Short {
+            return Some((1, f64::INFINITY));
+        }
+        self.motion.stop();
+        if !self.stops.hold {
+            self.stops.hold = true;
+            tick.event = Some(self.servo.on_collision(self.here()));
+        }
+        None
+    }
+
+    /// Cutting: the servo's state machine takes the gap, a short that lasts too long while
+    /// turning back is the alarm, the law gives the feed (a machining condition may set the
+    /// voltage law's reference or the three-state law's sparking feed), and a jump may be due.
+    #[inline]
+    fn cut(&mut self, gap: GapState, tick: &mut Tick) -> Decision {
+        let here = self.here();
+        tick.event = self.servo.on_gap(gap, here);
+        if let Some(alarm) = self.servo.count_short(gap, here) {
+            self.motion.stop();
+            tick.event = Some(alarm);
+            return None;
+        }
+        let block = &self.motion.block;
+        let (dir, feed) = self.servo.law_motion(gap, block.condition_v_ref);
+        let sparking = gap == GapState::Normal
+            && dir > 0
+            && self.servo.three_state()
+            && block.condition_feed > 0.0;
+        let motion = if sparking {
+            (dir, block.condition_feed as f64)
         } else {
-            (b.v_exit, b.v_entry, s, self.lattice_mm - s)
+            (dir, feed)
         };
-        let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
-        let creep = (self.settings.accel * self.event_mm).sqrt();
-        let cap = self.event_mm / self.settings.dt;
-        v2.sqrt().max(creep).min(b.v_cruise).min(cap)
+        if gap != GapState::Open {
+            self.excursions.open_mm = 0.0;
+        }
+        Some(self.jump_due(tick).unwrap_or(motion))
+    }
+
+    /// Phase 4: turn the decision into motion. Reversing brakes to zero first; going back
+    /// past a block's start takes the previous block; the speed follows
+    /// `min(feed, planned limit)` under `a_T`; the DDA decides whether an event is due.
+    #[inline]
+    fn drive<S: BlockSource + ?Sized>(
+        &mut self,
+        want_dir: i8,
+        feed: f64,
+        gap: GapState,
+        tick: &mut Tick,
+        source: &mut S,
+    ) {
+        if want_dir == 0 {
+            self.motion.stop();
+            return;
+        }
+        if want_dir != self.motion.dir && self.motion.speed == 0.0 {
+            self.motion.dir = want_dir;
+            self.motion.phase = 0.0;
+        }
+        if self.motion.dir < 0
+            && (!self.motion.has_block || self.motion.walk.at_start())
+            && !self.retreat(tick, source)
+        {
+            return;
+        }
+        if !self.motion.has_block {
+            return;
+        }
+        let dv = self.settings.accel * self.settings.dt;
+        let limit = self
+            .motion
+            .planned_limit(self.settings.accel, self.settings.dt);
+        let target = if want_dir != self.motion.dir || self.stops.hold {
+            0.0
+        } else {
+            feed.min(limit)
+        };
+        self.motion.follow(target, limit, dv);
+        if self.motion.speed <= 0.0 || !self.motion.event_due(self.settings.dt) {
+            return;
+        }
+        if self.motion.dir > 0 {
+            self.event_forward(gap, tick, source);
+        } else {
+            self.motion.walk.backward(&mut tick.steps);
+            self.apply(tick);
+            self.counters.events_backward += 1;
+            if self.servo.state() == ServoState::Retreat {
+                self.retreated(tick);
+            }
+        }
+    }
+
+    /// One event forward, and what cutting through an open gap or leaving a probe's contact
+    /// behind makes of it.
+    #[inline]
+    fn event_forward<S: BlockSource + ?Sized>(
+        &mut self,
+        gap: GapState,
+        tick: &mut Tick,
+        source: &mut S,
+    ) {
+        let cutting_open = gap == GapState::Open
+            && self.servo.state() == ServoState::Forward
+            && !self
+                .motion
+                .block
+                .flags
+                .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
+        self.step_forward(tick, source);
+        if cutting_open {
+            self.open_travel(tick);
+        }
+        self.excursions.contact_grace_mm =
+            (self.excursions.contact_grace_mm - self.motion.event_mm).max(0.0);
     }
 
     fn step_forward<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) {
-        if self.walk.at_end() {
+        if self.motion.walk.at_end() {
             // A turn-back entered this block at its end and the gap cleared before it stepped
             // back in it: the re-advance starts from the block after it (the one it came from,
             // which the source hands out again). Same point, so no step is owed here.
@@ -495,8 +460,7 @@ impl Interpolator {
                 Fetch::Block => {}
                 Fetch::Empty => {
                     tick.event = self.servo.on_starved(self.here());
-                    self.speed = 0.0;
-                    self.phase = 0.0;
+                    self.motion.stop();
                     return;
                 }
                 Fetch::End => {
@@ -505,18 +469,17 @@ impl Interpolator {
                 }
             }
         }
-        self.walk.forward(&mut tick.steps);
+        self.motion.walk.forward(&mut tick.steps);
         self.apply(tick);
         self.counters.events_forward += 1;
         let mut event = self.servo.on_forward(self.here());
-        if self.paused && event.is_none() {
+        if event.is_none() && self.stops.take_pause() {
             // The step that finished the block before a programmed stop.
-            self.paused = false;
             event = Some(ServoEvent::Paused { at: self.here() });
         }
         // A probing move waits at its end point for the next tick's contact check.
         let probe_end = BlockFlags::PROBE | BlockFlags::LAST_OF_BLOCK;
-        if self.walk.at_end() && !self.block.flags.contains(probe_end) {
+        if self.motion.walk.at_end() && !self.motion.block.flags.contains(probe_end) {
             match self.fetch_forward(source) {
                 Fetch::Block => {
                     if let Some(e) = self.servo.on_forward(self.here()) {
@@ -525,8 +488,7 @@ impl Interpolator {
                 }
                 Fetch::Empty => {
                     event = self.servo.on_starved(self.here()).or(event);
-                    self.speed = 0.0;
-                    self.phase = 0.0;
+                    self.motion.stop();
                 }
                 Fetch::End => event = self.servo.on_end().or(event),
             }
@@ -541,24 +503,24 @@ impl Interpolator {
     /// the reserved area is exhausted, which (turn-back only happens while shorted) is the alarm.
     fn retreat<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
         loop {
-            if !source.previous(&mut self.block) {
+            if !source.previous(&mut self.motion.block) {
                 self.retreat_blocked(tick, true);
                 return false;
             }
             if self.is_barrier() {
                 // Back out of it: the block this retreat came from is handed out again, and
                 // the electrode stands at its start, where it was.
-                if source.next(&mut self.block) == Fetch::Block {
+                if source.next(&mut self.motion.block) == Fetch::Block {
                     self.enter_block(false);
                 } else {
-                    self.has_block = false;
+                    self.motion.has_block = false;
                 }
                 self.retreat_blocked(tick, false);
                 return false;
             }
             self.servo.on_block_back();
             self.enter_block(true);
-            if self.walk.events() > 0 {
+            if self.motion.walk.events() > 0 {
                 return true;
             }
         }
@@ -567,67 +529,38 @@ impl Interpolator {
     /// Copies the next block with steps into hand, passing over blocks of zero steps.
     fn fetch_forward<S: BlockSource + ?Sized>(&mut self, source: &mut S) -> Fetch {
         loop {
-            let fetch = source.next(&mut self.block);
+            let fetch = source.next(&mut self.motion.block);
             if fetch != Fetch::Block {
-                self.has_block = false;
+                self.motion.has_block = false;
                 return fetch;
             }
             self.counters.blocks_entered += 1;
             self.enter_block(false);
-            if self.block.seq >= self.stops_from {
-                self.stops_from = self.block.seq + 1;
-                if self.block.dwell_s > 0.0 {
-                    self.dwell_left += (self.block.dwell_s / self.settings.dt).round() as u64;
-                }
-                if self.block.flags.contains(BlockFlags::PAUSE) {
-                    self.hold = true;
-                    self.paused = true;
-                }
-            }
-            if self.walk.events() > 0 {
+            self.stops.on_enter(&self.motion.block, self.settings.dt);
+            if self.motion.walk.events() > 0 {
                 return Fetch::Block;
             }
         }
     }
 
     fn enter_block(&mut self, at_end: bool) {
-        self.has_block = true;
-        self.block_jumps();
-        let delta = self.block.delta();
-        self.walk = Bresenham::new(&delta, at_end);
-        let mut len2 = 0.0;
-        for (d, s) in delta.iter().zip(&self.settings.step_mm) {
-            let mm = *d as f64 * s;
-            len2 += mm * mm;
-        }
-        self.lattice_mm = len2.sqrt();
-        self.event_mm = if self.walk.events() > 0 {
-            self.lattice_mm / self.walk.events() as f64
-        } else {
-            0.0
-        };
+        self.excursions.on_enter(
+            &self.motion.block,
+            &self.settings.excursions,
+            self.settings.dt,
+        );
+        self.motion.enter(at_end, &self.settings.step_mm);
     }
 
-    /// Reports a pause met while fetching, if the tick has no other event to report.
-    fn take_pause(&mut self, tick: &mut Tick) -> bool {
-        if self.paused && tick.event.is_none() {
-            self.paused = false;
-            tick.event = Some(ServoEvent::Paused { at: self.here() });
-            self.speed = 0.0;
-            self.phase = 0.0;
-            return true;
-        }
-        false
-    }
-
+    /// Output bookkeeping of one event: the ledger, the pulse counters, the tick's direction.
     #[inline]
     fn apply(&mut self, tick: &mut Tick) {
         for i in 0..MAX_AXES {
             let s = tick.steps[i];
-            self.position[i] += s as i64;
+            self.motion.position[i] += s as i64;
             self.counters.pulses[i] += s.unsigned_abs() as u64;
         }
-        tick.dir = self.dir;
+        tick.dir = self.motion.dir;
     }
 }
 

@@ -44,13 +44,9 @@ impl Interpolator {
         expected: &[i64],
         source: &mut S,
     ) -> Result<(), SkipError> {
-        let mut scratch = [0i8; MAX_AXES];
-        while !(self.has_block && self.block.seq >= target.seq) {
-            if self.has_block {
-                while !self.walk.at_end() {
-                    self.walk.forward(&mut scratch);
-                    self.add_steps(&scratch);
-                }
+        while !(self.motion.has_block && self.motion.block.seq >= target.seq) {
+            if self.motion.has_block {
+                self.motion.walk_silently_to(None);
             }
             // The source waits for the producer, so `Empty` means the job was aborted.
             if self.fetch_forward(source) != Fetch::Block {
@@ -59,42 +55,37 @@ impl Interpolator {
                     event: target.event,
                 });
             }
-            if self.block.flags.contains(BlockFlags::PROBE) {
+            if self.motion.block.flags.contains(BlockFlags::PROBE) {
                 return Err(SkipError::Probed {
-                    line: self.block.line,
+                    line: self.motion.block.line,
                 });
             }
         }
-        if self.block.seq != target.seq || target.event > self.walk.events() {
+        if self.motion.block.seq != target.seq || target.event > self.motion.walk.events() {
             return Err(SkipError::NoSuchPoint {
                 seq: target.seq,
                 event: target.event,
-                events: if self.block.seq == target.seq {
-                    self.walk.events()
+                events: if self.motion.block.seq == target.seq {
+                    self.motion.walk.events()
                 } else {
                     0
                 },
             });
         }
-        while self.walk.event() < target.event {
-            self.walk.forward(&mut scratch);
-            self.add_steps(&scratch);
-        }
+        self.motion.walk_silently_to(Some(target.event));
         let n = expected.len().min(MAX_AXES);
-        if self.position[..n] != expected[..n] {
+        if self.motion.position[..n] != expected[..n] {
             return Err(SkipError::Position {
                 seq: target.seq,
                 event: target.event,
-                found: self.position[..n].to_vec(),
+                found: self.motion.position[..n].to_vec(),
                 expected: expected[..n].to_vec(),
             });
         }
         self.servo.on_block();
         self.servo.on_forward(self.here());
         // The first run honoured every stop up to here.
-        self.dwell_left = 0;
-        self.paused = false;
-        self.hold = false;
+        self.stops.resumed();
         Ok(())
     }
 }

@@ -32,7 +32,7 @@ use crate::buffer::BlockSource;
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::servo::{Excursion, PathPoint, Rethread, ServoEvent, ServoState};
+use crate::servo::{Excursion, GapReading, PathPoint, Rethread, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{MAX_AXES, Steps};
 
@@ -385,7 +385,12 @@ where
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
         fine.set_wire_input(sensor.wire_broken());
-        let tick = fine.tick_measured(gap, sensor.volts(), sensor.ratios(), source);
+        let reading = GapReading {
+            state: gap,
+            volts: sensor.volts(),
+            ratios: sensor.ratios(),
+        };
+        let tick = fine.tick_measured(reading, source);
         let block = fine.block();
         let excursion = fine.state().spark_off();
         let flags = block.map_or(BlockFlags::NONE, |b| b.flags);

@@ -22,7 +22,7 @@
 //!   break point with the spark off and cutting carries on there.
 
 use super::{Interpolator, Tick};
-use crate::buffer::BlockFlags;
+use crate::buffer::{BlockFlags, StepBlock};
 
 use crate::servo::{Excursion, Rethread, ServoEvent, ServoState};
 use crate::vocab::GapState;
@@ -59,10 +59,56 @@ impl ExcursionSettings {
 /// short, and its turn-back or collision, after this distance).
 pub const PROBE_RELEASE_MM: f64 = 0.1;
 
-impl Interpolator {
+/// What the excursions keep between ticks.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct ExcursionState {
+    /// Jumps of the block in hand: every so many ticks of cutting (0: none), how far (mm),
+    /// how fast (mm/s).
+    pub jump_every: u64,
+    pub jump_height: f64,
+    pub jump_feed: f64,
+    /// Ticks cut forward since the last jump.
+    pub cut_ticks: u64,
+    /// Path gone back in the current retreat (mm).
+    pub retreat_mm: f64,
+    /// Cutting travel since the gap was last not open (mm).
+    pub open_mm: f64,
+    /// The wire-break input, as the thread loop last read it.
+    pub wire_input: bool,
+    /// The probing move in hand found its contact (or its end): the rest of it is dropped.
+    pub probe_hit: bool,
+    /// Travel left (mm) over which a short is still the last probe's contact.
+    pub contact_grace_mm: f64,
+}
+
+impl ExcursionState {
+    /// Takes the jump settings of the block entered: its machining condition's where it
+    /// sets them, `settings`' otherwise (ticks of `dt`).
+    pub fn on_enter(&mut self, block: &StepBlock, settings: &ExcursionSettings, dt: f64) {
+        let [interval, height, feed] = block.condition_jump;
+        self.jump_every = if interval.is_nan() {
+            settings.jump_interval_ticks
+        } else {
+            (interval as f64 / dt).round() as u64
+        };
+        self.jump_height = if height.is_nan() {
+            settings.jump_height_mm
+        } else {
+            height as f64
+        };
+        self.jump_feed = if feed.is_nan() {
+            settings.jump_feed
+        } else {
+            feed as f64
+        };
+        if self.jump_height <= 0.0 {
+            self.jump_every = 0;
+        }
+    }
+
     /// The gap as the servo should take it: a short just after a probe's contact is the
     /// contact (read as open) until the electrode has left it.
-    pub(super) fn past_contact(&mut self, gap: GapState) -> GapState {
+    pub fn past_contact(&mut self, gap: GapState) -> GapState {
         if self.contact_grace_mm <= 0.0 {
             return gap;
         }
@@ -73,11 +119,13 @@ impl Interpolator {
             gap
         }
     }
+}
 
+impl Interpolator {
     /// The wire-break input as the thread loop read it this tick (a sensor, or the
     /// simulator's broken wire).
     pub fn set_wire_input(&mut self, broken: bool) {
-        self.wire_input = broken;
+        self.excursions.wire_input = broken;
     }
 
     /// The operator's rethread after a wire break: back along the path to the start hole,
@@ -87,8 +135,8 @@ impl Interpolator {
         if !self.servo.rethread(at) {
             return false;
         }
-        self.retreat_mm = 0.0;
-        self.phase = 0.0;
+        self.excursions.retreat_mm = 0.0;
+        self.motion.phase = 0.0;
         true
     }
 
@@ -97,48 +145,23 @@ impl Interpolator {
         self.servo.excursion()
     }
 
-    /// Takes the jump settings of the block entered: its machining condition's where it
-    /// sets them, the `[servo]` ones otherwise.
-    pub(super) fn block_jumps(&mut self) {
-        let s = &self.settings.excursions;
-        let [interval, height, feed] = self.block.condition_jump;
-        self.jump_every = if interval.is_nan() {
-            s.jump_interval_ticks
-        } else {
-            (interval as f64 / self.settings.dt).round() as u64
-        };
-        self.jump_height = if height.is_nan() {
-            s.jump_height_mm
-        } else {
-            height as f64
-        };
-        self.jump_feed = if feed.is_nan() {
-            s.jump_feed
-        } else {
-            feed as f64
-        };
-        if self.jump_height <= 0.0 {
-            self.jump_every = 0;
-        }
-    }
-
     /// A retreat may not walk back into this block: a probing move (its steps are the
     /// programmed ones, not the ones taken) and, on purpose, a rapid (the start of the cut).
     pub(super) fn is_barrier(&self) -> bool {
         let purposeful = self.servo.state() == ServoState::Retreat;
-        self.block.flags.contains(BlockFlags::PROBE)
-            || (purposeful && self.block.flags.contains(BlockFlags::RAPID))
+        self.motion.block.flags.contains(BlockFlags::PROBE)
+            || (purposeful && self.motion.block.flags.contains(BlockFlags::RAPID))
     }
 
     /// The way back ends here (start of the reserved area or a barrier): a short's turn-back
     /// raises the alarm, a jump or a rethread has gone as far as it can.
     /// `exhausted`: the reserved area ran out (not the start of the cut).
     pub(super) fn retreat_blocked(&mut self, tick: &mut Tick, exhausted: bool) {
-        self.speed = 0.0;
-        self.phase = 0.0;
-        let here = self.here();
+        self.motion.stop();
+        let here = self.motion.here();
         let event = if self.servo.state() == ServoState::Retreat {
-            self.servo.on_retreat_done(here, self.retreat_mm, exhausted)
+            self.servo
+                .on_retreat_done(here, self.excursions.retreat_mm, exhausted)
         } else {
             self.servo.on_reserved_exhausted(here)
         };
@@ -149,35 +172,34 @@ impl Interpolator {
 
     /// One backward event of a retreat: a jump ends at its height.
     pub(super) fn retreated(&mut self, tick: &mut Tick) {
-        self.retreat_mm += self.event_mm;
+        self.excursions.retreat_mm += self.motion.event_mm;
         // The height to the nearest lattice point (a condition's height is an f32).
-        let reached = self.retreat_mm >= self.jump_height - 0.5 * self.event_mm;
+        let reached =
+            self.excursions.retreat_mm >= self.excursions.jump_height - 0.5 * self.motion.event_mm;
         if self.servo.excursion() == Excursion::Jump && reached {
             // The retreat braked on its way here and arrives at creep speed: it stops on this
             // point, so every jump lifts exactly its height.
-            self.speed = 0.0;
-            self.phase = 0.0;
-            tick.event = self
-                .servo
-                .on_retreat_done(self.here(), self.retreat_mm, false);
+            self.motion.stop();
+            tick.event =
+                self.servo
+                    .on_retreat_done(self.motion.here(), self.excursions.retreat_mm, false);
         }
     }
 
     /// The wire-break input fired while cutting: stop on the spot and park.
     pub(super) fn wire_break_input(&mut self, tick: &mut Tick) -> bool {
-        if !self.wire_input || self.servo.state().wire_parked() {
+        if !self.excursions.wire_input || self.servo.state().wire_parked() {
             return false;
         }
         self.wire_break(tick, false)
     }
 
     fn wire_break(&mut self, tick: &mut Tick, open: bool) -> bool {
-        match self.servo.on_wire_break(self.here(), open) {
+        match self.servo.on_wire_break(self.motion.here(), open) {
             Some(event) => {
-                self.speed = 0.0;
-                self.phase = 0.0;
-                self.open_mm = 0.0;
-                self.hold = true;
+                self.motion.stop();
+                self.excursions.open_mm = 0.0;
+                self.stops.hold = true;
                 tick.event = Some(event);
                 true
             }
@@ -192,8 +214,8 @@ impl Interpolator {
         if max <= 0.0 {
             return;
         }
-        self.open_mm += self.event_mm;
-        if self.open_mm >= max && tick.event.is_none() {
+        self.excursions.open_mm += self.motion.event_mm;
+        if self.excursions.open_mm >= max && tick.event.is_none() {
             self.wire_break(tick, true);
         }
     }
@@ -201,24 +223,25 @@ impl Interpolator {
     /// Counts a tick of cutting; when the jump interval is up, starts a jump.
     pub(super) fn jump_due(&mut self, tick: &mut Tick) -> Option<(i8, f64)> {
         let cutting = self.servo.state() == ServoState::Forward
-            && self.has_block
+            && self.motion.has_block
             && !self
+                .motion
                 .block
                 .flags
                 .intersects(BlockFlags::RAPID | BlockFlags::PROBE)
-            && !self.hold
-            && self.dwell_left == 0;
-        if self.jump_every == 0 || !cutting {
+            && !self.stops.hold
+            && self.stops.dwell_left == 0;
+        if self.excursions.jump_every == 0 || !cutting {
             return None;
         }
-        self.cut_ticks += 1;
-        if self.cut_ticks < self.jump_every || tick.event.is_some() {
+        self.excursions.cut_ticks += 1;
+        if self.excursions.cut_ticks < self.excursions.jump_every || tick.event.is_some() {
             return None;
         }
-        self.cut_ticks = 0;
-        self.retreat_mm = 0.0;
-        tick.event = self.servo.start_jump(self.here());
-        Some((-1, self.jump_feed))
+        self.excursions.cut_ticks = 0;
+        self.excursions.retreat_mm = 0.0;
+        tick.event = self.servo.start_jump(self.motion.here());
+        Some((-1, self.excursions.jump_feed))
     }
 
     /// Direction and feed of a probing move or an excursion (spark off); `None`: the tick
@@ -229,27 +252,28 @@ impl Interpolator {
         probing: bool,
         tick: &mut Tick,
     ) -> Option<(i8, f64)> {
-        let here = self.here();
+        let here = self.motion.here();
         if probing {
-            let away = self.block.flags.contains(BlockFlags::PROBE_AWAY);
+            let away = self.motion.block.flags.contains(BlockFlags::PROBE_AWAY);
             let contact = (gap == GapState::Short) != away;
-            let end = self.walk.at_end() && self.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
+            let end = self.motion.walk.at_end()
+                && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
             if contact || end {
                 self.probe_found(tick, contact);
                 return None;
             }
             // The programmed probing feed (the planned limit alone is lifted to the creep
             // speed near a standstill, faster than a slow probing feed).
-            return Some((1, self.block.v_cruise));
+            return Some((1, self.motion.block.v_cruise));
         }
         let feed = match self.servo.excursion() {
-            Excursion::Jump => self.jump_feed,
+            Excursion::Jump => self.excursions.jump_feed,
             Excursion::Rethread => self.settings.excursions.rethread_feed,
         };
         match self.servo.state() {
             ServoState::Retreat if self.servo.excursion() == Excursion::Jump => {
                 // Brake so as to stop at the height, never below the creep speed.
-                let left = (self.jump_height - self.retreat_mm).max(0.0);
+                let left = (self.excursions.jump_height - self.excursions.retreat_mm).max(0.0);
                 let braking = (2.0 * self.settings.accel * left).sqrt();
                 Some((-1, feed.min(braking)))
             }
@@ -267,25 +291,24 @@ impl Interpolator {
 
     /// The probing move ends at this point: stop, report, drop the rest of the move.
     fn probe_found(&mut self, tick: &mut Tick, contact: bool) {
-        self.speed = 0.0;
-        self.phase = 0.0;
-        self.probe_hit = true;
-        if contact && !self.block.flags.contains(BlockFlags::PROBE_AWAY) {
+        self.motion.stop();
+        self.excursions.probe_hit = true;
+        if contact && !self.motion.block.flags.contains(BlockFlags::PROBE_AWAY) {
             // The electrode rests on the work: the move after the probe starts shorted.
-            self.contact_grace_mm = PROBE_RELEASE_MM;
+            self.excursions.contact_grace_mm = PROBE_RELEASE_MM;
         }
-        let at = self.here();
-        if !contact && self.block.flags.contains(BlockFlags::PROBE_MUST) {
+        let at = self.motion.here();
+        if !contact && self.motion.block.flags.contains(BlockFlags::PROBE_MUST) {
             self.servo.on_probe_missed();
             tick.event = Some(ServoEvent::ProbeMissed { at });
             return;
         }
-        self.servo.counters.probes += 1;
+        self.servo.on_probe_done();
         tick.event = Some(ServoEvent::Probed {
             at,
-            steps: self.position,
+            steps: self.motion.position,
             contact,
-            away: self.block.flags.contains(BlockFlags::PROBE_AWAY),
+            away: self.motion.block.flags.contains(BlockFlags::PROBE_AWAY),
         });
     }
 
@@ -297,16 +320,16 @@ impl Interpolator {
         source: &mut S,
     ) -> bool {
         use crate::buffer::Fetch;
-        self.probe_hit = false;
+        self.excursions.probe_hit = false;
         // The probing move's other segments are already in the buffer: pass over them (they
         // stay in the reserved area as barriers) to the first move planned from here.
-        while self.has_block
-            && self.block.flags.contains(BlockFlags::PROBE)
-            && !self.block.flags.contains(BlockFlags::LAST_OF_BLOCK)
+        while self.motion.has_block
+            && self.motion.block.flags.contains(BlockFlags::PROBE)
+            && !self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK)
         {
-            if source.next(&mut self.block) != Fetch::Block {
+            if source.next(&mut self.motion.block) != Fetch::Block {
                 // The producer closed the buffer or the job was torn down.
-                self.has_block = false;
+                self.motion.has_block = false;
                 return false;
             }
             self.counters.blocks_entered += 1;

@@ -37,8 +37,13 @@
 //! The machine only decides; the fine interpolator moves, and reports back where it is
 //! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
 
+mod law;
+
+pub use law::{GapReading, Law};
+
 use crate::vocab::GapState;
 use crate::words::{Packed, packed_struct};
+use law::GapLaw;
 
 /// Where the electrode is along the program: block sequence number and Bresenham event.
 /// Ordered along the path (the end of block `s` and the start of block `s + 1` are the same
@@ -159,34 +164,6 @@ pub struct Feeds {
     pub normal: f64,
     pub open: f64,
     pub retract: f64,
-}
-
-/// How the servo turns the gap into a feed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Law {
-    /// Three states: sparking at `Feeds::normal`, open at `Feeds::open`, shorted: turn back.
-    ThreeState,
-    /// The gap voltage (filtered, V): below `short_v` a short (turn back), above `open_v`
-    /// open (`Feeds::open`); in between the feed is `gain · (V − v_ref)` (mm/s per V),
-    /// negative backing off along the path at up to `Feeds::retract`.
-    Voltage {
-        v_ref: f64,
-        gain: f64,
-        short_v: f64,
-        open_v: f64,
-        /// Filter time constant (s); 0 for none.
-        tau: f64,
-    },
-    /// Open and short ratios per sampling window (fractions of the window's discharge
-    /// pulses): a short ratio from `short_limit` up is a short (turn back), an open ratio from
-    /// `open_limit` up is open (`Feeds::open`); in between the feed is
-    /// `gain · (open − short − r_ref)` (mm/s per unit of ratio), negative backing off.
-    Ratio {
-        r_ref: f64,
-        gain: f64,
-        short_limit: f64,
-        open_limit: f64,
-    },
 }
 
 /// Something the servo did that the outside world wants to hear about (logged by a normal
@@ -366,11 +343,16 @@ impl ServoCounters {
     }
 }
 
-/// The state machine.
+/// The state machine, with the law that reads the gap and the timer of a long short.
 #[derive(Debug, Clone, Copy)]
 pub struct Servo {
     state: ServoState,
     feeds: Feeds,
+    law: GapLaw,
+    /// Consecutive ticks the gap has read short while turning back, and how many raise the
+    /// alarm (0: only the reserved history does).
+    short_ticks: u64,
+    max_short_ticks: u64,
     /// The farthest point reached: where a re-advance hands over to forward motion.
     mark: PathPoint,
     /// Blocks entered backwards in the current turn-back episode.
@@ -381,10 +363,20 @@ pub struct Servo {
 }
 
 impl Servo {
+    /// A servo with the three-state law and no short timeout.
     pub fn new(feeds: Feeds) -> Servo {
+        Servo::with_law(feeds, Law::ThreeState, 0, 1.0)
+    }
+
+    /// A servo reading the gap through `law` in ticks of `dt` seconds; a short that lasts
+    /// `max_short_ticks` while turning back raises the alarm (0: never).
+    pub fn with_law(feeds: Feeds, law: Law, max_short_ticks: u64, dt: f64) -> Servo {
         Servo {
             state: ServoState::Hold,
             feeds,
+            law: GapLaw::new(law, dt),
+            short_ticks: 0,
+            max_short_ticks,
             mark: PathPoint::default(),
             depth: 0,
             excursion: Excursion::Jump,
@@ -398,6 +390,59 @@ impl Servo {
 
     pub fn mark(&self) -> PathPoint {
         self.mark
+    }
+
+    /// This tick's gap state, as the law reads what the input measured.
+    pub fn classify(&mut self, reading: &GapReading) -> GapState {
+        self.law.classify(reading)
+    }
+
+    /// What the proportional law measures, filtered (V, or the ratio signal).
+    pub fn law_signal(&self) -> Option<f64> {
+        self.law.signal()
+    }
+
+    /// The three-state law is in force (a machining condition's feed applies to it).
+    pub fn three_state(&self) -> bool {
+        self.law.is_three_state()
+    }
+
+    /// Direction and feed while cutting: the proportional law's once it has a signal (with
+    /// a machining condition's reference voltage `v_ref`, 0 for the law's own), the gap
+    /// state's otherwise.
+    pub fn law_motion(&self, gap: GapState, v_ref: f32) -> (i8, f64) {
+        match self.law.proportional(v_ref) {
+            Some((signal, reference, gain)) => {
+                self.proportional_motion(gap, signal, reference, gain)
+            }
+            None => self.motion(gap),
+        }
+    }
+
+    /// Counts a tick of the gap at `here`: while turning back on a short, a short that has
+    /// lasted `max_short_ticks` raises the alarm (returned); anything else resets the count.
+    pub fn count_short(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
+        if gap == GapState::Short && self.state == ServoState::TurnBack {
+            self.short_ticks += 1;
+            if self.max_short_ticks > 0 && self.short_ticks >= self.max_short_ticks {
+                return self.on_short_timeout(here);
+            }
+        } else {
+            self.short_ticks = 0;
+        }
+        None
+    }
+
+    /// The gap shorted during a rapid at `here`: a collision (the interpolator stops and
+    /// holds there).
+    pub fn on_collision(&mut self, here: PathPoint) -> ServoEvent {
+        self.counters.collisions += 1;
+        ServoEvent::Collision { at: here }
+    }
+
+    /// A probing move finished (with or without contact).
+    pub fn on_probe_done(&mut self) {
+        self.counters.probes += 1;
     }
 
     /// The gap state of this tick at `here`. Returns an event when the state changed.
@@ -483,6 +528,7 @@ impl Servo {
         if self.state == ServoState::Alarm {
             self.state = ServoState::ReAdvance;
             self.depth = 0;
+            self.short_ticks = 0;
         }
     }
 
@@ -597,18 +643,19 @@ impl Servo {
         self.state = ServoState::Alarm;
     }
 
-    /// Direction and feed under a proportional law for a sparking gap whose signal is `volts`
-    /// (the filtered voltage, or the ratio law's `open − short`): `gain · (signal − reference)`,
+    /// Direction and feed under a proportional law for a sparking gap whose `signal` is the
+    /// filtered voltage, or the ratio law's `open − short`: `gain · (signal − reference)`,
     /// backing off (negative) at up to the retract feed.
-    pub fn voltage_motion(&self, gap: GapState, volts: f64, law: &Law) -> (i8, f64) {
-        let (reference, gain) = match *law {
-            Law::Voltage { v_ref, gain, .. } => (v_ref, gain),
-            Law::Ratio { r_ref, gain, .. } => (r_ref, gain),
-            Law::ThreeState => return self.motion(gap),
-        };
+    fn proportional_motion(
+        &self,
+        gap: GapState,
+        signal: f64,
+        reference: f64,
+        gain: f64,
+    ) -> (i8, f64) {
         match (self.state, gap) {
             (ServoState::Forward | ServoState::ReAdvance, GapState::Normal) => {
-                let feed = gain * (volts - reference);
+                let feed = gain * (signal - reference);
                 if feed >= 0.0 {
                     (1, feed)
                 } else {

@@ -1,0 +1,151 @@
+//! The electrode's motion along the program: the block in hand, its Bresenham walk, the path
+//! speed and direction, the DDA phase and the pulse ledger. It knows nothing of the gap: the
+//! servo and the excursions decide where to go and how fast, [`Motion`] carries it out under
+//! the planner's limits.
+
+use super::bresenham::Bresenham;
+use crate::buffer::{BlockFlags, StepBlock};
+use crate::servo::PathPoint;
+use crate::vocab::{MAX_AXES, Steps};
+
+/// Where the electrode is along the program and how it moves.
+#[derive(Debug, Clone)]
+pub(super) struct Motion {
+    pub block: StepBlock,
+    /// A block is in hand (false before the first block and while starved).
+    pub has_block: bool,
+    pub walk: Bresenham,
+    /// Lattice distance of one event of the block in hand (mm).
+    pub event_mm: f64,
+    /// Lattice length of the block in hand (mm).
+    pub lattice_mm: f64,
+    /// Believed position in steps: the pulse ledger.
+    pub position: Steps,
+    /// Path speed (mm/s), always >= 0; `dir` gives its sense.
+    pub speed: f64,
+    pub dir: i8,
+    /// Fraction of the next event already covered.
+    pub phase: f64,
+}
+
+impl Motion {
+    /// Standing at `start` (steps) with no block in hand.
+    pub fn new(start: Steps) -> Motion {
+        Motion {
+            block: StepBlock::EMPTY,
+            has_block: false,
+            walk: Bresenham::new(&[0; MAX_AXES], false),
+            event_mm: 0.0,
+            lattice_mm: 0.0,
+            position: start,
+            speed: 0.0,
+            dir: 1,
+            phase: 0.0,
+        }
+    }
+
+    /// Where along the program the electrode is.
+    #[inline]
+    pub fn here(&self) -> PathPoint {
+        PathPoint {
+            seq: self.block.seq,
+            event: self.walk.event(),
+        }
+    }
+
+    /// A block is in hand and carries every flag of `flags`.
+    #[inline]
+    pub fn holds(&self, flags: BlockFlags) -> bool {
+        self.has_block && self.block.flags.contains(flags)
+    }
+
+    /// Stops on the spot (no braking: a collision, a contact, a dwell, an alarm).
+    #[inline]
+    pub fn stop(&mut self) {
+        self.speed = 0.0;
+        self.phase = 0.0;
+    }
+
+    /// Takes the block just copied into `block` in hand, at its start or (walking back into
+    /// it) at its end; `step_mm` converts its steps to the lattice length.
+    pub fn enter(&mut self, at_end: bool, step_mm: &[f64; MAX_AXES]) {
+        self.has_block = true;
+        let delta = self.block.delta();
+        self.walk = Bresenham::new(&delta, at_end);
+        let mut len2 = 0.0;
+        for (d, s) in delta.iter().zip(step_mm) {
+            let mm = *d as f64 * s;
+            len2 += mm * mm;
+        }
+        self.lattice_mm = len2.sqrt();
+        self.event_mm = if self.walk.events() > 0 {
+            self.lattice_mm / self.walk.events() as f64
+        } else {
+            0.0
+        };
+    }
+
+    /// The planner's speed limit at the current point, in the current direction, never below
+    /// the creep speed `sqrt(accel · event)`; capped at one event per tick of `dt`.
+    #[inline]
+    pub fn planned_limit(&self, accel: f64, dt: f64) -> f64 {
+        if !self.has_block || self.walk.events() == 0 {
+            return 0.0;
+        }
+        let b = &self.block;
+        let a2 = 2.0 * accel;
+        let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
+            / self.walk.events() as f64;
+        let s = (done.clamp(0.0, 1.0)) * self.lattice_mm;
+        let (v_behind, v_ahead, to_go, gone) = if self.dir > 0 {
+            (b.v_entry, b.v_exit, self.lattice_mm - s, s)
+        } else {
+            (b.v_exit, b.v_entry, s, self.lattice_mm - s)
+        };
+        let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
+        let creep = (accel * self.event_mm).sqrt();
+        let cap = self.event_mm / dt;
+        v2.sqrt().max(creep).min(b.v_cruise).min(cap)
+    }
+
+    /// Moves the speed towards `target` by at most `dv`, never above `limit` while braking.
+    #[inline]
+    pub fn follow(&mut self, target: f64, limit: f64, dv: f64) {
+        self.speed = if self.speed > target {
+            (self.speed - dv).max(target).min(limit)
+        } else {
+            (self.speed + dv).min(target)
+        };
+    }
+
+    /// The DDA: covers one tick of `dt` at the current speed; `true` when that completes an
+    /// event (at most one per tick: the speed is capped at one event per tick).
+    #[inline]
+    pub fn event_due(&mut self, dt: f64) -> bool {
+        self.phase += self.speed * dt / self.event_mm;
+        if self.phase < 1.0 {
+            return false;
+        }
+        self.phase = (self.phase - 1.0).min(0.999_999);
+        true
+    }
+
+    /// Adds one event's steps to the ledger.
+    #[inline]
+    pub fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
+        for (p, &s) in self.position.iter_mut().zip(steps) {
+            *p += s as i64;
+        }
+    }
+
+    /// Walks forward, emitting nothing, to event `event` of the block in hand (its end if
+    /// `None`), keeping the ledger.
+    pub fn walk_silently_to(&mut self, event: Option<i64>) {
+        let mut scratch = [0i8; MAX_AXES];
+        let end = event.unwrap_or(self.walk.events());
+        while self.walk.event() < end {
+            self.walk.forward(&mut scratch);
+            self.add_steps(&scratch);
+        }
+    }
+}

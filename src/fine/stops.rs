@@ -1,0 +1,57 @@
+//! Programmed and operator stops: the hold, a `G4` dwell's ticks, an `M0`/`M1` pause, and
+//! which blocks have had their stops honoured (a re-advance or a resume does not repeat them).
+
+use crate::buffer::{BlockFlags, StepBlock};
+
+/// What keeps the electrode still, apart from the servo.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Stops {
+    /// Held by the operator (or a pause, a collision, a wire break): brake to a standstill
+    /// under `a_T` and stay there.
+    pub hold: bool,
+    /// Ticks of a `G4` dwell still to wait.
+    pub dwell_left: u64,
+    /// Blocks before this sequence number have had their stops honoured.
+    pub stops_from: u64,
+    /// A pause was met while fetching: reported by the tick that met it.
+    pub paused: bool,
+}
+
+impl Stops {
+    /// A block entered going forward: the first time, its dwell (in ticks of `dt`) and its
+    /// pause are taken on.
+    pub fn on_enter(&mut self, block: &StepBlock, dt: f64) {
+        if block.seq < self.stops_from {
+            return;
+        }
+        self.stops_from = block.seq + 1;
+        if block.dwell_s > 0.0 {
+            self.dwell_left += (block.dwell_s / dt).round() as u64;
+        }
+        if block.flags.contains(BlockFlags::PAUSE) {
+            self.hold = true;
+            self.paused = true;
+        }
+    }
+
+    /// Takes the pause met while fetching, once.
+    pub fn take_pause(&mut self) -> bool {
+        std::mem::take(&mut self.paused)
+    }
+
+    /// Waits one tick of a dwell, if one is owed.
+    pub fn dwell_tick(&mut self) -> bool {
+        if self.dwell_left == 0 {
+            return false;
+        }
+        self.dwell_left -= 1;
+        true
+    }
+
+    /// A resumed job stands where its first run stood: every stop up to here was honoured.
+    pub fn resumed(&mut self) {
+        self.dwell_left = 0;
+        self.paused = false;
+        self.hold = false;
+    }
+}
