@@ -47,7 +47,7 @@ mod stops;
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::servo::{
-    Feeds, GapReading, Law, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
+    Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
 };
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
@@ -223,6 +223,11 @@ impl Interpolator {
         self.servo.law_signal()
     }
 
+    /// What the servo law reads from the gap input beside its state.
+    pub fn law_input(&self) -> LawInput {
+        self.settings.law.input()
+    }
+
     /// One tick with what the gap input read: the servo law classifies it (the voltage law
     /// filters the voltage, the ratio law reads the ratios, the three-state law takes the
     /// state), then [`Interpolator::tick`].
@@ -261,7 +266,7 @@ impl Interpolator {
 
     /// Phase 1: a block in hand. Before the first block, or held by a starvation, asks the
     /// source again; `false` when the program has ended.
-    #[inline]
+    #[inline(always)]
     fn acquire<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
         if self.motion.has_block || self.servo.state() == ServoState::TurnBack {
             return true;
@@ -280,7 +285,7 @@ impl Interpolator {
     /// Phase 2: what keeps the electrode where it is this tick (a pause, the rest of a probing
     /// move, a broken wire, a dwell), and the events owed from outside the tick. Otherwise
     /// the gap as read (the probe's contact) and as the servo takes it.
-    #[inline]
+    #[inline(always)]
     fn stopped_or_gap<S: BlockSource + ?Sized>(
         &mut self,
         gap: GapState,
@@ -313,7 +318,7 @@ impl Interpolator {
 
     /// Phase 3: direction and feed. A probing move or an excursion goes its own way with the
     /// spark off, a rapid at the planned speed, a cut as the servo law asks.
-    #[inline]
+    #[inline(always)]
     fn decide(&mut self, contact: GapState, gap: GapState, tick: &mut Tick) -> Decision {
         let forward = self.servo.state() == ServoState::Forward;
         let probing = forward && self.motion.holds(BlockFlags::PROBE);
@@ -331,7 +336,7 @@ impl Interpolator {
     /// Positioning with the spark off: no gap servo, the planned speed. A short here is a
     /// collision: stop on the spot (no turn-back into a move that is not a cut) and hold
     /// until released.
-    #[inline]
+    #[inline(always)]
     fn rapid(&mut self, gap: GapState, tick: &mut Tick) -> Decision {
         if gap != GapState::Short {
             return Some((1, f64::INFINITY));
@@ -347,7 +352,7 @@ impl Interpolator {
     /// Cutting: the servo's state machine takes the gap, a short that lasts too long while
     /// turning back is the alarm, the law gives the feed (a machining condition may set the
     /// voltage law's reference or the three-state law's sparking feed), and a jump may be due.
-    #[inline]
+    #[inline(always)]
     fn cut(&mut self, gap: GapState, tick: &mut Tick) -> Decision {
         let here = self.here();
         tick.event = self.servo.on_gap(gap, here);
@@ -376,7 +381,7 @@ impl Interpolator {
     /// Phase 4: turn the decision into motion. Reversing brakes to zero first; going back
     /// past a block's start takes the previous block; the speed follows
     /// `min(feed, planned limit)` under `a_T`; the DDA decides whether an event is due.
-    #[inline]
+    #[inline(always)]
     fn drive<S: BlockSource + ?Sized>(
         &mut self,
         want_dir: i8,

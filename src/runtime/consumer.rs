@@ -32,7 +32,7 @@ use crate::buffer::BlockSource;
 use crate::fine::Interpolator;
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::servo::{Excursion, GapReading, PathPoint, Rethread, ServoEvent, ServoState};
+use crate::servo::{Excursion, GapReading, LawInput, PathPoint, Rethread, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{MAX_AXES, Steps};
 
@@ -124,6 +124,25 @@ pub struct Published {
 /// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
 pub const LATENCY_BUCKETS_US: [u64; 13] =
     [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000];
+
+/// The reading the servo law takes: the input's state, and the voltage or the ratios if the
+/// law reads them (they are not asked for otherwise).
+#[inline]
+fn read_for<G: GapSensor + ?Sized>(input: LawInput, gap: GapState, sensor: &G) -> GapReading {
+    match input {
+        LawInput::State => GapReading::state(gap),
+        LawInput::Volts => GapReading {
+            state: gap,
+            volts: sensor.volts(),
+            ratios: None,
+        },
+        LawInput::Ratios => GapReading {
+            state: gap,
+            volts: None,
+            ratios: sensor.ratios(),
+        },
+    }
+}
 
 /// A rethread asked for by the supervisor and taken by the consumer's loop, once: one
 /// atomic, so the real-time loop never waits for it.
@@ -343,6 +362,7 @@ where
     let mut tick_no: u64 = 0;
     // What the machine is doing, as the output was last told.
     let mut activity = Activity::default();
+    let law_input = fine.law_input();
     loop {
         if let Some(histogram) = latency.as_mut() {
             sys::sleep_until_ns(deadline);
@@ -385,11 +405,7 @@ where
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
         fine.set_wire_input(sensor.wire_broken());
-        let reading = GapReading {
-            state: gap,
-            volts: sensor.volts(),
-            ratios: sensor.ratios(),
-        };
+        let reading = read_for(law_input, gap, sensor);
         let tick = fine.tick_measured(reading, source);
         let block = fine.block();
         let excursion = fine.state().spark_off();

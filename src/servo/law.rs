@@ -35,6 +35,28 @@ pub enum Law {
     },
 }
 
+/// What a law reads from the gap input beside its state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LawInput {
+    /// The state alone (the three-state law).
+    State,
+    /// The gap voltage (the voltage law).
+    Volts,
+    /// The open and short ratios of the last window (the ratio law).
+    Ratios,
+}
+
+impl Law {
+    /// What this law reads: the consumer's loop asks the input for that and nothing else.
+    pub fn input(&self) -> LawInput {
+        match self {
+            Law::ThreeState => LawInput::State,
+            Law::Voltage { .. } => LawInput::Volts,
+            Law::Ratio { .. } => LawInput::Ratios,
+        }
+    }
+}
+
 /// What the gap input read this tick: its state, and what it measured beside it (the gap
 /// voltage, V; the open and short ratios of its last window).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,8 +99,9 @@ pub(crate) struct VoltageLaw {
     pub gain: f64,
     pub short_v: f64,
     pub open_v: f64,
-    /// The filter's share of one tick, `dt / tau` at most 1 (1: no filter).
+    /// Filter time constant (s); 0 for none.
     pub tau: f64,
+    /// Tick period (s).
     pub dt: f64,
 }
 
@@ -131,6 +154,7 @@ impl GapLaw {
 
     /// The gap state of this tick's reading; the law keeps what it measured. A reading
     /// without what the law measures keeps the input's state (and the law's last value).
+    #[inline]
     pub(crate) fn classify(&mut self, reading: &GapReading) -> GapState {
         match self {
             GapLaw::ThreeState => reading.state,
@@ -170,6 +194,7 @@ impl GapLaw {
     /// The proportional law's signal, reference and gain, once it has a signal (`v_ref`:
     /// a machining condition's reference voltage, 0 for the law's own); `None` for the
     /// three-state law or before the first measurement.
+    #[inline]
     pub(crate) fn proportional(&self, v_ref: f32) -> Option<(f64, f64, f64)> {
         match *self {
             GapLaw::ThreeState => None,

@@ -39,7 +39,7 @@
 
 mod law;
 
-pub use law::{GapReading, Law};
+pub use law::{GapReading, Law, LawInput};
 
 use crate::vocab::GapState;
 use crate::words::{Packed, packed_struct};
@@ -393,6 +393,7 @@ impl Servo {
     }
 
     /// This tick's gap state, as the law reads what the input measured.
+    #[inline]
     pub fn classify(&mut self, reading: &GapReading) -> GapState {
         self.law.classify(reading)
     }
@@ -403,6 +404,7 @@ impl Servo {
     }
 
     /// The three-state law is in force (a machining condition's feed applies to it).
+    #[inline]
     pub fn three_state(&self) -> bool {
         self.law.is_three_state()
     }
@@ -410,6 +412,7 @@ impl Servo {
     /// Direction and feed while cutting: the proportional law's once it has a signal (with
     /// a machining condition's reference voltage `v_ref`, 0 for the law's own), the gap
     /// state's otherwise.
+    #[inline]
     pub fn law_motion(&self, gap: GapState, v_ref: f32) -> (i8, f64) {
         match self.law.proportional(v_ref) {
             Some((signal, reference, gain)) => {
@@ -421,6 +424,7 @@ impl Servo {
 
     /// Counts a tick of the gap at `here`: while turning back on a short, a short that has
     /// lasted `max_short_ticks` raises the alarm (returned); anything else resets the count.
+    #[inline]
     pub fn count_short(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
         if gap == GapState::Short && self.state == ServoState::TurnBack {
             self.short_ticks += 1;
@@ -646,6 +650,7 @@ impl Servo {
     /// Direction and feed under a proportional law for a sparking gap whose `signal` is the
     /// filtered voltage, or the ratio law's `open − short`: `gain · (signal − reference)`,
     /// backing off (negative) at up to the retract feed.
+    #[inline]
     fn proportional_motion(
         &self,
         gap: GapState,
@@ -667,6 +672,7 @@ impl Servo {
     }
 
     /// Direction (+1 forward, -1 backward, 0 still) and feed (mm/s) for this tick's gap state.
+    #[inline]
     pub fn motion(&self, gap: GapState) -> (i8, f64) {
         let gap_feed = match gap {
             GapState::Open => self.feeds.open,

@@ -24,7 +24,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         letters: &Letters,
         col: usize,
     ) -> Step<Option<Block>> {
-        let plane = self.modal.plane;
+        let plane = self.state.modal.plane;
         let [la, lb] = plane.axis_letters();
         let [oa, ob] = plane.offset_letters();
         let context = format!("in {} ({}) arcs", plane.g_code(), plane.name());
@@ -56,8 +56,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 .into());
         };
         let feed = self.feed_limit(col);
-        let (end, _) = self.target(&self.position, letters, "")?;
-        let start = self.position;
+        let (end, _) = self.target(&self.state.position, letters, "")?;
+        let start = self.state.position;
         for (i, axis) in self.axes.iter().enumerate() {
             if i != ia && i != ib && end[i] != start[i] {
                 let w = letters.get(axis.letter()).map_or(col, |w| w.col);
@@ -111,9 +111,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let s = self.scale();
             let va = off_a.map(|w| w.value * s);
             let vb = off_b.map(|w| w.value * s);
-            if self.modal.arc_centre_absolute {
-                center[ia] = va.map_or(start[ia], |v| v + self.offset[ia]);
-                center[ib] = vb.map_or(start[ib], |v| v + self.offset[ib]);
+            if self.state.modal.arc_centre_absolute {
+                center[ia] = va.map_or(start[ia], |v| v + self.state.offset[ia]);
+                center[ib] = vb.map_or(start[ib], |v| v + self.state.offset[ib]);
             } else {
                 center[ia] = start[ia] + va.unwrap_or(0.0);
                 center[ib] = start[ib] + vb.unwrap_or(0.0);
@@ -150,7 +150,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let curve = circular_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
             .map_err(|e| Fail::from((col, e.into())))?;
         let radius = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
-        self.position = end;
+        self.state.position = end;
         Ok(Some(self.block(
             line_no,
             BlockKind::Arc {

@@ -139,16 +139,17 @@ fn control(msg: String) -> GcodeErrorKind {
 
 impl<R: BufRead + Seek> BlockReader<R> {
     fn seek(&mut self, pos: Pos) -> Step<()> {
-        self.lines
+        self.program
+            .lines
             .seek(pos)
             .map_err(|e| Fail::from((1, GcodeErrorKind::Io(e))))
     }
 
     fn start_skip(&mut self, label: Option<Label>, purpose: Purpose, what: &'static str) {
-        self.flow.skip = Some(Skip {
+        self.program.flow.skip = Some(Skip {
             label,
             purpose,
-            from_line: self.line_no,
+            from_line: self.scratch.line_no,
             what,
         });
     }
@@ -156,12 +157,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// A line read while skipping: `true` if the skip ended on it and the line is to be
     /// processed as usual (a `do` loop's closing `while`), `false` if it was consumed.
     pub(super) fn skip_line(&mut self, text: &str) -> Step<bool> {
-        let Some(skip) = self.flow.skip.clone() else {
+        let Some(skip) = self.program.flow.skip.clone() else {
             return Ok(true);
         };
         if skip.purpose == Purpose::FanucBody {
             if has_m99(text) {
-                self.flow.skip = None;
+                self.program.flow.skip = None;
             }
             return Ok(false);
         }
@@ -173,20 +174,20 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         match (skip.purpose, o.keyword) {
             (Purpose::FalseIf, Keyword::Elseif) if self.condition(text, &o)? => {
-                self.flow.ifs.push((o.label, self.line_no));
-                self.flow.skip = None;
+                self.program.flow.ifs.push((o.label, self.scratch.line_no));
+                self.program.flow.skip = None;
             }
             (Purpose::FalseIf, Keyword::Else) => {
-                self.flow.ifs.push((o.label, self.line_no));
-                self.flow.skip = None;
+                self.program.flow.ifs.push((o.label, self.scratch.line_no));
+                self.program.flow.skip = None;
             }
             (Purpose::FalseIf | Purpose::IfDone, Keyword::Endif)
             | (Purpose::SubBody, Keyword::Endsub)
             | (Purpose::LoopExit, Keyword::Endwhile | Keyword::Endrepeat | Keyword::While) => {
-                self.flow.skip = None;
+                self.program.flow.skip = None;
             }
             (Purpose::DoContinue, Keyword::While) => {
-                self.flow.skip = None;
+                self.program.flow.skip = None;
                 return Ok(true);
             }
             _ => {}
@@ -204,7 +205,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             )),
             at: Some((line, String::new())),
         };
-        if let Some(frame) = self.flow.frames.last() {
+        if let Some(frame) = self.program.flow.frames.last() {
             let what = match &frame.kind {
                 CallKind::OWord { label, .. } => format!("{label} endsub"),
                 CallKind::Fanuc { .. } => "M99".to_string(),
@@ -218,7 +219,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 at: Some((frame.call_line, String::new())),
             });
         }
-        if let Some(l) = self.flow.loops.last() {
+        if let Some(l) = self.program.flow.loops.last() {
             let what = match l.kind {
                 LoopKind::While { .. } => "endwhile",
                 LoopKind::Do { .. } => "while",
@@ -226,10 +227,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
             };
             return Some(open(&l.label, l.line, what));
         }
-        if let Some((label, line)) = self.flow.ifs.last() {
+        if let Some((label, line)) = self.program.flow.ifs.last() {
             return Some(open(label, *line, "endif"));
         }
-        let skip = self.flow.skip.as_ref()?;
+        let skip = self.program.flow.skip.as_ref()?;
         let label = skip
             .label
             .as_ref()
@@ -296,8 +297,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// One more run of a loop's body or of a subroutine (`what` names it for the error):
     /// spent from the program's budget.
     fn spend(&mut self, what: impl FnOnce() -> String) -> Step<()> {
-        self.flow.spent += 1;
-        if self.flow.spent > self.options.max_loop_iterations {
+        self.program.flow.spent += 1;
+        if self.program.flow.spent > self.options.max_loop_iterations {
             return Err(Fail {
                 col: 1,
                 kind: GcodeErrorKind::FlowBudget {
@@ -333,16 +334,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let mismatch = |what: &str| -> Fail { (o.col, control(format!("{shown}: {what}"))).into() };
         match o.keyword {
             Keyword::Sub => {
-                if !self.flow.frames.is_empty() {
+                if !self.program.flow.frames.is_empty() {
                     return Err(mismatch("a subroutine cannot be defined inside another"));
                 }
-                let body = self.lines.position();
-                self.flow.subs.insert(label.clone(), body);
+                let body = self.program.lines.position();
+                self.program.flow.subs.insert(label.clone(), body);
                 self.start_skip(Some(label), Purpose::SubBody, "endsub");
             }
             Keyword::Endsub | Keyword::Return => {
                 let value = self.one_argument(text, &o, false)?;
-                match self.flow.frames.last() {
+                match self.program.flow.frames.last() {
                     // LinuxCNC lets `return` carry any label (its own `retval.ngc` returns
                     // with the label of the `if` around it); `endsub` must name the sub.
                     Some(Frame {
@@ -353,9 +354,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     None => return Err(mismatch("not inside a call of this subroutine")),
                 }
                 if let Some(v) = value {
-                    self.params.set(&ParamRef::Named("_value".into()), v);
+                    self.state.params.set(&ParamRef::Named("_value".into()), v);
                 }
-                self.params.set(
+                self.state.params.set(
                     &ParamRef::Named("_value_returned".into()),
                     if value.is_some() { 1.0 } else { 0.0 },
                 );
@@ -366,48 +367,48 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 if args.len() > ARGUMENTS {
                     return Err(mismatch("at most 30 arguments"));
                 }
-                let body = match self.flow.subs.get(&label) {
+                let body = match self.program.flow.subs.get(&label) {
                     Some(&p) => p,
                     None => self.find_ahead(
-                        |reader| reader.flow.subs.get(&label).copied(),
+                        |reader| reader.program.flow.subs.get(&label).copied(),
                         &label.to_string(),
                         o.col,
                     )?,
                 };
                 self.check_depth(o.col)?;
-                let line = self.line_no;
+                let line = self.scratch.line_no;
                 self.spend(|| format!("the call of {label} at line {line}"))?;
-                let saved = Box::new(self.params.enter(&args));
+                let saved = Box::new(self.state.params.enter(&args));
                 self.push_frame(CallKind::OWord { label, saved });
                 self.seek(body)?;
             }
             Keyword::If => {
                 if self.condition(text, &o)? {
-                    self.flow.ifs.push((label, self.line_no));
+                    self.program.flow.ifs.push((label, self.scratch.line_no));
                 } else {
                     self.start_skip(Some(label), Purpose::FalseIf, "elseif, else or endif");
                 }
             }
             Keyword::Elseif | Keyword::Else => {
-                if self.flow.ifs.last().map(|(l, _)| l) != Some(&label) {
+                if self.program.flow.ifs.last().map(|(l, _)| l) != Some(&label) {
                     return Err(mismatch("without its if"));
                 }
-                self.flow.ifs.pop();
+                self.program.flow.ifs.pop();
                 self.start_skip(Some(label), Purpose::IfDone, "endif");
             }
             Keyword::Endif => {
-                if self.flow.ifs.pop().map(|(l, _)| l) != Some(label) {
+                if self.program.flow.ifs.pop().map(|(l, _)| l) != Some(label) {
                     return Err(mismatch("without its if"));
                 }
             }
             Keyword::While => {
                 let closes_do = matches!(
-                    self.flow.loops.last(),
+                    self.program.flow.loops.last(),
                     Some(Loop { label: l, kind: LoopKind::Do { .. }, .. }) if *l == label
                 );
                 let truth = self.condition(text, &o)?;
                 if closes_do {
-                    let top = self.flow.loops.last_mut().expect("checked above");
+                    let top = self.program.flow.loops.last_mut().expect("checked above");
                     if truth {
                         top.iterations += 1;
                         let line = top.line;
@@ -417,40 +418,40 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         self.spend(|| format!("the loop {label} at line {line}"))?;
                         self.seek(body)?;
                     } else {
-                        self.flow.loops.pop();
+                        self.program.flow.loops.pop();
                     }
                     return Ok(());
                 }
-                let iterations = match self.flow.reenter.take() {
+                let iterations = match self.program.flow.reenter.take() {
                     Some((l, n)) if l == label => n + 1,
                     _ => 0,
                 };
                 if truth {
-                    let line = self.line_no;
+                    let line = self.scratch.line_no;
                     self.spend(|| format!("the loop {label} at line {line}"))?;
                     let at = Pos {
-                        offset: self.line_start,
-                        line: self.line_no,
+                        offset: self.scratch.line_start,
+                        line: self.scratch.line_no,
                     };
-                    self.flow.loops.push(Loop {
+                    self.program.flow.loops.push(Loop {
                         label,
                         kind: LoopKind::While { at },
                         iterations,
-                        line: self.line_no,
+                        line: self.scratch.line_no,
                     });
                 } else {
                     self.start_skip(Some(label), Purpose::LoopExit, "endwhile");
                 }
             }
             Keyword::Do => {
-                let line = self.line_no;
+                let line = self.scratch.line_no;
                 self.spend(|| format!("the loop {label} at line {line}"))?;
-                let body = self.lines.position();
-                self.flow.loops.push(Loop {
+                let body = self.program.lines.position();
+                self.program.flow.loops.push(Loop {
                     label,
                     kind: LoopKind::Do { body },
                     iterations: 0,
-                    line: self.line_no,
+                    line: self.scratch.line_no,
                 });
             }
             Keyword::Repeat => {
@@ -458,19 +459,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 if n < 1.0 {
                     self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
                 } else {
-                    let line = self.line_no;
+                    let line = self.scratch.line_no;
                     let what = || format!("the loop {label} at line {line}");
                     self.count_fits(what, n as u64, o.rest_col + 1)?;
                     self.spend(what)?;
-                    let body = self.lines.position();
-                    self.flow.loops.push(Loop {
+                    let body = self.program.lines.position();
+                    self.program.flow.loops.push(Loop {
                         label,
                         kind: LoopKind::Repeat {
                             body,
                             remaining: n as u64,
                         },
                         iterations: 0,
-                        line: self.line_no,
+                        line: self.scratch.line_no,
                     });
                 }
             }
@@ -480,15 +481,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 };
                 match (o.keyword, top.kind) {
                     (Keyword::Endwhile | Keyword::Continue, LoopKind::While { at }) => {
-                        let top = self.flow.loops.pop().expect("found above");
-                        self.flow.reenter = Some((label, top.iterations));
+                        let top = self.program.flow.loops.pop().expect("found above");
+                        self.program.flow.reenter = Some((label, top.iterations));
                         self.seek(at)?;
                     }
                     (
                         Keyword::Endrepeat | Keyword::Continue,
                         LoopKind::Repeat { body, remaining },
                     ) => {
-                        let top = self.flow.loops.last_mut().expect("found above");
+                        let top = self.program.flow.loops.last_mut().expect("found above");
                         top.iterations += 1;
                         if remaining > 1 {
                             top.kind = LoopKind::Repeat {
@@ -499,7 +500,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                             self.spend(|| format!("the loop {label} at line {line}"))?;
                             self.seek(body)?;
                         } else {
-                            self.flow.loops.pop();
+                            self.program.flow.loops.pop();
                             if o.keyword == Keyword::Continue {
                                 self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
                             }
@@ -520,7 +521,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     LoopKind::Do { .. } => "while",
                     LoopKind::Repeat { .. } => "endrepeat",
                 };
-                self.flow.loops.pop();
+                self.program.flow.loops.pop();
                 self.start_skip(Some(label), Purpose::LoopExit, what);
             }
         }
@@ -529,15 +530,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// The innermost loop if it is `label`'s (a loop of the current call only).
     fn current_loop(&self, label: &Label) -> Option<&Loop> {
-        let floor = self.flow.frames.last().map_or(0, |f| f.loops);
-        (self.flow.loops.len() > floor)
-            .then(|| self.flow.loops.last())
+        let floor = self.program.flow.frames.last().map_or(0, |f| f.loops);
+        (self.program.flow.loops.len() > floor)
+            .then(|| self.program.flow.loops.last())
             .flatten()
             .filter(|l| l.label == *label)
     }
 
     fn check_depth(&self, col: usize) -> Step<()> {
-        if self.flow.frames.len() >= MAX_CALL_DEPTH {
+        if self.program.flow.frames.len() >= MAX_CALL_DEPTH {
             return Err((
                 col,
                 GcodeErrorKind::CallDepth {
@@ -552,21 +553,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
     fn push_frame(&mut self, kind: CallKind) {
         let frame = Frame {
             kind,
-            return_to: self.lines.position(),
-            call_line: self.line_no,
-            loops: self.flow.loops.len(),
-            ifs: self.flow.ifs.len(),
+            return_to: self.program.lines.position(),
+            call_line: self.scratch.line_no,
+            loops: self.program.flow.loops.len(),
+            ifs: self.program.flow.ifs.len(),
         };
-        self.flow.frames.push(frame);
+        self.program.flow.frames.push(frame);
     }
 
     fn return_from_call(&mut self) -> Step<()> {
-        let frame = self.flow.frames.pop().expect("caller checked");
+        let frame = self.program.flow.frames.pop().expect("caller checked");
         if let CallKind::OWord { saved, .. } = &frame.kind {
-            self.params.leave(saved);
+            self.state.params.leave(saved);
         }
-        self.flow.loops.truncate(frame.loops);
-        self.flow.ifs.truncate(frame.ifs);
+        self.program.flow.loops.truncate(frame.loops);
+        self.program.flow.ifs.truncate(frame.ifs);
         self.seek(frame.return_to)
     }
 
@@ -581,14 +582,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
         if count == 0 {
             return Ok(());
         }
-        let line = self.line_no;
+        let line = self.scratch.line_no;
         let what = || format!("M98 P{number} at line {line}");
         self.count_fits(what, count, count_col)?;
         self.spend(what)?;
-        let body = match self.flow.fanuc_subs.get(&number) {
+        let body = match self.program.flow.fanuc_subs.get(&number) {
             Some(&p) => p,
             None => self.find_ahead(
-                |reader| reader.flow.fanuc_subs.get(&number).copied(),
+                |reader| reader.program.flow.fanuc_subs.get(&number).copied(),
                 &format!("O{number}"),
                 col,
             )?,
@@ -603,7 +604,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// `M99`: the end of a Fanuc subprogram.
     pub(super) fn return_fanuc(&mut self, col: usize) -> Step<()> {
-        match self.flow.frames.last_mut() {
+        match self.program.flow.frames.last_mut() {
             Some(Frame {
                 kind: CallKind::Fanuc {
                     remaining, body, ..
@@ -613,7 +614,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 if *remaining > 0 {
                     *remaining -= 1;
                     let body = *body;
-                    let line = self.flow.frames.last().map_or(0, |f| f.call_line);
+                    let line = self.program.flow.frames.last().map_or(0, |f| f.call_line);
                     self.spend(|| format!("the M98 at line {line}"))?;
                     return self.seek(body);
                 }
@@ -642,8 +643,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// A Fanuc program number met in the flow after the first block: a subprogram's start.
     /// Its body is noted and skipped up to its `M99`.
     pub(super) fn fanuc_definition(&mut self, number: u32) {
-        let body = self.lines.position();
-        self.flow.fanuc_subs.insert(number, body);
+        let body = self.program.lines.position();
+        self.program.flow.fanuc_subs.insert(number, body);
         self.start_skip(None, Purpose::FanucBody, "M99");
     }
 
@@ -655,13 +656,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
         name: &str,
         col: usize,
     ) -> Step<Pos> {
-        let back = self.lines.position();
-        let line_no = self.line_no;
+        let back = self.program.lines.position();
+        let line_no = self.scratch.line_no;
         let io = |e| Fail::from((col, GcodeErrorKind::Io(e)));
         let result = loop {
             self.cancelled()?;
-            let start = self.lines.position().offset;
-            let Some((line_no, line)) = self.lines.next_line().map_err(io)? else {
+            let start = self.program.lines.position().offset;
+            let Some((line_no, line)) = self.program.lines.next_line().map_err(io)? else {
                 break None;
             };
             let Line::Text(text) = line else { continue };
@@ -673,18 +674,18 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 ..
             }) = oword_of(&text)
             {
-                let body = self.lines.position();
-                self.flow.subs.entry(label).or_insert(body);
+                let body = self.program.lines.position();
+                self.program.flow.subs.entry(label).or_insert(body);
             } else if let Some(n) = program_number_of(&text) {
-                let body = self.lines.position();
-                self.flow.fanuc_subs.entry(n).or_insert(body);
+                let body = self.program.lines.position();
+                self.program.flow.fanuc_subs.entry(n).or_insert(body);
             }
             if let Some(pos) = found(self) {
                 break Some(pos);
             }
         };
         self.seek(back)?;
-        self.line_no = line_no;
+        self.scratch.line_no = line_no;
         result.ok_or_else(|| {
             Fail::from((
                 col,

@@ -13,6 +13,7 @@ mod comp;
 mod control;
 mod modal;
 mod nurbs;
+mod state;
 mod structure;
 mod system;
 
@@ -22,17 +23,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
-use super::expr::Params;
-use super::lexer::{Assign, Word, lex, oword_of, program_number_of};
-use super::lines::{Line, LineSource, MAX_LINE_BYTES, Pos};
-use super::{Block, Plane, ProgramOptions};
+use super::lexer::{Word, lex, oword_of, program_number_of};
+use super::lines::{Line, LineSource, MAX_LINE_BYTES};
+use super::{Block, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
 use comp::Compensator;
-use control::Flow;
-use modal::Modal;
-use nurbs::PendingCurve;
-use structure::Structure;
+use state::{Diagnostics, InterpState, LineScratch, Output, ProgramFlow};
 use system::ReaderEnv;
 
 pub use arc::ARC_RADIUS_TOLERANCE_MM;
@@ -92,52 +89,14 @@ impl<'w> Letters<'w> {
 
 /// Reads a program one block at a time. See the module docs of [`crate::gcode`].
 pub struct BlockReader<R> {
-    lines: LineSource<R>,
     options: ProgramOptions,
-    params: Params,
-    flow: Flow,
-    /// The O-word structure of the text, checked once per line in file order.
-    structure: Structure,
-    /// The first line not yet shown to `structure`.
-    scanned: Pos,
-    assigns: Vec<Assign>,
-    /// G92 offset, mm: machine position = program position + offset.
-    offset: Point,
-    /// The offset G92.2 suspended, for G92.3.
-    saved_offset: Option<Point>,
-    /// Byte offset where the line being read starts.
-    line_start: u64,
-    /// G4 dwell (s) and M0/M1 pause waiting for the next motion.
-    pending_dwell: f64,
-    pending_pause: Option<(u64, super::Pause)>,
-    /// M7/M8 on, M9 off.
-    flushing: bool,
-    /// `E<number>` in force (0: none yet).
-    condition: u32,
-    /// G41/G42 wire offset, and the moves it has made final, waiting to be handed out.
-    comp: Compensator,
-    queue: VecDeque<Block>,
     source_name: Arc<str>,
     axes: Vec<Axis>,
-    modal: Modal,
-    position: Point,
-    pending: Option<PendingCurve>,
-    warnings: Vec<Warning>,
-    warned_letters: Vec<char>,
-    /// Warnings given once per program, by what they are about.
-    warned_about: Vec<&'static str>,
-    /// The line being read (for warnings raised deep in a block).
-    line_no: u64,
-    words: Vec<Word>,
-    saw_content: bool,
-    ended_at: Option<u64>,
-    /// Set by another thread to make the reader give up at its next line.
-    cancel: Option<Arc<AtomicBool>>,
-    /// The line of the `%` that closed the program (a tape mark after its first block).
-    closed_at: Option<u64>,
-    /// A block was read (a `%` alone is not one).
-    saw_block: bool,
-    done: bool,
+    state: InterpState,
+    program: ProgramFlow<R>,
+    scratch: LineScratch,
+    out: Output,
+    diag: Diagnostics,
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
@@ -157,46 +116,20 @@ impl<R: BufRead + Seek> BlockReader<R> {
     ) -> Self {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let plane = index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]);
+        let comp = Compensator::new(plane, options.offset_tolerance_mm);
         Self {
-            comp: Compensator::new(plane, options.offset_tolerance_mm),
-            queue: VecDeque::new(),
-            lines: LineSource::new(reader),
             options,
-            params: Params::default(),
-            flow: Flow::default(),
-            structure: Structure::default(),
-            scanned: Pos { offset: 0, line: 1 },
-            assigns: Vec::new(),
-            offset: Point::zeros(),
-            saved_offset: None,
-            line_start: 0,
-            pending_dwell: 0.0,
-            pending_pause: None,
-            flushing: false,
-            condition: 0,
             source_name: source_name.into(),
             axes: axes.to_vec(),
-            modal: Modal {
-                inch: false,
-                incremental: false,
-                arc_centre_absolute: false,
-                plane: Plane::XY,
-                motion: None,
-                feed: None,
+            state: InterpState::new(),
+            program: ProgramFlow::new(LineSource::new(reader)),
+            scratch: LineScratch::default(),
+            out: Output {
+                comp,
+                queue: VecDeque::new(),
+                pending: None,
             },
-            position: Point::zeros(),
-            pending: None,
-            warnings: Vec::new(),
-            warned_letters: Vec::new(),
-            warned_about: Vec::new(),
-            line_no: 0,
-            words: Vec::new(),
-            saw_content: false,
-            ended_at: None,
-            cancel: None,
-            closed_at: None,
-            saw_block: false,
-            done: false,
+            diag: Diagnostics::default(),
         }
     }
 
@@ -204,11 +137,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// reads after `flag` is set: however long the program runs between blocks (loops that
     /// move nothing), a cancel is seen within one line.
     pub fn cancel_on(&mut self, flag: Arc<AtomicBool>) {
-        self.cancel = Some(flag);
+        self.program.cancel = Some(flag);
     }
 
     fn cancelled(&self) -> Step<()> {
-        match &self.cancel {
+        match &self.program.cancel {
             Some(flag) if flag.load(Ordering::Relaxed) => {
                 Err((1, GcodeErrorKind::Cancelled).into())
             }
@@ -218,17 +151,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// Takes the warnings collected so far.
     pub fn take_warnings(&mut self) -> Vec<Warning> {
-        std::mem::take(&mut self.warnings)
+        std::mem::take(&mut self.diag.warnings)
     }
 
     /// Current position in mm, machine axis order.
     pub fn position(&self) -> Point {
-        self.position
+        self.state.position
     }
 
     /// The line of the M2/M30 that ended the program, if one did.
     pub fn program_end_line(&self) -> Option<u64> {
-        self.ended_at
+        self.program.ended_at
     }
 
     fn error(&self, line: u64, text: &str, fail: Fail) -> GcodeError {
@@ -242,7 +175,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             col: fail.col,
             kind: fail.kind,
             text,
-            called_from: self.flow.call_lines(),
+            called_from: self.program.flow.call_lines(),
         }
     }
 
@@ -253,17 +186,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
-            if let Some(block) = self.queue.pop_front() {
+            if let Some(block) = self.out.queue.pop_front() {
                 return Ok(Some(block));
             }
-            if self.done {
+            if self.program.done {
                 return Ok(None);
             }
             if let Err(fail) = self.cancelled() {
-                return Err(self.error(self.line_no, "", fail));
+                return Err(self.error(self.scratch.line_no, "", fail));
             }
-            self.line_start = self.lines.position().offset;
-            let next = self.lines.next_line().map_err(|e| GcodeError {
+            self.scratch.line_start = self.program.lines.position().offset;
+            let next = self.program.lines.next_line().map_err(|e| GcodeError {
                 source_name: self.source_name.clone(),
                 line: 0,
                 col: 0,
@@ -315,27 +248,27 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     }
                 }
             };
-            if let Err(fail) = self.note_structure(self.line_start, line_no, &text) {
+            if let Err(fail) = self.note_structure(self.scratch.line_start, line_no, &text) {
                 return Err(self.error(line_no, &text, fail));
             }
             if let Some(col) = latin1_at {
-                self.line_no = line_no;
+                self.scratch.line_no = line_no;
                 self.warn_once_about(
                     "latin1",
                     col,
                     "a comment is not UTF-8: read as Latin-1 (comments only)".to_string(),
                 );
             }
-            let mut words = std::mem::take(&mut self.words);
+            let mut words = std::mem::take(&mut self.scratch.words);
             let result = self.process_line(line_no, &text, &mut words);
-            self.words = words;
+            self.scratch.words = words;
             match result {
                 Ok(Some(block)) => {
-                    if let Err(e) = self.comp.push(block, &mut self.queue) {
+                    if let Err(e) = self.out.comp.push(block, &mut self.out.queue) {
                         return Err(self.comp_error(e));
                     }
                 }
-                Ok(None) if self.done => self.finish()?,
+                Ok(None) if self.program.done => self.finish()?,
                 Ok(None) => {}
                 Err(fail) => return Err(self.error(line_no, &text, fail)),
             }
@@ -352,21 +285,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
     }
 
     fn finish(&mut self) -> Result<(), GcodeError> {
-        self.done = true;
-        if self.comp.engaged() {
-            self.warnings.push(Warning {
-                line: self.line_no,
+        self.program.done = true;
+        if self.out.comp.engaged() {
+            self.diag.warnings.push(Warning {
+                line: self.scratch.line_no,
                 col: 1,
                 message: "the program ends with the wire offset on (no G40 exit move)".into(),
             });
         }
-        if let Err(e) = self.comp.finish(&mut self.queue) {
+        if let Err(e) = self.out.comp.finish(&mut self.out.queue) {
             return Err(self.comp_error(e));
         }
         if let Err(fail) = self.scan_to_the_end() {
             return Err(self.error(0, "", fail));
         }
-        if let Some((line, message)) = self.structure.unclosed() {
+        if let Some((line, message)) = self.program.structure.unclosed() {
             let fail = Fail {
                 col: 1,
                 kind: GcodeErrorKind::Control(message),
@@ -374,12 +307,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
             };
             return Err(self.error(0, "", fail));
         }
-        if self.ended_at.is_none()
+        if self.program.ended_at.is_none()
             && let Some(fail) = self.unclosed()
         {
             return Err(self.error(0, "", fail));
         }
-        if let Some(p) = &self.pending {
+        if let Some(p) = &self.out.pending {
             let kind = GcodeErrorKind::NurbsUnterminated {
                 form: p.form.name(),
                 start_line: p.start_line,
@@ -392,12 +325,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
             };
             return Err(self.error(0, "", fail));
         }
-        if !self.saw_content {
+        if !self.program.saw_content {
             return Err(self.error(1, "", (1, GcodeErrorKind::EmptyProgram).into()));
         }
         self.trailing_stops();
-        if self.ended_at.is_none() && self.closed_at.is_none() {
-            self.warnings.push(Warning {
+        if self.program.ended_at.is_none() && self.program.closed_at.is_none() {
+            self.diag.warnings.push(Warning {
                 line: 0,
                 col: 0,
                 message: "the program has no M2/M30 end".to_string(),
@@ -412,78 +345,78 @@ impl<R: BufRead + Seek> BlockReader<R> {
         text: &str,
         words: &mut Vec<Word>,
     ) -> Step<Option<Block>> {
-        self.line_no = line_no;
-        if self.flow.skip.is_some() && !self.skip_line(text)? {
+        self.scratch.line_no = line_no;
+        if self.program.flow.skip.is_some() && !self.skip_line(text)? {
             return Ok(None);
         }
-        let mut assigns = std::mem::take(&mut self.assigns);
+        let mut assigns = std::mem::take(&mut self.scratch.assigns);
         let lexed = lex(text, words, &mut assigns, &self.env()).map_err(Fail::from);
         let info = match lexed {
             Ok(info) => info,
             Err(e) => {
-                self.assigns = assigns;
+                self.scratch.assigns = assigns;
                 return Err(e);
             }
         };
         if info.block_delete.is_some() && self.options.block_delete {
-            self.assigns = assigns;
+            self.scratch.assigns = assigns;
             return Ok(None);
         }
         for a in assigns.drain(..) {
-            self.params.set(&a.target, a.value);
+            self.state.params.set(&a.target, a.value);
         }
-        self.assigns = assigns;
+        self.scratch.assigns = assigns;
         if let Some((col, message)) = info.message {
-            self.warnings.push(Warning {
+            self.diag.warnings.push(Warning {
                 line: line_no,
                 col,
                 message: format!("message: {message}"),
             });
         }
         if let Some(o) = info.oword {
-            self.saw_content = true;
-            if self.ended_at.is_some() || self.closed_at.is_some() {
+            self.program.saw_content = true;
+            if self.program.ended_at.is_some() || self.program.closed_at.is_some() {
                 return self.after_end(line_no, text, o.col);
             }
-            if let Some(p) = &self.pending {
+            if let Some(p) = &self.out.pending {
                 let by = format!("{} {}", o.label, o.keyword.name());
                 return Err((o.col, p.interrupted(by, p.close_hint())).into());
             }
-            self.saw_block = true;
+            self.program.saw_block = true;
             self.statement(text, o)?;
             return Ok(None);
         }
         if words.is_empty() && info.percent.is_none() {
             return Ok(None);
         }
-        self.saw_content = true;
-        if self.ended_at.is_some() && words.is_empty() {
+        self.program.saw_content = true;
+        if self.program.ended_at.is_some() && words.is_empty() {
             return Ok(None); // a closing `%`
         }
-        if self.ended_at.is_some() || self.closed_at.is_some() {
+        if self.program.ended_at.is_some() || self.program.closed_at.is_some() {
             return self.after_end(line_no, text, words.first().map_or(1, |w| w.col));
         }
         if words.is_empty() {
             // A tape mark: the opening one before the first block, the closing one after.
-            if self.saw_block {
-                self.closed_at = Some(line_no);
+            if self.program.saw_block {
+                self.program.closed_at = Some(line_no);
             }
             return Ok(None);
         }
-        if self.saw_block
-            && self.pending.is_none()
+        if self.program.saw_block
+            && self.out.pending.is_none()
             && let Some(n) = program_number_of(text)
         {
             // A Fanuc subprogram in the flow (the main program did not end before it).
             self.fanuc_definition(n);
             return Ok(None);
         }
-        self.saw_block = true;
+        self.program.saw_block = true;
         let letters = collect_letters(words)?;
         if let Some(n) = letters.get('N') {
             whole(n, 0.0, 1e9)?;
         }
-        if self.pending.is_some() {
+        if self.out.pending.is_some() {
             return self.continue_curve(&letters, words);
         }
         self.start_block(line_no, text, &letters, words)
@@ -495,15 +428,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// reader meets it for the first time (loops and calls read lines again; the check sees
     /// each line once, in file order).
     fn note_structure(&mut self, start: u64, line_no: u64, text: &str) -> Step<()> {
-        if start < self.scanned.offset {
+        if start < self.program.scanned.offset {
             return Ok(());
         }
-        self.scanned = self.lines.position();
+        self.program.scanned = self.program.lines.position();
         if self.options.block_delete && text.trim_start().starts_with('/') {
             return Ok(());
         }
         match oword_of(text) {
             Some(o) => self
+                .program
                 .structure
                 .note(&o, line_no)
                 .map_err(|(col, message)| Fail {
@@ -519,17 +453,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// of the program's text (subroutines live there): their structure is checked up to the
     /// end of the file or a closing `%`.
     fn scan_to_the_end(&mut self) -> Step<()> {
-        if self.closed_at.is_some() {
+        if self.program.closed_at.is_some() {
             return Ok(());
         }
         let io = |e| Fail::from((1, GcodeErrorKind::Io(e)));
-        if self.lines.position().offset < self.scanned.offset {
-            self.lines.seek(self.scanned).map_err(io)?;
+        if self.program.lines.position().offset < self.program.scanned.offset {
+            self.program.lines.seek(self.program.scanned).map_err(io)?;
         }
         loop {
             self.cancelled()?;
-            let start = self.lines.position().offset;
-            let Some((line_no, line)) = self.lines.next_line().map_err(io)? else {
+            let start = self.program.lines.position().offset;
+            let Some((line_no, line)) = self.program.lines.next_line().map_err(io)? else {
                 return Ok(());
             };
             let Line::Text(text) = line else { continue };
@@ -544,7 +478,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// A line after the program's end (M2/M30 or the closing `%`): ignored with a warning,
     /// and reading stops, as LinuxCNC and Fanuc do. Subprograms there are found by their calls.
     fn after_end(&mut self, line_no: u64, text: &str, col: usize) -> Step<Option<Block>> {
-        let message = match (self.ended_at, self.closed_at) {
+        let message = match (self.program.ended_at, self.program.closed_at) {
             (Some(end_line), _) => {
                 format!("text after the program end (M2/M30 at line {end_line}) is ignored")
             }
@@ -553,12 +487,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             (None, None) => return Ok(None),
         };
-        self.done = true;
+        self.program.done = true;
         if program_number_of(text).is_some() {
             // Fanuc subprograms follow the main program's M30: not "ignored text".
             return Ok(None);
         }
-        self.warnings.push(Warning {
+        self.diag.warnings.push(Warning {
             line: line_no,
             col,
             message,
@@ -645,14 +579,14 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.done && self.queue.is_empty() {
+        if self.program.done && self.out.queue.is_empty() {
             return None;
         }
         match self.next_block() {
             Ok(Some(b)) => Some(Ok(b)),
             Ok(None) => None,
             Err(e) => {
-                self.done = true;
+                self.program.done = true;
                 Some(Err(e))
             }
         }

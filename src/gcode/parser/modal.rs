@@ -96,23 +96,24 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         )
                             .into());
                     }
-                    self.pending_dwell += p.value;
+                    self.state.pending_dwell += p.value;
                     kept = kept.without(&['P']);
                 }
                 GCode::Offset(o) => offset_word = Some((o, w)),
-                GCode::CompOff => self.comp.cancel(),
+                GCode::CompOff => self.out.comp.cancel(),
                 GCode::Comp { left } => {
                     let d = self.wire_offset(w, kept.get('D'))?;
                     kept = kept.without(&['D']);
-                    let plane = self.modal.plane;
-                    self.comp
+                    let plane = self.state.modal.plane;
+                    self.out
+                        .comp
                         .start(left, d, plane)
                         .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
                 }
-                GCode::Inch(inch) => self.modal.inch = inch,
-                GCode::Incremental(inc) => self.modal.incremental = inc,
-                GCode::ArcCentreAbsolute(abs) => self.modal.arc_centre_absolute = abs,
-                GCode::Plane(p) => self.modal.plane = p,
+                GCode::Inch(inch) => self.state.modal.inch = inch,
+                GCode::Incremental(inc) => self.state.modal.incremental = inc,
+                GCode::ArcCentreAbsolute(abs) => self.state.modal.arc_centre_absolute = abs,
+                GCode::Plane(p) => self.state.modal.plane = p,
                 GCode::Accepted(_) => {}
                 GCode::Ignored {
                     takes,
@@ -187,8 +188,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     w.col,
                     "M1 (optional stop) does not pause: program.optional_stop is off".into(),
                 ),
-                7 | 8 => self.flushing = true,
-                9 => self.flushing = false,
+                7 | 8 => self.state.flushing = true,
+                9 => self.state.flushing = false,
                 3..=6 => self.warn_once(
                     line_no,
                     w,
@@ -239,14 +240,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 )
                     .into());
             }
-            self.condition = n;
+            self.state.condition = n;
         }
         if let Some(f) = letters.get('F') {
             // The lexer only yields finite numbers, so this also covers the sign.
             if f.value <= 0.0 {
                 return Err((f.col, GcodeErrorKind::BadFeed).into());
             }
-            self.modal.feed = Some(f.value * self.scale());
+            self.state.modal.feed = Some(f.value * self.scale());
         }
 
         let block = match motion_word {
@@ -263,13 +264,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 return Err((w.col, GcodeErrorKind::NurbsEndWithoutStart).into());
             }
             Some((GCode::MotionCancel, _)) => {
-                self.modal.motion = None;
+                self.state.modal.motion = None;
                 self.check_letters(letters, false, "", "with G80")?;
                 None
             }
             Some((GCode::Motion(m), w)) => {
                 if !matches!(m, Motion::Probe(Probing { one_shot: true, .. })) {
-                    self.modal.motion = Some(m);
+                    self.state.modal.motion = Some(m);
                 }
                 if self.moves(m, letters)? {
                     self.motion_block(m, line_no, letters, w.col)?
@@ -278,7 +279,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     None
                 }
             }
-            _ => match self.modal.motion {
+            _ => match self.state.modal.motion {
                 Some(m) if self.moves(m, letters)? => {
                     self.motion_block(m, line_no, letters, first_col(words))?
                 }
@@ -296,10 +297,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
             },
         };
         if program_end {
-            self.ended_at = Some(line_no);
+            self.program.ended_at = Some(line_no);
         }
         if let Some(p) = pause {
-            self.pending_pause = Some((line_no, p));
+            self.state.pending_pause = Some((line_no, p));
         }
         if let Some((col, count_col, (number, count))) = m98 {
             self.call_fanuc(number, count, col, count_col)?;
@@ -344,24 +345,27 @@ impl<R: BufRead + Seek> BlockReader<R> {
         feed: Option<f64>,
     ) -> Block {
         let mut block = Block::new(line, kind, curve, feed);
-        block.dwell_s = std::mem::take(&mut self.pending_dwell);
-        block.pause = self.pending_pause.take();
-        block.flushing = self.flushing;
-        block.condition = self.condition;
+        block.dwell_s = std::mem::take(&mut self.state.pending_dwell);
+        block.pause = self.state.pending_pause.take();
+        block.flushing = self.state.flushing;
+        block.condition = self.state.condition;
         block
     }
 
     /// A dwell or pause that no motion follows: said once, as it changes nothing.
     pub(super) fn trailing_stops(&mut self) {
-        if self.pending_dwell > 0.0 || self.pending_pause.is_some() {
-            let line = self.pending_pause.map_or(self.line_no, |(l, _)| l);
-            self.warnings.push(Warning {
+        if self.state.pending_dwell > 0.0 || self.state.pending_pause.is_some() {
+            let line = self
+                .state
+                .pending_pause
+                .map_or(self.scratch.line_no, |(l, _)| l);
+            self.diag.warnings.push(Warning {
                 line,
                 col: 1,
                 message: "a dwell or stop after the last motion does nothing".into(),
             });
-            self.pending_dwell = 0.0;
-            self.pending_pause = None;
+            self.state.pending_dwell = 0.0;
+            self.state.pending_pause = None;
         }
     }
 
@@ -372,7 +376,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 let mut any = false;
                 for (i, axis) in self.axes.iter().enumerate() {
                     if let Some(v) = letters.get(axis.letter()) {
-                        self.offset[i] = self.position[i] - v.value * self.scale();
+                        self.state.offset[i] = self.state.position[i] - v.value * self.scale();
                         any = true;
                     }
                 }
@@ -385,29 +389,32 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     )
                         .into());
                 }
-                self.saved_offset = None;
+                self.state.saved_offset = None;
             }
             OffsetCode::Clear => {
-                self.offset = Point::zeros();
-                self.saved_offset = None;
+                self.state.offset = Point::zeros();
+                self.state.saved_offset = None;
             }
             OffsetCode::Suspend => {
-                self.saved_offset = Some(self.offset);
-                self.offset = Point::zeros();
+                self.state.saved_offset = Some(self.state.offset);
+                self.state.offset = Point::zeros();
             }
             OffsetCode::Restore => {
-                if let Some(saved) = self.saved_offset.take() {
-                    self.offset = saved;
+                if let Some(saved) = self.state.saved_offset.take() {
+                    self.state.offset = saved;
                 }
             }
         }
-        let on = self.offset.iter().any(|&o| o != 0.0);
-        self.params
+        let on = self.state.offset.iter().any(|&o| o != 0.0);
+        self.state
+            .params
             .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = G92_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = self.offset[i] / self.scale();
-                self.params.set(&ParamRef::Numbered(G92_ENABLED + 1 + k), v);
+                let v = self.state.offset[i] / self.scale();
+                self.state
+                    .params
+                    .set(&ParamRef::Numbered(G92_ENABLED + 1 + k), v);
             }
         }
         Ok(())
@@ -428,10 +435,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// A warning given once per program for `about`, at the current line.
     pub(super) fn warn_once_about(&mut self, about: &'static str, col: usize, message: String) {
-        if !self.warned_about.contains(&about) {
-            self.warned_about.push(about);
-            self.warnings.push(Warning {
-                line: self.line_no,
+        if !self.diag.warned_about.contains(&about) {
+            self.diag.warned_about.push(about);
+            self.diag.warnings.push(Warning {
+                line: self.scratch.line_no,
                 col,
                 message,
             });
@@ -439,9 +446,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
     }
 
     pub(super) fn warn_once(&mut self, line: u64, w: &Word, message: &str) {
-        if !self.warned_letters.contains(&w.letter) {
-            self.warned_letters.push(w.letter);
-            self.warnings.push(Warning {
+        if !self.diag.warned_letters.contains(&w.letter) {
+            self.diag.warned_letters.push(w.letter);
+            self.diag.warnings.push(Warning {
                 line,
                 col: w.col,
                 message: format!("{}{}: {message}", w.letter, w.text),
@@ -450,7 +457,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
     }
 
     pub(super) fn scale(&self) -> f64 {
-        if self.modal.inch { MM_PER_INCH } else { 1.0 }
+        if self.state.modal.inch {
+            MM_PER_INCH
+        } else {
+            1.0
+        }
     }
 
     pub(super) fn axes_list(&self) -> String {
@@ -532,10 +543,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             if let Some(w) = letters.get(axis.letter()) {
                 let v = w.value * self.scale();
-                p[i] = if self.modal.incremental {
+                p[i] = if self.state.modal.incremental {
                     base[i] + v
                 } else {
-                    v + self.offset[i]
+                    v + self.state.offset[i]
                 };
                 if p[i].abs() > MAX_COORD_MM {
                     return Err((
@@ -559,14 +570,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
     /// it runs at up to the machine maximum, and the operator is told once.
     pub(super) fn feed_limit(&mut self, col: usize) -> Option<f64> {
-        if self.modal.feed.is_none() {
+        if self.state.modal.feed.is_none() {
             self.warn_once_about(
                 "no feed",
                 col,
                 "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
             );
         }
-        self.modal.feed
+        self.state.modal.feed
     }
 
     pub(super) fn motion_block(
@@ -588,17 +599,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         "with G1"
                     },
                 )?;
-                let (target, _) = self.target(&self.position, letters, "")?;
+                let (target, _) = self.target(&self.state.position, letters, "")?;
                 let feed = match motion {
                     Motion::Linear => self.feed_limit(col),
                     _ => None,
                 };
-                if target == self.position {
+                if target == self.state.position {
                     return Ok(None);
                 }
-                let curve = NurbsCurve::line(self.axes.len(), &self.position, &target)
+                let curve = NurbsCurve::line(self.axes.len(), &self.state.position, &target)
                     .map_err(|e| Fail::from((col, e.into())))?;
-                self.position = target;
+                self.state.position = target;
                 let kind = if motion == Motion::Rapid {
                     BlockKind::Rapid
                 } else {
@@ -624,21 +635,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let code = probe.g_code();
         self.check_letters(letters, true, "", "with a probing move")?;
         let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
-        if self.comp.engaged() {
+        if self.out.comp.engaged() {
             return Err(fail(format!(
                 "{code} under a wire offset: cancel G41/G42 with G40 before probing"
             )));
         }
-        let Some(feed) = self.modal.feed else {
+        let Some(feed) = self.state.modal.feed else {
             return Err(fail(format!("{code} needs a feed F (the probing speed)")));
         };
-        let (target, _) = self.target(&self.position, letters, "")?;
-        if target == self.position {
+        let (target, _) = self.target(&self.state.position, letters, "")?;
+        if target == self.state.position {
             return Err(fail(format!(
                 "{code} needs an end point away from where it starts"
             )));
         }
-        let curve = NurbsCurve::line(self.axes.len(), &self.position, &target)
+        let curve = NurbsCurve::line(self.axes.len(), &self.state.position, &target)
             .map_err(|e| Fail::from((col, e.into())))?;
         self.warn_once_about(
             "probing",
@@ -648,7 +659,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                  machine goes on from where contact happens"
             ),
         );
-        self.position = target;
+        self.state.position = target;
         Ok(self.block(line_no, BlockKind::Probe(probe), curve, Some(feed)))
     }
 }

@@ -200,30 +200,30 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 .map(|a| a.letter())
                 .filter(|&l| l != 'X' && l != 'Y')
                 .collect();
-            let (_, any) = self.target(&self.position, letters, &off_plane)?;
+            let (_, any) = self.target(&self.state.position, letters, &off_plane)?;
             let p0_weight = if any { 1.0 } else { weight(letters.get('P'))? };
-            curve.points.push(self.position);
+            curve.points.push(self.state.position);
             curve.push_weight(p0_weight, letters.get('P'))?;
             if any {
                 self.add_point(&mut curve, letters, g_word.col)?;
             }
         } else {
             let first = self.add_point(&mut curve, letters, g_word.col)?;
-            let gap = (first - self.position).norm();
+            let gap = (first - self.state.position).norm();
             if gap > CURVE_START_TOLERANCE_MM {
                 return Err((
                     g_word.col,
                     GcodeErrorKind::NurbsStartMismatch {
                         first: self.format_point(&first),
-                        current: self.format_point(&self.position),
+                        current: self.format_point(&self.state.position),
                     },
                 )
                     .into());
             }
             // Within tolerance: start exactly where the tool is, so no step is lost or invented.
-            curve.points[0] = self.position;
+            curve.points[0] = self.state.position;
         }
-        self.pending = Some(curve);
+        self.out.pending = Some(curve);
         Ok(None)
     }
 
@@ -261,7 +261,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let linuxcnc = curve.form == NurbsForm::LinuxCnc;
         let base = match curve.points.first() {
             Some(&start) if linuxcnc => start,
-            _ => curve.points.last().copied().unwrap_or(self.position),
+            _ => curve.points.last().copied().unwrap_or(self.state.position),
         };
         // G38's first line uses C for the point count, even on a machine with a C axis; a G5.2
         // curve takes X and Y only.
@@ -287,7 +287,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     ),
                 );
             }
-            if self.modal.incremental && curve.points.len() >= 2 {
+            if self.state.modal.incremental && curve.points.len() >= 2 {
                 self.warn_once_about(
                     "G5.2 incremental",
                     col,
@@ -331,6 +331,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         words: &[Word],
     ) -> Step<Option<Block>> {
         let mut curve = self
+            .out
             .pending
             .take()
             .expect("continue_curve with a pending curve");
@@ -338,7 +339,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         match result {
             Ok(true) => self.close_curve(curve).map(Some),
             Ok(false) => {
-                self.pending = Some(curve);
+                self.out.pending = Some(curve);
                 Ok(None)
             }
             Err(e) => Err(e),
@@ -475,8 +476,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             knots,
         )
         .map_err(|e| at(e.into()))?;
-        self.position = nurbs.end_point();
-        self.modal.motion = None;
+        self.state.position = nurbs.end_point();
+        self.state.modal.motion = None;
         Ok(self.block(
             curve.start_line,
             BlockKind::Nurbs { form: curve.form },

@@ -17,15 +17,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// end point without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C
     /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
     pub fn probed(&mut self, at: &Point, contact: bool) {
-        self.position = *at;
+        self.state.position = *at;
         let scale = self.scale();
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = (at[i] - self.offset[i]) / scale;
-                self.params.set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
+                let v = (at[i] - self.state.offset[i]) / scale;
+                self.state
+                    .params
+                    .set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
             }
         }
-        self.params.set(
+        self.state.params.set(
             &ParamRef::Numbered(PROBE_PARAMS + 9),
             if contact { 1.0 } else { 0.0 },
         );
@@ -108,11 +110,11 @@ impl<R> ReaderEnv<'_, R> {
     /// Position on the axis `letter` in program units and coordinates (0 if not on the machine).
     fn axis_position(&self, letter: char) -> f64 {
         let r = self.reader;
-        let scale = if r.modal.inch { MM_PER_INCH } else { 1.0 };
+        let scale = if r.state.modal.inch { MM_PER_INCH } else { 1.0 };
         r.axes
             .iter()
             .position(|a| a.letter() == letter)
-            .map_or(0.0, |i| (r.position[i] - r.offset[i]) / scale)
+            .map_or(0.0, |i| (r.state.position[i] - r.state.offset[i]) / scale)
     }
 }
 
@@ -127,7 +129,7 @@ impl<R> Env for ReaderEnv<'_, R> {
     fn numbered(&self, n: usize) -> f64 {
         match n {
             5420..=5428 => self.axis_position(SYSTEM_AXES[n - 5420]),
-            _ => self.reader.params.numbered(n),
+            _ => self.reader.state.params.numbered(n),
         }
     }
 
@@ -135,14 +137,15 @@ impl<R> Env for ReaderEnv<'_, R> {
         let r = self.reader;
         let truth = |b: bool| Some(if b { 1.0 } else { 0.0 });
         match name {
-            "_metric" => truth(!r.modal.inch),
-            "_imperial" => truth(r.modal.inch),
-            "_absolute" => truth(!r.modal.incremental),
-            "_incremental" => truth(r.modal.incremental),
-            "_feed" => {
-                Some(r.modal.feed.unwrap_or(0.0) / if r.modal.inch { MM_PER_INCH } else { 1.0 })
-            }
-            "_line" => Some(r.line_no as f64),
+            "_metric" => truth(!r.state.modal.inch),
+            "_imperial" => truth(r.state.modal.inch),
+            "_absolute" => truth(!r.state.modal.incremental),
+            "_incremental" => truth(r.state.modal.incremental),
+            "_feed" => Some(
+                r.state.modal.feed.unwrap_or(0.0)
+                    / if r.state.modal.inch { MM_PER_INCH } else { 1.0 },
+            ),
+            "_line" => Some(r.scratch.line_no as f64),
             _ => {
                 let mut chars = name.chars();
                 if let (Some('_'), Some(c), None) = (chars.next(), chars.next(), chars.next()) {
@@ -151,7 +154,7 @@ impl<R> Env for ReaderEnv<'_, R> {
                         return Some(self.axis_position(upper));
                     }
                 }
-                r.params.named(name)
+                r.state.params.named(name)
             }
         }
     }

@@ -1,0 +1,137 @@
+//! The reader's parts, by how long what they hold lives (Grbl's `parser_state_t` against
+//! `parser_block_t`):
+//!
+//! - [`InterpState`]: the interpreter's state, from block to block: the modal groups, the
+//!   position, the `G92` offset, the parameters, the M-state (flushing, condition) and the
+//!   stops waiting for the next motion.
+//! - [`ProgramFlow`]: where reading is in the text: the lines, the O-word flow control and
+//!   the structure check, and how the program ends.
+//! - [`LineScratch`]: the line being read, rebuilt every line: its words, its assignments,
+//!   its number and where it starts.
+//! - [`Output`]: what is on its way out: the wire-offset queue, the blocks it made final,
+//!   the NURBS curve being collected.
+//! - [`Diagnostics`]: the warnings, each given once.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use super::comp::Compensator;
+use super::control::Flow;
+use super::modal::Modal;
+use super::nurbs::PendingCurve;
+use super::structure::Structure;
+use crate::gcode::error::Warning;
+use crate::gcode::expr::Params;
+use crate::gcode::lexer::{Assign, Word};
+use crate::gcode::lines::{LineSource, Pos};
+use crate::gcode::{Block, Pause, Plane};
+use crate::geometry::Point;
+
+/// The interpreter's state: what one block leaves for the next.
+pub(super) struct InterpState {
+    pub modal: Modal,
+    /// Program position, mm.
+    pub position: Point,
+    /// G92 offset, mm: machine position = program position + offset.
+    pub offset: Point,
+    /// The offset G92.2 suspended, for G92.3.
+    pub saved_offset: Option<Point>,
+    pub params: Params,
+    /// M7/M8 on, M9 off.
+    pub flushing: bool,
+    /// `E<number>` in force (0: none yet).
+    pub condition: u32,
+    /// G4 dwell (s) and M0/M1 pause waiting for the next motion.
+    pub pending_dwell: f64,
+    pub pending_pause: Option<(u64, Pause)>,
+}
+
+impl InterpState {
+    /// At the machine origin, in G21 G90 G17 G94 with no motion mode and no feed.
+    pub fn new() -> InterpState {
+        InterpState {
+            modal: Modal {
+                inch: false,
+                incremental: false,
+                arc_centre_absolute: false,
+                plane: Plane::XY,
+                motion: None,
+                feed: None,
+            },
+            position: Point::zeros(),
+            offset: Point::zeros(),
+            saved_offset: None,
+            params: Params::default(),
+            flushing: false,
+            condition: 0,
+            pending_dwell: 0.0,
+            pending_pause: None,
+        }
+    }
+}
+
+/// Where reading is in the program's text, and how it ends.
+pub(super) struct ProgramFlow<R> {
+    pub lines: LineSource<R>,
+    pub flow: Flow,
+    /// The O-word structure of the text, checked once per line in file order.
+    pub structure: Structure,
+    /// The first line not yet shown to `structure`.
+    pub scanned: Pos,
+    /// Set by another thread to make the reader give up at its next line.
+    pub cancel: Option<Arc<AtomicBool>>,
+    pub ended_at: Option<u64>,
+    /// The line of the `%` that closed the program (a tape mark after its first block).
+    pub closed_at: Option<u64>,
+    /// A block was read (a `%` alone is not one).
+    pub saw_block: bool,
+    pub saw_content: bool,
+    pub done: bool,
+}
+
+impl<R> ProgramFlow<R> {
+    pub fn new(lines: LineSource<R>) -> ProgramFlow<R> {
+        ProgramFlow {
+            lines,
+            flow: Flow::default(),
+            structure: Structure::default(),
+            scanned: Pos { offset: 0, line: 1 },
+            cancel: None,
+            ended_at: None,
+            closed_at: None,
+            saw_block: false,
+            saw_content: false,
+            done: false,
+        }
+    }
+}
+
+/// The line being read.
+#[derive(Default)]
+pub(super) struct LineScratch {
+    pub words: Vec<Word>,
+    pub assigns: Vec<Assign>,
+    /// The line's number (for warnings raised deep in a block).
+    pub line_no: u64,
+    /// Byte offset where the line starts.
+    pub line_start: u64,
+}
+
+/// What is on its way out of the reader.
+pub(super) struct Output {
+    /// G41/G42 wire offset, and the moves it has made final, waiting to be handed out.
+    pub comp: Compensator,
+    pub queue: VecDeque<Block>,
+    /// A NURBS curve being collected over several lines.
+    pub pending: Option<PendingCurve>,
+}
+
+/// Warnings, each kind given once per program.
+#[derive(Default)]
+pub(super) struct Diagnostics {
+    pub warnings: Vec<Warning>,
+    pub warned_letters: Vec<char>,
+    /// Warnings given once per program, by what they are about.
+    pub warned_about: Vec<&'static str>,
+}
