@@ -29,29 +29,74 @@ impl Core {
         let keep: Vec<String> = running
             .into_iter()
             .map(str::to_string)
-            .chain(self.checkpoint.as_ref().map(|c| c.program_sha256.clone()))
-            .chain(self.job.as_ref().map(|j| j.program_sha256.clone()))
+            .chain(
+                self.checkpoints
+                    .current
+                    .as_ref()
+                    .map(|c| c.program_sha256.clone()),
+            )
+            .chain(self.jobs.job.as_ref().map(|j| j.program_sha256.clone()))
             .map(|sha| format!("{sha}.nc"))
             .collect();
         for entry in entries.flatten() {
             let name = entry.file_name().to_string_lossy().to_string();
             let ours = name.ends_with(".nc");
-            let busy = self.check.is_some() && name.starts_with(".incoming-");
+            let busy = self.jobs.check.is_some() && name.starts_with(".incoming-");
             if ours && !busy && !keep.contains(&name) {
                 let _ = std::fs::remove_file(entry.path());
             }
         }
     }
+}
+
+/// The checkpoint on disk and what went wrong with it: written through here only, so the
+/// status always says whether the file is the one it shows.
+#[derive(Debug, Default)]
+pub(super) struct CheckpointKeeper {
+    /// The checkpoint as last read or written.
+    pub current: Option<Checkpoint>,
+    /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
+    pub read_error: Option<String>,
+    /// Why the last write failed (cleared by the next one that succeeds).
+    pub write_error: Option<CheckpointWriteError>,
+    /// Writes that failed since the daemon started.
+    pub failures: u64,
+}
+
+impl CheckpointKeeper {
+    /// The checkpoint at `path` as the daemon starts: a write that did not finish is
+    /// cleaned up, one that cannot be read is reported and left in place.
+    pub(super) fn open(path: &Path) -> CheckpointKeeper {
+        if Checkpoint::remove_leftover(path) {
+            tracing::warn!(
+                "{}: removed the temporary file of a checkpoint write that did not finish",
+                path.display()
+            );
+        }
+        let mut keeper = CheckpointKeeper::default();
+        match Checkpoint::load(path) {
+            Ok(c) => keeper.current = c,
+            Err(e) => {
+                tracing::error!("{e}; ignoring it (it is left in place)");
+                keeper.read_error = Some(e.to_string());
+            }
+        }
+        if let Some(c) = &keeper.current {
+            tracing::info!(
+                "checkpoint: {} stopped at line {} ({}); `edmd ctl resume{}` continues it",
+                c.program.display(),
+                c.line,
+                c.reason.name(),
+                if c.still { "" } else { " --force" }
+            );
+        }
+        keeper
+    }
 
     /// The checkpoint when a job ends: exact where it stands for every end but "done",
     /// removed when done, and when a resume was refused before anything moved, put back as
     /// it was before the job's write-ahead.
-    pub(super) fn settle_checkpoint(
-        &mut self,
-        job: &Job,
-        stopped_at: Snapshot,
-        summary: &JobSummary,
-    ) {
+    pub(super) fn settle(&mut self, job: &Job, stopped_at: Snapshot, summary: &JobSummary) {
         let reason = Reason::of_outcome(summary.outcome, job.stop_reason);
         let checkpoint_path = job.config.daemon.checkpoint.clone();
         match reason {
@@ -63,20 +108,20 @@ impl Core {
                 }
                 // A failure is logged and in the status; the file on disk stays the moving
                 // one written when motion started, which a resume refuses without --force.
-                let _ = self.write_checkpoint(job, &at, reason, true);
+                let _ = self.write(job, &at, reason, true);
             }
             None if summary.outcome == Outcome::Done => {
                 if let Err(e) = Checkpoint::remove(&checkpoint_path) {
                     tracing::error!("{}: {e}", checkpoint_path.display());
                 }
-                self.checkpoint = None;
+                self.current = None;
             }
             None => {
                 // A refused resume moved nothing: the checkpoint it started from is true
                 // again, as it was.
                 if let Some(cp) = &job.resumed_from {
                     match cp.write_atomic(&checkpoint_path) {
-                        Ok(()) => self.checkpoint = Some(cp.clone()),
+                        Ok(()) => self.current = Some(cp.clone()),
                         Err(e) => {
                             let error = CheckpointWriteError {
                                 path: checkpoint_path.clone(),
@@ -84,7 +129,7 @@ impl Core {
                                 message: e.to_string(),
                             };
                             tracing::error!("{error} (putting it back)");
-                            self.checkpoint_write_error = Some(error);
+                            self.write_error = Some(error);
                         }
                     }
                 }
@@ -95,7 +140,7 @@ impl Core {
     /// Writes the checkpoint of `job` at `at`. A failure is logged (once per run of equal
     /// failures), shown in the status (`checkpoint_write_error`) and returned: the caller
     /// decides whether motion may go on.
-    pub(super) fn write_checkpoint(
+    pub(super) fn write(
         &mut self,
         job: &Job,
         at: &Snapshot,
@@ -142,9 +187,9 @@ impl Core {
                 } else {
                     tracing::info!(edmd_event = "checkpoint", edmd_program = program, "{log}");
                 }
-                self.checkpoint = Some(cp);
-                self.checkpoint_error = None;
-                self.checkpoint_write_error = None;
+                self.current = Some(cp);
+                self.read_error = None;
+                self.write_error = None;
                 Ok(())
             }
             Err(e) => {
@@ -154,7 +199,7 @@ impl Core {
                     message: e.to_string(),
                 };
                 let again = self
-                    .checkpoint_write_error
+                    .write_error
                     .as_ref()
                     .is_some_and(|last| last.message == error.message);
                 if again {
@@ -162,8 +207,8 @@ impl Core {
                 } else {
                     tracing::error!(edmd_event = "checkpoint_failed", "{error}");
                 }
-                self.finished.checkpoint_failures += 1;
-                self.checkpoint_write_error = Some(error.clone());
+                self.failures += 1;
+                self.write_error = Some(error.clone());
                 Err(error)
             }
         }

@@ -7,14 +7,17 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use super::protocol::CheckStatus;
+use super::protocol::{self, CheckStatus};
 use super::refusal::{CheckRefusal, Refusal};
 use super::{Core, CoreMsg, Job, confine, unix_now};
 use crate::checkpoint::{self, Reason};
 use crate::config::{Config, GapKind, OutputKind};
 use crate::record::{EventKind, Recording};
 use crate::runtime::program::{self, JobProgram, Progress};
-use crate::runtime::{self, JobEnd, JobError, JobIo, Outcome, Published, ResumePoint, Snapshot};
+use crate::runtime::{
+    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome,
+    Published, ResumePoint, Snapshot,
+};
 use crate::servo::{Rethread, ServoState};
 
 /// A program copied and checked: ready to run.
@@ -86,6 +89,25 @@ fn copy_and_check(
     Ok((program, check))
 }
 
+/// The jobs: the fine thread that runs them and the port it lends them, the job running,
+/// the check before the next one, and what the ended ones left (the last summary, the
+/// counts).
+pub(super) struct JobControl {
+    pub fine: Arc<FineThread>,
+    /// The parallel port, claimed at startup and lent to each job.
+    pub port_output: Option<BoxedOutput>,
+    pub port_gap: Option<BoxedGap>,
+    pub job: Option<Job>,
+    /// The program being copied and checked before its job starts.
+    pub check: Option<Check>,
+    /// The verdict of the last check.
+    pub last_check: Option<protocol::CheckStatus>,
+    pub next_check_id: u64,
+    pub last: Option<JobSummary>,
+    /// Counts of the jobs that ended (the running one's are added when asked).
+    pub finished: protocol::Counters,
+}
+
 impl Core {
     pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
@@ -100,14 +122,18 @@ impl Core {
     /// Starts copying and checking a program on a worker thread; the verdict comes back as
     /// [`CoreMsg::Checked`]. Returns the check's id.
     pub(super) fn begin_check(&mut self, source: Source, resume: Option<Resume>) -> u64 {
-        self.next_check_id += 1;
-        let id = self.next_check_id;
+        self.jobs.next_check_id += 1;
+        let id = self.jobs.next_check_id;
         let progress = Arc::new(Progress::new());
         let name = match &source {
             Source::Original(path) => path.display().to_string(),
             Source::Copy(program) => program.name.clone(),
         };
-        let (config, dir, tx) = (self.config.clone(), self.copy_dir(), self.to_core.clone());
+        let (config, dir, tx) = (
+            self.config.clone(),
+            self.copy_dir(),
+            self.clients.to_core.clone(),
+        );
         let expect = resume.as_ref().map(|r| r.sha256.clone());
         let worker_progress = progress.clone();
         let spawned = std::thread::Builder::new()
@@ -120,10 +146,10 @@ impl Core {
             });
         if let Err(e) = spawned {
             let result = Err(CheckRefusal::Thread(e));
-            let _ = self.to_core.send(CoreMsg::Checked { id, result });
+            let _ = self.clients.to_core.send(CoreMsg::Checked { id, result });
         }
         tracing::info!("check {id}: {name}: copying and checking");
-        self.check = Some(Check {
+        self.jobs.check = Some(Check {
             id,
             name,
             progress,
@@ -134,7 +160,7 @@ impl Core {
 
     /// The verdict of a check: start the job, or record why not.
     pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, CheckRefusal>) {
-        let Some(check) = self.check.take_if(|c| c.id == id) else {
+        let Some(check) = self.jobs.check.take_if(|c| c.id == id) else {
             return;
         };
         let outcome = if self.shutting_down {
@@ -177,7 +203,7 @@ impl Core {
                 status.error = Some(error.to_string());
             }
         }
-        self.last_check = Some(status);
+        self.jobs.last_check = Some(status);
         self.notify_status();
     }
 
@@ -238,14 +264,14 @@ impl Core {
             motion_settings: checkpoint::motion_settings(&self.keys),
             progress: runtime::ProgressTracker::with_rapids(path_total_mm, rapid_spans, rapid_feed),
             resumed_from: if resumed {
-                self.checkpoint.clone()
+                self.checkpoints.current.clone()
             } else {
                 None
             },
         };
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
-        let old = self.checkpoint.clone();
+        let old = self.checkpoints.current.clone();
         let mut at = Snapshot {
             still: false,
             ..Snapshot::default()
@@ -258,7 +284,7 @@ impl Core {
                 *p = *s;
             }
         }
-        if let Err(error) = self.write_checkpoint(&job, &at, Reason::Moving, false) {
+        if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
             self.give_back_io(&config, io);
             return Err(Refusal::WriteAhead {
                 error,
@@ -279,7 +305,7 @@ impl Core {
             );
         }
         self.prune_copies(Some(&program.sha256));
-        let (fine, tx) = (self.fine.clone(), self.to_core.clone());
+        let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());
         // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
         let spec = runtime::JobSpec::from_config(&config, true);
         let (job_published, job_stop, job_program) =
@@ -309,17 +335,17 @@ impl Core {
         } else {
             format!("running {}: {blocks} blocks{message}", program.name)
         };
-        self.job = Some(job);
+        self.jobs.job = Some(job);
         Ok(text)
     }
 
     /// A job that does not start after all hands the claimed parallel port back.
     fn give_back_io(&mut self, config: &Config, io: JobIo) {
         if config.output.kind == OutputKind::Parport {
-            self.port_output = Some(io.output);
+            self.jobs.port_output = Some(io.output);
         }
         if config.gap.kind == GapKind::Parport {
-            self.port_gap = Some(io.gap);
+            self.jobs.port_gap = Some(io.gap);
         }
     }
 
@@ -333,12 +359,12 @@ impl Core {
         let tracer = (config.output.trace || config.gap.trace).then(|| {
             crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
         });
-        let (output, opened_gap) = match self.port_output.take() {
+        let (output, opened_gap) = match self.jobs.port_output.take() {
             Some(output) => (output, None),
             None => runtime::open_output(config, start)?,
         };
         let port_gap = if config.gap.kind == GapKind::Parport {
-            self.port_gap.take().or(opened_gap)
+            self.jobs.port_gap.take().or(opened_gap)
         } else {
             None
         };
@@ -346,7 +372,7 @@ impl Core {
             Ok(gap) => gap,
             Err(e) => {
                 if config.output.kind == OutputKind::Parport {
-                    self.port_output = Some(output);
+                    self.jobs.port_output = Some(output);
                 }
                 return Err(e);
             }
@@ -373,7 +399,7 @@ impl Core {
     }
 
     pub(super) fn hold(&mut self) -> Result<String, Refusal> {
-        let Some(job) = &mut self.job else {
+        let Some(job) = &mut self.jobs.job else {
             return Err(Refusal::NoJob);
         };
         if job.stop.load(Ordering::Relaxed) {
@@ -395,15 +421,15 @@ impl Core {
     }
 
     pub(super) fn resume(&mut self, force: bool) -> Result<String, Refusal> {
-        if let Some(mut job) = self.job.take() {
+        if let Some(mut job) = self.jobs.job.take() {
             let released = self.release(&mut job);
-            self.job = Some(job);
+            self.jobs.job = Some(job);
             return released;
         }
         self.refuse_if_busy()?;
-        let Some(cp) = self.checkpoint.clone() else {
+        let Some(cp) = self.checkpoints.current.clone() else {
             return Err(Refusal::NothingToResume {
-                why: match &self.checkpoint_error {
+                why: match &self.checkpoints.read_error {
                     Some(e) => e.clone(),
                     None => format!(
                         "no job and no checkpoint ({})",
@@ -472,7 +498,8 @@ impl Core {
         if !job.published.hold.load(Ordering::Acquire) {
             return Err(Refusal::NotHeld);
         }
-        self.write_checkpoint(job, &snap, Reason::Moving, false)
+        self.checkpoints
+            .write(job, &snap, Reason::Moving, false)
             .map_err(|error| Refusal::WriteAhead {
                 error,
                 consequence: "the job stays held",
@@ -489,11 +516,11 @@ impl Core {
     /// After a wire break: back to the start hole along the path (or threading in place);
     /// `resume` then returns to the break point.
     pub(super) fn rethread(&mut self, here: bool) -> Result<String, Refusal> {
-        let Some(mut job) = self.job.take() else {
+        let Some(mut job) = self.jobs.job.take() else {
             return Err(Refusal::NoJob);
         };
         let result = self.rethread_job(&mut job, here);
-        self.job = Some(job);
+        self.jobs.job = Some(job);
         result
     }
 
@@ -507,7 +534,8 @@ impl Core {
         }
         if !here {
             // The way back to the start hole leaves the standstill: write-ahead.
-            self.write_checkpoint(job, &snap, Reason::Moving, false)
+            self.checkpoints
+                .write(job, &snap, Reason::Moving, false)
                 .map_err(|error| Refusal::WriteAhead {
                     error,
                     consequence: "the wire stays where it broke",
@@ -543,12 +571,12 @@ impl Core {
     }
 
     pub(super) fn abort(&mut self) -> Result<String, Refusal> {
-        if let Some(check) = &self.check {
+        if let Some(check) = &self.jobs.check {
             check.progress.cancel();
             tracing::info!("abort: check {} of {} cancelled", check.id, check.name);
             return Ok(format!("cancelling the check of {}", check.name));
         }
-        let Some(job) = &mut self.job else {
+        let Some(job) = &mut self.jobs.job else {
             return Err(Refusal::NoJob);
         };
         job.stop_reason.get_or_insert(Reason::Abort);
@@ -561,18 +589,18 @@ impl Core {
     // ---- signals --------------------------------------------------------------------------
 
     pub(super) fn on_job_done(&mut self, end: JobEnd) {
-        let Some(job) = self.job.take() else {
+        let Some(job) = self.jobs.job.take() else {
             return;
         };
-        self.finished = self.finished.plus(&super::status::job_counters(
+        self.jobs.finished = self.jobs.finished.plus(&super::status::job_counters(
             &job.published,
             &job.published.snapshot(),
         ));
         if job.config.output.kind == OutputKind::Parport {
-            self.port_output = Some(end.output);
+            self.jobs.port_output = Some(end.output);
         }
         if job.config.gap.kind == GapKind::Parport {
-            self.port_gap = Some(end.gap);
+            self.jobs.port_gap = Some(end.gap);
         }
         let summary = end.summary;
         let text = summary.text();
@@ -604,14 +632,14 @@ impl Core {
         for line in lines {
             tracing::info!("job end: {line}");
         }
-        self.settle_checkpoint(&job, end.stopped_at, &summary);
+        self.checkpoints.settle(&job, end.stopped_at, &summary);
         if let Some((dir, recording)) = &job.report {
             match crate::report::write_report(dir, &mut recording.lock(), &summary) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),
                 Err(e) => tracing::error!("{e}"),
             }
         }
-        self.last = Some(summary);
+        self.jobs.last = Some(summary);
         self.prune_copies(None);
         self.notify_status();
     }

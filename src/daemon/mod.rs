@@ -49,9 +49,10 @@ use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 use crate::checkpoint::{Checkpoint, Reason};
 use crate::config::{Config, KeyValues, OutputKind};
 use crate::runtime::{
-    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobSummary, LoopSettings,
-    ProgressTracker, Published,
+    self, FineThread, JobEnd, JobError, LoopSettings, ProgressTracker, Published,
 };
+use checkpoints::CheckpointKeeper;
+use jobs::JobControl;
 use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{Reply, Request};
 use refusal::{NameRefusal, Refusal};
@@ -163,31 +164,21 @@ struct Core {
     keys: KeyValues,
     source: ConfigSource,
     set_log_level: SetLogLevel,
-    fine: Arc<FineThread>,
-    /// The parallel port, claimed at startup and lent to each job.
-    port_output: Option<BoxedOutput>,
-    port_gap: Option<BoxedGap>,
-    job: Option<Job>,
-    /// The program being copied and checked before its job starts.
-    check: Option<jobs::Check>,
-    /// The verdict of the last check.
-    last_check: Option<protocol::CheckStatus>,
-    next_check_id: u64,
-    last: Option<JobSummary>,
-    /// Counts of the jobs that ended (the running one's are added when asked).
-    finished: protocol::Counters,
-    checkpoint: Option<Checkpoint>,
-    /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
-    checkpoint_error: Option<String>,
-    /// Why the last checkpoint write failed (cleared by the next one that succeeds).
-    checkpoint_write_error: Option<refusal::CheckpointWriteError>,
+    jobs: JobControl,
+    checkpoints: CheckpointKeeper,
+    clients: Clients,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
     last_status_line: Instant,
     started: Instant,
-    max_clients: Arc<AtomicUsize>,
-    to_core: Sender<CoreMsg>,
     shutting_down: bool,
+}
+
+/// Who talks to the core: the senders handed to clients, the cap on socket clients, the web
+/// side.
+struct Clients {
+    to_core: Sender<CoreMsg>,
+    max_clients: Arc<AtomicUsize>,
     /// The web side, when `daemon.http` is on.
     http: Option<http::HttpServer>,
 }
@@ -200,28 +191,7 @@ pub fn serve(
     set_log_level: SetLogLevel,
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
-    if Checkpoint::remove_leftover(&config.daemon.checkpoint) {
-        tracing::warn!(
-            "{}: removed the temporary file of a checkpoint write that did not finish",
-            config.daemon.checkpoint.display()
-        );
-    }
-    let (checkpoint, checkpoint_error) = match Checkpoint::load(&config.daemon.checkpoint) {
-        Ok(c) => (c, None),
-        Err(e) => {
-            tracing::error!("{e}; ignoring it (it is left in place)");
-            (None, Some(e.to_string()))
-        }
-    };
-    if let Some(c) = &checkpoint {
-        tracing::info!(
-            "checkpoint: {} stopped at line {} ({}); `edmd ctl resume{}` continues it",
-            c.program.display(),
-            c.line,
-            c.reason.name(),
-            if c.still { "" } else { " --force" }
-        );
-    }
+    let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
     // The port first: if it cannot be claimed, nothing else should start.
     let (port_output, port_gap) = if config.output.kind == OutputKind::Parport {
         let (output, gap) =
@@ -302,27 +272,30 @@ pub fn serve(
         keys,
         source,
         set_log_level,
-        fine,
-        port_output,
-        port_gap,
-        job: None,
-        check: None,
-        last_check: None,
-        next_check_id: 0,
-        last: None,
-        finished: protocol::Counters::default(),
-        checkpoint,
-        checkpoint_error,
-        checkpoint_write_error: None,
+        jobs: JobControl {
+            fine,
+            port_output,
+            port_gap,
+            job: None,
+            check: None,
+            last_check: None,
+            next_check_id: 0,
+            last: None,
+            finished: protocol::Counters::default(),
+        },
+        checkpoints,
+        clients: Clients {
+            to_core,
+            max_clients,
+            http,
+        },
         notifier,
         watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
         last_status_line: Instant::now(),
         started,
-        max_clients,
-        to_core,
         shutting_down: false,
-        http,
     };
+
     core.prune_copies(None);
     core.notifier.send("READY=1");
     core.notify_status();
@@ -427,7 +400,7 @@ impl Core {
                 Err(RecvTimeoutError::Disconnected) => return,
             }
             self.periodic();
-            if self.shutting_down && self.job.is_none() && self.check.is_none() {
+            if self.shutting_down && self.jobs.job.is_none() && self.jobs.check.is_none() {
                 return;
             }
         }
@@ -455,13 +428,13 @@ impl Core {
         if self.shutting_down {
             return Err(Refusal::ShuttingDown);
         }
-        if let Some(job) = &self.job {
+        if let Some(job) = &self.jobs.job {
             return Err(Refusal::JobRunning {
                 state: self.state().name(),
                 program: job.program.clone(),
             });
         }
-        if let Some(check) = &self.check {
+        if let Some(check) = &self.jobs.check {
             return Err(Refusal::Checking {
                 name: check.name.clone(),
                 id: check.id,
@@ -475,7 +448,7 @@ impl Core {
         match signal {
             SIGTERM | SIGINT => {
                 if self.shutting_down {
-                    if let Some(job) = &self.job {
+                    if let Some(job) = &self.jobs.job {
                         tracing::warn!("second stop signal: stopping where it is");
                         job.published.stop.store(true, Ordering::Relaxed);
                     }
@@ -483,11 +456,11 @@ impl Core {
                 }
                 self.shutting_down = true;
                 self.notifier.send("STOPPING=1");
-                if let Some(check) = &self.check {
+                if let Some(check) = &self.jobs.check {
                     tracing::info!("signal {signal}: check {} cancelled", check.id);
                     check.progress.cancel();
                 }
-                match &mut self.job {
+                match &mut self.jobs.job {
                     Some(job) => {
                         tracing::info!(
                             "signal {signal}: controlled stop of {} (braking, then checkpoint)",
@@ -500,7 +473,7 @@ impl Core {
                 }
             }
             SIGHUP => {
-                let running = self.job.is_some();
+                let running = self.jobs.job.is_some();
                 match reload::reload(&self.source, &self.keys, running) {
                     Ok(None) => tracing::info!("reload: nothing changed"),
                     Ok(Some((config, keys, changes))) => {
@@ -512,7 +485,8 @@ impl Core {
                         {
                             tracing::warn!("reload: log.level: {e}");
                         }
-                        self.max_clients
+                        self.clients
+                            .max_clients
                             .store(config.daemon.max_clients, Ordering::Relaxed);
                         self.config = config;
                         self.keys = keys;
@@ -535,7 +509,7 @@ impl Core {
     /// side takes it, the program directory and the host list in force. A token the file no
     /// longer holds validly leaves the old one in force.
     fn reload_http(&mut self) {
-        let Some(server) = &self.http else {
+        let Some(server) = &self.clients.http else {
             return;
         };
         let d = &self.config.daemon;
@@ -557,7 +531,7 @@ impl Core {
     fn periodic(&mut self) {
         self.watchdog();
         let now = Instant::now();
-        if let Some(mut job) = self.job.take() {
+        if let Some(mut job) = self.jobs.job.take() {
             let snap = job.published.snapshot();
             let stopping = job.stop.load(Ordering::Relaxed);
             if job.published.hold.load(Ordering::Relaxed)
@@ -566,7 +540,8 @@ impl Core {
                 && !stopping
                 && !job.hold_checkpointed
                 && self
-                    .write_checkpoint(&job, &snap, Reason::Hold, true)
+                    .checkpoints
+                    .write(&job, &snap, Reason::Hold, true)
                     .is_ok()
             {
                 // A failed write is tried again on the next round (the disk may free up); the
@@ -586,7 +561,7 @@ impl Core {
                 && !snap.state.is_final()
                 && now.duration_since(job.last_checkpoint).as_secs_f64() >= interval
             {
-                let _ = self.write_checkpoint(&job, &snap, Reason::Periodic, false);
+                let _ = self.checkpoints.write(&job, &snap, Reason::Periodic, false);
                 job.last_checkpoint = now;
             }
             job.progress.track(snap.path_mm, now);
@@ -602,7 +577,7 @@ impl Core {
                 );
                 job.overruns_seen = overruns;
             }
-            self.job = Some(job);
+            self.jobs.job = Some(job);
         }
         if let Some(interval) = self.config.daemon.status_interval_s
             && now.duration_since(self.last_status_line).as_secs_f64() >= interval
@@ -621,11 +596,12 @@ impl Core {
             return;
         };
         let ticks = self
+            .jobs
             .job
             .as_ref()
             .map_or(0, |j| j.published.ticks.load(Ordering::Relaxed));
-        let progress = self.fine.heartbeat().wrapping_add(ticks);
-        match gate.check(now, progress, !self.fine.is_finished()) {
+        let progress = self.jobs.fine.heartbeat().wrapping_add(ticks);
+        match gate.check(now, progress, !self.jobs.fine.is_finished()) {
             Watchdog::Wait | Watchdog::Stalled { first: false } => {}
             Watchdog::Ping => self.notifier.send("WATCHDOG=1"),
             Watchdog::Stalled { first: true } => tracing::error!(

@@ -11,8 +11,8 @@ use crate::servo::{Excursion, ServoState};
 
 impl Core {
     pub(super) fn state(&self) -> DaemonState {
-        match &self.job {
-            None if self.check.is_some() => DaemonState::Checking,
+        match &self.jobs.job {
+            None if self.jobs.check.is_some() => DaemonState::Checking,
             None => DaemonState::Idle,
             Some(job) => {
                 let snap = job.published.snapshot();
@@ -45,8 +45,9 @@ impl Core {
     pub(super) fn status(&self) -> Status {
         let config = &self.config;
         // One snapshot for the job's view and its counts, so the two agree.
-        let snapshot = self.job.as_ref().map(|job| job.published.snapshot());
+        let snapshot = self.jobs.job.as_ref().map(|job| job.published.snapshot());
         let job = self
+            .jobs
             .job
             .as_ref()
             .zip(snapshot.as_ref())
@@ -100,16 +101,16 @@ impl Core {
             uptime_s: self.started.elapsed().as_secs_f64(),
             axes: config.machine.axis_names(),
             job,
-            last_job: self.last.clone(),
-            checkpoint: self.checkpoint.as_ref().map(|c| CheckpointStatus {
+            last_job: self.jobs.last.clone(),
+            checkpoint: self.checkpoints.current.as_ref().map(|c| CheckpointStatus {
                 program: c.program.display().to_string(),
                 line: c.line,
                 reason: c.reason.name().to_string(),
                 still: c.still,
                 position_steps: c.position_steps.clone(),
             }),
-            checkpoint_write_error: self.checkpoint_write_error.as_ref().map(|e| e.to_string()),
-            check: match &self.check {
+            checkpoint_write_error: self.checkpoints.write_error.as_ref().map(|e| e.to_string()),
+            check: match &self.jobs.check {
                 Some(c) => {
                     let (phase, done, total) = c.progress.get();
                     Some(CheckStatus {
@@ -123,12 +124,18 @@ impl Core {
                         resume: c.is_resume(),
                     })
                 }
-                None => self.last_check.clone(),
+                None => self.jobs.last_check.clone(),
             },
-            rt_refused: self.fine.rt_refused().to_vec(),
-            counters: match self.job.as_ref().zip(snapshot.as_ref()) {
-                Some((job, snap)) => self.finished.plus(&job_counters(&job.published, snap)),
-                None => self.finished.clone(),
+            rt_refused: self.jobs.fine.rt_refused().to_vec(),
+            counters: {
+                let mut counters = match self.jobs.job.as_ref().zip(snapshot.as_ref()) {
+                    Some((job, snap)) => {
+                        self.jobs.finished.plus(&job_counters(&job.published, snap))
+                    }
+                    None => self.jobs.finished.clone(),
+                };
+                counters.checkpoint_failures = self.checkpoints.failures;
+                counters
             },
         }
     }
