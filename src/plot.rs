@@ -117,6 +117,28 @@ const BOTTOM: f64 = 60.0;
 
 impl Chart {
     pub fn render(&self) -> String {
+        let f = self.frame();
+        let mut svg = String::new();
+        let _ = writeln!(
+            svg,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
+        );
+        let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
+        let _ = writeln!(
+            svg,
+            r#"<text x="{}" y="28" font-size="16" text-anchor="middle">{}</text>"#,
+            WIDTH / 2.0,
+            escape(&self.title)
+        );
+        self.grid_svg(&mut svg, &f);
+        self.series_svg(&mut svg, &f);
+        self.start_svg(&mut svg, &f);
+        svg.push_str("</svg>\n");
+        svg
+    }
+
+    /// The data's extents (and the limits'), padded, made equal in X and Y if asked.
+    fn frame(&self) -> Frame {
         let pts = self.series.iter().flat_map(|s| s.points.iter().copied());
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for (x, y) in pts {
@@ -147,24 +169,22 @@ impl Chart {
             let (hx, hy) = (0.5 * pw / scale, 0.5 * ph / scale);
             (x0, x1, y0, y1) = (cx - hx, cx + hx, cy - hy, cy + hy);
         }
-        let sx = |x: f64| LEFT + (x - x0) / (x1 - x0) * pw;
-        let sy = |y: f64| TOP + ph - (y - y0) / (y1 - y0) * ph;
+        Frame {
+            x0,
+            x1,
+            y0,
+            y1,
+            pw,
+            ph,
+        }
+    }
 
-        let mut svg = String::new();
-        let _ = writeln!(
-            svg,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-        let _ = writeln!(
-            svg,
-            r#"<text x="{}" y="28" font-size="16" text-anchor="middle">{}</text>"#,
-            WIDTH / 2.0,
-            escape(&self.title)
-        );
+    /// The grid, the ticks, the frame, the axis labels and the limit lines.
+    fn grid_svg(&self, svg: &mut String, f: &Frame) {
+        let (x0, x1, y0, y1, pw, ph) = (f.x0, f.x1, f.y0, f.y1, f.pw, f.ph);
         // Grid and ticks.
         for t in ticks(x0, x1) {
-            let x = sx(t);
+            let x = f.sx(t);
             let _ = writeln!(
                 svg,
                 r##"<line x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
@@ -174,7 +194,7 @@ impl Chart {
             );
         }
         for t in ticks(y0, y1) {
-            let y = sy(t);
+            let y = f.sy(t);
             let _ = writeln!(
                 svg,
                 r##"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
@@ -203,7 +223,7 @@ impl Chart {
             escape(&self.y_label)
         );
         for (y, label) in &self.limits {
-            let py = sy(*y);
+            let py = f.sy(*y);
             let _ = writeln!(
                 svg,
                 r##"<line x1="{LEFT}" y1="{py:.1}" x2="{:.1}" y2="{py:.1}" stroke="#c00" stroke-dasharray="6 4"/><text x="{:.1}" y="{:.1}" fill="#c00" text-anchor="end">{}</text>"##,
@@ -213,6 +233,10 @@ impl Chart {
                 escape(label)
             );
         }
+    }
+
+    /// The series, each with its legend entry (one row between the title and the plot).
+    fn series_svg(&self, svg: &mut String, f: &Frame) {
         let mut legend_x = LEFT;
         for s in &self.series {
             match s.style {
@@ -228,8 +252,8 @@ impl Chart {
                             d,
                             "{}{:.2},{:.2} ",
                             if pen_up { "M" } else { "L" },
-                            sx(x),
-                            sy(y)
+                            f.sx(x),
+                            f.sy(y)
                         );
                         pen_up = false;
                     }
@@ -249,8 +273,8 @@ impl Chart {
                         let _ = writeln!(
                             svg,
                             r#"<circle cx="{:.2}" cy="{:.2}" r="1.6" fill="{}"/>"#,
-                            sx(x),
-                            sy(y),
+                            f.sx(x),
+                            f.sy(y),
                             s.color
                         );
                     }
@@ -270,8 +294,12 @@ impl Chart {
             );
             legend_x += 40.0 + 7.0 * s.name.chars().count() as f64;
         }
+    }
+
+    /// The start marker: a circle and an arrow along the first move.
+    fn start_svg(&self, svg: &mut String, f: &Frame) {
         if let Some(((x, y), (dx, dy))) = self.start {
-            let (px, py) = (sx(x), sy(y));
+            let (px, py) = (f.sx(x), f.sy(y));
             // Screen y grows downwards.
             let norm = (dx * dx + dy * dy).sqrt();
             let (ux, uy) = if norm > 0.0 {
@@ -293,8 +321,6 @@ impl Chart {
                 py - 8.0
             );
         }
-        svg.push_str("</svg>\n");
-        svg
     }
 }
 
@@ -330,6 +356,27 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+}
+
+/// The plot area and the data range it shows.
+struct Frame {
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+    /// Plot width and height (px).
+    pw: f64,
+    ph: f64,
+}
+
+impl Frame {
+    fn sx(&self, x: f64) -> f64 {
+        LEFT + (x - self.x0) / (self.x1 - self.x0) * self.pw
+    }
+
+    fn sy(&self, y: f64) -> f64 {
+        TOP + self.ph - (y - self.y0) / (self.y1 - self.y0) * self.ph
+    }
 }
 
 #[cfg(test)]

@@ -42,25 +42,6 @@ const UNSAFE_FILES: &[&str] = &[
 const MAX_LINES: usize = 700;
 /// Longest function under `src/`, tests aside: past it a function does several things.
 const MAX_FN_LINES: usize = 120;
-/// Functions still over the limit, being split (this list only shrinks).
-const LONG_FUNCTIONS_TO_SPLIT: &[&str] = &[
-    "config/parport.rs:validate",
-    "config/validate.rs:validate",
-    "daemon/http/metrics.rs:render",
-    "daemon/jobs.rs:start_job",
-    "daemon/mod.rs:serve",
-    "daemon/protocol.rs:text",
-    "gcode/lexer.rs:lex",
-    "gcode/parser/arc.rs:arc_block",
-    "gcode/parser/control.rs:statement",
-    "gcode/parser/modal.rs:start_block",
-    "plan/charts.rs:write_reports",
-    "plan/mod.rs:plan_program",
-    "plot.rs:render",
-    "preprocess/segmenter.rs:curved_step",
-    "runtime/consumer.rs:run_loop",
-    "runtime/events.rs:log_event",
-];
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -561,30 +542,15 @@ fn functions(text: &str) -> Vec<(String, usize, usize)> {
 #[test]
 fn no_function_under_src_is_longer_than_the_limit_tests_aside() {
     let mut long = Vec::new();
-    let mut still_long = BTreeSet::new();
     for path in rust_files(&root().join("src")) {
         let rel = rel(&path);
         if rel.ends_with("/tests.rs") {
             continue;
         }
         for (name, line, n) in functions(&std::fs::read_to_string(&path).unwrap()) {
-            let key = format!("{rel}:{name}");
-            if n <= MAX_FN_LINES {
-                continue;
-            }
-            if LONG_FUNCTIONS_TO_SPLIT.contains(&key.as_str()) {
-                still_long.insert(key);
-            } else {
+            if n > MAX_FN_LINES {
                 long.push(format!("src/{rel}:{line}: fn {name}: {n} lines"));
             }
-        }
-    }
-    // The list only shrinks: a function split is taken off it.
-    for listed in LONG_FUNCTIONS_TO_SPLIT {
-        if !still_long.contains(*listed) {
-            long.push(format!(
-                "{listed}: split now, take it off LONG_FUNCTIONS_TO_SPLIT"
-            ));
         }
     }
     assert!(

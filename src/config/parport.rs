@@ -95,19 +95,7 @@ impl RawParport {
             }
             seen.push((pin, key));
         }
-        let mut invert_pins = Vec::with_capacity(self.invert_pins.len());
-        for &pin in &self.invert_pins {
-            if !is_output_pin(pin) && !is_input_pin(pin) {
-                return Err((
-                    "parport.invert_pins",
-                    format!("{pin} is not a signal pin (1-17; 18-25 are ground)"),
-                ));
-            }
-            if invert_pins.contains(&(pin as u8)) {
-                return Err(("parport.invert_pins", format!("pin {pin} is listed twice")));
-            }
-            invert_pins.push(pin as u8);
-        }
+        let invert_pins = invert_pins(&self.invert_pins)?;
         let ns = |key: &'static str, v: i64| in_range(key, v, 0, 1_000_000_000).map(|v| v as u64);
         let p = ParportConfig {
             step_pins,
@@ -133,50 +121,81 @@ impl RawParport {
             gap_filter_ticks: in_range("parport.gap_filter_ticks", self.gap_filter_ticks, 1, 1000)?
                 as u32,
         };
-        if output.kind == OutputKind::Parport {
-            let axes = machine.axes.len();
-            for (key, pins) in [
-                ("parport.step_pins", &p.step_pins),
-                ("parport.dir_pins", &p.dir_pins),
-            ] {
-                if pins.len() < axes {
-                    return Err((
-                        key,
-                        format!(
-                            "has {} pins but machine.axes has {axes} axes; give one pin per axis",
-                            pins.len()
-                        ),
-                    ));
-                }
-            }
-            let timing = StepTiming {
-                step_length_ns: p.step_length_ns,
-                step_space_ns: p.step_space_ns,
-                dir_setup_ns: p.dir_setup_ns,
-                dir_hold_ns: p.dir_hold_ns,
-            };
-            if timing.min_tick_ns() > fine.tick.ns() {
+        in_use(&p, machine, fine, output, gap)?;
+        Ok(p)
+    }
+}
+
+/// Pins whose level is inverted: signal pins, each once.
+fn invert_pins(pins: &[i64]) -> Result<Vec<u8>, Invalid> {
+    let mut invert_pins = Vec::with_capacity(pins.len());
+    for &pin in pins {
+        if !is_output_pin(pin) && !is_input_pin(pin) {
+            return Err((
+                "parport.invert_pins",
+                format!("{pin} is not a signal pin (1-17; 18-25 are ground)"),
+            ));
+        }
+        if invert_pins.contains(&(pin as u8)) {
+            return Err(("parport.invert_pins", format!("pin {pin} is listed twice")));
+        }
+        invert_pins.push(pin as u8);
+    }
+    Ok(invert_pins)
+}
+
+/// What matters only when the port is in use: a step and a direction pin per axis, the
+/// drives' timing within a tick, a gap input pin when the gap is read from the port.
+fn in_use(
+    p: &ParportConfig,
+    machine: &MachineConfig,
+    fine: &FineConfig,
+    output: &OutputConfig,
+    gap: &GapConfig,
+) -> Result<(), Invalid> {
+    if output.kind == OutputKind::Parport {
+        let axes = machine.axes.len();
+        for (key, pins) in [
+            ("parport.step_pins", &p.step_pins),
+            ("parport.dir_pins", &p.dir_pins),
+        ] {
+            if pins.len() < axes {
                 return Err((
-                    "fine.tick_us",
+                    key,
                     format!(
-                        "{} µs is too short for the drives' step timing: dir_setup_ns + \
-                         step_length_ns + dir_hold_ns = {} ns and step_length_ns + step_space_ns \
-                         = {} ns must both fit in one tick; raise fine.tick_us to at least {} or \
-                         shorten the [parport] times",
-                        fine.tick.us(),
-                        p.dir_setup_ns + p.step_length_ns + p.dir_hold_ns,
-                        p.step_length_ns + p.step_space_ns,
-                        timing.min_tick_ns().div_ceil(1000)
+                        "has {} pins but machine.axes has {axes} axes; give one pin per axis",
+                        pins.len()
                     ),
                 ));
             }
         }
-        if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
+        let timing = StepTiming {
+            step_length_ns: p.step_length_ns,
+            step_space_ns: p.step_space_ns,
+            dir_setup_ns: p.dir_setup_ns,
+            dir_hold_ns: p.dir_hold_ns,
+        };
+        if timing.min_tick_ns() > fine.tick.ns() {
             return Err((
-                "parport.short_pin",
-                "gap.kind = \"parport\" needs parport.short_pin or parport.open_pin".to_string(),
+                "fine.tick_us",
+                format!(
+                    "{} µs is too short for the drives' step timing: dir_setup_ns + \
+                     step_length_ns + dir_hold_ns = {} ns and step_length_ns + step_space_ns \
+                     = {} ns must both fit in one tick; raise fine.tick_us to at least {} or \
+                     shorten the [parport] times",
+                    fine.tick.us(),
+                    p.dir_setup_ns + p.step_length_ns + p.dir_hold_ns,
+                    p.step_length_ns + p.step_space_ns,
+                    timing.min_tick_ns().div_ceil(1000)
+                ),
             ));
         }
-        Ok(p)
     }
+    if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
+        return Err((
+            "parport.short_pin",
+            "gap.kind = \"parport\" needs parport.short_pin or parport.open_pin".to_string(),
+        ));
+    }
+    Ok(())
 }

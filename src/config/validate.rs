@@ -4,7 +4,10 @@
 
 use std::path::PathBuf;
 
-use super::raw::RawConfig;
+use super::raw::{
+    RawBuffer, RawCompensation, RawConfig, RawDaemon, RawFine, RawGap, RawGenerator,
+    RawInterpolation, RawMachine, RawOutput, RawServo, RawSim,
+};
 use super::*;
 use crate::vocab::MAX_AXES;
 
@@ -79,157 +82,11 @@ fn non_empty(key: &'static str, value: String) -> Result<PathBuf, Invalid> {
 
 impl RawConfig {
     pub(super) fn validate(self) -> Result<Config, Invalid> {
-        let m = self.machine;
-        if m.axes.is_empty() || m.axes.len() > MAX_AXES {
-            return Err((
-                "machine.axes",
-                format!("must list 1 to {} axes, got {}", MAX_AXES, m.axes.len()),
-            ));
-        }
-        let mut axes = Vec::with_capacity(m.axes.len());
-        for name in &m.axes {
-            let axis = match name.trim().to_ascii_uppercase().as_str() {
-                s if s.chars().count() == 1 => Axis::from_letter(s.chars().next().unwrap_or(' ')),
-                _ => None,
-            }
-            .ok_or_else(|| {
-                (
-                    "machine.axes",
-                    format!("\"{name}\" is not an axis; use X, Y, Z, A, B, C, U or V"),
-                )
-            })?;
-            if axes.contains(&axis) {
-                return Err(("machine.axes", format!("axis {axis} is listed twice")));
-            }
-            axes.push(axis);
-        }
-        if m.step_mm.len() != axes.len() {
-            return Err((
-                "machine.step_mm",
-                format!(
-                    "has {} values but machine.axes has {} axes; give one step size per axis",
-                    m.step_mm.len(),
-                    axes.len()
-                ),
-            ));
-        }
-        for &s in &m.step_mm {
-            positive("machine.step_mm", s, 10.0, "mm")?;
-        }
-        let machine = MachineConfig {
-            axes,
-            step_mm: m.step_mm,
-            max_feed_mm_per_min: positive(
-                "machine.max_feed_mm_per_min",
-                m.max_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-            max_normal_accel_mm_per_s2: positive(
-                "machine.max_normal_accel_mm_per_s2",
-                m.max_normal_accel_mm_per_s2,
-                1e7,
-                "mm/s²",
-            )?,
-            max_tangential_accel_mm_per_s2: positive(
-                "machine.max_tangential_accel_mm_per_s2",
-                m.max_tangential_accel_mm_per_s2,
-                1e7,
-                "mm/s²",
-            )?,
-        };
-
-        let i = self.interpolation;
-        let interpolation = InterpolationConfig {
-            predictor: i.predictor,
-            segmentation: i.segmentation,
-            chord_tolerance_mm: positive(
-                "interpolation.chord_tolerance_mm",
-                i.chord_tolerance_mm,
-                10.0,
-                "mm",
-            )?,
-            period_ms: positive("interpolation.period_ms", i.period_ms, 1000.0, "ms")?,
-            max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm, 1e6, "mm")?,
-            lookahead_segments: in_range(
-                "interpolation.lookahead_segments",
-                i.lookahead_segments,
-                2,
-                1 << 20,
-            )? as usize,
-            fluctuation_tolerance: positive(
-                "interpolation.fluctuation_tolerance",
-                i.fluctuation_tolerance,
-                1.0,
-                "(a fraction of the step)",
-            )?,
-            max_corrections: in_range("interpolation.max_corrections", i.max_corrections, 1, 64)?
-                as u32,
-        };
-
-        let b = self.buffer;
-        const MAX_CAPACITY: i64 = 1 << 24;
-        if !(2..=MAX_CAPACITY).contains(&b.capacity) {
-            return Err((
-                "buffer.capacity",
-                format!("must be 2 to {MAX_CAPACITY} blocks, got {}", b.capacity),
-            ));
-        }
-        if b.reserved < 0 || b.reserved >= b.capacity {
-            return Err((
-                "buffer.reserved",
-                format!(
-                    "must be at least 0 and less than buffer.capacity ({}), got {}",
-                    b.capacity, b.reserved
-                ),
-            ));
-        }
-        let buffer = BufferConfig {
-            capacity: b.capacity as usize,
-            reserved: b.reserved as usize,
-        };
-
-        let f = self.fine;
-        let tick = u32::try_from(f.tick_us)
-            .ok()
-            .and_then(TickPeriod::from_us)
-            .ok_or_else(|| {
-                (
-                    "fine.tick_us",
-                    format!("must be 1 to {} µs, got {}", TickPeriod::MAX_US, f.tick_us),
-                )
-            })?;
-        let fine = FineConfig {
-            tick,
-            virtual_time: f.virtual_time,
-            rt_priority: in_range("fine.rt_priority", f.rt_priority, 0, 99)? as u8,
-            lock_memory: f.lock_memory,
-            cpu: match f.cpu {
-                -1 => None,
-                cpu @ 0..=4095 => Some(cpu as usize),
-                cpu => {
-                    return Err((
-                        "fine.cpu",
-                        format!("must be -1 (any CPU) or a CPU number 0 to 4095, got {cpu}"),
-                    ));
-                }
-            },
-        };
-
-        let output = OutputConfig {
-            kind: self.output.kind,
-            path: non_empty("output.path", self.output.path)?,
-            trace: self.output.trace,
-            fault_at_tick: match in_range(
-                "output.fault_at_tick",
-                self.output.fault_at_tick,
-                0,
-                i64::MAX,
-            )? {
-                0 => None,
-                tick => Some(tick as u64),
-            },
-        };
+        let machine = machine(self.machine)?;
+        let interpolation = interpolation(self.interpolation)?;
+        let buffer = buffer(self.buffer)?;
+        let fine = fine(self.fine)?;
+        let output = output(self.output)?;
         if output.kind == OutputKind::Parport && fine.virtual_time {
             return Err((
                 "fine.virtual_time",
@@ -237,41 +94,7 @@ impl RawConfig {
                     .to_string(),
             ));
         }
-        let g = &self.gap;
-        let channel = g.iio_channel.trim().to_string();
-        if channel.is_empty()
-            || !channel
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_')
-        {
-            return Err((
-                "gap.iio_channel",
-                format!("\"{channel}\" is not an IIO channel name such as \"voltage0\""),
-            ));
-        }
-        let iio = crate::gap::IioSettings {
-            device: PathBuf::from(g.iio_device.clone()),
-            channel,
-            gain: positive("gap.iio_gain", g.iio_gain, 1e6, "V/V")?,
-            rate_hz: positive("gap.iio_rate_hz", g.iio_rate_hz, 1e6, "Hz")?,
-            short_below_v: positive("gap.short_below_v", g.short_below_v, 1e4, "V")?,
-            open_above_v: positive("gap.open_above_v", g.open_above_v, 1e4, "V")?,
-        };
-        if iio.open_above_v <= iio.short_below_v {
-            return Err((
-                "gap.open_above_v",
-                format!(
-                    "{} V must be above gap.short_below_v ({} V)",
-                    iio.open_above_v, iio.short_below_v
-                ),
-            ));
-        }
-        let gap = GapConfig {
-            kind: self.gap.kind,
-            script: non_empty("gap.script", self.gap.script)?,
-            trace: self.gap.trace,
-            iio,
-        };
+        let gap = gap(self.gap)?;
         if self.servo.law == ServoLaw::Ratio && gap.kind != GapKind::Sim {
             return Err((
                 "servo.law",
@@ -297,181 +120,9 @@ impl RawConfig {
 
         let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
 
-        let s = self.servo;
-        let servo = ServoConfig {
-            normal_feed_mm_per_min: positive(
-                "servo.normal_feed_mm_per_min",
-                s.normal_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-            open_feed_mm_per_min: positive(
-                "servo.open_feed_mm_per_min",
-                s.open_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-            retract_feed_mm_per_min: positive(
-                "servo.retract_feed_mm_per_min",
-                s.retract_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-            max_short_s: if s.max_short_s.is_finite() && (0.0..=86_400.0).contains(&s.max_short_s) {
-                s.max_short_s
-            } else {
-                return Err((
-                    "servo.max_short_s",
-                    format!("must be 0 (off) to 86400 s, got {}", s.max_short_s),
-                ));
-            },
-            law: s.law,
-            v_ref: positive("servo.v_ref", s.v_ref, 1e4, "V")?,
-            voltage_gain_mm_per_min_per_v: positive(
-                "servo.voltage_gain_mm_per_min_per_v",
-                s.voltage_gain_mm_per_min_per_v,
-                1e6,
-                "mm/min per V",
-            )?,
-            voltage_filter_ms: if s.voltage_filter_ms.is_finite()
-                && (0.0..=10_000.0).contains(&s.voltage_filter_ms)
-            {
-                s.voltage_filter_ms
-            } else {
-                return Err((
-                    "servo.voltage_filter_ms",
-                    format!("must be 0 to 10000 ms, got {}", s.voltage_filter_ms),
-                ));
-            },
-            ratio_ref: fraction("servo.ratio_ref", s.ratio_ref)?,
-            ratio_gain_mm_per_min: positive(
-                "servo.ratio_gain_mm_per_min",
-                s.ratio_gain_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-            ratio_short_limit: fraction("servo.ratio_short_limit", s.ratio_short_limit)?,
-            ratio_open_limit: fraction("servo.ratio_open_limit", s.ratio_open_limit)?,
-            jumps: Jumps {
-                interval_s: at_most("servo.jump_interval_s", s.jump_interval_s, 86_400.0, "s")?,
-                height_mm: at_most("servo.jump_height_mm", s.jump_height_mm, 1000.0, "mm")?,
-                feed_mm_per_min: positive(
-                    "servo.jump_feed_mm_per_min",
-                    s.jump_feed_mm_per_min,
-                    1e6,
-                    "mm/min",
-                )?,
-            },
-            max_open_mm: at_most("servo.max_open_mm", s.max_open_mm, 1e6, "mm")?,
-            rethread_feed_mm_per_min: positive(
-                "servo.rethread_feed_mm_per_min",
-                s.rethread_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
-        };
-        if servo.jumps.interval_s > 0.0 && servo.jumps.height_mm <= 0.0 {
-            return Err((
-                "servo.jump_height_mm",
-                "must be above 0 when servo.jump_interval_s turns jumps on".to_string(),
-            ));
-        }
-
-        let m = self.sim;
-        let non_negative = |key: &'static str, value: f64| {
-            if value.is_finite() && value >= 0.0 {
-                Ok(value)
-            } else {
-                Err((key, format!("must be a finite number >= 0, got {value}")))
-            }
-        };
-        let short_gap = positive("sim.short_gap_um", m.short_gap_um, 1e4, "µm")?;
-        let open_gap = positive("sim.open_gap_um", m.open_gap_um, 1e4, "µm")?;
-        if open_gap <= short_gap {
-            return Err((
-                "sim.open_gap_um",
-                format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
-            ));
-        }
-        let sim = SimConfig {
-            seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
-            initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
-            short_gap_mm: short_gap / 1000.0,
-            open_gap_mm: open_gap / 1000.0,
-            erosion_mm_per_s: positive(
-                "sim.erosion_mm_per_min",
-                m.erosion_mm_per_min,
-                1e6,
-                "mm/min",
-            )? / 60.0,
-            debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
-            debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
-            debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")?
-                / 1000.0,
-            wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,
-            events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
-        };
-        let d = self.daemon;
-        let daemon = DaemonConfig {
-            socket: non_empty("daemon.socket", d.socket)?,
-            socket_mode: u32::from_str_radix(d.socket_mode.trim_start_matches("0o"), 8)
-                .ok()
-                .filter(|m| *m <= 0o777)
-                .ok_or((
-                    "daemon.socket_mode",
-                    format!(
-                        "{:?} is not an octal permission like \"0660\"",
-                        d.socket_mode
-                    ),
-                ))?,
-            socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
-            program_dir: non_empty("daemon.program_dir", d.program_dir)?,
-            checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
-            checkpoint_interval_s: (non_negative(
-                "daemon.checkpoint_interval_s",
-                d.checkpoint_interval_s,
-            )? > 0.0)
-                .then_some(d.checkpoint_interval_s),
-            status_interval_s: (non_negative("daemon.status_interval_s", d.status_interval_s)?
-                > 0.0)
-                .then_some(d.status_interval_s),
-            max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
-            report_dir: (!d.report_dir.trim().is_empty()).then(|| PathBuf::from(d.report_dir)),
-            http: match d.http.trim() {
-                "" => None,
-                addr => Some(addr.parse().map_err(|_| {
-                    (
-                        "daemon.http",
-                        format!(
-                            "{addr:?} is not an address and port such as \"127.0.0.1:8080\" \
-                             (\"\" turns HTTP off)"
-                        ),
-                    )
-                })?),
-            },
-            http_token_file: non_empty("daemon.http_token_file", d.http_token_file)?,
-            http_allowed_hosts: d
-                .http_allowed_hosts
-                .iter()
-                .map(|h| {
-                    let name = h.trim().trim_end_matches('.').to_ascii_lowercase();
-                    let ok = !name.is_empty()
-                        && name
-                            .chars()
-                            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.');
-                    ok.then_some(name).ok_or((
-                        "daemon.http_allowed_hosts",
-                        format!("{h:?} is not a host name (letters, digits, `-` and `.`)"),
-                    ))
-                })
-                .collect::<Result<_, _>>()?,
-            http_max_connections: in_range(
-                "daemon.http_max_connections",
-                d.http_max_connections,
-                1,
-                65_536,
-            )? as usize,
-        };
+        let servo = servo(self.servo)?;
+        let sim = sim(self.sim)?;
+        let daemon = daemon(self.daemon)?;
         let log = LogConfig {
             level: self.log.level,
             format: self.log.format,
@@ -483,56 +134,8 @@ impl RawConfig {
                 format!("must be 1 to 1000000000, got {}", p.max_loop_iterations),
             ));
         }
-        let d_mm = self.compensation.d_mm;
-        if d_mm.first() != Some(&0.0) {
-            return Err((
-                "compensation.d_mm",
-                "must start with D0 = 0.0 (then D1, D2, …)".to_string(),
-            ));
-        }
-        if d_mm.len() > 100 {
-            return Err((
-                "compensation.d_mm",
-                format!("has {} registers; at most 100", d_mm.len()),
-            ));
-        }
-        for &d in &d_mm {
-            if !(0.0..=10.0).contains(&d) {
-                return Err((
-                    "compensation.d_mm",
-                    format!("{d} is not a wire offset: each must be 0 to 10 mm"),
-                ));
-            }
-        }
-        let compensation = CompensationConfig { d_mm };
-        let mut conditions: Vec<Condition> = Vec::new();
-        for c in self.generator.condition {
-            let key = "generator.condition";
-            let number = in_range(key, c.number, 1, 999)? as u32;
-            if conditions.iter().any(|x| x.number == number) {
-                return Err((key, format!("E{number} is defined twice")));
-            }
-            conditions.push(Condition {
-                number,
-                on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
-                off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
-                current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,
-                v_ref: positive(key, c.v_ref, 1e4, "V (v_ref)")?,
-                feed_mm_per_min: positive(key, c.feed_mm_per_min, 1e6, "mm/min (feed_mm_per_min)")?,
-                jump_interval_s: c
-                    .jump_interval_s
-                    .map(|v| at_most(key, v, 86_400.0, "s (jump_interval_s)"))
-                    .transpose()?,
-                jump_height_mm: c
-                    .jump_height_mm
-                    .map(|v| at_most(key, v, 1000.0, "mm (jump_height_mm)"))
-                    .transpose()?,
-                jump_feed_mm_per_min: c
-                    .jump_feed_mm_per_min
-                    .map(|v| positive(key, v, 1e6, "mm/min (jump_feed_mm_per_min)"))
-                    .transpose()?,
-            });
-        }
+        let compensation = compensation(self.compensation)?;
+        let conditions = conditions(self.generator)?;
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
@@ -554,5 +157,432 @@ impl RawConfig {
             compensation,
             conditions,
         })
+    }
+}
+
+fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
+    if m.axes.is_empty() || m.axes.len() > MAX_AXES {
+        return Err((
+            "machine.axes",
+            format!("must list 1 to {} axes, got {}", MAX_AXES, m.axes.len()),
+        ));
+    }
+    let mut axes = Vec::with_capacity(m.axes.len());
+    for name in &m.axes {
+        let axis = match name.trim().to_ascii_uppercase().as_str() {
+            s if s.chars().count() == 1 => Axis::from_letter(s.chars().next().unwrap_or(' ')),
+            _ => None,
+        }
+        .ok_or_else(|| {
+            (
+                "machine.axes",
+                format!("\"{name}\" is not an axis; use X, Y, Z, A, B, C, U or V"),
+            )
+        })?;
+        if axes.contains(&axis) {
+            return Err(("machine.axes", format!("axis {axis} is listed twice")));
+        }
+        axes.push(axis);
+    }
+    if m.step_mm.len() != axes.len() {
+        return Err((
+            "machine.step_mm",
+            format!(
+                "has {} values but machine.axes has {} axes; give one step size per axis",
+                m.step_mm.len(),
+                axes.len()
+            ),
+        ));
+    }
+    for &s in &m.step_mm {
+        positive("machine.step_mm", s, 10.0, "mm")?;
+    }
+    Ok(MachineConfig {
+        axes,
+        step_mm: m.step_mm,
+        max_feed_mm_per_min: positive(
+            "machine.max_feed_mm_per_min",
+            m.max_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+        max_normal_accel_mm_per_s2: positive(
+            "machine.max_normal_accel_mm_per_s2",
+            m.max_normal_accel_mm_per_s2,
+            1e7,
+            "mm/s²",
+        )?,
+        max_tangential_accel_mm_per_s2: positive(
+            "machine.max_tangential_accel_mm_per_s2",
+            m.max_tangential_accel_mm_per_s2,
+            1e7,
+            "mm/s²",
+        )?,
+    })
+}
+
+fn interpolation(i: RawInterpolation) -> Result<InterpolationConfig, Invalid> {
+    Ok(InterpolationConfig {
+        predictor: i.predictor,
+        segmentation: i.segmentation,
+        chord_tolerance_mm: positive(
+            "interpolation.chord_tolerance_mm",
+            i.chord_tolerance_mm,
+            10.0,
+            "mm",
+        )?,
+        period_ms: positive("interpolation.period_ms", i.period_ms, 1000.0, "ms")?,
+        max_segment_mm: positive("interpolation.max_segment_mm", i.max_segment_mm, 1e6, "mm")?,
+        lookahead_segments: in_range(
+            "interpolation.lookahead_segments",
+            i.lookahead_segments,
+            2,
+            1 << 20,
+        )? as usize,
+        fluctuation_tolerance: positive(
+            "interpolation.fluctuation_tolerance",
+            i.fluctuation_tolerance,
+            1.0,
+            "(a fraction of the step)",
+        )?,
+        max_corrections: in_range("interpolation.max_corrections", i.max_corrections, 1, 64)?
+            as u32,
+    })
+}
+
+fn buffer(b: RawBuffer) -> Result<BufferConfig, Invalid> {
+    const MAX_CAPACITY: i64 = 1 << 24;
+    if !(2..=MAX_CAPACITY).contains(&b.capacity) {
+        return Err((
+            "buffer.capacity",
+            format!("must be 2 to {MAX_CAPACITY} blocks, got {}", b.capacity),
+        ));
+    }
+    if b.reserved < 0 || b.reserved >= b.capacity {
+        return Err((
+            "buffer.reserved",
+            format!(
+                "must be at least 0 and less than buffer.capacity ({}), got {}",
+                b.capacity, b.reserved
+            ),
+        ));
+    }
+    Ok(BufferConfig {
+        capacity: b.capacity as usize,
+        reserved: b.reserved as usize,
+    })
+}
+
+fn fine(f: RawFine) -> Result<FineConfig, Invalid> {
+    let tick = u32::try_from(f.tick_us)
+        .ok()
+        .and_then(TickPeriod::from_us)
+        .ok_or_else(|| {
+            (
+                "fine.tick_us",
+                format!("must be 1 to {} µs, got {}", TickPeriod::MAX_US, f.tick_us),
+            )
+        })?;
+    Ok(FineConfig {
+        tick,
+        virtual_time: f.virtual_time,
+        rt_priority: in_range("fine.rt_priority", f.rt_priority, 0, 99)? as u8,
+        lock_memory: f.lock_memory,
+        cpu: match f.cpu {
+            -1 => None,
+            cpu @ 0..=4095 => Some(cpu as usize),
+            cpu => {
+                return Err((
+                    "fine.cpu",
+                    format!("must be -1 (any CPU) or a CPU number 0 to 4095, got {cpu}"),
+                ));
+            }
+        },
+    })
+}
+
+fn output(o: RawOutput) -> Result<OutputConfig, Invalid> {
+    Ok(OutputConfig {
+        kind: o.kind,
+        path: non_empty("output.path", o.path)?,
+        trace: o.trace,
+        fault_at_tick: match in_range("output.fault_at_tick", o.fault_at_tick, 0, i64::MAX)? {
+            0 => None,
+            tick => Some(tick as u64),
+        },
+    })
+}
+
+fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
+    let channel = g.iio_channel.trim().to_string();
+    if channel.is_empty()
+        || !channel
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_')
+    {
+        return Err((
+            "gap.iio_channel",
+            format!("\"{channel}\" is not an IIO channel name such as \"voltage0\""),
+        ));
+    }
+    let iio = crate::gap::IioSettings {
+        device: PathBuf::from(g.iio_device.clone()),
+        channel,
+        gain: positive("gap.iio_gain", g.iio_gain, 1e6, "V/V")?,
+        rate_hz: positive("gap.iio_rate_hz", g.iio_rate_hz, 1e6, "Hz")?,
+        short_below_v: positive("gap.short_below_v", g.short_below_v, 1e4, "V")?,
+        open_above_v: positive("gap.open_above_v", g.open_above_v, 1e4, "V")?,
+    };
+    if iio.open_above_v <= iio.short_below_v {
+        return Err((
+            "gap.open_above_v",
+            format!(
+                "{} V must be above gap.short_below_v ({} V)",
+                iio.open_above_v, iio.short_below_v
+            ),
+        ));
+    }
+    Ok(GapConfig {
+        kind: g.kind,
+        script: non_empty("gap.script", g.script)?,
+        trace: g.trace,
+        iio,
+    })
+}
+
+fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
+    let servo = ServoConfig {
+        normal_feed_mm_per_min: positive(
+            "servo.normal_feed_mm_per_min",
+            s.normal_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+        open_feed_mm_per_min: positive(
+            "servo.open_feed_mm_per_min",
+            s.open_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+        retract_feed_mm_per_min: positive(
+            "servo.retract_feed_mm_per_min",
+            s.retract_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+        max_short_s: if s.max_short_s.is_finite() && (0.0..=86_400.0).contains(&s.max_short_s) {
+            s.max_short_s
+        } else {
+            return Err((
+                "servo.max_short_s",
+                format!("must be 0 (off) to 86400 s, got {}", s.max_short_s),
+            ));
+        },
+        law: s.law,
+        v_ref: positive("servo.v_ref", s.v_ref, 1e4, "V")?,
+        voltage_gain_mm_per_min_per_v: positive(
+            "servo.voltage_gain_mm_per_min_per_v",
+            s.voltage_gain_mm_per_min_per_v,
+            1e6,
+            "mm/min per V",
+        )?,
+        voltage_filter_ms: if s.voltage_filter_ms.is_finite()
+            && (0.0..=10_000.0).contains(&s.voltage_filter_ms)
+        {
+            s.voltage_filter_ms
+        } else {
+            return Err((
+                "servo.voltage_filter_ms",
+                format!("must be 0 to 10000 ms, got {}", s.voltage_filter_ms),
+            ));
+        },
+        ratio_ref: fraction("servo.ratio_ref", s.ratio_ref)?,
+        ratio_gain_mm_per_min: positive(
+            "servo.ratio_gain_mm_per_min",
+            s.ratio_gain_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+        ratio_short_limit: fraction("servo.ratio_short_limit", s.ratio_short_limit)?,
+        ratio_open_limit: fraction("servo.ratio_open_limit", s.ratio_open_limit)?,
+        jumps: Jumps {
+            interval_s: at_most("servo.jump_interval_s", s.jump_interval_s, 86_400.0, "s")?,
+            height_mm: at_most("servo.jump_height_mm", s.jump_height_mm, 1000.0, "mm")?,
+            feed_mm_per_min: positive(
+                "servo.jump_feed_mm_per_min",
+                s.jump_feed_mm_per_min,
+                1e6,
+                "mm/min",
+            )?,
+        },
+        max_open_mm: at_most("servo.max_open_mm", s.max_open_mm, 1e6, "mm")?,
+        rethread_feed_mm_per_min: positive(
+            "servo.rethread_feed_mm_per_min",
+            s.rethread_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
+    };
+    if servo.jumps.interval_s > 0.0 && servo.jumps.height_mm <= 0.0 {
+        return Err((
+            "servo.jump_height_mm",
+            "must be above 0 when servo.jump_interval_s turns jumps on".to_string(),
+        ));
+    }
+    Ok(servo)
+}
+
+fn sim(m: RawSim) -> Result<SimConfig, Invalid> {
+    let short_gap = positive("sim.short_gap_um", m.short_gap_um, 1e4, "µm")?;
+    let open_gap = positive("sim.open_gap_um", m.open_gap_um, 1e4, "µm")?;
+    if open_gap <= short_gap {
+        return Err((
+            "sim.open_gap_um",
+            format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
+        ));
+    }
+    Ok(SimConfig {
+        seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
+        initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
+        short_gap_mm: short_gap / 1000.0,
+        open_gap_mm: open_gap / 1000.0,
+        erosion_mm_per_s: positive(
+            "sim.erosion_mm_per_min",
+            m.erosion_mm_per_min,
+            1e6,
+            "mm/min",
+        )? / 60.0,
+        debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
+        debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
+        debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")? / 1000.0,
+        wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,
+        events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
+    })
+}
+
+fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
+    Ok(DaemonConfig {
+        socket: non_empty("daemon.socket", d.socket)?,
+        socket_mode: u32::from_str_radix(d.socket_mode.trim_start_matches("0o"), 8)
+            .ok()
+            .filter(|m| *m <= 0o777)
+            .ok_or((
+                "daemon.socket_mode",
+                format!(
+                    "{:?} is not an octal permission like \"0660\"",
+                    d.socket_mode
+                ),
+            ))?,
+        socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
+        program_dir: non_empty("daemon.program_dir", d.program_dir)?,
+        checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
+        checkpoint_interval_s: (non_negative(
+            "daemon.checkpoint_interval_s",
+            d.checkpoint_interval_s,
+        )? > 0.0)
+            .then_some(d.checkpoint_interval_s),
+        status_interval_s: (non_negative("daemon.status_interval_s", d.status_interval_s)? > 0.0)
+            .then_some(d.status_interval_s),
+        max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
+        report_dir: (!d.report_dir.trim().is_empty()).then(|| PathBuf::from(d.report_dir)),
+        http: match d.http.trim() {
+            "" => None,
+            addr => Some(addr.parse().map_err(|_| {
+                (
+                    "daemon.http",
+                    format!(
+                        "{addr:?} is not an address and port such as \"127.0.0.1:8080\" \
+                         (\"\" turns HTTP off)"
+                    ),
+                )
+            })?),
+        },
+        http_token_file: non_empty("daemon.http_token_file", d.http_token_file)?,
+        http_allowed_hosts: d
+            .http_allowed_hosts
+            .iter()
+            .map(|h| {
+                let name = h.trim().trim_end_matches('.').to_ascii_lowercase();
+                let ok = !name.is_empty()
+                    && name
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.');
+                ok.then_some(name).ok_or((
+                    "daemon.http_allowed_hosts",
+                    format!("{h:?} is not a host name (letters, digits, `-` and `.`)"),
+                ))
+            })
+            .collect::<Result<_, _>>()?,
+        http_max_connections: in_range(
+            "daemon.http_max_connections",
+            d.http_max_connections,
+            1,
+            65_536,
+        )? as usize,
+    })
+}
+
+fn compensation(c: RawCompensation) -> Result<CompensationConfig, Invalid> {
+    let d_mm = c.d_mm;
+    if d_mm.first() != Some(&0.0) {
+        return Err((
+            "compensation.d_mm",
+            "must start with D0 = 0.0 (then D1, D2, …)".to_string(),
+        ));
+    }
+    if d_mm.len() > 100 {
+        return Err((
+            "compensation.d_mm",
+            format!("has {} registers; at most 100", d_mm.len()),
+        ));
+    }
+    for &d in &d_mm {
+        if !(0.0..=10.0).contains(&d) {
+            return Err((
+                "compensation.d_mm",
+                format!("{d} is not a wire offset: each must be 0 to 10 mm"),
+            ));
+        }
+    }
+    Ok(CompensationConfig { d_mm })
+}
+
+fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
+    let mut conditions: Vec<Condition> = Vec::new();
+    for c in generator.condition {
+        let key = "generator.condition";
+        let number = in_range(key, c.number, 1, 999)? as u32;
+        if conditions.iter().any(|x| x.number == number) {
+            return Err((key, format!("E{number} is defined twice")));
+        }
+        conditions.push(Condition {
+            number,
+            on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
+            off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
+            current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,
+            v_ref: positive(key, c.v_ref, 1e4, "V (v_ref)")?,
+            feed_mm_per_min: positive(key, c.feed_mm_per_min, 1e6, "mm/min (feed_mm_per_min)")?,
+            jump_interval_s: c
+                .jump_interval_s
+                .map(|v| at_most(key, v, 86_400.0, "s (jump_interval_s)"))
+                .transpose()?,
+            jump_height_mm: c
+                .jump_height_mm
+                .map(|v| at_most(key, v, 1000.0, "mm (jump_height_mm)"))
+                .transpose()?,
+            jump_feed_mm_per_min: c
+                .jump_feed_mm_per_min
+                .map(|v| positive(key, v, 1e6, "mm/min (jump_feed_mm_per_min)"))
+                .transpose()?,
+        });
+    }
+    Ok(conditions)
+}
+
+fn non_negative(key: &'static str, value: f64) -> Result<f64, Invalid> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err((key, format!("must be a finite number >= 0, got {value}")))
     }
 }

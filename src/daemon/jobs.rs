@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use super::protocol::{self, CheckStatus};
 use super::refusal::{CheckRefusal, Refusal};
-use super::{Core, CoreMsg, Job, confine, unix_now};
+use super::{Core, CoreMsg, Job, JobReport, confine, unix_now};
 use crate::checkpoint::{self, Reason};
 use crate::config::{Config, GapKind, OutputKind};
 use crate::record::{EventKind, Recording};
@@ -106,6 +106,46 @@ pub(super) struct JobControl {
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
     pub finished: protocol::Counters,
+}
+
+/// The folder of a job's report and its recording, when the configuration asks for one. The
+/// folder is made first: a job must not learn at its end that its report has nowhere to go.
+fn job_report(config: &Config, program_name: &str) -> Result<Option<JobReport>, Refusal> {
+    Ok(match &config.daemon.report_dir {
+        Some(dir) => {
+            let stem = Path::new(program_name)
+                .file_stem()
+                .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
+            let dir = dir.join(format!("{}-{stem}", unix_now()));
+            if let Err(source) = std::fs::create_dir_all(&dir) {
+                return Err(Refusal::ReportDir { dir, source });
+            }
+            let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
+                &config.machine.step_mm,
+                config.fine.tick,
+            )));
+            Some((dir, recording))
+        }
+        None => None,
+    })
+}
+
+/// Where the write-ahead checkpoint of a starting job puts it: moving, at the program's start
+/// or at the resume point with the dwell it owes.
+fn write_ahead_point(resume: Option<&ResumePoint>, config: &Config) -> Snapshot {
+    let mut at = Snapshot {
+        still: false,
+        ..Snapshot::default()
+    };
+    if let Some(r) = resume {
+        at.here = r.here;
+        at.line = r.line;
+        at.dwell_left = (r.dwell_s / config.fine.tick.secs()).round() as u64;
+        for (p, s) in at.position.iter_mut().zip(&r.position) {
+            *p = *s;
+        }
+    }
+    at
 }
 
 impl Core {
@@ -225,23 +265,7 @@ impl Core {
             .unwrap_or_default();
         // A report of what this job runs, when the configuration asks for one. Its folder is
         // made first: a job must not learn at its end that its report has nowhere to go.
-        let report = match &config.daemon.report_dir {
-            Some(dir) => {
-                let stem = Path::new(&program.name)
-                    .file_stem()
-                    .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
-                let dir = dir.join(format!("{}-{stem}", unix_now()));
-                if let Err(source) = std::fs::create_dir_all(&dir) {
-                    return Err(Refusal::ReportDir { dir, source });
-                }
-                let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
-                    &config.machine.step_mm,
-                    config.fine.tick,
-                )));
-                Some((dir, recording))
-            }
-            None => None,
-        };
+        let report = job_report(&config, &program.name)?;
         let mut io = self.job_io(&config, &check, &start)?;
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
@@ -272,18 +296,7 @@ impl Core {
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
         let old = self.checkpoints.current.clone();
-        let mut at = Snapshot {
-            still: false,
-            ..Snapshot::default()
-        };
-        if let Some(r) = &resume {
-            at.here = r.here;
-            at.line = r.line;
-            at.dwell_left = (r.dwell_s / config.fine.tick.secs()).round() as u64;
-            for (p, s) in at.position.iter_mut().zip(&r.position) {
-                *p = *s;
-            }
-        }
+        let at = write_ahead_point(resume.as_ref(), &config);
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
             self.give_back_io(&config, io);
             return Err(Refusal::WriteAhead {

@@ -130,6 +130,9 @@ pub struct ConfigSource {
     pub overrides: Vec<String>,
 }
 
+/// Where a job's report goes, and the recording it is written from.
+type JobReport = (PathBuf, Arc<parking_lot::Mutex<crate::record::Recording>>);
+
 /// The running job as the control loop sees it.
 struct Job {
     program: PathBuf,
@@ -150,7 +153,7 @@ struct Job {
     /// How far along the program, and the ETA.
     progress: ProgressTracker,
     /// Where the job's report goes, and the recording it is written from.
-    report: Option<(PathBuf, Arc<parking_lot::Mutex<crate::record::Recording>>)>,
+    report: Option<JobReport>,
     /// The job's path-shaping settings (`machine.*`, `interpolation.*`) for its checkpoints.
     motion_settings: crate::config::KeyValues,
     /// A resumed job's checkpoint as it was before the write-ahead replaced it: put back if
@@ -219,40 +222,7 @@ pub fn serve(
             1024
         }
     };
-    let http = match config.daemon.http {
-        Some(addr) => {
-            let token = http::token::load_or_create(&config.daemon.http_token_file)?;
-            let max_connections = http::connection_cap(
-                config.daemon.http_max_connections,
-                descriptors,
-                config.daemon.max_clients,
-            );
-            let settings = http::HttpSettings {
-                addr,
-                max_connections,
-                reloadable: http::Reloadable {
-                    token,
-                    program_dir: config.daemon.program_dir.clone(),
-                    allowed_hosts: config.daemon.http_allowed_hosts.clone(),
-                },
-            };
-            let server = http::spawn(
-                settings,
-                config.machine.axes.clone(),
-                crate::gcode::ProgramOptions::from_config(&config),
-                to_core.clone(),
-            )
-            .map_err(|source| DaemonError::Http { addr, source })?;
-            tracing::info!(
-                "http: the page, API and metrics on http://{} (control needs the token in {}; \
-                 {max_connections} connections at most, descriptor limit {descriptors})",
-                server.addr,
-                config.daemon.http_token_file.display()
-            );
-            Some(server)
-        }
-        None => None,
-    };
+    let http = start_http(&config, descriptors, &to_core)?;
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -304,6 +274,49 @@ pub fn serve(
     socket::remove(&socket_path);
     tracing::info!("stopped");
     Ok(())
+}
+
+/// The web side, when `daemon.http` is on: the page, the API and the metrics, with its
+/// token and a connection cap below the descriptor limit.
+fn start_http(
+    config: &Config,
+    descriptors: u64,
+    to_core: &Sender<CoreMsg>,
+) -> Result<Option<http::HttpServer>, DaemonError> {
+    match config.daemon.http {
+        Some(addr) => {
+            let token = http::token::load_or_create(&config.daemon.http_token_file)?;
+            let max_connections = http::connection_cap(
+                config.daemon.http_max_connections,
+                descriptors,
+                config.daemon.max_clients,
+            );
+            let settings = http::HttpSettings {
+                addr,
+                max_connections,
+                reloadable: http::Reloadable {
+                    token,
+                    program_dir: config.daemon.program_dir.clone(),
+                    allowed_hosts: config.daemon.http_allowed_hosts.clone(),
+                },
+            };
+            let server = http::spawn(
+                settings,
+                config.machine.axes.clone(),
+                crate::gcode::ProgramOptions::from_config(config),
+                to_core.clone(),
+            )
+            .map_err(|source| DaemonError::Http { addr, source })?;
+            tracing::info!(
+                "http: the page, API and metrics on http://{} (control needs the token in {}; \
+                 {max_connections} connections at most, descriptor limit {descriptors})",
+                server.addr,
+                config.daemon.http_token_file.display()
+            );
+            Ok(Some(server))
+        }
+        None => Ok(None),
+    }
 }
 
 fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {

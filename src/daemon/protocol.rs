@@ -375,94 +375,7 @@ impl Status {
             );
         }
         if let Some(j) = &self.job {
-            let _ = writeln!(
-                t,
-                "job:          {} line {} (segment {}, step {}){}",
-                j.program,
-                j.line,
-                j.segment,
-                j.step,
-                if j.resumed { ", resumed" } else { "" }
-            );
-            if let Some(line) = j.paused_before_line {
-                let _ = writeln!(
-                    t,
-                    "paused:       programmed stop (M0/M1) before line {line}; `edmd ctl resume` continues"
-                );
-            }
-            match self.state {
-                DaemonState::WireBreak => {
-                    let _ = writeln!(
-                        t,
-                        "wire:         broken; `edmd ctl rethread` goes back to the start hole \
-                         (`--here`: thread here), then `edmd ctl resume`"
-                    );
-                }
-                DaemonState::Threading => {
-                    let _ = writeln!(
-                        t,
-                        "wire:         parked for threading; `edmd ctl resume` returns to the \
-                         break point and cuts on"
-                    );
-                }
-                _ => {}
-            }
-            let c = &j.servo_counters;
-            if c.jumps + c.wire_breaks + c.probes > 0 {
-                let _ = writeln!(
-                    t,
-                    "excursions:   {} jumps, {} wire breaks, {} probes{}",
-                    c.jumps,
-                    c.wire_breaks,
-                    c.probes,
-                    j.last_probe
-                        .probe_mm
-                        .as_ref()
-                        .map(|mm| format!("; last probe {} mm", list(mm)))
-                        .unwrap_or_default()
-                );
-            }
-            let _ = writeln!(
-                t,
-                "position:     {} mm; servo {}, feed {:.2} mm/min",
-                list(&j.position_mm),
-                j.servo.name(),
-                j.feed_mm_per_min
-            );
-            let eta = match j.eta_s {
-                Some(s) => format!("ETA {}", duration_text(s)),
-                None => "ETA unknown".to_string(),
-            };
-            let _ = writeln!(
-                t,
-                "progress:     {:.1} % of {:.3} mm, {eta}{}",
-                j.progress * 100.0,
-                j.path_total_mm,
-                j.recent_feed_mm_per_min
-                    .map(|f| format!(" (recent feed {f:.2} mm/min)"))
-                    .unwrap_or_default()
-            );
-            let _ = writeln!(
-                t,
-                "buffer:       {} ahead, {} reserved, of {}",
-                j.buffer_unprocessed, j.buffer_reserved, j.buffer_capacity
-            );
-            let _ = writeln!(
-                t,
-                "servo:        {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
-                c.shorts, c.turn_backs, c.deepest_turn_back_blocks, c.alarms, c.starvations
-            );
-            let latency = match (j.latency_mean_us, j.latency_max_us) {
-                (Some(mean), Some(max)) => {
-                    format!("latency mean {mean:.1} µs, max {max:.1} µs")
-                }
-                _ => "virtual time".to_string(),
-            };
-            let _ = writeln!(
-                t,
-                "time:         {:.3} s machine, {:.1} s elapsed; {}; {} overruns",
-                j.machine_time_s, j.elapsed_s, latency, j.overruns
-            );
+            self.job_text(&mut t, j);
         }
         if let (None, Some(last)) = (&self.job, &self.last_job) {
             let _ = writeln!(
@@ -507,6 +420,100 @@ impl Status {
             let _ = writeln!(t, "warning:      {r}");
         }
         t
+    }
+
+    /// The job in hand's lines of [`Status::text`].
+    fn job_text(&self, t: &mut String, j: &JobStatus) {
+        use std::fmt::Write;
+        let list = |v: &[f64]| axis_list(v, &self.axes, |x| format!("{x:.4}"));
+        let _ = writeln!(
+            t,
+            "job:          {} line {} (segment {}, step {}){}",
+            j.program,
+            j.line,
+            j.segment,
+            j.step,
+            if j.resumed { ", resumed" } else { "" }
+        );
+        if let Some(line) = j.paused_before_line {
+            let _ = writeln!(
+                t,
+                "paused:       programmed stop (M0/M1) before line {line}; `edmd ctl resume` continues"
+            );
+        }
+        match self.state {
+            DaemonState::WireBreak => {
+                let _ = writeln!(
+                    t,
+                    "wire:         broken; `edmd ctl rethread` goes back to the start hole \
+                     (`--here`: thread here), then `edmd ctl resume`"
+                );
+            }
+            DaemonState::Threading => {
+                let _ = writeln!(
+                    t,
+                    "wire:         parked for threading; `edmd ctl resume` returns to the \
+                     break point and cuts on"
+                );
+            }
+            _ => {}
+        }
+        let c = &j.servo_counters;
+        if c.jumps + c.wire_breaks + c.probes > 0 {
+            let _ = writeln!(
+                t,
+                "excursions:   {} jumps, {} wire breaks, {} probes{}",
+                c.jumps,
+                c.wire_breaks,
+                c.probes,
+                j.last_probe
+                    .probe_mm
+                    .as_ref()
+                    .map(|mm| format!("; last probe {} mm", list(mm)))
+                    .unwrap_or_default()
+            );
+        }
+        let _ = writeln!(
+            t,
+            "position:     {} mm; servo {}, feed {:.2} mm/min",
+            list(&j.position_mm),
+            j.servo.name(),
+            j.feed_mm_per_min
+        );
+        let eta = match j.eta_s {
+            Some(s) => format!("ETA {}", duration_text(s)),
+            None => "ETA unknown".to_string(),
+        };
+        let _ = writeln!(
+            t,
+            "progress:     {:.1} % of {:.3} mm, {eta}{}",
+            j.progress * 100.0,
+            j.path_total_mm,
+            j.recent_feed_mm_per_min
+                .map(|f| format!(" (recent feed {f:.2} mm/min)"))
+                .unwrap_or_default()
+        );
+        let _ = writeln!(
+            t,
+            "buffer:       {} ahead, {} reserved, of {}",
+            j.buffer_unprocessed, j.buffer_reserved, j.buffer_capacity
+        );
+        let _ = writeln!(
+            t,
+            "servo:        {} shorts, {} turn-backs (deepest {} blocks), {} alarms, {} starvations",
+            c.shorts, c.turn_backs, c.deepest_turn_back_blocks, c.alarms, c.starvations
+        );
+        let latency = match (j.latency_mean_us, j.latency_max_us) {
+            (Some(mean), Some(max)) => {
+                format!("latency mean {mean:.1} µs, max {max:.1} µs")
+            }
+            _ => "virtual time".to_string(),
+        };
+        let _ = writeln!(
+            t,
+            "time:         {:.3} s machine, {:.1} s elapsed; {}; {} overruns",
+            j.machine_time_s, j.elapsed_s, latency, j.overruns
+        );
     }
 }
 

@@ -147,22 +147,7 @@ pub(crate) fn lex(
         let col = sc.col;
         match ch {
             ' ' | '\t' => {}
-            '(' => {
-                let start = sc.pos;
-                loop {
-                    match sc.bump() {
-                        None => return Err((col, GcodeErrorKind::UnterminatedComment)),
-                        Some(')') => break,
-                        Some('(') => return Err((sc.col, GcodeErrorKind::NestedComment)),
-                        Some(_) => {}
-                    }
-                }
-                let body = &line[start..sc.pos - 1];
-                if let Some(text) = message(body) {
-                    info.message = Some((col, text.to_string()));
-                }
-                info.comment = true;
-            }
+            '(' => comment(&mut sc, line, col, &mut info)?,
             ';' => {
                 info.comment = true;
                 break;
@@ -206,45 +191,7 @@ pub(crate) fn lex(
                     info.oword = Some(oword);
                     return Ok(info);
                 }
-                sc.skip_ws();
-                let value_col = sc.next_col();
-                let evaluated = matches!(
-                    (sc.peek(), sc.peek2()),
-                    (Some('#' | '['), _) | (Some('+' | '-'), Some('#' | '['))
-                );
-                if evaluated {
-                    let value = expr::value(&mut sc, env)?;
-                    if !value.is_finite() {
-                        return Err((
-                            value_col,
-                            GcodeErrorKind::NumberOutOfRange {
-                                letter,
-                                text: format!("{value}"),
-                            },
-                        ));
-                    }
-                    words.push(Word {
-                        letter,
-                        value,
-                        col,
-                        text: format!("{value}"),
-                    });
-                    continue;
-                }
-                let start = sc.pos;
-                if matches!(sc.peek(), Some('+' | '-')) {
-                    sc.bump();
-                }
-                while matches!(sc.peek(), Some(d) if d.is_ascii_digit() || d == '.') {
-                    sc.bump();
-                }
-                let text = line[start..sc.pos].to_string();
-                // `X1e308`: an exponent glued to a number is not a word `E`; say so rather
-                // than "word E is not used".
-                if !text.is_empty() {
-                    expr::no_exponent(&sc)?;
-                }
-                words.push(number_word(letter, col, text)?);
+                words.push(word(&mut sc, line, letter, col, env)?);
             }
             other => {
                 let hint = match other {
@@ -257,6 +204,75 @@ pub(crate) fn lex(
         }
     }
     Ok(info)
+}
+
+/// A comment from its `(` (read) to its `)`: a message comment is kept for the line.
+#[inline]
+fn comment(sc: &mut Scanner, line: &str, col: usize, info: &mut LineInfo) -> Result<(), LexError> {
+    let start = sc.pos;
+    loop {
+        match sc.bump() {
+            None => return Err((col, GcodeErrorKind::UnterminatedComment)),
+            Some(')') => break,
+            Some('(') => return Err((sc.col, GcodeErrorKind::NestedComment)),
+            Some(_) => {}
+        }
+    }
+    let body = &line[start..sc.pos - 1];
+    if let Some(text) = message(body) {
+        info.message = Some((col, text.to_string()));
+    }
+    info.comment = true;
+    Ok(())
+}
+
+/// The word of `letter` (at `col`, read): its value, a number or an expression.
+#[inline]
+fn word(
+    sc: &mut Scanner,
+    line: &str,
+    letter: char,
+    col: usize,
+    env: &dyn Env,
+) -> Result<Word, LexError> {
+    sc.skip_ws();
+    let value_col = sc.next_col();
+    let evaluated = matches!(
+        (sc.peek(), sc.peek2()),
+        (Some('#' | '['), _) | (Some('+' | '-'), Some('#' | '['))
+    );
+    if evaluated {
+        let value = expr::value(sc, env)?;
+        if !value.is_finite() {
+            return Err((
+                value_col,
+                GcodeErrorKind::NumberOutOfRange {
+                    letter,
+                    text: format!("{value}"),
+                },
+            ));
+        }
+        return Ok(Word {
+            letter,
+            value,
+            col,
+            text: format!("{value}"),
+        });
+    }
+    let start = sc.pos;
+    if matches!(sc.peek(), Some('+' | '-')) {
+        sc.bump();
+    }
+    while matches!(sc.peek(), Some(d) if d.is_ascii_digit() || d == '.') {
+        sc.bump();
+    }
+    let text = line[start..sc.pos].to_string();
+    // `X1e308`: an exponent glued to a number is not a word `E`; say so rather
+    // than "word E is not used".
+    if !text.is_empty() {
+        expr::no_exponent(sc)?;
+    }
+    number_word(letter, col, text)
 }
 
 /// The text of a `(MSG, …)`, `(DEBUG, …)` or `(PRINT, …)` comment.

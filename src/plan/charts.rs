@@ -27,40 +27,8 @@ pub(super) fn write_reports(
         style,
         points: d.points(),
     };
-    let path_points = c.path.points();
     let mode = &summary.segmentation;
-    write(
-        "path.svg",
-        &Chart {
-            title: format!("Path and segment points ({} segments)", summary.segments),
-            x_label: "X (mm)".into(),
-            y_label: "Y (mm)".into(),
-            series: vec![
-                Series {
-                    name: "path".into(),
-                    color: "#999",
-                    style: Style::Line,
-                    points: path_points.clone(),
-                },
-                Series {
-                    name: "segment ends".into(),
-                    color: "#1f5fbf",
-                    style: Style::Dots,
-                    points: path_points,
-                },
-                Series {
-                    name: "rapids (G0)".into(),
-                    color: "#d08000",
-                    style: Style::Dashed,
-                    points: c.rapids.clone(),
-                },
-            ],
-            equal_axes: true,
-            start: c.start.map(|p| (p, c.direction.unwrap_or((1.0, 0.0)))),
-            ..Chart::default()
-        }
-        .render(),
-    )?;
+    write("path.svg", &path_chart(summary, c).render())?;
     write(
         "chord_error.svg",
         &Chart {
@@ -135,4 +103,37 @@ pub(super) fn write_reports(
         )?;
     }
     Ok(())
+}
+
+/// The path in the XY plane, the segment ends on it and the rapids.
+fn path_chart(summary: &PlanSummary, c: &Collector) -> Chart {
+    let path_points = c.path.points();
+    Chart {
+        title: format!("Path and segment points ({} segments)", summary.segments),
+        x_label: "X (mm)".into(),
+        y_label: "Y (mm)".into(),
+        series: vec![
+            Series {
+                name: "path".into(),
+                color: "#999",
+                style: Style::Line,
+                points: path_points.clone(),
+            },
+            Series {
+                name: "segment ends".into(),
+                color: "#1f5fbf",
+                style: Style::Dots,
+                points: path_points,
+            },
+            Series {
+                name: "rapids (G0)".into(),
+                color: "#d08000",
+                style: Style::Dashed,
+                points: c.rapids.clone(),
+            },
+        ],
+        equal_axes: true,
+        start: c.start.map(|p| (p, c.direction.unwrap_or((1.0, 0.0)))),
+        ..Chart::default()
+    }
 }

@@ -18,7 +18,7 @@ use serde::Serialize;
 use crate::config::Config;
 use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
 use crate::plot::Decimated;
-use crate::preprocess::{PlanSettings, Preprocessor, Segment, bound};
+use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment, bound};
 use crate::vocab::{Axis, Predictor, Segmentation};
 
 mod charts;
@@ -469,55 +469,7 @@ pub fn plan_program(
     let trace = BufWriter::new(File::create(&trace_path).map_err(io_err(&trace_path))?);
 
     let settings = PlanSettings::from_config(config);
-    let index_of = |a: Axis| axes.iter().position(|&x| x == a);
-    let extra: Vec<(usize, char)> = axes
-        .iter()
-        .enumerate()
-        .filter(|(_, a)| !matches!(a, Axis::X | Axis::Y | Axis::Z))
-        .map(|(i, a)| (i, a.letter().to_ascii_lowercase()))
-        .collect();
-    let mut c = Collector {
-        trace,
-        trace_path: trace_path.clone(),
-        axis_columns: extra.clone(),
-        xyz: [index_of(Axis::X), index_of(Axis::Y), index_of(Axis::Z)],
-        t: 0.0,
-        s: 0.0,
-        segments: 0,
-        length: 0.0,
-        max_err: 0.0,
-        over: 0,
-        max_bound: 0.0,
-        bound_over: 0,
-        max_feed: 0.0,
-        fl_max: 0.0,
-        fl_sum: 0.0,
-        fl_count: 0,
-        max_at: 0.0,
-        max_an: 0.0,
-        prev: None,
-        tolerance: settings.tolerance,
-        period: settings.period,
-        period_mode: settings.segmentation == Segmentation::Period,
-        path: Decimated::new(PLOT_POINTS),
-        chord: Decimated::new(PLOT_POINTS),
-        feed: Decimated::new(PLOT_POINTS),
-        accel: Decimated::new(PLOT_POINTS),
-        fluct: Decimated::new(PLOT_POINTS),
-        z: index_of(Axis::Z).map(|_| Decimated::new(PLOT_POINTS)),
-        rapids: Vec::new(),
-        rapid_strokes: 0,
-        start: None,
-        direction: None,
-        error: None,
-    };
-    let mut header =
-        "line,kind,u,x,y,z,t,feed,chord_err,chord_bound,fluctuation,rho,evals".to_string();
-    for (_, letter) in &extra {
-        header += &format!(",{letter}");
-    }
-    header.push('\n');
-    c.write(&header);
+    let mut c = Collector::new(trace, trace_path.clone(), axes, &settings);
 
     let mut pre = Preprocessor::new(settings.clone());
     let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
@@ -557,10 +509,85 @@ pub fn plan_program(
         let refs: Vec<&Block> = k.iter().map(|b| b.as_ref()).collect();
         bound::time_optimal_bound(&refs, &settings, BOUND_SPACING_MM)
     });
-    let stats = pre.stats();
+    let summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
+    write_reports(out_dir, &summary, &c, &settings)?;
+    Ok(summary)
+}
+
+impl Collector {
+    /// A collector writing the trace to `trace` (at `trace_path`), its header written, with a
+    /// column per axis beyond X, Y and Z.
+    fn new(
+        trace: BufWriter<File>,
+        trace_path: PathBuf,
+        axes: &[Axis],
+        settings: &PlanSettings,
+    ) -> Collector {
+        let index_of = |a: Axis| axes.iter().position(|&x| x == a);
+        let extra: Vec<(usize, char)> = axes
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| !matches!(a, Axis::X | Axis::Y | Axis::Z))
+            .map(|(i, a)| (i, a.letter().to_ascii_lowercase()))
+            .collect();
+        let mut c = Collector {
+            trace,
+            trace_path,
+            axis_columns: extra.clone(),
+            xyz: [index_of(Axis::X), index_of(Axis::Y), index_of(Axis::Z)],
+            t: 0.0,
+            s: 0.0,
+            segments: 0,
+            length: 0.0,
+            max_err: 0.0,
+            over: 0,
+            max_bound: 0.0,
+            bound_over: 0,
+            max_feed: 0.0,
+            fl_max: 0.0,
+            fl_sum: 0.0,
+            fl_count: 0,
+            max_at: 0.0,
+            max_an: 0.0,
+            prev: None,
+            tolerance: settings.tolerance,
+            period: settings.period,
+            period_mode: settings.segmentation == Segmentation::Period,
+            path: Decimated::new(PLOT_POINTS),
+            chord: Decimated::new(PLOT_POINTS),
+            feed: Decimated::new(PLOT_POINTS),
+            accel: Decimated::new(PLOT_POINTS),
+            fluct: Decimated::new(PLOT_POINTS),
+            z: index_of(Axis::Z).map(|_| Decimated::new(PLOT_POINTS)),
+            rapids: Vec::new(),
+            rapid_strokes: 0,
+            start: None,
+            direction: None,
+            error: None,
+        };
+        let mut header =
+            "line,kind,u,x,y,z,t,feed,chord_err,chord_bound,fluctuation,rho,evals".to_string();
+        for (_, letter) in &extra {
+            header += &format!(",{letter}");
+        }
+        header.push('\n');
+        c.write(&header);
+        c
+    }
+}
+
+/// The summary of a plan from what the collector saw and the preprocessor counted.
+fn summary_of(
+    name: String,
+    settings: &PlanSettings,
+    c: &Collector,
+    stats: &PreprocessStats,
+    bound: Option<f64>,
+    wall: f64,
+) -> PlanSummary {
     let segments = c.segments.max(1) as f64;
     let period_mode = c.period_mode;
-    let summary = PlanSummary {
+    PlanSummary {
         program: name,
         segmentation: match settings.segmentation {
             Segmentation::Chord => "chord",
@@ -598,7 +625,5 @@ pub fn plan_program(
         wall_time_s: wall,
         segments_per_second: c.segments as f64 / wall.max(1e-9),
         peak_rss_kib: peak_rss_kib(),
-    };
-    write_reports(out_dir, &summary, &c, &settings)?;
-    Ok(summary)
+    }
 }

@@ -281,24 +281,7 @@ impl Segmenter {
         let cap_aim = cap * (1.0 - 0.5 * CAP_WINDOW);
         let cap_floor = cap * (1.0 - CAP_WINDOW);
         let remaining = hi - a.u;
-        let by_chord = chord_length_limit(rho, AIM * tol / self.gain);
-        let taylor = taylor_increment(a, by_chord.min(cap_aim));
-        let predicted = match (s.predictor, self.history.full()) {
-            // The extrapolation knows nothing of the length cap: where the cap binds, the step
-            // is a length, which is what the Taylor update predicts.
-            (Predictor::Hamming, Some(hist)) if by_chord <= cap_aim => {
-                Some(hamming_increments(hist).0)
-            }
-            _ => taylor,
-        };
-        let mut du = match predicted {
-            Some(du) if du > 0.0 && du.is_finite() => du,
-            _ => remaining / 16.0,
-        };
-        // Avoid leaving a sliver at the end of the piece: split the rest evenly instead.
-        if du < remaining && remaining - du < 0.3 * du {
-            du = 0.5 * remaining;
-        }
+        let mut du = self.first_increment(a, rho, remaining, cap_aim);
         let mut evals = 0;
         // The longest chord found within the measured tolerance, not yet certified.
         let mut good: Option<(Sample, ChordError, f64)> = None;
@@ -374,9 +357,49 @@ impl Segmenter {
                 Err(_) => bad = good_du,
             }
         }
-        // Seed 000 Fig. 3: halve until it holds (and is within the length cap).
+        let du = if bad.is_finite() { bad } else { du };
+        self.halve_until_within(curve, a, du, evals)
+    }
+
+    /// The first increment of a step: the Hamming or Taylor prediction towards the aimed
+    /// chord error (Taylor where the length cap binds), a sixteenth of the piece where there
+    /// is none, and half of what is left rather than a sliver at the end.
+    #[inline]
+    fn first_increment(&self, a: &Sample, rho: f64, remaining: f64, cap_aim: f64) -> f64 {
+        let s = &self.settings;
+        let tol = s.tolerance;
+        let by_chord = chord_length_limit(rho, AIM * tol / self.gain);
+        let taylor = taylor_increment(a, by_chord.min(cap_aim));
+        let predicted = match (s.predictor, self.history.full()) {
+            // The extrapolation knows nothing of the length cap: where the cap binds, the step
+            // is a length, which is what the Taylor update predicts.
+            (Predictor::Hamming, Some(hist)) if by_chord <= cap_aim => {
+                Some(hamming_increments(hist).0)
+            }
+            _ => taylor,
+        };
+        let mut du = match predicted {
+            Some(du) if du > 0.0 && du.is_finite() => du,
+            _ => remaining / 16.0,
+        };
+        // Avoid leaving a sliver at the end of the piece: split the rest evenly instead.
+        if du < remaining && remaining - du < 0.3 * du {
+            du = 0.5 * remaining;
+        }
+        du
+    }
+
+    /// Seed 000 Fig. 3: halves `du` until the chord holds (and is within the length cap).
+    fn halve_until_within(
+        &mut self,
+        curve: &NurbsCurve,
+        a: &Sample,
+        mut du: f64,
+        mut evals: u32,
+    ) -> (Sample, ChordError, f64, u32) {
+        let tol = self.settings.tolerance;
+        let cap = self.settings.max_segment;
         self.stats.halvings += 1;
-        let mut du = if bad.is_finite() { bad } else { du };
         let mut last = None;
         for halving in 1..=MAX_HALVINGS {
             du *= 0.5;

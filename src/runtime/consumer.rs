@@ -29,7 +29,7 @@ use super::probe::{ProbeLink, ProbeResult};
 use super::snapshot::SeqLock;
 pub use super::snapshot::Snapshot;
 use crate::buffer::BlockSource;
-use crate::fine::Interpolator;
+use crate::fine::{Interpolator, Tick};
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::output::{Activity, OutputError, PulseOutput};
 use crate::servo::{Excursion, GapReading, LawInput, PathPoint, Rethread, ServoEvent, ServoState};
@@ -364,24 +364,7 @@ where
     let mut activity = Activity::default();
     let law_input = fine.law_input();
     loop {
-        if let Some(histogram) = latency.as_mut() {
-            sys::sleep_until_ns(deadline);
-            let woke = sys::monotonic_ns();
-            let late = woke.saturating_sub(deadline);
-            histogram.record(late);
-            published.latency_sum_ns.fetch_add(late, Ordering::Relaxed);
-            published.latency_samples.fetch_add(1, Ordering::Relaxed);
-            published.latency_max_ns.fetch_max(late, Ordering::Relaxed);
-            let bucket = LATENCY_BUCKETS_US
-                .iter()
-                .position(|&le| late <= le * 1000)
-                .unwrap_or(LATENCY_BUCKETS_US.len());
-            published.latency_buckets[bucket].fetch_add(1, Ordering::Relaxed);
-        } else if fine.held() && fine.still() {
-            // Held in virtual time: nothing can change but the operator's mind, so let the
-            // CPU go rather than spin through ticks.
-            std::thread::sleep(std::time::Duration::from_millis(1));
-        }
+        wait_for_tick(&mut latency, deadline, fine, published);
         if let Some(at) = published.rethread.take()
             && fine.rethread(at)
         {
@@ -407,46 +390,7 @@ where
         fine.set_wire_input(sensor.wire_broken());
         let reading = read_for(law_input, gap, sensor);
         let tick = fine.tick_measured(reading, source);
-        let block = fine.block();
-        let excursion = fine.state().spark_off();
-        let flags = block.map_or(BlockFlags::NONE, |b| b.flags);
-        let now = Activity {
-            flags,
-            excursion,
-            spark: block
-                .is_some_and(|b| !b.flags.intersects(BlockFlags::RAPID | BlockFlags::PROBE))
-                && !excursion
-                && !fine.held()
-                && !fine.state().is_final(),
-            condition: block.map_or(activity.condition, |b| b.condition),
-        };
-        if now != activity {
-            let tell = |event| {
-                let record = EventRecord {
-                    tick: tick_no,
-                    line: fine.line(),
-                    event,
-                };
-                if published.events.push(record).is_err() {
-                    published.events_dropped.fetch_add(1, Ordering::Relaxed);
-                }
-            };
-            if flags.contains(BlockFlags::FLUSH) != activity.flags.contains(BlockFlags::FLUSH) {
-                tell(ServoEvent::Flushing {
-                    on: flags.contains(BlockFlags::FLUSH),
-                });
-            }
-            if now.condition != activity.condition {
-                tell(ServoEvent::Condition {
-                    number: now.condition,
-                });
-            }
-            if (flags, excursion) != (activity.flags, activity.excursion) {
-                sensor.moving_in(now);
-            }
-            activity = now;
-            output.moving_in(now);
-        }
+        tell_activity(&mut activity, fine, tick_no, output, sensor, published);
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
             if !e.step_taken() && tick.moved() {
                 report.untaken = Some((tick.steps, tick.dir));
@@ -463,49 +407,7 @@ where
             break;
         }
         sensor.observe(&tick.steps, tick.dir);
-        match tick.event {
-            Some(ServoEvent::Paused { .. }) if settings.program_pauses => {
-                published.paused_line.store(fine.line(), Ordering::Relaxed);
-                hold(published);
-            }
-            // A collision or an alarm holds a job that has an operator; otherwise it ends it.
-            Some(ServoEvent::Collision { .. } | ServoEvent::Alarm { .. })
-                if settings.program_pauses =>
-            {
-                hold(published);
-            }
-            Some(ServoEvent::Collision { at }) => report.collision = Some((at, fine.line())),
-            // A wire break, or a rethread's arrival at the start hole, waits for the operator.
-            Some(
-                ServoEvent::WireBreak { .. }
-                | ServoEvent::Retreated {
-                    why: Excursion::Rethread,
-                    ..
-                },
-            ) if settings.program_pauses => hold(published),
-            Some(ServoEvent::WireBreak { at, open }) => {
-                report.wire_break = Some((at, fine.line(), open))
-            }
-            Some(ServoEvent::Probed { steps, contact, .. }) => {
-                let result = ProbeResult { steps, contact };
-                report.last_probe = Some(result);
-                published.probe.publish(&result);
-            }
-            Some(ServoEvent::ProbeMissed { at }) => report.probe_missed = Some((at, fine.line())),
-            _ => {}
-        }
-        if let Some(event) = tick.event
-            && published
-                .events
-                .push(EventRecord {
-                    tick: tick_no,
-                    line: fine.line(),
-                    event,
-                })
-                .is_err()
-        {
-            published.events_dropped.fetch_add(1, Ordering::Relaxed);
-        }
+        route_event(&tick, tick_no, fine, settings, published, &mut report);
         tick_no += 1;
         // Every servo event and every held tick (a controlled stop waits for `still`);
         // otherwise every 64 ticks (3.2 ms at 50 µs): status and periodic checkpoints lag by
@@ -514,19 +416,9 @@ where
             published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
         }
-        // At a held standstill the output's record is made durable once, before the
-        // supervisor writes its checkpoint (it waits for `output_synced`). Nothing moves
-        // here, so the time a disk takes costs no step; the next deadline starts afresh.
-        let standstill = fine.held() && fine.still();
-        if standstill && !published.output_synced.load(Ordering::Relaxed) {
-            if let Err(e) = output.sync() {
-                report.output_error = Some(e);
-                break;
-            }
-            published.output_synced.store(true, Ordering::Release);
-            deadline = sys::monotonic_ns();
-        } else if !standstill && published.output_synced.load(Ordering::Relaxed) {
-            published.output_synced.store(false, Ordering::Relaxed);
+        if let Err(e) = settle_standstill(fine, output, published, &mut deadline) {
+            report.output_error = Some(e);
+            break;
         }
         let state = fine.state();
         let alarm_held = state == ServoState::Alarm && settings.program_pauses;
@@ -541,15 +433,7 @@ where
             break;
         }
         if latency.is_some() {
-            deadline += period;
-            let now = sys::monotonic_ns();
-            if now > deadline {
-                report.overruns += 1;
-                published.overruns.fetch_add(1, Ordering::Relaxed);
-                let missed = (now - deadline) / period + 1;
-                report.missed_deadlines += missed;
-                deadline += missed * period;
-            }
+            keep_deadline(&mut deadline, period, &mut report, published);
         }
     }
     report.ticks = tick_no;
@@ -560,4 +444,180 @@ where
     published.probe.close();
     published.finished.store(true, Ordering::Release);
     report
+}
+
+/// Phase 1 of a tick: wait for its deadline (real time: sleep to it and record how late the
+/// wake-up was), or in virtual time let the CPU go while held at a standstill.
+#[inline(always)]
+fn wait_for_tick(
+    latency: &mut Option<LatencyHistogram>,
+    deadline: u64,
+    fine: &Interpolator,
+    published: &Published,
+) {
+    if let Some(histogram) = latency.as_mut() {
+        sys::sleep_until_ns(deadline);
+        let woke = sys::monotonic_ns();
+        let late = woke.saturating_sub(deadline);
+        histogram.record(late);
+        published.latency_sum_ns.fetch_add(late, Ordering::Relaxed);
+        published.latency_samples.fetch_add(1, Ordering::Relaxed);
+        published.latency_max_ns.fetch_max(late, Ordering::Relaxed);
+        let bucket = LATENCY_BUCKETS_US
+            .iter()
+            .position(|&le| late <= le * 1000)
+            .unwrap_or(LATENCY_BUCKETS_US.len());
+        published.latency_buckets[bucket].fetch_add(1, Ordering::Relaxed);
+    } else if fine.held() && fine.still() {
+        // Held in virtual time: nothing can change but the operator's mind, so let the
+        // CPU go rather than spin through ticks.
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+}
+
+/// Phase 4: tell the output and the gap input what the machine is doing when it changes
+/// (flushing, machining condition, the kind of motion), and report the changes as events.
+#[inline(always)]
+fn tell_activity<O, G>(
+    activity: &mut Activity,
+    fine: &Interpolator,
+    tick_no: u64,
+    output: &mut O,
+    sensor: &mut G,
+    published: &Published,
+) where
+    O: PulseOutput + ?Sized,
+    G: GapSensor + ?Sized,
+{
+    let block = fine.block();
+    let excursion = fine.state().spark_off();
+    let flags = block.map_or(BlockFlags::NONE, |b| b.flags);
+    let now = Activity {
+        flags,
+        excursion,
+        spark: block.is_some_and(|b| !b.flags.intersects(BlockFlags::RAPID | BlockFlags::PROBE))
+            && !excursion
+            && !fine.held()
+            && !fine.state().is_final(),
+        condition: block.map_or(activity.condition, |b| b.condition),
+    };
+    if now != *activity {
+        let tell = |event| {
+            let record = EventRecord {
+                tick: tick_no,
+                line: fine.line(),
+                event,
+            };
+            if published.events.push(record).is_err() {
+                published.events_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        };
+        if flags.contains(BlockFlags::FLUSH) != activity.flags.contains(BlockFlags::FLUSH) {
+            tell(ServoEvent::Flushing {
+                on: flags.contains(BlockFlags::FLUSH),
+            });
+        }
+        if now.condition != activity.condition {
+            tell(ServoEvent::Condition {
+                number: now.condition,
+            });
+        }
+        if (flags, excursion) != (activity.flags, activity.excursion) {
+            sensor.moving_in(now);
+        }
+        *activity = now;
+        output.moving_in(now);
+    }
+}
+
+/// Phase 6: what the tick's servo event means to the loop (a hold, an end, a probe result),
+/// and the event on its way to the supervisor.
+#[inline(always)]
+fn route_event(
+    tick: &Tick,
+    tick_no: u64,
+    fine: &Interpolator,
+    settings: &LoopSettings,
+    published: &Published,
+    report: &mut LoopReport,
+) {
+    match tick.event {
+        Some(ServoEvent::Paused { .. }) if settings.program_pauses => {
+            published.paused_line.store(fine.line(), Ordering::Relaxed);
+            hold(published);
+        }
+        // A collision or an alarm holds a job that has an operator; otherwise it ends it.
+        Some(ServoEvent::Collision { .. } | ServoEvent::Alarm { .. })
+            if settings.program_pauses =>
+        {
+            hold(published);
+        }
+        Some(ServoEvent::Collision { at }) => report.collision = Some((at, fine.line())),
+        // A wire break, or a rethread's arrival at the start hole, waits for the operator.
+        Some(
+            ServoEvent::WireBreak { .. }
+            | ServoEvent::Retreated {
+                why: Excursion::Rethread,
+                ..
+            },
+        ) if settings.program_pauses => hold(published),
+        Some(ServoEvent::WireBreak { at, open }) => {
+            report.wire_break = Some((at, fine.line(), open))
+        }
+        Some(ServoEvent::Probed { steps, contact, .. }) => {
+            let result = ProbeResult { steps, contact };
+            report.last_probe = Some(result);
+            published.probe.publish(&result);
+        }
+        Some(ServoEvent::ProbeMissed { at }) => report.probe_missed = Some((at, fine.line())),
+        _ => {}
+    }
+    if let Some(event) = tick.event
+        && published
+            .events
+            .push(EventRecord {
+                tick: tick_no,
+                line: fine.line(),
+                event,
+            })
+            .is_err()
+    {
+        published.events_dropped.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// Phase 8: at a held standstill the output's record is made durable once, before the
+/// supervisor writes its checkpoint (it waits for `output_synced`). Nothing moves here, so the
+/// time a disk takes costs no step; the next deadline starts afresh.
+#[inline(always)]
+fn settle_standstill<O: PulseOutput + ?Sized>(
+    fine: &Interpolator,
+    output: &mut O,
+    published: &Published,
+    deadline: &mut u64,
+) -> Result<(), OutputError> {
+    let standstill = fine.held() && fine.still();
+    if standstill && !published.output_synced.load(Ordering::Relaxed) {
+        output.sync()?;
+        published.output_synced.store(true, Ordering::Release);
+        *deadline = sys::monotonic_ns();
+    } else if !standstill && published.output_synced.load(Ordering::Relaxed) {
+        published.output_synced.store(false, Ordering::Relaxed);
+    }
+    Ok(())
+}
+
+/// Phase 10 (real time): the next deadline, one period on; after an overrun the missed
+/// periods are skipped rather than caught up.
+#[inline(always)]
+fn keep_deadline(deadline: &mut u64, period: u64, report: &mut LoopReport, published: &Published) {
+    *deadline += period;
+    let now = sys::monotonic_ns();
+    if now > *deadline {
+        report.overruns += 1;
+        published.overruns.fetch_add(1, Ordering::Relaxed);
+        let missed = (now - *deadline) / period + 1;
+        report.missed_deadlines += missed;
+        *deadline += missed * period;
+    }
 }

@@ -35,6 +35,33 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
             "{program}:{line}: loop buffer empty at t={t:.4} s (segment {}): holding",
             at.seq
         ),
+        ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
+        ServoEvent::Condition { number } => tracing::info!(
+            edmd_event = "condition",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: machining condition E{number} from t={t:.4} s"
+        ),
+        ServoEvent::Flushing { on } => tracing::info!(
+            edmd_event = "flushing",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: flushing {} at t={t:.4} s",
+            if on { "on" } else { "off" }
+        ),
+        event @ (ServoEvent::Alarm { .. }
+        | ServoEvent::Collision { .. }
+        | ServoEvent::Paused { .. }
+        | ServoEvent::WireBreak { .. }
+        | ServoEvent::ProbeMissed { .. }) => log_stop(program, line, t, event, pauses),
+        event => log_excursion(program, line, t, event, spec),
+    }
+}
+
+/// The events that stop the motion: alarms, collisions, programmed stops, wire breaks, a
+/// missed probe. `pauses`: an operator is there to resume (the daemon).
+fn log_stop(program: &str, line: u64, t: f64, event: ServoEvent, pauses: bool) {
+    match event {
         ServoEvent::Alarm {
             at,
             depth,
@@ -57,7 +84,6 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
                 ""
             }
         ),
-        ServoEvent::Done => tracing::info!("{program}: program end at t={t:.4} s"),
         ServoEvent::Collision { at } => tracing::error!(
             edmd_event = "collision",
             edmd_program = program,
@@ -72,19 +98,6 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
                 ""
             }
         ),
-        ServoEvent::Condition { number } => tracing::info!(
-            edmd_event = "condition",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: machining condition E{number} from t={t:.4} s"
-        ),
-        ServoEvent::Flushing { on } => tracing::info!(
-            edmd_event = "flushing",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: flushing {} at t={t:.4} s",
-            if on { "on" } else { "off" }
-        ),
         ServoEvent::Paused { .. } => tracing::warn!(
             edmd_event = "pause",
             edmd_program = program,
@@ -96,6 +109,41 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
                 "not waiting (edmd run has no operator channel; edmd serve holds the job here)"
             }
         ),
+        ServoEvent::WireBreak { at, open } => tracing::error!(
+            edmd_event = "wire_break",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: WIRE BREAK at t={t:.4} s ({}; segment {}, step {}): motion \
+             stopped, position kept{}",
+            if open {
+                "the gap stayed open over servo.max_open_mm of cutting"
+            } else {
+                "the wire-break input"
+            },
+            at.seq,
+            at.event,
+            if pauses {
+                "; the job holds: `edmd ctl rethread` goes back to the start hole (`--here`: \
+                 thread where it broke), then `edmd ctl resume`"
+            } else {
+                ""
+            }
+        ),
+        ServoEvent::ProbeMissed { .. } => tracing::error!(
+            edmd_event = "probe_missed",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: the probing move reached its end point without contact at \
+             t={t:.4} s: the job stops"
+        ),
+        // The others are logged by log_event.
+        _ => {}
+    }
+}
+
+/// Jumps, rethreads and probes.
+fn log_excursion(program: &str, line: u64, t: f64, event: ServoEvent, spec: &JobSpec) {
+    match event {
         ServoEvent::Jump { at } => tracing::debug!(
             "{program}:{line}: jump at t={t:.4} s (segment {}, step {})",
             at.seq,
@@ -141,26 +189,6 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
             at.seq,
             at.event
         ),
-        ServoEvent::WireBreak { at, open } => tracing::error!(
-            edmd_event = "wire_break",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: WIRE BREAK at t={t:.4} s ({}; segment {}, step {}): motion \
-             stopped, position kept{}",
-            if open {
-                "the gap stayed open over servo.max_open_mm of cutting"
-            } else {
-                "the wire-break input"
-            },
-            at.seq,
-            at.event,
-            if pauses {
-                "; the job holds: `edmd ctl rethread` goes back to the start hole (`--here`: \
-                 thread where it broke), then `edmd ctl resume`"
-            } else {
-                ""
-            }
-        ),
         ServoEvent::Probed {
             steps,
             contact,
@@ -179,13 +207,8 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
             },
             spec.position_text(&steps)
         ),
-        ServoEvent::ProbeMissed { .. } => tracing::error!(
-            edmd_event = "probe_missed",
-            edmd_program = program,
-            edmd_line = line,
-            "{program}:{line}: the probing move reached its end point without contact at \
-             t={t:.4} s: the job stops"
-        ),
+        // The others are logged by log_event.
+        _ => {}
     }
 }
 

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use crate::daemon::protocol::{DaemonState, Status};
+use crate::daemon::protocol::{Counters, DaemonState, JobStatus, Status};
 use crate::runtime::consumer::LATENCY_BUCKETS_US;
 
 const STATES: [DaemonState; 10] = [
@@ -91,78 +91,88 @@ pub fn render(status: &Status) -> String {
         f64::from(u8::from(job.is_some())),
     );
     if let Some(j) = job {
-        let program = format!("program=\"{}\"", label(&j.program));
-        o.family("job_info", "gauge", "The job in hand, as labels.");
-        o.sample(
-            "job_info",
-            &format!("{program},servo=\"{}\"", label(j.servo.name())),
-            1.0,
-        );
+        job_metrics(&mut o, j, &status.axes);
+    }
+    counter_metrics(&mut o, &status.counters);
+    o.0
+}
+
+/// The job in hand: its program, progress, position, feed and buffer.
+fn job_metrics(o: &mut Out, j: &JobStatus, axes: &[String]) {
+    let program = format!("program=\"{}\"", label(&j.program));
+    o.family("job_info", "gauge", "The job in hand, as labels.");
+    o.sample(
+        "job_info",
+        &format!("{program},servo=\"{}\"", label(j.servo.name())),
+        1.0,
+    );
+    o.one(
+        "job_progress_ratio",
+        "gauge",
+        "Fraction of the program's path done (0 to 1).",
+        j.progress,
+    );
+    o.one(
+        "job_path_done_mm",
+        "gauge",
+        "Path length done, mm.",
+        j.path_done_mm,
+    );
+    o.one(
+        "job_path_total_mm",
+        "gauge",
+        "Path length of the whole program, mm.",
+        j.path_total_mm,
+    );
+    if let Some(eta) = j.eta_s {
         o.one(
-            "job_progress_ratio",
+            "job_eta_seconds",
             "gauge",
-            "Fraction of the program's path done (0 to 1).",
-            j.progress,
-        );
-        o.one(
-            "job_path_done_mm",
-            "gauge",
-            "Path length done, mm.",
-            j.path_done_mm,
-        );
-        o.one(
-            "job_path_total_mm",
-            "gauge",
-            "Path length of the whole program, mm.",
-            j.path_total_mm,
-        );
-        if let Some(eta) = j.eta_s {
-            o.one(
-                "job_eta_seconds",
-                "gauge",
-                "Seconds to the program's end at the recent feed.",
-                eta,
-            );
-        }
-        o.one(
-            "job_line",
-            "gauge",
-            "Source line of the move in hand.",
-            j.line as f64,
-        );
-        o.family(
-            "position_mm",
-            "gauge",
-            "Position per axis (the pulse ledger), mm.",
-        );
-        for (axis, mm) in status.axes.iter().zip(&j.position_mm) {
-            o.sample("position_mm", &format!("axis=\"{}\"", label(axis)), *mm);
-        }
-        o.one(
-            "feed_mm_per_minute",
-            "gauge",
-            "Path speed, mm/min.",
-            j.feed_mm_per_min,
-        );
-        o.family("buffer_blocks", "gauge", "Loop-buffer blocks by area.");
-        o.sample(
-            "buffer_blocks",
-            "area=\"unprocessed\"",
-            j.buffer_unprocessed as f64,
-        );
-        o.sample(
-            "buffer_blocks",
-            "area=\"reserved\"",
-            j.buffer_reserved as f64,
-        );
-        o.one(
-            "buffer_capacity_blocks",
-            "gauge",
-            "Loop-buffer capacity, blocks.",
-            j.buffer_capacity as f64,
+            "Seconds to the program's end at the recent feed.",
+            eta,
         );
     }
-    let c = &status.counters;
+    o.one(
+        "job_line",
+        "gauge",
+        "Source line of the move in hand.",
+        j.line as f64,
+    );
+    o.family(
+        "position_mm",
+        "gauge",
+        "Position per axis (the pulse ledger), mm.",
+    );
+    for (axis, mm) in axes.iter().zip(&j.position_mm) {
+        o.sample("position_mm", &format!("axis=\"{}\"", label(axis)), *mm);
+    }
+    o.one(
+        "feed_mm_per_minute",
+        "gauge",
+        "Path speed, mm/min.",
+        j.feed_mm_per_min,
+    );
+    o.family("buffer_blocks", "gauge", "Loop-buffer blocks by area.");
+    o.sample(
+        "buffer_blocks",
+        "area=\"unprocessed\"",
+        j.buffer_unprocessed as f64,
+    );
+    o.sample(
+        "buffer_blocks",
+        "area=\"reserved\"",
+        j.buffer_reserved as f64,
+    );
+    o.one(
+        "buffer_capacity_blocks",
+        "gauge",
+        "Loop-buffer capacity, blocks.",
+        j.buffer_capacity as f64,
+    );
+}
+
+/// The counts since the daemon started, and the latency histogram.
+fn counter_metrics(o: &mut Out, c: &Counters) {
     o.one("jobs_total", "counter", "Jobs started.", c.jobs as f64);
     for (name, help, value) in c.servo.counts() {
         o.one(&format!("{name}_total"), "counter", help, value as f64);
@@ -220,7 +230,6 @@ pub fn render(status: &Status) -> String {
     );
     o.sample("tick_latency_seconds_sum", "", c.latency_sum_us * 1e-6);
     o.sample("tick_latency_seconds_count", "", cumulative as f64);
-    o.0
 }
 
 #[cfg(test)]

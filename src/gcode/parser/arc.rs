@@ -8,7 +8,9 @@ use std::io::{BufRead, Seek};
 
 use super::{BlockReader, Fail, Letters, Step};
 use crate::gcode::error::GcodeErrorKind;
+use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind};
+use crate::geometry::Point;
 use crate::geometry::circular_arc;
 use crate::vocab::Axis;
 
@@ -85,68 +87,22 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 return Err((r.col, GcodeErrorKind::ArcFullCircleWithR).into());
             }
             let radius = r.value * self.scale();
-            let half = chord / 2.0;
-            let tol = ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * radius.abs();
-            let h_sq = radius * radius - half * half;
-            if h_sq < 0.0 && half - radius.abs() > tol {
-                return Err((
-                    r.col,
-                    GcodeErrorKind::ArcRadiusTooSmall {
-                        radius: radius.abs(),
-                        half_chord: half,
-                    },
-                )
-                    .into());
-            }
-            let h = h_sq.max(0.0).sqrt();
-            // Centre to the left of the chord for a counter-clockwise minor arc; R < 0 asks for
-            // the major arc, which puts it on the other side.
-            let side = if ccw == (radius > 0.0) { 1.0 } else { -1.0 };
-            center[ia] = start[ia] + chord_a / 2.0 - side * h * chord_b / chord;
-            center[ib] = start[ib] + chord_b / 2.0 + side * h * chord_a / chord;
+            let [ca, cb] = centre_of_radius(
+                r.col,
+                radius,
+                ccw,
+                [start[ia], start[ib]],
+                [chord_a, chord_b],
+                chord,
+            )?;
+            center[ia] = ca;
+            center[ib] = cb;
         } else {
-            if off_a.is_none() && off_b.is_none() {
-                return Err((col, GcodeErrorKind::ArcMissingCentre).into());
-            }
-            let s = self.scale();
-            let va = off_a.map(|w| w.value * s);
-            let vb = off_b.map(|w| w.value * s);
-            if self.state.modal.arc_centre_absolute {
-                center[ia] = va.map_or(start[ia], |v| v + self.state.offset[ia]);
-                center[ib] = vb.map_or(start[ib], |v| v + self.state.offset[ib]);
-            } else {
-                center[ia] = start[ia] + va.unwrap_or(0.0);
-                center[ib] = start[ib] + vb.unwrap_or(0.0);
-            }
-            let r_start = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
-            let r_end = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
-            let offset_col = off_a.or(off_b).map_or(col, |w| w.col);
-            if r_start < 1e-9 {
-                return Err((offset_col, GcodeErrorKind::ArcZeroRadius).into());
-            }
-            if (r_start - r_end).abs() > ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * r_start {
-                return Err((
-                    offset_col,
-                    GcodeErrorKind::ArcRadiusMismatch {
-                        start: r_start,
-                        end: r_end,
-                    },
-                )
-                    .into());
-            }
+            center = self.centre_of_offsets(off_a, off_b, [ia, ib], &start, &end, col)?;
         }
         let a0 = (start[ib] - center[ib]).atan2(start[ia] - center[ia]);
         let a1 = (end[ib] - center[ib]).atan2(end[ia] - center[ia]);
-        let tau = std::f64::consts::TAU;
-        let sweep = if full_circle {
-            if ccw { tau } else { -tau }
-        } else if ccw {
-            let s = (a1 - a0).rem_euclid(tau);
-            if s == 0.0 { tau } else { s }
-        } else {
-            let s = (a0 - a1).rem_euclid(tau);
-            -(if s == 0.0 { tau } else { s })
-        };
+        let sweep = sweep_of(a0, a1, ccw, full_circle);
         let curve = circular_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
             .map_err(|e| Fail::from((col, e.into())))?;
         let radius = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
@@ -162,5 +118,99 @@ impl<R: BufRead + Seek> BlockReader<R> {
             curve,
             feed,
         )))
+    }
+
+    /// The centre of an `I J K` arc in the plane of axes `[ia, ib]` (the offsets relative to
+    /// the start, or absolute under `G90.1`), its radius the same at both ends within the
+    /// tolerance.
+    fn centre_of_offsets(
+        &self,
+        off_a: Option<&Word>,
+        off_b: Option<&Word>,
+        [ia, ib]: [usize; 2],
+        start: &Point,
+        end: &Point,
+        col: usize,
+    ) -> Step<Point> {
+        let mut center = *start;
+        if off_a.is_none() && off_b.is_none() {
+            return Err((col, GcodeErrorKind::ArcMissingCentre).into());
+        }
+        let s = self.scale();
+        let va = off_a.map(|w| w.value * s);
+        let vb = off_b.map(|w| w.value * s);
+        if self.state.modal.arc_centre_absolute {
+            center[ia] = va.map_or(start[ia], |v| v + self.state.offset[ia]);
+            center[ib] = vb.map_or(start[ib], |v| v + self.state.offset[ib]);
+        } else {
+            center[ia] = start[ia] + va.unwrap_or(0.0);
+            center[ib] = start[ib] + vb.unwrap_or(0.0);
+        }
+        let r_start = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
+        let r_end = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
+        let offset_col = off_a.or(off_b).map_or(col, |w| w.col);
+        if r_start < 1e-9 {
+            return Err((offset_col, GcodeErrorKind::ArcZeroRadius).into());
+        }
+        if (r_start - r_end).abs() > ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * r_start {
+            return Err((
+                offset_col,
+                GcodeErrorKind::ArcRadiusMismatch {
+                    start: r_start,
+                    end: r_end,
+                },
+            )
+                .into());
+        }
+        Ok(center)
+    }
+}
+
+/// The centre of an `R` arc (`radius` in mm, negative for the major arc) from `start` along
+/// `chord` (its components and length), in the arc's plane; the radius is refused if it
+/// cannot span the chord (`col`: the `R` word's column).
+fn centre_of_radius(
+    col: usize,
+    radius: f64,
+    ccw: bool,
+    start: [f64; 2],
+    [chord_a, chord_b]: [f64; 2],
+    chord: f64,
+) -> Result<[f64; 2], Fail> {
+    let half = chord / 2.0;
+    let tol = ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * radius.abs();
+    let h_sq = radius * radius - half * half;
+    if h_sq < 0.0 && half - radius.abs() > tol {
+        return Err((
+            col,
+            GcodeErrorKind::ArcRadiusTooSmall {
+                radius: radius.abs(),
+                half_chord: half,
+            },
+        )
+            .into());
+    }
+    let h = h_sq.max(0.0).sqrt();
+    // Centre to the left of the chord for a counter-clockwise minor arc; R < 0 asks for
+    // the major arc, which puts it on the other side.
+    let side = if ccw == (radius > 0.0) { 1.0 } else { -1.0 };
+    Ok([
+        start[0] + chord_a / 2.0 - side * h * chord_b / chord,
+        start[1] + chord_b / 2.0 + side * h * chord_a / chord,
+    ])
+}
+
+/// The signed sweep (rad) from angle `a0` to `a1`: counter-clockwise positive, a whole turn
+/// for a full circle or equal angles.
+fn sweep_of(a0: f64, a1: f64, ccw: bool, full_circle: bool) -> f64 {
+    let tau = std::f64::consts::TAU;
+    if full_circle {
+        if ccw { tau } else { -tau }
+    } else if ccw {
+        let s = (a1 - a0).rem_euclid(tau);
+        if s == 0.0 { tau } else { s }
+    } else {
+        let s = (a0 - a1).rem_euclid(tau);
+        -(if s == 0.0 { tau } else { s })
     }
 }

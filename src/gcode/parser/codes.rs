@@ -2,7 +2,12 @@
 //! one group in a block conflict), and the refusals, each with the reason and what to post
 //! instead. Codes are compared as whole tenths (`G06.2` is 62), never as floats.
 
-use super::Step;
+use std::io::{BufRead, Seek};
+
+use super::{BlockReader, Fail, Letters, Step, whole};
+
+/// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
+const MAX_DWELL_S: f64 = 86_400.0;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::{NurbsForm, Plane};
@@ -222,4 +227,132 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
                 .into());
         }
     })
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// Takes the G codes of a block in order: the modal groups they set, a dwell, the wire
+    /// offset; returns the motion word and the offset word (`G10`/`G92`…) for later.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn apply_g_codes<'w>(
+        &mut self,
+        codes: &[(GCode, &'w Word)],
+        kept: &mut Letters<'w>,
+    ) -> Step<(Option<(GCode, &'w Word)>, Option<(OffsetCode, &'w Word)>)> {
+        let mut motion_word: Option<(GCode, &Word)> = None;
+        let mut offset_word: Option<(OffsetCode, &Word)> = None;
+        for &(code, w) in codes {
+            match code {
+                GCode::Dwell => {
+                    let Some(p) = kept.get('P') else {
+                        return Err((
+                            w.col,
+                            GcodeErrorKind::MissingCoordinate {
+                                what: "G4 needs P, the dwell in seconds".into(),
+                            },
+                        )
+                            .into());
+                    };
+                    if !(0.0..=MAX_DWELL_S).contains(&p.value) {
+                        return Err((
+                            p.col,
+                            GcodeErrorKind::OutOfRange {
+                                what: "dwell P (s)",
+                                value: p.value,
+                                min: 0.0,
+                                max: MAX_DWELL_S,
+                            },
+                        )
+                            .into());
+                    }
+                    self.state.pending_dwell += p.value;
+                    *kept = kept.without(&['P']);
+                }
+                GCode::Offset(o) => offset_word = Some((o, w)),
+                GCode::CompOff => self.out.comp.cancel(),
+                GCode::Comp { left } => {
+                    let d = self.wire_offset(w, kept.get('D'))?;
+                    *kept = kept.without(&['D']);
+                    let plane = self.state.modal.plane;
+                    self.out
+                        .comp
+                        .start(left, d, plane)
+                        .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
+                }
+                GCode::Inch(inch) => self.state.modal.inch = inch,
+                GCode::Incremental(inc) => self.state.modal.incremental = inc,
+                GCode::ArcCentreAbsolute(abs) => self.state.modal.arc_centre_absolute = abs,
+                GCode::Plane(p) => self.state.modal.plane = p,
+                GCode::Accepted(_) => {}
+                GCode::Ignored {
+                    takes,
+                    only_with_words,
+                    why,
+                    ..
+                } => {
+                    let with_words = takes.iter().any(|&l| kept.get(l).is_some());
+                    *kept = kept.without(takes);
+                    if with_words || !only_with_words {
+                        self.warn_once_about(why, w.col, why.to_string());
+                    }
+                }
+                GCode::SpindleMode => self.warn_once_about(
+                    "spindle mode",
+                    w.col,
+                    format!(
+                        "G{}: spindle speed modes (G96/G97) do nothing on an EDM and are ignored",
+                        w.text
+                    ),
+                ),
+                GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
+                    motion_word = Some((code, w));
+                }
+            }
+        }
+        Ok((motion_word, offset_word))
+    }
+
+    /// The offset `D` names for `G41`/`G42`.
+    fn wire_offset(&self, g: &Word, d: Option<&Word>) -> Step<f64> {
+        let Some(d) = d else {
+            return Err((
+                g.col,
+                GcodeErrorKind::WireOffset(format!(
+                    "G{} needs D, the offset register (compensation.d_mm)",
+                    g.text
+                )),
+            )
+                .into());
+        };
+        let registers = &self.options.d_mm;
+        let k = whole(d, 0.0, 99.0)? as usize;
+        registers.get(k).copied().ok_or_else(|| {
+            Fail::from((
+                d.col,
+                GcodeErrorKind::WireOffset(format!(
+                    "D{k} is not set: compensation.d_mm has D0 to D{}",
+                    registers.len() - 1
+                )),
+            ))
+        })
+    }
+}
+
+/// The G codes of a block, one per modal group.
+pub(super) fn g_codes(words: &[Word]) -> Result<Vec<(GCode, &Word)>, Fail> {
+    let mut codes: Vec<(GCode, &Word)> = Vec::new();
+    for w in words.iter().filter(|w| w.letter == 'G') {
+        let code = classify_g(g_code_tenths(w)?, w.col)?;
+        if let Some((_, other)) = codes.iter().find(|(c, _)| c.group() == code.group()) {
+            return Err((
+                w.col,
+                GcodeErrorKind::ConflictingG {
+                    a: other.text.clone(),
+                    b: w.text.clone(),
+                },
+            )
+                .into());
+        }
+        codes.push((code, w));
+    }
+    Ok(codes)
 }

@@ -5,7 +5,7 @@
 
 use std::io::{BufRead, Seek};
 
-use super::codes::{GCode, Motion, OffsetCode, Probing, classify_g, g_code_tenths};
+use super::codes::{GCode, Motion, OffsetCode, Probing, g_codes};
 use super::nurbs::curve_letters;
 use super::{
     BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole, whole_as,
@@ -31,8 +31,6 @@ pub(super) struct Modal {
 /// LinuxCNC's G92 parameters: `#5210` (offset on), `#5211`… (per axis X Y Z A B C U V W).
 const G92_ENABLED: usize = 5210;
 const G92_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
-/// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
-const MAX_DWELL_S: f64 = 86_400.0;
 
 impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn start_block(
@@ -42,23 +40,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         letters: &Letters,
         words: &[Word],
     ) -> Step<Option<Block>> {
-        let mut codes: Vec<(GCode, &Word)> = Vec::new();
-        for w in words.iter().filter(|w| w.letter == 'G') {
-            let code = classify_g(g_code_tenths(w)?, w.col)?;
-            if let Some((_, other)) = codes.iter().find(|(c, _)| c.group() == code.group()) {
-                return Err((
-                    w.col,
-                    GcodeErrorKind::ConflictingG {
-                        a: other.text.clone(),
-                        b: w.text.clone(),
-                    },
-                )
-                    .into());
-            }
-            codes.push((code, w));
-        }
-        let mut motion_word: Option<(GCode, &Word)> = None;
-        let mut offset_word: Option<(OffsetCode, &Word)> = None;
+        let codes = g_codes(words)?;
         let mut kept = *letters;
         // M98 takes P (the subprogram) and L (the count).
         let m98 = words.iter().find(|w| w.letter == 'M' && w.value == 98.0);
@@ -72,74 +54,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             None => None,
         };
-        for &(code, w) in &codes {
-            match code {
-                GCode::Dwell => {
-                    let Some(p) = kept.get('P') else {
-                        return Err((
-                            w.col,
-                            GcodeErrorKind::MissingCoordinate {
-                                what: "G4 needs P, the dwell in seconds".into(),
-                            },
-                        )
-                            .into());
-                    };
-                    if !(0.0..=MAX_DWELL_S).contains(&p.value) {
-                        return Err((
-                            p.col,
-                            GcodeErrorKind::OutOfRange {
-                                what: "dwell P (s)",
-                                value: p.value,
-                                min: 0.0,
-                                max: MAX_DWELL_S,
-                            },
-                        )
-                            .into());
-                    }
-                    self.state.pending_dwell += p.value;
-                    kept = kept.without(&['P']);
-                }
-                GCode::Offset(o) => offset_word = Some((o, w)),
-                GCode::CompOff => self.out.comp.cancel(),
-                GCode::Comp { left } => {
-                    let d = self.wire_offset(w, kept.get('D'))?;
-                    kept = kept.without(&['D']);
-                    let plane = self.state.modal.plane;
-                    self.out
-                        .comp
-                        .start(left, d, plane)
-                        .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
-                }
-                GCode::Inch(inch) => self.state.modal.inch = inch,
-                GCode::Incremental(inc) => self.state.modal.incremental = inc,
-                GCode::ArcCentreAbsolute(abs) => self.state.modal.arc_centre_absolute = abs,
-                GCode::Plane(p) => self.state.modal.plane = p,
-                GCode::Accepted(_) => {}
-                GCode::Ignored {
-                    takes,
-                    only_with_words,
-                    why,
-                    ..
-                } => {
-                    let with_words = takes.iter().any(|&l| kept.get(l).is_some());
-                    kept = kept.without(takes);
-                    if with_words || !only_with_words {
-                        self.warn_once_about(why, w.col, why.to_string());
-                    }
-                }
-                GCode::SpindleMode => self.warn_once_about(
-                    "spindle mode",
-                    w.col,
-                    format!(
-                        "G{}: spindle speed modes (G96/G97) do nothing on an EDM and are ignored",
-                        w.text
-                    ),
-                ),
-                GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
-                    motion_word = Some((code, w));
-                }
-            }
-        }
+        let (motion_word, offset_word) = self.apply_g_codes(&codes, &mut kept)?;
         if let Some((code, w)) = offset_word {
             if let Some((_, m)) = motion_word {
                 return Err((
@@ -174,6 +89,31 @@ impl<R: BufRead + Seek> BlockReader<R> {
             )
                 .into());
         }
+        let MWords {
+            program_end,
+            pause,
+            m99,
+        } = self.m_codes(line_no, words)?;
+        self.condition_and_feed(line_no, letters)?;
+
+        let block = self.motion_of(motion_word, line_no, text, letters, words)?;
+        if program_end {
+            self.program.ended_at = Some(line_no);
+        }
+        if let Some(p) = pause {
+            self.state.pending_pause = Some((line_no, p));
+        }
+        if let Some((col, count_col, (number, count))) = m98 {
+            self.call_fanuc(number, count, col, count_col)?;
+        }
+        if let Some(col) = m99 {
+            self.return_fanuc(col)?;
+        }
+        Ok(block)
+    }
+
+    /// The M words of a block: program end, pauses, flushing, a subprogram return.
+    fn m_codes(&mut self, line_no: u64, words: &[Word]) -> Step<MWords> {
         let mut program_end = false;
         let mut pause = None;
         let mut m99 = None;
@@ -208,6 +148,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 }
             }
         }
+        Ok(MWords {
+            program_end,
+            pause,
+            m99,
+        })
+    }
+
+    /// The words that set state beside motion: `S`/`T` (ignored, with a warning), the
+    /// machining condition `E` and the feed `F`.
+    fn condition_and_feed(&mut self, line_no: u64, letters: &Letters) -> Step<()> {
         for letter in ['S', 'T'] {
             if let Some(w) = letters.get(letter) {
                 self.warn_once(
@@ -249,8 +199,20 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             self.state.modal.feed = Some(f.value * self.scale());
         }
+        Ok(())
+    }
 
-        let block = match motion_word {
+    /// The block's motion: the motion word's, or the modal motion's when axis words ask for
+    /// it, or none.
+    fn motion_of(
+        &mut self,
+        motion_word: Option<(GCode, &Word)>,
+        line_no: u64,
+        text: &str,
+        letters: &Letters,
+        words: &[Word],
+    ) -> Step<Option<Block>> {
+        Ok(match motion_word {
             Some((GCode::Curve(form), w)) => {
                 self.check_letters(
                     letters,
@@ -295,44 +257,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     None
                 }
             },
-        };
-        if program_end {
-            self.program.ended_at = Some(line_no);
-        }
-        if let Some(p) = pause {
-            self.state.pending_pause = Some((line_no, p));
-        }
-        if let Some((col, count_col, (number, count))) = m98 {
-            self.call_fanuc(number, count, col, count_col)?;
-        }
-        if let Some(col) = m99 {
-            self.return_fanuc(col)?;
-        }
-        Ok(block)
-    }
-
-    /// The offset `D` names for `G41`/`G42`.
-    fn wire_offset(&self, g: &Word, d: Option<&Word>) -> Step<f64> {
-        let Some(d) = d else {
-            return Err((
-                g.col,
-                GcodeErrorKind::WireOffset(format!(
-                    "G{} needs D, the offset register (compensation.d_mm)",
-                    g.text
-                )),
-            )
-                .into());
-        };
-        let registers = &self.options.d_mm;
-        let k = whole(d, 0.0, 99.0)? as usize;
-        registers.get(k).copied().ok_or_else(|| {
-            Fail::from((
-                d.col,
-                GcodeErrorKind::WireOffset(format!(
-                    "D{k} is not set: compensation.d_mm has D0 to D{}",
-                    registers.len() - 1
-                )),
-            ))
         })
     }
 
@@ -681,4 +605,11 @@ fn letters_p_l(letters: &Letters, m: &Word) -> Step<(u32, u64)> {
         None => 1,
     };
     Ok((number, count))
+}
+
+/// What a block's M words ask for after its motion.
+struct MWords {
+    program_end: bool,
+    pause: Option<Pause>,
+    m99: Option<usize>,
 }

@@ -26,6 +26,8 @@
 //! reaches the same line in the same loop iteration and call: that is how a checkpoint inside
 //! a subroutine resumes (the interpreter state is rebuilt by the replay, never guessed).
 
+mod loops;
+
 use std::collections::HashMap;
 use std::io::{BufRead, Seek};
 
@@ -34,6 +36,7 @@ use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::{self, ARGUMENTS, ParamRef, Scanner};
 use crate::gcode::lexer::{Keyword, Label, OWord, has_m99, oword_of, program_number_of};
 use crate::gcode::lines::{Line, Pos};
+use loops::{Loop, LoopKind};
 
 /// Deepest nesting of subroutine calls.
 pub const MAX_CALL_DEPTH: usize = 64;
@@ -57,30 +60,6 @@ pub(super) struct Frame {
     pub(super) call_line: u64,
     loops: usize,
     ifs: usize,
-}
-
-#[derive(Debug, Clone, Copy)]
-enum LoopKind {
-    /// `while` at the top: the `while` line, to evaluate again.
-    While {
-        at: Pos,
-    },
-    /// `do` … `while`: the first line of the body.
-    Do {
-        body: Pos,
-    },
-    Repeat {
-        body: Pos,
-        remaining: u64,
-    },
-}
-
-#[derive(Debug, Clone)]
-struct Loop {
-    label: Label,
-    kind: LoopKind,
-    iterations: u64,
-    line: u64,
 }
 
 /// Why lines are being skipped, and what ends the skip.
@@ -330,8 +309,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// Executes an O-word statement met in the flow.
     pub(super) fn statement(&mut self, text: &str, o: OWord) -> Step<()> {
         let label = o.label.clone();
-        let shown = format!("{} {}", o.label, o.keyword.name());
-        let mismatch = |what: &str| -> Fail { (o.col, control(format!("{shown}: {what}"))).into() };
+        let mismatch = |what: &str| mismatch(&o, what);
         match o.keyword {
             Keyword::Sub => {
                 if !self.program.flow.frames.is_empty() {
@@ -401,140 +379,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     return Err(mismatch("without its if"));
                 }
             }
-            Keyword::While => {
-                let closes_do = matches!(
-                    self.program.flow.loops.last(),
-                    Some(Loop { label: l, kind: LoopKind::Do { .. }, .. }) if *l == label
-                );
-                let truth = self.condition(text, &o)?;
-                if closes_do {
-                    let top = self.program.flow.loops.last_mut().expect("checked above");
-                    if truth {
-                        top.iterations += 1;
-                        let line = top.line;
-                        let LoopKind::Do { body } = top.kind else {
-                            unreachable!("checked above")
-                        };
-                        self.spend(|| format!("the loop {label} at line {line}"))?;
-                        self.seek(body)?;
-                    } else {
-                        self.program.flow.loops.pop();
-                    }
-                    return Ok(());
-                }
-                let iterations = match self.program.flow.reenter.take() {
-                    Some((l, n)) if l == label => n + 1,
-                    _ => 0,
-                };
-                if truth {
-                    let line = self.scratch.line_no;
-                    self.spend(|| format!("the loop {label} at line {line}"))?;
-                    let at = Pos {
-                        offset: self.scratch.line_start,
-                        line: self.scratch.line_no,
-                    };
-                    self.program.flow.loops.push(Loop {
-                        label,
-                        kind: LoopKind::While { at },
-                        iterations,
-                        line: self.scratch.line_no,
-                    });
-                } else {
-                    self.start_skip(Some(label), Purpose::LoopExit, "endwhile");
-                }
-            }
-            Keyword::Do => {
-                let line = self.scratch.line_no;
-                self.spend(|| format!("the loop {label} at line {line}"))?;
-                let body = self.program.lines.position();
-                self.program.flow.loops.push(Loop {
-                    label,
-                    kind: LoopKind::Do { body },
-                    iterations: 0,
-                    line: self.scratch.line_no,
-                });
-            }
-            Keyword::Repeat => {
-                let n = self.one_argument(text, &o, true)?.unwrap_or(0.0).round();
-                if n < 1.0 {
-                    self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
-                } else {
-                    let line = self.scratch.line_no;
-                    let what = || format!("the loop {label} at line {line}");
-                    self.count_fits(what, n as u64, o.rest_col + 1)?;
-                    self.spend(what)?;
-                    let body = self.program.lines.position();
-                    self.program.flow.loops.push(Loop {
-                        label,
-                        kind: LoopKind::Repeat {
-                            body,
-                            remaining: n as u64,
-                        },
-                        iterations: 0,
-                        line: self.scratch.line_no,
-                    });
-                }
-            }
+            Keyword::While => self.while_statement(text, &o, label)?,
+            Keyword::Do => self.do_statement(label)?,
+            Keyword::Repeat => self.repeat_statement(text, &o, label)?,
             Keyword::Endwhile | Keyword::Endrepeat | Keyword::Continue => {
-                let Some(top) = self.current_loop(&label) else {
-                    return Err(mismatch("not inside this loop"));
-                };
-                match (o.keyword, top.kind) {
-                    (Keyword::Endwhile | Keyword::Continue, LoopKind::While { at }) => {
-                        let top = self.program.flow.loops.pop().expect("found above");
-                        self.program.flow.reenter = Some((label, top.iterations));
-                        self.seek(at)?;
-                    }
-                    (
-                        Keyword::Endrepeat | Keyword::Continue,
-                        LoopKind::Repeat { body, remaining },
-                    ) => {
-                        let top = self.program.flow.loops.last_mut().expect("found above");
-                        top.iterations += 1;
-                        if remaining > 1 {
-                            top.kind = LoopKind::Repeat {
-                                body,
-                                remaining: remaining - 1,
-                            };
-                            let line = top.line;
-                            self.spend(|| format!("the loop {label} at line {line}"))?;
-                            self.seek(body)?;
-                        } else {
-                            self.program.flow.loops.pop();
-                            if o.keyword == Keyword::Continue {
-                                self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
-                            }
-                        }
-                    }
-                    (Keyword::Continue, LoopKind::Do { .. }) => {
-                        self.start_skip(Some(label), Purpose::DoContinue, "while");
-                    }
-                    _ => return Err(mismatch("does not close this kind of loop")),
-                }
+                self.loop_end(&o, label)?
             }
-            Keyword::Break => {
-                let Some(top) = self.current_loop(&label) else {
-                    return Err(mismatch("not inside this loop"));
-                };
-                let what = match top.kind {
-                    LoopKind::While { .. } => "endwhile",
-                    LoopKind::Do { .. } => "while",
-                    LoopKind::Repeat { .. } => "endrepeat",
-                };
-                self.program.flow.loops.pop();
-                self.start_skip(Some(label), Purpose::LoopExit, what);
-            }
+            Keyword::Break => self.break_statement(&o, label)?,
         }
         Ok(())
-    }
-
-    /// The innermost loop if it is `label`'s (a loop of the current call only).
-    fn current_loop(&self, label: &Label) -> Option<&Loop> {
-        let floor = self.program.flow.frames.last().map_or(0, |f| f.loops);
-        (self.program.flow.loops.len() > floor)
-            .then(|| self.program.flow.loops.last())
-            .flatten()
-            .filter(|l| l.label == *label)
     }
 
     fn check_depth(&self, col: usize) -> Step<()> {
@@ -696,4 +549,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
             ))
         })
     }
+}
+
+/// An O-word statement that does not fit the structure it is in.
+fn mismatch(o: &OWord, what: &str) -> Fail {
+    let shown = format!("{} {}", o.label, o.keyword.name());
+    (o.col, control(format!("{shown}: {what}"))).into()
 }

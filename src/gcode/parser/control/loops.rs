@@ -1,0 +1,180 @@
+//! O-word loops: `while`/`endwhile`, `do`/`while`, `repeat`/`endrepeat`, with `break` and
+//! `continue`. Each iteration and each entry spends from the program's loop budget.
+
+use std::io::{BufRead, Seek};
+
+use super::{Purpose, mismatch};
+use crate::gcode::lexer::{Keyword, Label, OWord};
+use crate::gcode::lines::Pos;
+use crate::gcode::parser::{BlockReader, Step};
+
+#[derive(Debug, Clone, Copy)]
+pub(super) enum LoopKind {
+    /// `while` at the top: the `while` line, to evaluate again.
+    While {
+        at: Pos,
+    },
+    /// `do` … `while`: the first line of the body.
+    Do {
+        body: Pos,
+    },
+    Repeat {
+        body: Pos,
+        remaining: u64,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub(super) struct Loop {
+    pub(super) label: Label,
+    pub(super) kind: LoopKind,
+    pub(super) iterations: u64,
+    pub(super) line: u64,
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// `while`: the end of a `do` loop, or the head of a `while` loop (entered again from its
+    /// `endwhile`, counting the iterations).
+    pub(super) fn while_statement(&mut self, text: &str, o: &OWord, label: Label) -> Step<()> {
+        let closes_do = matches!(
+            self.program.flow.loops.last(),
+            Some(Loop { label: l, kind: LoopKind::Do { .. }, .. }) if *l == label
+        );
+        let truth = self.condition(text, o)?;
+        if closes_do {
+            let top = self.program.flow.loops.last_mut().expect("checked above");
+            if truth {
+                top.iterations += 1;
+                let line = top.line;
+                let LoopKind::Do { body } = top.kind else {
+                    unreachable!("checked above")
+                };
+                self.spend(|| format!("the loop {label} at line {line}"))?;
+                self.seek(body)?;
+            } else {
+                self.program.flow.loops.pop();
+            }
+            return Ok(());
+        }
+        let iterations = match self.program.flow.reenter.take() {
+            Some((l, n)) if l == label => n + 1,
+            _ => 0,
+        };
+        if truth {
+            let line = self.scratch.line_no;
+            self.spend(|| format!("the loop {label} at line {line}"))?;
+            let at = Pos {
+                offset: self.scratch.line_start,
+                line: self.scratch.line_no,
+            };
+            self.program.flow.loops.push(Loop {
+                label,
+                kind: LoopKind::While { at },
+                iterations,
+                line: self.scratch.line_no,
+            });
+        } else {
+            self.start_skip(Some(label), Purpose::LoopExit, "endwhile");
+        }
+        Ok(())
+    }
+
+    /// `endwhile`, `endrepeat` and `continue`: back to the loop's head or out of it.
+    pub(super) fn loop_end(&mut self, o: &OWord, label: Label) -> Step<()> {
+        let Some(top) = self.current_loop(&label) else {
+            return Err(mismatch(o, "not inside this loop"));
+        };
+        match (o.keyword, top.kind) {
+            (Keyword::Endwhile | Keyword::Continue, LoopKind::While { at }) => {
+                let top = self.program.flow.loops.pop().expect("found above");
+                self.program.flow.reenter = Some((label, top.iterations));
+                self.seek(at)?;
+            }
+            (Keyword::Endrepeat | Keyword::Continue, LoopKind::Repeat { body, remaining }) => {
+                let top = self.program.flow.loops.last_mut().expect("found above");
+                top.iterations += 1;
+                if remaining > 1 {
+                    top.kind = LoopKind::Repeat {
+                        body,
+                        remaining: remaining - 1,
+                    };
+                    let line = top.line;
+                    self.spend(|| format!("the loop {label} at line {line}"))?;
+                    self.seek(body)?;
+                } else {
+                    self.program.flow.loops.pop();
+                    if o.keyword == Keyword::Continue {
+                        self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+                    }
+                }
+            }
+            (Keyword::Continue, LoopKind::Do { .. }) => {
+                self.start_skip(Some(label), Purpose::DoContinue, "while");
+            }
+            _ => return Err(mismatch(o, "does not close this kind of loop")),
+        }
+        Ok(())
+    }
+
+    /// `do`: a loop whose test is at its end.
+    pub(super) fn do_statement(&mut self, label: Label) -> Step<()> {
+        let line = self.scratch.line_no;
+        self.spend(|| format!("the loop {label} at line {line}"))?;
+        let body = self.program.lines.position();
+        self.program.flow.loops.push(Loop {
+            label,
+            kind: LoopKind::Do { body },
+            iterations: 0,
+            line: self.scratch.line_no,
+        });
+        Ok(())
+    }
+
+    /// `repeat`: the body so many times (none for a count below one).
+    pub(super) fn repeat_statement(&mut self, text: &str, o: &OWord, label: Label) -> Step<()> {
+        let n = self.one_argument(text, o, true)?.unwrap_or(0.0).round();
+        if n < 1.0 {
+            self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+        } else {
+            let line = self.scratch.line_no;
+            let what = || format!("the loop {label} at line {line}");
+            self.count_fits(what, n as u64, o.rest_col + 1)?;
+            self.spend(what)?;
+            let body = self.program.lines.position();
+            self.program.flow.loops.push(Loop {
+                label,
+                kind: LoopKind::Repeat {
+                    body,
+                    remaining: n as u64,
+                },
+                iterations: 0,
+                line: self.scratch.line_no,
+            });
+        }
+        Ok(())
+    }
+
+    /// `break`: out of the innermost loop, which must be `label`'s.
+    pub(super) fn break_statement(&mut self, o: &OWord, label: Label) -> Step<()> {
+        let Some(top) = self.current_loop(&label) else {
+            return Err(mismatch(o, "not inside this loop"));
+        };
+        let what = match top.kind {
+            LoopKind::While { .. } => "endwhile",
+            LoopKind::Do { .. } => "while",
+            LoopKind::Repeat { .. } => "endrepeat",
+        };
+        self.program.flow.loops.pop();
+        self.start_skip(Some(label), Purpose::LoopExit, what);
+        Ok(())
+    }
+
+    /// The innermost loop if it is `label`'s (a loop of the current call only).
+    fn current_loop(&self, label: &Label) -> Option<&Loop> {
+        let floor = self.program.flow.frames.last().map_or(0, |f| f.loops);
+        (self.program.flow.loops.len() > floor)
+            .then(|| self.program.flow.loops.last())
+            .flatten()
+            .filter(|l| l.label == *label)
+    }
+}
