@@ -3,10 +3,11 @@
 //! ```text
 //!  signals (edmd-signals) ─┐
 //!  clients (edmd-client) ──┼─► control loop (main thread) ──► job thread (edmd-job)
-//!  job ends (edmd-job) ────┘     │ state, config, port,          run_job_with: producer,
-//!                                │ checkpoint, watchdog,          supervisor ─► FineThread
-//!                                │ status line, sd_notify         (edmd-fine, started once)
-//!                                └─ every 250 ms: periodic work
+//!  job ends (edmd-job) ────┘     │ JobControl (job, check,        runtime::run: producer,
+//!                                │ port, fine thread),            supervisor ─► FineThread
+//!                                │ CheckpointKeeper, Clients,     (edmd-fine, started once)
+//!                                │ watchdog, status line
+//!                                └─ every PERIOD: periodic work
 //! ```
 //!
 //! One thread owns every decision: the control loop. Clients, signals and finished jobs are

@@ -144,6 +144,10 @@ fn read_for<G: GapSensor + ?Sized>(input: LawInput, gap: GapState, sensor: &G) -
     }
 }
 
+/// The snapshot is published every so many ticks (a power of two), besides every servo event
+/// and every held tick: status and periodic checkpoints lag by that much at most.
+pub const PUBLISH_EVERY_TICKS: u64 = 64;
+
 /// A rethread asked for by the supervisor and taken by the consumer's loop, once: one
 /// atomic, so the real-time loop never waits for it.
 #[derive(Debug, Default)]
@@ -410,9 +414,9 @@ where
         route_event(&tick, tick_no, fine, settings, published, &mut report);
         tick_no += 1;
         // Every servo event and every held tick (a controlled stop waits for `still`);
-        // otherwise every 64 ticks (3.2 ms at 50 µs): status and periodic checkpoints lag by
-        // that much at most, and the ticks that publish nothing stay as cheap as before.
-        if tick.event.is_some() || fine.held() || tick_no & 0x3f == 0 {
+        // otherwise every PUBLISH_EVERY_TICKS (3.2 ms at 50 µs), so the ticks that publish
+        // nothing stay cheap.
+        if tick.event.is_some() || fine.held() || tick_no.is_multiple_of(PUBLISH_EVERY_TICKS) {
             published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
         }

@@ -86,7 +86,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             if full_circle {
                 return Err((r.col, GcodeErrorKind::ArcFullCircleWithR).into());
             }
-            let radius = r.value * self.scale();
+            let radius = r.value * self.state.scale();
             let [ca, cb] = centre_of_radius(
                 r.col,
                 radius,
@@ -136,7 +136,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         if off_a.is_none() && off_b.is_none() {
             return Err((col, GcodeErrorKind::ArcMissingCentre).into());
         }
-        let s = self.scale();
+        let s = self.state.scale();
         let va = off_a.map(|w| w.value * s);
         let vb = off_b.map(|w| w.value * s);
         if self.state.modal.arc_centre_absolute {

@@ -292,10 +292,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     let with_words = takes.iter().any(|&l| kept.get(l).is_some());
                     *kept = kept.without(takes);
                     if with_words || !only_with_words {
-                        self.warn_once_about(why, w.col, why.to_string());
+                        self.diag
+                            .once_about(self.scratch.line_no, why, w.col, why.to_string());
                     }
                 }
-                GCode::SpindleMode => self.warn_once_about(
+                GCode::SpindleMode => self.diag.once_about(
+                    self.scratch.line_no,
                     "spindle mode",
                     w.col,
                     format!(

@@ -20,7 +20,7 @@ mod system;
 use std::collections::VecDeque;
 use std::io::{BufRead, Seek};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
 use super::lexer::{Word, lex, oword_of, program_number_of};
@@ -140,15 +140,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.program.cancel = Some(flag);
     }
 
-    fn cancelled(&self) -> Step<()> {
-        match &self.program.cancel {
-            Some(flag) if flag.load(Ordering::Relaxed) => {
-                Err((1, GcodeErrorKind::Cancelled).into())
-            }
-            _ => Ok(()),
-        }
-    }
-
     /// Takes the warnings collected so far.
     pub fn take_warnings(&mut self) -> Vec<Warning> {
         std::mem::take(&mut self.diag.warnings)
@@ -192,7 +183,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             if self.program.done {
                 return Ok(None);
             }
-            if let Err(fail) = self.cancelled() {
+            if let Err(fail) = self.program.cancelled() {
                 return Err(self.error(self.scratch.line_no, "", fail));
             }
             self.scratch.line_start = self.program.lines.position().offset;
@@ -253,7 +244,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             if let Some(col) = latin1_at {
                 self.scratch.line_no = line_no;
-                self.warn_once_about(
+                self.diag.once_about(
+                    self.scratch.line_no,
                     "latin1",
                     col,
                     "a comment is not UTF-8: read as Latin-1 (comments only)".to_string(),
@@ -461,7 +453,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.program.lines.seek(self.program.scanned).map_err(io)?;
         }
         loop {
-            self.cancelled()?;
+            self.program.cancelled()?;
             let start = self.program.lines.position().offset;
             let Some((line_no, line)) = self.program.lines.next_line().map_err(io)? else {
                 return Ok(());

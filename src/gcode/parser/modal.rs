@@ -7,9 +7,7 @@ use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, Motion, OffsetCode, Probing, g_codes};
 use super::nurbs::curve_letters;
-use super::{
-    BlockReader, Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step, first_col, whole, whole_as,
-};
+use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
@@ -123,14 +121,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 2 | 30 => program_end = true,
                 0 => pause = Some(Pause::Program),
                 1 if self.options.optional_stop => pause = Some(Pause::Optional),
-                1 => self.warn_once_about(
+                1 => self.diag.once_about(
+                    self.scratch.line_no,
                     "M1 off",
                     w.col,
                     "M1 (optional stop) does not pause: program.optional_stop is off".into(),
                 ),
                 7 | 8 => self.state.flushing = true,
                 9 => self.state.flushing = false,
-                3..=6 => self.warn_once(
+                3..=6 => self.diag.once_per_letter(
                     line_no,
                     w,
                     "spindle and tool change words (M3-M6) do nothing on an EDM and are ignored",
@@ -160,7 +159,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     fn condition_and_feed(&mut self, line_no: u64, letters: &Letters) -> Step<()> {
         for letter in ['S', 'T'] {
             if let Some(w) = letters.get(letter) {
-                self.warn_once(
+                self.diag.once_per_letter(
                     line_no,
                     w,
                     "spindle speed (S) and tool (T) words do nothing on an EDM and are ignored",
@@ -197,7 +196,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             if f.value <= 0.0 {
                 return Err((f.col, GcodeErrorKind::BadFeed).into());
             }
-            self.state.modal.feed = Some(f.value * self.scale());
+            self.state.modal.feed = Some(f.value * self.state.scale());
         }
         Ok(())
     }
@@ -300,7 +299,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 let mut any = false;
                 for (i, axis) in self.axes.iter().enumerate() {
                     if let Some(v) = letters.get(axis.letter()) {
-                        self.state.offset[i] = self.state.position[i] - v.value * self.scale();
+                        self.state.offset[i] =
+                            self.state.position[i] - v.value * self.state.scale();
                         any = true;
                     }
                 }
@@ -335,7 +335,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = G92_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = self.state.offset[i] / self.scale();
+                let v = self.state.offset[i] / self.state.scale();
                 self.state
                     .params
                     .set(&ParamRef::Numbered(G92_ENABLED + 1 + k), v);
@@ -355,37 +355,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 .iter()
                 .any(|&l| letters.get(l).is_some());
         Ok(arc_words)
-    }
-
-    /// A warning given once per program for `about`, at the current line.
-    pub(super) fn warn_once_about(&mut self, about: &'static str, col: usize, message: String) {
-        if !self.diag.warned_about.contains(&about) {
-            self.diag.warned_about.push(about);
-            self.diag.warnings.push(Warning {
-                line: self.scratch.line_no,
-                col,
-                message,
-            });
-        }
-    }
-
-    pub(super) fn warn_once(&mut self, line: u64, w: &Word, message: &str) {
-        if !self.diag.warned_letters.contains(&w.letter) {
-            self.diag.warned_letters.push(w.letter);
-            self.diag.warnings.push(Warning {
-                line,
-                col: w.col,
-                message: format!("{}{}: {message}", w.letter, w.text),
-            });
-        }
-    }
-
-    pub(super) fn scale(&self) -> f64 {
-        if self.state.modal.inch {
-            MM_PER_INCH
-        } else {
-            1.0
-        }
     }
 
     pub(super) fn axes_list(&self) -> String {
@@ -466,7 +435,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 continue;
             }
             if let Some(w) = letters.get(axis.letter()) {
-                let v = w.value * self.scale();
+                let v = w.value * self.state.scale();
                 p[i] = if self.state.modal.incremental {
                     base[i] + v
                 } else {
@@ -495,7 +464,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// it runs at up to the machine maximum, and the operator is told once.
     pub(super) fn feed_limit(&mut self, col: usize) -> Option<f64> {
         if self.state.modal.feed.is_none() {
-            self.warn_once_about(
+            self.diag.once_about(
+                self.scratch.line_no,
                 "no feed",
                 col,
                 "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
@@ -575,7 +545,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         let curve = NurbsCurve::line(self.axes.len(), &self.state.position, &target)
             .map_err(|e| Fail::from((col, e.into())))?;
-        self.warn_once_about(
+        self.diag.once_about(
+            self.scratch.line_no,
             "probing",
             col,
             format!(

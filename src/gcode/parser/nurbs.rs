@@ -140,7 +140,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 Some(l) => {
                     let order = whole(l, 0.0, (MAX_DEGREE + 1) as f64)? as usize;
                     if order < 3 {
-                        self.warn_once_about(
+                        self.diag.once_about(
+                            self.scratch.line_no,
                             "G5.2 order",
                             l.col,
                             format!(
@@ -232,7 +233,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             .axes
             .iter()
             .enumerate()
-            .map(|(i, a)| format!("{a}{:.4}", p[i] / self.scale()))
+            .map(|(i, a)| format!("{a}{:.4}", p[i] / self.state.scale()))
             .collect();
         parts.join(" ")
     }
@@ -278,7 +279,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         if linuxcnc {
             if let Some(w) = reserved.chars().find_map(|l| letters.get(l)) {
-                self.warn_once_about(
+                self.diag.once_about(
+                self.scratch.line_no,
                     "G5.2 plane",
                     w.col,
                     format!(
@@ -288,7 +290,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 );
             }
             if self.state.modal.incremental && curve.points.len() >= 2 {
-                self.warn_once_about(
+                self.diag.once_about(
+                    self.scratch.line_no,
                     "G5.2 incremental",
                     col,
                     "G5.2 under G91: every control point is relative to the curve's start point, \

@@ -13,14 +13,17 @@
 //! - [`Diagnostics`]: the warnings, each given once.
 
 use std::collections::VecDeque;
+use std::io::{BufRead, Seek};
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::comp::Compensator;
 use super::control::Flow;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
 use super::structure::Structure;
+use super::{Fail, MM_PER_INCH, Step};
+use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::error::Warning;
 use crate::gcode::expr::Params;
 use crate::gcode::lexer::{Assign, Word};
@@ -48,6 +51,11 @@ pub(super) struct InterpState {
 }
 
 impl InterpState {
+    /// Millimetres per program unit (`G20`: inches, `G21`: mm).
+    pub fn scale(&self) -> f64 {
+        if self.modal.inch { MM_PER_INCH } else { 1.0 }
+    }
+
     /// At the machine origin, in G21 G90 G17 G94 with no motion mode and no feed.
     pub fn new() -> InterpState {
         InterpState {
@@ -88,6 +96,25 @@ pub(super) struct ProgramFlow<R> {
     pub saw_block: bool,
     pub saw_content: bool,
     pub done: bool,
+}
+
+impl<R: BufRead + Seek> ProgramFlow<R> {
+    /// Reads on from `pos` (a loop's head, a subroutine's body, a return).
+    pub fn seek(&mut self, pos: Pos) -> Step<()> {
+        self.lines
+            .seek(pos)
+            .map_err(|e| Fail::from((1, GcodeErrorKind::Io(e))))
+    }
+
+    /// Another thread asked the reader to give up.
+    pub fn cancelled(&self) -> Step<()> {
+        match &self.cancel {
+            Some(flag) if flag.load(Ordering::Relaxed) => {
+                Err((1, GcodeErrorKind::Cancelled).into())
+            }
+            _ => Ok(()),
+        }
+    }
 }
 
 impl<R> ProgramFlow<R> {
@@ -134,4 +161,26 @@ pub(super) struct Diagnostics {
     pub warned_letters: Vec<char>,
     /// Warnings given once per program, by what they are about.
     pub warned_about: Vec<&'static str>,
+}
+
+impl Diagnostics {
+    /// A warning about `about`, the first time it comes up (at `line`, `col`).
+    pub fn once_about(&mut self, line: u64, about: &'static str, col: usize, message: String) {
+        if !self.warned_about.contains(&about) {
+            self.warned_about.push(about);
+            self.warnings.push(Warning { line, col, message });
+        }
+    }
+
+    /// A warning about the word `w`'s letter, the first time it is met (at `line`).
+    pub fn once_per_letter(&mut self, line: u64, w: &Word, message: &str) {
+        if !self.warned_letters.contains(&w.letter) {
+            self.warned_letters.push(w.letter);
+            self.warnings.push(Warning {
+                line,
+                col: w.col,
+                message: format!("{}{}: {message}", w.letter, w.text),
+            });
+        }
+    }
 }

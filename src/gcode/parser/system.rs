@@ -18,7 +18,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
     pub fn probed(&mut self, at: &Point, contact: bool) {
         self.state.position = *at;
-        let scale = self.scale();
+        let scale = self.state.scale();
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
                 let v = (at[i] - self.state.offset[i]) / scale;

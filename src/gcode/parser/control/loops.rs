@@ -50,7 +50,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     unreachable!("checked above")
                 };
                 self.spend(|| format!("the loop {label} at line {line}"))?;
-                self.seek(body)?;
+                self.program.seek(body)?;
             } else {
                 self.program.flow.loops.pop();
             }
@@ -88,7 +88,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             (Keyword::Endwhile | Keyword::Continue, LoopKind::While { at }) => {
                 let top = self.program.flow.loops.pop().expect("found above");
                 self.program.flow.reenter = Some((label, top.iterations));
-                self.seek(at)?;
+                self.program.seek(at)?;
             }
             (Keyword::Endrepeat | Keyword::Continue, LoopKind::Repeat { body, remaining }) => {
                 let top = self.program.flow.loops.last_mut().expect("found above");
@@ -100,7 +100,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     };
                     let line = top.line;
                     self.spend(|| format!("the loop {label} at line {line}"))?;
-                    self.seek(body)?;
+                    self.program.seek(body)?;
                 } else {
                     self.program.flow.loops.pop();
                     if o.keyword == Keyword::Continue {

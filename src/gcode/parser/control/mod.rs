@@ -117,13 +117,6 @@ fn control(msg: String) -> GcodeErrorKind {
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
-    fn seek(&mut self, pos: Pos) -> Step<()> {
-        self.program
-            .lines
-            .seek(pos)
-            .map_err(|e| Fail::from((1, GcodeErrorKind::Io(e))))
-    }
-
     fn start_skip(&mut self, label: Option<Label>, purpose: Purpose, what: &'static str) {
         self.program.flow.skip = Some(Skip {
             label,
@@ -358,7 +351,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.spend(|| format!("the call of {label} at line {line}"))?;
                 let saved = Box::new(self.state.params.enter(&args));
                 self.push_frame(CallKind::OWord { label, saved });
-                self.seek(body)?;
+                self.program.seek(body)?;
             }
             Keyword::If => {
                 if self.condition(text, &o)? {
@@ -421,7 +414,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         self.program.flow.loops.truncate(frame.loops);
         self.program.flow.ifs.truncate(frame.ifs);
-        self.seek(frame.return_to)
+        self.program.seek(frame.return_to)
     }
 
     /// `M98 P<number> L<count>` at column `col`, the count at `count_col`.
@@ -452,7 +445,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             remaining: count - 1,
             body,
         });
-        self.seek(body)
+        self.program.seek(body)
     }
 
     /// `M99`: the end of a Fanuc subprogram.
@@ -469,7 +462,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     let body = *body;
                     let line = self.program.flow.frames.last().map_or(0, |f| f.call_line);
                     self.spend(|| format!("the M98 at line {line}"))?;
-                    return self.seek(body);
+                    return self.program.seek(body);
                 }
                 self.return_from_call()
             }
@@ -513,7 +506,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let line_no = self.scratch.line_no;
         let io = |e| Fail::from((col, GcodeErrorKind::Io(e)));
         let result = loop {
-            self.cancelled()?;
+            self.program.cancelled()?;
             let start = self.program.lines.position().offset;
             let Some((line_no, line)) = self.program.lines.next_line().map_err(io)? else {
                 break None;
@@ -537,7 +530,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 break Some(pos);
             }
         };
-        self.seek(back)?;
+        self.program.seek(back)?;
         self.scratch.line_no = line_no;
         result.ok_or_else(|| {
             Fail::from((
