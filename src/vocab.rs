@@ -87,6 +87,29 @@ pub enum Segmentation {
     Period,
 }
 
+/// The gap voltages that separate its states: below `short_below` (V) a short, above
+/// `open_above` open, sparking in between. One fact for the ADC input, the voltage law and the
+/// simulator's voltage (`gap.short_below_v`, `gap.open_above_v`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GapVolts {
+    pub short_below: f64,
+    pub open_above: f64,
+}
+
+impl GapVolts {
+    /// The gap state of a gap voltage.
+    #[inline]
+    pub fn state_of(&self, volts: f64) -> GapState {
+        if volts < self.short_below {
+            GapState::Short
+        } else if volts > self.open_above {
+            GapState::Open
+        } else {
+            GapState::Normal
+        }
+    }
+}
+
 /// The state of the spark gap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum GapState {

@@ -169,7 +169,10 @@ pub struct GapConfig {
     pub script: PathBuf,
     /// Log the gap state's changes.
     pub trace: bool,
-    /// `gap.kind = "iio"`: the ADC channel and the voltage thresholds.
+    /// The voltages that separate the gap's states (the ADC input, the voltage law and the
+    /// simulator read them).
+    pub volts: crate::vocab::GapVolts,
+    /// `gap.kind = "iio"`: the ADC channel.
     pub iio: crate::gap::IioSettings,
 }
 

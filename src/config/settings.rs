@@ -76,8 +76,7 @@ impl FineSettings {
                 ServoLaw::Voltage => Law::Voltage {
                     v_ref: servo.v_ref,
                     gain: servo.voltage_gain_mm_per_min_per_v / 60.0,
-                    short_v: config.gap.iio.short_below_v,
-                    open_v: config.gap.iio.open_above_v,
+                    volts: config.gap.volts,
                     tau: servo.voltage_filter_ms / 1000.0,
                 },
                 ServoLaw::Ratio => Law::Ratio {
@@ -98,8 +97,7 @@ impl SimSettings {
             params: config.sim.clone(),
             step_mm: step_mm(config),
             tick: config.fine.tick,
-            short_v: config.gap.iio.short_below_v,
-            open_v: config.gap.iio.open_above_v,
+            volts: config.gap.volts,
         }
     }
 }

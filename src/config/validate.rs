@@ -330,15 +330,17 @@ fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
         channel,
         gain: positive("gap.iio_gain", g.iio_gain, 1e6, "V/V")?,
         rate_hz: positive("gap.iio_rate_hz", g.iio_rate_hz, 1e6, "Hz")?,
-        short_below_v: positive("gap.short_below_v", g.short_below_v, 1e4, "V")?,
-        open_above_v: positive("gap.open_above_v", g.open_above_v, 1e4, "V")?,
     };
-    if iio.open_above_v <= iio.short_below_v {
+    let volts = crate::vocab::GapVolts {
+        short_below: positive("gap.short_below_v", g.short_below_v, 1e4, "V")?,
+        open_above: positive("gap.open_above_v", g.open_above_v, 1e4, "V")?,
+    };
+    if volts.open_above <= volts.short_below {
         return Err((
             "gap.open_above_v",
             format!(
                 "{} V must be above gap.short_below_v ({} V)",
-                iio.open_above_v, iio.short_below_v
+                volts.open_above, volts.short_below
             ),
         ));
     }
@@ -346,6 +348,7 @@ fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
         kind: g.kind,
         script: non_empty("gap.script", g.script)?,
         trace: g.trace,
+        volts,
         iio,
     })
 }

@@ -9,8 +9,9 @@
 //! A sysfs read costs tens of microseconds, too much for a tick, so a **sampler thread** reads
 //! the channel at `gap.iio_rate_hz` and publishes the latest value in an atomic; the consumer's
 //! thread loop takes it from there ([`GapSensor::sample`], no I/O) and the tick core gets the
-//! state as a value. The voltage is a gap state by two thresholds: below `short_below_v` a short,
-//! above `open_above_v` open, sparking in between.
+//! state as a value. The voltage is a gap state by the gap's two thresholds ([`GapVolts`]:
+//! `gap.short_below_v`, `gap.open_above_v`): below the first a short, above the second open,
+//! sparking in between.
 //!
 //! Failures are named: a missing device directory or channel, an unreadable or non-numeric
 //! attribute at startup ([`IioError`]); a read that fails later, or a sampler whose value is
@@ -26,6 +27,7 @@ use std::time::{Duration, Instant};
 use parking_lot::Mutex;
 
 use super::{GapError, GapSensor, GapState};
+use crate::vocab::GapVolts;
 
 /// The IIO input's settings (`[gap]`, validated by the configuration).
 #[derive(Debug, Clone, PartialEq)]
@@ -37,8 +39,6 @@ pub struct IioSettings {
     /// Gap volts per ADC volt.
     pub gain: f64,
     pub rate_hz: f64,
-    pub short_below_v: f64,
-    pub open_above_v: f64,
 }
 
 /// The IIO input could not be opened.
@@ -86,8 +86,7 @@ pub struct IioGap {
     raw_path: PathBuf,
     start: Instant,
     stale_after: Duration,
-    short_below_v: f64,
-    open_above_v: f64,
+    volts: GapVolts,
 }
 
 /// One sysfs attribute, opened and read whole for every sample (as `cat` does: a driver
@@ -133,7 +132,7 @@ fn number(path: &Path) -> Result<Option<f64>, IioError> {
 impl IioGap {
     /// Checks the device and channel, reads the scale and offset, takes a first sample and
     /// starts the sampler.
-    pub fn open(settings: &IioSettings) -> Result<IioGap, IioError> {
+    pub fn open(settings: &IioSettings, volts: GapVolts) -> Result<IioGap, IioError> {
         let dir = &settings.device;
         if !dir.is_dir() {
             return Err(IioError::NoDevice {
@@ -218,8 +217,7 @@ impl IioGap {
             raw_path,
             start,
             stale_after: (period * 10).max(Duration::from_millis(100)),
-            short_below_v: settings.short_below_v,
-            open_above_v: settings.open_above_v,
+            volts,
         })
     }
 
@@ -230,13 +228,7 @@ impl IioGap {
 
     /// The gap state a voltage means.
     pub fn state_of(&self, volts: f64) -> GapState {
-        if volts < self.short_below_v {
-            GapState::Short
-        } else if volts > self.open_above_v {
-            GapState::Open
-        } else {
-            GapState::Normal
-        }
+        self.volts.state_of(volts)
     }
 }
 
@@ -315,10 +307,13 @@ mod tests {
             channel: "voltage0".into(),
             gain: 20.0,
             rate_hz: 2000.0,
-            short_below_v: 5.0,
-            open_above_v: 60.0,
         }
     }
+
+    const VOLTS: GapVolts = GapVolts {
+        short_below: 5.0,
+        open_above: 60.0,
+    };
 
     /// Replaces the raw attribute atomically (a real attribute never reads half-written).
     fn set_raw(dir: &Path, raw: &str) {
@@ -344,7 +339,7 @@ mod tests {
     fn raw_counts_become_gap_volts_and_states() {
         // 12-bit ADC, 0.805664 mV per count, a 1:20 divider: 1500 counts = 24.17 V at the gap.
         let dir = fake_device("states", "1500\n", Some("0.805664\n"));
-        let mut gap = IioGap::open(&settings(&dir)).unwrap();
+        let mut gap = IioGap::open(&settings(&dir), VOLTS).unwrap();
         let v = 1500.0 * 0.805664 / 1000.0 * 20.0;
         assert!((gap.volts() - v).abs() < 1e-9);
         assert_eq!(gap.sample(0).unwrap(), GapState::Normal);
@@ -364,21 +359,23 @@ mod tests {
         let dir = fake_device("errors", "12", None);
         let mut s = settings(&dir);
         s.device = dir.join("nope");
-        let e = IioGap::open(&s).unwrap_err().to_string();
+        let e = IioGap::open(&s, VOLTS).unwrap_err().to_string();
         assert!(e.contains("no such IIO device (gap.iio_device)"), "{e}");
         let mut s = settings(&dir);
         s.channel = "voltage3".into();
-        let e = IioGap::open(&s).unwrap_err().to_string();
+        let e = IioGap::open(&s, VOLTS).unwrap_err().to_string();
         assert!(
             e.contains("in_voltage3_raw") && e.contains("no channel voltage3"),
             "{e}"
         );
         std::fs::write(dir.join("in_voltage0_raw"), "n/a").unwrap();
-        let e = IioGap::open(&settings(&dir)).unwrap_err().to_string();
+        let e = IioGap::open(&settings(&dir), VOLTS)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("`n/a` is not a number"), "{e}");
         // No scale attribute: 1 mV per count.
         std::fs::write(dir.join("in_voltage0_raw"), "1000").unwrap();
-        let gap = IioGap::open(&settings(&dir)).unwrap();
+        let gap = IioGap::open(&settings(&dir), VOLTS).unwrap();
         assert!((gap.volts() - 20.0).abs() < 1e-12);
     }
 
@@ -399,7 +396,7 @@ mod tests {
     #[test]
     fn a_reading_that_turns_bad_stops_the_job_with_the_file_named() {
         let dir = fake_device("runtime", "1500", Some("1"));
-        let mut gap = IioGap::open(&settings(&dir)).unwrap();
+        let mut gap = IioGap::open(&settings(&dir), VOLTS).unwrap();
         set_raw(&dir, "garbage");
         let e = first_error(&mut gap);
         assert!(
@@ -413,7 +410,7 @@ mod tests {
     #[test]
     fn a_fifo_in_the_channels_place_fails_at_once() {
         let dir = fake_device("fifo", "1500", Some("1"));
-        let mut gap = IioGap::open(&settings(&dir)).unwrap();
+        let mut gap = IioGap::open(&settings(&dir), VOLTS).unwrap();
         // Made aside and renamed over the channel: the sampler sees the file or the FIFO.
         let fifo = dir.join("fifo");
         assert!(
@@ -430,7 +427,9 @@ mod tests {
         drop(gap);
         assert!(dropping.elapsed() < Duration::from_secs(1));
         // Opened on a FIFO from the start: refused with the channel named.
-        let e = IioGap::open(&settings(&dir)).unwrap_err().to_string();
+        let e = IioGap::open(&settings(&dir), VOLTS)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("a FIFO, not a regular file"), "{e}");
     }
 }

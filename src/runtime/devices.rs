@@ -81,7 +81,7 @@ pub fn open_gap(
         }
         (GapKind::None, _) => Box::new(AlwaysNormal),
         (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
-        (GapKind::Iio, _) => Box::new(IioGap::open(&config.gap.iio)?),
+        (GapKind::Iio, _) => Box::new(IioGap::open(&config.gap.iio, config.gap.volts)?),
         (GapKind::Sim, _) => Box::new(SimGap::load(
             &SimSettings::from_config(config),
             &check.cutting_spans,

@@ -6,14 +6,14 @@
 //! - **Three states**: the input's state as it is; sparking at `Feeds::normal`, open at
 //!   `Feeds::open`, shorted: turn back.
 //! - **Voltage**: the gap voltage, filtered (first order, `tau`), against two thresholds (the
-//!   gap input's: below `short_v` a short, above `open_v` open); in between the feed is
+//!   gap's [`GapVolts`]: below the first a short, above the second open); in between the feed is
 //!   `gain · (V − v_ref)`, negative backing off along the path at up to `Feeds::retract`. A
 //!   machining condition may set its own `v_ref`.
 //! - **Ratio**: the open and short ratios of the input's last window: a short ratio from
 //!   `short_limit` up is a short, an open ratio from `open_limit` up is open; in between the
 //!   feed is `gain · (open − short − r_ref)`.
 
-use crate::vocab::GapState;
+use crate::vocab::{GapState, GapVolts};
 
 /// How the servo turns the gap into a feed, as configured.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,8 +22,8 @@ pub enum Law {
     Voltage {
         v_ref: f64,
         gain: f64,
-        short_v: f64,
-        open_v: f64,
+        /// The voltages that separate the gap's states.
+        volts: GapVolts,
         /// Filter time constant (s); 0 for none.
         tau: f64,
     },
@@ -97,8 +97,7 @@ pub(crate) enum GapLaw {
 pub(crate) struct VoltageLaw {
     pub v_ref: f64,
     pub gain: f64,
-    pub short_v: f64,
-    pub open_v: f64,
+    pub volts: GapVolts,
     /// Filter time constant (s); 0 for none.
     pub tau: f64,
     /// Tick period (s).
@@ -121,15 +120,13 @@ impl GapLaw {
             Law::Voltage {
                 v_ref,
                 gain,
-                short_v,
-                open_v,
+                volts,
                 tau,
             } => GapLaw::Voltage {
                 law: VoltageLaw {
                     v_ref,
                     gain,
-                    short_v,
-                    open_v,
+                    volts,
                     tau,
                     dt,
                 },
@@ -165,13 +162,7 @@ impl GapLaw {
                     } else {
                         *filtered + (v - *filtered) * (law.dt / law.tau).min(1.0)
                     };
-                    if *filtered < law.short_v {
-                        GapState::Short
-                    } else if *filtered > law.open_v {
-                        GapState::Open
-                    } else {
-                        GapState::Normal
-                    }
+                    law.volts.state_of(*filtered)
                 }
                 None => reading.state,
             },

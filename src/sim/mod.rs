@@ -45,8 +45,8 @@ use std::path::PathBuf;
 
 use crate::gap::{GapError, GapSensor, GapState, ScriptError};
 use crate::rng::SplitMix64;
-use crate::vocab::MAX_AXES;
 use crate::vocab::TickPeriod;
+use crate::vocab::{GapVolts, MAX_AXES};
 
 pub use events::SimEvent;
 
@@ -76,9 +76,8 @@ pub struct SimSettings {
     pub params: SimConfig,
     pub step_mm: [f64; MAX_AXES],
     pub tick: TickPeriod,
-    /// The gap voltage's thresholds (V): the sparking band of the model maps onto them.
-    pub short_v: f64,
-    pub open_v: f64,
+    /// The gap voltage's thresholds: the sparking band of the model maps onto them.
+    pub volts: GapVolts,
 }
 
 /// The simulated generator's open-circuit voltage (V): what an open gap reads.
@@ -141,8 +140,7 @@ pub struct SimGap {
     /// The wire is broken: the gap reads open and the wire-break input is set.
     broken: bool,
     /// Voltage thresholds (V), see [`GapSensor::volts`].
-    short_v: f64,
-    open_v: f64,
+    volts: GapVolts,
     /// The ratio counters of the window in progress (open, short, ticks) and the last
     /// window's ratios, see [`GapSensor::ratios`].
     window: (f64, f64, u32),
@@ -209,8 +207,7 @@ impl SimGap {
             hold: None,
             state: GapState::Open,
             rapid: false,
-            short_v: settings.short_v,
-            open_v: settings.open_v,
+            volts: settings.volts,
             window: (0.0, 0.0, 0),
             ratios: (1.0, 0.0),
             counters: SimCounters::default(),
@@ -434,7 +431,7 @@ impl GapSensor for SimGap {
                 let p = &self.params;
                 let f = ((self.gap_mm() - p.short_gap_mm) / (p.open_gap_mm - p.short_gap_mm))
                     .clamp(0.0, 1.0);
-                self.short_v + (self.open_v - self.short_v) * f
+                self.volts.short_below + (self.volts.open_above - self.volts.short_below) * f
             }
         })
     }
@@ -481,8 +478,10 @@ pub(crate) mod tests {
             params,
             step_mm: [0.001, 0.001, 0.0, 0.0, 0.0, 0.0],
             tick: TickPeriod::from_us(50).unwrap(),
-            short_v: 5.0,
-            open_v: 60.0,
+            volts: GapVolts {
+                short_below: 5.0,
+                open_above: 60.0,
+            },
         }
     }
 
