@@ -258,7 +258,8 @@ impl Core {
         let blocks = check.blocks;
         let path_total_mm = check.path_mm;
         let rapid_spans = check.rapid_spans.clone();
-        let rapid_feed = crate::preprocess::PlanSettings::from_config(&config).rapid_feed;
+        // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
+        let spec = runtime::JobSpec::from_config(&config, true);
         let start = resume
             .as_ref()
             .map(|r| r.position.clone())
@@ -286,7 +287,11 @@ impl Core {
             config: config.clone(),
             report,
             motion_settings: checkpoint::motion_settings(&self.keys),
-            progress: runtime::ProgressTracker::with_rapids(path_total_mm, rapid_spans, rapid_feed),
+            progress: runtime::ProgressTracker::with_rapids(
+                path_total_mm,
+                rapid_spans,
+                spec.plan.rapid_feed,
+            ),
             resumed_from: if resumed {
                 self.checkpoints.current.clone()
             } else {
@@ -319,8 +324,6 @@ impl Core {
         }
         self.prune_copies(Some(&program.sha256));
         let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());
-        // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
-        let spec = runtime::JobSpec::from_config(&config, true);
         let (job_published, job_stop, job_program) =
             (published.clone(), stop.clone(), program.clone());
         std::thread::Builder::new()
