@@ -232,8 +232,11 @@ fn a_dwell_stopped_part_way_is_finished_after_the_resume() {
     let cp = checkpoint(&dir);
     let left = cp["dwell_s"].as_f64().expect("the dwell's rest");
     let waited = dwelling.elapsed().as_secs_f64();
+    // The dwell's clock is the tick count: a deadline skipped after an overrun (a loaded
+    // machine, no real-time priority) counts no dwell time, so the wall time waited is a bound
+    // on what passed, not a measure of it. Some of it passed, never more than the wall time.
     assert!(
-        left > 0.5 && left < 3.0 - 1.5 + 0.2 && (left + waited - 3.0).abs() < 0.5,
+        left > 3.0 - waited - 0.2 && left < 3.0 - 0.5,
         "{left} s left after {waited} s: {cp}"
     );
     assert_eq!(cp["still"], true);
