@@ -300,7 +300,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             return Err(self.error(0, "", fail));
         }
         if self.program.ended_at.is_none()
-            && let Some(fail) = self.unclosed()
+            && let Some(fail) = self.program.flow.unclosed()
         {
             return Err(self.error(0, "", fail));
         }

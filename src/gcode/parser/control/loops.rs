@@ -3,7 +3,7 @@
 
 use std::io::{BufRead, Seek};
 
-use super::{Purpose, mismatch};
+use super::{Flow, Purpose, count_fits, mismatch};
 use crate::gcode::lexer::{Keyword, Label, OWord};
 use crate::gcode::lines::Pos;
 use crate::gcode::parser::{BlockReader, Step};
@@ -49,7 +49,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 let LoopKind::Do { body } = top.kind else {
                     unreachable!("checked above")
                 };
-                self.spend(|| format!("the loop {label} at line {line}"))?;
+                self.program
+                    .flow
+                    .spend(self.options.max_loop_iterations, || {
+                        format!("the loop {label} at line {line}")
+                    })?;
                 self.program.seek(body)?;
             } else {
                 self.program.flow.loops.pop();
@@ -62,7 +66,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         if truth {
             let line = self.scratch.line_no;
-            self.spend(|| format!("the loop {label} at line {line}"))?;
+            self.program
+                .flow
+                .spend(self.options.max_loop_iterations, || {
+                    format!("the loop {label} at line {line}")
+                })?;
             let at = Pos {
                 offset: self.scratch.line_start,
                 line: self.scratch.line_no,
@@ -74,14 +82,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 line: self.scratch.line_no,
             });
         } else {
-            self.start_skip(Some(label), Purpose::LoopExit, "endwhile");
+            self.program.flow.start_skip(
+                Some(label),
+                Purpose::LoopExit,
+                "endwhile",
+                self.scratch.line_no,
+            );
         }
         Ok(())
     }
 
     /// `endwhile`, `endrepeat` and `continue`: back to the loop's head or out of it.
     pub(super) fn loop_end(&mut self, o: &OWord, label: Label) -> Step<()> {
-        let Some(top) = self.current_loop(&label) else {
+        let Some(top) = self.program.flow.current_loop(&label) else {
             return Err(mismatch(o, "not inside this loop"));
         };
         match (o.keyword, top.kind) {
@@ -99,17 +112,31 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         remaining: remaining - 1,
                     };
                     let line = top.line;
-                    self.spend(|| format!("the loop {label} at line {line}"))?;
+                    self.program
+                        .flow
+                        .spend(self.options.max_loop_iterations, || {
+                            format!("the loop {label} at line {line}")
+                        })?;
                     self.program.seek(body)?;
                 } else {
                     self.program.flow.loops.pop();
                     if o.keyword == Keyword::Continue {
-                        self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+                        self.program.flow.start_skip(
+                            Some(label),
+                            Purpose::LoopExit,
+                            "endrepeat",
+                            self.scratch.line_no,
+                        );
                     }
                 }
             }
             (Keyword::Continue, LoopKind::Do { .. }) => {
-                self.start_skip(Some(label), Purpose::DoContinue, "while");
+                self.program.flow.start_skip(
+                    Some(label),
+                    Purpose::DoContinue,
+                    "while",
+                    self.scratch.line_no,
+                );
             }
             _ => return Err(mismatch(o, "does not close this kind of loop")),
         }
@@ -119,7 +146,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// `do`: a loop whose test is at its end.
     pub(super) fn do_statement(&mut self, label: Label) -> Step<()> {
         let line = self.scratch.line_no;
-        self.spend(|| format!("the loop {label} at line {line}"))?;
+        self.program
+            .flow
+            .spend(self.options.max_loop_iterations, || {
+                format!("the loop {label} at line {line}")
+            })?;
         let body = self.program.lines.position();
         self.program.flow.loops.push(Loop {
             label,
@@ -134,12 +165,24 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn repeat_statement(&mut self, text: &str, o: &OWord, label: Label) -> Step<()> {
         let n = self.one_argument(text, o, true)?.unwrap_or(0.0).round();
         if n < 1.0 {
-            self.start_skip(Some(label), Purpose::LoopExit, "endrepeat");
+            self.program.flow.start_skip(
+                Some(label),
+                Purpose::LoopExit,
+                "endrepeat",
+                self.scratch.line_no,
+            );
         } else {
             let line = self.scratch.line_no;
             let what = || format!("the loop {label} at line {line}");
-            self.count_fits(what, n as u64, o.rest_col + 1)?;
-            self.spend(what)?;
+            count_fits(
+                self.options.max_loop_iterations,
+                what,
+                n as u64,
+                o.rest_col + 1,
+            )?;
+            self.program
+                .flow
+                .spend(self.options.max_loop_iterations, what)?;
             let body = self.program.lines.position();
             self.program.flow.loops.push(Loop {
                 label,
@@ -156,7 +199,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// `break`: out of the innermost loop, which must be `label`'s.
     pub(super) fn break_statement(&mut self, o: &OWord, label: Label) -> Step<()> {
-        let Some(top) = self.current_loop(&label) else {
+        let Some(top) = self.program.flow.current_loop(&label) else {
             return Err(mismatch(o, "not inside this loop"));
         };
         let what = match top.kind {
@@ -165,15 +208,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
             LoopKind::Repeat { .. } => "endrepeat",
         };
         self.program.flow.loops.pop();
-        self.start_skip(Some(label), Purpose::LoopExit, what);
+        self.program
+            .flow
+            .start_skip(Some(label), Purpose::LoopExit, what, self.scratch.line_no);
         Ok(())
     }
+}
 
+impl Flow {
     /// The innermost loop if it is `label`'s (a loop of the current call only).
     fn current_loop(&self, label: &Label) -> Option<&Loop> {
-        let floor = self.program.flow.frames.last().map_or(0, |f| f.loops);
-        (self.program.flow.loops.len() > floor)
-            .then(|| self.program.flow.loops.last())
+        let floor = self.frames.last().map_or(0, |f| f.loops);
+        (self.loops.len() > floor)
+            .then(|| self.loops.last())
             .flatten()
             .filter(|l| l.label == *label)
     }

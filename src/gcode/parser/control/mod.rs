@@ -110,6 +110,110 @@ impl Flow {
         (!self.frames.is_empty())
             .then(|| Box::new(self.frames.iter().rev().map(|f| f.call_line).collect()))
     }
+
+    /// Skips lines until `what` closes the construct `label` opened at `from_line`.
+    fn start_skip(
+        &mut self,
+        label: Option<Label>,
+        purpose: Purpose,
+        what: &'static str,
+        from_line: u64,
+    ) {
+        self.skip = Some(Skip {
+            label,
+            purpose,
+            from_line,
+            what,
+        });
+    }
+
+    /// The end of the file was reached inside a construct: it was never closed. (A program
+    /// that ends with M2/M30 inside one is fine: nothing after M2 runs.)
+    pub(super) fn unclosed(&self) -> Option<Fail> {
+        let open = |label: &Label, line: u64, what: &str| Fail {
+            col: 1,
+            kind: control(format!(
+                "{label} at line {line} is never closed: {what} expected before the end of the file"
+            )),
+            at: Some((line, String::new())),
+        };
+        if let Some(frame) = self.frames.last() {
+            let what = match &frame.kind {
+                CallKind::OWord { label, .. } => format!("{label} endsub"),
+                CallKind::Fanuc { .. } => "M99".to_string(),
+            };
+            return Some(Fail {
+                col: 1,
+                kind: control(format!(
+                    "the subroutine called at line {} has no end: {what} expected",
+                    frame.call_line
+                )),
+                at: Some((frame.call_line, String::new())),
+            });
+        }
+        if let Some(l) = self.loops.last() {
+            let what = match l.kind {
+                LoopKind::While { .. } => "endwhile",
+                LoopKind::Do { .. } => "while",
+                LoopKind::Repeat { .. } => "endrepeat",
+            };
+            return Some(open(&l.label, l.line, what));
+        }
+        if let Some((label, line)) = self.ifs.last() {
+            return Some(open(label, *line, "endif"));
+        }
+        let skip = self.skip.as_ref()?;
+        let label = skip
+            .label
+            .as_ref()
+            .map_or_else(|| "the subprogram".to_string(), |l| l.to_string());
+        Some(Fail {
+            col: 1,
+            kind: control(format!(
+                "{label} at line {} is never closed: {} expected",
+                skip.from_line, skip.what
+            )),
+            at: Some((skip.from_line, String::new())),
+        })
+    }
+
+    /// One more run of a loop's body or of a subroutine (`what` names it for the error):
+    /// spent from the program's budget.
+    fn spend(&mut self, limit: u64, what: impl FnOnce() -> String) -> Step<()> {
+        self.spent += 1;
+        if self.spent > limit {
+            return Err(Fail {
+                col: 1,
+                kind: GcodeErrorKind::FlowBudget { at: what(), limit },
+                at: None,
+            });
+        }
+        Ok(())
+    }
+
+    fn check_depth(&self, col: usize) -> Step<()> {
+        if self.frames.len() >= MAX_CALL_DEPTH {
+            return Err((
+                col,
+                GcodeErrorKind::CallDepth {
+                    limit: MAX_CALL_DEPTH,
+                },
+            )
+                .into());
+        }
+        Ok(())
+    }
+
+    fn push_frame(&mut self, kind: CallKind, return_to: Pos, call_line: u64) {
+        let frame = Frame {
+            kind,
+            return_to,
+            call_line,
+            loops: self.loops.len(),
+            ifs: self.ifs.len(),
+        };
+        self.frames.push(frame);
+    }
 }
 
 fn control(msg: String) -> GcodeErrorKind {
@@ -117,15 +221,6 @@ fn control(msg: String) -> GcodeErrorKind {
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
-    fn start_skip(&mut self, label: Option<Label>, purpose: Purpose, what: &'static str) {
-        self.program.flow.skip = Some(Skip {
-            label,
-            purpose,
-            from_line: self.scratch.line_no,
-            what,
-        });
-    }
-
     /// A line read while skipping: `true` if the skip ended on it and the line is to be
     /// processed as usual (a `do` loop's closing `while`), `false` if it was consumed.
     pub(super) fn skip_line(&mut self, text: &str) -> Step<bool> {
@@ -165,56 +260,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
             _ => {}
         }
         Ok(false)
-    }
-
-    /// The end of the file was reached inside a construct: it was never closed. (A program
-    /// that ends with M2/M30 inside one is fine: nothing after M2 runs.)
-    pub(super) fn unclosed(&self) -> Option<Fail> {
-        let open = |label: &Label, line: u64, what: &str| Fail {
-            col: 1,
-            kind: control(format!(
-                "{label} at line {line} is never closed: {what} expected before the end of the file"
-            )),
-            at: Some((line, String::new())),
-        };
-        if let Some(frame) = self.program.flow.frames.last() {
-            let what = match &frame.kind {
-                CallKind::OWord { label, .. } => format!("{label} endsub"),
-                CallKind::Fanuc { .. } => "M99".to_string(),
-            };
-            return Some(Fail {
-                col: 1,
-                kind: control(format!(
-                    "the subroutine called at line {} has no end: {what} expected",
-                    frame.call_line
-                )),
-                at: Some((frame.call_line, String::new())),
-            });
-        }
-        if let Some(l) = self.program.flow.loops.last() {
-            let what = match l.kind {
-                LoopKind::While { .. } => "endwhile",
-                LoopKind::Do { .. } => "while",
-                LoopKind::Repeat { .. } => "endrepeat",
-            };
-            return Some(open(&l.label, l.line, what));
-        }
-        if let Some((label, line)) = self.program.flow.ifs.last() {
-            return Some(open(label, *line, "endif"));
-        }
-        let skip = self.program.flow.skip.as_ref()?;
-        let label = skip
-            .label
-            .as_ref()
-            .map_or_else(|| "the subprogram".to_string(), |l| l.to_string());
-        Some(Fail {
-            col: 1,
-            kind: control(format!(
-                "{label} at line {} is never closed: {} expected",
-                skip.from_line, skip.what
-            )),
-            at: Some((skip.from_line, String::new())),
-        })
     }
 
     /// Values of `[…]` arguments after the keyword, as many as there are.
@@ -266,39 +311,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         Ok(self.one_argument(text, o, true)? != Some(0.0))
     }
 
-    /// One more run of a loop's body or of a subroutine (`what` names it for the error):
-    /// spent from the program's budget.
-    fn spend(&mut self, what: impl FnOnce() -> String) -> Step<()> {
-        self.program.flow.spent += 1;
-        if self.program.flow.spent > self.options.max_loop_iterations {
-            return Err(Fail {
-                col: 1,
-                kind: GcodeErrorKind::FlowBudget {
-                    at: what(),
-                    limit: self.options.max_loop_iterations,
-                },
-                at: None,
-            });
-        }
-        Ok(())
-    }
-
-    /// A count asked for up front (`repeat [n]`, `M98 L<n>`) that alone exceeds the budget.
-    fn count_fits(&self, what: impl FnOnce() -> String, runs: u64, col: usize) -> Step<()> {
-        if runs > self.options.max_loop_iterations {
-            return Err((
-                col,
-                GcodeErrorKind::LoopLimit {
-                    label: what(),
-                    runs,
-                    limit: self.options.max_loop_iterations,
-                },
-            )
-                .into());
-        }
-        Ok(())
-    }
-
     /// Executes an O-word statement met in the flow.
     pub(super) fn statement(&mut self, text: &str, o: OWord) -> Step<()> {
         let label = o.label.clone();
@@ -310,7 +322,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 }
                 let body = self.program.lines.position();
                 self.program.flow.subs.insert(label.clone(), body);
-                self.start_skip(Some(label), Purpose::SubBody, "endsub");
+                self.program.flow.start_skip(
+                    Some(label),
+                    Purpose::SubBody,
+                    "endsub",
+                    self.scratch.line_no,
+                );
             }
             Keyword::Endsub | Keyword::Return => {
                 let value = self.one_argument(text, &o, false)?;
@@ -346,18 +363,31 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         o.col,
                     )?,
                 };
-                self.check_depth(o.col)?;
+                self.program.flow.check_depth(o.col)?;
                 let line = self.scratch.line_no;
-                self.spend(|| format!("the call of {label} at line {line}"))?;
+                self.program
+                    .flow
+                    .spend(self.options.max_loop_iterations, || {
+                        format!("the call of {label} at line {line}")
+                    })?;
                 let saved = Box::new(self.state.params.enter(&args));
-                self.push_frame(CallKind::OWord { label, saved });
+                self.program.flow.push_frame(
+                    CallKind::OWord { label, saved },
+                    self.program.lines.position(),
+                    self.scratch.line_no,
+                );
                 self.program.seek(body)?;
             }
             Keyword::If => {
                 if self.condition(text, &o)? {
                     self.program.flow.ifs.push((label, self.scratch.line_no));
                 } else {
-                    self.start_skip(Some(label), Purpose::FalseIf, "elseif, else or endif");
+                    self.program.flow.start_skip(
+                        Some(label),
+                        Purpose::FalseIf,
+                        "elseif, else or endif",
+                        self.scratch.line_no,
+                    );
                 }
             }
             Keyword::Elseif | Keyword::Else => {
@@ -365,7 +395,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     return Err(mismatch("without its if"));
                 }
                 self.program.flow.ifs.pop();
-                self.start_skip(Some(label), Purpose::IfDone, "endif");
+                self.program.flow.start_skip(
+                    Some(label),
+                    Purpose::IfDone,
+                    "endif",
+                    self.scratch.line_no,
+                );
             }
             Keyword::Endif => {
                 if self.program.flow.ifs.pop().map(|(l, _)| l) != Some(label) {
@@ -381,30 +416,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Keyword::Break => self.break_statement(&o, label)?,
         }
         Ok(())
-    }
-
-    fn check_depth(&self, col: usize) -> Step<()> {
-        if self.program.flow.frames.len() >= MAX_CALL_DEPTH {
-            return Err((
-                col,
-                GcodeErrorKind::CallDepth {
-                    limit: MAX_CALL_DEPTH,
-                },
-            )
-                .into());
-        }
-        Ok(())
-    }
-
-    fn push_frame(&mut self, kind: CallKind) {
-        let frame = Frame {
-            kind,
-            return_to: self.program.lines.position(),
-            call_line: self.scratch.line_no,
-            loops: self.program.flow.loops.len(),
-            ifs: self.program.flow.ifs.len(),
-        };
-        self.program.flow.frames.push(frame);
     }
 
     fn return_from_call(&mut self) -> Step<()> {
@@ -430,8 +441,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         let line = self.scratch.line_no;
         let what = || format!("M98 P{number} at line {line}");
-        self.count_fits(what, count, count_col)?;
-        self.spend(what)?;
+        count_fits(self.options.max_loop_iterations, what, count, count_col)?;
+        self.program
+            .flow
+            .spend(self.options.max_loop_iterations, what)?;
         let body = match self.program.flow.fanuc_subs.get(&number) {
             Some(&p) => p,
             None => self.find_ahead(
@@ -440,11 +453,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 col,
             )?,
         };
-        self.check_depth(col)?;
-        self.push_frame(CallKind::Fanuc {
-            remaining: count - 1,
-            body,
-        });
+        self.program.flow.check_depth(col)?;
+        self.program.flow.push_frame(
+            CallKind::Fanuc {
+                remaining: count - 1,
+                body,
+            },
+            self.program.lines.position(),
+            self.scratch.line_no,
+        );
         self.program.seek(body)
     }
 
@@ -461,7 +478,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     *remaining -= 1;
                     let body = *body;
                     let line = self.program.flow.frames.last().map_or(0, |f| f.call_line);
-                    self.spend(|| format!("the M98 at line {line}"))?;
+                    self.program
+                        .flow
+                        .spend(self.options.max_loop_iterations, || {
+                            format!("the M98 at line {line}")
+                        })?;
                     return self.program.seek(body);
                 }
                 self.return_from_call()
@@ -491,7 +512,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn fanuc_definition(&mut self, number: u32) {
         let body = self.program.lines.position();
         self.program.flow.fanuc_subs.insert(number, body);
-        self.start_skip(None, Purpose::FanucBody, "M99");
+        self.program
+            .flow
+            .start_skip(None, Purpose::FanucBody, "M99", self.scratch.line_no);
     }
 
     /// Reads ahead from here, noting every subroutine definition, until `found` knows the
@@ -548,4 +571,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
 fn mismatch(o: &OWord, what: &str) -> Fail {
     let shown = format!("{} {}", o.label, o.keyword.name());
     (o.col, control(format!("{shown}: {what}"))).into()
+}
+
+/// A loop of `runs` iterations fits the program's budget of `limit`.
+/// A count asked for up front (`repeat [n]`, `M98 L<n>`) that alone exceeds the budget.
+fn count_fits(limit: u64, what: impl FnOnce() -> String, runs: u64, col: usize) -> Step<()> {
+    if runs > limit {
+        return Err((
+            col,
+            GcodeErrorKind::LoopLimit {
+                label: what(),
+                runs,
+                limit,
+            },
+        )
+            .into());
+    }
+    Ok(())
 }
