@@ -148,6 +148,67 @@ fn write_ahead_point(resume: Option<&ResumePoint>, config: &Config) -> Snapshot 
     at
 }
 
+impl JobControl {
+    /// A job that ended, or did not start after all, hands the claimed parallel port back.
+    pub(super) fn give_back_io(&mut self, config: &Config, output: BoxedOutput, gap: BoxedGap) {
+        if config.output.kind == OutputKind::Parport {
+            self.port_output = Some(output);
+        }
+        if config.gap.kind == GapKind::Parport {
+            self.port_gap = Some(gap);
+        }
+    }
+
+    /// The job's output and gap source: the claimed port when there is one, else opened now.
+    pub(super) fn job_io(
+        &mut self,
+        config: &Config,
+        check: &runtime::Precheck,
+        start: &[i64],
+    ) -> Result<JobIo, JobError> {
+        let tracer = (config.output.trace || config.gap.trace).then(|| {
+            crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
+        });
+        let (output, opened_gap) = match self.port_output.take() {
+            Some(output) => (output, None),
+            None => runtime::open_output(config, start)?,
+        };
+        let port_gap = if config.gap.kind == GapKind::Parport {
+            self.port_gap.take().or(opened_gap)
+        } else {
+            None
+        };
+        let gap = match runtime::open_gap(config, check, port_gap) {
+            Ok(gap) => gap,
+            Err(e) => {
+                if config.output.kind == OutputKind::Parport {
+                    self.port_output = Some(output);
+                }
+                return Err(e);
+            }
+        };
+        // The claimed port is lent as it is: wrappers would stay on it after the job.
+        let (output, gap) = if config.output.kind == OutputKind::Parport {
+            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
+                tracing::warn!(
+                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
+                     daemon's claimed parallel port"
+                );
+            }
+            (output, gap)
+        } else {
+            runtime::wrap_io(config, output, gap, tracer.as_ref())
+        };
+        Ok(JobIo {
+            output,
+            gap,
+            tracer,
+            recording: None,
+            progress: None,
+        })
+    }
+}
+
 impl Core {
     pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
@@ -267,7 +328,7 @@ impl Core {
         // A report of what this job runs, when the configuration asks for one. Its folder is
         // made first: a job must not learn at its end that its report has nowhere to go.
         let report = job_report(&config, &program.name)?;
-        let mut io = self.job_io(&config, &check, &start)?;
+        let mut io = self.jobs.job_io(&config, &check, &start)?;
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
         let published = Arc::new(Published::new(4096));
@@ -303,7 +364,7 @@ impl Core {
         let old = self.checkpoints.current.clone();
         let at = write_ahead_point(resume.as_ref(), &config);
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
-            self.give_back_io(&config, io);
+            self.jobs.give_back_io(&config, io.output, io.gap);
             return Err(Refusal::WriteAhead {
                 error,
                 consequence: "the job does not start without its checkpoint",
@@ -353,65 +414,6 @@ impl Core {
         };
         self.jobs.job = Some(job);
         Ok(text)
-    }
-
-    /// A job that does not start after all hands the claimed parallel port back.
-    fn give_back_io(&mut self, config: &Config, io: JobIo) {
-        if config.output.kind == OutputKind::Parport {
-            self.jobs.port_output = Some(io.output);
-        }
-        if config.gap.kind == GapKind::Parport {
-            self.jobs.port_gap = Some(io.gap);
-        }
-    }
-
-    /// The job's output and gap source: the claimed port when there is one, else opened now.
-    pub(super) fn job_io(
-        &mut self,
-        config: &Config,
-        check: &runtime::Precheck,
-        start: &[i64],
-    ) -> Result<JobIo, JobError> {
-        let tracer = (config.output.trace || config.gap.trace).then(|| {
-            crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
-        });
-        let (output, opened_gap) = match self.jobs.port_output.take() {
-            Some(output) => (output, None),
-            None => runtime::open_output(config, start)?,
-        };
-        let port_gap = if config.gap.kind == GapKind::Parport {
-            self.jobs.port_gap.take().or(opened_gap)
-        } else {
-            None
-        };
-        let gap = match runtime::open_gap(config, check, port_gap) {
-            Ok(gap) => gap,
-            Err(e) => {
-                if config.output.kind == OutputKind::Parport {
-                    self.jobs.port_output = Some(output);
-                }
-                return Err(e);
-            }
-        };
-        // The claimed port is lent as it is: wrappers would stay on it after the job.
-        let (output, gap) = if config.output.kind == OutputKind::Parport {
-            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
-                tracing::warn!(
-                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
-                     daemon's claimed parallel port"
-                );
-            }
-            (output, gap)
-        } else {
-            runtime::wrap_io(config, output, gap, tracer.as_ref())
-        };
-        Ok(JobIo {
-            output,
-            gap,
-            tracer,
-            recording: None,
-            progress: None,
-        })
     }
 
     pub(super) fn hold(&mut self) -> Result<String, Refusal> {
@@ -612,12 +614,7 @@ impl Core {
             &job.published,
             &job.published.snapshot(),
         ));
-        if job.config.output.kind == OutputKind::Parport {
-            self.jobs.port_output = Some(end.output);
-        }
-        if job.config.gap.kind == GapKind::Parport {
-            self.jobs.port_gap = Some(end.gap);
-        }
+        self.jobs.give_back_io(&job.config, end.output, end.gap);
         let summary = end.summary;
         let text = summary.text();
         let mut lines = text.lines();
