@@ -49,12 +49,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 let LoopKind::Do { body } = top.kind else {
                     unreachable!("checked above")
                 };
-                self.program
-                    .flow
-                    .spend(self.options.max_loop_iterations, || {
-                        format!("the loop {label} at line {line}")
-                    })?;
-                self.program.seek(body)?;
+                self.go_round(&label, line, body)?;
             } else {
                 self.program.flow.loops.pop();
             }
@@ -66,11 +61,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         if truth {
             let line = self.scratch.line_no;
-            self.program
-                .flow
-                .spend(self.options.max_loop_iterations, || {
-                    format!("the loop {label} at line {line}")
-                })?;
+            self.spend_on_loop(&label, line)?;
             let at = Pos {
                 offset: self.scratch.line_start,
                 line: self.scratch.line_no,
@@ -112,12 +103,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         remaining: remaining - 1,
                     };
                     let line = top.line;
-                    self.program
-                        .flow
-                        .spend(self.options.max_loop_iterations, || {
-                            format!("the loop {label} at line {line}")
-                        })?;
-                    self.program.seek(body)?;
+                    self.go_round(&label, line, body)?;
                 } else {
                     self.program.flow.loops.pop();
                     if o.keyword == Keyword::Continue {
@@ -143,14 +129,25 @@ impl<R: BufRead + Seek> BlockReader<R> {
         Ok(())
     }
 
-    /// `do`: a loop whose test is at its end.
-    pub(super) fn do_statement(&mut self, label: Label) -> Step<()> {
-        let line = self.scratch.line_no;
+    /// Another round of the loop `label` (opened at `line`) from `to`, spent from the budget.
+    fn go_round(&mut self, label: &Label, line: u64, to: Pos) -> Step<()> {
+        self.spend_on_loop(label, line)?;
+        self.program.seek(to)
+    }
+
+    /// One round of the loop `label` (opened at `line`) spent from the program's budget.
+    fn spend_on_loop(&mut self, label: &Label, line: u64) -> Step<()> {
         self.program
             .flow
             .spend(self.options.max_loop_iterations, || {
                 format!("the loop {label} at line {line}")
-            })?;
+            })
+    }
+
+    /// `do`: a loop whose test is at its end.
+    pub(super) fn do_statement(&mut self, label: Label) -> Step<()> {
+        let line = self.scratch.line_no;
+        self.spend_on_loop(&label, line)?;
         let body = self.program.lines.position();
         self.program.flow.loops.push(Loop {
             label,
