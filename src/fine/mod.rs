@@ -217,12 +217,6 @@ impl Interpolator {
         c
     }
 
-    /// What the proportional servo law measures, filtered: the gap voltage (V) or the ratio
-    /// law's `open − short`, once it has measured.
-    pub fn law_signal(&self) -> Option<f64> {
-        self.servo.law_signal()
-    }
-
     /// What the servo law reads from the gap input beside its state.
     pub fn law_input(&self) -> LawInput {
         self.settings.law.input()

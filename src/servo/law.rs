@@ -199,15 +199,6 @@ impl GapLaw {
         }
     }
 
-    /// What the law measures, filtered (V, or the ratio signal), once it has measured.
-    pub(crate) fn signal(&self) -> Option<f64> {
-        match *self {
-            GapLaw::ThreeState => None,
-            GapLaw::Voltage { filtered, .. } => filtered.is_finite().then_some(filtered),
-            GapLaw::Ratio { signal, .. } => signal.is_finite().then_some(signal),
-        }
-    }
-
     pub(crate) fn is_three_state(&self) -> bool {
         matches!(self, GapLaw::ThreeState)
     }

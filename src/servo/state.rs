@@ -1,0 +1,303 @@
+//! What the servo says and keeps: where along the path ([`PathPoint`]), its state
+//! ([`ServoState`], with the excursion and rethread kinds), the events it reports
+//! ([`ServoEvent`]), its feeds and its counters ([`ServoCounters`]), with their seqlock words.
+
+use crate::words::{Packed, packed_struct};
+
+/// Where the electrode is along the program: block sequence number and Bresenham event.
+/// Ordered along the path (the end of block `s` and the start of block `s + 1` are the same
+/// lattice point but compare as the order in which they are reached).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub struct PathPoint {
+    pub seq: u64,
+    pub event: i64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ServoState {
+    Forward,
+    Hold,
+    TurnBack,
+    ReAdvance,
+    Alarm,
+    Done,
+    Retreat,
+    Return,
+    WireBroken,
+    Threading,
+}
+
+/// Where the wire is threaded again after a break.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Rethread {
+    /// Back along the path to the start hole first.
+    AtStart,
+    /// Where the wire broke.
+    Here,
+}
+
+/// Why the servo retreats along the path on purpose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Excursion {
+    /// A sinker's jump: up by the jump height, back down, sparking again.
+    Jump,
+    /// Back to the start hole to re-thread a broken wire.
+    Rethread,
+}
+
+impl ServoState {
+    pub fn name(self) -> &'static str {
+        match self {
+            ServoState::Forward => "forward",
+            ServoState::Hold => "hold",
+            ServoState::TurnBack => "turn-back",
+            ServoState::ReAdvance => "re-advance",
+            ServoState::Alarm => "alarm",
+            ServoState::Done => "done",
+            ServoState::Retreat => "retreat",
+            ServoState::Return => "return",
+            ServoState::WireBroken => "wire-break",
+            ServoState::Threading => "threading",
+        }
+    }
+
+    /// Every state.
+    pub const ALL: [ServoState; 10] = [
+        ServoState::Forward,
+        ServoState::Hold,
+        ServoState::TurnBack,
+        ServoState::ReAdvance,
+        ServoState::Alarm,
+        ServoState::Done,
+        ServoState::Retreat,
+        ServoState::Return,
+        ServoState::WireBroken,
+        ServoState::Threading,
+    ];
+
+    /// The state a [`name`](Self::name) names.
+    pub fn from_name(name: &str) -> Option<ServoState> {
+        ServoState::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// The generator is off whatever the move: jumps, rethreading and the ways there and back.
+    pub fn spark_off(self) -> bool {
+        matches!(
+            self,
+            ServoState::Retreat
+                | ServoState::Return
+                | ServoState::WireBroken
+                | ServoState::Threading
+        )
+    }
+
+    /// Parked after a wire break, waiting for the operator.
+    pub fn wire_parked(self) -> bool {
+        matches!(self, ServoState::WireBroken | ServoState::Threading)
+    }
+
+    /// No more motion will happen.
+    pub fn is_final(self) -> bool {
+        matches!(self, ServoState::Alarm | ServoState::Done)
+    }
+}
+
+/// In the status JSON a state is its [`name`](ServoState::name).
+impl serde::Serialize for ServoState {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ServoState {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        ServoState::from_name(&name)
+            .ok_or_else(|| serde::de::Error::custom(format!("no servo state {name:?}")))
+    }
+}
+
+/// Servo feeds in mm/s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feeds {
+    pub normal: f64,
+    pub open: f64,
+    pub retract: f64,
+}
+
+/// Something the servo did that the outside world wants to hear about (logged by a normal
+/// thread, never by the tick core).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ServoEvent {
+    /// A short circuit began (or began again during re-advance).
+    Short { at: PathPoint },
+    /// The gap cleared after turning back over `depth` blocks.
+    Cleared { depth: u64 },
+    /// Back at the point of the short; machining goes on.
+    Resumed { at: PathPoint },
+    /// The buffer ran dry.
+    Starved { at: PathPoint },
+    /// Shorted after the whole reserved area, or for longer than `servo.max_short_s`
+    /// (`timed_out`).
+    Alarm {
+        at: PathPoint,
+        depth: u64,
+        timed_out: bool,
+    },
+    /// The last block is done.
+    Done,
+    /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
+    /// the interpolator holds there.
+    Paused { at: PathPoint },
+    /// The gap shorted during a rapid (`G0`): the electrode touched something while
+    /// positioning with the spark off. Motion stopped at `at`; the interpolator holds.
+    Collision { at: PathPoint },
+    /// The machining condition (`E<number>`) in force changed with the move in hand
+    /// (reported by the consumer's thread loop).
+    Condition { number: u16 },
+    /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
+    /// consumer's thread loop, which tells the output).
+    Flushing { on: bool },
+    /// A jump began at `at` (the electrode lifts along the path, spark off).
+    Jump { at: PathPoint },
+    /// The retreat of a jump or a rethread ended at `at`, `mm` of path behind the mark.
+    Retreated {
+        why: Excursion,
+        at: PathPoint,
+        mm: f64,
+        /// Stopped at the oldest executed block kept (`buffer.reserved`), short of the
+        /// start of the cut.
+        exhausted: bool,
+    },
+    /// Back at the mark after a jump or a rethread: sparking again.
+    Returned { why: Excursion, at: PathPoint },
+    /// The wire broke at `at`: by the sensor, or (`open`) by an open gap over
+    /// `servo.max_open_mm` of cutting travel. Motion stopped; the interpolator holds.
+    WireBreak { at: PathPoint, open: bool },
+    /// A probing move touched (or, probing away, left) the work at `at`; `steps` is the
+    /// pulse ledger there. `contact: false`: it reached its end point without.
+    Probed {
+        at: PathPoint,
+        steps: [i64; crate::vocab::MAX_AXES],
+        contact: bool,
+        /// Probing away (`G38.4`/`G38.5`): the contact was lost rather than made.
+        away: bool,
+    },
+    /// A `G38.2`/`G38.4` reached its end point without contact: the job cannot go on.
+    ProbeMissed { at: PathPoint },
+}
+
+/// A state travels as its index in [`ServoState::ALL`].
+impl Packed for ServoState {
+    const WORDS: usize = 1;
+    fn pack(&self, out: &mut [u64]) {
+        out[0] = ServoState::ALL.iter().position(|s| s == self).unwrap_or(1) as u64;
+    }
+    fn unpack(words: &[u64]) -> Self {
+        ServoState::ALL[words[0] as usize % ServoState::ALL.len()]
+    }
+}
+
+impl Packed for Option<Excursion> {
+    const WORDS: usize = 1;
+    fn pack(&self, out: &mut [u64]) {
+        out[0] = match self {
+            None => 0,
+            Some(Excursion::Jump) => 1,
+            Some(Excursion::Rethread) => 2,
+        };
+    }
+    fn unpack(words: &[u64]) -> Self {
+        match words[0] {
+            1 => Some(Excursion::Jump),
+            2 => Some(Excursion::Rethread),
+            _ => None,
+        }
+    }
+}
+
+impl Packed for PathPoint {
+    const WORDS: usize = 2;
+    fn pack(&self, out: &mut [u64]) {
+        self.seq.pack(&mut out[..1]);
+        self.event.pack(&mut out[1..]);
+    }
+    fn unpack(words: &[u64]) -> Self {
+        PathPoint {
+            seq: u64::unpack(&words[..1]),
+            event: i64::unpack(&words[1..]),
+        }
+    }
+}
+
+packed_struct! {
+/// Counters kept by the servo: one definition for the summary, the status, the metrics and
+/// the snapshot (flattened into the JSON under these names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct ServoCounters {
+    pub shorts: u64,
+    pub turn_backs: u64,
+    /// The most blocks one turn-back went back over (a maximum, not a count).
+    pub deepest_turn_back_blocks: u64,
+    pub alarms: u64,
+    pub starvations: u64,
+    /// Shorts during rapids (collisions).
+    #[serde(default)]
+    pub collisions: u64,
+    /// Jumps begun.
+    #[serde(default)]
+    pub jumps: u64,
+    /// Wire breaks detected.
+    #[serde(default)]
+    pub wire_breaks: u64,
+    /// Probing moves finished (with or without contact).
+    #[serde(default)]
+    pub probes: u64,
+}
+}
+
+impl ServoCounters {
+    /// The counts (everything but the deepest turn-back) with their names and what they
+    /// count, for the metrics: `edmd_<name>_total`.
+    pub fn counts(&self) -> [(&'static str, &'static str, u64); 8] {
+        [
+            ("shorts", "Short circuits.", self.shorts),
+            (
+                "turn_backs",
+                "Turn-backs along the executed path.",
+                self.turn_backs,
+            ),
+            (
+                "alarms",
+                "Alarms (shorts the turn-back could not clear).",
+                self.alarms,
+            ),
+            ("collisions", "Shorts during rapids.", self.collisions),
+            (
+                "starvations",
+                "Times the loop buffer ran dry.",
+                self.starvations,
+            ),
+            ("jumps", "Sinker jumps.", self.jumps),
+            ("wire_breaks", "Wire breaks.", self.wire_breaks),
+            ("probes", "Probing moves finished.", self.probes),
+        ]
+    }
+
+    /// Two jobs' counters together: the counts summed, the deepest turn-back the deeper.
+    pub fn plus(&self, other: &ServoCounters) -> ServoCounters {
+        ServoCounters {
+            shorts: self.shorts + other.shorts,
+            turn_backs: self.turn_backs + other.turn_backs,
+            deepest_turn_back_blocks: self
+                .deepest_turn_back_blocks
+                .max(other.deepest_turn_back_blocks),
+            alarms: self.alarms + other.alarms,
+            starvations: self.starvations + other.starvations,
+            collisions: self.collisions + other.collisions,
+            jumps: self.jumps + other.jumps,
+            wire_breaks: self.wire_breaks + other.wire_breaks,
+            probes: self.probes + other.probes,
+        }
+    }
+}
