@@ -1,0 +1,139 @@
+//! The loop buffer's unit: a step block, its flags, and what the machine is doing while it
+//! runs one (`Activity`).
+
+use crate::vocab::{MAX_AXES, Steps};
+
+/// One block of the loop buffer (seed 000 Fig. 4): a straight move between two lattice points.
+///
+/// `start` and `end` are absolute step positions, each rounded once from the segment's end
+/// point in mm; a block's `start` is the previous block's `end` (the same rounding of the same
+/// point), so no rounding error accumulates however long the program is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepBlock {
+    /// Position in the program's sequence of blocks (0-based).
+    pub seq: u64,
+    pub start: Steps,
+    pub end: Steps,
+    /// Length of the move in mm (the chord between the exact end points).
+    pub length_mm: f64,
+    /// Planned speeds (mm/s): at the start, at the end, and the cruise limit in between.
+    pub v_entry: f64,
+    pub v_exit: f64,
+    pub v_cruise: f64,
+    /// Source line of the G-code block the move belongs to.
+    pub line: u64,
+    /// Curve parameter at the move's end, in the program's knot units (NURBS blocks; NaN for
+    /// lines and arcs). Checkpoints report it; motion never uses it.
+    pub u_end: f64,
+    pub flags: BlockFlags,
+    /// Path length from the program's start to the move's end (mm, forward, chords summed):
+    /// how far along the job this move ends, for progress and ETA.
+    pub path_end_mm: f64,
+    /// `G4` dwell before the move, s (first move of its G-code block only).
+    pub dwell_s: f64,
+    /// The machining condition in force (`E<number>`; 0 none), and what it sets for the
+    /// servo: the sparking feed (mm/s) and the voltage law's reference (V); 0 keeps the
+    /// `[servo]` settings.
+    pub condition: u16,
+    pub condition_feed: f32,
+    pub condition_v_ref: f32,
+    /// The condition's jumps: interval (s), height (mm) and feed (mm/s); NaN keeps the
+    /// `[servo]` setting, an interval of 0 turns jumps off.
+    pub condition_jump: [f32; 3],
+}
+
+/// What a move is besides its geometry: a small set of flags, one byte in the ring.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct BlockFlags(u8);
+
+impl BlockFlags {
+    pub const NONE: BlockFlags = BlockFlags(0);
+    /// Last move of its G-code block.
+    pub const LAST_OF_BLOCK: BlockFlags = BlockFlags(1);
+    /// Part of a rapid (G0).
+    pub const RAPID: BlockFlags = BlockFlags(2);
+    /// `M0`/`M1`: stop before this move and wait for the operator (first move of its block).
+    pub const PAUSE: BlockFlags = BlockFlags(4);
+    /// Flushing is on (`M7`/`M8`) during this move.
+    pub const FLUSH: BlockFlags = BlockFlags(8);
+    /// A probing move (`G38.x`, `G31`): it stops where contact happens (or ends).
+    pub const PROBE: BlockFlags = BlockFlags(16);
+    /// With `PROBE`: until contact is lost (`G38.4`/`G38.5`), not until it is made.
+    pub const PROBE_AWAY: BlockFlags = BlockFlags(32);
+    /// With `PROBE`: reaching the end point without contact is an error (`G38.2`/`G38.4`).
+    pub const PROBE_MUST: BlockFlags = BlockFlags(64);
+
+    /// Every flag of `other` is set.
+    pub const fn contains(self, other: BlockFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Some flag of `other` is set.
+    pub const fn intersects(self, other: BlockFlags) -> bool {
+        self.0 & other.0 != 0
+    }
+}
+
+impl std::ops::BitOr for BlockFlags {
+    type Output = BlockFlags;
+    fn bitor(self, other: BlockFlags) -> BlockFlags {
+        BlockFlags(self.0 | other.0)
+    }
+}
+
+impl std::ops::BitOrAssign for BlockFlags {
+    fn bitor_assign(&mut self, other: BlockFlags) {
+        self.0 |= other.0;
+    }
+}
+
+/// What the machine is doing, as the consumer's thread loop tells the output and the gap
+/// input when it changes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Activity {
+    /// The move in hand's flags (rapid, flushing, probing, …).
+    pub flags: BlockFlags,
+    /// The generator is off for an excursion (a jump, a rethread and the ways there and
+    /// back), whatever the move.
+    pub excursion: bool,
+    /// The generator sparks: a cutting move in hand, not held, not over, no excursion.
+    pub spark: bool,
+    /// The machining condition in force (`E<number>`; 0 none).
+    pub condition: u16,
+}
+
+impl StepBlock {
+    /// An all-zero block (a placeholder for preallocated storage).
+    pub const EMPTY: StepBlock = StepBlock {
+        seq: 0,
+        start: [0; MAX_AXES],
+        end: [0; MAX_AXES],
+        length_mm: 0.0,
+        v_entry: 0.0,
+        v_exit: 0.0,
+        v_cruise: 0.0,
+        line: 0,
+        u_end: f64::NAN,
+        flags: BlockFlags::NONE,
+        path_end_mm: 0.0,
+        dwell_s: 0.0,
+        condition: 0,
+        condition_feed: 0.0,
+        condition_v_ref: 0.0,
+        condition_jump: [f32::NAN; 3],
+    };
+
+    /// Signed step count of each axis.
+    pub fn delta(&self) -> Steps {
+        std::array::from_fn(|i| self.end[i] - self.start[i])
+    }
+
+    /// Steps of the axis that moves most: the number of Bresenham step events of the block.
+    pub fn events(&self) -> u64 {
+        self.delta()
+            .iter()
+            .map(|d| d.unsigned_abs())
+            .max()
+            .unwrap_or(0)
+    }
+}
