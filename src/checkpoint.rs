@@ -26,7 +26,6 @@
 //! is or asks for `--force`. A `G4` dwell stopped part-way keeps its remaining time
 //! ([`Checkpoint::dwell_s`]).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -126,6 +125,56 @@ pub struct Checkpoint {
     pub position_mm: Vec<f64>,
     /// Seconds since the Unix epoch.
     pub written_unix_s: u64,
+    /// Where the job started and in which work system, with which offsets: a resume replays
+    /// the program from there. Absent (older checkpoints): machine zero, `G54`, no offsets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<StartRecord>,
+}
+
+/// A job's start as a checkpoint keeps it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartRecord {
+    /// Machine position, steps per axis.
+    pub position_steps: Vec<i64>,
+    pub work_system: String,
+    pub offsets_mm: crate::machine::OffsetTable,
+}
+
+impl StartRecord {
+    pub fn new(
+        start: &crate::gcode::WorkStart,
+        axes: &[crate::vocab::Axis],
+        step_mm: &[f64],
+    ) -> Self {
+        StartRecord {
+            position_steps: step_mm
+                .iter()
+                .enumerate()
+                .map(|(i, mm)| (start.position_mm[i] / mm).round() as i64)
+                .collect(),
+            work_system: start.system.name().to_string(),
+            offsets_mm: crate::machine::offsets_table(&start.offsets, axes),
+        }
+    }
+
+    /// The start it records, for a machine with `axes` and `step_mm`.
+    pub fn work_start(
+        &self,
+        axes: &[crate::vocab::Axis],
+        step_mm: &[f64],
+    ) -> Result<crate::gcode::WorkStart, String> {
+        let mut start = crate::gcode::WorkStart {
+            offsets: crate::machine::offsets_from_table(&self.offsets_mm, axes)?,
+            system: crate::gcode::WorkSystem::parse(&self.work_system)
+                .ok_or_else(|| format!("start.work_system {:?}", self.work_system))?,
+            ..Default::default()
+        };
+        for (i, (s, mm)) in self.position_steps.iter().zip(step_mm).enumerate() {
+            start.position_mm[i] = *s as f64 * mm;
+        }
+        Ok(start)
+    }
 }
 
 /// What stops a checkpoint from being read or resumed.
@@ -169,36 +218,15 @@ pub enum CheckpointError {
 impl Checkpoint {
     /// Writes the checkpoint atomically (temporary file, fsync, rename, directory fsync).
     pub fn write_atomic(&self, path: &Path) -> std::io::Result<()> {
-        let tmp = temporary_path(path);
-        let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
-        let written = (|| {
-            let mut file = std::fs::File::create(&tmp)?;
-            file.write_all(json.as_bytes())?;
-            file.write_all(b"\n")?;
-            file.sync_all()?;
-            std::fs::rename(&tmp, path)
-        })();
-        if let Err(e) = written {
-            // A full disk leaves a short temporary file: it is no checkpoint, remove it.
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
-        }
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        // Makes the rename itself durable; a directory that cannot be opened (unusual
-        // permissions) still has the rename, just not yet on disk.
-        if let Ok(d) = std::fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
+        let mut json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
+        json.push('\n');
+        crate::sys::write_atomic(path, json.as_bytes())
     }
 
     /// Removes a temporary file a write interrupted by a crash left beside `path`; `true`
     /// if there was one.
     pub fn remove_leftover(path: &Path) -> bool {
-        std::fs::remove_file(temporary_path(path)).is_ok()
+        std::fs::remove_file(crate::sys::temporary_path(path)).is_ok()
     }
 
     /// Reads the checkpoint at `path`; `None` when there is none.
@@ -311,13 +339,6 @@ impl Checkpoint {
     }
 }
 
-/// Where a checkpoint is written before it is renamed over `path`.
-fn temporary_path(path: &Path) -> PathBuf {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    PathBuf::from(tmp)
-}
-
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -376,6 +397,7 @@ mod tests {
             position_steps: vec![100, -7],
             position_mm: vec![0.1, -0.007],
             written_unix_s: 1,
+            start: None,
         }
     }
 

@@ -20,7 +20,14 @@ const FLOORS: &[&[&str]] = &[
     &["fine", "servo"],
     &["gap", "output", "parport", "record", "sim", "trace"],
     &["config"],
-    &["check", "checkpoint", "plan", "report", "runtime"],
+    &[
+        "check",
+        "checkpoint",
+        "machine",
+        "plan",
+        "report",
+        "runtime",
+    ],
     &["daemon"],
     &["cli"],
 ];

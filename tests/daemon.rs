@@ -826,7 +826,12 @@ fn status_shows_progress_and_eta_and_monitor_prints_a_line_per_interval() {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&text.stdout);
-    assert!(text.contains("(where the last job ended)"), "{text}");
+    // Idle, the status shows where the machine stands (the DRO), in machine and work
+    // coordinates; unhomed axes are marked.
+    assert!(
+        text.contains("machine:      X? ") && text.contains("work G54 "),
+        "{text}"
+    );
     // The monitor ends on its own when the daemon goes away.
     let monitor = Command::new(env!("CARGO_BIN_EXE_edmd"))
         .args(["ctl", "--socket"])

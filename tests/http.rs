@@ -149,6 +149,32 @@ fn the_api_answers_as_the_socket_does_and_control_needs_the_token() {
 /// `/api/events` sends the status at least every second when nothing changes, and on every
 /// change (at most ten a second) while a job moves.
 #[test]
+fn home_touch_off_and_mdi_over_http() {
+    let (d, _dir) = start("machine", &[]);
+    // The machine's commands: the body is the socket request's fields.
+    let (code, reply) = d.post("/api/home", r#"{"here":true}"#);
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(reply["status"]["machine"]["homed"], json!([true, true]));
+    let (code, reply) = d.post("/api/touch-off", r#"{"axis":"X","value":-2.5}"#);
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(reply["status"]["machine"]["position_work_mm"][0], -2.5);
+    let (code, reply) = d.post("/api/touch-off", r#"{"axis":"Q","value":1}"#);
+    assert_eq!(code, 409, "{reply}");
+    assert!(
+        reply["error"].as_str().unwrap().contains("not an axis"),
+        "{reply}"
+    );
+    let (code, reply) = d.post("/api/mdi", r#"{"line":"G1 X1 F600","extra":1}"#);
+    assert_eq!(code, 400, "{reply}");
+    let (code, reply) = d.post("/api/mdi", r#"{"line":"G1 X1 Y0 F600"}"#);
+    assert_eq!(code, 200, "{reply}");
+    d.wait_for("the MDI move", |s| {
+        s["state"] == "idle" && s["machine"]["position_work_mm"][0] == 1.0
+    });
+    assert_eq!(d.status()["machine"]["position_machine_mm"][0], 3.5);
+}
+
+#[test]
 fn server_sent_events_carry_the_status() {
     let (d, _dir) = start("events", &[]);
     let count = |d: &Daemon, secs: f64| -> Vec<Value> {
@@ -451,6 +477,14 @@ fn the_page_in_headless_chromium() {
         "the idle state",
         "return document.getElementById('state').textContent === 'idle'",
     );
+    // The DRO shows machine and work coordinates when idle, unhomed axes marked.
+    let dro = wait(
+        "the DRO",
+        "const m = document.getElementById('position-machine').textContent; \
+         const w = document.getElementById('position-work').textContent; \
+         return m.includes('X? 0.0000') && w.startsWith('work G54') ? [m, w] : false",
+    );
+    eprintln!("DRO: {dro}");
     let options = browser.eval(
         "return Array.from(document.getElementById('program-list').options).map(o => o.value)",
     );

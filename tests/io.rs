@@ -114,7 +114,13 @@ fn job_on(
     gap: impl GapSensor + Send + 'static,
 ) -> runtime::JobSummary {
     let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
-    let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
+    let check = runtime::precheck(
+        &program,
+        config,
+        &Default::default(),
+        &runtime::Progress::new(),
+    )
+    .unwrap();
     let spec = runtime::JobSpec::from_config(config, false);
     let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
     let io = runtime::JobIo {
@@ -589,7 +595,13 @@ fn fault_then_resume(
     fault_tick: u64,
 ) -> (runtime::JobSummary, runtime::JobSummary) {
     let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
-    let check = runtime::precheck(&program, config, &runtime::Progress::new()).unwrap();
+    let check = runtime::precheck(
+        &program,
+        config,
+        &Default::default(),
+        &runtime::Progress::new(),
+    )
+    .unwrap();
     let spec = runtime::JobSpec::from_config(config, true);
     let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
     let never = std::sync::atomic::AtomicBool::new(false);

@@ -80,6 +80,9 @@ fn soak(dir: &Path, blocks: u64) -> Soak {
             "output.kind=\"sim\"",
             "--set",
             "log.level=\"warn\"",
+            // The program runs along X far past any table: no soft limits.
+            "--set",
+            "machine.travel_mm={}",
         ])
         .output()
         .unwrap();

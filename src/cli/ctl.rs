@@ -57,6 +57,46 @@ pub(super) enum CtlCommand {
     },
     /// Print what the daemon is doing
     Status,
+    /// Jog: move AXIS by DISTANCE mm with the spark off, stopping at the soft limits
+    /// (waits for the move's check, as `run` does)
+    Jog {
+        /// Axis letter
+        axis: String,
+        /// mm, signed
+        #[arg(allow_negative_numbers = true)]
+        distance: f64,
+        /// mm/min [default and most: machine.max_jog_feed_mm_per_min]
+        #[arg(long, value_name = "F")]
+        feed: Option<f64>,
+    },
+    /// Run G-code lines (MDI) as a job, in the units and distance mode the last MDI lines left
+    Mdi {
+        /// The lines (separate several with newlines)
+        line: String,
+    },
+    /// Print the work offset table (G54 … G59.3; the active system marked *)
+    Offsets,
+    /// Set a work offset so that where the machine stands reads VALUE on AXIS (G10 L20)
+    #[command(name = "touch-off")]
+    TouchOff {
+        /// Axis letter (X, Y, …)
+        axis: String,
+        /// The coordinate the current position gets, mm
+        #[arg(allow_negative_numbers = true)]
+        value: f64,
+        /// The work system to set (G54 … G59.3) [default: the active one]
+        #[arg(long, value_name = "G5x")]
+        system: Option<String>,
+    },
+    /// Home axes (all when none is named). `--here`: the machine stands at home now (no
+    /// switches); that place becomes machine zero
+    Home {
+        /// Axis letters
+        axes: Vec<String>,
+        /// Declare the current position to be home
+        #[arg(long)]
+        here: bool,
+    },
     /// A status line every interval (one JSON status per line with --json), until N lines
     /// or until the daemon goes away
     Monitor {
@@ -81,19 +121,7 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
     if let CtlCommand::Monitor { interval, count } = &args.command {
         return monitor(&socket, *interval, *count, args.json);
     }
-    let (request, wait) = match &args.command {
-        CtlCommand::Run { program, no_wait } => (
-            Request::Run {
-                program: program.clone(),
-            },
-            !no_wait,
-        ),
-        CtlCommand::Hold => (Request::Hold {}, false),
-        CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
-        CtlCommand::Abort => (Request::Abort {}, false),
-        CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
-        CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
-    };
+    let (request, wait) = request_of(&args.command);
     let reply = match crate::daemon::socket::request(&socket, &request) {
         Ok(reply) => reply,
         Err(e) => {
@@ -109,7 +137,13 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
             reply.ok
                 && wait
                 && !c.decided()
-                && matches!(request, Request::Run { .. } | Request::Resume { .. })
+                && matches!(
+                    request,
+                    Request::Run { .. }
+                        | Request::Resume { .. }
+                        | Request::Jog { .. }
+                        | Request::Mdi { .. }
+                )
         });
     let reply = match check {
         Some(check) => {
@@ -151,6 +185,57 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
             );
             ExitCode::from(EXIT_RUNTIME)
         }
+    }
+}
+
+/// The request a `ctl` command sends, and whether `ctl` waits for the check it starts.
+fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) {
+    use crate::daemon::protocol::Request;
+    match command {
+        CtlCommand::Run { program, no_wait } => (
+            Request::Run {
+                program: program.clone(),
+            },
+            !no_wait,
+        ),
+        CtlCommand::Hold => (Request::Hold {}, false),
+        CtlCommand::Resume { force, no_wait } => (Request::Resume { force: *force }, !no_wait),
+        CtlCommand::Abort => (Request::Abort {}, false),
+        CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
+        CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
+        CtlCommand::Offsets => (Request::Offsets {}, false),
+        CtlCommand::Jog {
+            axis,
+            distance,
+            feed,
+        } => (
+            Request::Jog {
+                axis: axis.clone(),
+                distance_mm: *distance,
+                feed_mm_per_min: *feed,
+            },
+            true,
+        ),
+        CtlCommand::Mdi { line } => (Request::Mdi { line: line.clone() }, true),
+        CtlCommand::TouchOff {
+            axis,
+            value,
+            system,
+        } => (
+            Request::TouchOff {
+                axis: axis.clone(),
+                value: *value,
+                system: system.clone(),
+            },
+            false,
+        ),
+        CtlCommand::Home { axes, here } => (
+            Request::Home {
+                axes: axes.clone(),
+                here: *here,
+            },
+            false,
+        ),
     }
 }
 

@@ -111,8 +111,10 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 
 mod ctl;
 mod journal;
+mod run_state;
 
 use ctl::{CtlArgs, run_ctl};
+use run_state::RunState;
 
 const INSTALLED_CONFIG: &str = "/etc/edmd/edmd.toml";
 
@@ -189,6 +191,11 @@ struct RunArgs {
     program: PathBuf,
     #[command(flatten)]
     config: ConfigArgs,
+    /// Start from the machine state in FILE (position, work offsets, active system; as
+    /// `daemon.state_file` keeps it) and write where the job left the machine back to it;
+    /// a missing file is machine zero, no offsets [default: machine zero, no offsets, no file]
+    #[arg(long, value_name = "FILE")]
+    state: Option<PathBuf>,
     /// Also write the end-of-job summary as JSON to FILE
     #[arg(long, value_name = "FILE")]
     summary: Option<PathBuf>,
@@ -487,14 +494,26 @@ fn run_job(args: &RunArgs) -> ExitCode {
         progress: Some(progress),
         recording: recording.clone(),
     };
-    let result = runtime::run_file(&args.program, &cfg, &stop, observers);
+    let mut machine = match RunState::open(args.state.as_deref(), &cfg) {
+        Ok(m) => m,
+        Err(code) => return code,
+    };
+    let start = machine.state.work_start();
+    let result = runtime::run_file_from(&args.program, &cfg, &start, &stop, observers);
     if terminal {
         eprintln!();
     }
     let summary = match result {
-        Ok(summary) => summary,
+        Ok((summary, left)) => {
+            if let Err(code) = machine.stopped(&summary, left) {
+                return code;
+            }
+            summary
+        }
         Err(e) => {
             eprintln!("edmd: error: {e}");
+            // Nothing moved: the state is a standstill's again.
+            let _ = machine.save(false);
             // A device that cannot be opened is a runtime failure; anything else that stops
             // a job before it starts is bad input.
             let code = match e {
@@ -522,7 +541,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         }
     }
     if let (Some(path), Some(at)) = (&args.checkpoint, &summary.stopped_at) {
-        match write_run_checkpoint(path, args, &cfg, &summary, at) {
+        match write_run_checkpoint(path, args, &cfg, &summary, at, &start) {
             Ok(()) => eprintln!("edmd: checkpoint written to {}", path.display()),
             Err(e) => {
                 eprintln!(
@@ -552,6 +571,7 @@ fn write_run_checkpoint(
     cfg: &Config,
     summary: &runtime::JobSummary,
     at: &runtime::StopPoint,
+    start: &crate::gcode::WorkStart,
 ) -> std::io::Result<()> {
     use crate::checkpoint::{self, Checkpoint, Reason};
     let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
@@ -580,6 +600,11 @@ fn write_run_checkpoint(
         position_steps: summary.end_steps.clone(),
         position_mm: summary.end_mm.clone(),
         written_unix_s: unix_now,
+        start: Some(checkpoint::StartRecord::new(
+            start,
+            &cfg.machine.axes,
+            &cfg.machine.step_mm,
+        )),
     };
     cp.write_atomic(path)
 }

@@ -114,9 +114,32 @@ pub struct MachineConfig {
     pub max_feed_mm_per_min: f64,
     pub max_normal_accel_mm_per_s2: f64,
     pub max_tangential_accel_mm_per_s2: f64,
+    /// Fastest jog, mm/min.
+    pub max_jog_feed_mm_per_min: f64,
+    /// Soft limits per axis (machine order); `None`: the axis has none.
+    pub travel: Vec<Option<Travel>>,
+}
+
+/// An axis's soft limits, machine coordinates, mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Travel {
+    pub min_mm: f64,
+    pub max_mm: f64,
 }
 
 impl MachineConfig {
+    /// The axes with no soft limit, as letters (`"Z, A"`), or `None` when every axis has one.
+    pub fn unlimited_axes(&self) -> Option<String> {
+        let free: Vec<String> = self
+            .axes
+            .iter()
+            .zip(&self.travel)
+            .filter(|(_, t)| t.is_none())
+            .map(|(a, _)| a.letter().to_string())
+            .collect();
+        (!free.is_empty()).then(|| free.join(", "))
+    }
+
     /// The axis letters as strings, in machine order (for reports).
     pub fn axis_names(&self) -> Vec<String> {
         self.axes.iter().map(|a| a.letter().to_string()).collect()
@@ -229,6 +252,9 @@ pub struct DaemonConfig {
     pub socket_group: Option<String>,
     pub program_dir: PathBuf,
     pub checkpoint: PathBuf,
+    /// The machine state (position, homed axes, work offsets); by default beside the
+    /// checkpoint, `machine-state.json`.
+    pub state_file: PathBuf,
     /// Checkpoint period while cutting (s); `None`: only at standstills.
     pub checkpoint_interval_s: Option<f64>,
     /// Period of the status line in the log (s); `None`: no periodic line.
@@ -306,6 +332,16 @@ pub struct Config {
     pub compensation: CompensationConfig,
     /// `[generator] condition`, by number.
     pub conditions: Vec<Condition>,
+    pub homing: HomingConfig,
+}
+
+/// `[homing]`: when the machine position must be known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HomingConfig {
+    /// `run` is refused while an axis is not homed.
+    pub required: bool,
+    /// A daemon start unhomes every axis, even after a clean stop.
+    pub require_after_start: bool,
 }
 
 impl Default for Config {

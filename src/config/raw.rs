@@ -25,6 +25,14 @@ pub(super) struct RawConfig {
     pub(super) program: RawProgram,
     pub(super) compensation: RawCompensation,
     pub(super) generator: RawGenerator,
+    pub(super) homing: RawHoming,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawHoming {
+    pub(super) required: bool,
+    pub(super) require_after_start: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -72,6 +80,8 @@ pub(super) struct RawMachine {
     pub(super) max_feed_mm_per_min: f64,
     pub(super) max_normal_accel_mm_per_s2: f64,
     pub(super) max_tangential_accel_mm_per_s2: f64,
+    pub(super) max_jog_feed_mm_per_min: f64,
+    pub(super) travel_mm: std::collections::BTreeMap<String, Vec<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -193,6 +203,7 @@ pub(super) struct RawDaemon {
     pub(super) socket_group: String,
     pub(super) program_dir: String,
     pub(super) checkpoint: String,
+    pub(super) state_file: String,
     pub(super) checkpoint_interval_s: f64,
     pub(super) status_interval_s: f64,
     pub(super) max_clients: i64,

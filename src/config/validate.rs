@@ -2,7 +2,7 @@
 //! the offending key and what is wrong; [`Config::parse`](super::Config) attaches where the
 //! value came from.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::raw::{
     RawBuffer, RawCompensation, RawConfig, RawDaemon, RawFine, RawGap, RawGenerator,
@@ -156,6 +156,10 @@ impl RawConfig {
             program,
             compensation,
             conditions,
+            homing: HomingConfig {
+                required: self.homing.required,
+                require_after_start: self.homing.require_after_start,
+            },
         })
     }
 }
@@ -197,7 +201,9 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
     for &s in &m.step_mm {
         positive("machine.step_mm", s, 10.0, "mm")?;
     }
+    let travel = travel(&axes, &m.travel_mm)?;
     Ok(MachineConfig {
+        travel,
         axes,
         step_mm: m.step_mm,
         max_feed_mm_per_min: positive(
@@ -212,6 +218,12 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
             1e7,
             "mm/s²",
         )?,
+        max_jog_feed_mm_per_min: positive(
+            "machine.max_jog_feed_mm_per_min",
+            m.max_jog_feed_mm_per_min,
+            1e6,
+            "mm/min",
+        )?,
         max_tangential_accel_mm_per_s2: positive(
             "machine.max_tangential_accel_mm_per_s2",
             m.max_tangential_accel_mm_per_s2,
@@ -220,6 +232,53 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
         )?,
     })
 }
+
+/// `machine.travel_mm`: `[lowest, highest]` per axis letter; axes the machine does not have
+/// are not used (the shipped table names X and Y, whatever `axes` a user lists).
+fn travel(
+    axes: &[Axis],
+    table: &std::collections::BTreeMap<String, Vec<f64>>,
+) -> Result<Vec<Option<Travel>>, Invalid> {
+    const KEY: &str = "machine.travel_mm";
+    for letter in table.keys() {
+        let known = letter.chars().count() == 1
+            && Axis::from_letter(letter.chars().next().unwrap_or(' ')).is_some();
+        if !known {
+            return Err((
+                KEY,
+                format!("\"{letter}\" is not an axis; use X, Y, Z, A, B, C, U or V"),
+            ));
+        }
+    }
+    axes.iter()
+        .map(|axis| {
+            let Some(range) = table.get(&axis.letter().to_string()) else {
+                return Ok(None);
+            };
+            match range[..] {
+                [min_mm, max_mm]
+                    if min_mm.is_finite()
+                        && max_mm.is_finite()
+                        && min_mm < max_mm
+                        && min_mm.abs().max(max_mm.abs()) <= MAX_TRAVEL_MM =>
+                {
+                    Ok(Some(Travel { min_mm, max_mm }))
+                }
+                _ => Err((
+                    KEY,
+                    format!(
+                        "{axis} = {range:?}: give [lowest, highest] in mm, lowest below highest, \
+                         within ±{}",
+                        short(MAX_TRAVEL_MM)
+                    ),
+                )),
+            }
+        })
+        .collect::<Result<Vec<_>, Invalid>>()
+}
+
+/// Largest soft limit accepted, mm (the interpreter's coordinate range).
+const MAX_TRAVEL_MM: f64 = 1.0e6;
 
 fn interpolation(i: RawInterpolation) -> Result<InterpolationConfig, Invalid> {
     Ok(InterpolationConfig {
@@ -478,6 +537,13 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
             ))?,
         socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
         program_dir: non_empty("daemon.program_dir", d.program_dir)?,
+        state_file: match d.state_file.trim() {
+            "" => Path::new(&d.checkpoint)
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join("machine-state.json"),
+            path => PathBuf::from(path),
+        },
         checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
         checkpoint_interval_s: (non_negative(
             "daemon.checkpoint_interval_s",

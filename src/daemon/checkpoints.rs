@@ -167,6 +167,11 @@ impl CheckpointKeeper {
             position_steps: at.position[..axes].to_vec(),
             position_mm: mm(&at.position[..axes], &machine.step_mm),
             written_unix_s: unix_now(),
+            start: Some(checkpoint::StartRecord::new(
+                &job.start,
+                &machine.axes,
+                &machine.step_mm,
+            )),
         };
         let path = &job.config.daemon.checkpoint;
         match cp.write_atomic(path) {

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use super::launch::{Checked, JobKind, Launch, Source, copy_and_check};
 use super::protocol::{self, CheckStatus};
 use super::refusal::{CheckRefusal, Refusal};
 use super::{Core, CoreMsg, Job, JobReport, confine, unix_now};
@@ -19,17 +20,6 @@ use crate::runtime::{
     Published, ResumePoint, Snapshot,
 };
 use crate::servo::{Rethread, ServoState};
-
-/// A program copied and checked: ready to run.
-pub(super) type Checked = (JobProgram, runtime::Precheck);
-
-/// What a check reads.
-pub(super) enum Source {
-    /// The operator's file: copied first.
-    Original(PathBuf),
-    /// A private copy already made (a checkpoint's).
-    Copy(JobProgram),
-}
 
 /// A resume waiting for its check: where to resume, and the bytes it must be.
 pub(super) struct Resume {
@@ -44,6 +34,8 @@ pub(super) struct Check {
     pub(super) name: String,
     pub(super) progress: Arc<Progress>,
     resume: Option<Resume>,
+    /// Where the job starts (checked from there) and what it is.
+    launch: Launch,
 }
 
 impl Job {
@@ -61,32 +53,6 @@ impl Check {
     pub(super) fn is_resume(&self) -> bool {
         self.resume.is_some()
     }
-}
-
-/// The check worker: copy (unless already a copy), hold to the expected hash, then check.
-fn copy_and_check(
-    source: Source,
-    dir: &Path,
-    config: &Config,
-    expect: Option<&str>,
-    progress: &Progress,
-) -> Result<Checked, CheckRefusal> {
-    let program = match source {
-        Source::Original(path) => program::copy_program(&path, dir, progress)?,
-        Source::Copy(program) => program,
-    };
-    if let Some(expect) = expect
-        && program.sha256 != expect
-    {
-        return Err(checkpoint::CheckpointError::ProgramChanged {
-            program: PathBuf::from(&program.name),
-            expected: expect.to_string(),
-            found: program.sha256,
-        }
-        .into());
-    }
-    let check = runtime::precheck(&program, config, progress)?;
-    Ok((program, check))
 }
 
 /// The jobs: the fine thread that runs them and the port it lends them, the job running,
@@ -132,9 +98,14 @@ fn job_report(config: &Config, program_name: &str) -> Result<Option<JobReport>, 
 
 /// Where the write-ahead checkpoint of a starting job puts it: moving, at the program's start
 /// or at the resume point with the dwell it owes.
-fn write_ahead_point(resume: Option<&ResumePoint>, config: &Config) -> Snapshot {
+fn write_ahead_point(
+    resume: Option<&ResumePoint>,
+    spec: &runtime::JobSpec,
+    config: &Config,
+) -> Snapshot {
     let mut at = Snapshot {
         still: false,
+        position: spec.start_steps(),
         ..Snapshot::default()
     };
     if let Some(r) = resume {
@@ -212,8 +183,13 @@ impl JobControl {
 impl Core {
     pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
+        self.refuse_if_unhomed()?;
         let program = confine(&self.config.daemon.program_dir, requested)?;
-        let id = self.begin_check(Source::Original(program.clone()), None);
+        let launch = Launch {
+            start: self.machine.state.work_start(),
+            kind: JobKind::Program,
+        };
+        let id = self.begin_check(Source::Original(program.clone()), None, launch);
         Ok(format!(
             "accepted: checking {} (check {id}); the job starts when the check passes",
             program.display()
@@ -222,13 +198,19 @@ impl Core {
 
     /// Starts copying and checking a program on a worker thread; the verdict comes back as
     /// [`CoreMsg::Checked`]. Returns the check's id.
-    pub(super) fn begin_check(&mut self, source: Source, resume: Option<Resume>) -> u64 {
+    pub(super) fn begin_check(
+        &mut self,
+        source: Source,
+        resume: Option<Resume>,
+        launch: Launch,
+    ) -> u64 {
         self.jobs.next_check_id += 1;
         let id = self.jobs.next_check_id;
         let progress = Arc::new(Progress::new());
         let name = match &source {
             Source::Original(path) => path.display().to_string(),
             Source::Copy(program) => program.name.clone(),
+            Source::Generated { name, .. } => name.clone(),
         };
         let (config, dir, tx) = (
             self.config.clone(),
@@ -237,16 +219,25 @@ impl Core {
         );
         let expect = resume.as_ref().map(|r| r.sha256.clone());
         let worker_progress = progress.clone();
+        let worker_start = launch.start.clone();
         let spawned = std::thread::Builder::new()
             .name("edmd-check".to_string())
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
             .spawn(move || {
-                let result =
-                    copy_and_check(source, &dir, &config, expect.as_deref(), &worker_progress);
+                let result = copy_and_check(
+                    source,
+                    &dir,
+                    &config,
+                    &worker_start,
+                    expect.as_deref(),
+                    &worker_progress,
+                );
+                let result = Box::new(result);
                 let _ = tx.send(CoreMsg::Checked { id, result });
             });
         if let Err(e) = spawned {
             let result = Err(CheckRefusal::Thread(e));
+            let result = Box::new(result);
             let _ = self.clients.to_core.send(CoreMsg::Checked { id, result });
         }
         tracing::info!("check {id}: {name}: copying and checking");
@@ -255,6 +246,7 @@ impl Core {
             name,
             progress,
             resume,
+            launch,
         });
         id
     }
@@ -271,7 +263,7 @@ impl Core {
                 .map_err(Refusal::from)
                 .and_then(|(program, precheck)| {
                     let resume = check.resume.as_ref().map(|r| r.point.clone());
-                    self.start_job(program, precheck, resume)
+                    self.start_job(program, precheck, resume, check.launch.clone())
                 })
         };
         let (bytes_done, bytes_total) = {
@@ -314,21 +306,27 @@ impl Core {
         program: JobProgram,
         check: runtime::Precheck,
         resume: Option<ResumePoint>,
+        launch: Launch,
     ) -> Result<String, Refusal> {
+        let Launch { start, kind } = launch;
         let config = self.config.clone();
         let blocks = check.blocks;
         let path_total_mm = check.path_mm;
         let rapid_spans = check.rapid_spans.clone();
         // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
-        let spec = runtime::JobSpec::from_config(&config, true);
-        let start = resume
+        let mut spec = runtime::JobSpec::from_config(&config, true);
+        spec.work = start.clone();
+        if let JobKind::Jog { feed_mm_per_min } = kind {
+            // A jog is one rapid: at the jog feed, not the machine's rapid.
+            spec.plan.rapid_feed = spec.plan.rapid_feed.min(feed_mm_per_min / 60.0);
+        }
+        let ledger = resume
             .as_ref()
-            .map(|r| r.position.clone())
-            .unwrap_or_default();
+            .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());
         // A report of what this job runs, when the configuration asks for one. Its folder is
         // made first: a job must not learn at its end that its report has nowhere to go.
         let report = job_report(&config, &program.name)?;
-        let mut io = self.jobs.job_io(&config, &check, &start)?;
+        let mut io = self.jobs.job_io(&config, &check, &ledger)?;
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
         let published = Arc::new(Published::new(4096));
@@ -358,11 +356,19 @@ impl Core {
             } else {
                 None
             },
+            start,
+            leaves: (check.work_offsets.clone(), check.work_system),
+            modes: check.modes,
+            kind,
         };
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
         let old = self.checkpoints.current.clone();
-        let at = write_ahead_point(resume.as_ref(), &config);
+        let at = write_ahead_point(resume.as_ref(), &spec, &config);
+        if let Err(refusal) = self.machine.save(true) {
+            self.jobs.give_back_io(&config, io.output, io.gap);
+            return Err(refusal);
+        }
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
             self.jobs.give_back_io(&config, io.output, io.gap);
             return Err(Refusal::WriteAhead {
@@ -489,11 +495,16 @@ impl Core {
                 &cp.program.display().to_string(),
             )?),
         };
+        let start = self.resume_start(&cp, force)?;
         let resume = Resume {
             point,
             sha256: cp.program_sha256.clone(),
         };
-        let id = self.begin_check(source, Some(resume));
+        let launch = Launch {
+            start,
+            kind: JobKind::Program,
+        };
+        let id = self.begin_check(source, Some(resume), launch);
         Ok(format!(
             "accepted: checking {} (check {id}) to resume it from line {} (segment {}, step {})",
             cp.program.display(),
@@ -646,6 +657,14 @@ impl Core {
             tracing::info!("job end: {line}");
         }
         self.checkpoints.settle(&job, end.stopped_at, &summary);
+        let ran_to_the_end = summary.outcome == Outcome::Done;
+        self.machine.stopped(
+            &end.stopped_at.position,
+            ran_to_the_end.then(|| job.leaves.clone()),
+        );
+        if ran_to_the_end && job.kind == JobKind::Mdi {
+            self.machine.mdi_modes = job.modes;
+        }
         if let Some((dir, recording)) = &job.report {
             match crate::report::write_report(dir, &mut recording.lock(), &summary) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),

@@ -33,6 +33,9 @@
 mod checkpoints;
 pub mod http;
 mod jobs;
+mod launch;
+mod machine;
+mod manual;
 pub mod notify;
 pub mod protocol;
 pub mod refusal;
@@ -91,6 +94,8 @@ pub enum DaemonError {
     },
     #[error(transparent)]
     Token(#[from] http::token::TokenError),
+    #[error("{0}")]
+    MachineState(String),
 }
 
 /// What to add to a listening error that a service manager's sandbox causes.
@@ -117,7 +122,7 @@ pub enum CoreMsg {
     /// A check worker's verdict on check `id`.
     Checked {
         id: u64,
-        result: Result<jobs::Checked, refusal::CheckRefusal>,
+        result: Box<Result<launch::Checked, refusal::CheckRefusal>>,
     },
 }
 
@@ -160,6 +165,13 @@ struct Job {
     /// A resumed job's checkpoint as it was before the write-ahead replaced it: put back if
     /// the resume is refused before anything moved.
     resumed_from: Option<Checkpoint>,
+    /// Where the job started: machine position, work offsets, active system.
+    start: crate::gcode::WorkStart,
+    /// The work offsets and system the program leaves when it runs to its end.
+    leaves: (crate::gcode::WorkOffsets, crate::gcode::WorkSystem),
+    /// The units and distance mode it leaves (kept for the next MDI lines).
+    modes: crate::gcode::StartModes,
+    kind: launch::JobKind,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -170,6 +182,7 @@ struct Core {
     set_log_level: SetLogLevel,
     jobs: JobControl,
     checkpoints: CheckpointKeeper,
+    machine: machine::MachineKeeper,
     clients: Clients,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
@@ -196,6 +209,7 @@ pub fn serve(
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
+    let machine = machine::MachineKeeper::open(&config)?;
     // The port first: if it cannot be claimed, nothing else should start.
     let (port_output, port_gap) = if config.output.kind == OutputKind::Parport {
         let (output, gap) =
@@ -255,6 +269,7 @@ pub fn serve(
             finished: protocol::Counters::default(),
         },
         checkpoints,
+        machine,
         clients: Clients {
             to_core,
             max_clients,
@@ -409,7 +424,7 @@ impl Core {
                 }
                 Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
                 Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
-                Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, result),
+                Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, *result),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return,
             }
@@ -430,6 +445,19 @@ impl Core {
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),
             Request::Rethread { here } => self.rethread(here),
+            Request::Offsets {} => self.offsets(),
+            Request::TouchOff {
+                axis,
+                value,
+                system,
+            } => self.touch_off(&axis, value, system.as_deref()),
+            Request::Home { axes, here } => self.home_here(&axes, here),
+            Request::Jog {
+                axis,
+                distance_mm,
+                feed_mm_per_min,
+            } => self.jog(&axis, distance_mm, feed_mm_per_min),
+            Request::Mdi { line } => self.mdi(&line),
         };
         self.notify_status();
         match result {

@@ -44,6 +44,36 @@ pub enum Request {
         #[serde(default)]
         here: bool,
     },
+    /// The work offset table.
+    Offsets {},
+    /// `G10 L20` for where the machine stands: `axis` reads `value` (mm) in `system`
+    /// (default: the active one).
+    #[serde(rename = "touch-off")]
+    TouchOff {
+        axis: String,
+        value: f64,
+        #[serde(default)]
+        system: Option<String>,
+    },
+    /// Move `axis` by `distance_mm` (spark off), at `feed_mm_per_min` or the jog maximum;
+    /// stops at the soft limits.
+    Jog {
+        axis: String,
+        distance_mm: f64,
+        #[serde(default)]
+        feed_mm_per_min: Option<f64>,
+    },
+    /// Run G-code lines as a job, in the modes the last MDI lines left.
+    Mdi {
+        line: String,
+    },
+    /// Home `axes` (all when empty); `here`: where they stand is home (machine zero).
+    Home {
+        #[serde(default)]
+        axes: Vec<String>,
+        #[serde(default)]
+        here: bool,
+    },
 }
 
 /// A request line that is not a request: where in it, and what is wrong.
@@ -136,6 +166,10 @@ pub enum DaemonState {
     WireBreak,
     /// Going back along the path to the start hole for a rethread.
     Rethreading,
+    /// An MDI job is running.
+    Mdi,
+    /// A jog is moving.
+    Jogging,
     /// Parked for threading (at the start hole or where the wire broke) until `resume`.
     Threading,
 }
@@ -152,6 +186,8 @@ impl DaemonState {
             DaemonState::Stopping => "stopping",
             DaemonState::WireBreak => "wire-break",
             DaemonState::Rethreading => "rethreading",
+            DaemonState::Mdi => "mdi",
+            DaemonState::Jogging => "jogging",
             DaemonState::Threading => "threading",
         }
     }
@@ -183,6 +219,25 @@ pub struct Status {
     /// Counts over the daemon's life: the jobs that ended plus the running one.
     #[serde(default)]
     pub counters: Counters,
+    /// Where the machine stands, in machine and work coordinates, homed axes, soft limits.
+    pub machine: MachineStatus,
+}
+
+/// The machine, always (idle, held, running).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MachineStatus {
+    /// Machine coordinates, mm per axis.
+    pub position_machine_mm: Vec<f64>,
+    /// In the active work system (without a program's `G92`), mm per axis.
+    pub position_work_mm: Vec<f64>,
+    /// `G54` … `G59.3`.
+    pub work_system: String,
+    pub homed: Vec<bool>,
+    /// Soft limits `[lowest, highest]` per axis (`null`: none).
+    pub travel_mm: Vec<Option<[f64; 2]>>,
+    /// Why the last write of the machine state failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub state_write_error: Option<String>,
 }
 
 /// Counts over the daemon's life (the jobs that ended plus the running one), only ever
@@ -365,7 +420,6 @@ impl Status {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut t = String::new();
-        let list = |v: &[f64]| axis_list(v, &self.axes, |x| format!("{x:.4}"));
         let _ = writeln!(t, "state:        {}", self.state.name());
         if let Some(c) = self.check.as_ref().filter(|c| !c.decided()) {
             let _ = writeln!(
@@ -377,13 +431,7 @@ impl Status {
         if let Some(j) = &self.job {
             self.job_text(&mut t, j);
         }
-        if let (None, Some(last)) = (&self.job, &self.last_job) {
-            let _ = writeln!(
-                t,
-                "position:     {} mm (where the last job ended)",
-                list(&last.end_mm)
-            );
-        }
+        self.machine_text(&mut t);
         if let Some(last) = &self.last_job {
             let _ = writeln!(
                 t,
@@ -420,6 +468,44 @@ impl Status {
             let _ = writeln!(t, "warning:      {r}");
         }
         t
+    }
+
+    /// The machine's lines of [`Status::text`]: a DRO in machine and work coordinates, the
+    /// unhomed axes marked `?`.
+    fn machine_text(&self, t: &mut String) {
+        use std::fmt::Write;
+        let m = &self.machine;
+        let dro = |v: &[f64]| {
+            v.iter()
+                .zip(&self.axes)
+                .enumerate()
+                .map(|(i, (x, a))| {
+                    let mark = if m.homed.get(i).copied().unwrap_or(false) {
+                        ""
+                    } else {
+                        "?"
+                    };
+                    format!("{a}{mark} {x:.4}")
+                })
+                .collect::<Vec<_>>()
+                .join("  ")
+        };
+        let _ = writeln!(t, "machine:      {} mm", dro(&m.position_machine_mm));
+        let _ = writeln!(
+            t,
+            "work {:<6}   {} mm",
+            m.work_system,
+            dro(&m.position_work_mm)
+        );
+        if m.homed.iter().any(|h| !h) {
+            let _ = writeln!(
+                t,
+                "homed:        not all axes (marked ?): positions are only believed"
+            );
+        }
+        if let Some(e) = &m.state_write_error {
+            let _ = writeln!(t, "warning:      {e}");
+        }
     }
 
     /// The job in hand's lines of [`Status::text`].

@@ -62,6 +62,20 @@ impl From<JobError> for CheckRefusal {
 pub enum Refusal {
     #[error("the daemon is shutting down")]
     ShuttingDown,
+    #[error("{0}")]
+    MachineState(String),
+    #[error("{0}")]
+    BadArgument(String),
+    #[error(
+        "axis {axes} not homed and homing.required is on: home first (`edmd ctl home --here` \
+         declares where it stands to be home)"
+    )]
+    Unhomed { axes: String },
+    #[error(
+        "the work offsets changed since the checkpoint was written ({changed}); the job would \
+         resume in another place: put them back, or resume with --force"
+    )]
+    OffsetsChanged { changed: String },
     #[error("a job is {state}: {program}; abort it first")]
     JobRunning {
         state: &'static str,

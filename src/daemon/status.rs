@@ -36,7 +36,11 @@ impl Core {
                 {
                     DaemonState::Rethreading
                 } else {
-                    DaemonState::Running
+                    match job.kind {
+                        super::launch::JobKind::Program => DaemonState::Running,
+                        super::launch::JobKind::Mdi => DaemonState::Mdi,
+                        super::launch::JobKind::Jog { .. } => DaemonState::Jogging,
+                    }
                 }
             }
         }
@@ -95,7 +99,9 @@ impl Core {
                     },
                 }
             });
+        let live = snapshot.as_ref().map(|s| s.position);
         Status {
+            machine: self.machine.status(config, live.as_ref()),
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),

@@ -54,6 +54,8 @@ pub enum GcodeErrorKind {
     NoMotionMode,
     #[error("feed F must be greater than 0")]
     BadFeed,
+    #[error("work offset: {0}")]
+    WorkOffset(String),
     #[error("missing coordinate: {what}")]
     MissingCoordinate { what: String },
     #[error("arc with both R and I/J/K: give the radius or the centre, not both")]

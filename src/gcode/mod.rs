@@ -23,6 +23,7 @@ mod expr;
 mod lexer;
 mod lines;
 mod parser;
+mod work;
 
 use std::fs::File;
 use std::io::BufReader;
@@ -35,6 +36,7 @@ pub use parser::{
     ARC_RADIUS_TOLERANCE_MM, BlockReader, CURVE_START_TOLERANCE_MM, MAX_CALL_DEPTH,
     MAX_CURVE_POINTS,
 };
+pub use work::{StartModes, WORK_SYSTEMS, WorkOffsets, WorkStart, WorkSystem};
 
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;

@@ -13,6 +13,7 @@
 mod arc;
 mod basis;
 mod bezier;
+mod extent;
 mod nurbs;
 
 pub use arc::circular_arc;

@@ -23,9 +23,10 @@ pub type BoxedGap = Box<dyn GapSensor + Send>;
 pub fn open_io(
     config: &Config,
     check: &Precheck,
+    start: &[i64],
     tracer: Option<&Arc<Tracer>>,
 ) -> Result<(BoxedOutput, BoxedGap), JobError> {
-    let (output, port_gap) = open_output(config, &[])?;
+    let (output, port_gap) = open_output(config, start)?;
     let gap = open_gap(config, check, port_gap)?;
     Ok(wrap_io(config, output, gap, tracer))
 }

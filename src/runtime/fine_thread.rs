@@ -28,7 +28,7 @@ use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::output::OutputError;
 use crate::servo::PathPoint;
-use crate::vocab::MAX_AXES;
+use crate::vocab::Steps;
 
 /// How often the idle thread proves it is alive.
 const IDLE_BEAT: Duration = Duration::from_millis(100);
@@ -54,6 +54,8 @@ pub struct FineJob {
     pub settings: FineSettings,
     pub loop_settings: LoopSettings,
     pub resume: Option<ResumePoint>,
+    /// The machine position the job starts from (steps): the ledger's first value.
+    pub start: Steps,
     /// Unparked when the job ends, so its supervisor wakes at once.
     pub supervisor: Thread,
 }
@@ -166,9 +168,10 @@ fn run(job: FineJob, rt_refused: &[String]) -> FineDone {
         settings,
         loop_settings,
         resume,
+        start,
         supervisor,
     } = job;
-    let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
+    let mut fine = Interpolator::new(settings, start);
     // The walk to the checkpoint waits for the producer whatever the time mode: nothing
     // ticks yet, so waiting costs no deadline.
     let mut source = buffer.consumer(true);

@@ -43,7 +43,7 @@ use std::time::Duration;
 
 use crate::config::Config;
 use crate::gap::ScriptError;
-use crate::gcode::GcodeError;
+use crate::gcode::{GcodeError, WorkOffsets, WorkStart, WorkSystem};
 use crate::output::OutputError;
 use crate::parport::ParportError;
 use crate::record::Recording;
@@ -83,6 +83,8 @@ pub enum JobError {
     Config(String),
     #[error(transparent)]
     Copy(#[from] program::CopyError),
+    #[error(transparent)]
+    Travel(#[from] crate::check::TravelError),
     #[error("{program}: the check was cancelled")]
     Cancelled { program: String },
 }
@@ -135,10 +137,25 @@ pub fn run_file(
     stop: &AtomicBool,
     observers: Observers,
 ) -> Result<JobSummary, JobError> {
-    let (copy, check) = copy_and_check(program, config, stop)?;
+    run_file_from(program, config, &WorkStart::default(), stop, observers).map(|(s, _)| s)
+}
+
+/// [`run_file`] from `start` (the machine position, work offsets and active system, as a
+/// state file keeps them); returns the summary and the work offsets and system the program
+/// left (`G10`, `M2`).
+pub fn run_file_from(
+    program: &Path,
+    config: &Config,
+    start: &WorkStart,
+    stop: &AtomicBool,
+    observers: Observers,
+) -> Result<(JobSummary, (WorkOffsets, WorkSystem)), JobError> {
+    let (copy, check) = copy_and_check(program, config, start, stop)?;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
-    let (output, gap) = open_io(config, &check, tracer.as_ref())?;
+    let mut spec = JobSpec::from_config(config, false);
+    spec.work = start.clone();
+    let (output, gap) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
         output,
         gap,
@@ -146,7 +163,6 @@ pub fn run_file(
         recording: observers.recording,
         progress: observers.progress,
     };
-    let spec = JobSpec::from_config(config, false);
     let fine_thread = FineThread::start(&spec.run_loop).map_err(JobError::Thread)?;
     let job = JobRun {
         program: &copy.0,
@@ -155,7 +171,7 @@ pub fn run_file(
         resume: None,
     };
     let end = run(&fine_thread, job, io, Arc::new(Published::new(4096)), stop);
-    Ok(end.summary)
+    Ok((end.summary, (check.work_offsets, check.work_system)))
 }
 
 /// Copies `program` to a private temporary copy and checks the copy (on a thread of their
@@ -163,6 +179,7 @@ pub fn run_file(
 pub fn copy_and_check(
     program: &Path,
     config: &Config,
+    start: &WorkStart,
     stop: &AtomicBool,
 ) -> Result<(TempCopy, Precheck), JobError> {
     let progress = Progress::new();
@@ -172,7 +189,7 @@ pub fn copy_and_check(
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
             .spawn_scoped(s, || {
                 let copy = TempCopy::new_with(program, &progress)?;
-                let check = precheck(&copy.0, config, &progress)?;
+                let check = precheck(&copy.0, config, start, &progress)?;
                 Ok((copy, check))
             })
             .map_err(JobError::Thread)?;

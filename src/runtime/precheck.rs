@@ -6,13 +6,19 @@ use super::JobError;
 use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
 use crate::config::{Config, GapKind};
-use crate::gcode;
-use crate::vocab::{MAX_AXES, Steps};
+use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
+use crate::vocab::Steps;
 
 /// What the check before the job found.
 #[derive(Debug, Clone)]
 pub struct Precheck {
     pub blocks: u64,
+    /// The work offsets and the active system as the program leaves them (its `G10`s; `M2`
+    /// returns to `G54`), for whoever keeps them after the job.
+    pub work_offsets: WorkOffsets,
+    pub work_system: WorkSystem,
+    /// The units and distance mode at the end (MDI keeps them for its next lines).
+    pub modes: gcode::StartModes,
     pub end_steps: Steps,
     /// Where the cutting (non-rapid) moves lie along the path: `(from, to)` in mm of path
     /// length from the program's start, consecutive cutting moves merged into one span (so
@@ -31,6 +37,7 @@ pub struct Precheck {
 pub fn precheck(
     program: &JobProgram,
     config: &Config,
+    start: &WorkStart,
     progress: &Progress,
 ) -> Result<Precheck, JobError> {
     progress.start(Phase::Checking, program.bytes);
@@ -42,8 +49,10 @@ pub fn precheck(
         |f| CountingReader::new(f, progress),
     )?;
     reader.cancel_on(progress.cancel_flag());
+    reader.start_at(start);
+    let machine = &config.machine;
     let mut blocks = 0;
-    let mut end_steps = [0; MAX_AXES];
+    let mut end_steps = start_steps(start, &machine.step_mm);
     let mut path_mm = 0.0;
     let mut cutting_spans = Vec::new();
     let mut rapid_spans: Vec<(f64, f64)> = Vec::new();
@@ -63,6 +72,7 @@ pub fn precheck(
         if progress.cancelled() {
             return Err(cancelled());
         }
+        crate::check::hold_to_travel(&block, &machine.axes, &machine.travel, &program.name)?;
         let length = block.curve.length();
         if measure && block.kind != gcode::BlockKind::Rapid {
             match cutting_spans.last_mut() {
@@ -96,10 +106,22 @@ pub fn precheck(
         }
     }
     Ok(Precheck {
+        work_offsets: reader.work_offsets(),
+        work_system: reader.work_system(),
+        modes: reader.modes(),
         blocks,
         end_steps,
         cutting_spans,
         path_mm,
         rapid_spans,
+    })
+}
+
+/// The machine position of `start` in steps (it was made from steps, so this is exact).
+pub fn start_steps(start: &WorkStart, step_mm: &[f64]) -> Steps {
+    std::array::from_fn(|i| {
+        step_mm
+            .get(i)
+            .map_or(0, |mm| (start.position_mm[i] / mm).round() as i64)
     })
 }

@@ -90,7 +90,7 @@ impl BlockMaker {
             axes: spec.axes.iter().map(|a| a.letter()).collect(),
             program: program.to_string(),
             seq: 0,
-            last_end: [0; MAX_AXES],
+            last_end: spec.start_steps(),
             path_mm: 0.0,
             first_of_block: true,
             conditions: spec.conditions.clone(),
@@ -206,6 +206,7 @@ fn produce_inner(
     )?;
     // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
     reader.cancel_on(cancel);
+    reader.start_at(&spec.work);
     let mut pre = Preprocessor::new(spec.plan.clone());
     let started = Instant::now();
     let mut out = Pusher {

@@ -28,7 +28,6 @@ use super::{BoxedOutput, JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
 use crate::buffer::LoopBuffer;
 use crate::record::{RecordedOutput, Recorder, Recording};
 use crate::trace::Tracer;
-use crate::vocab::MAX_AXES;
 
 /// A report's recorder samples the motion at most this often (and at every gap change).
 const RECORD_EVERY_TICKS: u64 = 20;
@@ -106,6 +105,7 @@ pub fn run(
             settings: spec.fine,
             loop_settings: spec.run_loop,
             resume: job.resume.clone(),
+            start: spec.start_steps(),
             supervisor: std::thread::current(),
         });
         let done = supervisor.watch(&result);
@@ -162,7 +162,7 @@ fn recorded(
         job.spec.run_loop.virtual_time,
         Some(std::thread::current()),
     );
-    let start = job.resume.as_ref().map_or([0; MAX_AXES], |r| {
+    let start = job.resume.as_ref().map_or(job.spec.start_steps(), |r| {
         std::array::from_fn(|i| r.position.get(i).copied().unwrap_or(0))
     });
     let output: BoxedOutput = Box::new(RecordedOutput::new(

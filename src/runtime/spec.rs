@@ -4,9 +4,9 @@
 
 use crate::config::Config;
 use crate::fine::FineSettings;
-use crate::gcode::ProgramOptions;
+use crate::gcode::{ProgramOptions, WorkStart};
 use crate::preprocess::PlanSettings;
-use crate::vocab::{Axis, TickPeriod};
+use crate::vocab::{Axis, Steps, TickPeriod};
 
 use super::consumer::LoopSettings;
 
@@ -42,6 +42,9 @@ pub struct JobSpec {
     /// The fastest path speed the outputs can take (one step per axis per tick), mm/s.
     pub speed_cap: f64,
     pub max_feed_mm_per_min: f64,
+    /// Where the job starts: the machine position, the work offsets and the active system
+    /// (the machine origin in `G54` with no offsets unless the caller says otherwise).
+    pub work: WorkStart,
 }
 
 impl JobSpec {
@@ -78,7 +81,13 @@ impl JobSpec {
                 .collect(),
             speed_cap: super::fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
+            work: WorkStart::default(),
         }
+    }
+
+    /// The machine position the job starts from, in steps.
+    pub fn start_steps(&self) -> Steps {
+        super::precheck::start_steps(&self.work, &self.step_mm)
     }
 
     /// The axis names (`X`, `Y`, …).

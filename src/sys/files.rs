@@ -48,6 +48,42 @@ pub fn read_regular(path: &Path) -> io::Result<String> {
     Ok(text)
 }
 
+/// Writes `bytes` to `path` atomically: to `PATH.tmp`, synced, renamed over `path`, and the
+/// directory synced, so a power cut leaves the old file or the new one, never a torn one. A
+/// write that fails removes its temporary file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    use std::io::Write;
+    let tmp = temporary_path(path);
+    let written = (|| {
+        let mut file = std::fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        // A full disk leaves a short temporary file: it is not the file, remove it.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    // Makes the rename itself durable; a directory that cannot be opened (unusual
+    // permissions) still has the rename, just not yet on disk.
+    if let Ok(d) = std::fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Where [`write_atomic`] writes before it renames over `path`.
+pub fn temporary_path(path: &Path) -> std::path::PathBuf {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    std::path::PathBuf::from(tmp)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -239,6 +239,7 @@ mod tests {
 
     fn status() -> Status {
         Status {
+            machine: Default::default(),
             state: DaemonState::Held,
             version: "0".into(),
             uptime_s: 12.5,

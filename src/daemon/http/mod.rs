@@ -194,6 +194,14 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/hold", post(|s, h, b| control(s, h, b, "hold")))
         .route("/api/resume", post(|s, h, b| control(s, h, b, "resume")))
         .route("/api/abort", post(|s, h, b| control(s, h, b, "abort")))
+        .route("/api/home", post(|s, h, b| machine(s, h, b, "home")))
+        .route("/api/jog", post(|s, h, b| machine(s, h, b, "jog")))
+        .route("/api/mdi", post(|s, h, b| machine(s, h, b, "mdi")))
+        .route(
+            "/api/touch-off",
+            post(|s, h, b| machine(s, h, b, "touch-off")),
+        )
+        .route("/api/offsets", post(|s, h, b| machine(s, h, b, "offsets")))
         .route(
             "/api/rethread",
             post(|s, h, b| control(s, h, b, "rethread")),
@@ -531,6 +539,41 @@ async fn run(
         return e;
     }
     match ask(&app, Request::Run { program }).await {
+        Ok(reply) => verdict(reply),
+        Err(e) => e,
+    }
+}
+
+/// The machine's commands (`home`, `jog`, `mdi`, `touch-off`, `offsets`): the body holds the
+/// socket request's fields (`{"axis":"X","distance_mm":0.5}`), checked as the socket checks
+/// them.
+async fn machine(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    raw: Result<Bytes, BytesRejection>,
+    command: &'static str,
+) -> Response {
+    if let Err(e) = authorised(&app, &headers) {
+        return e;
+    }
+    let mut fields: serde_json::Map<String, serde_json::Value> = match body(raw) {
+        Ok(b) => b,
+        Err(e) => return e,
+    };
+    if fields.contains_key("cmd") {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "request body: `cmd` is not a field: the path names the command".to_string(),
+        );
+    }
+    fields.insert("cmd".into(), command.into());
+    let request = match Request::parse(&serde_json::Value::Object(fields).to_string()) {
+        Ok(r) => r,
+        Err(e) => {
+            return error(StatusCode::BAD_REQUEST, format!("request body: {}", e.what));
+        }
+    };
+    match ask(&app, request).await {
         Ok(reply) => verdict(reply),
         Err(e) => e,
     }

@@ -140,8 +140,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let va = off_a.map(|w| w.value * s);
         let vb = off_b.map(|w| w.value * s);
         if self.state.modal.arc_centre_absolute {
-            center[ia] = va.map_or(start[ia], |v| v + self.state.offset[ia]);
-            center[ib] = vb.map_or(start[ib], |v| v + self.state.offset[ib]);
+            let offset = self.state.offset();
+            center[ia] = va.map_or(start[ia], |v| v + offset[ia]);
+            center[ib] = vb.map_or(start[ib], |v| v + offset[ib]);
         } else {
             center[ia] = start[ia] + va.unwrap_or(0.0);
             center[ib] = start[ib] + vb.unwrap_or(0.0);

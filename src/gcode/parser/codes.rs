@@ -10,6 +10,7 @@ use super::{BlockReader, Fail, Letters, Step, whole};
 const MAX_DWELL_S: f64 = 86_400.0;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
+use crate::gcode::work::WorkSystem;
 use crate::gcode::{NurbsForm, Plane};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,7 +43,7 @@ pub(super) enum GCode {
     Incremental(bool),
     ArcCentreAbsolute(bool),
     Plane(Plane),
-    /// A mode edmd is always in (G40, G49, G54, G61, G64, G94): accepted, nothing to do.
+    /// A mode edmd is always in (G49, G61, G64, G94): accepted, nothing to do.
     Accepted(u8),
     /// A code edmd can safely ignore, with the words it takes: `G64 P… Q…` (path blending:
     /// edmd keeps to its chord tolerance), `G43 H…` (tool length offsets: none on an EDM's
@@ -65,13 +66,19 @@ pub(super) enum GCode {
     Comp {
         left: bool,
     },
-    /// G92 family (group 0).
+    /// G92 family and G10 (group 0).
     Offset(OffsetCode),
+    /// G54…G59.3 (group 12): a work coordinate system.
+    WorkSystem(WorkSystem),
+    /// G53 (group 0): this block's move is in machine coordinates.
+    MachineCoords,
 }
 
-/// The G92 family.
+/// The G92 family and G10.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum OffsetCode {
+    /// G10 L2 / L20: an entry of the work offset table.
+    Table,
     /// G92: the current point gets the given coordinates.
     Set,
     /// G92.1: offsets cleared.
@@ -94,7 +101,8 @@ impl GCode {
             GCode::Accepted(g) => g,
             GCode::Ignored { group, .. } => group,
             GCode::SpindleMode => 14,
-            GCode::Dwell | GCode::Offset(_) => 0,
+            GCode::Dwell | GCode::Offset(_) | GCode::MachineCoords => 0,
+            GCode::WorkSystem(_) => 12,
             GCode::CompOff | GCode::Comp { .. } => 7,
         }
     }
@@ -157,7 +165,11 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         410 => GCode::Comp { left: true },
         420 => GCode::Comp { left: false },
         490 => GCode::Accepted(8),
-        540 => GCode::Accepted(12),
+        540 | 550 | 560 | 570 | 580 | 590 | 591..=593 => GCode::WorkSystem(
+            WorkSystem::from_g_tenths(tenths).expect("the nine work system codes"),
+        ),
+        530 => GCode::MachineCoords,
+        100 => GCode::Offset(OffsetCode::Table),
         610 | 611 => GCode::Accepted(13),
         640 => GCode::Ignored {
             group: 13,
@@ -191,10 +203,9 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         50 | 51 => return unsupported("LinuxCNC splines; use the G5.2/G5.3 NURBS form"),
         60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
         70 | 80 => return unsupported("lathe modes"),
-        100 | 520 | 530 | 550..=590 | 591..=593 => {
+        520 => {
             return unsupported(
-                "work offsets other than G54 and G92; edmd works in machine coordinates (G54) \
-                 shifted by G92",
+                "local offsets (G52); use G92, or a work system set with G10 L2 (G54…G59.3)",
             );
         }
         280 | 281 | 300 | 301 => {
@@ -231,15 +242,13 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
 
 impl<R: BufRead + Seek> BlockReader<R> {
     /// Takes the G codes of a block in order: the modal groups they set, a dwell, the wire
-    /// offset; returns the motion word and the offset word (`G10`/`G92`…) for later.
-    #[allow(clippy::type_complexity)]
+    /// offset, the work system; returns the words that act later (motion, offset, `G53`).
     pub(super) fn apply_g_codes<'w>(
         &mut self,
         codes: &[(GCode, &'w Word)],
         kept: &mut Letters<'w>,
-    ) -> Step<(Option<(GCode, &'w Word)>, Option<(OffsetCode, &'w Word)>)> {
-        let mut motion_word: Option<(GCode, &Word)> = None;
-        let mut offset_word: Option<(OffsetCode, &Word)> = None;
+    ) -> Step<LaterCodes<'w>> {
+        let mut later = LaterCodes::default();
         for &(code, w) in codes {
             match code {
                 GCode::Dwell => {
@@ -267,7 +276,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     self.state.pending_dwell += p.value;
                     *kept = kept.without(&['P']);
                 }
-                GCode::Offset(o) => offset_word = Some((o, w)),
+                GCode::Offset(o) => later.offset = Some((o, w)),
+                GCode::MachineCoords => later.machine = Some(w),
+                GCode::WorkSystem(system) => self.select_system(system, w)?,
                 GCode::CompOff => self.out.comp.cancel(),
                 GCode::Comp { left } => {
                     let d = self.wire_offset(w, kept.get('D'))?;
@@ -306,11 +317,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     ),
                 ),
                 GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
-                    motion_word = Some((code, w));
+                    later.motion = Some((code, w));
                 }
             }
         }
-        Ok((motion_word, offset_word))
+        Ok(later)
     }
 
     /// The offset `D` names for `G41`/`G42`.
@@ -337,6 +348,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
             ))
         })
     }
+}
+
+/// The G words of a block that act after the modes are set: its motion, its offset code
+/// (`G10`/`G92`…) and `G53`.
+#[derive(Default)]
+pub(super) struct LaterCodes<'w> {
+    pub(super) motion: Option<(GCode, &'w Word)>,
+    pub(super) offset: Option<(OffsetCode, &'w Word)>,
+    pub(super) machine: Option<&'w Word>,
 }
 
 /// The G codes of a block, one per modal group.

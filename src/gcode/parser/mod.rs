@@ -13,6 +13,7 @@ mod comp;
 mod control;
 mod modal;
 mod nurbs;
+mod offsets;
 mod state;
 mod structure;
 mod system;

@@ -9,7 +9,6 @@ use super::codes::{GCode, Motion, OffsetCode, Probing, g_codes};
 use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
-use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe};
 use crate::geometry::{NurbsCurve, Point};
@@ -25,10 +24,6 @@ pub(super) struct Modal {
     /// mm/min
     pub(super) feed: Option<f64>,
 }
-
-/// LinuxCNC's G92 parameters: `#5210` (offset on), `#5211`… (per axis X Y Z A B C U V W).
-const G92_ENABLED: usize = 5210;
-const G92_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
 
 impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn start_block(
@@ -52,8 +47,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             None => None,
         };
-        let (motion_word, offset_word) = self.apply_g_codes(&codes, &mut kept)?;
-        if let Some((code, w)) = offset_word {
+        let later = self.apply_g_codes(&codes, &mut kept)?;
+        let motion_word = later.motion;
+        if let Some((code, w)) = later.offset {
             if let Some((_, m)) = motion_word {
                 return Err((
                     m.col,
@@ -67,7 +63,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.coordinate_offset(code, w, &kept)?;
             let axis_letters: Vec<char> = self.axes.iter().map(|a| a.letter()).collect();
             kept = kept.without(&axis_letters);
+            if code == OffsetCode::Table {
+                kept = kept.without(&['L', 'P', 'R']);
+            }
         }
+        if let Some(g53) = later.machine {
+            let motion = match motion_word {
+                Some((GCode::Motion(m), _)) => Some(m),
+                Some(_) => None,
+                None => self.state.modal.motion,
+            };
+            self.check_machine_move(g53, matches!(motion, Some(Motion::Rapid | Motion::Linear)))?;
+        }
+        self.scratch.machine_move = later.machine.is_some();
         let letters = &kept;
         if let Some(o) = letters.get('O')
             && !matches!(motion_word, Some((GCode::Curve(NurbsForm::G38), _)))
@@ -94,9 +102,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         } = self.m_codes(line_no, words)?;
         self.condition_and_feed(line_no, letters)?;
 
-        let block = self.motion_of(motion_word, line_no, text, letters, words)?;
+        let block = self.motion_of(motion_word, line_no, text, letters, words);
+        self.scratch.machine_move = false;
+        let block = block?;
         if program_end {
             self.program.ended_at = Some(line_no);
+            self.end_in_g54();
         }
         if let Some(p) = pause {
             self.state.pending_pause = Some((line_no, p));
@@ -292,58 +303,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
     }
 
-    /// G92, G92.1, G92.2, G92.3 (LinuxCNC's semantics; the offsets also go to `#5210`…).
-    fn coordinate_offset(&mut self, code: OffsetCode, w: &Word, letters: &Letters) -> Step<()> {
-        match code {
-            OffsetCode::Set => {
-                let mut any = false;
-                for (i, axis) in self.axes.iter().enumerate() {
-                    if let Some(v) = letters.get(axis.letter()) {
-                        self.state.offset[i] =
-                            self.state.position[i] - v.value * self.state.scale();
-                        any = true;
-                    }
-                }
-                if !any {
-                    return Err((
-                        w.col,
-                        GcodeErrorKind::MissingCoordinate {
-                            what: "G92 needs the axis words that name the current point".into(),
-                        },
-                    )
-                        .into());
-                }
-                self.state.saved_offset = None;
-            }
-            OffsetCode::Clear => {
-                self.state.offset = Point::zeros();
-                self.state.saved_offset = None;
-            }
-            OffsetCode::Suspend => {
-                self.state.saved_offset = Some(self.state.offset);
-                self.state.offset = Point::zeros();
-            }
-            OffsetCode::Restore => {
-                if let Some(saved) = self.state.saved_offset.take() {
-                    self.state.offset = saved;
-                }
-            }
-        }
-        let on = self.state.offset.iter().any(|&o| o != 0.0);
-        self.state
-            .params
-            .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
-        for (i, axis) in self.axes.iter().enumerate() {
-            if let Some(k) = G92_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = self.state.offset[i] / self.state.scale();
-                self.state
-                    .params
-                    .set(&ParamRef::Numbered(G92_ENABLED + 1 + k), v);
-            }
-        }
-        Ok(())
-    }
-
     /// Whether a block in motion mode `m` moves: it has axis words, or, for an arc, a centre
     /// or radius (a full circle needs no axis words). A bare `G1` only sets the mode.
     pub(super) fn moves(&self, m: Motion, letters: &Letters) -> Step<bool> {
@@ -430,6 +389,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
     ) -> Step<(Point, bool)> {
         let mut p = *base;
         let mut any = false;
+        // A G53 move names machine coordinates.
+        let offset = if self.scratch.machine_move {
+            Point::zeros()
+        } else {
+            self.state.offset()
+        };
         for (i, axis) in self.axes.iter().enumerate() {
             if reserved.contains(axis.letter()) {
                 continue;
@@ -439,7 +404,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 p[i] = if self.state.modal.incremental {
                     base[i] + v
                 } else {
-                    v + self.state.offset[i]
+                    v + offset[i]
                 };
                 if p[i].abs() > MAX_COORD_MM {
                     return Err((

@@ -2,7 +2,7 @@
 //! `parser_block_t`):
 //!
 //! - [`InterpState`]: the interpreter's state, from block to block: the modal groups, the
-//!   position, the `G92` offset, the parameters, the M-state (flushing, condition) and the
+//!   position, the work system and `G92` offsets, the parameters, the M-state (flushing, condition) and the
 //!   stops waiting for the next motion.
 //! - [`ProgramFlow`]: where reading is in the text: the lines, the O-word flow control and
 //!   the structure check, and how the program ends.
@@ -28,18 +28,23 @@ use crate::gcode::error::Warning;
 use crate::gcode::expr::Params;
 use crate::gcode::lexer::{Assign, Word};
 use crate::gcode::lines::{LineSource, Pos};
+use crate::gcode::work::WorkSystem;
 use crate::gcode::{Block, Pause, Plane};
 use crate::geometry::Point;
 
 /// The interpreter's state: what one block leaves for the next.
 pub(super) struct InterpState {
     pub modal: Modal,
-    /// Program position, mm.
+    /// Machine position, mm (what a program point means: see [`super::offsets`]).
     pub position: Point,
-    /// G92 offset, mm: machine position = program position + offset.
-    pub offset: Point,
+    /// The active work system and its offset, mm (loaded from the table in the parameters
+    /// when the system is selected or its entry set).
+    pub system: WorkSystem,
+    pub g5x: Point,
+    /// G92 offset, mm: machine position = program position + g5x + g92.
+    pub g92: Point,
     /// The offset G92.2 suspended, for G92.3.
-    pub saved_offset: Option<Point>,
+    pub saved_g92: Option<Point>,
     pub params: Params,
     /// M7/M8 on, M9 off.
     pub flushing: bool,
@@ -56,7 +61,12 @@ impl InterpState {
         if self.modal.inch { MM_PER_INCH } else { 1.0 }
     }
 
-    /// At the machine origin, in G21 G90 G17 G94 with no motion mode and no feed.
+    /// Program point + this = machine point, mm.
+    pub fn offset(&self) -> Point {
+        self.g5x + self.g92
+    }
+
+    /// At the machine origin, in G54, G21 G90 G17 G94 with no motion mode and no feed.
     pub fn new() -> InterpState {
         InterpState {
             modal: Modal {
@@ -68,8 +78,10 @@ impl InterpState {
                 feed: None,
             },
             position: Point::zeros(),
-            offset: Point::zeros(),
-            saved_offset: None,
+            system: WorkSystem::G54,
+            g5x: Point::zeros(),
+            g92: Point::zeros(),
+            saved_g92: None,
             params: Params::default(),
             flushing: false,
             condition: 0,
@@ -143,6 +155,8 @@ pub(super) struct LineScratch {
     pub line_no: u64,
     /// Byte offset where the line starts.
     pub line_start: u64,
+    /// The line has `G53`: its move is in machine coordinates.
+    pub machine_move: bool,
 }
 
 /// What is on its way out of the reader.

@@ -19,9 +19,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub fn probed(&mut self, at: &Point, contact: bool) {
         self.state.position = *at;
         let scale = self.state.scale();
+        let program = self.program_point(at);
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = (at[i] - self.state.offset[i]) / scale;
+                let v = program[i] / scale;
                 self.state
                     .params
                     .set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
@@ -41,7 +42,7 @@ pub(super) struct ReaderEnv<'a, R> {
     pub(super) reader: &'a BlockReader<R>,
 }
 
-const SYSTEM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
+use super::offsets::PARAM_AXES as SYSTEM_AXES;
 
 /// LinuxCNC's read-only numbered parameters: the tool's data (`#5400`…`#5413`) and the
 /// position (`#5420`…`#5428`).
@@ -114,7 +115,7 @@ impl<R> ReaderEnv<'_, R> {
         r.axes
             .iter()
             .position(|a| a.letter() == letter)
-            .map_or(0.0, |i| (r.state.position[i] - r.state.offset[i]) / scale)
+            .map_or(0.0, |i| r.program_point(&r.state.position)[i] / scale)
     }
 }
 
@@ -146,6 +147,7 @@ impl<R> Env for ReaderEnv<'_, R> {
                     / if r.state.modal.inch { MM_PER_INCH } else { 1.0 },
             ),
             "_line" => Some(r.scratch.line_no as f64),
+            "_coord_system" => Some(r.state.system.coord_system_value()),
             _ => {
                 let mut chars = name.chars();
                 if let (Some('_'), Some(c), None) = (chars.next(), chars.next(), chars.next()) {

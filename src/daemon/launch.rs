@@ -1,0 +1,82 @@
+//! What a check starts from and what it reads: the program's source (the operator's file,
+//! a checkpoint's copy, text the daemon made for a jog or MDI), where the job starts and what
+//! kind of job it is; and the check worker that copies and prechecks on its own thread.
+
+use std::path::{Path, PathBuf};
+
+use super::refusal::CheckRefusal;
+use crate::checkpoint;
+use crate::config::Config;
+use crate::gcode::WorkStart;
+use crate::runtime;
+use crate::runtime::program::{self, JobProgram, Progress};
+
+/// A program copied and checked: ready to run.
+pub(super) type Checked = (JobProgram, runtime::Precheck);
+
+/// What a check reads.
+pub(super) enum Source {
+    /// The operator's file: copied first.
+    Original(PathBuf),
+    /// A private copy already made (a checkpoint's).
+    Copy(JobProgram),
+    /// Program text the daemon made (a jog, MDI lines), named `name` in errors.
+    Generated { text: String, name: String },
+}
+
+/// What a job is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum JobKind {
+    /// A program the operator named (or a checkpoint's).
+    Program,
+    /// A jog: one positioning move (spark off) at this feed, mm/min.
+    Jog { feed_mm_per_min: f64 },
+    /// MDI lines.
+    Mdi,
+}
+
+/// Where a job starts and what it is: decided when its check begins.
+#[derive(Debug, Clone)]
+pub(super) struct Launch {
+    pub start: WorkStart,
+    pub kind: JobKind,
+}
+
+/// The check worker: copy (unless already a copy), hold to the expected hash, then check.
+pub(super) fn copy_and_check(
+    source: Source,
+    dir: &Path,
+    config: &Config,
+    start: &WorkStart,
+    expect: Option<&str>,
+    progress: &Progress,
+) -> Result<Checked, CheckRefusal> {
+    let program = match source {
+        Source::Original(path) => program::copy_program(&path, dir, progress)?,
+        Source::Copy(program) => program,
+        Source::Generated { text, name } => {
+            let tmp = dir.join(format!(".{name}-{}.ngc", std::process::id()));
+            std::fs::create_dir_all(dir)
+                .and_then(|()| std::fs::write(&tmp, text))
+                .map_err(|source| program::CopyError::Write {
+                    dir: dir.to_path_buf(),
+                    source,
+                })?;
+            let copied = program::copy_program(&tmp, dir, progress);
+            let _ = std::fs::remove_file(&tmp);
+            JobProgram { name, ..copied? }
+        }
+    };
+    if let Some(expect) = expect
+        && program.sha256 != expect
+    {
+        return Err(checkpoint::CheckpointError::ProgramChanged {
+            program: PathBuf::from(&program.name),
+            expected: expect.to_string(),
+            found: program.sha256,
+        }
+        .into());
+    }
+    let check = runtime::precheck(&program, config, start, progress)?;
+    Ok((program, check))
+}

@@ -1,0 +1,292 @@
+//! The machine as the daemon keeps it between jobs: position (machine coordinates, steps),
+//! homed axes, the work offset table and the active system, in `daemon.state_file`
+//! ([`crate::machine`]), with the write-ahead rule: marked moving before a job leaves a
+//! standstill, written at the standstill where it ends. The operator's commands that change
+//! it without motion live here too: `offsets`, `touch-off`, `home --here`.
+
+use std::path::PathBuf;
+
+use super::protocol::MachineStatus;
+use super::refusal::Refusal;
+use super::{Core, DaemonError};
+use crate::checkpoint;
+use crate::config::Config;
+use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
+use crate::machine::MachineState;
+use crate::vocab::{Axis, Steps};
+
+/// The machine state and its file.
+pub(super) struct MachineKeeper {
+    pub state: MachineState,
+    path: PathBuf,
+    /// Why the last write of the state file failed; `None` once one succeeds.
+    pub write_error: Option<String>,
+    /// The units and distance mode the last MDI lines left (LinuxCNC's MDI keeps them).
+    pub mdi_modes: crate::gcode::StartModes,
+}
+
+impl MachineKeeper {
+    /// Reads the state file of `config`: a clean standstill restores position and homed
+    /// axes (unless `homing.require_after_start`), a moving one restores the position but
+    /// unhomes every axis, none starts at machine zero, unhomed. A file that cannot be read
+    /// or belongs to another machine configuration stops the daemon.
+    pub fn open(config: &Config) -> Result<MachineKeeper, DaemonError> {
+        let path = config.daemon.state_file.clone();
+        let state = match MachineState::load(&path, &config.machine)
+            .map_err(|e| DaemonError::MachineState(e.to_string()))?
+        {
+            None => {
+                tracing::info!(
+                    "{}: no machine state yet: at machine zero, no axis homed",
+                    path.display()
+                );
+                MachineState::new(&config.machine)
+            }
+            Some(loaded) if loaded.was_moving => {
+                tracing::warn!(
+                    "{}: the machine was moving when edmd last stopped: its position is only \
+                     believed, every axis is unhomed",
+                    path.display()
+                );
+                loaded.state.distrusted()
+            }
+            Some(loaded) if config.homing.require_after_start => {
+                tracing::info!("homing.require_after_start: every axis is unhomed");
+                loaded.state.distrusted()
+            }
+            Some(loaded) => loaded.state,
+        };
+        let mut keeper = MachineKeeper {
+            state,
+            path,
+            write_error: None,
+            mdi_modes: Default::default(),
+        };
+        // The file now says what the daemon believes (an unhomed state stays unhomed after
+        // a second crash), and a file that cannot be written is known before any job.
+        keeper
+            .save(false)
+            .map_err(|e| DaemonError::MachineState(e.to_string()))?;
+        Ok(keeper)
+    }
+
+    /// Writes the state; `moving` before motion leaves a standstill.
+    pub fn save(&mut self, moving: bool) -> Result<(), Refusal> {
+        match self.state.write(&self.path, moving) {
+            Ok(()) => {
+                self.write_error = None;
+                Ok(())
+            }
+            Err(e) => {
+                let text = format!(
+                    "{}: cannot write the machine state: {e}",
+                    self.path.display()
+                );
+                tracing::error!("{text}");
+                self.write_error = Some(text.clone());
+                Err(Refusal::MachineState(text))
+            }
+        }
+    }
+
+    /// A job stopped at `position` (its ledger); with `left` the work offsets and system the
+    /// program ended with (a job that ran to its end).
+    pub fn stopped(&mut self, position: &Steps, left: Option<(WorkOffsets, WorkSystem)>) {
+        self.state.position = *position;
+        if let Some((offsets, system)) = left {
+            self.state.offsets = offsets;
+            self.state.system = system;
+        }
+        // A failed write is logged and shown in the status; the next one may succeed.
+        let _ = self.save(false);
+    }
+
+    /// What the status shows of the machine; `live` is a running job's ledger.
+    pub fn status(&self, config: &Config, live: Option<&Steps>) -> MachineStatus {
+        let mut state = self.state.clone();
+        if let Some(p) = live {
+            state.position = *p;
+        }
+        let n = state.axes.len();
+        MachineStatus {
+            position_machine_mm: state.position_mm().as_slice()[..n].to_vec(),
+            position_work_mm: state.position_work_mm().as_slice()[..n].to_vec(),
+            work_system: state.system.name().to_string(),
+            homed: state.homed.clone(),
+            travel_mm: config
+                .machine
+                .travel
+                .iter()
+                .map(|t| t.map(|t| [t.min_mm, t.max_mm]))
+                .collect(),
+            state_write_error: self.write_error.clone(),
+        }
+    }
+}
+
+impl Core {
+    /// `offsets`: the table, one system a line, the active one marked `*`.
+    pub(super) fn offsets(&self) -> Result<String, Refusal> {
+        Ok(format!(
+            "work offsets (mm, machine coordinates of each system's zero):\n{}",
+            self.machine.state.offsets_text()
+        ))
+    }
+
+    /// `touch-off AXIS VALUE [SYSTEM]`: `G10 L20` for where the machine stands: the system's
+    /// offset on `axis` is set so that the current position reads `value` (mm) in it.
+    pub(super) fn touch_off(
+        &mut self,
+        axis: &str,
+        value: f64,
+        system: Option<&str>,
+    ) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let (i, axis) = self.machine_axis(axis)?;
+        if !value.is_finite() || value.abs() > 1.0e6 {
+            return Err(Refusal::BadArgument(format!(
+                "touch-off value {value} is not a coordinate (±1000000 mm)"
+            )));
+        }
+        let state = &mut self.machine.state;
+        let system = match system {
+            None => state.system,
+            Some(name) => WorkSystem::parse(name).ok_or_else(|| {
+                Refusal::BadArgument(format!("{name:?} is not a work system (G54 … G59.3)"))
+            })?,
+        };
+        let mut offset = *state.offsets.get(system);
+        let before = offset[i];
+        offset[i] = state.position_mm()[i] - value;
+        state.offsets.set(system, offset);
+        if let Err(e) = self.machine.save(false) {
+            self.machine.state.offsets.set(system, {
+                let mut o = offset;
+                o[i] = before;
+                o
+            });
+            return Err(e);
+        }
+        tracing::info!(
+            edmd_event = "touch_off",
+            "touch-off: {system} {axis} offset {before:.4} -> {:.4} mm (here reads {axis}{value:.4})",
+            offset[i]
+        );
+        Ok(format!(
+            "{system} {axis} offset is {:.4} mm: here reads {axis}{value:.4}",
+            offset[i]
+        ))
+    }
+
+    /// `home --here [AXIS…]`: the axes (all when none is named) are declared homed where
+    /// they stand, and that place becomes machine zero (a machine without home switches).
+    pub(super) fn home_here(&mut self, axes: &[String], here: bool) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        if !here {
+            return Err(Refusal::BadArgument(
+                "homing by switches is not built yet: `home --here` declares where the \
+                 machine stands to be its home (machine zero)"
+                    .into(),
+            ));
+        }
+        let picked: Vec<(usize, Axis)> = if axes.is_empty() {
+            self.config
+                .machine
+                .axes
+                .iter()
+                .copied()
+                .enumerate()
+                .collect()
+        } else {
+            axes.iter()
+                .map(|a| self.machine_axis(a))
+                .collect::<Result<_, _>>()?
+        };
+        let before = self.machine.state.clone();
+        for &(i, _) in &picked {
+            self.machine.state.position[i] = 0;
+            self.machine.state.homed[i] = true;
+        }
+        if let Err(e) = self.machine.save(false) {
+            self.machine.state = before;
+            return Err(e);
+        }
+        let names: Vec<String> = picked.iter().map(|(_, a)| a.letter().to_string()).collect();
+        tracing::info!(
+            edmd_event = "home",
+            "homed {} here: machine zero is where it stands",
+            names.join(", ")
+        );
+        Ok(format!("homed {} here (machine zero)", names.join(", ")))
+    }
+
+    /// The machine's axis named `name` and its index.
+    pub(super) fn machine_axis(&self, name: &str) -> Result<(usize, Axis), Refusal> {
+        let axes = &self.config.machine.axes;
+        let mut chars = name.trim().chars();
+        let axis = match (chars.next(), chars.next()) {
+            (Some(c), None) => Axis::from_letter(c.to_ascii_uppercase()),
+            _ => None,
+        };
+        axis.and_then(|a| axes.iter().position(|&x| x == a).map(|i| (i, a)))
+            .ok_or_else(|| {
+                Refusal::BadArgument(format!(
+                    "{name:?} is not an axis of this machine ({})",
+                    self.config.machine.axis_names().join(", ")
+                ))
+            })
+    }
+
+    /// Where the checkpoint's job started: the resume replays it from there. Refused when the
+    /// work offsets it started with differ from the machine's now (unless `force`): the same
+    /// program would resume in another place.
+    pub(super) fn resume_start(
+        &self,
+        cp: &checkpoint::Checkpoint,
+        force: bool,
+    ) -> Result<WorkStart, Refusal> {
+        let machine = &self.config.machine;
+        let Some(record) = &cp.start else {
+            return Ok(WorkStart::default());
+        };
+        let start = record
+            .work_start(&machine.axes, &machine.step_mm)
+            .map_err(|e| Refusal::MachineState(format!("the checkpoint's start: {e}")))?;
+        let now = &self.machine.state.offsets;
+        let mut changed = Vec::new();
+        for system in crate::gcode::WorkSystem::all() {
+            let (was, is) = (start.offsets.get(system), now.get(system));
+            for (i, axis) in machine.axes.iter().enumerate() {
+                if (was[i] - is[i]).abs() > 1e-9 {
+                    changed.push(format!(
+                        "{system} {axis}: {:.4} then, {:.4} now",
+                        was[i], is[i]
+                    ));
+                }
+            }
+        }
+        if !changed.is_empty() {
+            if !force {
+                return Err(Refusal::OffsetsChanged {
+                    changed: changed.join("; "),
+                });
+            }
+            tracing::warn!(
+                "resume --force: the work offsets changed ({}); the job resumes with the \
+                 offsets it started with",
+                changed.join("; ")
+            );
+        }
+        Ok(start)
+    }
+
+    /// `run` on a machine that must be homed first.
+    pub(super) fn refuse_if_unhomed(&self) -> Result<(), Refusal> {
+        if self.config.homing.required
+            && let Some(axes) = self.machine.state.unhomed()
+        {
+            return Err(Refusal::Unhomed { axes });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,290 @@
+//! Coordinate offsets, LinuxCNC's way: the nine work systems (`G54`…`G59.3`) and their table
+//! (`G10 L2`, `G10 L20`), one move in machine coordinates (`G53`), and the `G92` family.
+//!
+//! The reader keeps its position in machine coordinates; a program point is that minus the
+//! active system's offset (`InterpState::g5x`, loaded when a system is selected, as LinuxCNC
+//! loads it) minus the `G92` offset. The table itself lives in the parameters, where LinuxCNC
+//! keeps it and where a program reads it: `#5220` the active system, `#5221 + 20·(n − 1) + k`
+//! the offset of system `n` on axis `k` (`X Y Z A B C U V W`), `#5210`… the `G92` offset, all
+//! in millimetres (the machine's units, LinuxCNC's "user units").
+
+use std::io::{BufRead, Seek};
+
+use super::codes::OffsetCode;
+use super::{BlockReader, Fail, Letters, Step, whole_as};
+use crate::gcode::error::GcodeErrorKind;
+use crate::gcode::expr::ParamRef;
+use crate::gcode::lexer::Word;
+use crate::gcode::work::{StartModes, WorkOffsets, WorkStart, WorkSystem};
+use crate::geometry::Point;
+use crate::vocab::Axis;
+
+/// LinuxCNC's axis order in its parameter blocks (`#5061`…, `#5211`…, `#5221`…).
+pub(super) const PARAM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'];
+
+/// `#5210`: the `G92` offset is on; `#5211`… its value per axis.
+const G92_ENABLED: usize = 5210;
+/// `#5220`: the active work system (1 = `G54`).
+const ACTIVE_SYSTEM: usize = 5220;
+
+/// The slot of `axis` in LinuxCNC's parameter blocks.
+pub(super) fn param_slot(axis: Axis) -> usize {
+    PARAM_AXES
+        .iter()
+        .position(|&l| l == axis.letter())
+        .expect("every machine axis has a parameter slot")
+}
+
+/// The parameter that holds `system`'s offset on the axis in slot `k`.
+fn table_param(system: WorkSystem, k: usize) -> usize {
+    ACTIVE_SYSTEM + 1 + 20 * system.index() + k
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// Starts the program at `start`: the machine position, the work offsets (written to their
+    /// parameters) and the active system. Call before the first block is read.
+    pub fn start_at(&mut self, start: &WorkStart) {
+        self.state.position = start.position_mm;
+        for system in WorkSystem::all() {
+            let offset = start.offsets.get(system);
+            for (i, &axis) in self.axes.iter().enumerate() {
+                let p = table_param(system, param_slot(axis));
+                self.state.params.set(&ParamRef::Numbered(p), offset[i]);
+            }
+        }
+        self.load_system(start.system);
+        self.state.modal.inch = start.modes.inch;
+        self.state.modal.incremental = start.modes.incremental;
+    }
+
+    /// The units and distance mode in force now (for the next MDI line).
+    pub fn modes(&self) -> StartModes {
+        StartModes {
+            inch: self.state.modal.inch,
+            incremental: self.state.modal.incremental,
+        }
+    }
+
+    /// The work offsets as the program has left them (`G10` changes them), mm.
+    pub fn work_offsets(&self) -> WorkOffsets {
+        let mut table = WorkOffsets::default();
+        for system in WorkSystem::all() {
+            table.set(system, self.table_entry(system));
+        }
+        table
+    }
+
+    /// The active work system.
+    pub fn work_system(&self) -> WorkSystem {
+        self.state.system
+    }
+}
+
+impl<R> BlockReader<R> {
+    /// `system`'s offset as its parameters hold it, mm.
+    fn table_entry(&self, system: WorkSystem) -> Point {
+        let mut offset = Point::zeros();
+        for (i, &axis) in self.axes.iter().enumerate() {
+            offset[i] = self
+                .state
+                .params
+                .numbered(table_param(system, param_slot(axis)));
+        }
+        offset
+    }
+
+    /// Makes `system` active, loading its offset from the table.
+    fn load_system(&mut self, system: WorkSystem) {
+        self.state.system = system;
+        self.state.g5x = self.table_entry(system);
+        self.state.params.set(
+            &ParamRef::Numbered(ACTIVE_SYSTEM),
+            f64::from(system.number()),
+        );
+    }
+
+    /// `G54`…`G59.3`: selecting another system loads its offset (the machine does not move;
+    /// the program's coordinates of where it stands change). Selecting the active one again
+    /// does nothing, as in LinuxCNC (a table parameter assigned since is not reloaded).
+    pub(super) fn select_system(&mut self, system: WorkSystem, w: &Word) -> Step<()> {
+        if self.out.comp.engaged() {
+            return Err((
+                w.col,
+                GcodeErrorKind::WorkOffset(format!(
+                    "G{}: the work system cannot change with the wire offset on (G40 first)",
+                    w.text
+                )),
+            )
+                .into());
+        }
+        if system != self.state.system {
+            self.load_system(system);
+        }
+        Ok(())
+    }
+
+    /// A program end (`M2`/`M30`) returns to `G54`, as LinuxCNC's does.
+    pub(super) fn end_in_g54(&mut self) {
+        if self.state.system != WorkSystem::G54 {
+            self.load_system(WorkSystem::G54);
+        }
+    }
+
+    /// The program's coordinates of the machine point `machine`, mm.
+    pub(super) fn program_point(&self, machine: &Point) -> Point {
+        machine - self.state.g5x - self.state.g92
+    }
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// The group-0 offset codes: `G10 L2`/`L20` and the `G92` family (LinuxCNC's semantics;
+    /// the values also go to their parameters).
+    pub(super) fn coordinate_offset(
+        &mut self,
+        code: OffsetCode,
+        w: &Word,
+        letters: &Letters,
+    ) -> Step<()> {
+        match code {
+            OffsetCode::Table => return self.set_table(w, letters),
+            OffsetCode::Set => {
+                let mut any = false;
+                for (i, axis) in self.axes.iter().enumerate() {
+                    if let Some(v) = letters.get(axis.letter()) {
+                        self.state.g92[i] = self.state.position[i]
+                            - self.state.g5x[i]
+                            - v.value * self.state.scale();
+                        any = true;
+                    }
+                }
+                if !any {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::MissingCoordinate {
+                            what: "G92 needs the axis words that name the current point".into(),
+                        },
+                    )
+                        .into());
+                }
+                self.state.saved_g92 = None;
+            }
+            OffsetCode::Clear => {
+                self.state.g92 = Point::zeros();
+                self.state.saved_g92 = None;
+            }
+            OffsetCode::Suspend => {
+                self.state.saved_g92 = Some(self.state.g92);
+                self.state.g92 = Point::zeros();
+            }
+            OffsetCode::Restore => {
+                if let Some(saved) = self.state.saved_g92.take() {
+                    self.state.g92 = saved;
+                }
+            }
+        }
+        let on = self.state.g92.iter().any(|&o| o != 0.0);
+        self.state
+            .params
+            .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
+        for (i, &axis) in self.axes.iter().enumerate() {
+            let p = G92_ENABLED + 1 + param_slot(axis);
+            self.state
+                .params
+                .set(&ParamRef::Numbered(p), self.state.g92[i]);
+        }
+        Ok(())
+    }
+
+    /// `G10 L2 P… X…` sets system `P`'s offset on the named axes; `G10 L20 P… X…` sets it so
+    /// that the current point reads the given coordinates in that system. `P0` is the active
+    /// system. Axis values are absolute whatever the distance mode (LinuxCNC's rule).
+    fn set_table(&mut self, w: &Word, letters: &Letters) -> Step<()> {
+        let fail = |col: usize, what: String| Fail::from((col, GcodeErrorKind::WorkOffset(what)));
+        let Some(l) = letters.get('L') else {
+            return Err(fail(
+                w.col,
+                "G10 needs L2 (set a work offset) or L20 (set it from the current point)".into(),
+            ));
+        };
+        let relative_to_here = match whole_as(l, 0.0, 99.0, "G10's L")? as u32 {
+            2 => false,
+            20 => true,
+            1 | 10 | 11 => {
+                return Err(fail(
+                    l.col,
+                    format!(
+                        "G10 L{}: edmd has no tool table (its offsets are the wire offset's D \
+                         registers, compensation.d_mm)",
+                        l.text
+                    ),
+                ));
+            }
+            _ => {
+                return Err(fail(
+                    l.col,
+                    format!("G10 L{}: edmd knows G10 L2 and G10 L20", l.text),
+                ));
+            }
+        };
+        let Some(p) = letters.get('P') else {
+            return Err(fail(
+                w.col,
+                "G10 needs P, the work system (1 = G54 … 9 = G59.3, 0 = the active one)".into(),
+            ));
+        };
+        let n = whole_as(p, 0.0, 9.0, "G10's work system P")? as u8;
+        let system = WorkSystem::from_number(n).unwrap_or(self.state.system);
+        if let Some(r) = letters.get('R') {
+            if r.value != 0.0 {
+                return Err(fail(
+                    r.col,
+                    "G10 R: rotated work systems are not supported (R0 only)".into(),
+                ));
+            }
+            if relative_to_here {
+                return Err(fail(r.col, "R is not allowed with G10 L20".into()));
+            }
+        }
+        if self.out.comp.engaged() && system == self.state.system {
+            return Err(fail(
+                w.col,
+                "G10: the active work system cannot change with the wire offset on (G40 first)"
+                    .into(),
+            ));
+        }
+        let mut offset = self.table_entry(system);
+        for (i, axis) in self.axes.iter().enumerate() {
+            if let Some(v) = letters.get(axis.letter()) {
+                let value = v.value * self.state.scale();
+                offset[i] = if relative_to_here {
+                    self.state.position[i] - self.state.g92[i] - value
+                } else {
+                    value
+                };
+            }
+        }
+        for (i, &axis) in self.axes.iter().enumerate() {
+            let param = table_param(system, param_slot(axis));
+            self.state.params.set(&ParamRef::Numbered(param), offset[i]);
+        }
+        if system == self.state.system {
+            self.state.g5x = offset;
+        }
+        Ok(())
+    }
+
+    /// `G53`: this block's move is in machine coordinates. Only with `G0`/`G1`, in `G90`,
+    /// without the wire offset (LinuxCNC's three rules).
+    pub(super) fn check_machine_move(&self, g53: &Word, straight: bool) -> Step<()> {
+        let why = if !straight {
+            "G53 needs G0 or G1 (one straight move in machine coordinates)"
+        } else if self.state.modal.incremental {
+            "G53 cannot be incremental: program it in G90"
+        } else if self.out.comp.engaged() {
+            "G53 cannot be used with the wire offset on (G40 first)"
+        } else {
+            return Ok(());
+        };
+        Err((g53.col, GcodeErrorKind::WorkOffset(why.into())).into())
+    }
+}

@@ -1,0 +1,355 @@
+//! What a machine knows about itself between runs: where it stands (machine coordinates, in
+//! steps), which axes are homed, the work offset table and the active work system, kept in a
+//! state file.
+//!
+//! **Write-ahead**, as for checkpoints: before anything leaves a standstill the file is
+//! rewritten with `moving = true` (synced), and when motion stops it is rewritten with the
+//! position where it stopped and `moving = false`. A state read back at a standstill is exact;
+//! one that says it was moving (the daemon was killed, the power cut) has a position that is
+//! only believed, so every axis is unhomed ([`MachineState::distrusted`]).
+//!
+//! The file names its axes and step sizes, so a state written for another machine
+//! configuration is refused rather than misread.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::MachineConfig;
+use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
+use crate::geometry::Point;
+use crate::vocab::{Axis, MAX_AXES, Steps};
+
+/// Format version written into every state file.
+pub const VERSION: u32 = 1;
+
+/// The machine's own state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineState {
+    pub axes: Vec<Axis>,
+    pub step_mm: Vec<f64>,
+    /// Machine position, steps per axis (machine order).
+    pub position: Steps,
+    pub homed: Vec<bool>,
+    pub offsets: WorkOffsets,
+    pub system: WorkSystem,
+}
+
+/// A state file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    #[error("cannot read the machine state {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not a machine state file: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error(
+        "{path}: written for axes {found} with steps {found_steps} mm; this machine has {axes} \
+         with {steps} mm (move the file away to start from machine zero, unhomed)"
+    )]
+    OtherMachine {
+        path: PathBuf,
+        found: String,
+        found_steps: String,
+        axes: String,
+        steps: String,
+    },
+}
+
+/// The file's JSON form: offsets by system name and axis letter, so it reads as a table.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StateFile {
+    version: u32,
+    /// `true`: motion had left a standstill when this was written.
+    moving: bool,
+    axes: Vec<String>,
+    step_mm: Vec<f64>,
+    position_steps: Vec<i64>,
+    homed: Vec<bool>,
+    work_system: String,
+    offsets_mm: BTreeMap<String, BTreeMap<String, f64>>,
+}
+
+/// What a state file held, and whether it can be trusted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    pub state: MachineState,
+    /// The file said the machine was moving: the position is only believed.
+    pub was_moving: bool,
+}
+
+impl MachineState {
+    /// At machine zero, unhomed, all offsets zero, in `G54`.
+    pub fn new(machine: &MachineConfig) -> MachineState {
+        MachineState {
+            axes: machine.axes.clone(),
+            step_mm: machine.step_mm.clone(),
+            position: [0; MAX_AXES],
+            homed: vec![false; machine.axes.len()],
+            offsets: WorkOffsets::default(),
+            system: WorkSystem::G54,
+        }
+    }
+
+    /// Machine position, mm.
+    pub fn position_mm(&self) -> Point {
+        let mut p = Point::zeros();
+        for (i, mm) in self.step_mm.iter().enumerate() {
+            p[i] = self.position[i] as f64 * mm;
+        }
+        p
+    }
+
+    /// Where a program starts from here.
+    pub fn work_start(&self) -> WorkStart {
+        WorkStart {
+            position_mm: self.position_mm(),
+            offsets: self.offsets.clone(),
+            system: self.system,
+            modes: Default::default(),
+        }
+    }
+
+    /// Position in the active work system (no `G92`: that lives in a program), mm.
+    pub fn position_work_mm(&self) -> Point {
+        self.work_start().to_work(&self.position_mm())
+    }
+
+    /// Every axis is homed.
+    pub fn all_homed(&self) -> bool {
+        self.homed.iter().all(|&h| h)
+    }
+
+    /// The letters of the axes not homed (`"X, Y"`), or `None`.
+    pub fn unhomed(&self) -> Option<String> {
+        let names: Vec<String> = self
+            .axes
+            .iter()
+            .zip(&self.homed)
+            .filter(|(_, h)| !**h)
+            .map(|(a, _)| a.letter().to_string())
+            .collect();
+        (!names.is_empty()).then(|| names.join(", "))
+    }
+
+    /// After an unclean stop: the position is kept as believed, but no axis is homed.
+    pub fn distrusted(mut self) -> MachineState {
+        self.homed.iter_mut().for_each(|h| *h = false);
+        self
+    }
+
+    /// Writes the state to `path` atomically; `moving` marks it as not a standstill.
+    pub fn write(&self, path: &Path, moving: bool) -> std::io::Result<()> {
+        let offsets_mm = offsets_table(&self.offsets, &self.axes);
+        let file = StateFile {
+            version: VERSION,
+            moving,
+            axes: self.axes.iter().map(|a| a.letter().to_string()).collect(),
+            step_mm: self.step_mm.clone(),
+            position_steps: self.position[..self.axes.len()].to_vec(),
+            homed: self.homed.clone(),
+            work_system: self.system.name().to_string(),
+            offsets_mm,
+        };
+        let mut json = serde_json::to_string_pretty(&file).map_err(std::io::Error::other)?;
+        json.push('\n');
+        crate::sys::write_atomic(path, json.as_bytes())
+    }
+
+    /// Reads the state at `path` for `machine`; `None` when there is no file.
+    pub fn load(path: &Path, machine: &MachineConfig) -> Result<Option<Loaded>, StateError> {
+        let text = match crate::sys::read_regular(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(source) => {
+                return Err(StateError::Read {
+                    path: path.to_path_buf(),
+                    source,
+                });
+            }
+        };
+        let parse = |message: String| StateError::Parse {
+            path: path.to_path_buf(),
+            message,
+        };
+        let file: StateFile = serde_json::from_str(&text).map_err(|e| parse(e.to_string()))?;
+        if file.version != VERSION {
+            return Err(parse(format!(
+                "version {} (this edmd reads {VERSION})",
+                file.version
+            )));
+        }
+        let axes: Vec<String> = machine
+            .axes
+            .iter()
+            .map(|a| a.letter().to_string())
+            .collect();
+        if file.axes != axes || file.step_mm != machine.step_mm {
+            return Err(StateError::OtherMachine {
+                path: path.to_path_buf(),
+                found: file.axes.join(","),
+                found_steps: format!("{:?}", file.step_mm),
+                axes: axes.join(","),
+                steps: format!("{:?}", machine.step_mm),
+            });
+        }
+        let n = axes.len();
+        if file.position_steps.len() != n || file.homed.len() != n {
+            return Err(parse(format!(
+                "position_steps and homed need {n} values, one per axis"
+            )));
+        }
+        let system = WorkSystem::parse(&file.work_system).ok_or_else(|| {
+            parse(format!(
+                "work_system {:?} is not G54…G59.3",
+                file.work_system
+            ))
+        })?;
+        let offsets = offsets_from_table(&file.offsets_mm, &machine.axes).map_err(parse)?;
+        let mut position = [0; MAX_AXES];
+        position[..n].copy_from_slice(&file.position_steps);
+        Ok(Some(Loaded {
+            state: MachineState {
+                axes: machine.axes.clone(),
+                step_mm: machine.step_mm.clone(),
+                position,
+                homed: file.homed,
+                offsets,
+                system,
+            },
+            was_moving: file.moving,
+        }))
+    }
+
+    /// The offset table as text, one system per line (`G55  X10.0000 Y-2.5000`), the active
+    /// one marked.
+    pub fn offsets_text(&self) -> String {
+        WorkSystem::all()
+            .map(|s| {
+                let o = self.offsets.get(s);
+                let values: Vec<String> = self
+                    .axes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, a)| format!("{}{:.4}", a.letter(), o[i]))
+                    .collect();
+                format!(
+                    "{}{:<6} {}",
+                    if s == self.system { "*" } else { " " },
+                    s.name(),
+                    values.join(" ")
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+}
+
+/// A work offset table as files keep it: by system name, then axis letter, mm.
+pub type OffsetTable = BTreeMap<String, BTreeMap<String, f64>>;
+
+/// `offsets` as a file keeps them (every system, every axis of `axes`).
+pub fn offsets_table(offsets: &WorkOffsets, axes: &[Axis]) -> OffsetTable {
+    WorkSystem::all()
+        .map(|s| {
+            let o = offsets.get(s);
+            let by_axis = axes
+                .iter()
+                .enumerate()
+                .map(|(i, a)| (a.letter().to_string(), o[i]))
+                .collect();
+            (s.name().to_string(), by_axis)
+        })
+        .collect()
+}
+
+/// The offsets a file keeps, for a machine with `axes`; systems or axes not named are 0.
+pub fn offsets_from_table(table: &OffsetTable, axes: &[Axis]) -> Result<WorkOffsets, String> {
+    let mut offsets = WorkOffsets::default();
+    for (name, by_axis) in table {
+        let s = WorkSystem::parse(name)
+            .ok_or_else(|| format!("offsets_mm: {name:?} is not G54…G59.3"))?;
+        let mut o = Point::zeros();
+        for (letter, &mm) in by_axis {
+            let i = axes
+                .iter()
+                .position(|a| a.letter().to_string() == *letter)
+                .ok_or_else(|| format!("offsets_mm.{name}: no axis {letter} on this machine"))?;
+            if !mm.is_finite() {
+                return Err(format!("offsets_mm.{name}.{letter} is not a number"));
+            }
+            o[i] = mm;
+        }
+        offsets.set(s, o);
+    }
+    Ok(offsets)
+}
+
+/// Where the state file goes by default: beside the checkpoint, named `machine-state.json`.
+pub fn default_path(checkpoint: &Path) -> PathBuf {
+    checkpoint
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join("machine-state.json")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn machine() -> MachineConfig {
+        MachineConfig {
+            axes: vec![Axis::X, Axis::Y],
+            step_mm: vec![0.001, 0.0005],
+            max_feed_mm_per_min: 1000.0,
+            max_normal_accel_mm_per_s2: 1000.0,
+            max_tangential_accel_mm_per_s2: 1000.0,
+            max_jog_feed_mm_per_min: 600.0,
+            travel: vec![None, None],
+        }
+    }
+
+    #[test]
+    fn a_state_survives_the_file_and_a_moving_one_is_marked() {
+        let dir = std::env::temp_dir().join(format!("edmd-machine-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("state.json");
+        let m = machine();
+        assert_eq!(MachineState::load(&path, &m).unwrap(), None);
+        let mut state = MachineState::new(&m);
+        state.position[0] = 12_345;
+        state.position[1] = -7;
+        state.homed = vec![true, false];
+        let mut o = Point::zeros();
+        o[0] = 10.5;
+        o[1] = -2.25;
+        state.offsets.set(WorkSystem::parse("G59.3").unwrap(), o);
+        state.system = WorkSystem::parse("G56").unwrap();
+        state.write(&path, false).unwrap();
+        let back = MachineState::load(&path, &m).unwrap().unwrap();
+        assert_eq!(back.state, state);
+        assert!(!back.was_moving);
+        assert!((back.state.position_mm()[1] + 0.0035).abs() < 1e-12);
+        state.write(&path, true).unwrap();
+        let back = MachineState::load(&path, &m).unwrap().unwrap();
+        assert!(back.was_moving);
+        assert_eq!(
+            back.state.clone().distrusted().unhomed().as_deref(),
+            Some("X, Y")
+        );
+        assert!(state.offsets_text().contains("*G56"));
+
+        let mut other = m.clone();
+        other.step_mm = vec![0.001, 0.001];
+        let e = MachineState::load(&path, &other).unwrap_err().to_string();
+        assert!(e.contains("written for axes X,Y"), "{e}");
+        std::fs::write(&path, "{\"version\": 1}").unwrap();
+        let e = MachineState::load(&path, &m).unwrap_err().to_string();
+        assert!(e.contains("not a machine state file"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
