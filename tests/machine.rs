@@ -328,3 +328,61 @@ fn jogs_stop_at_the_soft_limits_and_mdi_lines_share_their_modes() {
     daemon.ok(&["jog", "X", "-0.5"]);
     assert_eq!(idle(&daemon), [1.5, 0.25], "away from the limit is allowed");
 }
+
+#[test]
+fn a_continuous_jog_stops_when_its_renewals_stop() {
+    use std::time::{Duration, Instant};
+    let dir = scratch("dead-man");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("machine.travel_mm={X=[-1.0,100.0],Y=[-1.0,1.0]}".to_string());
+    sets.push("machine.max_jog_feed_mm_per_min=600.0".to_string());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    let request = r#"{"cmd":"jog-continuous","axis":"X","positive":true}"#;
+    let x = |s: &Value| machine(s)["position_machine_mm"][0].as_f64().unwrap();
+    // Renewed every 100 ms for a second: it keeps moving.
+    let mut last = Instant::now();
+    for _ in 0..10 {
+        let reply = &common::daemon::raw_exchange(&daemon.socket, &[request])[0];
+        assert_eq!(reply["ok"], true, "{reply}");
+        last = Instant::now();
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let moving = daemon.status();
+    assert_eq!(moving["state"], "jogging", "{moving}");
+    assert!(x(&moving) > 0.5, "10 mm/s for about a second: {moving}");
+    // Then silence: it halts within 300 ms of the last renewal and stays halted.
+    let mut position = x(&moving);
+    let mut halted_at = Instant::now();
+    while Instant::now() < last + Duration::from_millis(1200) {
+        let p = x(&daemon.status());
+        if p != position {
+            position = p;
+            halted_at = Instant::now();
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let after = halted_at.duration_since(last);
+    assert!(
+        after <= Duration::from_millis(300),
+        "halted {after:?} after the last renewal"
+    );
+    let idle = daemon.wait_for("idle", |s| s["state"] == "idle");
+    assert!(
+        daemon.log().contains("not renewed for 250 ms"),
+        "{}",
+        daemon.log()
+    );
+    assert_eq!(x(&idle), position);
+    eprintln!("halted {after:?} after the last renewal, at X {position}");
+    // jog-stop stops one at once; another direction while one moves is refused.
+    common::daemon::raw_exchange(&daemon.socket, &[request]);
+    let reply = &common::daemon::raw_exchange(
+        &daemon.socket,
+        &[r#"{"cmd":"jog-continuous","axis":"X","positive":false}"#],
+    )[0];
+    assert_eq!(reply["ok"], false, "{reply}");
+    let reply = &common::daemon::raw_exchange(&daemon.socket, &[r#"{"cmd":"jog-stop"}"#])[0];
+    assert_eq!(reply["ok"], true, "{reply}");
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+}

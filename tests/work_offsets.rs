@@ -166,6 +166,10 @@ fn every_move_ends_where_linuxcnc_puts_it_in_machine_coordinates() {
         }
     }
     assert!(compared >= 50, "only {compared} moves compared");
+    eprintln!(
+        "{compared} moves of {} programs end where LinuxCNC's rs274 puts them",
+        all.len()
+    );
 }
 
 #[test]

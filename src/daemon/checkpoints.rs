@@ -2,6 +2,7 @@
 //! at every standstill and end, removed when a job is done, put back when a resume is
 //! refused before anything moved) and the private copies of the programs it names.
 
+use super::launch::JobKind;
 use std::path::{Path, PathBuf};
 
 use super::refusal::CheckpointWriteError;
@@ -97,6 +98,9 @@ impl CheckpointKeeper {
     /// removed when done, and when a resume was refused before anything moved, put back as
     /// it was before the job's write-ahead.
     pub(super) fn settle(&mut self, job: &Job, stopped_at: Snapshot, summary: &JobSummary) {
+        if job.kind != JobKind::Program {
+            return;
+        }
         let reason = Reason::of_outcome(summary.outcome, job.stop_reason);
         let checkpoint_path = job.config.daemon.checkpoint.clone();
         match reason {
@@ -147,6 +151,11 @@ impl CheckpointKeeper {
         reason: Reason,
         still: bool,
     ) -> Result<(), CheckpointWriteError> {
+        // A jog or MDI has no program to resume: it leaves the program's checkpoint alone
+        // (a resume then checks the machine stands where that checkpoint says).
+        if job.kind != JobKind::Program {
+            return Ok(());
+        }
         let machine = &job.config.machine;
         let axes = machine.axes.len();
         let cp = Checkpoint {

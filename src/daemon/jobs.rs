@@ -68,6 +68,8 @@ pub(super) struct JobControl {
     pub check: Option<Check>,
     /// The verdict of the last check.
     pub last_check: Option<protocol::CheckStatus>,
+    /// The continuous jog in progress (being checked or moving) and its dead-man.
+    pub continuous: Option<super::manual::ContinuousJog>,
     pub next_check_id: u64,
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
@@ -533,6 +535,7 @@ impl Core {
                 error,
                 consequence: "the job stays held",
             })?;
+        self.machine.save(true)?;
         job.published.hold.store(false, Ordering::Release);
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
@@ -569,6 +572,7 @@ impl Core {
                     error,
                     consequence: "the wire stays where it broke",
                 })?;
+            self.machine.save(true)?;
             job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
@@ -626,6 +630,9 @@ impl Core {
             &job.published.snapshot(),
         ));
         self.jobs.give_back_io(&job.config, end.output, end.gap);
+        if job.kind != JobKind::Program {
+            self.jobs.continuous = None;
+        }
         let summary = end.summary;
         let text = summary.text();
         let mut lines = text.lines();
@@ -658,10 +665,13 @@ impl Core {
         }
         self.checkpoints.settle(&job, end.stopped_at, &summary);
         let ran_to_the_end = summary.outcome == Outcome::Done;
-        self.machine.stopped(
-            &end.stopped_at.position,
-            ran_to_the_end.then(|| job.leaves.clone()),
-        );
+        // The ledger the drives received (a failed write's steps taken back out).
+        let mut at = end.stopped_at.position;
+        for (p, s) in at.iter_mut().zip(&summary.end_steps) {
+            *p = *s;
+        }
+        self.machine
+            .stopped(&at, ran_to_the_end.then(|| job.leaves.clone()));
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }

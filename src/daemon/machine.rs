@@ -30,17 +30,35 @@ impl MachineKeeper {
     /// axes (unless `homing.require_after_start`), a moving one restores the position but
     /// unhomes every axis, none starts at machine zero, unhomed. A file that cannot be read
     /// or belongs to another machine configuration stops the daemon.
-    pub fn open(config: &Config) -> Result<MachineKeeper, DaemonError> {
+    ///
+    /// Without a state file but with a checkpoint (one `edmd run --checkpoint` wrote, or an
+    /// older edmd's), the machine is believed to stand where the checkpoint's job stopped.
+    pub fn open(
+        config: &Config,
+        checkpoint: Option<&checkpoint::Checkpoint>,
+    ) -> Result<MachineKeeper, DaemonError> {
         let path = config.daemon.state_file.clone();
         let state = match MachineState::load(&path, &config.machine)
             .map_err(|e| DaemonError::MachineState(e.to_string()))?
         {
             None => {
-                tracing::info!(
-                    "{}: no machine state yet: at machine zero, no axis homed",
-                    path.display()
-                );
-                MachineState::new(&config.machine)
+                let mut state = MachineState::new(&config.machine);
+                match checkpoint.filter(|cp| cp.position_steps.len() == state.axes.len()) {
+                    Some(cp) => {
+                        state.position[..cp.position_steps.len()]
+                            .copy_from_slice(&cp.position_steps);
+                        tracing::info!(
+                            "{}: no machine state yet: the machine is believed to stand where \
+                             the checkpoint's job stopped, no axis homed",
+                            path.display()
+                        );
+                    }
+                    None => tracing::info!(
+                        "{}: no machine state yet: at machine zero, no axis homed",
+                        path.display()
+                    ),
+                }
+                state
             }
             Some(loaded) if loaded.was_moving => {
                 tracing::warn!(
@@ -98,6 +116,13 @@ impl MachineKeeper {
             self.state.system = system;
         }
         // A failed write is logged and shown in the status; the next one may succeed.
+        let _ = self.save(false);
+    }
+
+    /// A job holds at a standstill at `position`: the file says so (a failed write is logged
+    /// and shown; the file still says moving, which only distrusts more).
+    pub fn standstill(&mut self, position: &Steps) {
+        self.state.position = *position;
         let _ = self.save(false);
     }
 
@@ -246,6 +271,31 @@ impl Core {
         force: bool,
     ) -> Result<WorkStart, Refusal> {
         let machine = &self.config.machine;
+        // The machine must stand where the checkpoint's job stopped (a jog or MDI since
+        // moved it): a resume walks there without moving.
+        let here = &self.machine.state.position[..machine.axes.len()];
+        if here != cp.position_steps.as_slice() {
+            let mm = |steps: &[i64]| {
+                steps
+                    .iter()
+                    .zip(&machine.step_mm)
+                    .zip(&machine.axes)
+                    .map(|((s, mm), a)| format!("{a}{:.4}", *s as f64 * mm))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            if !force {
+                return Err(Refusal::NotAtCheckpoint {
+                    here: mm(here),
+                    checkpoint: mm(&cp.position_steps),
+                });
+            }
+            tracing::warn!(
+                "resume --force: the machine stands at {}, the checkpoint at {}",
+                mm(here),
+                mm(&cp.position_steps)
+            );
+        }
         let Some(record) = &cp.start else {
             return Ok(WorkStart::default());
         };

@@ -209,7 +209,7 @@ pub fn serve(
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
-    let machine = machine::MachineKeeper::open(&config)?;
+    let machine = machine::MachineKeeper::open(&config, checkpoints.current.as_ref())?;
     // The port first: if it cannot be claimed, nothing else should start.
     let (port_output, port_gap) = if config.output.kind == OutputKind::Parport {
         let (output, gap) =
@@ -264,6 +264,7 @@ pub fn serve(
             job: None,
             check: None,
             last_check: None,
+            continuous: None,
             next_check_id: 0,
             last: None,
             finished: protocol::Counters::default(),
@@ -415,7 +416,13 @@ fn unix_now() -> u64 {
 impl Core {
     fn run(&mut self, inbox: &Receiver<CoreMsg>) {
         loop {
-            match inbox.recv_timeout(PERIOD) {
+            // A continuous jog's dead-man is looked at when it falls due, not a period late.
+            let wait = self.jobs.continuous.as_ref().map_or(PERIOD, |c| {
+                c.deadline
+                    .saturating_duration_since(Instant::now())
+                    .min(PERIOD)
+            });
+            match inbox.recv_timeout(wait) {
                 Ok(CoreMsg::Request(request, reply)) => {
                     let answer = self.handle(request);
                     // A client that went away changes nothing: the command stands or was
@@ -458,6 +465,12 @@ impl Core {
                 feed_mm_per_min,
             } => self.jog(&axis, distance_mm, feed_mm_per_min),
             Request::Mdi { line } => self.mdi(&line),
+            Request::JogContinuous {
+                axis,
+                positive,
+                feed_mm_per_min,
+            } => self.jog_continuous(&axis, positive, feed_mm_per_min),
+            Request::JogStop {} => self.jog_stop(),
         };
         self.notify_status();
         match result {
@@ -572,6 +585,7 @@ impl Core {
 
     fn periodic(&mut self) {
         self.watchdog();
+        self.dead_man();
         let now = Instant::now();
         if let Some(mut job) = self.jobs.job.take() {
             let snap = job.published.snapshot();
@@ -590,6 +604,8 @@ impl Core {
                 // moving checkpoint on disk meanwhile says what it should.
                 job.hold_checkpointed = true;
                 job.last_checkpoint = now;
+                // The machine state says the standstill too (a restart may resume from it).
+                self.machine.standstill(&snap.position);
                 tracing::info!(
                     "held at {}:{} ({:?} steps)",
                     job.program.display(),

@@ -63,6 +63,18 @@ pub enum Request {
         #[serde(default)]
         feed_mm_per_min: Option<f64>,
     },
+    /// Jog `axis` towards its soft limit (`positive`: upwards) until the request stops being
+    /// renewed: the same request again within 250 ms keeps it going (a dead-man).
+    #[serde(rename = "jog-continuous")]
+    JogContinuous {
+        axis: String,
+        positive: bool,
+        #[serde(default)]
+        feed_mm_per_min: Option<f64>,
+    },
+    /// Stop a continuous jog now.
+    #[serde(rename = "jog-stop")]
+    JogStop {},
     /// Run G-code lines as a job, in the modes the last MDI lines left.
     Mdi {
         line: String,

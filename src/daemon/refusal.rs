@@ -76,6 +76,11 @@ pub enum Refusal {
          resume in another place: put them back, or resume with --force"
     )]
     OffsetsChanged { changed: String },
+    #[error(
+        "the machine stands at {here} mm, the checkpoint's job stopped at {checkpoint} mm: \
+         move back there (jog, MDI G53) or resume with --force"
+    )]
+    NotAtCheckpoint { here: String, checkpoint: String },
     #[error("a job is {state}: {program}; abort it first")]
     JobRunning {
         state: &'static str,

@@ -196,6 +196,14 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/abort", post(|s, h, b| control(s, h, b, "abort")))
         .route("/api/home", post(|s, h, b| machine(s, h, b, "home")))
         .route("/api/jog", post(|s, h, b| machine(s, h, b, "jog")))
+        .route(
+            "/api/jog-continuous",
+            post(|s, h, b| machine(s, h, b, "jog-continuous")),
+        )
+        .route(
+            "/api/jog-stop",
+            post(|s, h, b| machine(s, h, b, "jog-stop")),
+        )
         .route("/api/mdi", post(|s, h, b| machine(s, h, b, "mdi")))
         .route(
             "/api/touch-off",
