@@ -386,3 +386,56 @@ fn a_continuous_jog_stops_when_its_renewals_stop() {
     assert_eq!(reply["ok"], true, "{reply}");
     daemon.wait_for("idle", |s| s["state"] == "idle");
 }
+
+#[test]
+fn a_resume_is_refused_after_the_offsets_changed_or_the_machine_moved() {
+    let dir = scratch("resume-offsets");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(
+        dir.join("programs/slow.nc"),
+        "G21 G90\nG1 X3 Y0 F120\nG1 Y1\nM2\n",
+    )
+    .unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["home", "--here"]);
+    daemon.ok(&["run", "slow.nc"]);
+    daemon.wait_for("moving", common::daemon::is_moving);
+    daemon.ok(&["abort"]);
+    let idle = daemon.wait_for("idle", |s| s["state"] == "idle");
+    let stopped = floats(&machine(&idle)["position_machine_mm"]);
+    assert!(stopped[0] > 0.0 && stopped[0] < 3.0, "{idle}");
+    assert_eq!(idle["checkpoint"]["reason"], "abort");
+
+    // The offsets changed: refused, naming the system and axis.
+    daemon.ok(&["touch-off", "X", "5"]);
+    let (reply, code) = daemon.ctl(&["resume"]);
+    assert_eq!(code, 1);
+    let error = reply["error"].as_str().unwrap();
+    assert!(
+        error.contains("the work offsets changed") && error.contains("G54 X: 0.0000 then"),
+        "{error}"
+    );
+    daemon.ok(&["touch-off", "X", &format!("{}", stopped[0])]);
+
+    // A jog away (it leaves the checkpoint alone): refused until the machine is back.
+    daemon.ok(&["jog", "Y", "0.5"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    assert_eq!(daemon.status()["checkpoint"]["reason"], "abort");
+    let (reply, code) = daemon.ctl(&["resume"]);
+    assert_eq!(code, 1);
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("the machine stands at"),
+        "{reply}"
+    );
+    daemon.ok(&["jog", "Y", "-0.5"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    // Back where it stopped, offsets as they were: the job resumes and ends at its end.
+    daemon.ok(&["resume"]);
+    let done = daemon.wait_for("the job's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    assert_eq!(floats(&machine(&done)["position_machine_mm"]), [3.0, 1.0]);
+}
