@@ -5,6 +5,7 @@
 use super::JobError;
 use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
+use super::spec::start_steps;
 use crate::config::{Config, GapKind};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
 use crate::vocab::Steps;
@@ -114,14 +115,5 @@ pub fn precheck(
         cutting_spans,
         path_mm,
         rapid_spans,
-    })
-}
-
-/// The machine position of `start` in steps (it was made from steps, so this is exact).
-pub fn start_steps(start: &WorkStart, step_mm: &[f64]) -> Steps {
-    std::array::from_fn(|i| {
-        step_mm
-            .get(i)
-            .map_or(0, |mm| (start.position_mm[i] / mm).round() as i64)
     })
 }

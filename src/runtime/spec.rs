@@ -87,7 +87,7 @@ impl JobSpec {
 
     /// The machine position the job starts from, in steps.
     pub fn start_steps(&self) -> Steps {
-        super::precheck::start_steps(&self.work, &self.step_mm)
+        start_steps(&self.work, &self.step_mm)
     }
 
     /// The axis names (`X`, `Y`, …).
@@ -105,4 +105,13 @@ impl JobSpec {
             .collect::<Vec<_>>()
             .join(" ")
     }
+}
+
+/// The machine position of `start` in steps (it was made from steps, so this is exact).
+pub fn start_steps(start: &WorkStart, step_mm: &[f64]) -> Steps {
+    std::array::from_fn(|i| {
+        step_mm
+            .get(i)
+            .map_or(0, |mm| (start.position_mm[i] / mm).round() as i64)
+    })
 }
