@@ -66,7 +66,11 @@ impl Reason {
     pub fn of_outcome(outcome: Outcome, asked: Option<Reason>) -> Option<Reason> {
         match outcome {
             Outcome::Done | Outcome::ResumeRefused => None,
-            Outcome::Alarm | Outcome::Collision | Outcome::WireBreak => Some(Reason::Alarm),
+            Outcome::Alarm
+            | Outcome::Collision
+            | Outcome::WireBreak
+            | Outcome::Estop
+            | Outcome::Limit => Some(Reason::Alarm),
             Outcome::Stopped => Some(asked.unwrap_or(Reason::Stop)),
             Outcome::OutputError
             | Outcome::GapError

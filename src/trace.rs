@@ -211,6 +211,10 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.moving_in(now)
     }
 
+    fn safety(&self) -> crate::vocab::SafetyInputs {
+        self.inner.safety()
+    }
+
     fn wire_broken(&self) -> bool {
         self.inner.wire_broken()
     }

@@ -234,6 +234,48 @@ impl std::fmt::Display for Num {
     }
 }
 
+/// A limit switch: its axis and its end of travel (`positive`: the upper one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LimitSwitch {
+    pub axis: Axis,
+    pub positive: bool,
+}
+
+impl LimitSwitch {
+    /// `X+`, `y-`: an axis letter and its side.
+    pub fn parse(text: &str) -> Option<LimitSwitch> {
+        let mut chars = text.chars();
+        let axis = Axis::from_letter(chars.next()?.to_ascii_uppercase())?;
+        let positive = match (chars.next()?, chars.next()) {
+            ('+', None) => true,
+            ('-', None) => false,
+            _ => return None,
+        };
+        Some(LimitSwitch { axis, positive })
+    }
+}
+
+impl std::fmt::Display for LimitSwitch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}{}", self.axis, if self.positive { '+' } else { '-' })
+    }
+}
+
+/// The machine's safety inputs, read with the gap at every tick: the emergency stop and the
+/// limit switches. Either one stops motion within the tick it is seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SafetyInputs {
+    pub estop: bool,
+    pub limit: Option<LimitSwitch>,
+}
+
+impl SafetyInputs {
+    /// Something that stops motion is active.
+    pub fn tripped(self) -> bool {
+        self.estop || self.limit.is_some()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -439,3 +439,115 @@ fn a_resume_is_refused_after_the_offsets_changed_or_the_machine_moved() {
     });
     assert_eq!(floats(&machine(&done)["position_machine_mm"]), [3.0, 1.0]);
 }
+
+/// The ticks of a pulse log at which some axis stepped.
+fn stepping_ticks(log: &Path) -> Vec<u64> {
+    let (_, rows) = read_pulse_log(log).unwrap();
+    rows.into_iter()
+        .filter(|r| r.steps.iter().any(|&s| s != 0))
+        .map(|r| r.tick)
+        .collect()
+}
+
+#[test]
+fn an_estop_stops_within_its_tick_and_nothing_moves_until_reset() {
+    let dir = scratch("estop");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(
+        dir.join("programs/line.nc"),
+        "G21 G90\nG1 X3 F600\nG1 Y1\nM2\n",
+    )
+    .unwrap();
+    // 10 mm/s at 50 µs ticks: a step every other tick; the E-stop at tick 4001.
+    std::fs::write(dir.join("gap.txt"), "0 normal\n4001 estop\n").unwrap();
+    let daemon = Daemon::start(&dir, &common::daemon::script_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", "line.nc"]);
+    let stopped = daemon.wait_for("the E-stop", |s| s["state"] == "estop");
+    let last = &stopped["last_job"];
+    assert_eq!(last["outcome"], "estop", "{last}");
+    assert!(
+        last["error"]
+            .as_str()
+            .unwrap()
+            .contains("E-stop: motion stopped in the tick"),
+        "{last}"
+    );
+    // No step at or after the tick the E-stop was seen.
+    let ticks = stepping_ticks(&dir.join("pulses.csv"));
+    assert!(ticks.len() > 900, "it moved before: {} steps", ticks.len());
+    assert!(
+        *ticks.last().unwrap() < 4001,
+        "a step after the E-stop: {:?}",
+        ticks.last()
+    );
+    // The position is kept (the machine state and the alarm checkpoint agree with the log).
+    let end = last["end_steps"].clone();
+    assert_eq!(
+        machine(&stopped)["position_machine_mm"][0],
+        end[0].as_f64().unwrap() / 1000.0
+    );
+    assert_eq!(stopped["checkpoint"]["position_steps"], end);
+    // Nothing moves: run, MDI, jog, resume are refused until reset.
+    for args in [
+        &["run", "line.nc"][..],
+        &["mdi", "G1 X0"],
+        &["jog", "X", "-1"],
+        &["resume"],
+    ] {
+        let (reply, code) = daemon.ctl(args);
+        assert_eq!(code, 1, "{args:?}: {reply}");
+        assert!(
+            reply["error"].as_str().unwrap().contains("E-stop"),
+            "{args:?}: {reply}"
+        );
+    }
+    daemon.ok(&["reset"]);
+    assert_eq!(daemon.status()["state"], "idle");
+    // After the reset the job resumes from its checkpoint (a new script: no E-stop).
+    std::fs::write(dir.join("gap.txt"), "0 normal\n").unwrap();
+    daemon.ok(&["resume"]);
+    let done = daemon.wait_for("the end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    assert_eq!(floats(&machine(&done)["position_machine_mm"]), [3.0, 1.0]);
+}
+
+#[test]
+fn a_limit_switch_stops_the_job_and_allows_only_the_jog_away() {
+    let dir = scratch("limit");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(dir.join("programs/line.nc"), "G21 G90\nG1 X3 F600\nM2\n").unwrap();
+    std::fs::write(dir.join("gap.txt"), "0 normal\n3000 limit X+\n").unwrap();
+    let daemon = Daemon::start(&dir, &common::daemon::script_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", "line.nc"]);
+    let stopped = daemon.wait_for("the limit", |s| s["state"] == "limit");
+    let last = &stopped["last_job"];
+    assert_eq!(last["outcome"], "limit", "{last}");
+    assert_eq!(last["limit_switch"], "X+");
+    assert!(
+        last["error"]
+            .as_str()
+            .unwrap()
+            .contains("limit switch X+ (upper end of axis X)"),
+        "{last}"
+    );
+    assert!(*stepping_ticks(&dir.join("pulses.csv")).last().unwrap() < 3000);
+    for args in [
+        &["run", "line.nc"][..],
+        &["jog", "X", "0.5"],
+        &["jog", "Y", "0.5"],
+    ] {
+        let (reply, code) = daemon.ctl(args);
+        assert_eq!(code, 1, "{args:?}: {reply}");
+        assert!(
+            reply["error"].as_str().unwrap().contains("limit switch X+"),
+            "{reply}"
+        );
+    }
+    // The jog away (a new script: the switch released) is allowed and clears the alarm.
+    std::fs::write(dir.join("gap.txt"), "0 normal\n").unwrap();
+    daemon.ok(&["jog", "X", "-0.5"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    daemon.ok(&["jog", "Y", "0.5"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+}

@@ -74,6 +74,8 @@ pub(super) enum CtlCommand {
         /// The lines (separate several with newlines)
         line: String,
     },
+    /// Clear an E-stop once its input is released
+    Reset,
     /// Print the work offset table (G54 … G59.3; the active system marked *)
     Offsets,
     /// Set a work offset so that where the machine stands reads VALUE on AXIS (G10 L20)
@@ -204,6 +206,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
+        CtlCommand::Reset => (Request::Reset {}, false),
         CtlCommand::Jog {
             axis,
             distance,

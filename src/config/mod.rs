@@ -342,6 +342,8 @@ pub struct HomingConfig {
     pub required: bool,
     /// A daemon start unhomes every axis, even after a clean stop.
     pub require_after_start: bool,
+    /// An E-stop unhomes every axis.
+    pub lost_on_estop: bool,
 }
 
 impl Default for Config {

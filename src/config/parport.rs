@@ -72,6 +72,8 @@ impl RawParport {
             is_input_pin,
             INPUTS,
         )?;
+        let estop_pin = optional("parport.estop_pin", self.estop_pin, is_input_pin, INPUTS)?;
+        let limit_pins = limit_pins(&self.limit_pins, machine, INPUTS)?;
         let mut seen: Vec<(u8, &'static str)> = Vec::new();
         let signals = step_pins
             .iter()
@@ -88,7 +90,9 @@ impl RawParport {
             .chain(short_pin.map(|p| (p, "parport.short_pin")))
             .chain(open_pin.map(|p| (p, "parport.open_pin")))
             .chain(probe_pin.map(|p| (p, "parport.probe_pin")))
-            .chain(wire_break_pin.map(|p| (p, "parport.wire_break_pin")));
+            .chain(wire_break_pin.map(|p| (p, "parport.wire_break_pin")))
+            .chain(estop_pin.map(|p| (p, "parport.estop_pin")))
+            .chain(limit_pins.iter().map(|&(_, p)| (p, "parport.limit_pins")));
         for (pin, key) in signals {
             if let Some((_, first)) = seen.iter().find(|(p, _)| *p == pin) {
                 return Err((key, format!("pin {pin} is already used by {first}")));
@@ -118,12 +122,44 @@ impl RawParport {
             open_pin,
             probe_pin,
             wire_break_pin,
+            estop_pin,
+            limit_pins,
             gap_filter_ticks: in_range("parport.gap_filter_ticks", self.gap_filter_ticks, 1, 1000)?
                 as u32,
         };
         in_use(&p, machine, fine, output, gap)?;
         Ok(p)
     }
+}
+
+/// `parport.limit_pins`: each axis end of the machine with its input pin.
+fn limit_pins(
+    table: &std::collections::BTreeMap<String, i64>,
+    machine: &MachineConfig,
+    inputs: &str,
+) -> Result<Vec<(crate::vocab::LimitSwitch, u8)>, Invalid> {
+    const KEY: &str = "parport.limit_pins";
+    table
+        .iter()
+        .map(|(name, &pin)| {
+            let switch = crate::vocab::LimitSwitch::parse(name).ok_or_else(|| {
+                (
+                    KEY,
+                    format!("{name:?} is not a limit switch: an axis and its side, e.g. \"X+\""),
+                )
+            })?;
+            if !machine.axes.contains(&switch.axis) {
+                return Err((
+                    KEY,
+                    format!("{name}: axis {} is not on this machine", switch.axis),
+                ));
+            }
+            if !is_input_pin(pin) {
+                return Err((KEY, format!("{name} = {pin}: not {inputs}")));
+            }
+            Ok((switch, pin as u8))
+        })
+        .collect()
 }
 
 /// Pins whose level is inverted: signal pins, each once.

@@ -33,6 +33,7 @@ pub(super) struct RawConfig {
 pub(super) struct RawHoming {
     pub(super) required: bool,
     pub(super) require_after_start: bool,
+    pub(super) lost_on_estop: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -155,6 +156,8 @@ pub(super) struct RawParport {
     pub(super) open_pin: i64,
     pub(super) probe_pin: i64,
     pub(super) wire_break_pin: i64,
+    pub(super) estop_pin: i64,
+    pub(super) limit_pins: std::collections::BTreeMap<String, i64>,
     pub(super) gap_filter_ticks: i64,
 }
 

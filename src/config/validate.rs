@@ -159,6 +159,7 @@ impl RawConfig {
             homing: HomingConfig {
                 required: self.homing.required,
                 require_after_start: self.homing.require_after_start,
+                lost_on_estop: self.homing.lost_on_estop,
             },
         })
     }

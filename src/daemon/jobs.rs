@@ -185,6 +185,7 @@ impl JobControl {
 impl Core {
     pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let launch = Launch {
@@ -453,6 +454,7 @@ impl Core {
             return released;
         }
         self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
         let Some(cp) = self.checkpoints.current.clone() else {
             return Err(Refusal::NothingToResume {
                 why: match &self.checkpoints.read_error {
@@ -675,6 +677,7 @@ impl Core {
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }
+        self.note_trip(&job, &summary);
         if let Some((dir, recording)) = &job.report {
             match crate::report::write_report(dir, &mut recording.lock(), &summary) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),

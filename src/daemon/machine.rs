@@ -13,7 +13,7 @@ use crate::checkpoint;
 use crate::config::Config;
 use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
 use crate::machine::MachineState;
-use crate::vocab::{Axis, Steps};
+use crate::vocab::{Axis, LimitSwitch, Steps};
 
 /// The machine state and its file.
 pub(super) struct MachineKeeper {
@@ -23,6 +23,17 @@ pub(super) struct MachineKeeper {
     pub write_error: Option<String>,
     /// The units and distance mode the last MDI lines left (LinuxCNC's MDI keeps them).
     pub mdi_modes: crate::gcode::StartModes,
+    /// An E-stop or a limit switch stopped the last job: what may move until it is cleared.
+    pub tripped: Option<Trip>,
+}
+
+/// What stopped the machine and holds it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Trip {
+    /// Nothing moves until the input is released and `reset` is given.
+    EStop,
+    /// Only a jog away from the switch moves (and clears it when it ends).
+    Limit(LimitSwitch),
 }
 
 impl MachineKeeper {
@@ -79,6 +90,7 @@ impl MachineKeeper {
             path,
             write_error: None,
             mdi_modes: Default::default(),
+            tripped: None,
         };
         // The file now says what the daemon believes (an unhomed state stays unhomed after
         // a second crash), and a file that cannot be written is known before any job.
@@ -207,6 +219,7 @@ impl Core {
     /// they stand, and that place becomes machine zero (a machine without home switches).
     pub(super) fn home_here(&mut self, axes: &[String], here: bool) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
         if !here {
             return Err(Refusal::BadArgument(
                 "homing by switches is not built yet: `home --here` declares where the \
@@ -328,6 +341,78 @@ impl Core {
             );
         }
         Ok(start)
+    }
+
+    /// `reset` after an E-stop: refused while the E-stop input still reads pressed (on the
+    /// claimed parallel port, the only input the daemon reads between jobs).
+    pub(super) fn reset(&mut self) -> Result<String, Refusal> {
+        match self.machine.tripped {
+            None => return Err(Refusal::BadArgument("nothing to reset: no E-stop".into())),
+            Some(Trip::Limit(switch)) => {
+                return Err(Refusal::BadArgument(format!(
+                    "limit switch {switch}: jog away from it (a jog towards {} on {}); reset \
+                     is for the E-stop",
+                    if switch.positive { "-" } else { "+" },
+                    switch.axis
+                )));
+            }
+            Some(Trip::EStop) => {}
+        }
+        if let Some(gap) = self.jobs.port_gap.as_mut() {
+            let pressed = gap.sample(0).is_err() || gap.safety().estop;
+            if pressed {
+                return Err(Refusal::BadArgument(
+                    "the E-stop input still reads pressed: release it first".into(),
+                ));
+            }
+        }
+        self.machine.tripped = None;
+        tracing::warn!(edmd_event = "reset", "reset: the E-stop is cleared");
+        Ok("reset: the E-stop is cleared; the machine may move again".into())
+    }
+
+    /// What an ended job leaves: an E-stop or a limit switch holds the machine (an E-stop
+    /// unhomes it with `homing.lost_on_estop`); a jog that ran to its end away from a limit
+    /// switch clears it.
+    pub(super) fn note_trip(&mut self, job: &super::Job, summary: &crate::runtime::JobSummary) {
+        use crate::runtime::Outcome;
+        match summary.outcome {
+            Outcome::Estop => {
+                self.machine.tripped = Some(Trip::EStop);
+                if self.config.homing.lost_on_estop {
+                    self.machine.state.homed.iter_mut().for_each(|h| *h = false);
+                    let _ = self.machine.save(false);
+                }
+            }
+            Outcome::Limit => {
+                if let Some(switch) = summary.limit_switch {
+                    self.machine.tripped = Some(Trip::Limit(switch));
+                }
+            }
+            Outcome::Done
+                if matches!(job.kind, super::launch::JobKind::Jog { .. })
+                    && matches!(self.machine.tripped, Some(Trip::Limit(_))) =>
+            {
+                tracing::info!("jogged away from the limit switch: cleared");
+                self.machine.tripped = None;
+            }
+            _ => {}
+        }
+    }
+
+    /// Motion refused while an E-stop or a limit switch holds the machine; `jog` names the
+    /// axis and direction of a jog (the only motion a limit switch allows, away from it).
+    pub(super) fn refuse_if_tripped(&self, jog: Option<(Axis, bool)>) -> Result<(), Refusal> {
+        match self.machine.tripped {
+            None => Ok(()),
+            Some(Trip::EStop) => Err(Refusal::EStop),
+            Some(Trip::Limit(switch)) => match jog {
+                Some((axis, positive)) if axis == switch.axis && positive != switch.positive => {
+                    Ok(())
+                }
+                _ => Err(Refusal::Limit { switch }),
+            },
+        }
     }
 
     /// `run` on a machine that must be homed first.

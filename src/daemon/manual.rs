@@ -39,8 +39,9 @@ impl Core {
         feed: Option<f64>,
     ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
-        self.refuse_if_unhomed()?;
         let (i, axis) = self.machine_axis(axis)?;
+        self.refuse_if_tripped(Some((axis, distance_mm > 0.0)))?;
+        self.refuse_if_unhomed()?;
         if !distance_mm.is_finite() || distance_mm == 0.0 || distance_mm.abs() > MAX_JOG_MM {
             return Err(Refusal::BadArgument(format!(
                 "jog distance {distance_mm} mm: give a move of up to ±{MAX_JOG_MM} mm"
@@ -77,6 +78,7 @@ impl Core {
             )));
         }
         self.refuse_if_busy()?;
+        self.refuse_if_tripped(Some((letter, positive)))?;
         self.refuse_if_unhomed()?;
         let feed = self.jog_feed(feed)?;
         let way = if positive { MAX_JOG_MM } else { -MAX_JOG_MM };
@@ -191,6 +193,7 @@ impl Core {
     /// lines left.
     pub(super) fn mdi(&mut self, lines: &str) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
         if lines.trim().is_empty() || lines.len() > MAX_MDI_BYTES {
             return Err(Refusal::BadArgument(format!(

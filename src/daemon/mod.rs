@@ -471,6 +471,7 @@ impl Core {
                 feed_mm_per_min,
             } => self.jog_continuous(&axis, positive, feed_mm_per_min),
             Request::JogStop {} => self.jog_stop(),
+            Request::Reset {} => self.reset(),
         };
         self.notify_status();
         match result {

@@ -72,6 +72,8 @@ pub enum Request {
         #[serde(default)]
         feed_mm_per_min: Option<f64>,
     },
+    /// Clear an E-stop once its input is released.
+    Reset {},
     /// Stop a continuous jog now.
     #[serde(rename = "jog-stop")]
     JogStop {},
@@ -180,6 +182,10 @@ pub enum DaemonState {
     Rethreading,
     /// An MDI job is running.
     Mdi,
+    /// Stopped by the E-stop: nothing moves until `reset`.
+    Estop,
+    /// Stopped by a limit switch: only a jog away from it moves.
+    Limit,
     /// A jog is moving.
     Jogging,
     /// Parked for threading (at the start hole or where the wire broke) until `resume`.
@@ -199,6 +205,8 @@ impl DaemonState {
             DaemonState::WireBreak => "wire-break",
             DaemonState::Rethreading => "rethreading",
             DaemonState::Mdi => "mdi",
+            DaemonState::Estop => "estop",
+            DaemonState::Limit => "limit",
             DaemonState::Jogging => "jogging",
             DaemonState::Threading => "threading",
         }

@@ -64,6 +64,10 @@ pub enum Refusal {
     ShuttingDown,
     #[error("{0}")]
     MachineState(String),
+    #[error("E-stop: nothing moves until it is released and `edmd ctl reset` is given")]
+    EStop,
+    #[error("limit switch {switch} is tripped: only a jog away from it moves")]
+    Limit { switch: crate::vocab::LimitSwitch },
     #[error("{0}")]
     BadArgument(String),
     #[error(

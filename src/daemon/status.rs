@@ -13,7 +13,11 @@ impl Core {
     pub(super) fn state(&self) -> DaemonState {
         match &self.jobs.job {
             None if self.jobs.check.is_some() => DaemonState::Checking,
-            None => DaemonState::Idle,
+            None => match self.machine.tripped {
+                Some(super::machine::Trip::EStop) => DaemonState::Estop,
+                Some(super::machine::Trip::Limit(_)) => DaemonState::Limit,
+                None => DaemonState::Idle,
+            },
             Some(job) => {
                 let snap = job.published.snapshot();
                 if job.stop.load(Ordering::Relaxed) {

@@ -68,6 +68,12 @@ pub trait GapSensor {
 
     /// The operator asked for a rethread: the simulator's wire is whole again.
     fn rethreaded(&mut self) {}
+
+    /// The E-stop and limit-switch inputs at the last [`sample`](Self::sample); none for
+    /// inputs without them.
+    fn safety(&self) -> crate::vocab::SafetyInputs {
+        crate::vocab::SafetyInputs::default()
+    }
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -107,5 +113,9 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn rethreaded(&mut self) {
         (**self).rethreaded()
+    }
+
+    fn safety(&self) -> crate::vocab::SafetyInputs {
+        (**self).safety()
     }
 }

@@ -9,12 +9,15 @@
 //!
 //! The state holds from its tick until the next line's; before the first line the gap is
 //! normal. `wire-break` is not a state but an event: from its tick the wire is broken (the
-//! gap reads open and the wire-break input is set) until the operator's rethread. Ticks must not decrease. The whole script is read and checked before the job starts,
+//! gap reads open and the wire-break input is set) until the operator's rethread. `estop`
+//! presses the emergency stop and `limit X+` (an axis and its side) trips a limit switch,
+//! from their tick to the end of the job. Ticks must not decrease. The whole script is read and checked before the job starts,
 //! so a bad line is an error with `file:line:col`, never a surprise mid-job.
 
 use std::path::Path;
 
 use super::{GapError, GapSensor, GapState};
+use crate::vocab::{LimitSwitch, SafetyInputs};
 
 /// A gap script that could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -85,6 +88,9 @@ pub struct ScriptGap {
     breaks: Vec<u64>,
     breaks_done: usize,
     broken: bool,
+    /// The safety inputs' changes (`estop`, `limit X+`), by tick, and those in force.
+    trips: Vec<(u64, SafetyInputs)>,
+    safety: SafetyInputs,
 }
 
 impl ScriptGap {
@@ -97,6 +103,7 @@ impl ScriptGap {
     pub fn parse(text: &str, name: &str) -> Result<ScriptGap, ScriptError> {
         let mut changes: Vec<(u64, GapState)> = Vec::new();
         let mut breaks: Vec<u64> = Vec::new();
+        let mut trips: Vec<(u64, SafetyInputs)> = Vec::new();
         for (index, raw) in crate::vocab::without_bom(text).lines().enumerate() {
             let line = index + 1;
             let content = raw.split('#').next().unwrap_or("");
@@ -129,6 +136,12 @@ impl ScriptGap {
                         breaks.push(tick);
                         continue;
                     }
+                    if *state == "estop" {
+                        let mut inputs = trips.last().map(|t| t.1).unwrap_or_default();
+                        inputs.estop = true;
+                        trips.push((tick, inputs));
+                        continue;
+                    }
                     let state = GapState::from_name(state).ok_or_else(|| {
                         invalid(
                             *state_col,
@@ -139,6 +152,23 @@ impl ScriptGap {
                         )
                     })?;
                     changes.push((tick, state));
+                }
+                [(col, tick), (_, "limit"), (switch_col, switch)] => {
+                    let tick: u64 = tick.parse().map_err(|_| {
+                        invalid(
+                            *col,
+                            format!("\"{tick}\" is not a tick number (a whole number >= 0)"),
+                        )
+                    })?;
+                    let limit = LimitSwitch::parse(switch).ok_or_else(|| {
+                        invalid(
+                            *switch_col,
+                            format!("\"{switch}\" is not a limit switch; write the axis and its side, e.g. X+ or Y-"),
+                        )
+                    })?;
+                    let mut inputs = trips.last().map(|t| t.1).unwrap_or_default();
+                    inputs.limit = Some(limit);
+                    trips.push((tick, inputs));
                 }
                 [(col, _)] => {
                     return Err(invalid(
@@ -161,6 +191,8 @@ impl ScriptGap {
             breaks,
             breaks_done: 0,
             broken: false,
+            trips,
+            safety: SafetyInputs::default(),
         })
     }
 
@@ -174,6 +206,8 @@ impl ScriptGap {
             breaks: Vec::new(),
             breaks_done: 0,
             broken: false,
+            trips: Vec::new(),
+            safety: SafetyInputs::default(),
         }
     }
 }
@@ -181,6 +215,9 @@ impl ScriptGap {
 impl GapSensor for ScriptGap {
     /// Ticks are expected in increasing order (the consumer's order).
     fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        if let Some(&(_, inputs)) = self.trips.iter().rev().find(|(at, _)| *at <= tick) {
+            self.safety = inputs;
+        }
         while let Some(&(at, state)) = self.changes.get(self.next) {
             if at > tick {
                 break;
@@ -205,6 +242,10 @@ impl GapSensor for ScriptGap {
 
     fn wire_broken(&self) -> bool {
         self.broken
+    }
+
+    fn safety(&self) -> SafetyInputs {
+        self.safety
     }
 
     fn rethreaded(&mut self) {

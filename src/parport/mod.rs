@@ -74,6 +74,10 @@ pub struct ParportConfig {
     pub probe_pin: Option<u8>,
     /// Wire-break sensor input.
     pub wire_break_pin: Option<u8>,
+    /// Emergency-stop input (active: pressed).
+    pub estop_pin: Option<u8>,
+    /// Limit-switch inputs, each with the axis end it guards.
+    pub limit_pins: Vec<(crate::vocab::LimitSwitch, u8)>,
     pub gap_filter_ticks: u32,
 }
 
@@ -300,6 +304,7 @@ pub struct ParportGap<P: Port> {
     probing: bool,
     /// The wire-break input at the last reading.
     wire_broken: bool,
+    safety: crate::vocab::SafetyInputs,
     path: String,
 }
 
@@ -314,6 +319,7 @@ impl<P: Port> ParportGap<P> {
             state: None,
             probing: false,
             wire_broken: false,
+            safety: crate::vocab::SafetyInputs::default(),
             path: path.to_string(),
         }
     }
@@ -343,6 +349,15 @@ impl<P: Port> GapSensor for ParportGap<P> {
             })?;
         let active = |pin: Option<u8>| pin.is_some_and(|p| self.map.input_active(status, p));
         self.wire_broken = active(self.map.wire_break);
+        self.safety = crate::vocab::SafetyInputs {
+            estop: active(self.map.estop),
+            limit: self
+                .map
+                .limits
+                .iter()
+                .find(|(_, pin)| self.map.input_active(status, *pin))
+                .map(|(switch, _)| *switch),
+        };
         if self.probing && self.map.probe.is_some() {
             // A probe's contact is believed at once: the move stops within the tick.
             return Ok(if active(self.map.probe) {
@@ -371,6 +386,10 @@ impl<P: Port> GapSensor for ParportGap<P> {
 
     fn wire_broken(&self) -> bool {
         self.wire_broken
+    }
+
+    fn safety(&self) -> crate::vocab::SafetyInputs {
+        self.safety
     }
 }
 
@@ -404,6 +423,8 @@ impl PinMap {
             open: p.open_pin,
             probe: p.probe_pin,
             wire_break: p.wire_break_pin,
+            estop: p.estop_pin,
+            limits: p.limit_pins.clone(),
         }
     }
 }

@@ -153,6 +153,9 @@ pub struct PinMap {
     pub open: Option<Pin>,
     pub probe: Option<Pin>,
     pub wire_break: Option<Pin>,
+    pub estop: Option<Pin>,
+    /// Limit switches and their pins (a port has five inputs, so a short list).
+    pub limits: Vec<(crate::vocab::LimitSwitch, Pin)>,
 }
 
 impl PinMap {
@@ -457,6 +460,8 @@ mod tests {
             open: Some(11),
             probe: None,
             wire_break: None,
+            estop: None,
+            limits: Vec::new(),
         }
     }
 

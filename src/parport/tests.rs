@@ -31,6 +31,8 @@ fn stepconf_map(axes: usize, inverted: &[Pin]) -> PinMap {
         open: Some(11),
         probe: None,
         wire_break: None,
+        estop: None,
+        limits: Vec::new(),
     }
 }
 
@@ -294,6 +296,8 @@ fn arb_map() -> impl Strategy<Value = PinMap> {
                 open: None,
                 probe: None,
                 wire_break: None,
+                estop: None,
+                limits: Vec::new(),
             }
         })
 }
@@ -335,4 +339,59 @@ proptest! {
             prop_assert_eq!(trace, &expected, "axis {}", axis);
         }
     }
+}
+
+/// The E-stop and limit-switch pins are read with the gap every tick; when the consumer stops
+/// on them the output's finish leaves the port with the spark off and the drives disabled.
+#[test]
+fn estop_and_limit_pins_and_the_port_they_leave() {
+    let bench = Bench::new();
+    let mut map = stepconf_map(2, &[]);
+    map.spark = Some(4);
+    map.estop = Some(15);
+    map.limits = vec![(
+        crate::vocab::LimitSwitch {
+            axis: crate::vocab::Axis::X,
+            positive: true,
+        },
+        12,
+    )];
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let mut gap = ParportGap::new(port.clone(), map.clone(), 1, "fake");
+    let mut out = ParportOutput::new(port, map.clone(), TIMING, bench.clock(), "fake").unwrap();
+    let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
+    out.moving_in(crate::output::Activity {
+        spark: true,
+        ..Default::default()
+    });
+    gap.sample(0).unwrap();
+    assert!(!gap.safety().tripped());
+    bench.set_now(TICK_NS);
+    out.write(1, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
+    bench.set_inputs(levels(&[12]));
+    gap.sample(2).unwrap();
+    assert_eq!(
+        gap.safety().limit.map(|s| s.to_string()).as_deref(),
+        Some("X+")
+    );
+    bench.set_inputs(levels(&[15]));
+    gap.sample(3).unwrap();
+    assert!(gap.safety().estop && gap.safety().limit.is_none());
+    // The consumer stops here: no write for tick 3, the output finishes.
+    let before = bench.waveform(map.idle()).last().unwrap().1;
+    assert!(before.is_high(4), "sparking while it moved");
+    assert_ne!(
+        before.is_high(14),
+        map.idle().is_high(14),
+        "the drives were enabled while it moved"
+    );
+    bench.set_now(3 * TICK_NS);
+    out.finish().unwrap();
+    let last = bench.waveform(map.idle()).last().unwrap().1;
+    assert!(!last.is_high(4), "spark off");
+    assert_eq!(
+        last,
+        map.idle(),
+        "every output inactive: the drives' enable dropped"
+    );
 }

@@ -245,6 +245,8 @@ pub struct LoopReport {
     pub wire_break: Option<(PathPoint, u64, bool)>,
     /// A `G38.2`/`G38.4` reached its end point without contact: where, and the line.
     pub probe_missed: Option<(PathPoint, u64)>,
+    /// An E-stop or a limit switch stopped the job: the inputs, where, and the line.
+    pub tripped: Option<(crate::vocab::SafetyInputs, PathPoint, u64)>,
     /// Where the last probing move ended.
     pub last_probe: Option<ProbeResult>,
     /// Real-time features the system refused, with the reason.
@@ -268,6 +270,7 @@ impl LoopReport {
             collision: None,
             wire_break: None,
             probe_missed: None,
+            tripped: None,
             last_probe: None,
             rt_refused: Vec::new(),
         }
@@ -388,6 +391,13 @@ where
             GapState::Short => 2,
         };
         published.gap_ticks[gap_index].fetch_add(1, Ordering::Relaxed);
+        // An E-stop or a limit switch stops motion in the tick it is seen: no step of this
+        // tick is taken; the output's finish then drops the drives' enable and the spark.
+        let safety = sensor.safety();
+        if safety.tripped() {
+            report.tripped = Some((safety, fine.here(), fine.line()));
+            break;
+        }
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();

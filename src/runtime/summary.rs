@@ -38,6 +38,11 @@ pub enum Outcome {
     WireBreak,
     /// A `G38.2`/`G38.4` reached its end point without contact: stopped there.
     ProbeMissed,
+    /// The emergency stop: motion stopped in the tick it was seen, spark off, drives
+    /// disabled.
+    Estop,
+    /// A limit switch: motion stopped in the tick it was seen.
+    Limit,
 }
 
 impl Outcome {
@@ -51,6 +56,8 @@ impl Outcome {
             Outcome::Stopped => "stopped",
             Outcome::ResumeRefused => "resume refused",
             Outcome::Collision => "collision",
+            Outcome::Estop => "estop",
+            Outcome::Limit => "limit",
             Outcome::WireBreak => "wire break",
             Outcome::ProbeMissed => "probe missed",
         }
@@ -99,12 +106,39 @@ impl LastProbe {
     }
 }
 
+/// A limit switch in a summary's JSON: `"X+"`.
+mod limit_text {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    use crate::vocab::{Axis, LimitSwitch};
+
+    pub fn serialize<S: Serializer>(v: &Option<LimitSwitch>, s: S) -> Result<S::Ok, S::Error> {
+        match v {
+            Some(switch) => s.serialize_str(&switch.to_string()),
+            None => s.serialize_none(),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<LimitSwitch>, D::Error> {
+        let text: Option<String> = Option::deserialize(d)?;
+        Ok(text.and_then(|t| {
+            let mut c = t.chars();
+            let axis = Axis::from_letter(c.next()?)?;
+            let positive = c.next()? == '+';
+            Some(LimitSwitch { axis, positive })
+        }))
+    }
+}
+
 /// The end-of-job summary (`edmd run` prints it; `--summary FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSummary {
     pub program: String,
     pub outcome: Outcome,
     pub error: Option<String>,
+    /// The limit switch that stopped the job (outcome `limit`).
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "limit_text")]
+    pub limit_switch: Option<crate::vocab::LimitSwitch>,
     pub axes: Vec<String>,
     /// G-code blocks of the program.
     pub blocks: u64,
@@ -211,6 +245,7 @@ impl JobSummary {
             program: program.name.clone(),
             outcome,
             error,
+            limit_switch: report.tripped.and_then(|(inputs, _, _)| inputs.limit),
             axes: spec.axis_names(),
             blocks: check.blocks,
             segments: producer.pushed,
@@ -410,6 +445,29 @@ fn outcome(
         (Outcome::OutputError, Some(e.to_string()))
     } else if let Err(e) = finished {
         (Outcome::OutputError, Some(e.to_string()))
+    } else if let Some((inputs, at, line)) = report.tripped {
+        let stopped = format!(
+            "motion stopped in the tick it was seen (segment {}, step {}), spark off, drives \
+             disabled",
+            at.seq, at.event
+        );
+        match inputs.limit.filter(|_| !inputs.estop) {
+            Some(switch) => (
+                Outcome::Limit,
+                Some(format!(
+                    "line {line}: limit switch {switch} ({} end of axis {}): {stopped}; only a \
+                     jog away from it moves",
+                    if switch.positive { "upper" } else { "lower" },
+                    switch.axis
+                )),
+            ),
+            None => (
+                Outcome::Estop,
+                Some(format!(
+                    "line {line}: E-stop: {stopped}; release it, then `edmd ctl reset`"
+                )),
+            ),
+        }
     } else if let Some((at, line)) = report.collision {
         (
             Outcome::Collision,

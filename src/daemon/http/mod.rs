@@ -204,6 +204,7 @@ fn router(app: Arc<App>) -> Router {
             "/api/jog-stop",
             post(|s, h, b| machine(s, h, b, "jog-stop")),
         )
+        .route("/api/reset", post(|s, h, b| machine(s, h, b, "reset")))
         .route("/api/mdi", post(|s, h, b| machine(s, h, b, "mdi")))
         .route(
             "/api/touch-off",
