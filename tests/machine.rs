@@ -551,3 +551,37 @@ fn a_limit_switch_stops_the_job_and_allows_only_the_jog_away() {
     daemon.ok(&["jog", "Y", "0.5"]);
     daemon.wait_for("idle", |s| s["state"] == "idle");
 }
+
+#[test]
+fn the_simulator_raises_an_estop_and_edmd_run_stops_in_that_tick() {
+    let dir = scratch("sim-estop");
+    std::fs::write(dir.join("events.txt"), "30000 estop\n").unwrap();
+    let (code, text) = edmd(
+        &dir,
+        &[
+            "run",
+            common::repo()
+                .join("programs/huang-table1-g38.nc")
+                .to_str()
+                .unwrap(),
+            "--set",
+            "sim.events=\"events.txt\"",
+            "--set",
+            "output.kind=\"file\"",
+            "--set",
+            "output.path=\"pulses.csv\"",
+            "--summary",
+            "summary.json",
+        ],
+    );
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("E-stop: motion stopped in the tick it was seen"),
+        "{text}"
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["outcome"], "estop");
+    assert_eq!(summary["ticks"], 30000, "stopped in the tick it was seen");
+    assert!(*stepping_ticks(&dir.join("pulses.csv")).last().unwrap() < 30000);
+}

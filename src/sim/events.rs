@@ -7,6 +7,8 @@
 //! 300000    erosion   40        # harder material from here: 40 mm/min
 //! 400000    short     20000     # a welded short: the gap reads short for 20000 ticks
 //! 500000    open      2000      # a dielectric failure: the gap reads open for 2000 ticks
+//! 600000    estop                 # the emergency stop is pressed (to the end of the job)
+//! 700000    limit     X+          # the X axis's upper limit switch trips
 //! ```
 //!
 //! The file is read and checked before the job starts (`file:line:col` on error); ticks must
@@ -27,6 +29,10 @@ pub enum SimEvent {
     Erosion { mm_per_s: f64 },
     /// The gap reads `state` for `ticks` ticks, whatever the electrode does.
     Hold { state: GapState, ticks: u64 },
+    /// The emergency stop is pressed.
+    Estop,
+    /// A limit switch trips.
+    Limit(crate::vocab::LimitSwitch),
 }
 
 /// Reads and checks an events file.
@@ -120,10 +126,25 @@ pub fn parse(text: &str, name: &str) -> Result<Vec<(u64, SimEvent)>, ScriptError
                 state: GapState::Open,
                 ticks: ticks()?,
             },
+            "estop" => SimEvent::Estop,
+            "limit" => {
+                let (col, text) = value.ok_or_else(|| {
+                    invalid(event_col, "`limit` needs the switch, e.g. X+".to_string())
+                })?;
+                SimEvent::Limit(crate::vocab::LimitSwitch::parse(text).ok_or_else(|| {
+                    invalid(
+                        col,
+                        format!("\"{text}\" is not a limit switch, e.g. X+ or Y-"),
+                    )
+                })?)
+            }
             _ => {
                 return Err(invalid(
                     event_col,
-                    format!("\"{event}\" is not an event; use debris, erosion, short or open"),
+                    format!(
+                        "\"{event}\" is not an event; use debris, erosion, short, open, estop \
+                         or limit"
+                    ),
                 ));
             }
         };
@@ -178,6 +199,24 @@ mod tests {
     }
 
     #[test]
+    fn estop_and_limit_events() {
+        let events = parse("5 estop\n9 limit y-\n", "ev.txt").unwrap();
+        assert_eq!(events[0], (5, SimEvent::Estop));
+        assert_eq!(
+            events[1],
+            (
+                9,
+                SimEvent::Limit(crate::vocab::LimitSwitch {
+                    axis: crate::vocab::Axis::Y,
+                    positive: false
+                })
+            )
+        );
+        let e = parse("9 limit Y\n", "ev.txt").unwrap_err().to_string();
+        assert_eq!(e, "ev.txt:1:9: \"Y\" is not a limit switch, e.g. X+ or Y-");
+    }
+
+    #[test]
     fn bad_lines_are_located() {
         let err = |text: &str| parse(text, "ev.txt").unwrap_err().to_string();
         assert_eq!(
@@ -186,7 +225,7 @@ mod tests {
         );
         assert_eq!(
             err("10 spark\n"),
-            "ev.txt:1:4: \"spark\" is not an event; use debris, erosion, short or open"
+            "ev.txt:1:4: \"spark\" is not an event; use debris, erosion, short, open, estop or limit"
         );
         assert_eq!(
             err("10 erosion\n"),

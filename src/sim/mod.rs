@@ -124,6 +124,8 @@ pub struct SimGap {
     next_event: usize,
     /// A scripted hold: this state until (excluding) this tick.
     hold: Option<(GapState, u64)>,
+    /// The E-stop and limit switches the events have raised.
+    safety: crate::vocab::SafetyInputs,
     state: GapState,
     /// The move in hand is a rapid: the spark is off, the electrode moves through the open.
     rapid: bool,
@@ -205,6 +207,7 @@ impl SimGap {
             events,
             next_event: 0,
             hold: None,
+            safety: crate::vocab::SafetyInputs::default(),
             state: GapState::Open,
             rapid: false,
             volts: settings.volts,
@@ -255,6 +258,8 @@ impl SimGap {
                 SimEvent::Hold { state, ticks } => {
                     self.hold = Some((state, at.saturating_add(ticks)));
                 }
+                SimEvent::Estop => self.safety.estop = true,
+                SimEvent::Limit(switch) => self.safety.limit = Some(switch),
             }
         }
     }
@@ -366,6 +371,10 @@ impl GapSensor for SimGap {
         let state = self.sample_state(tick);
         self.count_pulses(state);
         Ok(state)
+    }
+
+    fn safety(&self) -> crate::vocab::SafetyInputs {
+        self.safety
     }
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
