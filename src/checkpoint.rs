@@ -152,11 +152,7 @@ impl StartRecord {
         step_mm: &[f64],
     ) -> Self {
         StartRecord {
-            position_steps: step_mm
-                .iter()
-                .enumerate()
-                .map(|(i, mm)| (start.position_mm[i] / mm).round() as i64)
-                .collect(),
+            position_steps: crate::runtime::start_steps(start, step_mm)[..step_mm.len()].to_vec(),
             work_system: start.system.name().to_string(),
             offsets_mm: crate::machine::offsets_table(&start.offsets, axes),
         }

@@ -90,6 +90,7 @@ pub struct ScriptGap {
     broken: bool,
     /// The safety inputs' changes (`estop`, `limit X+`), by tick, and those in force.
     trips: Vec<(u64, SafetyInputs)>,
+    next_trip: usize,
     safety: SafetyInputs,
 }
 
@@ -192,6 +193,7 @@ impl ScriptGap {
             breaks_done: 0,
             broken: false,
             trips,
+            next_trip: 0,
             safety: SafetyInputs::default(),
         })
     }
@@ -207,6 +209,7 @@ impl ScriptGap {
             breaks_done: 0,
             broken: false,
             trips: Vec::new(),
+            next_trip: 0,
             safety: SafetyInputs::default(),
         }
     }
@@ -215,8 +218,12 @@ impl ScriptGap {
 impl GapSensor for ScriptGap {
     /// Ticks are expected in increasing order (the consumer's order).
     fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
-        if let Some(&(_, inputs)) = self.trips.iter().rev().find(|(at, _)| *at <= tick) {
+        while let Some(&(at, inputs)) = self.trips.get(self.next_trip) {
+            if at > tick {
+                break;
+            }
             self.safety = inputs;
+            self.next_trip += 1;
         }
         while let Some(&(at, state)) = self.changes.get(self.next) {
             if at > tick {

@@ -58,7 +58,7 @@ pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
 pub use run::{JobRun, run};
-pub use spec::{JobSpec, StepCondition};
+pub use spec::{JobSpec, StepCondition, start_steps};
 pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
