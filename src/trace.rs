@@ -215,6 +215,10 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.safety()
     }
 
+    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
+        self.inner.home_switch(switch)
+    }
+
     fn wire_broken(&self) -> bool {
         self.inner.wire_broken()
     }

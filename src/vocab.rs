@@ -276,6 +276,22 @@ impl SafetyInputs {
     }
 }
 
+/// The home switch a homing job searches for: its probing moves stop on this switch instead
+/// of the probe. Each gap input takes what it has of it: the parallel port reads `pin`, the
+/// simulator places a switch `at_steps` from where the job starts on `axis` (pressed from
+/// there on in the search direction), a script answers as scripted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HomeSwitch {
+    /// Index of the axis in `machine.axes`.
+    pub axis: usize,
+    /// The search runs towards +.
+    pub positive: bool,
+    /// The port's status pin; `None` on a machine with no switch wired for this axis.
+    pub pin: Option<u8>,
+    /// The simulated switch, in steps from the job's start on `axis`.
+    pub at_steps: i64,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

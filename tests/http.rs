@@ -150,14 +150,43 @@ fn the_api_answers_as_the_socket_does_and_control_needs_the_token() {
 /// change (at most ten a second) while a job moves.
 #[test]
 fn home_touch_off_and_mdi_over_http() {
-    let (d, _dir) = start("machine", &[]);
+    // X homes by the simulator's switch (believed at X3, really at X10, then 1 mm back);
+    // Y has no switch.
+    let (d, _dir) = start(
+        "machine",
+        &[
+            "gap.kind=\"sim\"",
+            "homing.axis=[{axis=\"X\", direction=\"+\", search_feed_mm_per_min=600.0, \
+             latch_feed_mm_per_min=30.0, home_position_mm=10.0, final_move_mm=-1.0, \
+             search_distance_mm=20.0, latch_distance_mm=0.5}]",
+            "sim.home_switch_mm={X=3.0}",
+        ],
+    );
     // The machine's commands: the body is the socket request's fields.
-    let (code, reply) = d.post("/api/home", r#"{"here":true}"#);
+    let (code, reply) = d.post("/api/home", r#"{"axes":["Y"]}"#);
+    assert_eq!(code, 409, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("Y has no home switch"),
+        "{reply}"
+    );
+    let (code, reply) = d.post("/api/home", r#"{"axes":["X"]}"#);
+    assert_eq!(code, 200, "{reply}");
+    d.wait_for("X homed", |s| {
+        s["state"] == "idle" && s["machine"]["homed"] == json!([true, false])
+    });
+    let (code, reply) = d.post("/api/home", r#"{"axes":["Y"],"here":true}"#);
     assert_eq!(code, 200, "{reply}");
     assert_eq!(reply["status"]["machine"]["homed"], json!([true, true]));
-    let (code, reply) = d.post("/api/touch-off", r#"{"axis":"X","value":-2.5}"#);
+    assert_eq!(
+        reply["status"]["machine"]["position_machine_mm"],
+        json!([9.0, 0.0])
+    );
+    let (code, reply) = d.post("/api/touch-off", r#"{"axis":"X","value":0.5}"#);
     assert_eq!(code, 200, "{reply}");
-    assert_eq!(reply["status"]["machine"]["position_work_mm"][0], -2.5);
+    assert_eq!(reply["status"]["machine"]["position_work_mm"][0], 0.5);
     let (code, reply) = d.post("/api/touch-off", r#"{"axis":"Q","value":1}"#);
     assert_eq!(code, 409, "{reply}");
     assert!(
@@ -166,12 +195,12 @@ fn home_touch_off_and_mdi_over_http() {
     );
     let (code, reply) = d.post("/api/mdi", r#"{"line":"G1 X1 F600","extra":1}"#);
     assert_eq!(code, 400, "{reply}");
-    let (code, reply) = d.post("/api/mdi", r#"{"line":"G1 X1 Y0 F600"}"#);
+    let (code, reply) = d.post("/api/mdi", r#"{"line":"G0 X1 Y0"}"#);
     assert_eq!(code, 200, "{reply}");
     d.wait_for("the MDI move", |s| {
         s["state"] == "idle" && s["machine"]["position_work_mm"][0] == 1.0
     });
-    assert_eq!(d.status()["machine"]["position_machine_mm"][0], 3.5);
+    assert_eq!(d.status()["machine"]["position_machine_mm"][0], 9.5);
 }
 
 #[test]

@@ -8,7 +8,7 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::daemon::{Daemon, base_sets, scratch};
+use common::daemon::{Daemon, base_sets, floats, scratch};
 use edmd::output::read_pulse_log;
 use serde_json::Value;
 
@@ -159,14 +159,6 @@ fn a_program_past_the_travel_is_refused_before_any_pulse() {
 
 fn machine(status: &Value) -> &Value {
     &status["machine"]
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
 }
 
 #[test]

@@ -90,12 +90,12 @@ pub(super) enum CtlCommand {
         #[arg(long, value_name = "G5x")]
         system: Option<String>,
     },
-    /// Home axes (all when none is named). `--here`: the machine stands at home now (no
-    /// switches); that place becomes machine zero
+    /// Home axes by their switches ([[homing.axis]]; all that have one when none is named),
+    /// in sequence order. `--here`: no switch: where the axes stand is their home position
     Home {
         /// Axis letters
         axes: Vec<String>,
-        /// Declare the current position to be home
+        /// Declare the current position to be home (home_position_mm, or machine zero)
         #[arg(long)]
         here: bool,
     },

@@ -13,6 +13,7 @@
 //! and any key the default does not have is rejected with its line. Every error names where the
 //! offending value came from: `file:line:col` for the file, the `--set` argument for an override.
 
+mod homing;
 mod overrides;
 mod parport;
 mod raw;
@@ -344,6 +345,41 @@ pub struct HomingConfig {
     pub require_after_start: bool,
     /// An E-stop unhomes every axis.
     pub lost_on_estop: bool,
+    /// The axes homed by a switch (`[[homing.axis]]`), in the order they home: by
+    /// `sequence`, then as listed.
+    pub axes: Vec<HomingAxis>,
+}
+
+/// `[[homing.axis]]`: how one axis finds its home switch. Search towards the switch at the
+/// search feed, back off until it releases, approach again at the latch feed: where it
+/// closes is `home_position_mm`; then move `final_move_mm` (away from the switch).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HomingAxis {
+    /// Index in `machine.axes`.
+    pub index: usize,
+    pub axis: Axis,
+    /// The parallel port's status pin of the switch (`None`: the simulator's switch only).
+    pub switch_pin: Option<u8>,
+    /// The search runs towards +.
+    pub positive: bool,
+    pub search_feed_mm_per_min: f64,
+    pub latch_feed_mm_per_min: f64,
+    /// The machine coordinate of the switch's latch point.
+    pub home_position_mm: f64,
+    /// The move after latching, mm (0 or away from the switch).
+    pub final_move_mm: f64,
+    pub sequence: u32,
+    /// The longest search before homing gives up, mm.
+    pub search_distance_mm: f64,
+    /// The longest back-off and latch approach, mm.
+    pub latch_distance_mm: f64,
+}
+
+impl HomingConfig {
+    /// The homing settings of machine axis `index`, if it homes by a switch.
+    pub fn axis(&self, index: usize) -> Option<&HomingAxis> {
+        self.axes.iter().find(|a| a.index == index)
+    }
 }
 
 impl Default for Config {

@@ -31,9 +31,38 @@ pub(super) struct RawConfig {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawHoming {
-    pub(super) required: bool,
+    pub(super) required: RawRequired,
     pub(super) require_after_start: bool,
     pub(super) lost_on_estop: bool,
+    pub(super) axis: Vec<RawHomingAxis>,
+}
+
+/// `homing.required`: `true`, `false` or `"auto"` (on with a parallel port).
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub(super) enum RawRequired {
+    Flag(bool),
+    Word(String),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawHomingAxis {
+    pub(super) axis: String,
+    #[serde(default)]
+    pub(super) switch_pin: i64,
+    pub(super) direction: String,
+    pub(super) search_feed_mm_per_min: f64,
+    pub(super) latch_feed_mm_per_min: f64,
+    pub(super) home_position_mm: f64,
+    #[serde(default)]
+    pub(super) final_move_mm: f64,
+    #[serde(default)]
+    pub(super) sequence: i64,
+    #[serde(default)]
+    pub(super) search_distance_mm: Option<f64>,
+    #[serde(default)]
+    pub(super) latch_distance_mm: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -196,6 +225,7 @@ pub(super) struct RawSim {
     pub(super) debris_clear_um: f64,
     pub(super) wire_breaks_per_m: f64,
     pub(super) events: String,
+    pub(super) home_switch_mm: std::collections::BTreeMap<String, f64>,
 }
 
 #[derive(Debug, Deserialize)]

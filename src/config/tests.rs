@@ -254,3 +254,57 @@ fn the_three_state_law_may_be_spelled_state() {
     let c = Config::load(None, &["servo.law=\"state\"".to_string()]).unwrap();
     assert_eq!(c.servo.law, ServoLaw::ThreeState);
 }
+
+#[test]
+fn homing_axes_are_checked_and_ordered_by_sequence() {
+    const PORT: &str = "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n";
+    // "auto": required on a real machine, not on the simulated one.
+    assert!(!Config::default().homing.required);
+    assert!(load(PORT, &[]).unwrap().homing.required);
+    assert!(
+        !load(PORT, &["homing.required=false"])
+            .unwrap()
+            .homing
+            .required
+    );
+    let e = load("", &["homing.required=\"maybe\""]).unwrap_err();
+    assert!(e.contains("true, false or \"auto\""), "{e}");
+    // The shipped entries: X then Y (sequence 0, 1), the simulator's switches at home.
+    let c = Config::default();
+    let order: Vec<Axis> = c.homing.axes.iter().map(|h| h.axis).collect();
+    assert_eq!(order, [Axis::X, Axis::Y]);
+    assert_eq!(c.homing.axes[0].search_distance_mm, 500.0);
+    assert_eq!(c.sim.home_switch_mm, [None, None]);
+    let axis = |fields: &str| {
+        format!(
+            "homing.axis=[{{axis=\"X\", direction=\"+\", search_feed_mm_per_min=600.0, latch_feed_mm_per_min=30.0, home_position_mm=10.0{fields}}}]"
+        )
+    };
+    let e = load("", &[&axis(", final_move_mm=2.0")]).unwrap_err();
+    assert!(e.contains("runs into the switch"), "{e}");
+    let e = load("", &[&axis(", switch_pin=2")]).unwrap_err();
+    assert!(e.contains("switch_pin = 2: not an input pin"), "{e}");
+    let e = load(PORT, &[&axis(", switch_pin=10")]).unwrap_err();
+    assert!(
+        e.contains("switch_pin = 10 is already used by parport."),
+        "{e}"
+    );
+    let e = load(
+        "",
+        &[&axis(", latch_feed_mm_per_min=900.0").replace("latch_feed_mm_per_min=30.0, ", "")],
+    )
+    .unwrap_err();
+    assert!(e.contains("at most the search feed"), "{e}");
+    let c = load(
+        "",
+        &[
+            &axis(", switch_pin=15, sequence=3"),
+            "sim.home_switch_mm={X=3.0,Z=1.0}",
+        ],
+    )
+    .unwrap();
+    assert_eq!(c.homing.axes[0].switch_pin, Some(15));
+    assert_eq!(c.sim.home_switch_mm, [Some(3.0), None]);
+    let e = load("", &["sim.home_switch_mm={Q=1.0}"]).unwrap_err();
+    assert!(e.contains("\"Q\" is not an axis letter"), "{e}");
+}

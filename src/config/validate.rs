@@ -27,7 +27,12 @@ fn fraction(key: &'static str, v: f64) -> Result<f64, Invalid> {
     }
 }
 
-fn positive(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
+pub(super) fn positive(
+    key: &'static str,
+    value: f64,
+    max: f64,
+    unit: &str,
+) -> Result<f64, Invalid> {
     if value.is_finite() && value > 0.0 && value <= max {
         Ok(value)
     } else {
@@ -43,7 +48,7 @@ fn positive(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, 
 }
 
 /// A number as a person would write it: `1e300`, not three hundred digits.
-fn short(value: f64) -> String {
+pub(super) fn short(value: f64) -> String {
     let magnitude = value.abs();
     if magnitude != 0.0 && !(1e-4..1e7).contains(&magnitude) {
         format!("{value:e}")
@@ -121,7 +126,8 @@ impl RawConfig {
         let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
 
         let servo = servo(self.servo)?;
-        let sim = sim(self.sim)?;
+        let homing = self.homing.validate(&machine, &parport, output.kind)?;
+        let sim = sim(self.sim, &machine, &homing)?;
         let daemon = daemon(self.daemon)?;
         let log = LogConfig {
             level: self.log.level,
@@ -156,11 +162,7 @@ impl RawConfig {
             program,
             compensation,
             conditions,
-            homing: HomingConfig {
-                required: self.homing.required,
-                require_after_start: self.homing.require_after_start,
-                lost_on_estop: self.homing.lost_on_estop,
-            },
+            homing,
         })
     }
 }
@@ -495,7 +497,7 @@ fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
     Ok(servo)
 }
 
-fn sim(m: RawSim) -> Result<SimConfig, Invalid> {
+fn sim(m: RawSim, machine: &MachineConfig, homing: &HomingConfig) -> Result<SimConfig, Invalid> {
     let short_gap = positive("sim.short_gap_um", m.short_gap_um, 1e4, "µm")?;
     let open_gap = positive("sim.open_gap_um", m.open_gap_um, 1e4, "µm")?;
     if open_gap <= short_gap {
@@ -504,6 +506,7 @@ fn sim(m: RawSim) -> Result<SimConfig, Invalid> {
             format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
         ));
     }
+    let home_switch_mm = m.home_switches(machine, homing)?;
     Ok(SimConfig {
         seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
         initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
@@ -520,6 +523,7 @@ fn sim(m: RawSim) -> Result<SimConfig, Invalid> {
         debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")? / 1000.0,
         wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,
         events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
+        home_switch_mm,
     })
 }
 

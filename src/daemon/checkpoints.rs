@@ -228,3 +228,26 @@ impl CheckpointKeeper {
         }
     }
 }
+
+/// Where the write-ahead checkpoint of a starting job puts it: moving, at the program's start
+/// or at the resume point with the dwell it owes.
+pub(super) fn write_ahead_point(
+    resume: Option<&crate::runtime::ResumePoint>,
+    spec: &crate::runtime::JobSpec,
+    config: &crate::config::Config,
+) -> Snapshot {
+    let mut at = Snapshot {
+        still: false,
+        position: spec.start_steps(),
+        ..Snapshot::default()
+    };
+    if let Some(r) = resume {
+        at.here = r.here;
+        at.line = r.line;
+        at.dwell_left = (r.dwell_s / config.fine.tick.secs()).round() as u64;
+        for (p, s) in at.position.iter_mut().zip(&r.position) {
+            *p = *s;
+        }
+    }
+    at
+}

@@ -17,7 +17,7 @@ use crate::record::{EventKind, Recording};
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{
     self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome,
-    Published, ResumePoint, Snapshot,
+    Published, ResumePoint,
 };
 use crate::servo::{Rethread, ServoState};
 
@@ -96,29 +96,6 @@ fn job_report(config: &Config, program_name: &str) -> Result<Option<JobReport>, 
         }
         None => None,
     })
-}
-
-/// Where the write-ahead checkpoint of a starting job puts it: moving, at the program's start
-/// or at the resume point with the dwell it owes.
-fn write_ahead_point(
-    resume: Option<&ResumePoint>,
-    spec: &runtime::JobSpec,
-    config: &Config,
-) -> Snapshot {
-    let mut at = Snapshot {
-        still: false,
-        position: spec.start_steps(),
-        ..Snapshot::default()
-    };
-    if let Some(r) = resume {
-        at.here = r.here;
-        at.line = r.line;
-        at.dwell_left = (r.dwell_s / config.fine.tick.secs()).round() as u64;
-        for (p, s) in at.position.iter_mut().zip(&r.position) {
-            *p = *s;
-        }
-    }
-    at
 }
 
 impl JobControl {
@@ -215,11 +192,15 @@ impl Core {
             Source::Copy(program) => program.name.clone(),
             Source::Generated { name, .. } => name.clone(),
         };
-        let (config, dir, tx) = (
+        let (mut config, dir, tx) = (
             self.config.clone(),
             self.copy_dir(),
             self.clients.to_core.clone(),
         );
+        if matches!(launch.kind, JobKind::Home { .. }) {
+            // Homing finds where the machine is: the soft limits mean nothing yet.
+            config.machine.travel.iter_mut().for_each(|t| *t = None);
+        }
         let expect = resume.as_ref().map(|r| r.sha256.clone());
         let worker_progress = progress.clone();
         let worker_start = launch.start.clone();
@@ -290,6 +271,8 @@ impl Core {
                 status.message = Some(message);
             }
             Err(error) => {
+                // A homing sequence stops at its first refusal.
+                self.machine.homing_queue.clear();
                 tracing::error!(
                     edmd_event = "refusal",
                     edmd_program = check.name,
@@ -311,18 +294,13 @@ impl Core {
         resume: Option<ResumePoint>,
         launch: Launch,
     ) -> Result<String, Refusal> {
-        let Launch { start, kind } = launch;
         let config = self.config.clone();
+        let spec = launch.spec(&config);
+        let switch = launch.home_switch();
+        let Launch { start, kind } = launch;
         let blocks = check.blocks;
         let path_total_mm = check.path_mm;
         let rapid_spans = check.rapid_spans.clone();
-        // The daemon's jobs have an operator: programmed stops, collisions and alarms hold.
-        let mut spec = runtime::JobSpec::from_config(&config, true);
-        spec.work = start.clone();
-        if let JobKind::Jog { feed_mm_per_min } = kind {
-            // A jog is one rapid: at the jog feed, not the machine's rapid.
-            spec.plan.rapid_feed = spec.plan.rapid_feed.min(feed_mm_per_min / 60.0);
-        }
         let ledger = resume
             .as_ref()
             .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());
@@ -330,6 +308,9 @@ impl Core {
         // made first: a job must not learn at its end that its report has nowhere to go.
         let report = job_report(&config, &program.name)?;
         let mut io = self.jobs.job_io(&config, &check, &ledger)?;
+        // A homing job's probing moves read its switch; any other job's the probe (the
+        // claimed port's gap input is lent to every job).
+        io.gap.home_switch(switch);
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
         let published = Arc::new(Published::new(4096));
@@ -367,7 +348,8 @@ impl Core {
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
         let old = self.checkpoints.current.clone();
-        let at = write_ahead_point(resume.as_ref(), &spec, &config);
+        let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
+        self.homing_started(switch.as_ref());
         if let Err(refusal) = self.machine.save(true) {
             self.jobs.give_back_io(&config, io.output, io.gap);
             return Err(refusal);
@@ -678,6 +660,9 @@ impl Core {
             self.machine.mdi_modes = job.modes;
         }
         self.note_trip(&job, &summary);
+        if let JobKind::Home { switch, .. } = job.kind {
+            self.homing_done(&switch, &summary);
+        }
         if let Some((dir, recording)) = &job.report {
             match crate::report::write_report(dir, &mut recording.lock(), &summary) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),

@@ -33,6 +33,12 @@ pub(super) enum JobKind {
     Jog { feed_mm_per_min: f64 },
     /// MDI lines.
     Mdi,
+    /// Homing one axis: its probing moves read `switch`; the search feed, mm/min, is also
+    /// the final move's.
+    Home {
+        switch: crate::vocab::HomeSwitch,
+        feed_mm_per_min: f64,
+    },
 }
 
 /// Where a job starts and what it is: decided when its check begins.
@@ -40,6 +46,32 @@ pub(super) enum JobKind {
 pub(super) struct Launch {
     pub start: WorkStart,
     pub kind: JobKind,
+}
+
+impl Launch {
+    /// The job's settings: the daemon's jobs have an operator (programmed stops, collisions
+    /// and alarms hold), start where the launch says, and a jog's or homing job's rapids go
+    /// at its own feed, not the machine's rapid.
+    pub fn spec(&self, config: &Config) -> runtime::JobSpec {
+        let mut spec = runtime::JobSpec::from_config(config, true);
+        spec.work = self.start.clone();
+        if let JobKind::Jog { feed_mm_per_min }
+        | JobKind::Home {
+            feed_mm_per_min, ..
+        } = self.kind
+        {
+            spec.plan.rapid_feed = spec.plan.rapid_feed.min(feed_mm_per_min / 60.0);
+        }
+        spec
+    }
+
+    /// The switch a homing job's probing moves read.
+    pub fn home_switch(&self) -> Option<crate::vocab::HomeSwitch> {
+        match self.kind {
+            JobKind::Home { switch, .. } => Some(switch),
+            _ => None,
+        }
+    }
 }
 
 /// The check worker: copy (unless already a copy), hold to the expected hash, then check.

@@ -2,7 +2,7 @@
 //! homed axes, the work offset table and the active system, in `daemon.state_file`
 //! ([`crate::machine`]), with the write-ahead rule: marked moving before a job leaves a
 //! standstill, written at the standstill where it ends. The operator's commands that change
-//! it without motion live here too: `offsets`, `touch-off`, `home --here`.
+//! it without motion live here too: `offsets`, `touch-off` (homing: [`super::homing`]).
 
 use std::path::PathBuf;
 
@@ -25,6 +25,8 @@ pub(super) struct MachineKeeper {
     pub mdi_modes: crate::gcode::StartModes,
     /// An E-stop or a limit switch stopped the last job: what may move until it is cleared.
     pub tripped: Option<Trip>,
+    /// The axes still to home after the one homing now (indices, in order).
+    pub homing_queue: Vec<usize>,
 }
 
 /// What stopped the machine and holds it.
@@ -91,6 +93,7 @@ impl MachineKeeper {
             write_error: None,
             mdi_modes: Default::default(),
             tripped: None,
+            homing_queue: Vec::new(),
         };
         // The file now says what the daemon believes (an unhomed state stays unhomed after
         // a second crash), and a file that cannot be written is known before any job.
@@ -213,49 +216,6 @@ impl Core {
             "{system} {axis} offset is {:.4} mm: here reads {axis}{value:.4}",
             offset[i]
         ))
-    }
-
-    /// `home --here [AXIS…]`: the axes (all when none is named) are declared homed where
-    /// they stand, and that place becomes machine zero (a machine without home switches).
-    pub(super) fn home_here(&mut self, axes: &[String], here: bool) -> Result<String, Refusal> {
-        self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        if !here {
-            return Err(Refusal::BadArgument(
-                "homing by switches is not built yet: `home --here` declares where the \
-                 machine stands to be its home (machine zero)"
-                    .into(),
-            ));
-        }
-        let picked: Vec<(usize, Axis)> = if axes.is_empty() {
-            self.config
-                .machine
-                .axes
-                .iter()
-                .copied()
-                .enumerate()
-                .collect()
-        } else {
-            axes.iter()
-                .map(|a| self.machine_axis(a))
-                .collect::<Result<_, _>>()?
-        };
-        let before = self.machine.state.clone();
-        for &(i, _) in &picked {
-            self.machine.state.position[i] = 0;
-            self.machine.state.homed[i] = true;
-        }
-        if let Err(e) = self.machine.save(false) {
-            self.machine.state = before;
-            return Err(e);
-        }
-        let names: Vec<String> = picked.iter().map(|(_, a)| a.letter().to_string()).collect();
-        tracing::info!(
-            edmd_event = "home",
-            "homed {} here: machine zero is where it stands",
-            names.join(", ")
-        );
-        Ok(format!("homed {} here (machine zero)", names.join(", ")))
     }
 
     /// The machine's axis named `name` and its index.

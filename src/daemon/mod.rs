@@ -31,6 +31,7 @@
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
 mod checkpoints;
+mod homing;
 pub mod http;
 mod jobs;
 mod launch;
@@ -459,7 +460,7 @@ impl Core {
                 value,
                 system,
             } => self.touch_off(&axis, value, system.as_deref()),
-            Request::Home { axes, here } => self.home_here(&axes, here),
+            Request::Home { axes, here } => self.home(&axes, here),
             Request::Jog {
                 axis,
                 distance_mm,

@@ -81,7 +81,8 @@ pub enum Request {
     Mdi {
         line: String,
     },
-    /// Home `axes` (all when empty); `here`: where they stand is home (machine zero).
+    /// Home `axes` by their switches (all with one when empty); `here`: where they stand is
+    /// their home position.
     Home {
         #[serde(default)]
         axes: Vec<String>,
@@ -188,11 +189,32 @@ pub enum DaemonState {
     Limit,
     /// A jog is moving.
     Jogging,
+    /// An axis is finding its home switch.
+    Homing,
     /// Parked for threading (at the start hole or where the wire broke) until `resume`.
     Threading,
 }
 
 impl DaemonState {
+    /// Every state, once (the metrics' `edmd_state` gauges list them all).
+    pub const ALL: [DaemonState; 15] = [
+        DaemonState::Idle,
+        DaemonState::Checking,
+        DaemonState::Running,
+        DaemonState::Holding,
+        DaemonState::Held,
+        DaemonState::Paused,
+        DaemonState::Stopping,
+        DaemonState::WireBreak,
+        DaemonState::Rethreading,
+        DaemonState::Mdi,
+        DaemonState::Estop,
+        DaemonState::Limit,
+        DaemonState::Jogging,
+        DaemonState::Homing,
+        DaemonState::Threading,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             DaemonState::Idle => "idle",
@@ -208,6 +230,7 @@ impl DaemonState {
             DaemonState::Estop => "estop",
             DaemonState::Limit => "limit",
             DaemonState::Jogging => "jogging",
+            DaemonState::Homing => "homing",
             DaemonState::Threading => "threading",
         }
     }

@@ -44,6 +44,7 @@ impl Core {
                         super::launch::JobKind::Program => DaemonState::Running,
                         super::launch::JobKind::Mdi => DaemonState::Mdi,
                         super::launch::JobKind::Jog { .. } => DaemonState::Jogging,
+                        super::launch::JobKind::Home { .. } => DaemonState::Homing,
                     }
                 }
             }

@@ -133,7 +133,12 @@ impl Interpolator {
             ),
             motion: Motion::new(start),
             stops: Stops::default(),
-            excursions: ExcursionState::default(),
+            // Until a thread loop says otherwise, every reading is what it seems (a caller
+            // that ticks with the contact directly, as the tests do).
+            excursions: ExcursionState {
+                contact_reading: true,
+                ..ExcursionState::default()
+            },
             pending: None,
             counters: FineCounters::default(),
         }

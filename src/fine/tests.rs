@@ -650,3 +650,39 @@ fn a_slow_programmed_feed_is_not_lifted_to_the_creep_speed() {
     assert_eq!(fine.position(), p2(400, 0));
     assert!(max <= 0.5 + 1e-9, "ran at {max} mm/s, programmed 0.5");
 }
+
+#[test]
+fn a_probe_judges_contact_only_on_a_reading_of_the_contact() {
+    // One probing move towards the switch (G38.4-like: probing away, it ends when contact
+    // is lost). A reading taken before the input knew of the probe reads the gap (open
+    // here), which is "contact lost" to a probe away: the move must stand, not end.
+    let mut blocks = chain(&[p2(0, 0), p2(5000, 0)], 10.0);
+    blocks[0].flags = BlockFlags::PROBE | BlockFlags::PROBE_AWAY | BlockFlags::LAST_OF_BLOCK;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+    fine.set_contact_reading(false);
+    for _ in 0..20 {
+        let tick = fine.tick(GapState::Open, &mut source);
+        assert!(!tick.moved() && tick.event.is_none(), "{:?}", tick.event);
+    }
+    // Contact readings now: still in contact (short), it backs off; open ends it.
+    fine.set_contact_reading(true);
+    let mut moved = 0;
+    for _ in 0..400 {
+        moved += i32::from(fine.tick(GapState::Short, &mut source).moved());
+    }
+    assert!(moved > 0, "backs off while the contact holds");
+    let tick = fine.tick(GapState::Open, &mut source);
+    assert!(
+        matches!(
+            tick.event,
+            Some(ServoEvent::Probed {
+                contact: true,
+                away: true,
+                ..
+            })
+        ),
+        "{:?}",
+        tick.event
+    );
+}

@@ -74,6 +74,10 @@ pub trait GapSensor {
     fn safety(&self) -> crate::vocab::SafetyInputs {
         crate::vocab::SafetyInputs::default()
     }
+
+    /// A homing job's probing moves read this switch as their contact (`None`: the probe
+    /// again). Inputs without switches ignore it: their homing finds no contact and fails.
+    fn home_switch(&mut self, _switch: Option<crate::vocab::HomeSwitch>) {}
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -117,5 +121,9 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn safety(&self) -> crate::vocab::SafetyInputs {
         (**self).safety()
+    }
+
+    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
+        (**self).home_switch(switch)
     }
 }

@@ -302,6 +302,8 @@ pub struct ParportGap<P: Port> {
     state: Option<GapState>,
     /// A probing move is in hand: the probe pin, if wired, is the contact.
     probing: bool,
+    /// A homing job's switch: its probing moves read its pin instead of the probe pin.
+    home: Option<crate::vocab::HomeSwitch>,
     /// The wire-break input at the last reading.
     wire_broken: bool,
     safety: crate::vocab::SafetyInputs,
@@ -318,6 +320,7 @@ impl<P: Port> ParportGap<P> {
             seen: 0,
             state: None,
             probing: false,
+            home: None,
             wire_broken: false,
             safety: crate::vocab::SafetyInputs::default(),
             path: path.to_string(),
@@ -358,9 +361,14 @@ impl<P: Port> GapSensor for ParportGap<P> {
                 .find(|(_, pin)| self.map.input_active(status, *pin))
                 .map(|(switch, _)| *switch),
         };
-        if self.probing && self.map.probe.is_some() {
-            // A probe's contact is believed at once: the move stops within the tick.
-            return Ok(if active(self.map.probe) {
+        let contact_pin = match self.home {
+            Some(switch) => switch.pin,
+            None => self.map.probe,
+        };
+        if self.probing && contact_pin.is_some() {
+            // A probe's contact (or a home switch) is believed at once: the move stops
+            // within the tick.
+            return Ok(if active(contact_pin) {
                 GapState::Short
             } else {
                 GapState::Open
@@ -390,6 +398,10 @@ impl<P: Port> GapSensor for ParportGap<P> {
 
     fn safety(&self) -> crate::vocab::SafetyInputs {
         self.safety
+    }
+
+    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
+        self.home = switch;
     }
 }
 

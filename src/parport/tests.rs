@@ -268,6 +268,38 @@ fn probe_and_wire_break_pins() {
     assert!(!gap.wire_broken());
 }
 
+#[test]
+fn a_homing_job_reads_its_switch_pin_not_the_probe() {
+    let bench = Bench::new();
+    let mut map = stepconf_map(2, &[]);
+    map.probe = Some(12);
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    let mut gap = ParportGap::new(port, map, 5, "fake");
+    let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
+    gap.moving_in(crate::buffer::Activity {
+        flags: crate::buffer::BlockFlags::PROBE,
+        ..Default::default()
+    });
+    gap.home_switch(Some(crate::vocab::HomeSwitch {
+        axis: 0,
+        positive: true,
+        pin: Some(15),
+        at_steps: 0,
+    }));
+    bench.set_inputs(levels(&[12]));
+    assert_eq!(
+        gap.sample(0).unwrap(),
+        GapState::Open,
+        "the probe is not the switch"
+    );
+    bench.set_inputs(levels(&[15]));
+    assert_eq!(gap.sample(1).unwrap(), GapState::Short, "the switch is");
+    gap.home_switch(None);
+    assert_eq!(gap.sample(2).unwrap(), GapState::Open, "the probe again");
+    bench.set_inputs(levels(&[12]));
+    assert_eq!(gap.sample(3).unwrap(), GapState::Short);
+}
+
 fn arb_map() -> impl Strategy<Value = PinMap> {
     (
         1usize..=4,

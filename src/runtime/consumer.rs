@@ -369,6 +369,7 @@ where
     let mut tick_no: u64 = 0;
     // What the machine is doing, as the output was last told.
     let mut activity = Activity::default();
+    fine.set_contact_reading(activity.flags.contains(BlockFlags::PROBE));
     let law_input = fine.law_input();
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
@@ -490,11 +491,12 @@ fn wait_for_tick(
 }
 
 /// Phase 4: tell the output and the gap input what the machine is doing when it changes
-/// (flushing, machining condition, the kind of motion), and report the changes as events.
+/// (flushing, machining condition, the kind of motion), and report the changes as events;
+/// the tick core learns whether the input's next readings are of a probe's contact.
 #[inline(always)]
 fn tell_activity<O, G>(
     activity: &mut Activity,
-    fine: &Interpolator,
+    fine: &mut Interpolator,
     tick_no: u64,
     output: &mut O,
     sensor: &mut G,
@@ -538,6 +540,8 @@ fn tell_activity<O, G>(
         }
         if (flags, excursion) != (activity.flags, activity.excursion) {
             sensor.moving_in(now);
+            // The input reads the contact from the next tick on (or stops reading it).
+            fine.set_contact_reading(flags.contains(BlockFlags::PROBE));
         }
         *activity = now;
         output.moving_in(now);

@@ -67,6 +67,10 @@ pub struct SimConfig {
     pub wire_breaks_per_m: f64,
     /// Scripted events file.
     pub events: Option<PathBuf>,
+    /// Where each machine axis's home switch is, in the machine coordinates an unhomed axis
+    /// believes (mm; `None`: at the axis's `home_position_mm`). A homed axis finds its
+    /// switch at its home position.
+    pub home_switch_mm: Vec<Option<f64>>,
 }
 
 /// Everything the model needs: its own settings, the machine's step sizes (unused axes 0)
@@ -134,6 +138,10 @@ pub struct SimGap {
     spark_off: bool,
     /// Probing away from the work: forward motion opens the gap.
     away: bool,
+    /// A probing move is in hand.
+    probing: bool,
+    /// A homing job's switch and the steps taken on its axis since the job started.
+    home: Option<(crate::vocab::HomeSwitch, i64)>,
     /// Cutting travel so far, and where along it the wire breaks next (mm; infinite: never).
     cut_mm: f64,
     next_break_mm: f64,
@@ -188,6 +196,8 @@ impl SimGap {
         SimGap {
             spark_off: false,
             away: false,
+            probing: false,
+            home: None,
             cut_mm: 0.0,
             next_break_mm,
             break_rng,
@@ -298,6 +308,9 @@ impl SimGap {
     /// The gap state of tick `tick` from the model (scripted holds, debris, rapids, distance).
     fn sample_state(&mut self, tick: u64) -> GapState {
         self.apply_events(tick);
+        if self.home.is_some() {
+            return self.homing_state();
+        }
         if let Some((state, until)) = self.hold {
             if tick < until {
                 self.state = state;
@@ -341,6 +354,26 @@ impl SimGap {
         self.state
     }
 
+    /// Homing: the generator is off, nothing erodes; a probing move reads the switch (pressed
+    /// from `at_steps` on in the search direction), every other move the open.
+    #[cold]
+    fn homing_state(&mut self) -> GapState {
+        let Some((switch, moved)) = &self.home else {
+            return self.state;
+        };
+        let pressed = if switch.positive {
+            *moved >= switch.at_steps
+        } else {
+            *moved <= switch.at_steps
+        };
+        self.state = if self.probing && pressed {
+            GapState::Short
+        } else {
+            GapState::Open
+        };
+        self.state
+    }
+
     /// Counts the tick into the pulse-ratio window: an open gap is all open pulses, a shorted
     /// one all short, a sparking one open in proportion to how far across the sparking band the
     /// gap is (a wider gap fails to ignite more often).
@@ -378,6 +411,9 @@ impl GapSensor for SimGap {
     }
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
+        if let Some((switch, moved)) = &mut self.home {
+            *moved += steps[switch.axis] as i64;
+        }
         if dir == 0 {
             return;
         }
@@ -411,6 +447,11 @@ impl GapSensor for SimGap {
         self.rapid = flags.contains(BlockFlags::RAPID);
         self.spark_off = flags.contains(BlockFlags::PROBE) || now.excursion;
         self.away = flags.contains(BlockFlags::PROBE_AWAY) && !now.excursion;
+        self.probing = flags.contains(BlockFlags::PROBE) && !now.excursion;
+    }
+
+    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
+        self.home = switch.map(|s| (s, 0));
     }
 
     fn wire_broken(&self) -> bool {
@@ -469,6 +510,7 @@ pub(crate) mod tests {
             debris_clear_mm: 300.0 / 1000.0,
             wire_breaks_per_m: 0.0,
             events: None,
+            home_switch_mm: vec![None, None],
         };
         for o in overrides {
             let (key, value) = o.split_once('=').expect("sim.KEY=VALUE");

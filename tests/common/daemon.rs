@@ -63,6 +63,8 @@ pub fn base_sets(dir: &Path, pulses: &str) -> Vec<String> {
         format!("output.path=\"{}\"", dir.join(pulses).display()),
         "servo.normal_feed_mm_per_min=300.0".to_string(),
         "log.format=\"plain\"".to_string(),
+        // No home switches: `home --here` makes where the machine stands machine zero.
+        "homing.axis=[]".to_string(),
     ]
 }
 
@@ -180,6 +182,15 @@ impl Daemon {
         reply
     }
 
+    /// `ctl ARGS` is refused with an error that contains `needle`.
+    pub fn refused(&self, args: &[&str], needle: &str) -> Value {
+        let (reply, code) = self.ctl(args);
+        assert_eq!(code, 1, "ctl {args:?}: {reply}");
+        let error = reply["error"].as_str().unwrap_or_default();
+        assert!(error.contains(needle), "ctl {args:?}: {reply}");
+        reply
+    }
+
     pub fn status(&self) -> Value {
         self.ok(&["status"])["status"].clone()
     }
@@ -237,6 +248,14 @@ pub fn position(status: &Value) -> Vec<i64> {
         .expect("a job")
         .iter()
         .map(|v| v.as_i64().unwrap())
+        .collect()
+}
+
+pub fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|x| x.as_f64().unwrap())
         .collect()
 }
 

@@ -9,19 +9,6 @@ use std::fmt::Write;
 use crate::daemon::protocol::{Counters, DaemonState, JobStatus, Status};
 use crate::runtime::consumer::LATENCY_BUCKETS_US;
 
-const STATES: [DaemonState; 10] = [
-    DaemonState::Idle,
-    DaemonState::Checking,
-    DaemonState::Running,
-    DaemonState::Holding,
-    DaemonState::Held,
-    DaemonState::Paused,
-    DaemonState::Stopping,
-    DaemonState::WireBreak,
-    DaemonState::Rethreading,
-    DaemonState::Threading,
-];
-
 struct Out(String);
 
 impl Out {
@@ -75,7 +62,7 @@ pub fn render(status: &Status) -> String {
         "gauge",
         "The daemon's state: 1 for the one it is in, 0 for the others.",
     );
-    for state in &STATES {
+    for state in &DaemonState::ALL {
         let labels = format!("state=\"{}\"", state.name());
         o.sample(
             "state",
@@ -275,7 +262,33 @@ mod tests {
         assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"0.000005\"} 8\n"));
         assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"+Inf\"} 9\n"));
         assert!(text.contains("edmd_tick_latency_seconds_count 9\n"));
-        assert_eq!(text.matches("edmd_state{").count(), 10);
+        assert_eq!(text.matches("edmd_state{").count(), DaemonState::ALL.len());
+    }
+
+    #[test]
+    fn every_state_has_its_gauge() {
+        // The match names every variant (a new one does not compile until it is placed);
+        // `ALL` must hold each exactly once.
+        let place = |s: DaemonState| match s {
+            DaemonState::Idle => 0,
+            DaemonState::Checking => 1,
+            DaemonState::Running => 2,
+            DaemonState::Holding => 3,
+            DaemonState::Held => 4,
+            DaemonState::Paused => 5,
+            DaemonState::Stopping => 6,
+            DaemonState::WireBreak => 7,
+            DaemonState::Rethreading => 8,
+            DaemonState::Mdi => 9,
+            DaemonState::Estop => 10,
+            DaemonState::Limit => 11,
+            DaemonState::Jogging => 12,
+            DaemonState::Homing => 13,
+            DaemonState::Threading => 14,
+        };
+        let mut seen: Vec<usize> = DaemonState::ALL.iter().map(|&s| place(s)).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..15).collect::<Vec<_>>());
     }
 
     #[test]

@@ -79,6 +79,9 @@ pub(super) struct ExcursionState {
     pub probe_hit: bool,
     /// Travel left (mm) over which a short is still the last probe's contact.
     pub contact_grace_mm: f64,
+    /// This tick's reading is of the probe's contact (the probe, a home switch): the gap
+    /// input had been told a probing move is in hand when it read, as the thread loop knows.
+    pub contact_reading: bool,
 }
 
 impl ExcursionState {
@@ -126,6 +129,12 @@ impl Interpolator {
     /// simulator's broken wire).
     pub fn set_wire_input(&mut self, broken: bool) {
         self.excursions.wire_input = broken;
+    }
+
+    /// Whether this tick's gap reading is of the probe's contact: the thread loop had told
+    /// the input a probing move is in hand before it read.
+    pub fn set_contact_reading(&mut self, of_contact: bool) {
+        self.excursions.contact_reading = of_contact;
     }
 
     /// The operator's rethread after a wire break: back along the path to the start hole,
@@ -253,6 +262,12 @@ impl Interpolator {
         tick: &mut Tick,
     ) -> Option<(i8, f64)> {
         let here = self.motion.here();
+        if probing && !self.excursions.contact_reading {
+            // The reading was taken before the input learnt of the probing move (it is told
+            // at the end of the tick the move comes in hand): judging contact on a gap
+            // reading could end the move where it starts. Stand until a contact reading.
+            return Some((0, 0.0));
+        }
         if probing {
             let away = self.motion.block.flags.contains(BlockFlags::PROBE_AWAY);
             let contact = (gap == GapState::Short) != away;

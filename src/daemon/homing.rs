@@ -1,0 +1,280 @@
+//! Homing: where the machine is, found by its switches (`home`) or declared (`home --here`).
+//!
+//! Homing by a switch is a job like any other (check, pipeline, E-stop and limits read every
+//! tick, the state file's write-ahead), from program text made here: a probing search towards
+//! the switch, a probing back-off until it releases, a slow probing approach until it closes
+//! again (the latch), then the final move. The gap input reads the axis's switch as the
+//! probe's contact for that job ([`crate::vocab::HomeSwitch`]). When the job ends the axis's
+//! position is rebased: the latch point becomes `home_position_mm`, and the steps taken
+//! since (the final move) are kept. Axes home one job at a time in `sequence` order; the
+//! next starts when the last one has latched, and a failure stops the rest.
+//!
+//! Soft limits do not apply to a homing job (the position is not known yet); the search
+//! distance bounds it.
+
+use super::Core;
+use super::launch::{JobKind, Launch, Source};
+use super::refusal::Refusal;
+use crate::config::{GapKind, HomingAxis};
+use crate::runtime::{JobSummary, Outcome};
+use crate::vocab::{Axis, HomeSwitch};
+
+/// The program that homes one axis (G91 probing moves, mm).
+pub(super) fn homing_program(h: &HomingAxis) -> String {
+    let s = if h.positive { 1.0 } else { -1.0 };
+    let a = h.axis.letter();
+    let mut text = format!(
+        "G21 G91 (home {a}: search, back off, latch)\n\
+         G38.2 {a}{:.6} F{:.3}\n\
+         G38.4 {a}{:.6} F{:.3}\n\
+         G38.2 {a}{:.6} F{:.3}\n",
+        s * h.search_distance_mm,
+        h.search_feed_mm_per_min,
+        -s * h.latch_distance_mm,
+        h.latch_feed_mm_per_min,
+        s * h.latch_distance_mm,
+        h.latch_feed_mm_per_min,
+    );
+    if h.final_move_mm != 0.0 {
+        text.push_str(&format!("G0 {a}{:.6} (final move)\n", h.final_move_mm));
+    }
+    text.push_str("G90\n");
+    text
+}
+
+impl Core {
+    /// `home [AXIS…] [--here]`.
+    pub(super) fn home(&mut self, axes: &[String], here: bool) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
+        if here {
+            self.home_here(axes)
+        } else {
+            self.home_by_switch(axes)
+        }
+    }
+
+    /// The axes named (all of the machine's when none is).
+    fn picked_axes(&self, axes: &[String]) -> Result<Vec<(usize, Axis)>, Refusal> {
+        if axes.is_empty() {
+            return Ok(self
+                .config
+                .machine
+                .axes
+                .iter()
+                .copied()
+                .enumerate()
+                .collect());
+        }
+        axes.iter().map(|a| self.machine_axis(a)).collect()
+    }
+
+    /// `home --here [AXIS…]`: the axes are declared homed where they stand: at their
+    /// `home_position_mm` when they have a `[[homing.axis]]`, else at machine zero.
+    fn home_here(&mut self, axes: &[String]) -> Result<String, Refusal> {
+        let picked = self.picked_axes(axes)?;
+        let before = self.machine.state.clone();
+        let mut said = Vec::new();
+        for &(i, axis) in &picked {
+            let home_mm = self
+                .config
+                .homing
+                .axis(i)
+                .map_or(0.0, |h| h.home_position_mm);
+            let step = self.config.machine.step_mm[i];
+            self.machine.state.position[i] = (home_mm / step).round() as i64;
+            self.machine.state.homed[i] = true;
+            said.push(format!("{axis}{home_mm:.4}"));
+        }
+        if let Err(e) = self.machine.save(false) {
+            self.machine.state = before;
+            return Err(e);
+        }
+        tracing::info!(
+            edmd_event = "home",
+            "homed here: {} (machine coordinates of where the axes stand)",
+            said.join(" ")
+        );
+        Ok(format!("homed here: {}", said.join(" ")))
+    }
+
+    /// `home [AXIS…]`: each named axis (all with a switch when none is named) homed by its
+    /// switch, one after the other in `sequence` order.
+    fn home_by_switch(&mut self, axes: &[String]) -> Result<String, Refusal> {
+        let homing = &self.config.homing;
+        if matches!(self.config.gap.kind, GapKind::None | GapKind::Iio) {
+            return Err(Refusal::BadArgument(format!(
+                "gap.kind = \"{}\" reads no home switches: `home --here` declares where the \
+                 machine stands to be home",
+                format!("{:?}", self.config.gap.kind).to_lowercase()
+            )));
+        }
+        let order: Vec<usize> = if axes.is_empty() {
+            if homing.axes.is_empty() {
+                return Err(Refusal::BadArgument(
+                    "no axis has a home switch ([[homing.axis]]): `home --here` declares where \
+                     the machine stands to be home"
+                        .into(),
+                ));
+            }
+            homing.axes.iter().map(|h| h.index).collect()
+        } else {
+            let picked = self.picked_axes(axes)?;
+            if let Some((_, axis)) = picked.iter().find(|(i, _)| homing.axis(*i).is_none()) {
+                return Err(Refusal::BadArgument(format!(
+                    "{axis} has no home switch ([[homing.axis]]): `home --here {axis}` declares \
+                     where it stands to be its home"
+                )));
+            }
+            // In the configured order, whatever order they were named in.
+            homing
+                .axes
+                .iter()
+                .map(|h| h.index)
+                .filter(|i| picked.iter().any(|(p, _)| p == i))
+                .collect()
+        };
+        for &i in &order {
+            self.can_home(self.config.homing.axis(i).expect("a switched axis"))?;
+        }
+        let names: Vec<String> = order
+            .iter()
+            .map(|&i| self.config.machine.axes[i].to_string())
+            .collect();
+        let (first, rest) = order.split_first().expect("at least one axis");
+        self.machine.homing_queue = rest.to_vec();
+        let id = self.start_homing_axis(*first);
+        Ok(format!(
+            "homing {} by their switches, in that order (check {id})",
+            names.join(", ")
+        ))
+    }
+
+    /// What makes an axis's homing impossible in this configuration, said before it moves.
+    fn can_home(&self, h: &HomingAxis) -> Result<(), Refusal> {
+        let axis = h.axis;
+        if self.config.gap.kind == GapKind::Parport && h.switch_pin.is_none() {
+            return Err(Refusal::BadArgument(format!(
+                "{axis} has no switch_pin in [[homing.axis]] and this machine reads the parallel                  port: give the switch's input pin, or `home --here {axis}`"
+            )));
+        }
+        let rest = h.home_position_mm + h.final_move_mm;
+        if let Some(t) = self.config.machine.travel[h.index]
+            && !(t.min_mm..=t.max_mm).contains(&rest)
+        {
+            return Err(Refusal::BadArgument(format!(
+                "homing {axis} would end at {rest} mm (home_position_mm + final_move_mm), outside                  machine.travel_mm [{}, {}]: fix one or the other",
+                t.min_mm, t.max_mm
+            )));
+        }
+        Ok(())
+    }
+
+    /// Starts the homing job of axis `i` (it has a `[[homing.axis]]`); the check's id.
+    fn start_homing_axis(&mut self, i: usize) -> u64 {
+        let h = self.config.homing.axis(i).expect("a homed axis").clone();
+        let step = self.config.machine.step_mm[i];
+        let state = &self.machine.state;
+        // The simulated switch: at the home position once the axis was homed, else where
+        // `sim.home_switch_mm` puts it in the coordinates the machine believes.
+        let switch_mm = if state.homed[i] {
+            h.home_position_mm
+        } else {
+            self.config.sim.home_switch_mm[i].unwrap_or(h.home_position_mm)
+        };
+        let switch = HomeSwitch {
+            axis: i,
+            positive: h.positive,
+            pin: h.switch_pin,
+            at_steps: (switch_mm / step).round() as i64 - state.position[i],
+        };
+        let launch = Launch {
+            start: state.work_start(),
+            kind: JobKind::Home {
+                switch,
+                feed_mm_per_min: h.search_feed_mm_per_min,
+            },
+        };
+        tracing::info!(
+            edmd_event = "homing",
+            "homing {}: searching {} at {:.0} mm/min (up to {:.1} mm)",
+            h.axis,
+            if h.positive { "+" } else { "-" },
+            h.search_feed_mm_per_min,
+            h.search_distance_mm
+        );
+        self.begin_check(
+            Source::Generated {
+                text: homing_program(&h),
+                name: format!("home-{}", h.axis),
+            },
+            None,
+            launch,
+        )
+    }
+
+    /// A job starts; a homing job's axis is unhomed until it latches.
+    pub(super) fn homing_started(&mut self, switch: Option<&HomeSwitch>) {
+        if let Some(switch) = switch {
+            self.machine.state.homed[switch.axis] = false;
+        }
+    }
+
+    /// A homing job ended (the machine's position is already its ledger's): the latch point
+    /// becomes the home position and the next axis starts; anything else stops the homing.
+    pub(super) fn homing_done(&mut self, switch: &HomeSwitch, summary: &JobSummary) {
+        let i = switch.axis;
+        let h = self.config.homing.axis(i).expect("a homed axis").clone();
+        let step = self.config.machine.step_mm[i];
+        let latch = match (&summary.last_probe.probe_mm, summary.outcome) {
+            (Some(mm), Outcome::Done) if summary.last_probe.probe_contact == Some(true) => {
+                (mm[i] / step).round() as i64
+            }
+            _ => {
+                let why = match summary.outcome {
+                    Outcome::Done => "no latch".to_string(),
+                    _ => summary
+                        .error
+                        .clone()
+                        .unwrap_or_else(|| summary.outcome.name().to_string()),
+                };
+                tracing::error!(
+                    edmd_event = "home_failed",
+                    "homing {} failed: {why} (no switch within {:.1} mm, or it did not \
+                     release within {:.1} mm?); the axis stays unhomed{}",
+                    h.axis,
+                    h.search_distance_mm,
+                    h.latch_distance_mm,
+                    if self.machine.homing_queue.is_empty() {
+                        String::new()
+                    } else {
+                        "; the other axes are not homed either".to_string()
+                    }
+                );
+                self.machine.homing_queue.clear();
+                let _ = self.machine.save(false);
+                return;
+            }
+        };
+        let state = &mut self.machine.state;
+        let home = (h.home_position_mm / step).round() as i64;
+        let correction = home - latch;
+        state.position[i] += correction;
+        state.homed[i] = true;
+        let _ = self.machine.save(false);
+        tracing::info!(
+            edmd_event = "home",
+            "homed {}: the switch latched where the machine believed {:.4} mm; it is \
+             {:.4} mm (a correction of {:+.4} mm); now at {:.4} mm",
+            h.axis,
+            latch as f64 * step,
+            h.home_position_mm,
+            correction as f64 * step,
+            self.machine.state.position[i] as f64 * step
+        );
+        if !self.machine.homing_queue.is_empty() {
+            let next = self.machine.homing_queue.remove(0);
+            self.start_homing_axis(next);
+        }
+    }
+}
