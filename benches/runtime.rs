@@ -67,6 +67,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 v_entry: 1e3,
                 v_exit: 1e3,
                 v_cruise: 1e3,
+                v_limit: 1e3,
                 line: 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,

@@ -125,6 +125,9 @@ pub enum EventKind {
     Condition,
     FlushOn,
     FlushOff,
+    /// The operator's feed or rapid override changed (the value: percent).
+    FeedOverride,
+    RapidOverride,
     Jump,
     WireBreak,
     Probe,
@@ -151,6 +154,8 @@ impl EventKind {
             EventKind::Condition => "condition",
             EventKind::FlushOn => "flush_on",
             EventKind::FlushOff => "flush_off",
+            EventKind::FeedOverride => "feed_override",
+            EventKind::RapidOverride => "rapid_override",
             EventKind::Jump => "jump",
             EventKind::WireBreak => "wire_break",
             EventKind::Probe => "probe",

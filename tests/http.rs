@@ -201,6 +201,14 @@ fn home_touch_off_and_mdi_over_http() {
         s["state"] == "idle" && s["machine"]["position_work_mm"][0] == 1.0
     });
     assert_eq!(d.status()["machine"]["position_machine_mm"][0], 9.5);
+    // The overrides: the body names the kind and the percentage.
+    let (code, reply) = d.post("/api/override", r#"{"kind":"feed","percent":80}"#);
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(reply["status"]["overrides"]["feed_pct"], 80);
+    let (code, reply) = d.post("/api/override", r#"{"kind":"rapid","percent":101}"#);
+    assert_eq!(code, 409, "{reply}");
+    let (code, reply) = d.post("/api/override", r#"{"kind":"spindle","percent":50}"#);
+    assert_eq!(code, 400, "{reply}");
 }
 
 #[test]

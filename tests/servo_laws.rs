@@ -29,6 +29,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 v_entry: if i == 0 { 0.0 } else { 20.0 },
                 v_exit: if i == 199 { 0.0 } else { 20.0 },
                 v_cruise: 20.0,
+                v_limit: 20.0,
                 line: 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,

@@ -20,6 +20,9 @@ pub struct StepBlock {
     pub v_entry: f64,
     pub v_exit: f64,
     pub v_cruise: f64,
+    /// The highest cruise a feed override above 100 % may reach (mm/s): the block's limits
+    /// without its programmed feed; at least `v_cruise`.
+    pub v_limit: f64,
     /// Source line of the G-code block the move belongs to.
     pub line: u64,
     /// Curve parameter at the move's end, in the program's knot units (NURBS blocks; NaN for
@@ -112,6 +115,7 @@ impl StepBlock {
         v_entry: 0.0,
         v_exit: 0.0,
         v_cruise: 0.0,
+        v_limit: 0.0,
         line: 0,
         u_end: f64::NAN,
         flags: BlockFlags::NONE,

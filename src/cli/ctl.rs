@@ -76,6 +76,14 @@ pub(super) enum CtlCommand {
     },
     /// Clear an E-stop once its input is released
     Reset,
+    /// Feed override (0–200 %) or rapid override (0–100 %): in force at once, and for the
+    /// jobs after
+    Override {
+        /// feed or rapid
+        kind: OverrideArg,
+        /// Percent
+        percent: f64,
+    },
     /// Print the work offset table (G54 … G59.3; the active system marked *)
     Offsets,
     /// Set a work offset so that where the machine stands reads VALUE on AXIS (G10 L20)
@@ -109,6 +117,13 @@ pub(super) enum CtlCommand {
         #[arg(long, value_name = "N")]
         count: Option<u64>,
     },
+}
+
+/// `edmd ctl override feed|rapid`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum OverrideArg {
+    Feed,
+    Rapid,
 }
 
 pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
@@ -207,6 +222,16 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
         CtlCommand::Reset => (Request::Reset {}, false),
+        CtlCommand::Override { kind, percent } => (
+            Request::Override {
+                kind: match kind {
+                    OverrideArg::Feed => crate::daemon::protocol::OverrideKind::Feed,
+                    OverrideArg::Rapid => crate::daemon::protocol::OverrideKind::Rapid,
+                },
+                percent: *percent,
+            },
+            false,
+        ),
         CtlCommand::Jog {
             axis,
             distance,

@@ -17,7 +17,7 @@ use crate::record::{EventKind, Recording};
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{
     self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome,
-    Published, ResumePoint,
+    ResumePoint,
 };
 use crate::servo::{Rethread, ServoState};
 
@@ -74,6 +74,8 @@ pub(super) struct JobControl {
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
     pub finished: protocol::Counters,
+    /// The operator's overrides: the running job's, and every job's from its start.
+    pub overrides: protocol::OverrideStatus,
 }
 
 /// The folder of a job's report and its recording, when the configuration asks for one. The
@@ -313,7 +315,7 @@ impl Core {
         io.gap.home_switch(switch);
         io.recording = report.as_ref().map(|(_, recording)| recording.clone());
         let resumed = resume.is_some();
-        let published = Arc::new(Published::new(4096));
+        let published = Arc::new(self.jobs.published());
         let stop = Arc::new(AtomicBool::new(false));
         let job = Job {
             program: PathBuf::from(&program.name),

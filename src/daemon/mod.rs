@@ -31,6 +31,7 @@
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
 mod checkpoints;
+mod console;
 mod homing;
 pub mod http;
 mod jobs;
@@ -270,6 +271,7 @@ pub fn serve(
             next_check_id: 0,
             last: None,
             finished: protocol::Counters::default(),
+            overrides: protocol::OverrideStatus::default(),
         },
         checkpoints,
         machine,
@@ -474,6 +476,7 @@ impl Core {
             } => self.jog_continuous(&axis, positive, feed_mm_per_min),
             Request::JogStop {} => self.jog_stop(),
             Request::Reset {} => self.reset(),
+            Request::Override { kind, percent } => self.set_override(kind, percent),
         };
         self.notify_status();
         match result {

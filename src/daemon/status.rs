@@ -107,6 +107,7 @@ impl Core {
         let live = snapshot.as_ref().map(|s| s.position);
         Status {
             machine: self.machine.status(config, live.as_ref()),
+            overrides: self.jobs.overrides,
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),
@@ -119,6 +120,7 @@ impl Core {
                 reason: c.reason.name().to_string(),
                 still: c.still,
                 position_steps: c.position_steps.clone(),
+                resumable: self.jobs.job.is_none() && self.jobs.check.is_none(),
             }),
             checkpoint_write_error: self.checkpoints.write_error.as_ref().map(|e| e.to_string()),
             check: match &self.jobs.check {

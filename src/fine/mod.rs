@@ -18,7 +18,10 @@
 //!    `min(v_cruise, sqrt(v_entry² + 2 a s), sqrt(v_exit² + 2 a (L − s)))`, mirrored when
 //!    moving backwards, and never below a creep speed `sqrt(a · step)` so the last steps before
 //!    a stop are always taken (nor above `v_cruise`: a slow programmed feed stays slow).
-//!    Reversing first brakes to zero. A block's speed is capped at one
+//!    The operator's override `k` scales the cruise aimed for on a forward move
+//!    (`min(servo feed, planned limit, k · v_cruise)`), up to the block's limits without its
+//!    programmed feed (`v_limit`); it never touches the braking, so a lower override brakes
+//!    under `a_T` and a turn-back goes as the servo asks. Reversing first brakes to zero. A block's speed is capped at one
 //!    event per tick: the pulse outputs take at most one step per axis per tick.
 //! 3. **DDA**: a phase accumulator adds `v · dt / ds` per tick (`ds`: the lattice distance of
 //!    one event); on reaching one it fires one Bresenham event ([`bresenham`]) forward or
@@ -41,6 +44,8 @@
 pub mod bresenham;
 mod excursion;
 mod motion;
+
+pub use motion::Overrides;
 mod skip;
 mod stops;
 
@@ -142,6 +147,12 @@ impl Interpolator {
             pending: None,
             counters: FineCounters::default(),
         }
+    }
+
+    /// The operator's feed and rapid overrides, from the thread loop (the job's published
+    /// controls): they take effect in this tick.
+    pub fn set_overrides(&mut self, overrides: Overrides) {
+        self.motion.overrides = overrides;
     }
 
     /// Holds (brakes to a standstill under `a_T`, then stays) or releases the hold. The servo
@@ -407,13 +418,22 @@ impl Interpolator {
             return;
         }
         let dv = self.settings.accel * self.settings.dt;
+        // The operator's override scales a forward move's cruise; a turn-back, a retreat and
+        // a return go as the servo asks.
+        let k = if self.motion.dir > 0 && self.servo.state() == ServoState::Forward {
+            self.motion.override_factor()
+        } else {
+            1.0
+        };
         let limit = self
             .motion
             .planned_limit(self.settings.accel, self.settings.dt);
+        // The plan's cruise, scaled: lowering it lowers the speed aimed for, which brakes
+        // down under a_T (the limit is the plan's braking, not the cruise).
         let target = if want_dir != self.motion.dir || self.stops.hold {
             0.0
         } else {
-            feed.min(limit)
+            feed.min(limit).min(self.motion.block.v_cruise * k)
         };
         self.motion.follow(target, limit, dv);
         if self.motion.speed <= 0.0 || !self.motion.event_due(self.settings.dt) {

@@ -26,6 +26,28 @@ pub(super) struct Motion {
     pub dir: i8,
     /// Fraction of the next event already covered.
     pub phase: f64,
+    /// The operator's overrides of the planned feed ceiling.
+    pub overrides: Overrides,
+}
+
+/// The operator's feed and rapid overrides, as fractions (1.0 is 100 %): they scale the
+/// planned cruise of a forward move (a rapid's by `rapid`, any other's by `feed`), never the
+/// braking the plan needs, and never a turn-back or an excursion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Overrides {
+    /// 0 to 2.
+    pub feed: f64,
+    /// 0 to 1.
+    pub rapid: f64,
+}
+
+impl Default for Overrides {
+    fn default() -> Self {
+        Overrides {
+            feed: 1.0,
+            rapid: 1.0,
+        }
+    }
 }
 
 impl Motion {
@@ -41,6 +63,17 @@ impl Motion {
             speed: 0.0,
             dir: 1,
             phase: 0.0,
+            overrides: Overrides::default(),
+        }
+    }
+
+    /// The override that applies to the block in hand.
+    #[inline]
+    pub fn override_factor(&self) -> f64 {
+        if self.block.flags.contains(BlockFlags::RAPID) {
+            self.overrides.rapid
+        } else {
+            self.overrides.feed
         }
     }
 
@@ -85,8 +118,10 @@ impl Motion {
         };
     }
 
-    /// The planner's speed limit at the current point, in the current direction, never below
-    /// the creep speed `sqrt(accel · event)`; capped at one event per tick of `dt`.
+    /// The planner's speed limit at the current point, in the current direction: its braking
+    /// curves, never below the creep speed `sqrt(accel · event)`, nor above what the block
+    /// allows whatever its feed (`v_limit`, for an override above 100 %; the cruise the
+    /// speed aims for is the caller's business); capped at one event per tick of `dt`.
     #[inline]
     pub fn planned_limit(&self, accel: f64, dt: f64) -> f64 {
         if !self.has_block || self.walk.events() == 0 {
@@ -105,7 +140,7 @@ impl Motion {
         let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
         let creep = (accel * self.event_mm).sqrt();
         let cap = self.event_mm / dt;
-        v2.sqrt().max(creep).min(b.v_cruise).min(cap)
+        v2.sqrt().max(creep).min(b.v_limit.max(b.v_cruise)).min(cap)
     }
 
     /// Moves the speed towards `target` by at most `dv`, never above `limit` while braking.

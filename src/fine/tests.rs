@@ -40,6 +40,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 v_entry: if i == 0 { 0.0 } else { v },
                 v_exit: if i + 1 == n { 0.0 } else { v },
                 v_cruise: v,
+                v_limit: v,
                 line: i as u64 + 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,
@@ -685,4 +686,59 @@ fn a_probe_judges_contact_only_on_a_reading_of_the_contact() {
         "{:?}",
         tick.event
     );
+}
+
+#[test]
+fn the_feed_override_scales_the_cruise_and_brakes_under_the_acceleration() {
+    // A long cut planned at 2 mm/s whose limits without the programmed feed allow 3 mm/s;
+    // the gap is open, so the servo asks for its open feed (5 mm/s), above both.
+    let mut blocks = chain(&[p2(0, 0), p2(200_000, 0)], 2.0);
+    blocks[0].v_limit = 3.0;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+    let dv = SETTINGS.accel * SETTINGS.dt;
+    let mut settle = |fine: &mut Interpolator, feed: f64| {
+        fine.set_overrides(Overrides { feed, rapid: 1.0 });
+        let mut last = fine.speed();
+        for _ in 0..4000 {
+            fine.tick(GapState::Open, &mut source);
+            let speed = fine.speed();
+            assert!(
+                (speed - last).abs() <= dv + 1e-9,
+                "speed jumped {last} -> {speed}"
+            );
+            last = speed;
+        }
+        last
+    };
+    assert!(
+        (settle(&mut fine, 1.0) - 2.0).abs() < 1e-9,
+        "100 %: the plan's cruise"
+    );
+    assert!((settle(&mut fine, 0.5) - 1.0).abs() < 1e-9, "50 %");
+    assert!((settle(&mut fine, 1.25) - 2.5).abs() < 1e-9, "125 %");
+    assert!(
+        (settle(&mut fine, 2.0) - 3.0).abs() < 1e-9,
+        "200 %: held to v_limit"
+    );
+    assert_eq!(settle(&mut fine, 0.0), 0.0, "0 %: braked to a standstill");
+    let at = fine.position();
+    settle(&mut fine, 0.0);
+    assert_eq!(fine.position(), at, "and stays");
+}
+
+#[test]
+fn the_rapid_override_scales_rapids_and_not_cuts() {
+    let mut blocks = chain(&[p2(0, 0), p2(200_000, 0)], 4.0);
+    blocks[0].flags = BlockFlags::RAPID | BlockFlags::LAST_OF_BLOCK;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+    fine.set_overrides(Overrides {
+        feed: 0.1,
+        rapid: 0.5,
+    });
+    for _ in 0..4000 {
+        fine.tick(GapState::Open, &mut source);
+    }
+    assert!((fine.speed() - 2.0).abs() < 1e-9, "{}", fine.speed());
 }

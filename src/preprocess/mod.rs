@@ -94,6 +94,9 @@ pub struct GeoSegment {
     pub rho_end: f64,
     /// Cruise limit on the segment (mm/s).
     pub feed_limit: f64,
+    /// The same without the programmed feed (the machine's maximum in its place): how far a
+    /// feed override above 100 % may raise the cruise (mm/s).
+    pub speed_limit: f64,
     /// Speed limit at the segment's start junction (mm/s): a corner's speed on the first
     /// segment of a piece, infinite inside a smooth piece.
     pub entry_limit: f64,
@@ -126,6 +129,10 @@ pub struct Segment {
     pub v_entry: f64,
     pub v_exit: f64,
     pub v_peak: f64,
+    /// The highest cruise a feed override may ask for (mm/s): the segment's limits without
+    /// the programmed feed ([`GeoSegment::speed_limit`]); `v_peak` where there is no such
+    /// freedom (period mode).
+    pub speed_limit: f64,
     /// Planned time over the segment (s).
     pub duration: f64,
     /// Radius of curvature at the end (mm; infinite on straight stretches).
@@ -275,6 +282,7 @@ fn chord_segment(p: PlannedSegment) -> Segment {
         v_entry: p.profile.v_entry,
         v_exit: p.profile.v_exit,
         v_peak: p.profile.v_peak,
+        speed_limit: g.speed_limit,
         duration: p.profile.duration(),
         rho_end: g.rho_end,
         evals: g.evals,

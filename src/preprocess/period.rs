@@ -377,6 +377,7 @@ impl PeriodStepper {
             v_entry: v_prev,
             v_exit: v,
             v_peak: v,
+            speed_limit: v,
             duration,
             rho_end,
             evals,

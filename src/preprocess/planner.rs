@@ -288,6 +288,7 @@ mod tests {
             rho_min: f64::INFINITY,
             rho_end: f64::INFINITY,
             feed_limit,
+            speed_limit: feed_limit,
             entry_limit,
             evals: 0,
             first_of_piece: false,

@@ -135,6 +135,16 @@ impl Segmenter {
         block.feed_mm_per_min.map_or(max, |f| (f / 60.0).min(max))
     }
 
+    /// The fastest a block may go whatever its programmed feed (mm/s): the rapid feed for a
+    /// rapid, the machine's maximum for the rest.
+    fn ceiling(&self, block: &Block) -> f64 {
+        if block.kind == crate::gcode::BlockKind::Rapid {
+            self.settings.rapid_feed
+        } else {
+            self.settings.max_feed
+        }
+    }
+
     fn segment_piece<F: FnMut(GeoSegment)>(
         &mut self,
         block: &Arc<Block>,
@@ -185,6 +195,7 @@ impl Segmenter {
                 rho_min,
                 rho_end,
                 feed_limit: self.feed_limit(feed, rho_min, chord, err.max),
+                speed_limit: self.feed_limit(self.ceiling(block), rho_min, chord, err.max),
                 entry_limit,
                 evals: tried + err.evals,
                 first_of_piece,

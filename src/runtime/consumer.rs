@@ -25,6 +25,7 @@ use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
 use super::histogram::LatencyHistogram;
+use super::overrides::{self, OverrideControl};
 use super::probe::{ProbeLink, ProbeResult};
 use super::snapshot::SeqLock;
 pub use super::snapshot::Snapshot;
@@ -119,6 +120,8 @@ pub struct Published {
     pub rethread: RethreadRequest,
     /// Where probing moves ended, for the producer.
     pub probe: ProbeLink,
+    /// Set by the supervisor: the operator's feed and rapid overrides.
+    pub overrides: OverrideControl,
 }
 
 /// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
@@ -195,6 +198,7 @@ impl Published {
             paused_line: AtomicU64::new(0),
             rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
+            overrides: OverrideControl::default(),
         }
     }
 
@@ -371,8 +375,12 @@ where
     let mut activity = Activity::default();
     fine.set_contact_reading(activity.flags.contains(BlockFlags::PROBE));
     let law_input = fine.law_input();
+    // The overrides the tick core has (a job starts at 100 %).
+    let mut overrides_pct = (100, 100);
+    fine.set_overrides(overrides::fractions(overrides_pct));
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
+        take_overrides(&mut overrides_pct, fine, tick_no, published);
         if let Some(at) = published.rethread.take()
             && fine.rethread(at)
         {
@@ -488,6 +496,38 @@ fn wait_for_tick(
         // CPU go rather than spin through ticks.
         std::thread::sleep(std::time::Duration::from_millis(1));
     }
+}
+
+/// Phase 1b: the operator's overrides, handed to the tick core when they change (an event
+/// for the log and the report says when they took effect).
+#[inline(always)]
+fn take_overrides(
+    had: &mut (u32, u32),
+    fine: &mut Interpolator,
+    tick_no: u64,
+    published: &Published,
+) {
+    let now = published.overrides.percent();
+    if now == *had {
+        return;
+    }
+    fine.set_overrides(overrides::fractions(now));
+    for (rapid, was, is) in [(false, had.0, now.0), (true, had.1, now.1)] {
+        if was != is {
+            let record = EventRecord {
+                tick: tick_no,
+                line: fine.line(),
+                event: ServoEvent::Override {
+                    rapid,
+                    percent: is as u16,
+                },
+            };
+            if published.events.push(record).is_err() {
+                published.events_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+    *had = now;
 }
 
 /// Phase 4: tell the output and the gap input what the machine is doing when it changes

@@ -42,6 +42,13 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
             edmd_line = line,
             "{program}:{line}: machining condition E{number} from t={t:.4} s"
         ),
+        ServoEvent::Override { rapid, percent } => tracing::info!(
+            edmd_event = "override",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: {} override {percent} % from t={t:.4} s",
+            if rapid { "rapid" } else { "feed" }
+        ),
         ServoEvent::Flushing { on } => tracing::info!(
             edmd_event = "flushing",
             edmd_program = program,
@@ -229,6 +236,14 @@ pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, event
                 ServoEvent::Condition { number } => (EventKind::Condition, Some(number as u64)),
                 ServoEvent::Flushing { on: true } => (EventKind::FlushOn, None),
                 ServoEvent::Flushing { on: false } => (EventKind::FlushOff, None),
+                ServoEvent::Override { rapid, percent } => (
+                    if rapid {
+                        EventKind::RapidOverride
+                    } else {
+                        EventKind::FeedOverride
+                    },
+                    Some(u64::from(percent)),
+                ),
                 ServoEvent::Jump { .. } => (EventKind::Jump, None),
                 ServoEvent::Retreated { .. } | ServoEvent::Returned { .. } => continue,
                 ServoEvent::WireBreak { .. } => (EventKind::WireBreak, None),

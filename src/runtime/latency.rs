@@ -116,6 +116,7 @@ impl BlockSource for SquarePath {
             v_entry: self.feed,
             v_exit: self.feed,
             v_cruise: self.feed,
+            v_limit: self.feed,
             line: 0,
             u_end: f64::NAN,
             flags: BlockFlags::NONE,

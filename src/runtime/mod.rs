@@ -26,6 +26,7 @@ mod events;
 pub mod fine_thread;
 mod histogram;
 pub mod latency;
+pub mod overrides;
 mod precheck;
 pub mod probe;
 pub mod producer;

@@ -143,6 +143,7 @@ impl BlockMaker {
             v_entry: segment.v_entry,
             v_exit: segment.v_exit,
             v_cruise: segment.v_peak,
+            v_limit: segment.speed_limit.max(segment.v_peak),
             line: segment.block.line,
             u_end: match segment.block.kind {
                 BlockKind::Nurbs { .. } => segment.u_end,

@@ -158,6 +158,9 @@ pub enum ServoEvent {
     /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
     /// consumer's thread loop, which tells the output).
     Flushing { on: bool },
+    /// The operator's feed (or, `rapid`, rapid) override took effect at this tick (reported
+    /// by the consumer's loop, like the flushing).
+    Override { rapid: bool, percent: u16 },
     /// A jump began at `at` (the electrode lifts along the path, spark off).
     Jump { at: PathPoint },
     /// The retreat of a jump or a rethread ended at `at`, `mm` of path behind the mark.

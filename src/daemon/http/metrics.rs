@@ -70,6 +70,18 @@ pub fn render(status: &Status) -> String {
             f64::from(u8::from(*state == status.state)),
         );
     }
+    o.one(
+        "feed_override_ratio",
+        "gauge",
+        "The operator's feed override (1 is 100 %).",
+        f64::from(status.overrides.feed_pct) / 100.0,
+    );
+    o.one(
+        "rapid_override_ratio",
+        "gauge",
+        "The operator's rapid override (1 is 100 %).",
+        f64::from(status.overrides.rapid_pct) / 100.0,
+    );
     let job = status.job.as_ref();
     o.one(
         "job_running",
@@ -227,6 +239,7 @@ mod tests {
     fn status() -> Status {
         Status {
             machine: Default::default(),
+            overrides: Default::default(),
             state: DaemonState::Held,
             version: "0".into(),
             uptime_s: 12.5,
@@ -256,6 +269,9 @@ mod tests {
         let text = render(&status());
         assert!(text.contains("edmd_state{state=\"held\"} 1\n"), "{text}");
         assert!(text.contains("edmd_state{state=\"idle\"} 0\n"));
+        assert!(
+            text.contains("# TYPE edmd_feed_override_ratio gauge\nedmd_feed_override_ratio 1\n")
+        );
         assert!(text.contains("# TYPE edmd_shorts_total counter\nedmd_shorts_total 7\n"));
         assert!(text.contains("edmd_gap_ticks_total{state=\"short\"} 30\n"));
         assert!(text.contains("edmd_tick_latency_seconds_bucket{le=\"0.000001\"} 5\n"));

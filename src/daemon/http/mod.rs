@@ -205,6 +205,10 @@ fn router(app: Arc<App>) -> Router {
             post(|s, h, b| machine(s, h, b, "jog-stop")),
         )
         .route("/api/reset", post(|s, h, b| machine(s, h, b, "reset")))
+        .route(
+            "/api/override",
+            post(|s, h, b| machine(s, h, b, "override")),
+        )
         .route("/api/mdi", post(|s, h, b| machine(s, h, b, "mdi")))
         .route(
             "/api/touch-off",

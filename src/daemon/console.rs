@@ -1,0 +1,62 @@
+//! The operator's controls over a running job that are not motion of their own: the feed
+//! and rapid overrides. They reach the tick through the job's published controls
+//! ([`crate::runtime::overrides`]); the daemon keeps them for the jobs after.
+
+use super::Core;
+use super::jobs::JobControl;
+use super::protocol::OverrideKind;
+use super::refusal::Refusal;
+use crate::runtime::overrides::{MAX_FEED_OVERRIDE_PCT, MAX_RAPID_OVERRIDE_PCT};
+
+impl Core {
+    /// `override feed|rapid PERCENT`: in force from the running job's next tick (if one
+    /// runs) and for every job after.
+    pub(super) fn set_override(
+        &mut self,
+        kind: OverrideKind,
+        percent: f64,
+    ) -> Result<String, Refusal> {
+        let (name, max) = match kind {
+            OverrideKind::Feed => ("feed", MAX_FEED_OVERRIDE_PCT),
+            OverrideKind::Rapid => ("rapid", MAX_RAPID_OVERRIDE_PCT),
+        };
+        if !(percent.is_finite() && (0.0..=f64::from(max)).contains(&percent)) {
+            return Err(Refusal::BadArgument(format!(
+                "{name} override {percent} %: give 0 to {max} %"
+            )));
+        }
+        let pct = percent.round() as u32;
+        let overrides = &mut self.jobs.overrides;
+        let was = match kind {
+            OverrideKind::Feed => std::mem::replace(&mut overrides.feed_pct, pct),
+            OverrideKind::Rapid => std::mem::replace(&mut overrides.rapid_pct, pct),
+        };
+        let running = self.jobs.job.as_ref().map(|job| {
+            let control = &job.published.overrides;
+            match kind {
+                OverrideKind::Feed => control.set_feed(pct),
+                OverrideKind::Rapid => control.set_rapid(pct),
+            }
+        });
+        tracing::info!(
+            edmd_event = "override",
+            "{name} override {was} % -> {pct} %{}",
+            if running.is_some() {
+                " (the running job takes it at its next tick)"
+            } else {
+                " (for the next job)"
+            }
+        );
+        Ok(format!("{name} override {pct} %"))
+    }
+}
+
+impl JobControl {
+    /// A new job's published controls, at the overrides in force.
+    pub(super) fn published(&self) -> crate::runtime::consumer::Published {
+        let published = crate::runtime::consumer::Published::new(4096);
+        published.overrides.set_feed(self.overrides.feed_pct);
+        published.overrides.set_rapid(self.overrides.rapid_pct);
+        published
+    }
+}
