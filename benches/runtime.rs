@@ -47,6 +47,7 @@ fn settings(feed: f64) -> FineSettings {
         max_short_ticks: 0,
         law: edmd::servo::Law::ThreeState,
         excursions: edmd::fine::ExcursionSettings::OFF,
+        dry_run: false,
     }
 }
 

@@ -142,7 +142,7 @@ pub fn protocol(data: &[u8]) {
                     Ok(request.clone()),
                     "round trip of {line:?}"
                 );
-                if let Request::Run { program } = &request {
+                if let Request::Run { program, .. } = &request {
                     let dir = program_dir();
                     if let Ok(path) = edmd::daemon::confine(dir, program) {
                         assert!(path.starts_with(dir), "{program:?} escaped to {path:?}");

@@ -100,3 +100,95 @@ fn the_feed_override_changes_the_speed_within_a_tick_and_is_reported() {
     assert_eq!(s["overrides"]["feed_pct"], 200);
     assert_eq!(s["overrides"]["rapid_pct"], 100);
 }
+
+#[test]
+fn a_dry_run_moves_the_same_path_with_the_spark_off_at_the_programmed_feed() {
+    use edmd::output::read_pulse_log;
+    let dir = scratch("dry-run");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(
+        dir.join("programs/part.nc"),
+        "G21 G90\nG1 X1 Y0.5 F600\nG2 X2 Y0.5 I0.5 J0\nG1 X0 Y0\nM2\n",
+    )
+    .unwrap();
+    // The servo's feed (300 mm/min) below the program's 600: a cut goes at the servo's.
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let run = |args: &[&str]| {
+        daemon.ok(args);
+        let s = daemon.wait_for("the job's end", |s| {
+            s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+        });
+        let (_, rows) = read_pulse_log(&dir.join("pulses.csv")).unwrap();
+        (s, rows)
+    };
+    let (cut, cut_rows) = run(&["run", "part.nc"]);
+    assert!(cut["checkpoint"].is_null(), "a finished job leaves none");
+    // Back to the start, then the dry run.
+    daemon.ok(&["mdi", "G0 X0 Y0"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    let (dry, dry_rows) = run(&["run", "part.nc", "--dry-run"]);
+    let steps = |rows: &[edmd::output::PulseLogRow]| -> Vec<Vec<i8>> {
+        rows.iter()
+            .map(|r| r.steps.clone())
+            .filter(|s| s.iter().any(|&x| x != 0))
+            .collect()
+    };
+    assert_eq!(
+        steps(&dry_rows),
+        steps(&cut_rows),
+        "the same path, step for step"
+    );
+    assert!(cut_rows.iter().any(|r| r.spark), "the cut sparks");
+    assert!(dry_rows.iter().all(|r| !r.spark), "the dry run never does");
+    // At the programmed feed: about half the cut's time (600 against 300 mm/min).
+    let (t_cut, t_dry) = (
+        cut["last_job"]["virtual_time_s"].as_f64().unwrap(),
+        dry["last_job"]["virtual_time_s"].as_f64().unwrap(),
+    );
+    assert!(t_dry < 0.6 * t_cut, "dry {t_dry} s, cut {t_cut} s");
+    assert!(
+        daemon
+            .log()
+            .contains("(dry run: spark off, the servo out of the loop)")
+    );
+}
+
+#[test]
+fn single_block_stops_at_each_block_end_and_resume_runs_the_next() {
+    let dir = scratch("single-block");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(
+        dir.join("programs/square.nc"),
+        "G21 G90\nG1 X0.5 F300\nG1 Y0.5\nG1 X0 Y0\nM2\n",
+    )
+    .unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let reply = daemon.ok(&["single-block", "on"]);
+    assert_eq!(reply["status"]["single_block"], true);
+    daemon.ok(&["run", "square.nc"]);
+    for (line, at) in [(3, [500, 0]), (4, [500, 500])] {
+        let s = daemon.wait_for("the single-block stop", |s| s["state"] == "paused");
+        assert_eq!(s["job"]["paused_before_line"], line, "{s}");
+        // At the block's end point exactly, and checkpointed at that standstill.
+        assert_eq!(common::daemon::position(&s), at, "{s}");
+        let s = daemon.wait_for("its checkpoint", |s| {
+            s["checkpoint"]["still"] == true
+                && s["checkpoint"]["position_steps"] == serde_json::json!(at)
+        });
+        assert_eq!(s["checkpoint"]["resumable"], false, "the running job's own");
+        daemon.ok(&["resume"]);
+        daemon.wait_for("moving on", |s| s["state"] != "paused");
+    }
+    let s = daemon.wait_for("the job's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    assert_eq!(s["last_job"]["end_steps"], serde_json::json!([0, 0]));
+    assert!(
+        daemon
+            .log()
+            .contains("square.nc:3: single block: stopped before this line"),
+        "{}",
+        daemon.log()
+    );
+    daemon.ok(&["single-block", "off"]);
+}

@@ -33,6 +33,10 @@ pub(super) enum CtlCommand {
         /// `edmd ctl status`)
         #[arg(long)]
         no_wait: bool,
+        /// Prove the program: its moves with the spark off and the servo out of the loop,
+        /// at the programmed feed (no checkpoint is kept)
+        #[arg(long)]
+        dry_run: bool,
     },
     /// Brake to a standstill and hold there (checkpoint written)
     Hold,
@@ -84,6 +88,13 @@ pub(super) enum CtlCommand {
         /// Percent
         percent: f64,
     },
+    /// Single block: while on, a job stops before each program block; `resume` runs the
+    /// next
+    #[command(name = "single-block")]
+    SingleBlock {
+        /// on or off
+        state: OnOff,
+    },
     /// Print the work offset table (G54 … G59.3; the active system marked *)
     Offsets,
     /// Set a work offset so that where the machine stands reads VALUE on AXIS (G10 L20)
@@ -117,6 +128,13 @@ pub(super) enum CtlCommand {
         #[arg(long, value_name = "N")]
         count: Option<u64>,
     },
+}
+
+/// `edmd ctl single-block on|off`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
 }
 
 /// `edmd ctl override feed|rapid`.
@@ -209,9 +227,14 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
 fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) {
     use crate::daemon::protocol::Request;
     match command {
-        CtlCommand::Run { program, no_wait } => (
+        CtlCommand::Run {
+            program,
+            no_wait,
+            dry_run,
+        } => (
             Request::Run {
                 program: program.clone(),
+                dry_run: *dry_run,
             },
             !no_wait,
         ),
@@ -222,6 +245,12 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
         CtlCommand::Reset => (Request::Reset {}, false),
+        CtlCommand::SingleBlock { state } => (
+            Request::SingleBlock {
+                on: matches!(state, OnOff::On),
+            },
+            false,
+        ),
         CtlCommand::Override { kind, percent } => (
             Request::Override {
                 kind: match kind {

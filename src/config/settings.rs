@@ -62,6 +62,7 @@ impl FineSettings {
                 retract: servo.retract_feed_mm_per_min / 60.0,
             },
             step_mm: step_mm(config),
+            dry_run: false,
             excursions: crate::fine::ExcursionSettings {
                 jump_interval_ticks: (servo.jumps.interval_s / config.fine.tick.secs()).round()
                     as u64,

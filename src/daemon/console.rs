@@ -1,5 +1,5 @@
 //! The operator's controls over a running job that are not motion of their own: the feed
-//! and rapid overrides. They reach the tick through the job's published controls
+//! and rapid overrides, single block. They reach the tick through the job's published controls
 //! ([`crate::runtime::overrides`]); the daemon keeps them for the jobs after.
 
 use super::Core;
@@ -51,12 +51,38 @@ impl Core {
     }
 }
 
+impl Core {
+    /// `single-block on|off`: in force from the running job's next block end, and for every
+    /// job after.
+    pub(super) fn set_single_block(&mut self, on: bool) -> Result<String, Refusal> {
+        self.jobs.single_block = on;
+        if let Some(job) = &self.jobs.job {
+            job.published
+                .single_block
+                .store(on, std::sync::atomic::Ordering::Relaxed);
+        }
+        let state = if on { "on" } else { "off" };
+        tracing::info!(edmd_event = "single_block", "single block {state}");
+        Ok(format!(
+            "single block {state}{}",
+            if on {
+                ": the job stops before each program block; `resume` runs the next"
+            } else {
+                ""
+            }
+        ))
+    }
+}
+
 impl JobControl {
     /// A new job's published controls, at the overrides in force.
     pub(super) fn published(&self) -> crate::runtime::consumer::Published {
         let published = crate::runtime::consumer::Published::new(4096);
         published.overrides.set_feed(self.overrides.feed_pct);
         published.overrides.set_rapid(self.overrides.rapid_pct);
+        published
+            .single_block
+            .store(self.single_block, std::sync::atomic::Ordering::Relaxed);
         published
     }
 }

@@ -76,6 +76,8 @@ pub(super) struct JobControl {
     pub finished: protocol::Counters,
     /// The operator's overrides: the running job's, and every job's from its start.
     pub overrides: protocol::OverrideStatus,
+    /// Single block, likewise.
+    pub single_block: bool,
 }
 
 /// The folder of a job's report and its recording, when the configuration asks for one. The
@@ -98,6 +100,25 @@ fn job_report(config: &Config, program_name: &str) -> Result<Option<JobReport>, 
         }
         None => None,
     })
+}
+
+/// Logs a job's start; what the command answers.
+fn started(program: &str, blocks: u64, resumed: bool, kind: JobKind, message: &str) -> String {
+    tracing::info!(
+        edmd_event = "job_start",
+        edmd_program = program,
+        "job start: {program}{}",
+        match (resumed, kind == JobKind::DryRun) {
+            (true, _) => " (resumed)",
+            (_, true) => " (dry run: spark off, the servo out of the loop)",
+            _ => "",
+        }
+    );
+    if resumed {
+        format!("resuming {program}: {blocks} blocks")
+    } else {
+        format!("running {program}: {blocks} blocks{message}")
+    }
 }
 
 impl JobControl {
@@ -162,14 +183,22 @@ impl JobControl {
 }
 
 impl Core {
-    pub(super) fn run_program(&mut self, requested: &str) -> Result<String, Refusal> {
+    pub(super) fn run_program(
+        &mut self,
+        requested: &str,
+        dry_run: bool,
+    ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let launch = Launch {
             start: self.machine.state.work_start(),
-            kind: JobKind::Program,
+            kind: if dry_run {
+                JobKind::DryRun
+            } else {
+                JobKind::Program
+            },
         };
         let id = self.begin_check(Source::Original(program.clone()), None, launch);
         Ok(format!(
@@ -393,20 +422,8 @@ impl Core {
                 let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
             })
             .map_err(Refusal::JobThread)?;
-        tracing::info!(
-            edmd_event = "job_start",
-            edmd_program = program.name,
-            "job start: {}{}",
-            program.name,
-            if resumed { " (resumed)" } else { "" }
-        );
-        let text = if resumed {
-            format!("resuming {}: {blocks} blocks", program.name)
-        } else {
-            format!("running {}: {blocks} blocks{message}", program.name)
-        };
         self.jobs.job = Some(job);
-        Ok(text)
+        Ok(started(&program.name, blocks, resumed, kind, &message))
     }
 
     pub(super) fn hold(&mut self) -> Result<String, Refusal> {

@@ -29,6 +29,9 @@ pub(super) enum Source {
 pub(super) enum JobKind {
     /// A program the operator named (or a checkpoint's).
     Program,
+    /// A program proved without cutting: spark off, the servo out of the loop, the planned
+    /// feed. It keeps no checkpoint (a resume must never cut what a dry run left).
+    DryRun,
     /// A jog: one positioning move (spark off) at this feed, mm/min.
     Jog { feed_mm_per_min: f64 },
     /// MDI lines.
@@ -55,6 +58,7 @@ impl Launch {
     pub fn spec(&self, config: &Config) -> runtime::JobSpec {
         let mut spec = runtime::JobSpec::from_config(config, true);
         spec.work = self.start.clone();
+        spec.fine.dry_run = self.kind == JobKind::DryRun;
         if let JobKind::Jog { feed_mm_per_min }
         | JobKind::Home {
             feed_mm_per_min, ..

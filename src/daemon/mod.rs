@@ -272,6 +272,7 @@ pub fn serve(
             last: None,
             finished: protocol::Counters::default(),
             overrides: protocol::OverrideStatus::default(),
+            single_block: false,
         },
         checkpoints,
         machine,
@@ -451,7 +452,7 @@ impl Core {
     fn handle(&mut self, request: Request) -> Reply {
         let result = match request {
             Request::Status {} => Ok("status".to_string()),
-            Request::Run { program } => self.run_program(&program),
+            Request::Run { program, dry_run } => self.run_program(&program, dry_run),
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),
@@ -477,6 +478,7 @@ impl Core {
             Request::JogStop {} => self.jog_stop(),
             Request::Reset {} => self.reset(),
             Request::Override { kind, percent } => self.set_override(kind, percent),
+            Request::SingleBlock { on } => self.set_single_block(on),
         };
         self.notify_status();
         match result {

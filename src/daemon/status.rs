@@ -41,7 +41,9 @@ impl Core {
                     DaemonState::Rethreading
                 } else {
                     match job.kind {
-                        super::launch::JobKind::Program => DaemonState::Running,
+                        super::launch::JobKind::Program | super::launch::JobKind::DryRun => {
+                            DaemonState::Running
+                        }
                         super::launch::JobKind::Mdi => DaemonState::Mdi,
                         super::launch::JobKind::Jog { .. } => DaemonState::Jogging,
                         super::launch::JobKind::Home { .. } => DaemonState::Homing,
@@ -98,6 +100,7 @@ impl Core {
                     path_total_mm: job.progress.total_mm(),
                     eta_s: job.progress.eta_s(),
                     recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
+                    dry_run: job.kind == super::launch::JobKind::DryRun,
                     paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
                         0 => None,
                         line => Some(line),
@@ -108,6 +111,7 @@ impl Core {
         Status {
             machine: self.machine.status(config, live.as_ref()),
             overrides: self.jobs.overrides,
+            single_block: self.jobs.single_block,
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),

@@ -80,6 +80,9 @@ pub struct FineSettings {
     pub law: Law,
     /// Jumps, wire-break detection and rethreading.
     pub excursions: ExcursionSettings,
+    /// A dry run: the program's moves at their planned feed with the spark off and the servo
+    /// out of the loop (a short is a collision, as on a rapid).
+    pub dry_run: bool,
 }
 
 /// What one tick produced.
@@ -147,6 +150,12 @@ impl Interpolator {
             pending: None,
             counters: FineCounters::default(),
         }
+    }
+
+    /// Single block, from the thread loop (the job's published controls): while on, every
+    /// program block ends at a standstill and the next one waits for a release of the hold.
+    pub fn set_single_block(&mut self, on: bool) {
+        self.stops.single_block = on;
     }
 
     /// The operator's feed and rapid overrides, from the thread loop (the job's published
@@ -233,6 +242,11 @@ impl Interpolator {
         c
     }
 
+    /// The job is a dry run (spark off, the servo out of the loop).
+    pub fn dry_run(&self) -> bool {
+        self.settings.dry_run
+    }
+
     /// What the servo law reads from the gap input beside its state.
     pub fn law_input(&self) -> LawInput {
         self.settings.law.input()
@@ -302,8 +316,13 @@ impl Interpolator {
         tick: &mut Tick,
         source: &mut S,
     ) -> Option<(GapState, GapState)> {
-        if tick.event.is_none() && self.stops.take_pause() {
-            tick.event = Some(ServoEvent::Paused { at: self.here() });
+        if tick.event.is_none()
+            && let Some(single_block) = self.stops.take_pause()
+        {
+            tick.event = Some(ServoEvent::Paused {
+                at: self.here(),
+                single_block,
+            });
             self.motion.stop();
             return None;
         }
@@ -337,7 +356,9 @@ impl Interpolator {
             let gap = if probing { contact } else { gap };
             return self.excursion_motion(gap, probing, tick);
         }
-        if forward && self.motion.holds(BlockFlags::RAPID) {
+        // A dry run moves every move as a rapid moves (at its planned feed, the servo out of
+        // the loop, a short a collision).
+        if forward && (self.settings.dry_run || self.motion.holds(BlockFlags::RAPID)) {
             return self.rapid(gap, tick);
         }
         self.cut(gap, tick)
@@ -425,9 +446,12 @@ impl Interpolator {
         } else {
             1.0
         };
+        // Single block: the end of a program block is a standstill.
+        let stop_at_end =
+            self.stops.single_block && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
         let limit = self
             .motion
-            .planned_limit(self.settings.accel, self.settings.dt);
+            .planned_limit(self.settings.accel, self.settings.dt, stop_at_end);
         // The plan's cruise, scaled: lowering it lowers the speed aimed for, which brakes
         // down under a_T (the limit is the plan's braking, not the cruise).
         let target = if want_dir != self.motion.dir || self.stops.hold {
@@ -497,9 +521,14 @@ impl Interpolator {
         self.apply(tick);
         self.counters.events_forward += 1;
         let mut event = self.servo.on_forward(self.here());
-        if event.is_none() && self.stops.take_pause() {
+        if event.is_none()
+            && let Some(single_block) = self.stops.take_pause()
+        {
             // The step that finished the block before a programmed stop.
-            event = Some(ServoEvent::Paused { at: self.here() });
+            event = Some(ServoEvent::Paused {
+                at: self.here(),
+                single_block,
+            });
         }
         // A probing move waits at its end point for the next tick's contact check.
         let probe_end = BlockFlags::PROBE | BlockFlags::LAST_OF_BLOCK;

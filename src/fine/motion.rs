@@ -122,8 +122,10 @@ impl Motion {
     /// curves, never below the creep speed `sqrt(accel · event)`, nor above what the block
     /// allows whatever its feed (`v_limit`, for an override above 100 %; the cruise the
     /// speed aims for is the caller's business); capped at one event per tick of `dt`.
+    /// `stop_at_end`: going forward, the block ends at a standstill whatever the plan said
+    /// (single block).
     #[inline]
-    pub fn planned_limit(&self, accel: f64, dt: f64) -> f64 {
+    pub fn planned_limit(&self, accel: f64, dt: f64, stop_at_end: bool) -> f64 {
         if !self.has_block || self.walk.events() == 0 {
             return 0.0;
         }
@@ -132,8 +134,9 @@ impl Motion {
         let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
             / self.walk.events() as f64;
         let s = (done.clamp(0.0, 1.0)) * self.lattice_mm;
+        let v_exit = if stop_at_end { 0.0 } else { b.v_exit };
         let (v_behind, v_ahead, to_go, gone) = if self.dir > 0 {
-            (b.v_entry, b.v_exit, self.lattice_mm - s, s)
+            (b.v_entry, v_exit, self.lattice_mm - s, s)
         } else {
             (b.v_exit, b.v_entry, s, self.lattice_mm - s)
         };

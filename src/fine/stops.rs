@@ -13,8 +13,14 @@ pub(super) struct Stops {
     pub dwell_left: u64,
     /// Blocks before this sequence number have had their stops honoured.
     pub stops_from: u64,
-    /// A pause was met while fetching: reported by the tick that met it.
-    pub paused: bool,
+    /// A pause was met while fetching: reported by the tick that met it (`true`: the
+    /// operator's single block, not the program's `M0`/`M1`).
+    pub paused: Option<bool>,
+    /// Single block: the operator's switch (from the thread loop); a pause before every
+    /// program block while it is on.
+    pub single_block: bool,
+    /// The last block entered ended a program block: the next one starts a new one.
+    pub after_block_end: bool,
 }
 
 impl Stops {
@@ -25,18 +31,25 @@ impl Stops {
             return;
         }
         self.stops_from = block.seq + 1;
+        let starts_block = std::mem::replace(
+            &mut self.after_block_end,
+            block.flags.contains(BlockFlags::LAST_OF_BLOCK),
+        );
         if block.dwell_s > 0.0 {
             self.dwell_left += (block.dwell_s / dt).round() as u64;
         }
         if block.flags.contains(BlockFlags::PAUSE) {
             self.hold = true;
-            self.paused = true;
+            self.paused = Some(false);
+        } else if self.single_block && starts_block {
+            self.hold = true;
+            self.paused = Some(true);
         }
     }
 
-    /// Takes the pause met while fetching, once.
-    pub fn take_pause(&mut self) -> bool {
-        std::mem::take(&mut self.paused)
+    /// Takes the pause met while fetching, once: `Some(single_block)`.
+    pub fn take_pause(&mut self) -> Option<bool> {
+        self.paused.take()
     }
 
     /// Waits one tick of a dwell, if one is owed.
@@ -51,7 +64,7 @@ impl Stops {
     /// A resumed job stands where its first run stood: every stop up to here was honoured.
     pub fn resumed(&mut self) {
         self.dwell_left = 0;
-        self.paused = false;
+        self.paused = None;
         self.hold = false;
     }
 }

@@ -17,6 +17,7 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
     max_short_ticks: 0,
     law: crate::servo::Law::ThreeState,
     excursions: ExcursionSettings::OFF,
+    dry_run: false,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.
@@ -478,7 +479,7 @@ fn dwell_and_pause_hold_at_the_block_start_once() {
         if shorted {
             min_x_after_short = min_x_after_short.min(fine.position()[0]);
         }
-        if let Some(ServoEvent::Paused { at }) = tick.event {
+        if let Some(ServoEvent::Paused { at, .. }) = tick.event {
             assert!(paused_at.is_none(), "the pause is reported once");
             assert_eq!(fine.position()[0], 80);
             assert_eq!(at.seq, 2);

@@ -122,6 +122,8 @@ pub struct Published {
     pub probe: ProbeLink,
     /// Set by the supervisor: the operator's feed and rapid overrides.
     pub overrides: OverrideControl,
+    /// Set by the supervisor: single block (a pause before every program block).
+    pub single_block: AtomicBool,
 }
 
 /// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
@@ -199,6 +201,7 @@ impl Published {
             rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
             overrides: OverrideControl::default(),
+            single_block: AtomicBool::new(false),
         }
     }
 
@@ -381,6 +384,7 @@ where
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
         take_overrides(&mut overrides_pct, fine, tick_no, published);
+        fine.set_single_block(published.single_block.load(Ordering::Relaxed));
         if let Some(at) = published.rethread.take()
             && fine.rethread(at)
         {
@@ -547,11 +551,17 @@ fn tell_activity<O, G>(
 {
     let block = fine.block();
     let excursion = fine.state().spark_off();
-    let flags = block.map_or(BlockFlags::NONE, |b| b.flags);
+    let mut flags = block.map_or(BlockFlags::NONE, |b| b.flags);
+    if fine.dry_run() && !flags.contains(BlockFlags::PROBE) {
+        // A dry run positions along the program: to the output and the gap input every move
+        // is a rapid (spark off; the simulator's electrode moves through the open).
+        flags |= BlockFlags::RAPID;
+    }
     let now = Activity {
         flags,
         excursion,
-        spark: block.is_some_and(|b| !b.flags.intersects(BlockFlags::RAPID | BlockFlags::PROBE))
+        spark: block.is_some()
+            && !flags.intersects(BlockFlags::RAPID | BlockFlags::PROBE)
             && !excursion
             && !fine.held()
             && !fine.state().is_final(),

@@ -105,6 +105,15 @@ fn log_stop(program: &str, line: u64, t: f64, event: ServoEvent, pauses: bool) {
                 ""
             }
         ),
+        ServoEvent::Paused {
+            single_block: true, ..
+        } => tracing::info!(
+            edmd_event = "single_block",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: single block: stopped before this line at t={t:.4} s: \
+             `edmd ctl resume` runs it"
+        ),
         ServoEvent::Paused { .. } => tracing::warn!(
             edmd_event = "pause",
             edmd_program = program,

@@ -148,7 +148,7 @@ pub enum ServoEvent {
     Done,
     /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
     /// the interpolator holds there.
-    Paused { at: PathPoint },
+    Paused { at: PathPoint, single_block: bool },
     /// The gap shorted during a rapid (`G0`): the electrode touched something while
     /// positioning with the spark off. Motion stopped at `at`; the interpolator holds.
     Collision { at: PathPoint },

@@ -240,6 +240,7 @@ mod tests {
         Status {
             machine: Default::default(),
             overrides: Default::default(),
+            single_block: false,
             state: DaemonState::Held,
             version: "0".into(),
             uptime_s: 12.5,

@@ -209,6 +209,10 @@ fn router(app: Arc<App>) -> Router {
             "/api/override",
             post(|s, h, b| machine(s, h, b, "override")),
         )
+        .route(
+            "/api/single-block",
+            post(|s, h, b| machine(s, h, b, "single-block")),
+        )
         .route("/api/mdi", post(|s, h, b| machine(s, h, b, "mdi")))
         .route(
             "/api/touch-off",
@@ -534,6 +538,8 @@ fn verdict(reply: Reply) -> Response {
 #[serde(deny_unknown_fields)]
 struct RunBody {
     program: String,
+    #[serde(default)]
+    dry_run: bool,
 }
 
 async fn run(
@@ -544,14 +550,14 @@ async fn run(
     if let Err(e) = authorised(&app, &headers) {
         return e;
     }
-    let RunBody { program } = match body(raw) {
+    let RunBody { program, dry_run } = match body(raw) {
         Ok(b) => b,
         Err(e) => return e,
     };
     if let Err(e) = program_file(&app, &program) {
         return e;
     }
-    match ask(&app, Request::Run { program }).await {
+    match ask(&app, Request::Run { program, dry_run }).await {
         Ok(reply) => verdict(reply),
         Err(e) => e,
     }

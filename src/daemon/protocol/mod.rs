@@ -26,9 +26,12 @@ pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "cmd", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Request {
-    /// Run a program from the program directory.
+    /// Run a program from the program directory; `dry_run`: its moves with the spark off
+    /// and the servo out of the loop, at the programmed feed (proving a program).
     Run {
         program: String,
+        #[serde(default)]
+        dry_run: bool,
     },
     /// Brake to a standstill and stay there. (Empty struct variants, not unit ones: serde
     /// checks unknown fields only on those.)
@@ -86,6 +89,12 @@ pub enum Request {
     Override {
         kind: OverrideKind,
         percent: f64,
+    },
+    /// Single block on or off: while on, a job pauses before every program block (a
+    /// standstill, checkpointed); `resume` runs the next one.
+    #[serde(rename = "single-block")]
+    SingleBlock {
+        on: bool,
     },
     /// Run G-code lines as a job, in the modes the last MDI lines left.
     Mdi {
@@ -301,6 +310,9 @@ pub struct Status {
     /// The feed and rapid overrides in force.
     #[serde(default)]
     pub overrides: OverrideStatus,
+    /// Single block is on.
+    #[serde(default)]
+    pub single_block: bool,
 }
 
 /// The machine, always (idle, held, running).
@@ -396,6 +408,9 @@ impl CheckStatus {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobStatus {
     pub program: String,
+    /// A dry run: spark off, the servo out of the loop, no checkpoint.
+    #[serde(default)]
+    pub dry_run: bool,
     /// Source line of the segment in hand.
     pub line: u64,
     pub segment: u64,
@@ -464,7 +479,8 @@ mod tests {
         assert_eq!(
             Request::parse(r#"{"cmd":"run","program":"a.nc"}"#).unwrap(),
             Request::Run {
-                program: "a.nc".into()
+                program: "a.nc".into(),
+                dry_run: false,
             }
         );
         assert_eq!(

@@ -64,6 +64,9 @@ impl Status {
             self.job_text(&mut t, j);
         }
         self.machine_text(&mut t);
+        if self.single_block {
+            let _ = writeln!(t, "single block: on");
+        }
         let o = self.overrides;
         if o != OverrideStatus::default() {
             let _ = writeln!(
