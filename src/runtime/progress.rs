@@ -13,6 +13,11 @@ use std::time::{Duration, Instant};
 /// How far back the ETA's average feed looks.
 pub const ETA_WINDOW: Duration = Duration::from_secs(20);
 
+/// How much faster than the rapid feed an advance must look to be a replay, not motion.
+const JUMP_MARGIN: f64 = 2.0;
+/// An advance this small is never taken for a replay (mm).
+const JUMP_SLACK_MM: f64 = 0.5;
+
 /// A job's progress along its program's path.
 #[derive(Debug, Clone)]
 pub struct ProgressTracker {
@@ -51,6 +56,15 @@ impl ProgressTracker {
     pub fn track(&mut self, path_mm: f64, now: Instant) {
         if self.total_mm > 0.0 && path_mm.is_finite() {
             self.fraction = self.fraction.max((path_mm / self.total_mm).clamp(0.0, 1.0));
+        }
+        if let Some(&(t, p)) = self.recent.back() {
+            // Faster than the machine moves (a resume replaying its job up to where it
+            // stopped, in no time): the window starts again here, or the ETA would take the
+            // replay for the feed.
+            let possible = self.rapid_feed * JUMP_MARGIN * now.duration_since(t).as_secs_f64();
+            if self.done_mm() - p > possible + JUMP_SLACK_MM {
+                self.recent.clear();
+            }
         }
         self.recent.push_back((now, self.done_mm()));
         while self
@@ -121,6 +135,22 @@ impl ProgressTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_resumes_replay_is_not_taken_for_the_feed() {
+        // 100 mm at most 10 mm/s; a resume replays to 50 mm in 10 ms, then cuts at 1 mm/s.
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let mut p = ProgressTracker::with_rapids(100.0, Vec::new(), 10.0);
+        p.track(0.0, at(0.0));
+        p.track(50.0, at(0.01));
+        for i in 1..=5 {
+            p.track(50.0 + f64::from(i), at(0.01 + f64::from(i)));
+        }
+        let eta = p.eta_s().unwrap();
+        assert!((eta - 45.0).abs() < 0.5, "{eta}");
+        assert_eq!(p.fraction(), 0.55);
+    }
 
     #[test]
     fn a_turn_back_is_not_progress_and_the_eta_follows_the_recent_feed() {
