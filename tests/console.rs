@@ -76,6 +76,10 @@ fn the_feed_override_changes_the_speed_within_a_tick_and_is_reported() {
     let before = rate(&pulses, half - 4000, half);
     let slow = rate(&pulses, half + 2000, double);
     let fast = rate(&pulses, double + 2000, double + 6000);
+    eprintln!(
+        "steps per tick: {before:.4} at 100 %, {slow:.4} at 50 %, {fast:.4} at 200 %; \
+         50 % from tick {half}, 200 % from tick {double}"
+    );
     assert!((before - 0.25).abs() < 0.01, "before: {before}");
     assert!((slow - 0.125).abs() < 0.01, "at 50 %: {slow}");
     assert!((fast - 0.5).abs() < 0.01, "at 200 %: {fast}");
@@ -151,6 +155,15 @@ fn a_dry_run_moves_the_same_path_with_the_spark_off_at_the_programmed_feed() {
             .log()
             .contains("(dry run: spark off, the servo out of the loop)")
     );
+    // A dry run stopped part way leaves no checkpoint to resume (a cut stopped so does).
+    std::fs::write(dir.join("programs/long.nc"), "G21 G90\nG1 X30 F120\nM2\n").unwrap();
+    daemon.ok(&["run", "long.nc", "--dry-run"]);
+    daemon.wait_for("moving", common::daemon::is_moving);
+    assert_eq!(daemon.status()["job"]["dry_run"], true);
+    daemon.ok(&["abort"]);
+    let s = daemon.wait_for("the abort", |s| s["state"] == "idle");
+    assert!(s["checkpoint"].is_null(), "{s}");
+    assert!(!dir.join("checkpoint.json").exists());
 }
 
 #[test]

@@ -497,6 +497,8 @@ fn the_page_in_headless_chromium() {
         return;
     };
     let (d, dir) = start("page", &["servo.normal_feed_mm_per_min=60.0"]);
+    // A program the check refuses: past the travel.
+    std::fs::write(dir.join("programs/far.nc"), "G21 G90\nG1 X900 F100\n").unwrap();
     let browser = Browser::start(&chromedriver);
     browser.command("POST", "/url", Some(json!({"url": format!("{}/", d.base)})));
     let wait = |what: &str, script: &str| -> Value {
@@ -525,13 +527,39 @@ fn the_page_in_headless_chromium() {
     let options = browser.eval(
         "return Array.from(document.getElementById('program-list').options).map(o => o.value)",
     );
-    assert_eq!(options, json!(["runtime-path.nc", "short.nc"]));
-    // Run from the page: the token is asked for once (a prompt, answered here by the page's
-    // own storage) and kept.
+    assert_eq!(options, json!(["far.nc", "runtime-path.nc", "short.nc"]));
+    // Not logged in: the login field shows (no prompt), and control asks for it.
+    wait(
+        "the login field",
+        "return document.getElementById('login').className === 'on'",
+    );
     browser.eval(&format!(
-        "localStorage.setItem('edmd-token', '{}'); document.getElementById('program-list').value = 'runtime-path.nc'; document.getElementById('run').click(); return true",
+        "document.getElementById('token').value = '{}'; document.getElementById('login-save').click(); return true",
         d.token
     ));
+    wait(
+        "the login accepted",
+        "return document.getElementById('login').className === '' && localStorage.getItem('edmd-token') !== null",
+    );
+    // A refused program: its file:line:col on the page.
+    browser.eval(
+        "document.getElementById('program-list').value = 'far.nc'; document.getElementById('run').click(); return true",
+    );
+    let refused = wait(
+        "the refusal",
+        "const m = document.getElementById('message'); return m.className === 'error' && m.textContent.includes('far.nc:2:1') ? m.textContent : false",
+    );
+    eprintln!("refusal on the page: {refused}");
+    let shot = browser.command("GET", "/screenshot", None);
+    std::fs::write(
+        dir.join("page-refused.png"),
+        base64_decode(shot.as_str().unwrap()),
+    )
+    .unwrap();
+    // Run from the page.
+    browser.eval(
+        "document.getElementById('program-list').value = 'runtime-path.nc'; document.getElementById('run').click(); return true",
+    );
     wait(
         "the running state",
         "return document.getElementById('state').textContent === 'running'",
@@ -552,12 +580,50 @@ fn the_page_in_headless_chromium() {
     let dom = browser.command("GET", "/source", None);
     let dom = dom.as_str().unwrap();
     assert!(dom.contains("data-state=\"running\""), "{dom}");
+    // While it runs, Run is disabled and Hold is not.
+    wait(
+        "the running buttons",
+        "return document.getElementById('run').disabled && !document.getElementById('hold').disabled",
+    );
+    // The feed override slider and the single-block switch reach the daemon.
+    browser.eval(
+        "const f = document.getElementById('feed-override'); f.value = 80; f.dispatchEvent(new Event('change')); return true",
+    );
+    d.wait_for("the override", |s| s["overrides"]["feed_pct"] == 80);
+    browser.eval(
+        "const b = document.getElementById('single-block'); b.checked = true; b.dispatchEvent(new Event('change')); return true",
+    );
+    d.wait_for("single block", |s| s["single_block"] == true);
+    browser.eval(
+        "const b = document.getElementById('single-block'); b.checked = false; b.dispatchEvent(new Event('change')); return true",
+    );
+    d.wait_for("single block off", |s| s["single_block"] == false);
     // Hold from the page: the daemon holds (the socket says so too).
     browser.eval("document.getElementById('hold').click(); return true");
     d.wait_for("the hold", |s| s["state"] == "held");
     wait(
         "held on the page",
         "return document.getElementById('state').textContent === 'held'",
+    );
+    // Abort asks to be pressed twice: one press does nothing but arm it.
+    browser.eval("document.getElementById('abort').click(); return true");
+    wait(
+        "the armed abort",
+        "return document.getElementById('abort').textContent === 'Confirm abort'",
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(d.status()["state"], "held", "one press aborts nothing");
+    let shot = browser.command("GET", "/screenshot", None);
+    std::fs::write(
+        dir.join("page-held.png"),
+        base64_decode(shot.as_str().unwrap()),
+    )
+    .unwrap();
+    browser.eval("document.getElementById('abort').click(); return true");
+    d.wait_for("the abort", |s| s["state"] == "idle");
+    wait(
+        "the last job's outcome",
+        "const o = document.getElementById('outcome').textContent; return o.includes('runtime-path.nc: stopped') ? o : false",
     );
     eprintln!(
         "backplot {plot}, progress {progress}, screenshot {}",
@@ -569,13 +635,22 @@ fn the_page_in_headless_chromium() {
         "/window/rect",
         Some(json!({"width": 390, "height": 844})),
     );
+    // Hold and Abort on screen without scrolling (a bar at the bottom edge).
     let fits = wait(
         "the phone layout",
-        "return document.documentElement.scrollWidth <= window.innerWidth + 1 \
-         && document.getElementById('hold').getBoundingClientRect().width > 0 \
+        "const h = document.getElementById('hold').getBoundingClientRect(); \
+         const a = document.getElementById('abort').getBoundingClientRect(); \
+         return document.documentElement.scrollWidth <= window.innerWidth + 1 \
+         && h.width > 0 && h.bottom <= window.innerHeight && a.bottom <= window.innerHeight \
          ? [document.documentElement.scrollWidth, window.innerWidth] : false",
     );
     eprintln!("on a phone: {fits}");
+    let shot = browser.command("GET", "/screenshot", None);
+    std::fs::write(
+        dir.join("page-phone.png"),
+        base64_decode(shot.as_str().unwrap()),
+    )
+    .unwrap();
     let mut page = String::new();
     ureq::get(&format!("{}/", d.base))
         .call()

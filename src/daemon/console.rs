@@ -1,12 +1,12 @@
 //! The operator's controls over a running job that are not motion of their own: the feed
 //! and rapid overrides, single block. They reach the tick through the job's published controls
-//! ([`crate::runtime::overrides`]); the daemon keeps them for the jobs after.
+//! ([`crate::runtime::controls`]); the daemon keeps them for the jobs after.
 
 use super::Core;
 use super::jobs::JobControl;
 use super::protocol::OverrideKind;
 use super::refusal::Refusal;
-use crate::runtime::overrides::{MAX_FEED_OVERRIDE_PCT, MAX_RAPID_OVERRIDE_PCT};
+use crate::runtime::controls::{Controls, MAX_FEED_OVERRIDE_PCT, MAX_RAPID_OVERRIDE_PCT};
 
 impl Core {
     /// `override feed|rapid PERCENT`: in force from the running job's next tick (if one
@@ -31,13 +31,11 @@ impl Core {
             OverrideKind::Feed => std::mem::replace(&mut overrides.feed_pct, pct),
             OverrideKind::Rapid => std::mem::replace(&mut overrides.rapid_pct, pct),
         };
-        let running = self.jobs.job.as_ref().map(|job| {
-            let control = &job.published.overrides;
-            match kind {
-                OverrideKind::Feed => control.set_feed(pct),
-                OverrideKind::Rapid => control.set_rapid(pct),
-            }
-        });
+        let running = self
+            .jobs
+            .job
+            .as_ref()
+            .map(|job| job.published.controls.set(self.jobs.controls()));
         tracing::info!(
             edmd_event = "override",
             "{name} override {was} % -> {pct} %{}",
@@ -57,9 +55,7 @@ impl Core {
     pub(super) fn set_single_block(&mut self, on: bool) -> Result<String, Refusal> {
         self.jobs.single_block = on;
         if let Some(job) = &self.jobs.job {
-            job.published
-                .single_block
-                .store(on, std::sync::atomic::Ordering::Relaxed);
+            job.published.controls.set(self.jobs.controls());
         }
         let state = if on { "on" } else { "off" };
         tracing::info!(edmd_event = "single_block", "single block {state}");
@@ -78,11 +74,16 @@ impl JobControl {
     /// A new job's published controls, at the overrides in force.
     pub(super) fn published(&self) -> crate::runtime::consumer::Published {
         let published = crate::runtime::consumer::Published::new(4096);
-        published.overrides.set_feed(self.overrides.feed_pct);
-        published.overrides.set_rapid(self.overrides.rapid_pct);
+        published.controls.set(self.controls());
         published
-            .single_block
-            .store(self.single_block, std::sync::atomic::Ordering::Relaxed);
-        published
+    }
+
+    /// The operator's controls in force, as a job takes them.
+    pub(super) fn controls(&self) -> Controls {
+        Controls {
+            feed_pct: self.overrides.feed_pct,
+            rapid_pct: self.overrides.rapid_pct,
+            single_block: self.single_block,
+        }
     }
 }

@@ -161,7 +161,7 @@ impl Interpolator {
     /// The operator's feed and rapid overrides, from the thread loop (the job's published
     /// controls): they take effect in this tick.
     pub fn set_overrides(&mut self, overrides: Overrides) {
-        self.motion.overrides = overrides;
+        self.motion.set_overrides(overrides);
     }
 
     /// Holds (brakes to a standstill under `a_T`, then stays) or releases the hold. The servo
@@ -441,10 +441,10 @@ impl Interpolator {
         let dv = self.settings.accel * self.settings.dt;
         // The operator's override scales a forward move's cruise; a turn-back, a retreat and
         // a return go as the servo asks.
-        let k = if self.motion.dir > 0 && self.servo.state() == ServoState::Forward {
-            self.motion.override_factor()
+        let cruise = if self.motion.dir > 0 && self.servo.state() == ServoState::Forward {
+            self.motion.aim
         } else {
-            1.0
+            self.motion.block.v_cruise
         };
         // Single block: the end of a program block is a standstill.
         let stop_at_end =
@@ -457,7 +457,7 @@ impl Interpolator {
         let target = if want_dir != self.motion.dir || self.stops.hold {
             0.0
         } else {
-            feed.min(limit).min(self.motion.block.v_cruise * k)
+            feed.min(limit).min(cruise)
         };
         self.motion.follow(target, limit, dv);
         if self.motion.speed <= 0.0 || !self.motion.event_due(self.settings.dt) {

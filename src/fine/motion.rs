@@ -28,6 +28,9 @@ pub(super) struct Motion {
     pub phase: f64,
     /// The operator's overrides of the planned feed ceiling.
     pub overrides: Overrides,
+    /// The cruise a forward move of the block in hand aims for under the override (its
+    /// `v_cruise` scaled), kept when the block or the override changes, not each tick.
+    pub aim: f64,
 }
 
 /// The operator's feed and rapid overrides, as fractions (1.0 is 100 %): they scale the
@@ -64,7 +67,14 @@ impl Motion {
             dir: 1,
             phase: 0.0,
             overrides: Overrides::default(),
+            aim: 0.0,
         }
+    }
+
+    /// The override changed.
+    pub fn set_overrides(&mut self, overrides: Overrides) {
+        self.overrides = overrides;
+        self.aim = self.block.v_cruise * self.override_factor();
     }
 
     /// The override that applies to the block in hand.
@@ -116,6 +126,7 @@ impl Motion {
         } else {
             0.0
         };
+        self.aim = self.block.v_cruise * self.override_factor();
     }
 
     /// The planner's speed limit at the current point, in the current direction: its braking

@@ -24,8 +24,8 @@ use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
+use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
-use super::overrides::{self, OverrideControl};
 use super::probe::{ProbeLink, ProbeResult};
 use super::snapshot::SeqLock;
 pub use super::snapshot::Snapshot;
@@ -120,10 +120,8 @@ pub struct Published {
     pub rethread: RethreadRequest,
     /// Where probing moves ended, for the producer.
     pub probe: ProbeLink,
-    /// Set by the supervisor: the operator's feed and rapid overrides.
-    pub overrides: OverrideControl,
-    /// Set by the supervisor: single block (a pause before every program block).
-    pub single_block: AtomicBool,
+    /// Set by the supervisor: the operator's feed and rapid overrides and single block.
+    pub controls: ControlWord,
 }
 
 /// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
@@ -200,8 +198,7 @@ impl Published {
             paused_line: AtomicU64::new(0),
             rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
-            overrides: OverrideControl::default(),
-            single_block: AtomicBool::new(false),
+            controls: ControlWord::default(),
         }
     }
 
@@ -355,6 +352,7 @@ pub fn apply_realtime(settings: &LoopSettings) -> RealtimeGuard {
 
 /// Runs the tick core until the program is done, an alarm, an output error or a stop
 /// request. Call from the consumer thread after [`apply_realtime`].
+#[inline(never)]
 pub fn run_loop<S, O, G>(
     fine: &mut Interpolator,
     source: &mut S,
@@ -378,13 +376,12 @@ where
     let mut activity = Activity::default();
     fine.set_contact_reading(activity.flags.contains(BlockFlags::PROBE));
     let law_input = fine.law_input();
-    // The overrides the tick core has (a job starts at 100 %).
-    let mut overrides_pct = (100, 100);
-    fine.set_overrides(overrides::fractions(overrides_pct));
+    // The controls the tick core has (a job starts with the defaults, then takes the word).
+    let mut controls_word = ControlWord::default().word();
+    apply_controls(Controls::default(), fine);
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
-        take_overrides(&mut overrides_pct, fine, tick_no, published);
-        fine.set_single_block(published.single_block.load(Ordering::Relaxed));
+        take_controls(&mut controls_word, fine, tick_no, published);
         if let Some(at) = published.rethread.take()
             && fine.rethread(at)
         {
@@ -502,21 +499,21 @@ fn wait_for_tick(
     }
 }
 
-/// Phase 1b: the operator's overrides, handed to the tick core when they change (an event
-/// for the log and the report says when they took effect).
+/// Phase 1b: the operator's controls, handed to the tick core when their word changes (an
+/// event for the log and the report says when an override took effect).
 #[inline(always)]
-fn take_overrides(
-    had: &mut (u32, u32),
-    fine: &mut Interpolator,
-    tick_no: u64,
-    published: &Published,
-) {
-    let now = published.overrides.percent();
-    if now == *had {
+fn take_controls(had: &mut u64, fine: &mut Interpolator, tick_no: u64, published: &Published) {
+    let word = published.controls.word();
+    if word == *had {
         return;
     }
-    fine.set_overrides(overrides::fractions(now));
-    for (rapid, was, is) in [(false, had.0, now.0), (true, had.1, now.1)] {
+    let (was, now) = (controls::controls_of(*had), controls::controls_of(word));
+    *had = word;
+    apply_controls(now, fine);
+    for (rapid, was, is) in [
+        (false, was.feed_pct, now.feed_pct),
+        (true, was.rapid_pct, now.rapid_pct),
+    ] {
         if was != is {
             let record = EventRecord {
                 tick: tick_no,
@@ -531,7 +528,11 @@ fn take_overrides(
             }
         }
     }
-    *had = now;
+}
+
+fn apply_controls(controls: Controls, fine: &mut Interpolator) {
+    fine.set_overrides(controls.overrides());
+    fine.set_single_block(controls.single_block);
 }
 
 /// Phase 4: tell the output and the gap input what the machine is doing when it changes

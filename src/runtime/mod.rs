@@ -21,12 +21,12 @@
 //! [`run_file`] is `edmd run`'s path: copy, check, open the devices, run.
 
 pub mod consumer;
+pub mod controls;
 mod devices;
 mod events;
 pub mod fine_thread;
 mod histogram;
 pub mod latency;
-pub mod overrides;
 mod precheck;
 pub mod probe;
 pub mod producer;
