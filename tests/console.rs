@@ -53,15 +53,21 @@ fn the_feed_override_changes_the_speed_within_a_tick_and_is_reported() {
     daemon.refused(&["override", "feed", "250"], "give 0 to 200 %");
     daemon.refused(&["override", "rapid", "120"], "give 0 to 100 %");
     daemon.ok(&["run", "long.nc"]);
+    // Paced by the job's own clock (its ticks), not the wall's: a loaded machine runs late.
+    let machine_time = |s: &serde_json::Value| s["job"]["machine_time_s"].as_f64().unwrap_or(0.0);
+    let wait_ticks = |secs: f64| {
+        let from = machine_time(&daemon.status());
+        daemon.wait_for("the job's time", |s| machine_time(s) >= from + secs);
+    };
     daemon.wait_for("moving", common::daemon::is_moving);
-    std::thread::sleep(std::time::Duration::from_millis(400));
+    wait_ticks(0.4);
     let reply = daemon.ok(&["override", "feed", "50"]);
     assert_eq!(reply["status"]["overrides"]["feed_pct"], 50);
     daemon.wait_for_log("feed override 50 % from t=");
-    std::thread::sleep(std::time::Duration::from_millis(400));
+    wait_ticks(0.4);
     daemon.ok(&["override", "feed", "200"]);
     daemon.wait_for_log("feed override 200 % from t=");
-    std::thread::sleep(std::time::Duration::from_millis(400));
+    wait_ticks(0.4);
     daemon.ok(&["abort"]);
     daemon.wait_for("the job's end", |s| s["state"] == "idle");
     let text = daemon.ctl(&["status"]);
@@ -74,8 +80,8 @@ fn the_feed_override_changes_the_speed_within_a_tick_and_is_reported() {
     // 300 mm/min is 0.25 steps of 1 µm per 50 µs tick; half of it after braking, twice it
     // after accelerating (the machine's limits allow 600 mm/min on a line).
     let before = rate(&pulses, half - 4000, half);
-    let slow = rate(&pulses, half + 2000, double);
-    let fast = rate(&pulses, double + 2000, double + 6000);
+    let slow = rate(&pulses, half + 1000, double);
+    let fast = rate(&pulses, double + 1000, double + 6000);
     eprintln!(
         "steps per tick: {before:.4} at 100 %, {slow:.4} at 50 %, {fast:.4} at 200 %; \
          50 % from tick {half}, 200 % from tick {double}"

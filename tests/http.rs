@@ -209,6 +209,32 @@ fn home_touch_off_and_mdi_over_http() {
     assert_eq!(code, 409, "{reply}");
     let (code, reply) = d.post("/api/override", r#"{"kind":"spindle","percent":50}"#);
     assert_eq!(code, 400, "{reply}");
+    // Upload: written whole into the program directory, listed, and run like any other.
+    let (code, reply) = d.post("/api/programs?name=up.nc", "G21 G90\nG0 X2\nM2\n");
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(
+        std::fs::read_to_string(_dir.join("programs/up.nc")).unwrap(),
+        "G21 G90\nG0 X2\nM2\n"
+    );
+    let (code, reply) = d.post("/api/programs?name=up.nc", "G21 G90\nG0 X3\nM2\n");
+    assert_eq!(code, 200, "{reply}");
+    assert!(
+        reply["message"].as_str().unwrap().contains("replacing"),
+        "{reply}"
+    );
+    let (_, list) = d.call("GET", "/api/programs", None, None);
+    assert!(list.to_string().contains("up.nc"), "{list}");
+    for bad in ["..%2Fescape.nc", ".hidden.nc", "a%2Fb.nc", ""] {
+        let (code, reply) = d.post(&format!("/api/programs?name={bad}"), "G0 X1\n");
+        assert_eq!(code, 400, "{bad}: {reply}");
+    }
+    assert!(!_dir.join("escape.nc").exists());
+    let (code, _) = d.call("POST", "/api/programs?name=x.nc", None, Some("G0 X1\n"));
+    assert_eq!(code, 401, "no token, no upload");
+    let big = "G0 X1\n".repeat(3_000_000);
+    let (code, reply) = d.post("/api/programs?name=big.nc", &big);
+    assert_eq!(code, 413, "{reply}");
+    assert!(!_dir.join("programs/big.nc").exists());
 }
 
 #[test]
@@ -556,6 +582,13 @@ fn the_page_in_headless_chromium() {
         base64_decode(shot.as_str().unwrap()),
     )
     .unwrap();
+    // Upload from the page (the file chooser's handler, given the file's name and text).
+    browser.eval("upload('uploaded.nc', 'G21 G90\\nG1 X0.2 F60\\nM2\\n'); return true");
+    wait(
+        "the upload listed and picked",
+        "return document.getElementById('program-list').value === 'uploaded.nc'",
+    );
+    assert!(dir.join("programs/uploaded.nc").exists());
     // Run from the page.
     browser.eval(
         "document.getElementById('program-list').value = 'runtime-path.nc'; document.getElementById('run').click(); return true",
@@ -564,6 +597,13 @@ fn the_page_in_headless_chromium() {
         "the running state",
         "return document.getElementById('state').textContent === 'running'",
     );
+    // The listing follows the line in hand.
+    let listing = wait(
+        "the listing at the current line",
+        "const ol = document.getElementById('listing'); const c = ol.querySelector('li.current'); \
+         return c && Number(ol.dataset.lines) > 3 && Number(ol.dataset.current) >= 2 ? [ol.dataset.current, c.textContent] : false",
+    );
+    eprintln!("listing: {listing}");
     let plot = wait(
         "the backplot",
         "const b = document.getElementById('backplot').dataset; \

@@ -40,6 +40,7 @@
 mod guard;
 mod metrics;
 mod path;
+mod programs;
 mod server;
 pub mod token;
 
@@ -187,7 +188,13 @@ fn router(app: Arc<App>) -> Router {
         .route("/", get(page))
         .route("/api/status", get(status))
         .route("/api/events", get(events))
-        .route("/api/programs", get(programs))
+        .route(
+            "/api/programs",
+            get(programs)
+                .post(programs::upload)
+                .layer(DefaultBodyLimit::max(programs::MAX_UPLOAD_BYTES)),
+        )
+        .route("/api/program", get(programs::listing))
         .route("/api/path", get(planned_path))
         .route("/metrics", get(metrics))
         .route("/api/run", post(run))

@@ -1,0 +1,210 @@
+//! The program directory over HTTP, beside `GET /api/programs` (the list):
+//!
+//! - `POST /api/programs?name=NAME`: a program uploaded into `daemon.program_dir`. The body is
+//!   the program's text (at most [`MAX_UPLOAD_BYTES`]); the name is one plain file name (no
+//!   directory, no leading dot, no control character, at most 255 bytes). The file is written
+//!   beside its place under a temporary name, synced and renamed over it, so a reader sees the
+//!   old program or the new one, never a part. Nothing is checked here: `run` checks it.
+//! - `GET /api/program?name=NAME`: its text as lines, for the page's listing (the first
+//!   [`MAX_LISTING_LINES`] lines of at most [`MAX_LISTING_BYTES`], marked `truncated` past
+//!   that), confined to the program directory as `run` is.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{Query, State};
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+
+use super::{App, authorised, busy, error, program_file};
+
+/// The longest listing served, in lines and bytes.
+pub const MAX_LISTING_LINES: usize = 20_000;
+pub const MAX_LISTING_BYTES: u64 = 2 * 1024 * 1024;
+
+/// Largest program accepted by upload, bytes.
+pub const MAX_UPLOAD_BYTES: usize = 16 * 1024 * 1024;
+/// Longest file name accepted, bytes.
+const MAX_NAME_BYTES: usize = 255;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct UploadQuery {
+    name: String,
+}
+
+pub(super) async fn upload(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    query: Result<Query<UploadQuery>, axum::extract::rejection::QueryRejection>,
+    raw: Result<Bytes, BytesRejection>,
+) -> Response {
+    if let Err(e) = authorised(&app, &headers) {
+        return e;
+    }
+    let Ok(Query(UploadQuery { name })) = query else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "name the program: POST /api/programs?name=part.nc",
+        );
+    };
+    if let Err(why) = plain_name(&name) {
+        return error(StatusCode::BAD_REQUEST, format!("{name:?}: {why}"));
+    }
+    let bytes = match raw {
+        Ok(b) => b,
+        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+            return error(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("a program of over {MAX_UPLOAD_BYTES} bytes is not uploaded"),
+            );
+        }
+        Err(e) => return error(StatusCode::BAD_REQUEST, e.body_text()),
+    };
+    let dir = app.live.read().program_dir.clone();
+    let target = dir.join(&name);
+    let written = tokio::task::spawn_blocking(move || write_atomically(&dir, &target, &bytes))
+        .await
+        .map_err(std::io::Error::other)
+        .and_then(|r| r);
+    match written {
+        Ok(replaced) => {
+            tracing::info!(
+                edmd_event = "upload",
+                "program {name} uploaded{}",
+                if replaced {
+                    " (replacing the old one)"
+                } else {
+                    ""
+                }
+            );
+            let message = format!(
+                "{name} uploaded{}",
+                if replaced {
+                    ", replacing the old one"
+                } else {
+                    ""
+                }
+            );
+            axum::Json(serde_json::json!({ "ok": true, "message": message })).into_response()
+        }
+        Err(e) => {
+            tracing::error!("upload of {name}: {e}");
+            error(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("{name}: cannot write it into the program directory: {e}"),
+            )
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ListingQuery {
+    name: String,
+}
+
+pub(super) async fn listing(
+    State(app): State<Arc<App>>,
+    query: Result<Query<ListingQuery>, axum::extract::rejection::QueryRejection>,
+) -> Response {
+    let Ok(Query(ListingQuery { name })) = query else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "name the program: GET /api/program?name=part.nc",
+        );
+    };
+    let path = match program_file(&app, &name) {
+        Ok(p) => p,
+        Err(e) => return e,
+    };
+    let Ok(_turn) = app.listings.try_acquire() else {
+        return busy("program listings");
+    };
+    let read = tokio::task::spawn_blocking(move || read_lines(&path)).await;
+    match read {
+        Ok(Ok((lines, truncated))) => axum::Json(serde_json::json!({
+            "name": name, "lines": lines, "truncated": truncated
+        }))
+        .into_response(),
+        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("{name}: {e}")),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    }
+}
+
+/// The first lines of a program (invalid UTF-8 replaced), and whether there were more.
+fn read_lines(path: &Path) -> std::io::Result<(Vec<String>, bool)> {
+    use std::io::{BufRead, Read};
+    let file = std::fs::File::open(path)?;
+    let size = file.metadata()?.len();
+    let mut reader = std::io::BufReader::new(file.take(MAX_LISTING_BYTES));
+    let mut lines = Vec::new();
+    let mut buf = Vec::new();
+    while lines.len() < MAX_LISTING_LINES {
+        buf.clear();
+        if reader.read_until(b'\n', &mut buf)? == 0 {
+            return Ok((lines, size > MAX_LISTING_BYTES));
+        }
+        let text = String::from_utf8_lossy(&buf);
+        lines.push(text.trim_end_matches(['\n', '\r']).to_string());
+    }
+    Ok((lines, true))
+}
+
+/// A name an upload may have: one plain file name.
+fn plain_name(name: &str) -> Result<(), &'static str> {
+    if name.is_empty() || name.len() > MAX_NAME_BYTES {
+        return Err("a program name has 1 to 255 bytes");
+    }
+    if name.chars().any(|c| c.is_control()) {
+        return Err("a program name has no control characters");
+    }
+    if name.contains('/') || name.contains('\\') {
+        return Err("a program name is a file name, with no directory");
+    }
+    if name.starts_with('.') {
+        return Err("a program name does not start with a dot");
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `target` in `dir` through a synced temporary file and a rename;
+/// `true` when it replaced a file.
+fn write_atomically(dir: &Path, target: &PathBuf, bytes: &[u8]) -> std::io::Result<bool> {
+    let replaced = target.exists();
+    let tmp = dir.join(format!(
+        ".upload-{}-{}",
+        std::process::id(),
+        crate::sys::monotonic_ns()
+    ));
+    let result = (|| {
+        let mut file = std::fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, target)?;
+        std::fs::File::open(dir)?.sync_all()
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map(|()| replaced)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_plain_file_names() {
+        assert!(plain_name("part.nc").is_ok());
+        assert!(plain_name("die 7 (rough).ngc").is_ok());
+        for bad in ["", "../x.nc", "a/b.nc", ".hidden", "a\nb", "a\\b"] {
+            assert!(plain_name(bad).is_err(), "{bad:?}");
+        }
+        assert!(plain_name(&"x".repeat(256)).is_err());
+    }
+}
