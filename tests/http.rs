@@ -665,6 +665,45 @@ fn the_page_in_headless_chromium() {
         "the last job's outcome",
         "const o = document.getElementById('outcome').textContent; return o.includes('runtime-path.nc: stopped') ? o : false",
     );
+    // Jog from the page: one step of 0.1 mm, then held for a while (a continuous jog the
+    // page renews), released: it stops.
+    let x = |d: &Daemon| {
+        d.status()["machine"]["position_machine_mm"][0]
+            .as_f64()
+            .unwrap()
+    };
+    let x0 = x(&d);
+    wait(
+        "the jog buttons",
+        "return !document.getElementById('jog-plus').disabled",
+    );
+    browser.eval("document.getElementById('jog-plus').click(); return true");
+    d.wait_for("the jog", |s| {
+        s["state"] == "idle"
+            && (s["machine"]["position_machine_mm"][0].as_f64().unwrap() - x0 - 0.1).abs() < 1e-9
+    });
+    let x1 = x(&d);
+    browser.eval(
+        "document.getElementById('jog-hold-plus').dispatchEvent(new PointerEvent('pointerdown')); return true",
+    );
+    d.wait_for("jogging", |s| s["state"] == "jogging");
+    std::thread::sleep(Duration::from_millis(400));
+    browser.eval(
+        "document.getElementById('jog-hold-plus').dispatchEvent(new PointerEvent('pointerup')); return true",
+    );
+    d.wait_for("the jog's stop", |s| s["state"] == "idle");
+    let x2 = x(&d);
+    std::thread::sleep(Duration::from_millis(400));
+    assert!(x2 > x1, "the held jog moved: {x1} -> {x2}");
+    assert_eq!(x(&d), x2, "and stays stopped after the release");
+    // An MDI line from the page.
+    browser.eval(
+        "document.getElementById('mdi-line').value = 'G0 Y0.05'; document.getElementById('mdi-send').click(); return true",
+    );
+    d.wait_for("the MDI move", |s| {
+        s["state"] == "idle"
+            && (s["machine"]["position_machine_mm"][1].as_f64().unwrap() - 0.05).abs() < 1e-9
+    });
     eprintln!(
         "backplot {plot}, progress {progress}, screenshot {}",
         dir.join("page.png").display()

@@ -409,8 +409,13 @@ fn a_resume_is_refused_after_the_offsets_changed_or_the_machine_moved() {
     );
     daemon.ok(&["touch-off", "X", &format!("{}", stopped[0])]);
 
-    // A jog away (it leaves the checkpoint alone): refused until the machine is back.
-    daemon.ok(&["jog", "Y", "0.5"]);
+    // A jog away (it leaves the checkpoint alone, and says nothing of discarding it):
+    // refused until the machine is back.
+    let reply = daemon.ok(&["jog", "Y", "0.5"]);
+    assert!(
+        !reply["message"].as_str().unwrap().contains("discarded"),
+        "{reply}"
+    );
     daemon.wait_for("idle", |s| s["state"] == "idle");
     assert_eq!(daemon.status()["checkpoint"]["reason"], "abort");
     let (reply, code) = daemon.ctl(&["resume"]);

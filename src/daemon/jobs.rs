@@ -392,9 +392,13 @@ impl Core {
                 consequence: "the job does not start without its checkpoint",
             });
         }
-        // A new job replaces the checkpoint of an old one, and only now that it really starts.
+        // A new program replaces the checkpoint of an old one, and only now that it really
+        // starts (a jog, MDI, homing or a dry run leave it alone).
         let mut message = String::new();
-        if !resumed && let Some(old) = old {
+        if !resumed
+            && kind == JobKind::Program
+            && let Some(old) = old
+        {
             tracing::warn!(
                 "checkpoint of {} (line {}) replaced: a new job starts",
                 old.program.display(),
