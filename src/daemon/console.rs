@@ -6,7 +6,7 @@ use super::Core;
 use super::jobs::JobControl;
 use super::protocol::OverrideKind;
 use super::refusal::Refusal;
-use crate::runtime::controls::{Controls, MAX_FEED_OVERRIDE_PCT, MAX_RAPID_OVERRIDE_PCT};
+use crate::runtime::controls::{MAX_FEED_OVERRIDE_PCT, MAX_RAPID_OVERRIDE_PCT};
 
 impl Core {
     /// `override feed|rapid PERCENT`: in force from the running job's next tick (if one
@@ -26,20 +26,16 @@ impl Core {
             )));
         }
         let pct = percent.round() as u32;
-        let overrides = &mut self.jobs.overrides;
+        let controls = &mut self.jobs.controls;
         let was = match kind {
-            OverrideKind::Feed => std::mem::replace(&mut overrides.feed_pct, pct),
-            OverrideKind::Rapid => std::mem::replace(&mut overrides.rapid_pct, pct),
+            OverrideKind::Feed => std::mem::replace(&mut controls.feed_pct, pct),
+            OverrideKind::Rapid => std::mem::replace(&mut controls.rapid_pct, pct),
         };
-        let running = self
-            .jobs
-            .job
-            .as_ref()
-            .map(|job| job.published.controls.set(self.jobs.controls()));
+        let running = self.jobs.publish_controls();
         tracing::info!(
             edmd_event = "override",
             "{name} override {was} % -> {pct} %{}",
-            if running.is_some() {
+            if running {
                 " (the running job takes it at its next tick)"
             } else {
                 " (for the next job)"
@@ -47,16 +43,12 @@ impl Core {
         );
         Ok(format!("{name} override {pct} %"))
     }
-}
 
-impl Core {
     /// `single-block on|off`: in force from the running job's next block end, and for every
     /// job after.
     pub(super) fn set_single_block(&mut self, on: bool) -> Result<String, Refusal> {
-        self.jobs.single_block = on;
-        if let Some(job) = &self.jobs.job {
-            job.published.controls.set(self.jobs.controls());
-        }
+        self.jobs.controls.single_block = on;
+        self.jobs.publish_controls();
         let state = if on { "on" } else { "off" };
         tracing::info!(edmd_event = "single_block", "single block {state}");
         Ok(format!(
@@ -71,19 +63,18 @@ impl Core {
 }
 
 impl JobControl {
-    /// A new job's published controls, at the overrides in force.
+    /// A new job's published controls, at the controls in force.
     pub(super) fn published(&self) -> crate::runtime::consumer::Published {
         let published = crate::runtime::consumer::Published::new(4096);
-        published.controls.set(self.controls());
+        published.controls.set(self.controls);
         published
     }
 
-    /// The operator's controls in force, as a job takes them.
-    pub(super) fn controls(&self) -> Controls {
-        Controls {
-            feed_pct: self.overrides.feed_pct,
-            rapid_pct: self.overrides.rapid_pct,
-            single_block: self.single_block,
-        }
+    /// Hands the controls in force to the running job; `false` when none runs.
+    fn publish_controls(&self) -> bool {
+        self.job
+            .as_ref()
+            .map(|job| job.published.controls.set(self.controls))
+            .is_some()
     }
 }

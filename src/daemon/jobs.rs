@@ -74,10 +74,9 @@ pub(super) struct JobControl {
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
     pub finished: protocol::Counters,
-    /// The operator's overrides: the running job's, and every job's from its start.
-    pub overrides: protocol::OverrideStatus,
-    /// Single block, likewise.
-    pub single_block: bool,
+    /// The operator's controls (overrides, single block): the running job's, and every
+    /// job's from its start.
+    pub controls: crate::runtime::controls::Controls,
 }
 
 /// The folder of a job's report and its recording, when the configuration asks for one. The

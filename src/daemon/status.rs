@@ -5,7 +5,9 @@
 use std::sync::atomic::Ordering;
 
 use super::Core;
-use super::protocol::{CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, Status};
+use super::protocol::{
+    CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, OverrideStatus, Status,
+};
 use crate::runtime::{Published, Snapshot};
 use crate::servo::{Excursion, ServoState};
 
@@ -110,8 +112,11 @@ impl Core {
         let live = snapshot.as_ref().map(|s| s.position);
         Status {
             machine: self.machine.status(config, live.as_ref()),
-            overrides: self.jobs.overrides,
-            single_block: self.jobs.single_block,
+            overrides: OverrideStatus {
+                feed_pct: self.jobs.controls.feed_pct,
+                rapid_pct: self.jobs.controls.rapid_pct,
+            },
+            single_block: self.jobs.controls.single_block,
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),
