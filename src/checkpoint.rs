@@ -133,6 +133,9 @@ pub struct Checkpoint {
     /// the program from there. Absent (older checkpoints): machine zero, `G54`, no offsets.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start: Option<StartRecord>,
+    /// The job ran from a line: a resume replays the same approach (and never cuts it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_line: Option<crate::runtime::FromLine>,
 }
 
 /// A job's start as a checkpoint keeps it.
@@ -398,6 +401,7 @@ mod tests {
             position_mm: vec![0.1, -0.007],
             written_unix_s: 1,
             start: None,
+            from_line: None,
         }
     }
 

@@ -310,6 +310,7 @@ mod tests {
             max_tangential_accel_mm_per_s2: 1000.0,
             max_jog_feed_mm_per_min: 600.0,
             travel: vec![None, None],
+            safe_z_mm: None,
         }
     }
 

@@ -576,6 +576,11 @@ fn the_page_in_headless_chromium() {
         "const m = document.getElementById('message'); return m.className === 'error' && m.textContent.includes('far.nc:2:1') ? m.textContent : false",
     );
     eprintln!("refusal on the page: {refused}");
+    // … and in the event list, which keeps it.
+    wait(
+        "the refusal in the event list",
+        "return document.getElementById('events').textContent.includes('far.nc:2:1')",
+    );
     let shot = browser.command("GET", "/screenshot", None);
     std::fs::write(
         dir.join("page-refused.png"),
@@ -589,6 +594,24 @@ fn the_page_in_headless_chromium() {
         "return document.getElementById('program-list').value === 'uploaded.nc'",
     );
     assert!(dir.join("programs/uploaded.nc").exists());
+    // Picked, the program is previewed before it runs: its path over a grid in mm (work
+    // coordinates), with the soft limits' box.
+    browser.eval(
+        "const s = document.getElementById('program-list'); s.value = 'runtime-path.nc'; \
+         s.dispatchEvent(new Event('change')); return true",
+    );
+    let preview = wait(
+        "the preview",
+        "const b = document.getElementById('backplot').dataset; \
+         return b.preview === 'runtime-path.nc' && Number(b.plannedPoints) > 10 && Number(b.gridMm) > 0 ? [b.plannedPoints, b.gridMm] : false",
+    );
+    eprintln!("preview: {preview}");
+    let shot = browser.command("GET", "/screenshot", None);
+    std::fs::write(
+        dir.join("page-idle.png"),
+        base64_decode(shot.as_str().unwrap()),
+    )
+    .unwrap();
     // Run from the page.
     browser.eval(
         "document.getElementById('program-list').value = 'runtime-path.nc'; document.getElementById('run').click(); return true",
@@ -608,6 +631,12 @@ fn the_page_in_headless_chromium() {
         "the backplot",
         "const b = document.getElementById('backplot').dataset; \
          return Number(b.plannedPoints) > 10 && Number(b.executedPoints) > 5 ? b : false",
+    );
+    // A page opened mid-job shows everything cut so far: the path is the daemon's.
+    browser.command("POST", "/refresh", Some(json!({})));
+    wait(
+        "the executed path after a reload",
+        "const b = document.getElementById('backplot').dataset; return Number(b.executedPoints) > 5 ? b.executedPoints : false",
     );
     let progress = wait(
         "progress",
@@ -630,10 +659,23 @@ fn the_page_in_headless_chromium() {
         "const f = document.getElementById('feed-override'); f.value = 80; f.dispatchEvent(new Event('change')); return true",
     );
     d.wait_for("the override", |s| s["overrides"]["feed_pct"] == 80);
+    // Single block: the job stops at the end of each block; Resume runs the next. Twice.
     browser.eval(
         "const b = document.getElementById('single-block'); b.checked = true; b.dispatchEvent(new Event('change')); return true",
     );
     d.wait_for("single block", |s| s["single_block"] == true);
+    let mut stops = Vec::new();
+    for _ in 0..2 {
+        let s = d.wait_for("a single-block stop", |s| s["state"] == "paused");
+        stops.push(s["job"]["paused_before_line"].as_u64().unwrap());
+        wait(
+            "Resume enabled",
+            "return document.getElementById('state').textContent === 'paused' && !document.getElementById('resume').disabled",
+        );
+        browser.eval("document.getElementById('resume').click(); return true");
+        d.wait_for("the next block", |s| s["state"] != "paused");
+    }
+    assert!(stops[1] > stops[0], "stepped block by block: {stops:?}");
     browser.eval(
         "const b = document.getElementById('single-block'); b.checked = false; b.dispatchEvent(new Event('change')); return true",
     );
@@ -665,6 +707,25 @@ fn the_page_in_headless_chromium() {
         "the last job's outcome",
         "const o = document.getElementById('outcome').textContent; return o.includes('runtime-path.nc: stopped') ? o : false",
     );
+    // The job's own events (from its recording) in the list: the hold and the abort.
+    let events = wait(
+        "the job's events",
+        "const t = document.getElementById('events').textContent; return t.includes(' hold') && t.includes(' abort') ? t : false",
+    );
+    eprintln!("events: {events}");
+    // Run from a line from the page's run dialog.
+    browser.eval(
+        "document.getElementById('program-list').value = 'runtime-path.nc'; \
+         document.getElementById('from-line').value = '7'; document.getElementById('run').click(); return true",
+    );
+    let s = d.wait_for("the run from line 7", |s| {
+        s["job"]["from_line"]["line"] == 7
+    });
+    assert_eq!(s["job"]["from_line"]["approach"], "path");
+    browser.eval(
+        "document.getElementById('from-line').value = ''; const a = document.getElementById('abort'); a.click(); a.click(); return true",
+    );
+    d.wait_for("its abort", |s| s["state"] == "idle");
     // Jog from the page: one step of 0.1 mm, then held for a while (a continuous jog the
     // page renews), released: it stops.
     let x = |d: &Daemon| {
@@ -724,6 +785,32 @@ fn the_page_in_headless_chromium() {
          ? [document.documentElement.scrollWidth, window.innerWidth] : false",
     );
     eprintln!("on a phone: {fits}");
+    // `edmd ctl web-link`: a one-time link logs a browser in; the second use does not.
+    let link = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(dir.join("edmd.sock"))
+        .arg("web-link")
+        .output()
+        .unwrap();
+    assert!(link.status.success());
+    let link = String::from_utf8(link.stdout).unwrap();
+    let url = link.split_whitespace().next().unwrap().to_string();
+    assert!(url.contains("/#login="), "{link}");
+    browser.eval("localStorage.removeItem('edmd-token'); return true");
+    browser.command("POST", "/url", Some(json!({ "url": url })));
+    wait(
+        "the login by link",
+        &format!(
+            "return localStorage.getItem('edmd-token') === '{}' && document.getElementById('login').className === ''",
+            d.token
+        ),
+    );
+    browser.eval("localStorage.removeItem('edmd-token'); return true");
+    browser.command("POST", "/url", Some(json!({ "url": url })));
+    wait(
+        "the used link refused",
+        "return document.getElementById('message').textContent.includes('used up') && localStorage.getItem('edmd-token') === null",
+    );
     let shot = browser.command("GET", "/screenshot", None);
     std::fs::write(
         dir.join("page-phone.png"),

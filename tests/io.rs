@@ -118,6 +118,7 @@ fn job_on(
         &program,
         config,
         &Default::default(),
+        None,
         &runtime::Progress::new(),
     )
     .unwrap();
@@ -599,6 +600,7 @@ fn fault_then_resume(
         &program,
         config,
         &Default::default(),
+        None,
         &runtime::Progress::new(),
     )
     .unwrap();

@@ -37,6 +37,16 @@ pub(super) enum CtlCommand {
         /// at the programmed feed (no checkpoint is kept)
         #[arg(long)]
         dry_run: bool,
+        /// Cut from this source line: the program is interpreted from its start without
+        /// cutting (modal state, parameters, offsets, wire offset, condition), then the
+        /// machine approaches the line's start
+        #[arg(long, value_name = "LINE")]
+        from_line: Option<u64>,
+        /// How a run from a line reaches its start: along the programmed path with the spark
+        /// off (a wire machine), or direct: up to machine.safe_z_mm, across, down (a sinker)
+        /// [default: direct where machine.safe_z_mm is set, path otherwise]
+        #[arg(long, value_parser = parse_approach, requires = "from_line")]
+        approach: Option<crate::runtime::Approach>,
     },
     /// Brake to a standstill and hold there (checkpoint written)
     Hold,
@@ -97,6 +107,9 @@ pub(super) enum CtlCommand {
     },
     /// Print the work offset table (G54 … G59.3; the active system marked *)
     Offsets,
+    /// Print a one-time link that logs a browser in to the web page (one use, 10 minutes)
+    #[command(name = "web-link")]
+    WebLink,
     /// Set a work offset so that where the machine stands reads VALUE on AXIS (G10 L20)
     #[command(name = "touch-off")]
     TouchOff {
@@ -223,6 +236,12 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
     }
 }
 
+/// `--approach path|direct`.
+pub(super) fn parse_approach(text: &str) -> Result<crate::runtime::Approach, String> {
+    crate::runtime::Approach::parse(text)
+        .ok_or_else(|| format!("{text:?}: the approach is path or direct"))
+}
+
 /// The request a `ctl` command sends, and whether `ctl` waits for the check it starts.
 fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) {
     use crate::daemon::protocol::Request;
@@ -231,10 +250,14 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             program,
             no_wait,
             dry_run,
+            from_line,
+            approach,
         } => (
             Request::Run {
                 program: program.clone(),
                 dry_run: *dry_run,
+                from_line: *from_line,
+                approach: *approach,
             },
             !no_wait,
         ),
@@ -244,6 +267,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
+        CtlCommand::WebLink => (Request::WebLink {}, false),
         CtlCommand::Reset => (Request::Reset {}, false),
         CtlCommand::SingleBlock { state } => (
             Request::SingleBlock {

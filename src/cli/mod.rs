@@ -207,6 +207,27 @@ struct RunArgs {
     /// checkpoint there: `edmd serve` with this file as `daemon.checkpoint` resumes it
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<PathBuf>,
+    /// Cut from this source line: the program is interpreted from its start without
+    /// cutting, then the machine approaches the line's start
+    #[arg(long, value_name = "LINE", value_parser = clap::value_parser!(u64).range(1..))]
+    from_line: Option<u64>,
+    /// How a run from a line reaches its start: path (along the program, spark off) or
+    /// direct (up to machine.safe_z_mm, across, down) [default: direct where
+    /// machine.safe_z_mm is set, path otherwise]
+    #[arg(long, value_parser = ctl::parse_approach, requires = "from_line")]
+    approach: Option<runtime::Approach>,
+}
+
+impl RunArgs {
+    /// `--from-line` with its approach (the machine's usual one unless `--approach`).
+    fn cut_from(&self, cfg: &Config) -> Option<runtime::FromLine> {
+        self.from_line.map(|line| runtime::FromLine {
+            line,
+            approach: self
+                .approach
+                .unwrap_or(runtime::Approach::default_for(cfg.machine.safe_z_mm)),
+        })
+    }
 }
 
 #[derive(Args, Debug)]
@@ -499,7 +520,14 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Err(code) => return code,
     };
     let start = machine.state.work_start();
-    let result = runtime::run_file_from(&args.program, &cfg, &start, &stop, observers);
+    let result = runtime::run_file_from(
+        &args.program,
+        &cfg,
+        &start,
+        args.cut_from(&cfg),
+        &stop,
+        observers,
+    );
     if terminal {
         eprintln!();
     }
@@ -541,7 +569,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         }
     }
     if let (Some(path), Some(at)) = (&args.checkpoint, &summary.stopped_at) {
-        match write_run_checkpoint(path, args, &cfg, &summary, at, &start) {
+        match run_state::write_run_checkpoint(path, args, &cfg, &summary, at, &start) {
             Ok(()) => eprintln!("edmd: checkpoint written to {}", path.display()),
             Err(e) => {
                 eprintln!(
@@ -561,52 +589,6 @@ fn run_job(args: &RunArgs) -> ExitCode {
             ExitCode::from(EXIT_RUNTIME)
         }
     }
-}
-
-/// The checkpoint of an `edmd run` job that stopped at `at` (a standstill: exact), in the
-/// daemon's format, so that `edmd serve` resumes it.
-fn write_run_checkpoint(
-    path: &Path,
-    args: &RunArgs,
-    cfg: &Config,
-    summary: &runtime::JobSummary,
-    at: &runtime::StopPoint,
-    start: &crate::gcode::WorkStart,
-) -> std::io::Result<()> {
-    use crate::checkpoint::{self, Checkpoint, Reason};
-    let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
-        .map(|(_, keys)| keys)
-        .unwrap_or_default();
-    // Only a job that did not finish leaves a checkpoint, so there is a reason.
-    let reason = Reason::of_outcome(summary.outcome, None).unwrap_or(Reason::Error);
-    let unix_now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let cp = Checkpoint {
-        version: checkpoint::VERSION,
-        program: std::fs::canonicalize(&args.program)?,
-        program_sha256: at.program_sha256.clone(),
-        motion_sha256: checkpoint::motion_hash(cfg),
-        motion_settings: checkpoint::motion_settings(&keys),
-        reason,
-        still: true,
-        line: at.line,
-        segment: at.segment,
-        step: at.step,
-        segment_steps: at.segment_steps,
-        parameter: at.parameter,
-        dwell_s: at.dwell_s,
-        axes: cfg.machine.axis_names(),
-        position_steps: summary.end_steps.clone(),
-        position_mm: summary.end_mm.clone(),
-        written_unix_s: unix_now,
-        start: Some(checkpoint::StartRecord::new(
-            start,
-            &cfg.machine.axes,
-            &cfg.machine.step_mm,
-        )),
-    };
-    cp.write_atomic(path)
 }
 
 fn run_serve(args: &ServeArgs) -> ExitCode {

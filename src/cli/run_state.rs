@@ -65,3 +65,50 @@ impl RunState {
         self.save(false)
     }
 }
+
+/// The checkpoint of an `edmd run` job that stopped at `at` (a standstill: exact), in the
+/// daemon's format, so that `edmd serve` resumes it.
+pub(super) fn write_run_checkpoint(
+    path: &Path,
+    args: &super::RunArgs,
+    cfg: &Config,
+    summary: &JobSummary,
+    at: &crate::runtime::StopPoint,
+    start: &crate::gcode::WorkStart,
+) -> std::io::Result<()> {
+    use crate::checkpoint::{self, Checkpoint, Reason};
+    let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
+        .map(|(_, keys)| keys)
+        .unwrap_or_default();
+    // Only a job that did not finish leaves a checkpoint, so there is a reason.
+    let reason = Reason::of_outcome(summary.outcome, None).unwrap_or(Reason::Error);
+    let unix_now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let cp = Checkpoint {
+        version: checkpoint::VERSION,
+        program: std::fs::canonicalize(&args.program)?,
+        program_sha256: at.program_sha256.clone(),
+        motion_sha256: checkpoint::motion_hash(cfg),
+        motion_settings: checkpoint::motion_settings(&keys),
+        reason,
+        still: true,
+        line: at.line,
+        segment: at.segment,
+        step: at.step,
+        segment_steps: at.segment_steps,
+        parameter: at.parameter,
+        dwell_s: at.dwell_s,
+        axes: cfg.machine.axis_names(),
+        position_steps: summary.end_steps.clone(),
+        position_mm: summary.end_mm.clone(),
+        written_unix_s: unix_now,
+        start: Some(checkpoint::StartRecord::new(
+            start,
+            &cfg.machine.axes,
+            &cfg.machine.step_mm,
+        )),
+        from_line: args.cut_from(cfg),
+    };
+    cp.write_atomic(path)
+}

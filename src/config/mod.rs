@@ -119,6 +119,9 @@ pub struct MachineConfig {
     pub max_jog_feed_mm_per_min: f64,
     /// Soft limits per axis (machine order); `None`: the axis has none.
     pub travel: Vec<Option<Travel>>,
+    /// Machine Z (mm) a direct approach retracts to before it moves across the work (a job
+    /// run from a line); `None`: the machine has no Z or no safe height is set.
+    pub safe_z_mm: Option<f64>,
 }
 
 /// An axis's soft limits, machine coordinates, mm.

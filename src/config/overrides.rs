@@ -104,7 +104,7 @@ pub(super) fn overlay(
             });
         };
         for (key, value) in keys {
-            if !defaults.contains_key(&key) {
+            if !known(&section, &key, defaults) {
                 return Err(ConfigError::Invalid {
                     origin: origins.describe(&format!("{section}.{key}"), source),
                     message: unknown_key_message(&section, &key, defaults),
@@ -124,8 +124,23 @@ fn section_names() -> String {
         .join(", ")
 }
 
+/// Keys with no default value (TOML has no null): absent from the shipped file, which
+/// describes them in a comment, and still known.
+const OPTIONAL_KEYS: &[(&str, &str)] = &[("machine", "safe_z_mm")];
+
+fn known(section: &str, key: &str, defaults: &toml::Table) -> bool {
+    defaults.contains_key(key) || OPTIONAL_KEYS.contains(&(section, key))
+}
+
 fn unknown_key_message(section: &str, key: &str, known: &toml::Table) -> String {
-    let names: Vec<&str> = known.keys().map(String::as_str).collect();
+    let mut names: Vec<&str> = known.keys().map(String::as_str).collect();
+    names.extend(
+        OPTIONAL_KEYS
+            .iter()
+            .filter(|(s, _)| *s == section)
+            .map(|(_, k)| *k),
+    );
+    names.sort_unstable();
     format!(
         "unknown key `{key}` in [{section}]; the keys are {}",
         names.join(", ")
@@ -155,7 +170,7 @@ pub(super) fn apply_override(
             section_names()
         )));
     };
-    if !keys.contains_key(key) {
+    if !known(section, key, keys) {
         return Err(fail(unknown_key_message(section, key, keys)));
     }
     let value = parse_override_value(value_text.trim())

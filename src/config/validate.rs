@@ -205,7 +205,9 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
         positive("machine.step_mm", s, 10.0, "mm")?;
     }
     let travel = travel(&axes, &m.travel_mm)?;
+    let safe_z_mm = safe_z(&axes, &travel, m.safe_z_mm)?;
     Ok(MachineConfig {
+        safe_z_mm,
         travel,
         axes,
         step_mm: m.step_mm,
@@ -234,6 +236,34 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
             "mm/s²",
         )?,
     })
+}
+
+/// `machine.safe_z_mm`: only on a machine with Z, and inside Z's travel.
+fn safe_z(
+    axes: &[Axis],
+    travel: &[Option<Travel>],
+    safe_z: Option<f64>,
+) -> Result<Option<f64>, Invalid> {
+    const KEY: &str = "machine.safe_z_mm";
+    let Some(z) = safe_z else { return Ok(None) };
+    let Some(index) = axes.iter().position(|&a| a == Axis::Z) else {
+        return Err((KEY, "is set but machine.axes has no Z".to_string()));
+    };
+    if !z.is_finite() {
+        return Err((KEY, format!("must be a number of mm, not {z}")));
+    }
+    if let Some(t) = travel[index]
+        && !(t.min_mm..=t.max_mm).contains(&z)
+    {
+        return Err((
+            KEY,
+            format!(
+                "{z} mm is outside Z's travel [{}, {}] (machine.travel_mm)",
+                t.min_mm, t.max_mm
+            ),
+        ));
+    }
+    Ok(Some(z))
 }
 
 /// `machine.travel_mm`: `[lowest, highest]` per axis letter; axes the machine does not have

@@ -181,6 +181,7 @@ impl CheckpointKeeper {
                 &machine.axes,
                 &machine.step_mm,
             )),
+            from_line: job.from_line,
         };
         let path = &job.config.daemon.checkpoint;
         match cp.write_atomic(path) {

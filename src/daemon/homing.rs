@@ -194,6 +194,7 @@ impl Core {
                 switch,
                 feed_mm_per_min: h.search_feed_mm_per_min,
             },
+            from_line: None,
         };
         tracing::info!(
             edmd_event = "homing",

@@ -1,19 +1,19 @@
-//! The control loop's job commands: `run` (confine, precheck, open the devices, start the job
-//! thread), `hold`, `resume` (of a hold, or of the checkpoint), `abort`, and what happens
-//! when a job ends: the checkpoint written at a standstill, or removed when the job is done.
+//! The control loop's commands to a job: `hold`, `resume` (of a hold, or of the checkpoint,
+//! whose check `start.rs` runs), `rethread`, `abort`, and what happens when a job ends: the
+//! checkpoint written at a standstill, or removed when the job is done. A job's I/O is lent
+//! from here (the claimed parallel port).
 
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use super::launch::{Checked, JobKind, Launch, Source, copy_and_check};
-use super::protocol::{self, CheckStatus};
-use super::refusal::{CheckRefusal, Refusal};
-use super::{Core, CoreMsg, Job, JobReport, confine, unix_now};
-use crate::checkpoint::{self, Reason};
+use super::launch::{JobKind, Launch, Source};
+use super::protocol;
+use super::refusal::Refusal;
+use super::{Core, Job, confine};
+use crate::checkpoint::Reason;
 use crate::config::{Config, GapKind, OutputKind};
-use crate::record::{EventKind, Recording};
+use crate::record::EventKind;
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{
     self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome,
@@ -23,8 +23,8 @@ use crate::servo::{Rethread, ServoState};
 
 /// A resume waiting for its check: where to resume, and the bytes it must be.
 pub(super) struct Resume {
-    point: ResumePoint,
-    sha256: String,
+    pub(super) point: ResumePoint,
+    pub(super) sha256: String,
 }
 
 /// The check in progress.
@@ -33,19 +33,19 @@ pub(super) struct Check {
     /// The program as the operator named it.
     pub(super) name: String,
     pub(super) progress: Arc<Progress>,
-    resume: Option<Resume>,
+    pub(super) resume: Option<Resume>,
     /// Where the job starts (checked from there) and what it is.
-    launch: Launch,
+    pub(super) launch: Launch,
 }
 
 impl Job {
     /// An operator's event (a hold, its release) into the job's report, at the tick and
     /// line the job has reached.
     fn report_event(&self, kind: EventKind) {
-        if let Some((_, recording)) = &self.report {
-            let snap = self.published.snapshot();
-            recording.lock().event(snap.tick, snap.line, kind, None);
-        }
+        let snap = self.published.snapshot();
+        self.recording
+            .lock()
+            .event(snap.tick, snap.line, kind, None);
     }
 }
 
@@ -77,47 +77,8 @@ pub(super) struct JobControl {
     /// The operator's controls (overrides, single block): the running job's, and every
     /// job's from its start.
     pub controls: crate::runtime::controls::Controls,
-}
-
-/// The folder of a job's report and its recording, when the configuration asks for one. The
-/// folder is made first: a job must not learn at its end that its report has nowhere to go.
-fn job_report(config: &Config, program_name: &str) -> Result<Option<JobReport>, Refusal> {
-    Ok(match &config.daemon.report_dir {
-        Some(dir) => {
-            let stem = Path::new(program_name)
-                .file_stem()
-                .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
-            let dir = dir.join(format!("{}-{stem}", unix_now()));
-            if let Err(source) = std::fs::create_dir_all(&dir) {
-                return Err(Refusal::ReportDir { dir, source });
-            }
-            let recording = Arc::new(parking_lot::Mutex::new(Recording::new(
-                &config.machine.step_mm,
-                config.fine.tick,
-            )));
-            Some((dir, recording))
-        }
-        None => None,
-    })
-}
-
-/// Logs a job's start; what the command answers.
-fn started(program: &str, blocks: u64, resumed: bool, kind: JobKind, message: &str) -> String {
-    tracing::info!(
-        edmd_event = "job_start",
-        edmd_program = program,
-        "job start: {program}{}",
-        match (resumed, kind == JobKind::DryRun) {
-            (true, _) => " (resumed)",
-            (_, true) => " (dry run: spark off, the servo out of the loop)",
-            _ => "",
-        }
-    );
-    if resumed {
-        format!("resuming {program}: {blocks} blocks")
-    } else {
-        format!("running {program}: {blocks} blocks{message}")
-    }
+    /// The running or last job's recording, shared with the web page.
+    pub executed: super::http::executed::ExecutedSlot,
 }
 
 impl JobControl {
@@ -182,253 +143,6 @@ impl JobControl {
 }
 
 impl Core {
-    pub(super) fn run_program(
-        &mut self,
-        requested: &str,
-        dry_run: bool,
-    ) -> Result<String, Refusal> {
-        self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        self.refuse_if_unhomed()?;
-        let program = confine(&self.config.daemon.program_dir, requested)?;
-        let launch = Launch {
-            start: self.machine.state.work_start(),
-            kind: if dry_run {
-                JobKind::DryRun
-            } else {
-                JobKind::Program
-            },
-        };
-        let id = self.begin_check(Source::Original(program.clone()), None, launch);
-        Ok(format!(
-            "accepted: checking {} (check {id}); the job starts when the check passes",
-            program.display()
-        ))
-    }
-
-    /// Starts copying and checking a program on a worker thread; the verdict comes back as
-    /// [`CoreMsg::Checked`]. Returns the check's id.
-    pub(super) fn begin_check(
-        &mut self,
-        source: Source,
-        resume: Option<Resume>,
-        launch: Launch,
-    ) -> u64 {
-        self.jobs.next_check_id += 1;
-        let id = self.jobs.next_check_id;
-        let progress = Arc::new(Progress::new());
-        let name = match &source {
-            Source::Original(path) => path.display().to_string(),
-            Source::Copy(program) => program.name.clone(),
-            Source::Generated { name, .. } => name.clone(),
-        };
-        let (mut config, dir, tx) = (
-            self.config.clone(),
-            self.copy_dir(),
-            self.clients.to_core.clone(),
-        );
-        if matches!(launch.kind, JobKind::Home { .. }) {
-            // Homing finds where the machine is: the soft limits mean nothing yet.
-            config.machine.travel.iter_mut().for_each(|t| *t = None);
-        }
-        let expect = resume.as_ref().map(|r| r.sha256.clone());
-        let worker_progress = progress.clone();
-        let worker_start = launch.start.clone();
-        let spawned = std::thread::Builder::new()
-            .name("edmd-check".to_string())
-            .stack_size(crate::gcode::PARSER_STACK_BYTES)
-            .spawn(move || {
-                let result = copy_and_check(
-                    source,
-                    &dir,
-                    &config,
-                    &worker_start,
-                    expect.as_deref(),
-                    &worker_progress,
-                );
-                let result = Box::new(result);
-                let _ = tx.send(CoreMsg::Checked { id, result });
-            });
-        if let Err(e) = spawned {
-            let result = Err(CheckRefusal::Thread(e));
-            let result = Box::new(result);
-            let _ = self.clients.to_core.send(CoreMsg::Checked { id, result });
-        }
-        tracing::info!("check {id}: {name}: copying and checking");
-        self.jobs.check = Some(Check {
-            id,
-            name,
-            progress,
-            resume,
-            launch,
-        });
-        id
-    }
-
-    /// The verdict of a check: start the job, or record why not.
-    pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, CheckRefusal>) {
-        let Some(check) = self.jobs.check.take_if(|c| c.id == id) else {
-            return;
-        };
-        let outcome = if self.shutting_down {
-            Err(Refusal::ShuttingDown)
-        } else {
-            result
-                .map_err(Refusal::from)
-                .and_then(|(program, precheck)| {
-                    let resume = check.resume.as_ref().map(|r| r.point.clone());
-                    self.start_job(program, precheck, resume, check.launch.clone())
-                })
-        };
-        let (bytes_done, bytes_total) = {
-            let (_, done, total) = check.progress.get();
-            (done, total)
-        };
-        let mut status = CheckStatus {
-            id,
-            program: check.name.clone(),
-            phase: String::new(),
-            bytes_done,
-            bytes_total,
-            error: None,
-            message: None,
-            resume: check.resume.is_some(),
-        };
-        match outcome {
-            Ok(message) => {
-                tracing::info!("check {id}: {message}");
-                status.phase = "started".to_string();
-                status.message = Some(message);
-            }
-            Err(error) => {
-                // A homing sequence stops at its first refusal.
-                self.machine.homing_queue.clear();
-                tracing::error!(
-                    edmd_event = "refusal",
-                    edmd_program = check.name,
-                    "check {id}: refused: {error}"
-                );
-                status.phase = "refused".to_string();
-                status.error = Some(error.to_string());
-            }
-        }
-        self.jobs.last_check = Some(status);
-        self.notify_status();
-    }
-
-    /// Opens the I/O and starts the job thread on a checked program.
-    fn start_job(
-        &mut self,
-        program: JobProgram,
-        check: runtime::Precheck,
-        resume: Option<ResumePoint>,
-        launch: Launch,
-    ) -> Result<String, Refusal> {
-        let config = self.config.clone();
-        let spec = launch.spec(&config);
-        let switch = launch.home_switch();
-        let Launch { start, kind } = launch;
-        let blocks = check.blocks;
-        let path_total_mm = check.path_mm;
-        let rapid_spans = check.rapid_spans.clone();
-        let ledger = resume
-            .as_ref()
-            .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());
-        // A report of what this job runs, when the configuration asks for one. Its folder is
-        // made first: a job must not learn at its end that its report has nowhere to go.
-        let report = job_report(&config, &program.name)?;
-        let mut io = self.jobs.job_io(&config, &check, &ledger)?;
-        // A homing job's probing moves read its switch; any other job's the probe (the
-        // claimed port's gap input is lent to every job).
-        io.gap.home_switch(switch);
-        io.recording = report.as_ref().map(|(_, recording)| recording.clone());
-        let resumed = resume.is_some();
-        let published = Arc::new(self.jobs.published());
-        let stop = Arc::new(AtomicBool::new(false));
-        let job = Job {
-            program: PathBuf::from(&program.name),
-            program_sha256: program.sha256.clone(),
-            published: published.clone(),
-            stop: stop.clone(),
-            stop_reason: None,
-            started: Instant::now(),
-            resumed,
-            hold_checkpointed: false,
-            last_checkpoint: Instant::now(),
-            overruns_seen: 0,
-            last_overrun_report: Instant::now(),
-            config: config.clone(),
-            report,
-            motion_settings: checkpoint::motion_settings(&self.keys),
-            progress: runtime::ProgressTracker::with_rapids(
-                path_total_mm,
-                rapid_spans,
-                spec.plan.rapid_feed,
-            ),
-            resumed_from: if resumed {
-                self.checkpoints.current.clone()
-            } else {
-                None
-            },
-            start,
-            leaves: (check.work_offsets.clone(), check.work_system),
-            modes: check.modes,
-            kind,
-        };
-        // Write-ahead: before the first step the checkpoint on disk says this job is moving,
-        // from where it starts; a job that cannot record that does not start.
-        let old = self.checkpoints.current.clone();
-        let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
-        self.homing_started(switch.as_ref());
-        if let Err(refusal) = self.machine.save(true) {
-            self.jobs.give_back_io(&config, io.output, io.gap);
-            return Err(refusal);
-        }
-        if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
-            self.jobs.give_back_io(&config, io.output, io.gap);
-            return Err(Refusal::WriteAhead {
-                error,
-                consequence: "the job does not start without its checkpoint",
-            });
-        }
-        // A new program replaces the checkpoint of an old one, and only now that it really
-        // starts (a jog, MDI, homing or a dry run leave it alone).
-        let mut message = String::new();
-        if !resumed
-            && kind == JobKind::Program
-            && let Some(old) = old
-        {
-            tracing::warn!(
-                "checkpoint of {} (line {}) replaced: a new job starts",
-                old.program.display(),
-                old.line
-            );
-            message = format!(
-                "; the checkpoint of {} was discarded",
-                old.program.display()
-            );
-        }
-        self.prune_copies(Some(&program.sha256));
-        let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());
-        let (job_published, job_stop, job_program) =
-            (published.clone(), stop.clone(), program.clone());
-        std::thread::Builder::new()
-            .name("edmd-job".to_string())
-            .spawn(move || {
-                let job = runtime::JobRun {
-                    program: &job_program,
-                    check: &check,
-                    spec: &spec,
-                    resume,
-                };
-                let end = runtime::run(&fine, job, io, job_published, &job_stop);
-                let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
-            })
-            .map_err(Refusal::JobThread)?;
-        self.jobs.job = Some(job);
-        Ok(started(&program.name, blocks, resumed, kind, &message))
-    }
-
     pub(super) fn hold(&mut self) -> Result<String, Refusal> {
         let Some(job) = &mut self.jobs.job else {
             return Err(Refusal::NoJob);
@@ -511,6 +225,7 @@ impl Core {
         let launch = Launch {
             start,
             kind: JobKind::Program,
+            from_line: cp.from_line,
         };
         let id = self.begin_check(source, Some(resume), launch);
         Ok(format!(
@@ -685,8 +400,8 @@ impl Core {
         if let JobKind::Home { switch, .. } = job.kind {
             self.homing_done(&switch, &summary);
         }
-        if let Some((dir, recording)) = &job.report {
-            match crate::report::write_report(dir, &mut recording.lock(), &summary) {
+        if let Some(dir) = &job.report {
+            match crate::report::write_report(dir, &mut job.recording.lock(), &summary) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),
                 Err(e) => tracing::error!("{e}"),
             }

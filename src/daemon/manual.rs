@@ -177,6 +177,7 @@ impl Core {
             kind: JobKind::Jog {
                 feed_mm_per_min: feed,
             },
+            from_line: None,
         };
         self.begin_check(
             Source::Generated {
@@ -205,6 +206,7 @@ impl Core {
         let launch = Launch {
             start,
             kind: JobKind::Mdi,
+            from_line: None,
         };
         let text = format!("{}\n", lines.trim_end());
         let id = self.begin_check(

@@ -43,6 +43,7 @@ pub mod protocol;
 pub mod refusal;
 pub mod reload;
 pub mod socket;
+mod start;
 mod status;
 mod upkeep;
 
@@ -140,7 +141,7 @@ pub struct ConfigSource {
 }
 
 /// Where a job's report goes, and the recording it is written from.
-type JobReport = (PathBuf, Arc<parking_lot::Mutex<crate::record::Recording>>);
+type JobRecording = Arc<parking_lot::Mutex<crate::record::Recording>>;
 
 /// The running job as the control loop sees it.
 struct Job {
@@ -162,7 +163,9 @@ struct Job {
     /// How far along the program, and the ETA.
     progress: ProgressTracker,
     /// Where the job's report goes, and the recording it is written from.
-    report: Option<JobReport>,
+    report: Option<PathBuf>,
+    /// What ran: the report's recording and the page's executed path.
+    recording: JobRecording,
     /// The job's path-shaping settings (`machine.*`, `interpolation.*`) for its checkpoints.
     motion_settings: crate::config::KeyValues,
     /// A resumed job's checkpoint as it was before the write-ahead replaced it: put back if
@@ -175,6 +178,8 @@ struct Job {
     /// The units and distance mode it leaves (kept for the next MDI lines).
     modes: crate::gcode::StartModes,
     kind: launch::JobKind,
+    /// Run from this line (the checkpoint records it, so a resume replays the same approach).
+    from_line: Option<runtime::FromLine>,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -240,7 +245,8 @@ pub fn serve(
             1024
         }
     };
-    let http = start_http(&config, descriptors, &to_core)?;
+    let executed = http::executed::ExecutedSlot::default();
+    let http = start_http(&config, descriptors, &to_core, &executed)?;
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -272,6 +278,7 @@ pub fn serve(
             last: None,
             finished: protocol::Counters::default(),
             controls: Default::default(),
+            executed,
         },
         checkpoints,
         machine,
@@ -303,6 +310,7 @@ fn start_http(
     config: &Config,
     descriptors: u64,
     to_core: &Sender<CoreMsg>,
+    executed: &http::executed::ExecutedSlot,
 ) -> Result<Option<http::HttpServer>, DaemonError> {
     match config.daemon.http {
         Some(addr) => {
@@ -326,6 +334,7 @@ fn start_http(
                 config.machine.axes.clone(),
                 crate::gcode::ProgramOptions::from_config(config),
                 to_core.clone(),
+                executed.clone(),
             )
             .map_err(|source| DaemonError::Http { addr, source })?;
             tracing::info!(
@@ -451,12 +460,25 @@ impl Core {
     fn handle(&mut self, request: Request) -> Reply {
         let result = match request {
             Request::Status {} => Ok("status".to_string()),
-            Request::Run { program, dry_run } => self.run_program(&program, dry_run),
+            Request::Run {
+                program,
+                dry_run,
+                from_line,
+                approach,
+            } => self.run_program(&program, dry_run, from_line, approach),
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),
             Request::Rethread { here } => self.rethread(here),
             Request::Offsets {} => self.offsets(),
+            Request::WebLink {} => match &self.clients.http {
+                Some(http) => http
+                    .login_link()
+                    .map_err(|e| Refusal::BadArgument(format!("cannot make a login code: {e}"))),
+                None => Err(Refusal::BadArgument(
+                    "daemon.http is off: there is no page to log in to".into(),
+                )),
+            },
             Request::TouchOff {
                 axis,
                 value,

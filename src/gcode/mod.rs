@@ -237,6 +237,9 @@ pub struct Block {
     pub flushing: bool,
     /// The machining condition (`E<number>`, modal) in force; 0 before any.
     pub condition: u32,
+    /// The move positions with the spark off and the servo out of the loop, whatever its
+    /// kind: the approach of a job run from a line (set by the job, never by the program).
+    pub spark_off: bool,
 }
 
 impl Block {
@@ -256,6 +259,7 @@ impl Block {
             pause: None,
             flushing: false,
             condition: 0,
+            spark_off: false,
         }
     }
 

@@ -25,6 +25,7 @@ pub mod controls;
 mod devices;
 mod events;
 pub mod fine_thread;
+pub mod from_line;
 mod histogram;
 pub mod latency;
 mod precheck;
@@ -53,6 +54,7 @@ use crate::trace::{TraceEvent, TraceRecord, Tracer};
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
 pub use devices::{BoxedGap, BoxedOutput, fine_speed_cap, open_gap, open_io, open_output, wrap_io};
 pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
+pub use from_line::{Approach, FromLine, FromLineError};
 pub use histogram::{LatencyHistogram, LatencySummary};
 pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
@@ -88,6 +90,8 @@ pub enum JobError {
     Travel(#[from] crate::check::TravelError),
     #[error("{program}: the check was cancelled")]
     Cancelled { program: String },
+    #[error(transparent)]
+    FromLine(#[from] FromLineError),
 }
 
 /// Logs one trace record (from the main thread).
@@ -138,24 +142,34 @@ pub fn run_file(
     stop: &AtomicBool,
     observers: Observers,
 ) -> Result<JobSummary, JobError> {
-    run_file_from(program, config, &WorkStart::default(), stop, observers).map(|(s, _)| s)
+    run_file_from(
+        program,
+        config,
+        &WorkStart::default(),
+        None,
+        stop,
+        observers,
+    )
+    .map(|(s, _)| s)
 }
 
 /// [`run_file`] from `start` (the machine position, work offsets and active system, as a
-/// state file keeps them); returns the summary and the work offsets and system the program
-/// left (`G10`, `M2`).
+/// state file keeps them), cutting from `from_line` if given; returns the summary and the
+/// work offsets and system the program left (`G10`, `M2`).
 pub fn run_file_from(
     program: &Path,
     config: &Config,
     start: &WorkStart,
+    from_line: Option<FromLine>,
     stop: &AtomicBool,
     observers: Observers,
 ) -> Result<(JobSummary, (WorkOffsets, WorkSystem)), JobError> {
-    let (copy, check) = copy_and_check(program, config, start, stop)?;
+    let (copy, check) = copy_and_check(program, config, start, from_line, stop)?;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let mut spec = JobSpec::from_config(config, false);
     spec.work = start.clone();
+    spec.from_line = from_line;
     let (output, gap) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
         output,
@@ -181,6 +195,7 @@ pub fn copy_and_check(
     program: &Path,
     config: &Config,
     start: &WorkStart,
+    from_line: Option<FromLine>,
     stop: &AtomicBool,
 ) -> Result<(TempCopy, Precheck), JobError> {
     let progress = Progress::new();
@@ -190,7 +205,7 @@ pub fn copy_and_check(
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
             .spawn_scoped(s, || {
                 let copy = TempCopy::new_with(program, &progress)?;
-                let check = precheck(&copy.0, config, start, &progress)?;
+                let check = precheck(&copy.0, config, start, from_line, &progress)?;
                 Ok((copy, check))
             })
             .map_err(JobError::Thread)?;

@@ -3,6 +3,7 @@
 //! cutting a program whose line 10,000 is bad.
 
 use super::JobError;
+use super::from_line::{FromLine, Gate};
 use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
 use super::spec::start_steps;
@@ -33,12 +34,14 @@ pub struct Precheck {
     pub rapid_spans: Vec<(f64, f64)>,
 }
 
-/// Parses the whole program and checks every end point fits a step counter. Reports the
-/// bytes read to `progress` and gives up with [`JobError::Cancelled`] when it is cancelled.
+/// Parses the whole program and checks every end point fits a step counter (and, for a job
+/// run from a line, that it can start there). Reports the bytes read to `progress` and gives
+/// up with [`JobError::Cancelled`] when it is cancelled.
 pub fn precheck(
     program: &JobProgram,
     config: &Config,
     start: &WorkStart,
+    from_line: Option<FromLine>,
     progress: &Progress,
 ) -> Result<Precheck, JobError> {
     progress.start(Phase::Checking, program.bytes);
@@ -61,12 +64,16 @@ pub fn precheck(
     let cancelled = || JobError::Cancelled {
         program: program.name.clone(),
     };
-    for item in reader.by_ref() {
+    let mut gate = from_line.map(|f| Gate::new(f, &program.name));
+    while let Some(item) = reader.next() {
         let block = match item {
             Ok(block) => block,
             Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => return Err(cancelled()),
             Err(e) => return Err(e.into()),
         };
+        if let Some(gate) = &mut gate {
+            gate.admit(&block, reader.comp_entry_line())?;
+        }
         blocks += 1;
         // The reader looks at the flag on every line; a block's own work (the length of a
         // curve of 100,000 points) is looked at here.
@@ -98,6 +105,9 @@ pub fn precheck(
                     steps,
                 }
             })?;
+    }
+    if let Some(gate) = &gate {
+        gate.finish()?;
     }
     for w in reader.take_warnings() {
         if w.line == 0 {

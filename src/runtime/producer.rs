@@ -10,6 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use super::from_line::{self, Approach, Gate, Route};
 use super::probe::ProbeLink;
 use super::program::JobProgram;
 use super::spec::{JobSpec, StepCondition};
@@ -40,6 +41,8 @@ pub enum ProducerError {
     },
     #[error("cannot start the producer thread: {0}")]
     Thread(std::io::Error),
+    #[error(transparent)]
+    FromLine(#[from] super::from_line::FromLineError),
 }
 
 /// What the producer did.
@@ -97,6 +100,16 @@ impl BlockMaker {
         }
     }
 
+    /// The path length (mm) the next block starts at: a direct approach counts the program
+    /// it skips, so progress and placed debris stay where a full run has them.
+    pub fn set_path_mm(&mut self, mm: f64) {
+        self.path_mm = mm;
+    }
+
+    pub fn path_mm(&self) -> f64 {
+        self.path_mm
+    }
+
     /// A probing move ended at `steps`: the next block starts there.
     pub fn probed(&mut self, steps: &Steps) {
         self.last_end = *steps;
@@ -116,7 +129,7 @@ impl BlockMaker {
         if segment.last_of_block {
             flags |= BlockFlags::LAST_OF_BLOCK;
         }
-        if segment.block.kind == BlockKind::Rapid {
+        if segment.block.kind == BlockKind::Rapid || segment.block.spark_off {
             flags |= BlockFlags::RAPID;
         }
         if segment.block.flushing {
@@ -218,6 +231,7 @@ fn produce_inner(
         waited: Duration::ZERO,
     };
     let mut probes = 0;
+    let mut gate = spec.from_line.map(|f| Gate::new(f, &program.name));
     while let Some(item) = reader.next() {
         let block = match item {
             Ok(block) => block,
@@ -226,6 +240,20 @@ fn produce_inner(
                 break;
             }
             Err(e) => return Err(e.into()),
+        };
+        let block = match &mut gate {
+            None => block,
+            Some(gate) => match approach(
+                gate,
+                block,
+                reader.comp_entry_line(),
+                spec,
+                &mut out,
+                &mut pre,
+            )? {
+                Some(block) => block,
+                None => continue,
+            },
         };
         let probing = matches!(block.kind, BlockKind::Probe(_));
         pre.push_block(Arc::new(block), |s| out.push(s));
@@ -254,6 +282,9 @@ fn produce_inner(
         }
     }
     if !out.report.aborted {
+        if let Some(gate) = &gate {
+            gate.finish()?;
+        }
         pre.finish(|s| out.push(s));
     }
     if let Some(e) = out.failed {
@@ -263,6 +294,48 @@ fn produce_inner(
     report.stats = pre.stats();
     report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
     Ok(report)
+}
+
+/// A block of a job run from a line, routed: the block to push, or `None` where the approach
+/// drops it. The direct approach's moves are pushed before the first block of the cut.
+fn approach(
+    gate: &mut Gate,
+    block: gcode::Block,
+    comp_entry: Option<u64>,
+    spec: &JobSpec,
+    out: &mut Pusher<'_>,
+    pre: &mut Preprocessor,
+) -> Result<Option<gcode::Block>, ProducerError> {
+    let direct = gate.from().approach == Approach::Direct;
+    Ok(match gate.admit(&block, comp_entry)? {
+        Route::Cut => Some(block),
+        Route::Before if direct => {
+            out.maker
+                .set_path_mm(out.maker.path_mm() + block.curve.length());
+            None
+        }
+        Route::Before => Some(from_line::path_approach(
+            block,
+            spec.approach_feed_mm_per_min,
+        )),
+        Route::First if direct => {
+            let origin = Point::from_fn(|i, _| spec.work.position_mm[i]);
+            let moves = from_line::direct_approach(
+                &origin,
+                &block,
+                &spec.axes,
+                spec.safe_z_mm,
+                spec.approach_feed_mm_per_min,
+            );
+            let length: f64 = moves.iter().map(|b| b.curve.length()).sum();
+            out.maker.set_path_mm(out.maker.path_mm() - length);
+            for m in moves {
+                pre.push_block(Arc::new(m), |s| out.push(s));
+            }
+            Some(block)
+        }
+        Route::First => Some(block),
+    })
 }
 
 /// Turns segments into step blocks and pushes them, timing only the waits.

@@ -9,6 +9,7 @@ use crate::preprocess::PlanSettings;
 use crate::vocab::{Axis, Steps, TickPeriod};
 
 use super::consumer::LoopSettings;
+use super::from_line::FromLine;
 
 /// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
 /// and the voltage law's reference (V) it sets, and its jumps: interval (s), height (mm) and
@@ -45,6 +46,12 @@ pub struct JobSpec {
     /// Where the job starts: the machine position, the work offsets and the active system
     /// (the machine origin in `G54` with no offsets unless the caller says otherwise).
     pub work: WorkStart,
+    /// Run from a line: where the cut starts and how the machine gets there.
+    pub from_line: Option<FromLine>,
+    /// The approach's feed (`servo.rethread_feed_mm_per_min`), mm/min.
+    pub approach_feed_mm_per_min: f64,
+    /// `machine.safe_z_mm`: the height a direct approach crosses at.
+    pub safe_z_mm: Option<f64>,
 }
 
 impl JobSpec {
@@ -82,6 +89,9 @@ impl JobSpec {
             speed_cap: super::fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
             work: WorkStart::default(),
+            from_line: None,
+            approach_feed_mm_per_min: config.servo.rethread_feed_mm_per_min,
+            safe_z_mm: config.machine.safe_z_mm,
         }
     }
 

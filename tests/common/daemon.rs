@@ -302,19 +302,7 @@ pub fn uninterrupted(dir: &Path) -> Vec<Vec<i8>> {
 /// The pulses of `edmd run` on `program` (in `dir/programs`), uninterrupted.
 pub fn uninterrupted_run(dir: &Path, program: &str) -> Vec<Vec<i8>> {
     let pulses = dir.join("reference.csv");
-    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .arg("run")
-        .arg(dir.join("programs").join(program))
-        .args([
-            "--set",
-            "gap.kind=\"none\"",
-            "--set",
-            "output.kind=\"file\"",
-        ])
-        .arg("--set")
-        .arg(format!("output.path=\"{}\"", pulses.display()))
-        .output()
-        .unwrap();
+    let out = super::run_to_pulse_log(&dir.join("programs").join(program), &pulses, &[]);
     assert!(
         out.status.success(),
         "{}",

@@ -37,7 +37,9 @@
 // built once per refused request, far from any hot path.
 #![allow(clippy::result_large_err)]
 
+pub mod executed;
 mod guard;
+pub mod links;
 mod metrics;
 mod path;
 mod programs;
@@ -117,6 +119,10 @@ struct App {
     listings: Semaphore,
     /// The Content Security Policy of every response.
     csp: HeaderValue,
+    /// The running or last job's recording.
+    executed: executed::ExecutedSlot,
+    /// One-time login codes (`edmd ctl web-link`).
+    links: links::LoginLinks,
 }
 
 /// The running HTTP server (it lives as long as the daemon's process).
@@ -126,6 +132,11 @@ pub struct HttpServer {
 }
 
 impl HttpServer {
+    /// A one-time login link (`edmd ctl web-link`): see [`links`].
+    pub fn login_link(&self) -> std::io::Result<String> {
+        links::link(self.addr, &self.app.links)
+    }
+
     /// Puts a reloaded token, program directory and host list in force for the next request.
     pub fn reload(&self, settings: Reloadable) {
         *self.app.live.write() = settings;
@@ -143,6 +154,7 @@ pub fn spawn(
     axes: Vec<crate::vocab::Axis>,
     options: crate::gcode::ProgramOptions,
     to_core: Sender<CoreMsg>,
+    executed: executed::ExecutedSlot,
 ) -> std::io::Result<HttpServer> {
     let listener = std::net::TcpListener::bind(settings.addr)?;
     listener.set_nonblocking(true)?;
@@ -158,6 +170,8 @@ pub fn spawn(
         previews: Semaphore::new(MAX_PREVIEWS),
         listings: Semaphore::new(MAX_LISTINGS),
         csp,
+        executed,
+        links: links::LoginLinks::default(),
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -196,8 +210,10 @@ fn router(app: Arc<App>) -> Router {
         )
         .route("/api/program", get(programs::listing))
         .route("/api/path", get(planned_path))
+        .route("/api/executed", get(executed::serve))
         .route("/metrics", get(metrics))
         .route("/api/run", post(run))
+        .route("/api/login", post(links::login))
         .route("/api/hold", post(|s, h, b| control(s, h, b, "hold")))
         .route("/api/resume", post(|s, h, b| control(s, h, b, "resume")))
         .route("/api/abort", post(|s, h, b| control(s, h, b, "abort")))
@@ -547,6 +563,10 @@ struct RunBody {
     program: String,
     #[serde(default)]
     dry_run: bool,
+    #[serde(default)]
+    from_line: Option<u64>,
+    #[serde(default)]
+    approach: Option<crate::runtime::Approach>,
 }
 
 async fn run(
@@ -557,14 +577,25 @@ async fn run(
     if let Err(e) = authorised(&app, &headers) {
         return e;
     }
-    let RunBody { program, dry_run } = match body(raw) {
+    let RunBody {
+        program,
+        dry_run,
+        from_line,
+        approach,
+    } = match body(raw) {
         Ok(b) => b,
         Err(e) => return e,
     };
     if let Err(e) = program_file(&app, &program) {
         return e;
     }
-    match ask(&app, Request::Run { program, dry_run }).await {
+    let run = Request::Run {
+        program,
+        dry_run,
+        from_line,
+        approach,
+    };
+    match ask(&app, run).await {
         Ok(reply) => verdict(reply),
         Err(e) => e,
     }

@@ -27,11 +27,17 @@ pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
 #[serde(tag = "cmd", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Request {
     /// Run a program from the program directory; `dry_run`: its moves with the spark off
-    /// and the servo out of the loop, at the programmed feed (proving a program).
+    /// and the servo out of the loop, at the programmed feed (proving a program);
+    /// `from_line`: cut from this source line, reached by `approach` (default: `direct` on a
+    /// machine with `machine.safe_z_mm`, `path` otherwise).
     Run {
         program: String,
         #[serde(default)]
         dry_run: bool,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        from_line: Option<u64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        approach: Option<crate::runtime::Approach>,
     },
     /// Brake to a standstill and stay there. (Empty struct variants, not unit ones: serde
     /// checks unknown fields only on those.)
@@ -53,6 +59,9 @@ pub enum Request {
     },
     /// The work offset table.
     Offsets {},
+    /// A one-time login link to the web page (valid 10 minutes, for one use).
+    #[serde(rename = "web-link")]
+    WebLink {},
     /// `G10 L20` for where the machine stands: `axis` reads `value` (mm) in `system`
     /// (default: the active one).
     #[serde(rename = "touch-off")]
@@ -411,6 +420,9 @@ pub struct JobStatus {
     /// A dry run: spark off, the servo out of the loop, no checkpoint.
     #[serde(default)]
     pub dry_run: bool,
+    /// Run from a line: where the cut starts and how the machine approached it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_line: Option<crate::runtime::FromLine>,
     /// Source line of the segment in hand.
     pub line: u64,
     pub segment: u64,
@@ -481,6 +493,18 @@ mod tests {
             Request::Run {
                 program: "a.nc".into(),
                 dry_run: false,
+                from_line: None,
+                approach: None,
+            }
+        );
+        assert_eq!(
+            Request::parse(r#"{"cmd":"run","program":"a.nc","from_line":12,"approach":"direct"}"#)
+                .unwrap(),
+            Request::Run {
+                program: "a.nc".into(),
+                dry_run: false,
+                from_line: Some(12),
+                approach: Some(crate::runtime::Approach::Direct),
             }
         );
         assert_eq!(

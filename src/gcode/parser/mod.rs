@@ -151,6 +151,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.state.position
     }
 
+    /// The source line of the latest wire-offset entry move read so far (the first move
+    /// after a `G41`/`G42`): a job run from a line must not start inside one.
+    pub fn comp_entry_line(&self) -> Option<u64> {
+        self.out.comp.entry_line()
+    }
+
     /// The line of the M2/M30 that ended the program, if one did.
     pub fn program_end_line(&self) -> Option<u64> {
         self.program.ended_at

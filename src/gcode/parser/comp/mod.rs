@@ -82,6 +82,8 @@ pub(super) struct Compensator {
     plane: Option<[usize; 2]>,
     /// The last offset move, held until the next one shows its corner.
     pending: Option<Piece>,
+    /// The source line of the latest entry move (the first move after `G41`/`G42`).
+    entry_line: Option<u64>,
 }
 
 impl Compensator {
@@ -93,12 +95,18 @@ impl Compensator {
             tolerance,
             plane,
             pending: None,
+            entry_line: None,
         }
     }
 
     /// The offset is on, or about to be (a move is transformed rather than passed on).
     pub(super) fn engaged(&self) -> bool {
         self.phase != Phase::Off
+    }
+
+    /// The source line of the latest entry move read so far.
+    pub(super) fn entry_line(&self) -> Option<u64> {
+        self.entry_line
     }
 
     /// `G41` (`left`) or `G42` with offset `d` (mm). Errors are messages for the G word.
@@ -164,6 +172,7 @@ impl Compensator {
                 let n = scale(left(unit(sub(p1, p0))), sd);
                 self.pending = Some(Piece::line(p0, add(p1, n), block));
                 self.phase = Phase::On;
+                self.entry_line = Some(line);
             }
             Phase::On => {
                 let piece = self.offset(block).map_err(fail)?;

@@ -1,0 +1,390 @@
+//! Starting a job: `run` (with a dry run or from a line) and `resume` of a checkpoint go
+//! through a check on a worker thread (copy, precheck); its verdict starts the job thread
+//! with the job's I/O, its recording and a write-ahead checkpoint, or records why not.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use super::jobs::{Check, Resume};
+use super::launch::{Checked, JobKind, Launch, Source, copy_and_check};
+use super::protocol::CheckStatus;
+use super::refusal::{CheckRefusal, Refusal};
+use super::{Core, CoreMsg, Job, JobRecording, confine, unix_now};
+use crate::checkpoint::{self, Reason};
+use crate::config::Config;
+use crate::record::Recording;
+use crate::runtime::program::{JobProgram, Progress};
+use crate::runtime::{self, ResumePoint};
+
+/// The folder of a job's report, when the configuration asks for one. The folder is made
+/// first: a job must not learn at its end that its report has nowhere to go.
+fn job_report(config: &Config, program_name: &str) -> Result<Option<PathBuf>, Refusal> {
+    Ok(match &config.daemon.report_dir {
+        Some(dir) => {
+            let stem = Path::new(program_name)
+                .file_stem()
+                .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
+            let dir = dir.join(format!("{}-{stem}", unix_now()));
+            if let Err(source) = std::fs::create_dir_all(&dir) {
+                return Err(Refusal::ReportDir { dir, source });
+            }
+            Some(dir)
+        }
+        None => None,
+    })
+}
+
+/// Logs a job's start; what the command answers.
+fn started(program: &str, blocks: u64, resumed: bool, kind: JobKind, message: &str) -> String {
+    tracing::info!(
+        edmd_event = "job_start",
+        edmd_program = program,
+        "job start: {program}{}",
+        match (resumed, kind == JobKind::DryRun) {
+            (true, _) => " (resumed)",
+            (_, true) => " (dry run: spark off, the servo out of the loop)",
+            _ => "",
+        }
+    );
+    if resumed {
+        format!("resuming {program}: {blocks} blocks")
+    } else {
+        format!("running {program}: {blocks} blocks{message}")
+    }
+}
+
+impl Core {
+    pub(super) fn run_program(
+        &mut self,
+        requested: &str,
+        dry_run: bool,
+        from_line: Option<u64>,
+        approach: Option<runtime::Approach>,
+    ) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        self.refuse_if_tripped(None)?;
+        self.refuse_if_unhomed()?;
+        let from_line = self.run_from_line(dry_run, from_line, approach)?;
+        let program = confine(&self.config.daemon.program_dir, requested)?;
+        let launch = Launch {
+            start: self.machine.state.work_start(),
+            kind: if dry_run {
+                JobKind::DryRun
+            } else {
+                JobKind::Program
+            },
+            from_line,
+        };
+        let id = self.begin_check(Source::Original(program.clone()), None, launch);
+        let from = from_line.map_or(String::new(), |f| {
+            format!(" from line {} ({} approach)", f.line, f.approach.name())
+        });
+        Ok(format!(
+            "accepted: checking {}{from} (check {id}); the job starts when the check passes",
+            program.display()
+        ))
+    }
+
+    /// The run-from-line of a `run` request: a line from 1, an approach only with a line,
+    /// not with a dry run; the approach by default `direct` where a safe Z is set (a
+    /// sinker), `path` otherwise (a wire machine).
+    fn run_from_line(
+        &self,
+        dry_run: bool,
+        line: Option<u64>,
+        approach: Option<runtime::Approach>,
+    ) -> Result<Option<runtime::FromLine>, Refusal> {
+        let Some(line) = line else {
+            return match approach {
+                Some(_) => Err(Refusal::BadArgument(
+                    "an approach is for a run from a line: give from_line too".into(),
+                )),
+                None => Ok(None),
+            };
+        };
+        if line == 0 {
+            return Err(Refusal::BadArgument(
+                "from_line counts from 1 (the program's first line)".into(),
+            ));
+        }
+        if dry_run {
+            return Err(Refusal::BadArgument(
+                "a dry run proves the whole program: it does not start from a line".into(),
+            ));
+        }
+        let approach = approach.unwrap_or(runtime::Approach::default_for(
+            self.config.machine.safe_z_mm,
+        ));
+        Ok(Some(runtime::FromLine { line, approach }))
+    }
+
+    /// The job about to start, as the core keeps it.
+    fn new_job(
+        &self,
+        program: &JobProgram,
+        check: &runtime::Precheck,
+        launch: Launch,
+        (report, recording): (Option<PathBuf>, JobRecording),
+        progress: runtime::ProgressTracker,
+        resumed: bool,
+    ) -> Job {
+        Job {
+            program: PathBuf::from(&program.name),
+            program_sha256: program.sha256.clone(),
+            published: Arc::new(self.jobs.published()),
+            stop: Arc::new(AtomicBool::new(false)),
+            stop_reason: None,
+            started: Instant::now(),
+            resumed,
+            hold_checkpointed: false,
+            last_checkpoint: Instant::now(),
+            overruns_seen: 0,
+            last_overrun_report: Instant::now(),
+            config: self.config.clone(),
+            report,
+            recording,
+            motion_settings: checkpoint::motion_settings(&self.keys),
+            progress,
+            resumed_from: if resumed {
+                self.checkpoints.current.clone()
+            } else {
+                None
+            },
+            start: launch.start,
+            leaves: (check.work_offsets.clone(), check.work_system),
+            modes: check.modes,
+            kind: launch.kind,
+            from_line: launch.from_line,
+        }
+    }
+
+    /// A new job's recording, also the page's executed path from now on.
+    fn record(&mut self, program: &str) -> JobRecording {
+        let recording: JobRecording = Arc::new(parking_lot::Mutex::new(Recording::new(
+            &self.config.machine.step_mm,
+            self.config.fine.tick,
+        )));
+        *self.jobs.executed.lock() = Some(super::http::executed::Executed {
+            program: program.to_string(),
+            recording: recording.clone(),
+        });
+        recording
+    }
+
+    /// Starts copying and checking a program on a worker thread; the verdict comes back as
+    /// [`CoreMsg::Checked`]. Returns the check's id.
+    pub(super) fn begin_check(
+        &mut self,
+        source: Source,
+        resume: Option<Resume>,
+        launch: Launch,
+    ) -> u64 {
+        self.jobs.next_check_id += 1;
+        let id = self.jobs.next_check_id;
+        let progress = Arc::new(Progress::new());
+        let name = match &source {
+            Source::Original(path) => path.display().to_string(),
+            Source::Copy(program) => program.name.clone(),
+            Source::Generated { name, .. } => name.clone(),
+        };
+        let (mut config, dir, tx) = (
+            self.config.clone(),
+            self.copy_dir(),
+            self.clients.to_core.clone(),
+        );
+        if matches!(launch.kind, JobKind::Home { .. }) {
+            // Homing finds where the machine is: the soft limits mean nothing yet.
+            config.machine.travel.iter_mut().for_each(|t| *t = None);
+        }
+        let expect = resume.as_ref().map(|r| r.sha256.clone());
+        let worker_progress = progress.clone();
+        let worker_start = launch.start.clone();
+        let from_line = launch.from_line;
+        let spawned = std::thread::Builder::new()
+            .name("edmd-check".to_string())
+            .stack_size(crate::gcode::PARSER_STACK_BYTES)
+            .spawn(move || {
+                let result = copy_and_check(
+                    source,
+                    &dir,
+                    &config,
+                    &worker_start,
+                    from_line,
+                    expect.as_deref(),
+                    &worker_progress,
+                );
+                let result = Box::new(result);
+                let _ = tx.send(CoreMsg::Checked { id, result });
+            });
+        if let Err(e) = spawned {
+            let result = Err(CheckRefusal::Thread(e));
+            let result = Box::new(result);
+            let _ = self.clients.to_core.send(CoreMsg::Checked { id, result });
+        }
+        tracing::info!("check {id}: {name}: copying and checking");
+        self.jobs.check = Some(Check {
+            id,
+            name,
+            progress,
+            resume,
+            launch,
+        });
+        id
+    }
+
+    /// The verdict of a check: start the job, or record why not.
+    pub(super) fn on_checked(&mut self, id: u64, result: Result<Checked, CheckRefusal>) {
+        let Some(check) = self.jobs.check.take_if(|c| c.id == id) else {
+            return;
+        };
+        let outcome = if self.shutting_down {
+            Err(Refusal::ShuttingDown)
+        } else {
+            result
+                .map_err(Refusal::from)
+                .and_then(|(program, precheck)| {
+                    let resume = check.resume.as_ref().map(|r| r.point.clone());
+                    self.start_job(program, precheck, resume, check.launch.clone())
+                })
+        };
+        let (bytes_done, bytes_total) = {
+            let (_, done, total) = check.progress.get();
+            (done, total)
+        };
+        let mut status = CheckStatus {
+            id,
+            program: check.name.clone(),
+            phase: String::new(),
+            bytes_done,
+            bytes_total,
+            error: None,
+            message: None,
+            resume: check.resume.is_some(),
+        };
+        match outcome {
+            Ok(message) => {
+                tracing::info!("check {id}: {message}");
+                status.phase = "started".to_string();
+                status.message = Some(message);
+            }
+            Err(error) => {
+                // A homing sequence stops at its first refusal.
+                self.machine.homing_queue.clear();
+                tracing::error!(
+                    edmd_event = "refusal",
+                    edmd_program = check.name,
+                    "check {id}: refused: {error}"
+                );
+                status.phase = "refused".to_string();
+                status.error = Some(error.to_string());
+            }
+        }
+        self.jobs.last_check = Some(status);
+        self.notify_status();
+    }
+
+    /// Opens the I/O and starts the job thread on a checked program.
+    fn start_job(
+        &mut self,
+        program: JobProgram,
+        check: runtime::Precheck,
+        resume: Option<ResumePoint>,
+        launch: Launch,
+    ) -> Result<String, Refusal> {
+        let config = self.config.clone();
+        let spec = launch.spec(&config);
+        let switch = launch.home_switch();
+        let kind = launch.kind;
+        let from_line = launch.from_line;
+        let blocks = check.blocks;
+        let ledger = resume
+            .as_ref()
+            .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());
+        // A report of what this job runs, when the configuration asks for one. Its folder is
+        // made first: a job must not learn at its end that its report has nowhere to go.
+        let report = job_report(&config, &program.name)?;
+        let mut io = self.jobs.job_io(&config, &check, &ledger)?;
+        // A homing job's probing moves read its switch; any other job's the probe (the
+        // claimed port's gap input is lent to every job).
+        io.gap.home_switch(switch);
+        let recording = self.record(&program.name);
+        io.recording = Some(recording.clone());
+        let resumed = resume.is_some();
+        let progress = runtime::ProgressTracker::with_rapids(
+            check.path_mm,
+            check.rapid_spans.clone(),
+            spec.plan.rapid_feed,
+        );
+        let job = self.new_job(
+            &program,
+            &check,
+            launch,
+            (report, recording),
+            progress,
+            resumed,
+        );
+        let (published, stop) = (job.published.clone(), job.stop.clone());
+        // Write-ahead: before the first step the checkpoint on disk says this job is moving,
+        // from where it starts; a job that cannot record that does not start.
+        let old = self.checkpoints.current.clone();
+        let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
+        self.homing_started(switch.as_ref());
+        if let Err(refusal) = self.machine.save(true) {
+            self.jobs.give_back_io(&config, io.output, io.gap);
+            return Err(refusal);
+        }
+        if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
+            self.jobs.give_back_io(&config, io.output, io.gap);
+            return Err(Refusal::WriteAhead {
+                error,
+                consequence: "the job does not start without its checkpoint",
+            });
+        }
+        // A new program replaces the checkpoint of an old one, and only now that it really
+        // starts (a jog, MDI, homing or a dry run leave it alone).
+        let mut message = String::new();
+        if !resumed
+            && kind == JobKind::Program
+            && let Some(old) = old
+        {
+            tracing::warn!(
+                "checkpoint of {} (line {}) replaced: a new job starts",
+                old.program.display(),
+                old.line
+            );
+            message = format!(
+                "; the checkpoint of {} was discarded",
+                old.program.display()
+            );
+        }
+        self.prune_copies(Some(&program.sha256));
+        let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());
+        let (job_published, job_stop, job_program) =
+            (published.clone(), stop.clone(), program.clone());
+        std::thread::Builder::new()
+            .name("edmd-job".to_string())
+            .spawn(move || {
+                let job = runtime::JobRun {
+                    program: &job_program,
+                    check: &check,
+                    spec: &spec,
+                    resume,
+                };
+                let end = runtime::run(&fine, job, io, job_published, &job_stop);
+                let _ = tx.send(CoreMsg::JobDone(Box::new(end)));
+            })
+            .map_err(Refusal::JobThread)?;
+        self.jobs.job = Some(job);
+        let message = match from_line {
+            Some(f) => format!(
+                " from line {} (the approach: {}){message}",
+                f.line,
+                f.approach.name()
+            ),
+            None => message,
+        };
+        Ok(started(&program.name, blocks, resumed, kind, &message))
+    }
+}

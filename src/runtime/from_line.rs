@@ -1,0 +1,332 @@
+//! Running a program from a line: what the interpreter replays, and how the machine gets to
+//! the line's start.
+//!
+//! The program is always interpreted from its first line, so everything a line depends on
+//! (modal state, parameters, work offsets, the wire offset, the condition, the subroutine and
+//! loop context) is exactly what a full run has there. The blocks before line N are then
+//! either moved with the spark off or dropped, depending on the approach:
+//!
+//! ```text
+//!  Approach::Path    start ══ prefix blocks, spark off, at the approach feed ══► N ─ cut ─►
+//!  Approach::Direct  start ─► up to safe Z ─► across at safe Z ─► down ────────► N ─ cut ─►
+//!                    (without Z or safe_z_mm: one straight move, spark off)
+//! ```
+//!
+//! `Path` is the wire machine's way: the wire cannot cross uncut material, so it retraces the
+//! programmed path from the start hole. `Direct` is the sinker's: the electrode lifts out of
+//! the cavity, moves over the work and plunges back down the hole it burned.
+//!
+//! The cut starts at the first block, in execution order, whose source line is N or later
+//! (a line that moves nothing starts at the next move; a NURBS curve is one block, so a line
+//! inside one starts at the next block). Refused, at check time, with the line: a probing
+//! move before N (where it stops decides everything after it), the wire offset's entry move
+//! as the first block (its start is not on the offset path), and no move at or after N.
+//!
+//! Both approaches are a pure function of the program, the line and the job's start, so a
+//! checkpoint that records the line and the approach resumes into the very same block
+//! sequence (and an approach it interrupted goes on as an approach, never as a cut).
+
+use serde::{Deserialize, Serialize};
+
+use crate::gcode::{Block, BlockKind};
+use crate::geometry::{NurbsCurve, Point};
+use crate::vocab::Axis;
+
+/// Where a job run from a line starts cutting, and how the machine gets there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FromLine {
+    /// The source line (1-based) the cut starts at.
+    pub line: u64,
+    pub approach: Approach,
+}
+
+/// How the machine reaches the start of the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Approach {
+    /// Along the programmed path from the program's start, spark off.
+    Path,
+    /// Retract to `machine.safe_z_mm`, move across, plunge; one straight move without Z.
+    Direct,
+}
+
+impl Approach {
+    pub const ALL: [Approach; 2] = [Approach::Path, Approach::Direct];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Approach::Path => "path",
+            Approach::Direct => "direct",
+        }
+    }
+
+    /// The machine's usual approach: `Direct` where a safe Z is set (a sinker), `Path`
+    /// otherwise (a wire machine).
+    pub fn default_for(safe_z_mm: Option<f64>) -> Approach {
+        match safe_z_mm {
+            Some(_) => Approach::Direct,
+            None => Approach::Path,
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<Approach> {
+        Approach::ALL.into_iter().find(|a| a.name() == text)
+    }
+}
+
+/// Why a program cannot be run from the line asked for.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FromLineError {
+    #[error(
+        "{program}:{probe_line}:1: the program probes here, before line {line}: where the probe \
+         stops decides what follows, so it cannot be skipped; run the program from its start"
+    )]
+    ProbeBefore {
+        program: String,
+        probe_line: u64,
+        line: u64,
+    },
+    #[error(
+        "{program}:{line}:1: this is the wire offset's entry move (the first move after \
+         G41/G42): its start is not on the offset path; run from a line before the G41/G42 \
+         or after the entry"
+    )]
+    CompEntry { program: String, line: u64 },
+    #[error("{program}:{line}:1: no move at or after line {line} to start from")]
+    NoMove { program: String, line: u64 },
+}
+
+/// What to do with a block of a job run from a line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Route {
+    /// Before the line: part of the approach (moved spark off, or dropped).
+    Before,
+    /// The first block of the cut: the approach ends at its start.
+    First,
+    /// After it: cut as programmed.
+    Cut,
+}
+
+/// Sorts a program's blocks, in execution order, into before and after the line.
+#[derive(Debug, Clone)]
+pub struct Gate {
+    from: FromLine,
+    program: String,
+    reached: bool,
+}
+
+impl Gate {
+    pub fn new(from: FromLine, program: &str) -> Gate {
+        Gate {
+            from,
+            program: program.to_string(),
+            reached: false,
+        }
+    }
+
+    pub fn from(&self) -> FromLine {
+        self.from
+    }
+
+    /// Routes the next block. `comp_entry`: the line of the latest wire-offset entry move
+    /// the reader has read ([`crate::gcode::BlockReader::comp_entry_line`]).
+    pub fn admit(
+        &mut self,
+        block: &Block,
+        comp_entry: Option<u64>,
+    ) -> Result<Route, FromLineError> {
+        if self.reached {
+            return Ok(Route::Cut);
+        }
+        if block.line < self.from.line {
+            if matches!(block.kind, BlockKind::Probe(_)) {
+                return Err(FromLineError::ProbeBefore {
+                    program: self.program.clone(),
+                    probe_line: block.line,
+                    line: self.from.line,
+                });
+            }
+            return Ok(Route::Before);
+        }
+        if comp_entry == Some(block.line) {
+            return Err(FromLineError::CompEntry {
+                program: self.program.clone(),
+                line: block.line,
+            });
+        }
+        self.reached = true;
+        Ok(Route::First)
+    }
+
+    /// At the program's end: the line was reached.
+    pub fn finish(&self) -> Result<(), FromLineError> {
+        if self.reached {
+            Ok(())
+        } else {
+            Err(FromLineError::NoMove {
+                program: self.program.clone(),
+                line: self.from.line,
+            })
+        }
+    }
+}
+
+/// A block before the line as the path approach moves it: the same geometry, spark off, at
+/// most `feed_mm_per_min` (a rapid too: the wire is in the work).
+pub fn path_approach(mut block: Block, feed_mm_per_min: f64) -> Block {
+    if block.kind == BlockKind::Rapid {
+        block.kind = BlockKind::Line;
+    }
+    block.feed_mm_per_min = Some(
+        block
+            .feed_mm_per_min
+            .map_or(feed_mm_per_min, |f| f.min(feed_mm_per_min)),
+    );
+    block.spark_off = true;
+    block.pause = None;
+    block.dwell_s = 0.0;
+    block
+}
+
+/// The direct approach from `origin` to the start of `first` (machine mm): up to `safe_z`
+/// (if the machine has Z and it is set, and Z stands below it) and across as rapids, then
+/// down to the start at `feed_mm_per_min`; without a safe height, one straight move at that
+/// feed. Every move has the spark off and carries `first`'s line and condition.
+pub fn direct_approach(
+    origin: &Point,
+    first: &Block,
+    axes: &[Axis],
+    safe_z: Option<f64>,
+    feed_mm_per_min: f64,
+) -> Vec<Block> {
+    let target = first.start();
+    let dim = axes.len();
+    let z = axes.iter().position(|&a| a == Axis::Z);
+    let mut corners = vec![*origin];
+    let mut rapid_legs = 0;
+    if let (Some(z), Some(safe)) = (z, safe_z) {
+        let high = origin[z].max(safe).max(target[z]);
+        let mut up = *origin;
+        up[z] = high;
+        let mut across = target;
+        across[z] = high;
+        corners.push(up);
+        corners.push(across);
+        rapid_legs = 2;
+    }
+    corners.push(target);
+    let mut moves = Vec::new();
+    for (leg, pair) in corners.windows(2).enumerate() {
+        let (a, b) = (pair[0], pair[1]);
+        if (0..dim).all(|i| (a[i] - b[i]).abs() < 1e-9) {
+            continue;
+        }
+        let Ok(curve) = NurbsCurve::line(dim, &a, &b) else {
+            continue;
+        };
+        let (kind, feed) = if leg < rapid_legs {
+            (BlockKind::Rapid, None)
+        } else {
+            (BlockKind::Line, Some(feed_mm_per_min))
+        };
+        let mut block = Block::new(first.line, kind, curve, feed);
+        block.spark_off = true;
+        block.condition = first.condition;
+        moves.push(block);
+    }
+    moves
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(n: u64, a: [f64; 3], b: [f64; 3], kind: BlockKind) -> Block {
+        let p = |v: [f64; 3]| Point::from_fn(|i, _| v.get(i).copied().unwrap_or(0.0));
+        Block::new(
+            n,
+            kind,
+            NurbsCurve::line(3, &p(a), &p(b)).unwrap(),
+            Some(100.0),
+        )
+    }
+
+    #[test]
+    fn the_gate_routes_by_line_and_refuses_a_probe_before_it() {
+        let mut gate = Gate::new(
+            FromLine {
+                line: 5,
+                approach: Approach::Path,
+            },
+            "p.ngc",
+        );
+        let b = line(3, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
+        assert_eq!(gate.admit(&b, None), Ok(Route::Before));
+        assert!(gate.finish().is_err());
+        let b = line(7, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], BlockKind::Line);
+        assert_eq!(gate.admit(&b, None), Ok(Route::First));
+        let b = line(2, [2.0, 0.0, 0.0], [3.0, 0.0, 0.0], BlockKind::Line);
+        assert_eq!(
+            gate.admit(&b, None),
+            Ok(Route::Cut),
+            "after the line, lines may run back"
+        );
+        assert!(gate.finish().is_ok());
+
+        let mut gate = Gate::new(
+            FromLine {
+                line: 5,
+                approach: Approach::Path,
+            },
+            "p.ngc",
+        );
+        let probe = BlockKind::Probe(crate::gcode::Probe {
+            away: false,
+            must_touch: true,
+        });
+        let e = gate
+            .admit(&line(4, [0.0; 3], [0.0, 0.0, -1.0], probe), None)
+            .unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("p.ngc:4:1: the program probes here, before line 5"),
+            "{e}"
+        );
+        let b = line(5, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
+        let e = gate.admit(&b, Some(5)).unwrap_err();
+        assert!(e.to_string().contains("entry move"), "{e}");
+    }
+
+    #[test]
+    fn a_direct_approach_lifts_crosses_and_plunges_and_a_path_one_keeps_the_geometry() {
+        let axes = [Axis::X, Axis::Y, Axis::Z];
+        let first = line(9, [10.0, 5.0, -2.0], [11.0, 5.0, -2.0], BlockKind::Line);
+        let origin = Point::from_fn(|i, _| [0.0, 0.0, -1.0].get(i).copied().unwrap_or(0.0));
+        let moves = direct_approach(&origin, &first, &axes, Some(5.0), 300.0);
+        let ends: Vec<[f64; 3]> = moves
+            .iter()
+            .map(|b| [b.end()[0], b.end()[1], b.end()[2]])
+            .collect();
+        assert_eq!(
+            ends,
+            vec![[0.0, 0.0, 5.0], [10.0, 5.0, 5.0], [10.0, 5.0, -2.0]]
+        );
+        assert_eq!(moves[0].kind, BlockKind::Rapid);
+        assert_eq!(moves[2].kind, BlockKind::Line);
+        assert_eq!(moves[2].feed_mm_per_min, Some(300.0));
+        assert!(moves.iter().all(|b| b.spark_off && b.line == 9));
+        // No safe height: one straight move.
+        let moves = direct_approach(&origin, &first, &axes, None, 300.0);
+        assert_eq!(moves.len(), 1);
+        assert_eq!(moves[0].kind, BlockKind::Line);
+
+        let rapid = line(2, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Rapid);
+        let moved = path_approach(rapid.clone(), 120.0);
+        assert_eq!(moved.kind, BlockKind::Line);
+        assert_eq!(moved.curve, rapid.curve);
+        assert_eq!(moved.feed_mm_per_min, Some(100.0));
+        assert!(moved.spark_off);
+        assert_eq!(path_approach(rapid, 60.0).feed_mm_per_min, Some(60.0));
+    }
+}
