@@ -341,9 +341,14 @@ fn a_parametric_slot_from_a_subroutine() {
 #[test]
 fn moves_the_offset_cannot_take_are_errors_naming_the_line() {
     let err = |p: &str| read(p, 0.2).unwrap_err().to_string();
-    let e = err("G0 X0 Y0\nG41 D1 G2 X2 Y0 I1 J0 F10\n");
+    // As LinuxCNC: the entry must be longer than the offset (an arc entry is a move like
+    // a line's: `tests/wire_offset_linuxcnc.rs`).
+    let e = err("G0 X0 Y0\nG41 D1 G1 X0.15 F10\n");
     assert!(
-        e.starts_with("w.ngc:2:1: wire offset: the first move after G41/G42"),
+        e.starts_with(
+            "w.ngc:2:1: wire offset: the entry move (the first move after G41/G42) is 0.15 mm \
+             long, not longer than the wire offset 0.2 mm"
+        ),
         "{e}"
     );
     let e = err("G0 X0 Y0\nG41 D1 G1 X1 F10\nG1 X2\nG40 G3 X4 I1 J0\n");

@@ -16,10 +16,14 @@
 //!   would cut into the part) is an error naming the line;
 //! - **tangent junction**: nothing to add.
 //!
-//! **Entry and exit** as LinuxCNC does them: the first move after `G41`/`G42` must be a straight
-//! move; it starts at the uncompensated point and ends offset perpendicular to itself at its
-//! end (then the corner with the next move is handled as above). The first move after `G40`
-//! starts offset perpendicular to itself at its start and ends at its programmed point.
+//! **Entry and exit** as LinuxCNC's interpreter does them (`tests/wire_offset_linuxcnc.rs`
+//! compares every end point with `rs274`'s): the first move after `G41`/`G42` starts at the
+//! uncompensated point and must be longer than the offset; a line ends offset perpendicular
+//! to itself at its end, an arc at its end moved along the radius, about a centre moved so the
+//! arc passes through both ends (then the corner with the next move is handled as above).
+//! The first move after `G40` must be a line: the move before it ends at its own offset end
+//! point, with no corner processing, and the exit goes straight from there to the programmed
+//! point (so a die program may leave back along its entry line).
 //!
 //! An arc whose offset radius would be 0 or less, or a curve whose radius of curvature on the
 //! offset side is smaller than `d`, cannot be cut: an error naming the line. So is a move of
@@ -41,14 +45,20 @@ use prim::{
 struct Piece {
     prims: Vec<Prim>,
     template: Block,
+    /// A straight entry move: where the wire really starts (the uncompensated point). Its
+    /// prims are then the programmed move's offset line, which its corner with the next move
+    /// is worked out on (as LinuxCNC does: the corner point moves along the offset line, not
+    /// along the slanted entry); the move emitted runs from here to that line's end.
+    entry_from: Option<V2>,
 }
 
 impl Piece {
-    /// A straight move from `a` to `b` (the entry and exit moves).
+    /// A straight move from `a` to `b` (the exit move).
     fn line(a: V2, b: V2, template: Block) -> Piece {
         Piece {
             prims: vec![Prim::Line { a, b }],
             template,
+            entry_from: None,
         }
     }
 }
@@ -164,13 +174,36 @@ impl Compensator {
         let sd = self.side * self.d;
         match self.phase {
             Phase::Entry => {
-                if !straight {
-                    return Err(fail(
-                        "the first move after G41/G42 (the entry) must be a straight move".into(),
-                    ));
+                if norm(sub(p1, p0)) <= self.d {
+                    return Err(fail(format!(
+                        "the entry move (the first move after G41/G42) is {} mm long, not longer \
+                         than the wire offset {} mm",
+                        Num(norm(sub(p1, p0))),
+                        Num(self.d)
+                    )));
                 }
-                let n = scale(left(unit(sub(p1, p0))), sd);
-                self.pending = Some(Piece::line(p0, add(p1, n), block));
+                let (prim, entry_from) = if straight {
+                    let n = scale(left(unit(sub(p1, p0))), sd);
+                    let offset_line = Prim::Line {
+                        a: add(p0, n),
+                        b: add(p1, n),
+                    };
+                    (offset_line, Some(p0))
+                } else if let BlockKind::Arc { center, sweep, .. } = &block.kind {
+                    let arc = self
+                        .entry_arc(p0, p1, (center[ix], center[iy]), *sweep)
+                        .map_err(fail)?;
+                    (arc, None)
+                } else {
+                    return Err(fail(
+                        "the first move after G41/G42 (the entry) must be a line or an arc".into(),
+                    ));
+                };
+                self.pending = Some(Piece {
+                    prims: vec![prim],
+                    template: block,
+                    entry_from,
+                });
                 self.phase = Phase::On;
                 self.entry_line = Some(line);
             }
@@ -184,14 +217,21 @@ impl Compensator {
                         "the first move after G40 (the exit) must be a straight move".into(),
                     ));
                 }
-                let n = scale(left(unit(sub(p1, p0))), sd);
-                self.join(Piece::line(add(p0, n), p1, block), out)?;
-                if let Some(last) = self.pending.take() {
-                    self.emit(last, out).map_err(|m| CompError {
-                        line: 0,
-                        message: m,
-                    })?;
-                }
+                // The last offset move keeps its own offset end (no corner with the exit);
+                // the exit goes straight from there to the programmed point.
+                let from = match self.pending.take() {
+                    Some(last) => {
+                        let end = last.prims.last().map_or(p0, Prim::end);
+                        let last_line = last.template.line;
+                        self.emit(last, out).map_err(|message| CompError {
+                            line: last_line,
+                            message,
+                        })?;
+                        end
+                    }
+                    None => p0,
+                };
+                self.emit(Piece::line(from, p1, block), out).map_err(fail)?;
                 self.phase = Phase::Off;
             }
             Phase::Off => unreachable!("handled above"),
@@ -208,6 +248,44 @@ impl Compensator {
         }
         self.phase = Phase::Off;
         Ok(())
+    }
+
+    /// An arc as the entry move, as LinuxCNC's interpreter makes it: from the uncompensated
+    /// start `p0` to the programmed end `p1` moved by the offset along the end's radius
+    /// (towards the centre `c` where the wire is inside the arc), about the point of the line
+    /// through `c` and that end which is as far from both ends; the turn is the programmed one.
+    fn entry_arc(&self, p0: V2, p1: V2, c: V2, sweep: f64) -> Result<Prim, String> {
+        let ccw = sweep > 0.0;
+        // Left of a counter-clockwise arc is its inside.
+        let inside = (self.side > 0.0) == ccw;
+        let radial = unit(if inside { sub(c, p1) } else { sub(p1, c) });
+        let end = add(p1, scale(radial, self.d));
+        let toward = unit(sub(c, end));
+        let chord = sub(p0, end);
+        let cos_a = dot(unit(chord), toward);
+        if cos_a.abs() < 1e-12 {
+            return Err(
+                "the entry arc cannot reach the offset path: the wire offset is not smaller \
+                 than the arc's radius"
+                    .into(),
+            );
+        }
+        let centre = add(end, scale(toward, norm(chord) / 2.0 / cos_a));
+        let r = norm(sub(end, centre));
+        let a0 = (p0.1 - centre.1).atan2(p0.0 - centre.0);
+        let a1 = (end.1 - centre.1).atan2(end.0 - centre.0);
+        let tau = std::f64::consts::TAU;
+        let turn = if ccw {
+            (a1 - a0).rem_euclid(tau)
+        } else {
+            -(a0 - a1).rem_euclid(tau)
+        };
+        Ok(Prim::Arc {
+            c: centre,
+            r,
+            a0,
+            sweep: turn,
+        })
     }
 
     /// The offset of a programmed move (not the entry or exit).
@@ -254,6 +332,7 @@ impl Compensator {
         Ok(Piece {
             prims,
             template: block,
+            entry_from: None,
         })
     }
 
@@ -395,6 +474,7 @@ impl Compensator {
             let corner = Piece {
                 prims: extra,
                 template,
+                entry_from: None,
             };
             let line = corner.template.line;
             self.emit(corner, out)
@@ -417,12 +497,11 @@ impl Compensator {
             p[iy] = v.1;
             p
         };
-        let prims: Vec<Prim> = piece
-            .prims
-            .iter()
-            .copied()
-            .filter(|p| p.length() > SAME_MM)
-            .collect();
+        let mut prims: Vec<Prim> = piece.prims.clone();
+        if let (Some(from), Some(Prim::Line { a, .. })) = (piece.entry_from, prims.first_mut()) {
+            *a = from;
+        }
+        prims.retain(|p| p.length() > SAME_MM);
         let mut first = true;
         let mut push = |kind: BlockKind, curve: NurbsCurve| {
             let mut b = Block::new(t.line, kind, curve, t.feed_mm_per_min);

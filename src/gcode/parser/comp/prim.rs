@@ -5,6 +5,9 @@
 pub(super) const SAME_MM: f64 = 1e-9;
 /// How many primitives on each side of a concave corner are searched for the intersection.
 const TRIM_SEARCH: usize = 64;
+/// A turn between two moves up to this (radians) is no corner: LinuxCNC's
+/// `TOLERANCE_CONCAVE_CORNER`.
+const SLIGHT_TURN: f64 = 0.05;
 /// Deepest subdivision of a NURBS offset (2^30 chords at most per piece).
 pub(super) const MAX_DEPTH: u32 = 30;
 
@@ -212,6 +215,32 @@ pub(super) fn join_prims(
     let (ta, tb) = (a[a.len() - 1].tangent(1.0), b[0].tangent(0.0));
     let turn = cross(ta, tb);
     let reverse = dot(ta, tb) < 0.0 && turn.abs() < 1e-9;
+    if !reverse && turn.atan2(dot(ta, tb)).abs() <= SLIGHT_TURN {
+        // As LinuxCNC: a corner this slight, convex or concave, gets neither an arc nor a
+        // trim; the next move starts where the last one ended (a line from there, an arc
+        // joined by a connecting line if its start is apart).
+        return Ok(match &mut b[0] {
+            Prim::Line { a: start, .. } => {
+                *start = ea;
+                Vec::new()
+            }
+            Prim::Arc { c, a0, sweep, .. } => {
+                // The arc starts at the angle of the last end about its centre, its end kept
+                // (the two are apart along the arc, not across it, to the second order).
+                let start = (ea.1 - c.1).atan2(ea.0 - c.0);
+                let moved = (start - *a0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                    - std::f64::consts::PI;
+                *a0 += moved;
+                *sweep -= moved;
+                let sb = b[0].start();
+                if norm(sub(ea, sb)) > 1e-6 {
+                    vec![Prim::Line { a: ea, b: sb }]
+                } else {
+                    Vec::new()
+                }
+            }
+        });
+    }
     if side * turn < 0.0 || reverse {
         // Convex: around the corner at distance d.
         let (v1, v2) = (sub(ea, corner), sub(sb, corner));
