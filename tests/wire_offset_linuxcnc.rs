@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 use std::io::Cursor;
 use std::path::Path;
 
-use common::linuxcnc::{linuxcnc_moves, rs274};
+use common::linuxcnc::{end_points, linuxcnc_moves, rs274};
 use edmd::gcode::{BlockReader, ProgramOptions};
 use edmd::vocab::Axis;
 
@@ -79,15 +79,12 @@ fn edmd_moves(text: &str, radius_mm: f64) -> Result<Vec<[f64; 3]>, String> {
         d_mm: vec![0.0, radius_mm],
         ..ProgramOptions::default()
     };
-    BlockReader::with_options(Cursor::new(text.as_bytes()), "p.ngc", XYZ, options)
-        .map(|b| {
-            b.map(|b| {
-                let e = b.end();
-                [e[0], e[1], e[2]]
-            })
-            .map_err(|e| e.to_string())
-        })
-        .collect()
+    end_points(BlockReader::with_options(
+        Cursor::new(text.as_bytes()),
+        "p.ngc",
+        XYZ,
+        options,
+    ))
 }
 
 /// Both readings of `text` (offset by `diameter` in the program's units, `radius_mm` in mm)

@@ -13,7 +13,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::linuxcnc::{TOLERANCE_MM, linuxcnc_moves, rs274};
+use common::linuxcnc::{TOLERANCE_MM, end_points, linuxcnc_moves, rs274};
 
 use edmd::gcode::{BlockReader, open_program};
 use edmd::vocab::Axis;
@@ -22,15 +22,7 @@ const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
 
 fn edmd_moves(program: &Path) -> Result<Vec<[f64; 3]>, String> {
     let reader: BlockReader<_> = open_program(program, XYZ).map_err(|e| e.to_string())?;
-    reader
-        .map(|b| {
-            b.map(|b| {
-                let e = b.end();
-                [e[0], e[1], e[2]]
-            })
-            .map_err(|e| e.to_string())
-        })
-        .collect()
+    end_points(reader)
 }
 
 fn programs() -> Vec<PathBuf> {

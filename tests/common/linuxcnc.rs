@@ -95,3 +95,18 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
     });
     Ok(moves)
 }
+
+/// The end points (X Y Z, mm) of the blocks edmd reads, or the first error's message.
+pub fn end_points<R: std::io::BufRead + std::io::Seek>(
+    reader: edmd::gcode::BlockReader<R>,
+) -> Result<Vec<[f64; 3]>, String> {
+    reader
+        .map(|b| {
+            b.map(|b| {
+                let e = b.end();
+                [e[0], e[1], e[2]]
+            })
+            .map_err(|e| e.to_string())
+        })
+        .collect()
+}
