@@ -13,6 +13,8 @@
 //! and any key the default does not have is rejected with its line. Every error names where the
 //! offending value came from: `file:line:col` for the file, the `--set` argument for an override.
 
+mod corners;
+pub use corners::CornerControl;
 mod homing;
 mod overrides;
 mod parport;
@@ -292,6 +294,8 @@ pub struct Condition {
     pub jump_interval_s: Option<f64>,
     pub jump_height_mm: Option<f64>,
     pub jump_feed_mm_per_min: Option<f64>,
+    /// Corner control while this condition cuts.
+    pub corner: Option<CornerControl>,
 }
 
 /// `[compensation]`: the wire offset registers.

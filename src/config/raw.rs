@@ -86,6 +86,14 @@ pub(super) struct RawCondition {
     pub(super) jump_height_mm: Option<f64>,
     #[serde(default)]
     pub(super) jump_feed_mm_per_min: Option<f64>,
+    #[serde(default)]
+    pub(super) corner_angle_deg: Option<f64>,
+    #[serde(default)]
+    pub(super) corner_feed_factor: Option<f64>,
+    #[serde(default)]
+    pub(super) corner_distance_mm: Option<f64>,
+    #[serde(default)]
+    pub(super) corner_dwell_ms: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -12,6 +12,7 @@ use crate::fine::FineSettings;
 use crate::gcode::ProgramOptions;
 use crate::parport::{PinMap, StepTiming};
 use crate::preprocess::PlanSettings;
+use crate::preprocess::corners::CornerRule;
 use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
 use crate::vocab::MAX_AXES;
@@ -45,6 +46,19 @@ impl PlanSettings {
             lookahead: i.lookahead_segments,
             fluctuation_tolerance: i.fluctuation_tolerance,
             max_corrections: i.max_corrections,
+            corners: config
+                .conditions
+                .iter()
+                .filter_map(|c| {
+                    c.corner.map(|k| CornerRule {
+                        condition: c.number,
+                        min_turn: (180.0 - k.angle_deg).to_radians(),
+                        feed_factor: k.feed_factor,
+                        distance: k.distance_mm,
+                        dwell_s: k.dwell_ms / 1000.0,
+                    })
+                })
+                .collect(),
         }
     }
 }

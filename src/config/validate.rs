@@ -659,8 +659,10 @@ fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
         if conditions.iter().any(|x| x.number == number) {
             return Err((key, format!("E{number} is defined twice")));
         }
+        let corner = super::corners::corner_control(&c)?;
         conditions.push(Condition {
             number,
+            corner,
             on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
             off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
             current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,

@@ -31,6 +31,7 @@
 pub mod bound;
 pub mod certify;
 pub mod chord;
+pub mod corners;
 pub mod period;
 pub mod planner;
 pub mod predictor;
@@ -69,6 +70,8 @@ pub struct PlanSettings {
     pub lookahead: usize,
     pub fluctuation_tolerance: f64,
     pub max_corrections: u32,
+    /// Corner control, per condition ([`corners`]); empty: off.
+    pub corners: Vec<corners::CornerRule>,
 }
 
 /// A chord of a curve piece, before speed planning.
@@ -108,6 +111,8 @@ pub struct GeoSegment {
     pub last_of_piece: bool,
     /// Last segment of its block.
     pub last_of_block: bool,
+    /// Corner control's stop at the segment's start (s): the path stops there this long.
+    pub corner_dwell_s: f64,
 }
 
 /// What the preprocessor produces: one straight move of the path with its planned timing.
@@ -143,6 +148,8 @@ pub struct Segment {
     /// on the step that closes a piece.
     pub fluctuation: Option<f64>,
     pub last_of_block: bool,
+    /// Corner control's stop at the segment's start (s): the electrode holds there this long.
+    pub corner_dwell_s: f64,
 }
 
 /// The junction-deviation corner speed between two unit tangents (Grbl's rule): the speed at
@@ -184,6 +191,7 @@ pub struct PreprocessStats {
 #[derive(Debug)]
 pub struct Preprocessor {
     segmenter: Segmenter,
+    corners: corners::CornerControl,
     planner: Planner,
     stepper: Option<PeriodStepper>,
     blocks: u64,
@@ -203,6 +211,7 @@ impl Preprocessor {
             grid.max_segment = f64::INFINITY;
         }
         Preprocessor {
+            corners: corners::CornerControl::new(grid.corners.clone()),
             segmenter: Segmenter::new(grid),
             planner,
             stepper,
@@ -221,7 +230,29 @@ impl Preprocessor {
         let planner = &mut self.planner;
         let stepper = &mut self.stepper;
         let segments = &mut self.segments;
-        self.segmenter.segment_block(&block, |geo| {
+        let corners = &mut self.corners;
+        let mut plan = |geo| {
+            planner.push(geo, |planned| {
+                forward(stepper, planned, &mut |s| {
+                    *segments += 1;
+                    emit(s)
+                })
+            })
+        };
+        if corners.is_off() {
+            self.segmenter.segment_block(&block, plan);
+        } else {
+            self.segmenter
+                .segment_block(&block, |geo| corners.push(geo, &mut plan));
+        }
+    }
+
+    /// End of the program: flushes the window; the last segment ends at rest.
+    pub fn finish<F: FnMut(Segment)>(&mut self, mut emit: F) {
+        let stepper = &mut self.stepper;
+        let segments = &mut self.segments;
+        let planner = &mut self.planner;
+        self.corners.finish(|geo| {
             planner.push(geo, |planned| {
                 forward(stepper, planned, &mut |s| {
                     *segments += 1;
@@ -229,12 +260,6 @@ impl Preprocessor {
                 })
             })
         });
-    }
-
-    /// End of the program: flushes the window; the last segment ends at rest.
-    pub fn finish<F: FnMut(Segment)>(&mut self, mut emit: F) {
-        let stepper = &mut self.stepper;
-        let segments = &mut self.segments;
         self.planner.finish(|planned| {
             forward(stepper, planned, &mut |s| {
                 *segments += 1;
@@ -288,6 +313,7 @@ fn chord_segment(p: PlannedSegment) -> Segment {
         evals: g.evals,
         fluctuation: None,
         last_of_block: g.last_of_block,
+        corner_dwell_s: g.corner_dwell_s,
         block: g.block,
     }
 }

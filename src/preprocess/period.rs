@@ -103,8 +103,14 @@ impl PeriodStepper {
     }
 
     /// Takes one planned grid segment and emits the period steps that end inside it.
-    pub fn push(&mut self, planned: &PlannedSegment, emit: &mut dyn FnMut(Segment)) {
+    pub fn push(&mut self, planned: &PlannedSegment, sink: &mut dyn FnMut(Segment)) {
         let geo = &planned.geo;
+        // Corner control's stop goes with the first period step of the segment.
+        let mut dwell = geo.corner_dwell_s;
+        let emit = &mut |mut s: Segment| {
+            s.corner_dwell_s = std::mem::take(&mut dwell);
+            sink(s)
+        };
         let curve = &geo.block.curve;
         if geo.first_of_piece || self.at.is_none() {
             self.at = Some(Sample::at(curve, geo.u_start));
@@ -383,6 +389,7 @@ impl PeriodStepper {
             evals,
             fluctuation,
             last_of_block,
+            corner_dwell_s: 0.0,
         });
         self.prev_speed = v;
     }

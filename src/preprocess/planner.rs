@@ -294,6 +294,7 @@ mod tests {
             first_of_piece: false,
             last_of_piece: false,
             last_of_block: false,
+            corner_dwell_s: 0.0,
         }
     }
 

@@ -201,6 +201,7 @@ impl Segmenter {
                 first_of_piece,
                 last_of_piece: at_end,
                 last_of_block: at_end && last_piece,
+                corner_dwell_s: 0.0,
             };
             self.stats.segments += 1;
             self.stats.evals += u64::from(tried + err.evals);

@@ -164,7 +164,7 @@ impl BlockMaker {
             },
             flags,
             path_end_mm: self.path_mm + segment.length,
-            dwell_s: if first { segment.block.dwell_s } else { 0.0 },
+            dwell_s: if first { segment.block.dwell_s } else { 0.0 } + segment.corner_dwell_s,
             condition: segment.block.condition as u16,
             condition_feed: 0.0,
             condition_v_ref: 0.0,
