@@ -136,6 +136,9 @@ pub struct Checkpoint {
     /// The job ran from a line: a resume replays the same approach (and never cuts it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub from_line: Option<crate::runtime::FromLine>,
+    /// The job ran in passes: a resume replays the same ones, whatever the table says now.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub passes: Vec<crate::config::WirePass>,
 }
 
 /// A job's start as a checkpoint keeps it.
@@ -402,6 +405,7 @@ mod tests {
             written_unix_s: 1,
             start: None,
             from_line: None,
+            passes: Vec::new(),
         }
     }
 

@@ -181,13 +181,7 @@ fn a_checkpoint_taken_during_the_approach_resumes_into_the_approach() {
     daemon.wait_for("moving", |s| {
         s["state"] == "running" && s["job"]["position_steps"][0].as_i64().unwrap_or(-9999) > -2000
     });
-    daemon.ok(&["hold"]);
-    daemon.wait_for("held", |s| s["state"] == "held");
-    daemon.ok(&["abort"]);
-    daemon.wait_for("idle", |s| s["state"] == "idle");
-    let cp: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
-            .unwrap();
+    let cp = daemon.hold_abort_checkpoint(&dir);
     assert_eq!(cp["from_line"]["line"], 13, "{cp}");
     assert_eq!(cp["from_line"]["approach"], "path", "{cp}");
     assert!(

@@ -726,6 +726,19 @@ fn the_page_in_headless_chromium() {
         "document.getElementById('from-line').value = ''; const a = document.getElementById('abort'); a.click(); a.click(); return true",
     );
     d.wait_for("its abort", |s| s["state"] == "idle");
+    // Passes from the run dialog reach the daemon (this one has no technology table).
+    wait(
+        "Run enabled",
+        "return !document.getElementById('run').disabled",
+    );
+    browser.eval(
+        "document.getElementById('passes').value = '2'; document.getElementById('run').click(); return true",
+    );
+    wait(
+        "the passes refused",
+        "const m = document.getElementById('message'); return m.className === 'error' && m.textContent.includes('[wire] pass has 0 passes')",
+    );
+    browser.eval("document.getElementById('passes').value = ''; return true");
     // Jog from the page: one step of 0.1 mm, then held for a while (a continuous jog the
     // page renews), released: it stops.
     let x = |d: &Daemon| {

@@ -118,7 +118,7 @@ fn job_on(
         &program,
         config,
         &Default::default(),
-        None,
+        &runtime::CutPlan::default(),
         &runtime::Progress::new(),
     )
     .unwrap();
@@ -600,7 +600,7 @@ fn fault_then_resume(
         &program,
         config,
         &Default::default(),
-        None,
+        &runtime::CutPlan::default(),
         &runtime::Progress::new(),
     )
     .unwrap();

@@ -47,6 +47,10 @@ pub(super) enum CtlCommand {
         /// [default: direct where machine.safe_z_mm is set, path otherwise]
         #[arg(long, value_parser = parse_approach, requires = "from_line")]
         approach: Option<crate::runtime::Approach>,
+        /// Cut the program once per pass of the technology table ([wire] pass): the first N,
+        /// each at its offset and condition
+        #[arg(long, value_name = "N")]
+        passes: Option<usize>,
     },
     /// Brake to a standstill and hold there (checkpoint written)
     Hold,
@@ -252,12 +256,14 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             dry_run,
             from_line,
             approach,
+            passes,
         } => (
             Request::Run {
                 program: program.clone(),
                 dry_run: *dry_run,
                 from_line: *from_line,
                 approach: *approach,
+                passes: *passes,
             },
             !no_wait,
         ),

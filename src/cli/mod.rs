@@ -216,9 +216,31 @@ struct RunArgs {
     /// machine.safe_z_mm is set, path otherwise]
     #[arg(long, value_parser = ctl::parse_approach, requires = "from_line")]
     approach: Option<runtime::Approach>,
+    /// Cut the program once per pass of the technology table ([wire] pass): the first N
+    #[arg(long, value_name = "N", conflicts_with = "from_line")]
+    passes: Option<usize>,
 }
 
 impl RunArgs {
+    /// What the job cuts: from `--from-line`, in `--passes` of the table.
+    fn cut_plan(&self, cfg: &Config) -> Result<runtime::CutPlan, ExitCode> {
+        let passes = match self.passes {
+            None => Vec::new(),
+            Some(0) => {
+                eprintln!("edmd: error: --passes counts from 1 (the first pass of [wire] pass)");
+                return Err(ExitCode::from(EXIT_BAD_INPUT));
+            }
+            Some(n) => runtime::passes::first(&cfg.wire.passes, n).map_err(|e| {
+                eprintln!("edmd: error: {e}");
+                ExitCode::from(EXIT_BAD_INPUT)
+            })?,
+        };
+        Ok(runtime::CutPlan {
+            from_line: self.cut_from(cfg),
+            passes,
+        })
+    }
+
     /// `--from-line` with its approach (the machine's usual one unless `--approach`).
     fn cut_from(&self, cfg: &Config) -> Option<runtime::FromLine> {
         self.from_line.map(|line| runtime::FromLine {
@@ -524,7 +546,10 @@ fn run_job(args: &RunArgs) -> ExitCode {
         &args.program,
         &cfg,
         &start,
-        args.cut_from(&cfg),
+        &match args.cut_plan(&cfg) {
+            Ok(cut) => cut,
+            Err(code) => return code,
+        },
         &stop,
         observers,
     );

@@ -109,6 +109,7 @@ pub(super) fn write_run_checkpoint(
             &cfg.machine.step_mm,
         )),
         from_line: args.cut_from(cfg),
+        passes: args.cut_plan(cfg).map(|c| c.passes).unwrap_or_default(),
     };
     cp.write_atomic(path)
 }

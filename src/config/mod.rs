@@ -23,6 +23,8 @@ mod settings;
 #[cfg(test)]
 mod tests;
 mod validate;
+mod wire;
+pub use wire::{WireConfig, WirePass};
 
 use std::path::{Path, PathBuf};
 
@@ -341,6 +343,8 @@ pub struct Config {
     /// `[generator] condition`, by number.
     pub conditions: Vec<Condition>,
     pub homing: HomingConfig,
+    /// `[wire]`: the technology table of passes.
+    pub wire: WireConfig,
 }
 
 /// `[homing]`: when the machine position must be known.

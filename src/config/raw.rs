@@ -26,6 +26,7 @@ pub(super) struct RawConfig {
     pub(super) compensation: RawCompensation,
     pub(super) generator: RawGenerator,
     pub(super) homing: RawHoming,
+    pub(super) wire: super::wire::RawWire,
 }
 
 #[derive(Debug, Deserialize)]

@@ -142,6 +142,7 @@ impl RawConfig {
         }
         let compensation = compensation(self.compensation)?;
         let conditions = conditions(self.generator)?;
+        let wire = self.wire.validate(&compensation, &conditions)?;
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
@@ -163,6 +164,7 @@ impl RawConfig {
             compensation,
             conditions,
             homing,
+            wire,
         })
     }
 }

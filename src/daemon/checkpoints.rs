@@ -181,7 +181,8 @@ impl CheckpointKeeper {
                 &machine.axes,
                 &machine.step_mm,
             )),
-            from_line: job.from_line,
+            from_line: job.cut.from_line,
+            passes: job.cut.passes.clone(),
         };
         let path = &job.config.daemon.checkpoint;
         match cp.write_atomic(path) {

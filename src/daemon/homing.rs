@@ -194,7 +194,7 @@ impl Core {
                 switch,
                 feed_mm_per_min: h.search_feed_mm_per_min,
             },
-            from_line: None,
+            cut: Default::default(),
         };
         tracing::info!(
             edmd_event = "homing",

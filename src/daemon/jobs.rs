@@ -225,7 +225,10 @@ impl Core {
         let launch = Launch {
             start,
             kind: JobKind::Program,
-            from_line: cp.from_line,
+            cut: runtime::CutPlan {
+                from_line: cp.from_line,
+                passes: cp.passes.clone(),
+            },
         };
         let id = self.begin_check(source, Some(resume), launch);
         Ok(format!(

@@ -49,8 +49,8 @@ pub(super) enum JobKind {
 pub(super) struct Launch {
     pub start: WorkStart,
     pub kind: JobKind,
-    /// A program run from a line (a checkpoint of one resumes it as one).
-    pub from_line: Option<runtime::FromLine>,
+    /// A program run from a line or in passes (a checkpoint of one resumes it as one).
+    pub cut: runtime::CutPlan,
 }
 
 impl Launch {
@@ -61,7 +61,7 @@ impl Launch {
         let mut spec = runtime::JobSpec::from_config(config, true);
         spec.work = self.start.clone();
         spec.fine.dry_run = self.kind == JobKind::DryRun;
-        spec.from_line = self.from_line;
+        spec.cut = self.cut.clone();
         if let JobKind::Jog { feed_mm_per_min }
         | JobKind::Home {
             feed_mm_per_min, ..
@@ -87,7 +87,7 @@ pub(super) fn copy_and_check(
     dir: &Path,
     config: &Config,
     start: &WorkStart,
-    from_line: Option<runtime::FromLine>,
+    cut: &runtime::CutPlan,
     expect: Option<&str>,
     progress: &Progress,
 ) -> Result<Checked, CheckRefusal> {
@@ -117,6 +117,6 @@ pub(super) fn copy_and_check(
         }
         .into());
     }
-    let check = runtime::precheck(&program, config, start, from_line, progress)?;
+    let check = runtime::precheck(&program, config, start, cut, progress)?;
     Ok((program, check))
 }

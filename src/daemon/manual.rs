@@ -177,7 +177,7 @@ impl Core {
             kind: JobKind::Jog {
                 feed_mm_per_min: feed,
             },
-            from_line: None,
+            cut: Default::default(),
         };
         self.begin_check(
             Source::Generated {
@@ -206,7 +206,7 @@ impl Core {
         let launch = Launch {
             start,
             kind: JobKind::Mdi,
-            from_line: None,
+            cut: Default::default(),
         };
         let text = format!("{}\n", lines.trim_end());
         let id = self.begin_check(

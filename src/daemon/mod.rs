@@ -178,8 +178,9 @@ struct Job {
     /// The units and distance mode it leaves (kept for the next MDI lines).
     modes: crate::gcode::StartModes,
     kind: launch::JobKind,
-    /// Run from this line (the checkpoint records it, so a resume replays the same approach).
-    from_line: Option<runtime::FromLine>,
+    /// Run from a line, in passes (the checkpoint records them, so a resume replays the same
+    /// approach and passes).
+    cut: runtime::CutPlan,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -465,7 +466,8 @@ impl Core {
                 dry_run,
                 from_line,
                 approach,
-            } => self.run_program(&program, dry_run, from_line, approach),
+                passes,
+            } => self.run_program(&program, dry_run, from_line, approach, passes),
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),

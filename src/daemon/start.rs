@@ -62,11 +62,28 @@ impl Core {
         dry_run: bool,
         from_line: Option<u64>,
         approach: Option<runtime::Approach>,
+        passes: Option<usize>,
     ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
         let from_line = self.run_from_line(dry_run, from_line, approach)?;
+        let passes = match passes {
+            None => Vec::new(),
+            Some(0) => {
+                return Err(Refusal::BadArgument(
+                    "passes counts from 1 (the first pass of [wire] pass)".into(),
+                ));
+            }
+            Some(_) if from_line.is_some() => {
+                return Err(Refusal::BadArgument(
+                    "a run in passes starts at the program's start, not from a line".into(),
+                ));
+            }
+            Some(n) => runtime::passes::first(&self.config.wire.passes, n)
+                .map_err(|e| Refusal::BadArgument(e.to_string()))?,
+        };
+        let cut = runtime::CutPlan { from_line, passes };
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let launch = Launch {
             start: self.machine.state.work_start(),
@@ -75,12 +92,14 @@ impl Core {
             } else {
                 JobKind::Program
             },
-            from_line,
+            cut: cut.clone(),
         };
         let id = self.begin_check(Source::Original(program.clone()), None, launch);
-        let from = from_line.map_or(String::new(), |f| {
-            format!(" from line {} ({} approach)", f.line, f.approach.name())
-        });
+        let from = match (cut.from_line, cut.passes.len()) {
+            (Some(f), _) => format!(" from line {} ({} approach)", f.line, f.approach.name()),
+            (None, 0) => String::new(),
+            (None, n) => format!(" in {n} passes"),
+        };
         Ok(format!(
             "accepted: checking {}{from} (check {id}); the job starts when the check passes",
             program.display()
@@ -156,7 +175,7 @@ impl Core {
             leaves: (check.work_offsets.clone(), check.work_system),
             modes: check.modes,
             kind: launch.kind,
-            from_line: launch.from_line,
+            cut: launch.cut,
         }
     }
 
@@ -201,7 +220,7 @@ impl Core {
         let expect = resume.as_ref().map(|r| r.sha256.clone());
         let worker_progress = progress.clone();
         let worker_start = launch.start.clone();
-        let from_line = launch.from_line;
+        let cut = launch.cut.clone();
         let spawned = std::thread::Builder::new()
             .name("edmd-check".to_string())
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
@@ -211,7 +230,7 @@ impl Core {
                     &dir,
                     &config,
                     &worker_start,
-                    from_line,
+                    &cut,
                     expect.as_deref(),
                     &worker_progress,
                 );
@@ -297,7 +316,7 @@ impl Core {
         let spec = launch.spec(&config);
         let switch = launch.home_switch();
         let kind = launch.kind;
-        let from_line = launch.from_line;
+        let from_line = launch.cut.from_line;
         let blocks = check.blocks;
         let ledger = resume
             .as_ref()

@@ -103,7 +103,8 @@ impl Core {
                     eta_s: job.progress.eta_s(),
                     recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
                     dry_run: job.kind == super::launch::JobKind::DryRun,
-                    from_line: job.from_line,
+                    from_line: job.cut.from_line,
+                    passes: job.cut.passes.len(),
                     paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
                         0 => None,
                         line => Some(line),

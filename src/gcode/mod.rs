@@ -263,6 +263,32 @@ impl Block {
         }
     }
 
+    /// The same move run the other way (a pass cut the other way round): the curve reversed,
+    /// an arc's sweep negated; no dwell or pause before it (they belonged to the other end).
+    pub fn reversed(&self) -> Block {
+        let kind = match &self.kind {
+            BlockKind::Arc {
+                center,
+                radius,
+                sweep,
+                plane,
+            } => BlockKind::Arc {
+                center: *center,
+                radius: *radius,
+                sweep: -sweep,
+                plane: *plane,
+            },
+            other => other.clone(),
+        };
+        Block {
+            kind,
+            curve: self.curve.reversed(),
+            dwell_s: 0.0,
+            pause: None,
+            ..self.clone()
+        }
+    }
+
     pub fn start(&self) -> Point {
         self.curve.start_point()
     }

@@ -188,6 +188,20 @@ impl NurbsCurve {
         Self::new(1, dim, &[*a, *b], &[1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0])
     }
 
+    /// The same curve run the other way: `reversed().point(a + b - u) == point(u)` on the
+    /// parameter range `[a, b]`.
+    pub fn reversed(&self) -> NurbsCurve {
+        let (a, b) = (self.u_min(), self.u_max());
+        let mut homogeneous = self.homogeneous.clone();
+        homogeneous.reverse();
+        NurbsCurve {
+            degree: self.degree,
+            dim: self.dim,
+            knots: self.knots.iter().rev().map(|u| a + b - u).collect(),
+            homogeneous,
+        }
+    }
+
     pub fn degree(&self) -> usize {
         self.degree
     }

@@ -463,3 +463,19 @@ fn every_validation_rule_has_its_own_error() {
         assert!(!err.to_string().is_empty());
     }
 }
+
+#[test]
+fn a_reversed_curve_runs_the_same_points_backwards() {
+    let c = fanuc_cubic();
+    let r = c.reversed();
+    let (a, b) = (c.u_min(), c.u_max());
+    assert_eq!((r.u_min(), r.u_max()), (a, b));
+    for k in 0..=50 {
+        let u = a + (b - a) * f64::from(k) / 50.0;
+        assert!((r.point(a + b - u) - c.point(u)).norm() < 1e-9, "u = {u}");
+    }
+    assert_eq!(
+        r.reversed().point(a + 0.3 * (b - a)),
+        c.point(a + 0.3 * (b - a))
+    );
+}

@@ -28,6 +28,7 @@ pub mod fine_thread;
 pub mod from_line;
 mod histogram;
 pub mod latency;
+pub mod passes;
 mod precheck;
 pub mod probe;
 pub mod producer;
@@ -61,7 +62,7 @@ pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
 pub use run::{JobRun, run};
-pub use spec::{JobSpec, StepCondition, start_steps};
+pub use spec::{CutPlan, JobSpec, StepCondition, start_steps};
 pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
@@ -92,6 +93,8 @@ pub enum JobError {
     Cancelled { program: String },
     #[error(transparent)]
     FromLine(#[from] FromLineError),
+    #[error(transparent)]
+    Passes(#[from] passes::PassError),
 }
 
 /// Logs one trace record (from the main thread).
@@ -146,7 +149,7 @@ pub fn run_file(
         program,
         config,
         &WorkStart::default(),
-        None,
+        &CutPlan::default(),
         stop,
         observers,
     )
@@ -160,16 +163,16 @@ pub fn run_file_from(
     program: &Path,
     config: &Config,
     start: &WorkStart,
-    from_line: Option<FromLine>,
+    cut: &CutPlan,
     stop: &AtomicBool,
     observers: Observers,
 ) -> Result<(JobSummary, (WorkOffsets, WorkSystem)), JobError> {
-    let (copy, check) = copy_and_check(program, config, start, from_line, stop)?;
+    let (copy, check) = copy_and_check(program, config, start, cut, stop)?;
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let mut spec = JobSpec::from_config(config, false);
     spec.work = start.clone();
-    spec.from_line = from_line;
+    spec.cut = cut.clone();
     let (output, gap) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
         output,
@@ -195,7 +198,7 @@ pub fn copy_and_check(
     program: &Path,
     config: &Config,
     start: &WorkStart,
-    from_line: Option<FromLine>,
+    cut: &CutPlan,
     stop: &AtomicBool,
 ) -> Result<(TempCopy, Precheck), JobError> {
     let progress = Progress::new();
@@ -205,7 +208,7 @@ pub fn copy_and_check(
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
             .spawn_scoped(s, || {
                 let copy = TempCopy::new_with(program, &progress)?;
-                let check = precheck(&copy.0, config, start, from_line, &progress)?;
+                let check = precheck(&copy.0, config, start, cut, &progress)?;
                 Ok((copy, check))
             })
             .map_err(JobError::Thread)?;

@@ -3,10 +3,13 @@
 //! cutting a program whose line 10,000 is bad.
 
 use super::JobError;
-use super::from_line::{FromLine, Gate};
+use super::from_line::Gate;
+use super::passes;
 use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
+use super::spec::CutPlan;
 use super::spec::start_steps;
+use crate::config::WirePass;
 use crate::config::{Config, GapKind};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
 use crate::vocab::Steps;
@@ -34,96 +37,156 @@ pub struct Precheck {
     pub rapid_spans: Vec<(f64, f64)>,
 }
 
-/// Parses the whole program and checks every end point fits a step counter (and, for a job
-/// run from a line, that it can start there). Reports the bytes read to `progress` and gives
-/// up with [`JobError::Cancelled`] when it is cancelled.
-pub fn precheck(
-    program: &JobProgram,
-    config: &Config,
-    start: &WorkStart,
-    from_line: Option<FromLine>,
-    progress: &Progress,
-) -> Result<Precheck, JobError> {
-    progress.start(Phase::Checking, program.bytes);
-    let mut reader = gcode::open_program_as(
-        &program.path,
-        &program.name,
-        &config.machine.axes,
-        gcode::ProgramOptions::from_config(config),
-        |f| CountingReader::new(f, progress),
-    )?;
-    reader.cancel_on(progress.cancel_flag());
-    reader.start_at(start);
-    let machine = &config.machine;
-    let mut blocks = 0;
-    let mut end_steps = start_steps(start, &machine.step_mm);
-    let mut path_mm = 0.0;
-    let mut cutting_spans = Vec::new();
-    let mut rapid_spans: Vec<(f64, f64)> = Vec::new();
-    let measure = config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0;
-    let cancelled = || JobError::Cancelled {
-        program: program.name.clone(),
-    };
-    let mut gate = from_line.map(|f| Gate::new(f, &program.name));
-    while let Some(item) = reader.next() {
-        let block = match item {
-            Ok(block) => block,
-            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => return Err(cancelled()),
-            Err(e) => return Err(e.into()),
-        };
-        if let Some(gate) = &mut gate {
-            gate.admit(&block, reader.comp_entry_line())?;
-        }
-        blocks += 1;
-        // The reader looks at the flag on every line; a block's own work (the length of a
-        // curve of 100,000 points) is looked at here.
-        if progress.cancelled() {
-            return Err(cancelled());
-        }
-        crate::check::hold_to_travel(&block, &machine.axes, &machine.travel, &program.name)?;
+/// What the check adds up block by block, over every pass.
+struct Tally<'a> {
+    config: &'a Config,
+    program: &'a str,
+    blocks: u64,
+    end_steps: Steps,
+    path_mm: f64,
+    cutting_spans: Vec<(f64, f64)>,
+    rapid_spans: Vec<(f64, f64)>,
+    /// Where the cutting moves lie is measured for the simulated gap's placed debris only.
+    measure: bool,
+}
+
+impl Tally<'_> {
+    fn take(&mut self, block: &gcode::Block) -> Result<(), JobError> {
+        let machine = &self.config.machine;
+        self.blocks += 1;
+        crate::check::hold_to_travel(block, &machine.axes, &machine.travel, self.program)?;
         let length = block.curve.length();
-        if measure && block.kind != gcode::BlockKind::Rapid {
-            match cutting_spans.last_mut() {
+        let path_mm = self.path_mm;
+        if self.measure && block.kind != gcode::BlockKind::Rapid {
+            match self.cutting_spans.last_mut() {
                 Some((_, to)) if *to == path_mm => *to += length,
-                _ => cutting_spans.push((path_mm, path_mm + length)),
+                _ => self.cutting_spans.push((path_mm, path_mm + length)),
             }
         }
         if block.kind == gcode::BlockKind::Rapid {
-            match rapid_spans.last_mut() {
+            match self.rapid_spans.last_mut() {
                 Some((_, to)) if *to == path_mm => *to += length,
-                _ => rapid_spans.push((path_mm, path_mm + length)),
+                _ => self.rapid_spans.push((path_mm, path_mm + length)),
             }
         }
-        path_mm += length;
-        end_steps =
-            to_steps(&block.end(), &config.machine.step_mm).map_err(|(axis, mm, steps)| {
+        self.path_mm += length;
+        self.end_steps =
+            to_steps(&block.end(), &machine.step_mm).map_err(|(axis, mm, steps)| {
                 ProducerError::OutOfRange {
-                    program: program.name.clone(),
+                    program: self.program.to_string(),
                     line: block.line,
-                    axis: config.machine.axes[axis].letter(),
+                    axis: machine.axes[axis].letter(),
                     mm,
                     steps,
                 }
             })?;
+        Ok(())
     }
-    if let Some(gate) = &gate {
-        gate.finish()?;
-    }
-    for w in reader.take_warnings() {
-        if w.line == 0 {
-            tracing::warn!("{}: {}", program.name, w.message);
-        } else {
-            tracing::warn!("{}:{}:{}: {}", program.name, w.line, w.col, w.message);
+}
+
+/// Parses the whole program and checks every end point fits a step counter (and, for a job
+/// run from a line, that it can start there; in passes, every pass with its offset, and that
+/// the program ends where it starts). Reports the bytes read to `progress` and gives up with
+/// [`JobError::Cancelled`] when it is cancelled.
+pub fn precheck(
+    program: &JobProgram,
+    config: &Config,
+    start: &WorkStart,
+    cut: &CutPlan,
+    progress: &Progress,
+) -> Result<Precheck, JobError> {
+    progress.start(Phase::Checking, program.bytes);
+    let base = gcode::ProgramOptions::from_config(config);
+    let runs: Vec<Option<&WirePass>> = if cut.passes.is_empty() {
+        vec![None]
+    } else {
+        cut.passes.iter().map(Some).collect()
+    };
+    let start_at = start_steps(start, &config.machine.step_mm);
+    let mut tally = Tally {
+        config,
+        program: &program.name,
+        blocks: 0,
+        end_steps: start_at,
+        path_mm: 0.0,
+        cutting_spans: Vec::new(),
+        rapid_spans: Vec::new(),
+        measure: config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0,
+    };
+    let cancelled = || JobError::Cancelled {
+        program: program.name.clone(),
+    };
+    let mut left = None;
+    for (k, pass) in runs.into_iter().enumerate() {
+        let mut reader = gcode::open_program_as(
+            &program.path,
+            &program.name,
+            &config.machine.axes,
+            passes::options(&base, pass),
+            |f| CountingReader::new(f, progress),
+        )?;
+        reader.cancel_on(progress.cancel_flag());
+        reader.start_at(start);
+        let mut gate = cut.from_line.map(|f| Gate::new(f, &program.name));
+        while let Some(item) = reader.next() {
+            let block = match item {
+                Ok(block) => block,
+                Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
+                    return Err(cancelled());
+                }
+                Err(e) => return Err(e.into()),
+            };
+            if let Some(gate) = &mut gate {
+                gate.admit(&block, reader.comp_entry_line())?;
+            }
+            let block = passes::block(block, pass, &program.name)?;
+            // The reader looks at the flag on every line; a block's own work (the length of
+            // a curve of 100,000 points) is looked at here.
+            if progress.cancelled() {
+                return Err(cancelled());
+            }
+            tally.take(&block)?;
         }
+        if let Some(gate) = &gate {
+            gate.finish()?;
+        }
+        if pass.is_some() && tally.end_steps != start_at {
+            let text = |s: &Steps| {
+                let names = &config.machine.axes;
+                names
+                    .iter()
+                    .zip(s.iter().zip(&config.machine.step_mm))
+                    .map(|(a, (&n, mm))| format!("{}{:.4}", a.letter(), n as f64 * mm))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            return Err(passes::PassError::NotClosed {
+                program: program.name.clone(),
+                start: text(&start_at),
+                end: text(&tally.end_steps),
+            }
+            .into());
+        }
+        if k == 0 {
+            for w in reader.take_warnings() {
+                if w.line == 0 {
+                    tracing::warn!("{}: {}", program.name, w.message);
+                } else {
+                    tracing::warn!("{}:{}:{}: {}", program.name, w.line, w.col, w.message);
+                }
+            }
+        }
+        left = Some((reader.work_offsets(), reader.work_system(), reader.modes()));
     }
+    let (work_offsets, work_system, modes) = left.expect("one run at least");
     Ok(Precheck {
-        work_offsets: reader.work_offsets(),
-        work_system: reader.work_system(),
-        modes: reader.modes(),
-        blocks,
-        end_steps,
-        cutting_spans,
-        path_mm,
-        rapid_spans,
+        work_offsets,
+        work_system,
+        modes,
+        blocks: tally.blocks,
+        end_steps: tally.end_steps,
+        cutting_spans: tally.cutting_spans,
+        path_mm: tally.path_mm,
+        rapid_spans: tally.rapid_spans,
     })
 }

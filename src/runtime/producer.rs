@@ -11,10 +11,12 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use super::from_line::{self, Approach, Gate, Route};
+use super::passes;
 use super::probe::ProbeLink;
 use super::program::JobProgram;
 use super::spec::{JobSpec, StepCondition};
 use crate::buffer::{LoopBuffer, StepBlock};
+use crate::config::WirePass;
 use crate::gcode::{self, BlockKind, GcodeError};
 use crate::geometry::Point;
 use crate::preprocess::{PreprocessStats, Preprocessor, Segment};
@@ -43,6 +45,8 @@ pub enum ProducerError {
     Thread(std::io::Error),
     #[error(transparent)]
     FromLine(#[from] super::from_line::FromLineError),
+    #[error(transparent)]
+    Passes(#[from] passes::PassError),
 }
 
 /// What the producer did.
@@ -211,16 +215,6 @@ fn produce_inner(
     probe: &ProbeLink,
     cancel: Arc<AtomicBool>,
 ) -> Result<ProducerReport, ProducerError> {
-    let mut reader = gcode::open_program_as(
-        &program.path,
-        &program.name,
-        &spec.axes,
-        spec.program.clone(),
-        |f| f,
-    )?;
-    // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
-    reader.cancel_on(cancel);
-    reader.start_at(&spec.work);
     let mut pre = Preprocessor::new(spec.plan.clone());
     let started = Instant::now();
     let mut out = Pusher {
@@ -230,8 +224,96 @@ fn produce_inner(
         failed: None,
         waited: Duration::ZERO,
     };
+    let runs: Vec<Option<&WirePass>> = if spec.cut.passes.is_empty() {
+        vec![None]
+    } else {
+        spec.cut.passes.iter().map(Some).collect()
+    };
     let mut probes = 0;
-    let mut gate = spec.from_line.map(|f| Gate::new(f, &program.name));
+    for pass in runs {
+        let mut reader = gcode::open_program_as(
+            &program.path,
+            &program.name,
+            &spec.axes,
+            passes::options(&spec.program, pass),
+            |f| f,
+        )?;
+        // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
+        reader.cancel_on(cancel.clone());
+        reader.start_at(&spec.work);
+        if pass.is_some_and(|p| p.reverse) {
+            reversed_pass(reader, pass, &program.name, &mut pre, &mut out)?;
+        } else {
+            stream(
+                reader,
+                spec,
+                program,
+                pass,
+                probe,
+                &mut probes,
+                &mut pre,
+                &mut out,
+            )?;
+        }
+        if out.report.aborted {
+            break;
+        }
+    }
+    if !out.report.aborted {
+        pre.finish(|s| out.push(s));
+    }
+    if let Some(e) = out.failed {
+        return Err(e);
+    }
+    let mut report = out.report;
+    report.stats = pre.stats();
+    report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
+    Ok(report)
+}
+
+/// A reversed pass: its blocks read whole, then pushed last first, each run backwards.
+fn reversed_pass<R: std::io::BufRead + std::io::Seek>(
+    reader: gcode::BlockReader<R>,
+    pass: Option<&WirePass>,
+    name: &str,
+    pre: &mut Preprocessor,
+    out: &mut Pusher<'_>,
+) -> Result<(), ProducerError> {
+    let mut blocks = Vec::new();
+    for item in reader {
+        match item {
+            Ok(block) => blocks.push(passes::block(block, pass, name)?),
+            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
+                out.report.aborted = true;
+                return Ok(());
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+    for block in blocks.iter().rev() {
+        pre.push_block(Arc::new(block.reversed()), |s| out.push(s));
+        if out.report.aborted {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// One run of the program through the preprocessor, as it reads: a run from a line's
+/// approach, and probing moves (planned to a standstill, then read on from where they stop).
+#[allow(clippy::too_many_arguments)]
+fn stream<R: std::io::BufRead + std::io::Seek>(
+    mut reader: gcode::BlockReader<R>,
+    spec: &JobSpec,
+    program: &JobProgram,
+    pass: Option<&WirePass>,
+    probe: &ProbeLink,
+    probes: &mut u64,
+    pre: &mut Preprocessor,
+    out: &mut Pusher<'_>,
+) -> Result<(), ProducerError> {
+    let buffer = out.buffer;
+    let mut gate = spec.cut.from_line.map(|f| Gate::new(f, &program.name));
     while let Some(item) = reader.next() {
         let block = match item {
             Ok(block) => block,
@@ -241,16 +323,10 @@ fn produce_inner(
             }
             Err(e) => return Err(e.into()),
         };
+        let block = passes::block(block, pass, &program.name)?;
         let block = match &mut gate {
             None => block,
-            Some(gate) => match approach(
-                gate,
-                block,
-                reader.comp_entry_line(),
-                spec,
-                &mut out,
-                &mut pre,
-            )? {
+            Some(gate) => match approach(gate, block, reader.comp_entry_line(), spec, out, pre)? {
                 Some(block) => block,
                 None => continue,
             },
@@ -261,9 +337,9 @@ fn produce_inner(
             // The rest of the program starts where the probe stops: plan to a standstill at
             // its end, hand everything over, and wait for the consumer to say where.
             pre.finish(|s| out.push(s));
-            probes += 1;
+            *probes += 1;
             let waiting = Instant::now();
-            let result = probe.wait(probes, || buffer.aborted());
+            let result = probe.wait(*probes, || buffer.aborted());
             out.waited += waiting.elapsed();
             match result {
                 Some(result) => {
@@ -281,19 +357,12 @@ fn produce_inner(
             break;
         }
     }
-    if !out.report.aborted {
-        if let Some(gate) = &gate {
-            gate.finish()?;
-        }
-        pre.finish(|s| out.push(s));
+    if !out.report.aborted
+        && let Some(gate) = &gate
+    {
+        gate.finish()?;
     }
-    if let Some(e) = out.failed {
-        return Err(e);
-    }
-    let mut report = out.report;
-    report.stats = pre.stats();
-    report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
-    Ok(report)
+    Ok(())
 }
 
 /// A block of a job run from a line, routed: the block to push, or `None` where the approach

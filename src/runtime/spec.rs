@@ -2,7 +2,7 @@
 //! settings ([`JobSpec`]), so that no thread of a job (producer, fine thread, supervisor)
 //! sees the `Config` or builds a setting again.
 
-use crate::config::Config;
+use crate::config::{Config, WirePass};
 use crate::fine::FineSettings;
 use crate::gcode::{ProgramOptions, WorkStart};
 use crate::preprocess::PlanSettings;
@@ -20,6 +20,14 @@ pub struct StepCondition {
     pub feed: f32,
     pub v_ref: f32,
     pub jump: [f32; 3],
+}
+
+/// What a job cuts of its program: all of it once (the default), from a line, or once per
+/// pass of the technology table.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CutPlan {
+    pub from_line: Option<FromLine>,
+    pub passes: Vec<WirePass>,
 }
 
 /// Everything a job's threads need.
@@ -46,8 +54,8 @@ pub struct JobSpec {
     /// Where the job starts: the machine position, the work offsets and the active system
     /// (the machine origin in `G54` with no offsets unless the caller says otherwise).
     pub work: WorkStart,
-    /// Run from a line: where the cut starts and how the machine gets there.
-    pub from_line: Option<FromLine>,
+    /// What of the program is cut: from a line, in passes.
+    pub cut: CutPlan,
     /// The approach's feed (`servo.rethread_feed_mm_per_min`), mm/min.
     pub approach_feed_mm_per_min: f64,
     /// `machine.safe_z_mm`: the height a direct approach crosses at.
@@ -89,7 +97,7 @@ impl JobSpec {
             speed_cap: super::fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
             work: WorkStart::default(),
-            from_line: None,
+            cut: CutPlan::default(),
             approach_feed_mm_per_min: config.servo.rethread_feed_mm_per_min,
             safe_z_mm: config.machine.safe_z_mm,
         }

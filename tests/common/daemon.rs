@@ -136,6 +136,16 @@ impl Daemon {
         assert_eq!(self.wait().0, 0);
     }
 
+    /// Holds the running job, aborts it and returns the checkpoint it left (in `dir`).
+    pub fn hold_abort_checkpoint(&self, dir: &Path) -> Value {
+        self.ok(&["hold"]);
+        self.wait_for("held", |s| s["state"] == "held");
+        self.ok(&["abort"]);
+        self.wait_for("idle", |s| s["state"] == "idle");
+        let text = std::fs::read_to_string(dir.join("checkpoint.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    }
+
     /// Waits until the log holds `needle` (the supervisor logs events a little after the
     /// status shows them).
     pub fn wait_for_log(&self, needle: &str) {

@@ -567,6 +567,8 @@ struct RunBody {
     from_line: Option<u64>,
     #[serde(default)]
     approach: Option<crate::runtime::Approach>,
+    #[serde(default)]
+    passes: Option<usize>,
 }
 
 async fn run(
@@ -582,6 +584,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        passes,
     } = match body(raw) {
         Ok(b) => b,
         Err(e) => return e,
@@ -594,6 +597,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        passes,
     };
     match ask(&app, run).await {
         Ok(reply) => verdict(reply),

@@ -19,6 +19,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::runtime::{JobSummary, axis_list};
 
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
 /// Longest request line accepted (bytes).
 pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
 
@@ -38,6 +42,9 @@ pub enum Request {
         from_line: Option<u64>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         approach: Option<crate::runtime::Approach>,
+        /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        passes: Option<usize>,
     },
     /// Brake to a standstill and stay there. (Empty struct variants, not unit ones: serde
     /// checks unknown fields only on those.)
@@ -423,6 +430,9 @@ pub struct JobStatus {
     /// Run from a line: where the cut starts and how the machine approached it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub from_line: Option<crate::runtime::FromLine>,
+    /// Passes of the technology table the job cuts (0: the program as written).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub passes: usize,
     /// Source line of the segment in hand.
     pub line: u64,
     pub segment: u64,
@@ -495,6 +505,7 @@ mod tests {
                 dry_run: false,
                 from_line: None,
                 approach: None,
+                passes: None,
             }
         );
         assert_eq!(
@@ -505,6 +516,7 @@ mod tests {
                 dry_run: false,
                 from_line: Some(12),
                 approach: Some(crate::runtime::Approach::Direct),
+                passes: None,
             }
         );
         assert_eq!(

@@ -1,0 +1,109 @@
+//! `[wire]`: the technology table of a wire machine's passes (`[[wire.pass]]`), checked
+//! against the offset registers and the conditions it names.
+
+use serde::Deserialize;
+
+use super::validate::{Invalid, positive};
+use super::{CompensationConfig, Condition};
+
+/// `[wire]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawWire {
+    pub(super) pass: Vec<RawPass>,
+}
+
+/// `[[wire.pass]]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawPass {
+    #[serde(default)]
+    offset_mm: Option<f64>,
+    #[serde(default)]
+    d: Option<i64>,
+    condition: i64,
+    #[serde(default)]
+    feed_mm_per_min: Option<f64>,
+    #[serde(default)]
+    reverse: bool,
+}
+
+/// `[wire]`: the passes a `--passes N` run cuts, first to last.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WireConfig {
+    pub passes: Vec<WirePass>,
+}
+
+/// One pass: the wire offset (every `D` of the program reads it), the condition (every `E` of
+/// the program reads it), a feed ceiling, and the direction.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WirePass {
+    pub offset_mm: f64,
+    pub condition: u32,
+    pub feed_mm_per_min: Option<f64>,
+    /// Cut this pass the other way round.
+    pub reverse: bool,
+}
+
+impl RawWire {
+    pub(super) fn validate(
+        self,
+        compensation: &CompensationConfig,
+        conditions: &[Condition],
+    ) -> Result<WireConfig, Invalid> {
+        const KEY: &str = "wire.pass";
+        let mut passes = Vec::new();
+        for (i, p) in self.pass.into_iter().enumerate() {
+            let n = i + 1;
+            let offset_mm = match (p.offset_mm, p.d) {
+                (Some(mm), None) if (0.0..=10.0).contains(&mm) => mm,
+                (Some(mm), None) => {
+                    return Err((KEY, format!("pass {n}: offset_mm = {mm}: 0 to 10 mm")));
+                }
+                (None, Some(d)) => *usize::try_from(d)
+                    .ok()
+                    .and_then(|d| compensation.d_mm.get(d))
+                    .ok_or_else(|| {
+                        (
+                            KEY,
+                            format!(
+                                "pass {n}: d = {d} is not a register of compensation.d_mm \
+                                 (D0 to D{})",
+                                compensation.d_mm.len() - 1
+                            ),
+                        )
+                    })?,
+                _ => {
+                    return Err((
+                        KEY,
+                        format!("pass {n}: give the wire offset as offset_mm or as d (a register)"),
+                    ));
+                }
+            };
+            let condition = u32::try_from(p.condition)
+                .ok()
+                .filter(|c| conditions.iter().any(|x| x.number == *c))
+                .ok_or_else(|| {
+                    (
+                        KEY,
+                        format!(
+                            "pass {n}: condition = {} is not one of [generator] condition",
+                            p.condition
+                        ),
+                    )
+                })?;
+            let feed_mm_per_min = p
+                .feed_mm_per_min
+                .map(|f| positive(KEY, f, 1e6, "mm/min (feed_mm_per_min)"))
+                .transpose()?;
+            passes.push(WirePass {
+                offset_mm,
+                condition,
+                feed_mm_per_min,
+                reverse: p.reverse,
+            });
+        }
+        Ok(WireConfig { passes })
+    }
+}

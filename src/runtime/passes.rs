@@ -1,0 +1,116 @@
+//! Passes from the technology table (`[[wire.pass]]`, `--passes N`): the program run once per
+//! pass, each time with the pass's wire offset in every `D` register, its condition in place of
+//! every `E`, its feed as a ceiling, and, where the pass says `reverse`, the whole pass run the
+//! other way round.
+//!
+//! A pass is a transformation of what the interpreter reads and of the blocks it makes, so
+//! the check and the producer apply the same one ([`options`], [`block`]) and a resume
+//! replays the same block sequence. A reversed pass is the pass's blocks in reverse order,
+//! each run backwards ([`crate::gcode::Block::reversed`]): the offset path is the same, walked
+//! from its end (for the usual program, in along the exit line and out along the entry).
+//! Those blocks are held in memory for the pass (the program's compensated path; a wire
+//! contour, not a million-line mould program). Each pass starts where the last ended, so the
+//! program must end where it starts (the start hole), and it may not probe.
+
+use crate::config::WirePass;
+use crate::gcode::{Block, BlockKind, ProgramOptions};
+
+/// `D` registers a pass fills (D1 and up).
+const REGISTERS: usize = 100;
+
+/// Why a program cannot be cut in passes.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PassError {
+    #[error(
+        "{program}:{line}:1: a probing move cannot be cut in passes (where it stops would move \
+         every pass after it)"
+    )]
+    Probe { program: String, line: u64 },
+    #[error(
+        "{program}: passes need a program that ends where it starts (the start hole), so each \
+         pass starts where the last ended: it starts at {start} and ends at {end}"
+    )]
+    NotClosed {
+        program: String,
+        start: String,
+        end: String,
+    },
+    #[error("--passes {asked}: [wire] pass has {have} passes")]
+    TooMany { asked: usize, have: usize },
+}
+
+/// The first `n` passes of the table (`n` = 0: none, the program as written).
+pub fn first(table: &[WirePass], n: usize) -> Result<Vec<WirePass>, PassError> {
+    if n > table.len() {
+        return Err(PassError::TooMany {
+            asked: n,
+            have: table.len(),
+        });
+    }
+    Ok(table[..n].to_vec())
+}
+
+/// The reader's options for `pass`: its offset in every `D` register from D1.
+pub fn options(base: &ProgramOptions, pass: Option<&WirePass>) -> ProgramOptions {
+    let mut options = base.clone();
+    if let Some(pass) = pass {
+        options.d_mm = std::iter::once(0.0)
+            .chain(std::iter::repeat_n(pass.offset_mm, REGISTERS))
+            .collect();
+        if !options.conditions.contains(&pass.condition) {
+            options.conditions.push(pass.condition);
+        }
+    }
+    options
+}
+
+/// A block as `pass` cuts it: in its condition, at most its feed.
+pub fn block(mut block: Block, pass: Option<&WirePass>, program: &str) -> Result<Block, PassError> {
+    let Some(pass) = pass else { return Ok(block) };
+    if matches!(block.kind, BlockKind::Probe(_)) {
+        return Err(PassError::Probe {
+            program: program.to_string(),
+            line: block.line,
+        });
+    }
+    block.condition = pass.condition;
+    if let (Some(cap), false) = (pass.feed_mm_per_min, block.kind == BlockKind::Rapid) {
+        block.feed_mm_per_min = Some(block.feed_mm_per_min.map_or(cap, |f| f.min(cap)));
+    }
+    Ok(block)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{NurbsCurve, Point};
+
+    const PASS: WirePass = WirePass {
+        offset_mm: 0.12,
+        condition: 3,
+        feed_mm_per_min: Some(5.0),
+        reverse: false,
+    };
+
+    #[test]
+    fn a_pass_sets_every_register_the_condition_and_the_feed_ceiling() {
+        let options = options(&ProgramOptions::default(), Some(&PASS));
+        assert_eq!(options.d_mm[0], 0.0);
+        assert!(options.d_mm[1..].iter().all(|&d| d == 0.12));
+        let line = NurbsCurve::line(
+            2,
+            &Point::zeros(),
+            &Point::from_fn(|i, _| f64::from(i == 0)),
+        )
+        .unwrap();
+        let b = block(
+            Block::new(4, BlockKind::Line, line, Some(60.0)),
+            Some(&PASS),
+            "p",
+        )
+        .unwrap();
+        assert_eq!((b.condition, b.feed_mm_per_min), (3, Some(5.0)));
+        assert!(first(&[PASS], 2).is_err());
+        assert_eq!(first(&[PASS, PASS], 1).unwrap().len(), 1);
+    }
+}

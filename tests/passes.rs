@@ -1,0 +1,164 @@
+//! Skim passes from the technology table (`[[wire.pass]]`, `--passes N`), through the real
+//! binary on a die: from the pulse log, every pass's path lies at its own offset from the
+//! contour, the direction alternates where the table says `reverse`, each pass cuts in its
+//! condition, the job ends on the program's end point; programs that cannot be cut in passes
+//! are refused before anything moves; a job stopped in its second pass resumes (a new daemon)
+//! to the same pulses as an uninterrupted run.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use common::daemon::{Daemon, base_sets};
+use edmd::output::read_pulse_log;
+
+/// A die: from the start hole at the centre, `G41` inside a 4 mm square, out again.
+const DIE: &str = "(die)\nG21 G90 G17\nG41 D1\nG1 X0 Y-2 F600\nG1 X2 Y-2\nG1 X2 Y2\nG1 X-2 Y2\n\
+                   G1 X-2 Y-2\nG1 X0 Y-2\nG40 G1 X0 Y0\nM2\n";
+const HALF_MM: f64 = 2.0;
+
+/// The technology table (fast conditions: the test is about paths, not burn rates).
+const TABLE: &str = "[compensation]\nd_mm = [0.0, 0.2]\n\n[generator]\ncondition = [\n\
+  { number = 1, on_us = 1.0, off_us = 12.0, current_a = 1.0, v_ref = 35.0, feed_mm_per_min = 600.0 },\n\
+  { number = 2, on_us = 2.0, off_us = 10.0, current_a = 2.5, v_ref = 30.0, feed_mm_per_min = 600.0 },\n\
+  { number = 3, on_us = 4.0, off_us = 8.0, current_a = 5.0, v_ref = 25.0, feed_mm_per_min = 600.0 } ]\n\n\
+[wire]\npass = [\n  { offset_mm = 0.2, condition = 3 },\n  { offset_mm = 0.15, condition = 2, reverse = true },\n\
+  { offset_mm = 0.12, condition = 1 } ]\n";
+/// Offset and direction (+1 counter-clockwise) of each pass's condition.
+const PASSES: [(u16, f64, f64); 3] = [(3, 0.2, 1.0), (2, 0.15, -1.0), (1, 0.12, 1.0)];
+
+fn setup(name: &str) -> std::path::PathBuf {
+    let dir = common::scratch("passes", name);
+    std::fs::write(dir.join("wire.toml"), TABLE).unwrap();
+    std::fs::write(dir.join("die.ngc"), DIE).unwrap();
+    dir
+}
+
+fn run(dir: &Path, program: &str, pulses: &str, args: &[&str]) -> std::process::Output {
+    let config = dir.join("wire.toml");
+    let mut all = vec!["--config", config.to_str().unwrap()];
+    all.extend(args);
+    common::run_to_pulse_log(&dir.join(program), &dir.join(pulses), &all)
+}
+
+/// Positions (µm, X and Y) after each moving tick, in order.
+type Walk = Vec<(i64, i64)>;
+
+/// The walk of each condition the ticks cut in, and where the log ends.
+fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
+    let (_, rows) = read_pulse_log(path).unwrap();
+    let (mut x, mut y) = (0i64, 0i64);
+    let mut by = BTreeMap::new();
+    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
+        x += i64::from(r.steps[0]);
+        y += i64::from(r.steps[1]);
+        by.entry(r.condition).or_insert_with(Vec::new).push((x, y));
+    }
+    (by, (x, y))
+}
+
+#[test]
+fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_start() {
+    let dir = setup("cli");
+    let out = run(&dir, "die.ngc", "p.csv", &["--passes", "3"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (by, end) = positions_by_condition(&dir.join("p.csv"));
+    assert_eq!(end, (0, 0), "the job ends on the program's end point");
+    assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3]);
+    for (condition, offset, direction) in PASSES {
+        let pts = &by[&condition];
+        // Along the contour (away from the entry and exit line at X0), every point is the
+        // pass's offset inside the square, to the step.
+        let half = (HALF_MM * 1000.0) as i64;
+        let inside: Vec<i64> = pts
+            .iter()
+            .filter(|p| p.0.abs() > 300)
+            .map(|p| (half - p.0.abs()).min(half - p.1.abs()))
+            .collect();
+        let want = (offset * 1000.0).round() as i64;
+        assert!(inside.len() > 1000, "E{condition}: {} points", inside.len());
+        assert!(
+            inside.iter().all(|&d| (d - want).abs() <= 1),
+            "E{condition}: {:?} µm from the contour, want {want}",
+            (inside.iter().min(), inside.iter().max())
+        );
+        // The direction from the shoelace area of its path.
+        let area: f64 = pts
+            .windows(2)
+            .map(|w| (w[0].0 * w[1].1 - w[1].0 * w[0].1) as f64)
+            .sum::<f64>()
+            / 2e6;
+        assert!(
+            area * direction > 10.0,
+            "E{condition}: signed area {area} mm²"
+        );
+    }
+}
+
+#[test]
+fn what_cannot_be_cut_in_passes_is_refused_before_anything_moves() {
+    let dir = setup("refused");
+    let out = run(&dir, "die.ngc", "p.csv", &["--passes", "4"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--passes 4: [wire] pass has 3 passes"));
+    std::fs::write(dir.join("open.ngc"), "G21 G90\nG1 X3 F600\nM2\n").unwrap();
+    let out = run(&dir, "open.ngc", "p.csv", &["--passes", "2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("passes need a program that ends where it starts"),
+        "{err}"
+    );
+    assert!(err.contains("ends at X3.0000 Y0.0000"), "{err}");
+    assert!(
+        !dir.join("p.csv").exists() || std::fs::metadata(dir.join("p.csv")).unwrap().len() < 200
+    );
+    std::fs::write(dir.join("probe.ngc"), "G21 G90\nG38.3 X3 F100\nG0 X0\nM2\n").unwrap();
+    let out = run(&dir, "probe.ngc", "p.csv", &["--passes", "1"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("probe.ngc:2:1: a probing move cannot be cut in passes"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_job_stopped_in_its_second_pass_resumes_to_the_uninterrupted_pulses() {
+    let dir = common::daemon::scratch("passes");
+    std::fs::write(dir.join("wire.toml"), TABLE).unwrap();
+    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let config = dir.join("wire.toml");
+    let args = ["--config".to_string(), config.display().to_string()];
+    let daemon = Daemon::start_args(&dir, &args, &base_sets(&dir, "first.csv"), &[]);
+    daemon.refused(&["run", "die.ngc", "--passes", "0"], "counts from 1");
+    daemon.ok(&["run", "die.ngc", "--passes", "3"]);
+    let s = daemon.wait_for("the second pass", |s| {
+        s["state"] == "running" && s["job"]["progress"].as_f64().unwrap_or(0.0) > 0.45
+    });
+    assert_eq!(s["job"]["passes"], 3, "{s}");
+    let cp = daemon.hold_abort_checkpoint(&dir);
+    assert_eq!(cp["passes"].as_array().map(Vec::len), Some(3), "{cp}");
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    let daemon = Daemon::start_args(&dir, &args, &base_sets(&dir, "second.csv"), &[]);
+    daemon.resume_to_the_end(&[0, 0]);
+    let reference = dir.join("reference.csv");
+    let out = common::run_to_pulse_log(
+        &dir.join("programs/die.ngc"),
+        &reference,
+        &["--config", config.to_str().unwrap(), "--passes", "3"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
+}
