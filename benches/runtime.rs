@@ -78,6 +78,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
+                pass: 0,
             };
             at = end;
             b

@@ -123,6 +123,8 @@ pub enum EventKind {
     Pause,
     Collision,
     Condition,
+    /// A pass of the technology table starts (the value: its number).
+    Pass,
     FlushOn,
     FlushOff,
     /// The operator's feed or rapid override changed (the value: percent).
@@ -152,6 +154,7 @@ impl EventKind {
             EventKind::Pause => "pause",
             EventKind::Collision => "collision",
             EventKind::Condition => "condition",
+            EventKind::Pass => "pass",
             EventKind::FlushOn => "flush_on",
             EventKind::FlushOff => "flush_off",
             EventKind::FeedOverride => "feed_override",

@@ -61,12 +61,28 @@ fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
 #[test]
 fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_start() {
     let dir = setup("cli");
-    let out = run(&dir, "die.ngc", "p.csv", &["--passes", "3"]);
+    let report = dir.join("report");
+    let out = run(
+        &dir,
+        "die.ngc",
+        "p.csv",
+        &["--passes", "3", "--report", report.to_str().unwrap()],
+    );
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // The report marks where each pass starts.
+    let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
+    let marks: Vec<&str> = events
+        .lines()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f.get(3) == Some(&"pass")).then(|| f[4])
+        })
+        .collect();
+    assert_eq!(marks, ["1", "2", "3"], "{events}");
     let (by, end) = positions_by_condition(&dir.join("p.csv"));
     assert_eq!(end, (0, 0), "the job ends on the program's end point");
     assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3]);

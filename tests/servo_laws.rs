@@ -39,6 +39,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
+                pass: 0,
             }
         })
         .collect()

@@ -43,6 +43,9 @@ pub struct StepBlock {
     /// The condition's jumps: interval (s), height (mm) and feed (mm/s); NaN keeps the
     /// `[servo]` setting, an interval of 0 turns jumps off.
     pub condition_jump: [f32; 3],
+    /// The pass of the technology table this move belongs to (1-based; 0: the job does not
+    /// run in passes), so a report marks where each pass starts, also after a resume.
+    pub pass: u8,
 }
 
 /// What a move is besides its geometry: a small set of flags, one byte in the ring.
@@ -65,6 +68,8 @@ impl BlockFlags {
     pub const PROBE_AWAY: BlockFlags = BlockFlags(32);
     /// With `PROBE`: reaching the end point without contact is an error (`G38.2`/`G38.4`).
     pub const PROBE_MUST: BlockFlags = BlockFlags(64);
+    /// The first move of a pass of the technology table.
+    pub const PASS_START: BlockFlags = BlockFlags(128);
 
     /// Every flag of `other` is set.
     pub const fn contains(self, other: BlockFlags) -> bool {
@@ -125,6 +130,7 @@ impl StepBlock {
         condition_feed: 0.0,
         condition_v_ref: 0.0,
         condition_jump: [f32::NAN; 3],
+        pass: 0,
     };
 
     /// Signed step count of each axis.

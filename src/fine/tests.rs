@@ -51,6 +51,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 condition_feed: 0.0,
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
+                pass: 0,
             }
         })
         .collect()

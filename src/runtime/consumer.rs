@@ -584,6 +584,13 @@ fn tell_activity<O, G>(
                 on: flags.contains(BlockFlags::FLUSH),
             });
         }
+        if flags.contains(BlockFlags::PASS_START)
+            && !activity.flags.contains(BlockFlags::PASS_START)
+        {
+            tell(ServoEvent::PassStart {
+                number: block.map_or(0, |b| b.pass),
+            });
+        }
         if now.condition != activity.condition {
             tell(ServoEvent::Condition {
                 number: now.condition,

@@ -49,6 +49,12 @@ pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
             "{program}:{line}: {} override {percent} % from t={t:.4} s",
             if rapid { "rapid" } else { "feed" }
         ),
+        ServoEvent::PassStart { number } => tracing::info!(
+            edmd_event = "pass",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: pass {number} starts at t={t:.4} s"
+        ),
         ServoEvent::Flushing { on } => tracing::info!(
             edmd_event = "flushing",
             edmd_program = program,
@@ -243,6 +249,7 @@ pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, event
                 ServoEvent::Paused { .. } => (EventKind::Pause, None),
                 ServoEvent::Collision { .. } => (EventKind::Collision, None),
                 ServoEvent::Condition { number } => (EventKind::Condition, Some(number as u64)),
+                ServoEvent::PassStart { number } => (EventKind::Pass, Some(u64::from(number))),
                 ServoEvent::Flushing { on: true } => (EventKind::FlushOn, None),
                 ServoEvent::Flushing { on: false } => (EventKind::FlushOff, None),
                 ServoEvent::Override { rapid, percent } => (

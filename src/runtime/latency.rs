@@ -126,6 +126,7 @@ impl BlockSource for SquarePath {
             condition_feed: 0.0,
             condition_v_ref: 0.0,
             condition_jump: [f32::NAN; 3],
+            pass: 0,
         };
         self.at = end;
         self.next_seq += 1;

@@ -88,6 +88,9 @@ pub struct BlockMaker {
     first_of_block: bool,
     /// `[generator] condition`s as the blocks carry them.
     conditions: Vec<StepCondition>,
+    /// The pass the next blocks belong to (0: none), and whether the next block starts it.
+    pass: u8,
+    pass_starts: bool,
 }
 
 impl BlockMaker {
@@ -101,7 +104,15 @@ impl BlockMaker {
             path_mm: 0.0,
             first_of_block: true,
             conditions: spec.conditions.clone(),
+            pass: 0,
+            pass_starts: false,
         }
+    }
+
+    /// The next blocks are pass `number` (1-based) of the technology table.
+    pub fn start_pass(&mut self, number: u8) {
+        self.pass = number;
+        self.pass_starts = true;
     }
 
     /// The path length (mm) the next block starts at: a direct approach counts the program
@@ -152,6 +163,9 @@ impl BlockMaker {
         if first && segment.block.pause.is_some() {
             flags |= BlockFlags::PAUSE;
         }
+        if std::mem::take(&mut self.pass_starts) {
+            flags |= BlockFlags::PASS_START;
+        }
         let block = StepBlock {
             seq: self.seq,
             start: self.last_end,
@@ -173,6 +187,7 @@ impl BlockMaker {
             condition_feed: 0.0,
             condition_v_ref: 0.0,
             condition_jump: [f32::NAN; 3],
+            pass: self.pass,
         };
         let mut block = block;
         if let Some(c) = self
@@ -230,7 +245,15 @@ fn produce_inner(
         spec.cut.passes.iter().map(Some).collect()
     };
     let mut probes = 0;
-    for pass in runs {
+    for (k, pass) in runs.into_iter().enumerate() {
+        if pass.is_some() {
+            // Segments leave the preprocessor up to a look-ahead later: the pass's first
+            // block is marked when the last pass is out, so plan its end as a standstill.
+            if k > 0 {
+                pre.finish(|s| out.push(s));
+            }
+            out.maker.start_pass(u8::try_from(k + 1).unwrap_or(u8::MAX));
+        }
         let mut reader = gcode::open_program_as(
             &program.path,
             &program.name,

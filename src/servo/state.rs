@@ -158,6 +158,9 @@ pub enum ServoEvent {
     /// Flushing (`M7`/`M8`, `M9`) turned on or off with the move in hand (reported by the
     /// consumer's thread loop, which tells the output).
     Flushing { on: bool },
+    /// Pass `number` (1-based) of the technology table starts with the move in hand
+    /// (reported by the consumer's thread loop).
+    PassStart { number: u8 },
     /// The operator's feed (or, `rapid`, rapid) override took effect at this tick (reported
     /// by the consumer's loop, like the flushing).
     Override { rapid: bool, percent: u16 },
