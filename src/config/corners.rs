@@ -18,9 +18,15 @@ pub struct CornerControl {
     pub dwell_ms: f64,
 }
 
-/// The condition's corner control: none without `corner_angle_deg`; with it, the factor and
-/// the distance are needed too.
-pub(super) fn corner_control(c: &RawCondition) -> Result<Option<CornerControl>, Invalid> {
+impl RawCondition {
+    /// The condition's corner control: none without `corner_angle_deg`; with it, the factor
+    /// and the distance are needed too.
+    pub(super) fn corner_control(&self) -> Result<Option<CornerControl>, Invalid> {
+        corner_control(self)
+    }
+}
+
+fn corner_control(c: &RawCondition) -> Result<Option<CornerControl>, Invalid> {
     const KEY: &str = "generator.condition";
     let Some(angle) = c.corner_angle_deg else {
         if c.corner_feed_factor.is_some()

@@ -26,7 +26,7 @@ pub(super) struct RawConfig {
     pub(super) compensation: RawCompensation,
     pub(super) generator: RawGenerator,
     pub(super) homing: RawHoming,
-    pub(super) wire: super::wire::RawWire,
+    pub(super) wire: RawWire,
 }
 
 #[derive(Debug, Deserialize)]
@@ -263,4 +263,26 @@ pub(super) struct RawDaemon {
 pub(super) struct RawLog {
     pub(super) level: LogLevel,
     pub(super) format: LogFormat,
+}
+
+/// `[wire]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawWire {
+    pub(super) pass: Vec<RawPass>,
+}
+
+/// `[[wire.pass]]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawPass {
+    #[serde(default)]
+    pub(super) offset_mm: Option<f64>,
+    #[serde(default)]
+    pub(super) d: Option<i64>,
+    pub(super) condition: i64,
+    #[serde(default)]
+    pub(super) feed_mm_per_min: Option<f64>,
+    #[serde(default)]
+    pub(super) reverse: bool,
 }

@@ -661,7 +661,7 @@ fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
         if conditions.iter().any(|x| x.number == number) {
             return Err((key, format!("E{number} is defined twice")));
         }
-        let corner = super::corners::corner_control(&c)?;
+        let corner = c.corner_control()?;
         conditions.push(Condition {
             number,
             corner,

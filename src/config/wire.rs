@@ -1,32 +1,9 @@
 //! `[wire]`: the technology table of a wire machine's passes (`[[wire.pass]]`), checked
 //! against the offset registers and the conditions it names.
 
-use serde::Deserialize;
-
+use super::raw::RawWire;
 use super::validate::{Invalid, positive};
 use super::{CompensationConfig, Condition};
-
-/// `[wire]` as written.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawWire {
-    pub(super) pass: Vec<RawPass>,
-}
-
-/// `[[wire.pass]]` as written.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawPass {
-    #[serde(default)]
-    offset_mm: Option<f64>,
-    #[serde(default)]
-    d: Option<i64>,
-    condition: i64,
-    #[serde(default)]
-    feed_mm_per_min: Option<f64>,
-    #[serde(default)]
-    reverse: bool,
-}
 
 /// `[wire]`: the passes a `--passes N` run cuts, first to last.
 #[derive(Debug, Clone, PartialEq, Default)]
