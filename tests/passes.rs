@@ -16,6 +16,9 @@ use edmd::output::read_pulse_log;
 /// A die: from the start hole at the centre, `G41` inside a 4 mm square, out again.
 const DIE: &str = "(die)\nG21 G90 G17\nG41 D1\nG1 X0 Y-2 F600\nG1 X2 Y-2\nG1 X2 Y2\nG1 X-2 Y2\n\
                    G1 X-2 Y-2\nG1 X0 Y-2\nG40 G1 X0 Y0\nM2\n";
+/// A punch: from the start hole below it, `G42` around the 4 mm square at (0, 4), back out.
+const PUNCH: &str = "(punch)\nG21 G90 G17\nG42 D1\nG1 X0 Y2 F600\nG1 X2 Y2\nG1 X2 Y6\nG1 X-2 Y6\n\
+                     G1 X-2 Y2\nG1 X0 Y2\nG40 G1 X0 Y0\nM2\n";
 const HALF_MM: f64 = 2.0;
 
 /// The technology table (fast conditions: the test is about paths, not burn rates).
@@ -32,6 +35,7 @@ fn setup(name: &str) -> std::path::PathBuf {
     let dir = common::scratch("passes", name);
     std::fs::write(dir.join("wire.toml"), TABLE).unwrap();
     std::fs::write(dir.join("die.ngc"), DIE).unwrap();
+    std::fs::write(dir.join("punch.ngc"), PUNCH).unwrap();
     dir
 }
 
@@ -61,58 +65,82 @@ fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
 #[test]
 fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_start() {
     let dir = setup("cli");
-    let report = dir.join("report");
-    let out = run(
-        &dir,
-        "die.ngc",
-        "p.csv",
-        &["--passes", "3", "--report", report.to_str().unwrap()],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    // The report marks where each pass starts.
-    let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
-    let marks: Vec<&str> = events
-        .lines()
-        .filter_map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            (f.get(3) == Some(&"pass")).then(|| f[4])
-        })
-        .collect();
-    assert_eq!(marks, ["1", "2", "3"], "{events}");
-    let (by, end) = positions_by_condition(&dir.join("p.csv"));
-    assert_eq!(end, (0, 0), "the job ends on the program's end point");
-    assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3]);
-    for (condition, offset, direction) in PASSES {
-        let pts = &by[&condition];
-        // Along the contour (away from the entry and exit line at X0), every point is the
-        // pass's offset inside the square, to the step.
-        let half = (HALF_MM * 1000.0) as i64;
-        let inside: Vec<i64> = pts
-            .iter()
-            .filter(|p| p.0.abs() > 300)
-            .map(|p| (half - p.0.abs()).min(half - p.1.abs()))
+    let half = (HALF_MM * 1000.0) as i64;
+    // Distance (µm) of a point from the square: inside the die's, outside the punch's.
+    let inside_die = |p: &(i64, i64)| (half - p.0.abs()).min(half - p.1.abs());
+    let outside_punch = |p: &(i64, i64)| {
+        let (dx, dy) = (
+            (p.0.abs() - half).max(0),
+            ((p.1 - 2 * half).abs() - half).max(0),
+        );
+        ((dx * dx + dy * dy) as f64).sqrt().round() as i64
+    };
+    let parts: [(&str, &dyn Fn(&(i64, i64)) -> i64); 2] =
+        [("die", &inside_die), ("punch", &outside_punch)];
+    for (part, distance) in parts {
+        let report = dir.join(format!("report-{part}"));
+        let pulses = format!("{part}.csv");
+        let out = run(
+            &dir,
+            &format!("{part}.ngc"),
+            &pulses,
+            &["--passes", "3", "--report", report.to_str().unwrap()],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // The report marks where each pass starts.
+        let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
+        let marks: Vec<&str> = events
+            .lines()
+            .filter_map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                (f.get(3) == Some(&"pass")).then(|| f[4])
+            })
             .collect();
-        let want = (offset * 1000.0).round() as i64;
-        assert!(inside.len() > 1000, "E{condition}: {} points", inside.len());
-        assert!(
-            inside.iter().all(|&d| (d - want).abs() <= 1),
-            "E{condition}: {:?} µm from the contour, want {want}",
-            (inside.iter().min(), inside.iter().max())
+        assert_eq!(marks, ["1", "2", "3"], "{part}: {events}");
+        let (by, end) = positions_by_condition(&dir.join(&pulses));
+        assert_eq!(
+            end,
+            (0, 0),
+            "{part}: the job ends on the program's end point"
         );
-        // The direction from the shoelace area of its path.
-        let area: f64 = pts
-            .windows(2)
-            .map(|w| (w[0].0 * w[1].1 - w[1].0 * w[0].1) as f64)
-            .sum::<f64>()
-            / 2e6;
-        assert!(
-            area * direction > 10.0,
-            "E{condition}: signed area {area} mm²"
-        );
+        assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3]);
+        for (condition, offset, direction) in PASSES {
+            let pts = &by[&condition];
+            // Along the contour (away from the entry and exit line at X0), every point is
+            // the pass's offset from the square, on the scrap side: to the step on the
+            // straight edges, within the chord tolerance (1 µm) and a step's rounding on the
+            // punch's corner arcs.
+            let along: Vec<i64> = pts
+                .iter()
+                .filter(|p| p.0.abs() > 300)
+                .map(distance)
+                .collect();
+            let want = (offset * 1000.0).round() as i64;
+            assert!(
+                along.len() > 1000,
+                "{part} E{condition}: {} points",
+                along.len()
+            );
+            assert!(
+                along.iter().all(|&d| (d - want).abs() <= 2),
+                "{part} E{condition}: {:?} µm from the contour, want {want}",
+                (along.iter().min(), along.iter().max())
+            );
+            // The direction from the shoelace area of its path.
+            let area: f64 = pts
+                .windows(2)
+                .map(|w| (w[0].0 * w[1].1 - w[1].0 * w[0].1) as f64)
+                .sum::<f64>()
+                / 2e6;
+            assert!(
+                area * direction > 10.0,
+                "{part} E{condition}: signed area {area} mm²"
+            );
+        }
     }
 }
 
