@@ -46,6 +46,9 @@ fn run(dir: &Path, program: &str, pulses: &str, args: &[&str]) -> std::process::
     common::run_to_pulse_log(&dir.join(program), &dir.join(pulses), &all)
 }
 
+/// How far a point (µm) lies from the part's contour, on the scrap side.
+type Distance = dyn Fn(&(i64, i64)) -> i64;
+
 /// Positions (µm, X and Y) after each moving tick, in order.
 type Walk = Vec<(i64, i64)>;
 
@@ -67,16 +70,15 @@ fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_s
     let dir = setup("cli");
     let half = (HALF_MM * 1000.0) as i64;
     // Distance (µm) of a point from the square: inside the die's, outside the punch's.
-    let inside_die = |p: &(i64, i64)| (half - p.0.abs()).min(half - p.1.abs());
-    let outside_punch = |p: &(i64, i64)| {
+    let inside_die = move |p: &(i64, i64)| (half - p.0.abs()).min(half - p.1.abs());
+    let outside_punch = move |p: &(i64, i64)| {
         let (dx, dy) = (
             (p.0.abs() - half).max(0),
             ((p.1 - 2 * half).abs() - half).max(0),
         );
         ((dx * dx + dy * dy) as f64).sqrt().round() as i64
     };
-    let parts: [(&str, &dyn Fn(&(i64, i64)) -> i64); 2] =
-        [("die", &inside_die), ("punch", &outside_punch)];
+    let parts: [(&str, &Distance); 2] = [("die", &inside_die), ("punch", &outside_punch)];
     for (part, distance) in parts {
         let report = dir.join(format!("report-{part}"));
         let pulses = format!("{part}.csv");
