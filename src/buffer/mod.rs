@@ -12,6 +12,9 @@
 //!   ◄──────────────────────────────── capacity slots, modulo ─────────────────────────┘
 //! ```
 //!
+//! Behind the reserved area, the **trail** ([`trail`]) keeps the rest of the current cut for
+//! a rethread's way back to the start hole; only that walk goes below `oldest`.
+//!
 //! Positions are sequence numbers (`u64`, never wrapping in practice) taken modulo the capacity
 //! to find a slot, so "which area is this block in" is a comparison, not modular arithmetic.
 //!
@@ -40,8 +43,12 @@
 use parking_lot::{Condvar, Mutex};
 
 mod block;
+mod trail;
 
 pub use block::{Activity, BlockFlags, StepBlock};
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use trail::Trail;
 
 /// What the consumer gets when it asks for the next block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,6 +70,11 @@ pub trait BlockSource {
     /// before it, the newest of the reserved area, into `out`. `false` when the reserved area
     /// is exhausted: the turn-back can go no further.
     fn previous(&mut self, out: &mut StepBlock) -> bool;
+    /// Like [`previous`](Self::previous), but past the reserved area along the trail of
+    /// older executed blocks where the source keeps one: the way back to the start hole.
+    fn previous_on_trail(&mut self, out: &mut StepBlock) -> bool {
+        self.previous(out)
+    }
 }
 
 /// The ring and its three areas, as sequence numbers.
@@ -86,6 +98,8 @@ struct Ring {
     interrupted: bool,
     /// Deepest fill seen (`tail - oldest`), for the summary.
     high_water: u64,
+    /// Executed blocks older than `oldest`, back to the start of the cut.
+    trail: Trail,
 }
 
 impl Ring {
@@ -97,32 +111,53 @@ impl Ring {
         (seq % self.capacity()) as usize
     }
 
+    /// No slot to write: the ring is full, or the consumer walks the trail below the
+    /// reserved area (the slots it will come back through are not to be overwritten, nor the
+    /// trail cleared under it; the producer is ahead anyway).
     fn full(&self) -> bool {
-        self.tail - self.oldest == self.capacity()
+        self.tail - self.oldest == self.capacity() || self.cursor < self.oldest
     }
 
-    /// Writes `block` at the tail (the caller checked there is a free slot).
-    fn write(&mut self, block: &StepBlock) {
+    /// Writes `block` at the tail (the caller checked there is a free slot); the block it
+    /// overwrites, executed and freed, goes to the trail.
+    fn write(&mut self, block: &StepBlock, dropped: &mut VecDeque<Vec<StepBlock>>) {
         let slot = self.slot(self.tail);
+        if self.tail >= self.capacity() {
+            self.trail.archive(&self.slots[slot], dropped);
+        }
         self.slots[slot] = *block;
         self.tail += 1;
         self.high_water = self.high_water.max(self.tail - self.oldest);
     }
 
+    /// The block `seq`: from its slot while the ring still holds it (freed slots too, until
+    /// overwritten), from the trail before that.
+    fn get(&self, seq: u64) -> Option<&StepBlock> {
+        if seq >= self.tail {
+            None
+        } else if seq + self.capacity() >= self.tail {
+            Some(&self.slots[self.slot(seq)])
+        } else {
+            self.trail.get(seq)
+        }
+    }
+
     /// Completes the block in hand (if any) and copies out the next; the flag says whether
-    /// completing it freed the oldest reserved slot (the reserved area outgrew its size).
+    /// that made room for the producer: the oldest reserved slot freed (the reserved area
+    /// outgrew its size), or a walk on the trail back up to the reserved area.
     fn next(&mut self, out: &mut StepBlock) -> (Fetch, bool) {
         let mut freed = false;
         if self.in_hand {
             self.cursor += 1;
             self.in_hand = false;
-            if self.cursor - self.oldest > self.reserved {
+            if self.cursor > self.oldest + self.reserved {
                 self.oldest += 1;
                 freed = true;
             }
+            freed |= self.cursor == self.oldest;
         }
-        let fetch = if self.cursor < self.tail {
-            *out = self.slots[self.slot(self.cursor)];
+        let fetch = if let Some(block) = self.get(self.cursor) {
+            *out = *block;
             self.in_hand = true;
             Fetch::Block
         } else if self.closed {
@@ -133,12 +168,18 @@ impl Ring {
         (fetch, freed)
     }
 
-    fn previous(&mut self, out: &mut StepBlock) -> bool {
-        if self.cursor == self.oldest {
+    /// Walks back one block into the reserved area; `on_trail`: on below it along the trail,
+    /// where there is one (a walk already on the trail goes on there either way).
+    fn previous(&mut self, out: &mut StepBlock, on_trail: bool) -> bool {
+        let leaves_ring = self.cursor == self.oldest;
+        if self.cursor == 0 || (leaves_ring && !(on_trail && self.trail.enabled())) {
             return false;
         }
+        let Some(block) = self.get(self.cursor - 1) else {
+            return false;
+        };
+        *out = *block;
         self.cursor -= 1;
-        *out = self.slots[self.slot(self.cursor)];
         self.in_hand = true;
         true
     }
@@ -161,6 +202,10 @@ pub struct LoopBuffer {
     space: Condvar,
     /// A virtual-time consumer waits here for a block.
     data: Condvar,
+    /// The trail's next block needs a chunk: the producer allocates one (of `trail_chunk`
+    /// blocks) before it locks.
+    trail_wants_chunk: AtomicBool,
+    trail_chunk: usize,
 }
 
 /// The producer gave up because the job was aborted.
@@ -188,14 +233,31 @@ impl LoopBuffer {
                 aborted: false,
                 interrupted: false,
                 high_water: 0,
+                trail: Trail::new(0),
             }),
             space: Condvar::new(),
             data: Condvar::new(),
+            trail_wants_chunk: AtomicBool::new(false),
+            trail_chunk: 0,
+        }
+    }
+
+    /// Keeps up to `blocks` executed blocks beyond the reserved area, back to the start of
+    /// the cut, for the way back to the start hole (`buffer.trail_blocks`; 0: none).
+    pub fn with_trail(self, blocks: usize) -> LoopBuffer {
+        let mut ring = self.ring.into_inner();
+        ring.trail = Trail::new(blocks);
+        LoopBuffer {
+            trail_wants_chunk: AtomicBool::new(ring.trail.wants_chunk()),
+            trail_chunk: trail::chunk_len(blocks),
+            ring: Mutex::new(ring),
+            ..self
         }
     }
 
     /// Producer: writes `block` at the tail, sleeping while there is no free slot.
     pub fn push(&self, block: &StepBlock) -> Result<(), Aborted> {
+        let chunk = self.chunk_for_trail();
         let mut ring = self.ring.lock();
         while ring.full() && !ring.aborted {
             self.space.wait(&mut ring);
@@ -203,22 +265,49 @@ impl LoopBuffer {
         if ring.aborted {
             return Err(Aborted);
         }
-        ring.write(block);
+        let dropped = self.write(&mut ring, block, chunk);
         drop(ring);
         self.data.notify_one();
+        drop(dropped);
         Ok(())
     }
 
     /// Producer: like [`push`](Self::push) but never sleeps; `false` when the ring is full.
     pub fn try_push(&self, block: &StepBlock) -> bool {
+        let chunk = self.chunk_for_trail();
         let mut ring = self.ring.lock();
         if ring.full() || ring.aborted {
             return false;
         }
-        ring.write(block);
+        let dropped = self.write(&mut ring, block, chunk);
         drop(ring);
         self.data.notify_one();
+        drop(dropped);
         true
+    }
+
+    /// A chunk of trail, allocated here (outside the lock) when the trail asked for one.
+    fn chunk_for_trail(&self) -> Option<Vec<StepBlock>> {
+        self.trail_wants_chunk
+            .load(Ordering::Acquire)
+            .then(|| Vec::with_capacity(self.trail_chunk))
+    }
+
+    /// Writes under the lock; returns the trail's chunks to free once it is released.
+    fn write(
+        &self,
+        ring: &mut Ring,
+        block: &StepBlock,
+        chunk: Option<Vec<StepBlock>>,
+    ) -> VecDeque<Vec<StepBlock>> {
+        if let Some(chunk) = chunk {
+            ring.trail.give_chunk(chunk);
+        }
+        let mut dropped = VecDeque::new();
+        ring.write(block, &mut dropped);
+        self.trail_wants_chunk
+            .store(ring.trail.wants_chunk(), Ordering::Release);
+        dropped
     }
 
     /// Producer: the program has no more blocks.
@@ -253,8 +342,10 @@ impl LoopBuffer {
 
     pub fn areas(&self) -> Areas {
         let ring = self.ring.lock();
-        let unprocessed = ring.tail - ring.cursor;
-        let reserved = ring.cursor - ring.oldest;
+        // A walk on the trail counts from the reserved area's start.
+        let cursor = ring.cursor.max(ring.oldest);
+        let unprocessed = ring.tail - cursor;
+        let reserved = cursor - ring.oldest;
         Areas {
             reserved,
             unprocessed,
@@ -307,7 +398,11 @@ impl BlockSource for Consumer<'_> {
     }
 
     fn previous(&mut self, out: &mut StepBlock) -> bool {
-        self.buffer.ring.lock().previous(out)
+        self.buffer.ring.lock().previous(out, false)
+    }
+
+    fn previous_on_trail(&mut self, out: &mut StepBlock) -> bool {
+        self.buffer.ring.lock().previous(out, true)
     }
 }
 
@@ -333,6 +428,7 @@ impl VecSource {
                 aborted: false,
                 interrupted: false,
                 high_water: tail,
+                trail: Trail::new(0),
             },
         }
     }
@@ -344,7 +440,7 @@ impl BlockSource for VecSource {
     }
 
     fn previous(&mut self, out: &mut StepBlock) -> bool {
-        self.ring.previous(out)
+        self.ring.previous(out, false)
     }
 }
 
@@ -545,6 +641,51 @@ mod tests {
                 prop_assert_eq!(a.seq, b.seq);
             }
         }
+    }
+
+    /// With a trail, the way back goes on past the reserved area to the start of the cut
+    /// (not into the rapid before it), the producer writes nothing while the walk is below
+    /// the reserved area, and the way forward hands out the same blocks up to where it was.
+    #[test]
+    fn a_walk_on_the_trail_goes_back_to_the_start_of_the_cut_and_forward_again() {
+        let buffer = LoopBuffer::new(4, 1).with_trail(1000);
+        let mut consumer = buffer.consumer(false);
+        let mut out = StepBlock::EMPTY;
+        let mut pushed = 0;
+        let mut push = |buffer: &LoopBuffer| {
+            let flags = if pushed == 2 {
+                BlockFlags::RAPID
+            } else {
+                BlockFlags::NONE
+            };
+            let ok = buffer.try_push(&StepBlock {
+                flags,
+                ..block(pushed)
+            });
+            pushed += u64::from(ok);
+            ok
+        };
+        for _ in 0..40 {
+            while push(&buffer) {}
+            assert_eq!(consumer.next(&mut out), Fetch::Block);
+        }
+        assert_eq!(out.seq, 39);
+        // The reserved area alone holds one block.
+        assert!(consumer.previous(&mut out) && out.seq == 38);
+        assert!(!consumer.previous(&mut out));
+        // The trail holds the cut back to the rapid (seq 2), the rapid included.
+        let mut back = vec![];
+        while consumer.previous_on_trail(&mut out) {
+            back.push(out.seq);
+            assert!(!push(&buffer), "wrote while the walk is on the trail");
+        }
+        assert_eq!(back, (2..38).rev().collect::<Vec<_>>());
+        for seq in 3..=40 {
+            assert_eq!(consumer.next(&mut out), Fetch::Block, "{seq}");
+            assert_eq!(out.seq, seq);
+        }
+        // Back in the ring: the producer writes again.
+        assert!(push(&buffer));
     }
 
     #[test]

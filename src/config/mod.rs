@@ -170,6 +170,9 @@ pub struct InterpolationConfig {
 pub struct BufferConfig {
     pub capacity: usize,
     pub reserved: usize,
+    /// Executed blocks kept beyond the reserved area, back to the start of the cut: the way
+    /// back to the start hole after a wire break (0: only the reserved area).
+    pub trail_blocks: usize,
 }
 
 #[derive(Debug, Clone, PartialEq)]

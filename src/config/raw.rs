@@ -143,6 +143,7 @@ pub(super) struct RawInterpolation {
 pub(super) struct RawBuffer {
     pub(super) capacity: i64,
     pub(super) reserved: i64,
+    pub(super) trail_blocks: i64,
 }
 
 #[derive(Debug, Deserialize)]

@@ -364,6 +364,7 @@ fn buffer(b: RawBuffer) -> Result<BufferConfig, Invalid> {
     Ok(BufferConfig {
         capacity: b.capacity as usize,
         reserved: b.reserved as usize,
+        trail_blocks: in_range("buffer.trail_blocks", b.trail_blocks, 0, 1 << 26)? as usize,
     })
 }
 

@@ -52,7 +52,8 @@ mod stops;
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::servo::{
-    Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
+    Excursion, Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent,
+    ServoState,
 };
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
@@ -555,8 +556,21 @@ impl Interpolator {
     /// previous block from the reserved area, passing over blocks of zero steps. `false` when
     /// the reserved area is exhausted, which (turn-back only happens while shorted) is the alarm.
     fn retreat<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
+        // The way back to the start hole walks on past the reserved area, along the trail.
+        let rethread = self.servo.state() == ServoState::Retreat
+            && self.servo.excursion() == Excursion::Rethread;
         loop {
-            if !source.previous(&mut self.motion.block) {
+            if rethread && self.motion.holds(BlockFlags::PASS_START) {
+                // A pass starts at the start hole: the way back ends where it began.
+                self.retreat_blocked(tick, false);
+                return false;
+            }
+            let back = if rethread {
+                source.previous_on_trail(&mut self.motion.block)
+            } else {
+                source.previous(&mut self.motion.block)
+            };
+            if !back {
                 self.retreat_blocked(tick, true);
                 return false;
             }

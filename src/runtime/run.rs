@@ -57,7 +57,9 @@ pub fn run(
 ) -> JobEnd {
     let spec = job.spec;
     announce(&job);
-    let buffer = Arc::new(LoopBuffer::new(spec.buffer_capacity, spec.buffer_reserved));
+    let buffer = Arc::new(
+        LoopBuffer::new(spec.buffer_capacity, spec.buffer_reserved).with_trail(spec.buffer_trail),
+    );
     let JobIo {
         output,
         gap,

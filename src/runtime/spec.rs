@@ -47,6 +47,8 @@ pub struct JobSpec {
     /// Loop-buffer capacity and reserved area (blocks).
     pub buffer_capacity: usize,
     pub buffer_reserved: usize,
+    /// Executed blocks kept beyond the reserved area (`buffer.trail_blocks`).
+    pub buffer_trail: usize,
     pub conditions: Vec<StepCondition>,
     /// The fastest path speed the outputs can take (one step per axis per tick), mm/s.
     pub speed_cap: f64,
@@ -79,6 +81,7 @@ impl JobSpec {
             tick: config.fine.tick,
             buffer_capacity: config.buffer.capacity,
             buffer_reserved: config.buffer.reserved,
+            buffer_trail: config.buffer.trail_blocks,
             conditions: config
                 .conditions
                 .iter()

@@ -242,3 +242,36 @@ fn a_rethread_goes_back_to_the_end_of_the_rapid() {
     assert_eq!(assert_retraces(&d.path), 500 + broke_at[1] as usize);
     assert_eq!(d.fine.here(), PathPoint { seq: 2, event: 600 });
 }
+
+/// A pass starts at the start hole: a rethread in a later pass goes back to where that pass
+/// began, not on into the pass before it.
+#[test]
+fn a_rethread_goes_back_to_the_start_of_its_pass() {
+    let mut blocks = chain(
+        &[p2(0, 0), p2(300, 0), p2(0, 0), p2(300, 0), p2(300, 400)],
+        5.0,
+    );
+    blocks[2].flags |= BlockFlags::PASS_START;
+    let mut d = Driver::new(SETTINGS, blocks);
+    while d.fine.position()[1] < 200 {
+        d.tick(GapState::Normal);
+    }
+    d.fine.set_wire_input(true);
+    d.tick(GapState::Normal);
+    assert!(d.fine.rethread(Rethread::AtStart));
+    d.fine.set_wire_input(false);
+    d.fine.set_hold(false);
+    d.until(GapState::Open, 20_000, |e| {
+        matches!(
+            e,
+            ServoEvent::Retreated {
+                why: Excursion::Rethread,
+                exhausted: false,
+                ..
+            }
+        )
+    });
+    assert_eq!(d.fine.position(), p2(0, 0), "at the start of the pass");
+    assert_eq!(d.fine.here().seq, 2, "in the pass's first block");
+    assert_eq!(d.fine.state(), ServoState::Threading);
+}
