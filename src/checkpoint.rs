@@ -139,6 +139,13 @@ pub struct Checkpoint {
     /// The job ran in passes: a resume replays the same ones, whatever the table says now.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<crate::config::WirePass>,
+    /// The tab those passes left (mm; 0: none).
+    #[serde(default, skip_serializing_if = "no_tab")]
+    pub tab_mm: f64,
+}
+
+fn no_tab(tab_mm: &f64) -> bool {
+    *tab_mm == 0.0
 }
 
 /// A job's start as a checkpoint keeps it.
@@ -406,6 +413,7 @@ mod tests {
             start: None,
             from_line: None,
             passes: Vec::new(),
+            tab_mm: 0.0,
         }
     }
 

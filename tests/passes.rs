@@ -7,29 +7,10 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use common::daemon::{Daemon, base_sets};
-use edmd::output::read_pulse_log;
-
-/// A die: from the start hole at the centre, `G41` inside a 4 mm square, out again.
-const DIE: &str = "(die)\nG21 G90 G17\nG41 D1\nG1 X0 Y-2 F600\nG1 X2 Y-2\nG1 X2 Y2\nG1 X-2 Y2\n\
-                   G1 X-2 Y-2\nG1 X0 Y-2\nG40 G1 X0 Y0\nM2\n";
-/// A punch: from the start hole below it, `G42` around the 4 mm square at (0, 4), back out.
-const PUNCH: &str = "(punch)\nG21 G90 G17\nG42 D1\nG1 X0 Y2 F600\nG1 X2 Y2\nG1 X2 Y6\nG1 X-2 Y6\n\
-                     G1 X-2 Y2\nG1 X0 Y2\nG40 G1 X0 Y0\nM2\n";
-const HALF_MM: f64 = 2.0;
-
-/// The technology table (fast conditions: the test is about paths, not burn rates).
-const TABLE: &str = "[compensation]\nd_mm = [0.0, 0.2]\n\n[generator]\ncondition = [\n\
-  { number = 1, on_us = 1.0, off_us = 12.0, current_a = 1.0, v_ref = 35.0, feed_mm_per_min = 600.0 },\n\
-  { number = 2, on_us = 2.0, off_us = 10.0, current_a = 2.5, v_ref = 30.0, feed_mm_per_min = 600.0 },\n\
-  { number = 3, on_us = 4.0, off_us = 8.0, current_a = 5.0, v_ref = 25.0, feed_mm_per_min = 600.0 } ]\n\n\
-[wire]\npass = [\n  { offset_mm = 0.2, condition = 3 },\n  { offset_mm = 0.15, condition = 2, reverse = true },\n\
-  { offset_mm = 0.12, condition = 1 } ]\n";
-/// Offset and direction (+1 counter-clockwise) of each pass's condition.
-const PASSES: [(u16, f64, f64); 3] = [(3, 0.2, 1.0), (2, 0.15, -1.0), (1, 0.12, 1.0)];
+use common::wire::{DIE, PASSES, PUNCH, TABLE, inside_die, outside_punch, positions_by_condition};
 
 fn setup(name: &str) -> std::path::PathBuf {
     let dir = common::scratch("passes", name);
@@ -49,35 +30,9 @@ fn run(dir: &Path, program: &str, pulses: &str, args: &[&str]) -> std::process::
 /// How far a point (µm) lies from the part's contour, on the scrap side.
 type Distance = dyn Fn(&(i64, i64)) -> i64;
 
-/// Positions (µm, X and Y) after each moving tick, in order.
-type Walk = Vec<(i64, i64)>;
-
-/// The walk of each condition the ticks cut in, and where the log ends.
-fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
-    let (_, rows) = read_pulse_log(path).unwrap();
-    let (mut x, mut y) = (0i64, 0i64);
-    let mut by = BTreeMap::new();
-    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
-        x += i64::from(r.steps[0]);
-        y += i64::from(r.steps[1]);
-        by.entry(r.condition).or_insert_with(Vec::new).push((x, y));
-    }
-    (by, (x, y))
-}
-
 #[test]
 fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_start() {
     let dir = setup("cli");
-    let half = (HALF_MM * 1000.0) as i64;
-    // Distance (µm) of a point from the square: inside the die's, outside the punch's.
-    let inside_die = move |p: &(i64, i64)| (half - p.0.abs()).min(half - p.1.abs());
-    let outside_punch = move |p: &(i64, i64)| {
-        let (dx, dy) = (
-            (p.0.abs() - half).max(0),
-            ((p.1 - 2 * half).abs() - half).max(0),
-        );
-        ((dx * dx + dy * dy) as f64).sqrt().round() as i64
-    };
     let parts: [(&str, &Distance); 2] = [("die", &inside_die), ("punch", &outside_punch)];
     for (part, distance) in parts {
         let report = dir.join(format!("report-{part}"));

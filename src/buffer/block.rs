@@ -48,9 +48,9 @@ pub struct StepBlock {
     pub pass: u8,
 }
 
-/// What a move is besides its geometry: a small set of flags, one byte in the ring.
+/// What a move is besides its geometry: a small set of flags, two bytes in the ring.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
-pub struct BlockFlags(u8);
+pub struct BlockFlags(u16);
 
 impl BlockFlags {
     pub const NONE: BlockFlags = BlockFlags(0);
@@ -70,6 +70,14 @@ impl BlockFlags {
     pub const PROBE_MUST: BlockFlags = BlockFlags(64);
     /// The first move of a pass of the technology table.
     pub const PASS_START: BlockFlags = BlockFlags(128);
+    /// The move starts at the start hole (a pass that starts there): a rethread's way back
+    /// ends at its start.
+    pub const START_HOLE: BlockFlags = BlockFlags(256);
+    /// The first move of the tab, after the slug is secured (with `PAUSE`).
+    pub const TAB: BlockFlags = BlockFlags(512);
+    /// With `RAPID`: a spark-off move along a path already cut, not through the open (a
+    /// retreat may walk back through it).
+    pub const IN_KERF: BlockFlags = BlockFlags(1024);
 
     /// Every flag of `other` is set.
     pub const fn contains(self, other: BlockFlags) -> bool {

@@ -7,7 +7,7 @@
 //! below the reserved area during a rethread and forward again on the way back to the break.
 //!
 //! It holds only what a purposeful retreat can use: a block that starts a cut (a rapid, a
-//! probing move, the first block of a pass) clears what came before it, so its size is the
+//! probing move, a pass that starts at the start hole) clears what came before it, so its size is the
 //! current contour's, not the program's, and it is capped (`buffer.trail_blocks`): past the
 //! cap the oldest blocks go and a rethread parks at the oldest one left, as it says.
 //!
@@ -79,9 +79,9 @@ impl Trail {
         if !self.enabled() {
             return;
         }
-        let starts_cut = block
-            .flags
-            .intersects(BlockFlags::RAPID | BlockFlags::PROBE | BlockFlags::PASS_START);
+        let flags = block.flags;
+        let starts_cut = flags.intersects(BlockFlags::PROBE | BlockFlags::START_HOLE)
+            || (flags.contains(BlockFlags::RAPID) && !flags.contains(BlockFlags::IN_KERF));
         if starts_cut || self.len == 0 {
             dropped.append(&mut self.chunks);
             self.first = block.seq;
@@ -163,11 +163,11 @@ mod tests {
     }
 
     #[test]
-    fn a_pass_starts_a_cut_and_no_trail_keeps_nothing() {
+    fn a_pass_from_the_start_hole_starts_a_cut_and_no_trail_keeps_nothing() {
         let mut trail = Trail::new(100);
         let mut dropped = VecDeque::new();
         trail.archive(&block(0, BlockFlags::NONE), &mut dropped);
-        trail.archive(&block(1, BlockFlags::PASS_START), &mut dropped);
+        trail.archive(&block(1, BlockFlags::START_HOLE), &mut dropped);
         assert!(trail.get(0).is_none());
         assert_eq!(trail.get(1).map(|b| b.seq), Some(1));
         let mut off = Trail::new(0);

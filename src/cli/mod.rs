@@ -235,9 +235,15 @@ impl RunArgs {
                 ExitCode::from(EXIT_BAD_INPUT)
             })?,
         };
+        let tab_mm = if passes.is_empty() {
+            0.0
+        } else {
+            cfg.wire.tab_mm
+        };
         Ok(runtime::CutPlan {
             from_line: self.cut_from(cfg),
             passes,
+            tab_mm,
         })
     }
 

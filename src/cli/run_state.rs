@@ -110,6 +110,7 @@ pub(super) fn write_run_checkpoint(
         )),
         from_line: args.cut_from(cfg),
         passes: args.cut_plan(cfg).map(|c| c.passes).unwrap_or_default(),
+        tab_mm: args.cut_plan(cfg).map_or(0.0, |c| c.tab_mm),
     };
     cp.write_atomic(path)
 }

@@ -271,6 +271,7 @@ pub(super) struct RawLog {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawWire {
     pub(super) pass: Vec<RawPass>,
+    pub(super) tab_mm: f64,
 }
 
 /// `[[wire.pass]]` as written.

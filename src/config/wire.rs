@@ -9,6 +9,8 @@ use super::{CompensationConfig, Condition};
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct WireConfig {
     pub passes: Vec<WirePass>,
+    /// The tab a run in passes leaves (mm of the contour before it closes; 0: none).
+    pub tab_mm: f64,
 }
 
 /// One pass: the wire offset (every `D` of the program reads it), the condition (every `E` of
@@ -81,6 +83,11 @@ impl RawWire {
                 reverse: p.reverse,
             });
         }
-        Ok(WireConfig { passes })
+        let tab_mm = if self.tab_mm == 0.0 {
+            0.0
+        } else {
+            positive("wire.tab_mm", self.tab_mm, 1000.0, "mm (0: no tab)")?
+        };
+        Ok(WireConfig { passes, tab_mm })
     }
 }

@@ -183,6 +183,7 @@ impl CheckpointKeeper {
             )),
             from_line: job.cut.from_line,
             passes: job.cut.passes.clone(),
+            tab_mm: job.cut.tab_mm,
         };
         let path = &job.config.daemon.checkpoint;
         match cp.write_atomic(path) {

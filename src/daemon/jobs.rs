@@ -228,6 +228,7 @@ impl Core {
             cut: runtime::CutPlan {
                 from_line: cp.from_line,
                 passes: cp.passes.clone(),
+                tab_mm: cp.tab_mm,
             },
         };
         let id = self.begin_check(source, Some(resume), launch);

@@ -83,7 +83,16 @@ impl Core {
             Some(n) => runtime::passes::first(&self.config.wire.passes, n)
                 .map_err(|e| Refusal::BadArgument(e.to_string()))?,
         };
-        let cut = runtime::CutPlan { from_line, passes };
+        let tab_mm = if passes.is_empty() {
+            0.0
+        } else {
+            self.config.wire.tab_mm
+        };
+        let cut = runtime::CutPlan {
+            from_line,
+            passes,
+            tab_mm,
+        };
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let launch = Launch {
             start: self.machine.state.work_start(),

@@ -9,7 +9,7 @@ use super::protocol::{
     CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, OverrideStatus, Status,
 };
 use crate::runtime::{Published, Snapshot};
-use crate::servo::{Excursion, ServoState};
+use crate::servo::{Excursion, PauseKind, ServoState};
 
 impl Core {
     pub(super) fn state(&self) -> DaemonState {
@@ -108,6 +108,11 @@ impl Core {
                     paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
                         0 => None,
                         line => Some(line),
+                    },
+                    pause: match p.paused_line.load(Ordering::Relaxed) {
+                        0 => None,
+                        _ => PauseKind::from_code(p.paused_kind.load(Ordering::Relaxed))
+                            .map(|k| k.name().to_string()),
                     },
                 }
             });

@@ -318,11 +318,11 @@ impl Interpolator {
         source: &mut S,
     ) -> Option<(GapState, GapState)> {
         if tick.event.is_none()
-            && let Some(single_block) = self.stops.take_pause()
+            && let Some(kind) = self.stops.take_pause()
         {
             tick.event = Some(ServoEvent::Paused {
                 at: self.here(),
-                single_block,
+                kind,
             });
             self.motion.stop();
             return None;
@@ -523,12 +523,12 @@ impl Interpolator {
         self.counters.events_forward += 1;
         let mut event = self.servo.on_forward(self.here());
         if event.is_none()
-            && let Some(single_block) = self.stops.take_pause()
+            && let Some(kind) = self.stops.take_pause()
         {
             // The step that finished the block before a programmed stop.
             event = Some(ServoEvent::Paused {
                 at: self.here(),
-                single_block,
+                kind,
             });
         }
         // A probing move waits at its end point for the next tick's contact check.
@@ -560,8 +560,8 @@ impl Interpolator {
         let rethread = self.servo.state() == ServoState::Retreat
             && self.servo.excursion() == Excursion::Rethread;
         loop {
-            if rethread && self.motion.holds(BlockFlags::PASS_START) {
-                // A pass starts at the start hole: the way back ends where it began.
+            if rethread && self.motion.holds(BlockFlags::START_HOLE) {
+                // A pass that starts at the start hole: the way back ends where it began.
                 self.retreat_blocked(tick, false);
                 return false;
             }

@@ -2,6 +2,7 @@
 //! which blocks have had their stops honoured (a re-advance or a resume does not repeat them).
 
 use crate::buffer::{BlockFlags, StepBlock};
+use crate::servo::PauseKind;
 
 /// What keeps the electrode still, apart from the servo.
 #[derive(Debug, Clone, Copy, Default)]
@@ -13,9 +14,8 @@ pub(super) struct Stops {
     pub dwell_left: u64,
     /// Blocks before this sequence number have had their stops honoured.
     pub stops_from: u64,
-    /// A pause was met while fetching: reported by the tick that met it (`true`: the
-    /// operator's single block, not the program's `M0`/`M1`).
-    pub paused: Option<bool>,
+    /// A pause was met while fetching: reported by the tick that met it.
+    pub paused: Option<PauseKind>,
     /// Single block: the operator's switch (from the thread loop); a pause before every
     /// program block while it is on.
     pub single_block: bool,
@@ -40,15 +40,19 @@ impl Stops {
         }
         if block.flags.contains(BlockFlags::PAUSE) {
             self.hold = true;
-            self.paused = Some(false);
+            self.paused = Some(if block.flags.contains(BlockFlags::TAB) {
+                PauseKind::Slug
+            } else {
+                PauseKind::Program
+            });
         } else if self.single_block && starts_block {
             self.hold = true;
-            self.paused = Some(true);
+            self.paused = Some(PauseKind::SingleBlock);
         }
     }
 
-    /// Takes the pause met while fetching, once: `Some(single_block)`.
-    pub fn take_pause(&mut self) -> Option<bool> {
+    /// Takes the pause met while fetching, once.
+    pub fn take_pause(&mut self) -> Option<PauseKind> {
         self.paused.take()
     }
 

@@ -216,6 +216,9 @@ pub enum Pause {
     Program,
     /// `M1` with `program.optional_stop` on.
     Optional,
+    /// Before a wire contour's tab (set by the job, never by the program): the operator
+    /// secures the slug, which the tab's cut frees.
+    Slug,
 }
 
 /// One motion of the program.
@@ -238,8 +241,18 @@ pub struct Block {
     /// The machining condition (`E<number>`, modal) in force; 0 before any.
     pub condition: u32,
     /// The move positions with the spark off and the servo out of the loop, whatever its
-    /// kind: the approach of a job run from a line (set by the job, never by the program).
-    pub spark_off: bool,
+    /// kind, and where: the approach of a job run from a line, a tabbed run's travel between
+    /// passes (set by the job, never by the program); `None`: as the program says.
+    pub spark_off: Option<Travel>,
+}
+
+/// Where a spark-off move travels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Travel {
+    /// Along a path already cut (the kerf): a rethread's way back may follow it.
+    Kerf,
+    /// Through the open: a way back ends at it, as at a rapid.
+    Open,
 }
 
 impl Block {
@@ -259,7 +272,7 @@ impl Block {
             pause: None,
             flushing: false,
             condition: 0,
-            spark_off: false,
+            spark_off: None,
         }
     }
 
@@ -287,6 +300,47 @@ impl Block {
             pause: None,
             ..self.clone()
         }
+    }
+
+    /// The move cut in two at `mm` of its length from the start (an arc's sweep shared out
+    /// by length); the second part has no dwell or pause before it. `None` unless `mm` lies
+    /// strictly inside the move.
+    pub fn split_at_length(&self, mm: f64) -> Option<(Block, Block)> {
+        let length = self.curve.length();
+        if !(mm > 0.0 && mm < length) {
+            return None;
+        }
+        let u = self.curve.u_at_length(mm, 1e-9);
+        let (first, second) = self.curve.split_at(u)?;
+        let share = |part: f64| match &self.kind {
+            BlockKind::Arc {
+                center,
+                radius,
+                sweep,
+                plane,
+            } => BlockKind::Arc {
+                center: *center,
+                radius: *radius,
+                sweep: sweep * part,
+                plane: *plane,
+            },
+            other => other.clone(),
+        };
+        let before = first.length() / length;
+        Some((
+            Block {
+                kind: share(before),
+                curve: first,
+                ..self.clone()
+            },
+            Block {
+                kind: share(1.0 - before),
+                curve: second,
+                dwell_s: 0.0,
+                pause: None,
+                ..self.clone()
+            },
+        ))
     }
 
     pub fn start(&self) -> Point {

@@ -15,6 +15,7 @@ mod basis;
 mod bezier;
 mod extent;
 mod nurbs;
+mod split;
 
 pub use arc::circular_arc;
 pub use bezier::Bezier;

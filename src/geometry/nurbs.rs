@@ -183,6 +183,21 @@ impl NurbsCurve {
         })
     }
 
+    /// A curve from parts already valid (a split of a valid curve keeps every rule).
+    pub(super) fn from_parts(
+        degree: usize,
+        dim: usize,
+        knots: Vec<f64>,
+        homogeneous: Vec<[f64; HOMOGENEOUS_WIDTH]>,
+    ) -> NurbsCurve {
+        NurbsCurve {
+            degree,
+            dim,
+            knots,
+            homogeneous,
+        }
+    }
+
     /// A straight line from `a` to `b` as a degree-1 curve on `[0, 1]`.
     pub fn line(dim: usize, a: &Point, b: &Point) -> Result<Self, NurbsError> {
         Self::new(1, dim, &[*a, *b], &[1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0])

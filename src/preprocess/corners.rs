@@ -85,7 +85,7 @@ impl CornerControl {
 
     /// Takes the next segment; hands on those no corner ahead can reach any more.
     pub fn push<F: FnMut(GeoSegment)>(&mut self, mut geo: GeoSegment, mut emit: F) {
-        let cut = !geo.block.spark_off
+        let cut = geo.block.spark_off.is_none()
             && matches!(
                 geo.block.kind,
                 BlockKind::Line | BlockKind::Arc { .. } | BlockKind::Nurbs { .. }

@@ -115,6 +115,8 @@ pub struct Published {
     /// Source line of the move a programmed stop (`M0`/`M1`) holds before; 0 for none.
     /// Set by the consumer's loop, cleared by whoever releases the hold.
     pub paused_line: AtomicU64,
+    /// Why it holds there ([`PauseKind::code`]); set and cleared with `paused_line`.
+    pub paused_kind: AtomicU8,
     /// Set by the supervisor after a wire break; the consumer's loop takes it (and clears
     /// it) before the hold.
     pub rethread: RethreadRequest,
@@ -196,6 +198,7 @@ impl Published {
             finished: AtomicBool::new(false),
             output_synced: AtomicBool::new(false),
             paused_line: AtomicU64::new(0),
+            paused_kind: AtomicU8::new(0),
             rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
             controls: ControlWord::default(),
@@ -618,7 +621,8 @@ fn route_event(
     report: &mut LoopReport,
 ) {
     match tick.event {
-        Some(ServoEvent::Paused { .. }) if settings.program_pauses => {
+        Some(ServoEvent::Paused { kind, .. }) if settings.program_pauses => {
+            published.paused_kind.store(kind.code(), Ordering::Relaxed);
             published.paused_line.store(fine.line(), Ordering::Relaxed);
             hold(published);
         }

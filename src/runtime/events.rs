@@ -4,7 +4,7 @@
 use super::consumer::EventRecord;
 use super::spec::JobSpec;
 use crate::record::{EventKind, Recorder, Recording};
-use crate::servo::{Excursion, ServoEvent};
+use crate::servo::{Excursion, PauseKind, ServoEvent};
 
 /// Logs one servo event (from the main thread, never the consumer). A programmed stop holds
 /// the job where the spec says an operator is there to resume it (the daemon), and is passed
@@ -112,13 +112,29 @@ fn log_stop(program: &str, line: u64, t: f64, event: ServoEvent, pauses: bool) {
             }
         ),
         ServoEvent::Paused {
-            single_block: true, ..
+            kind: PauseKind::SingleBlock,
+            ..
         } => tracing::info!(
             edmd_event = "single_block",
             edmd_program = program,
             edmd_line = line,
             "{program}:{line}: single block: stopped before this line at t={t:.4} s: \
              `edmd ctl resume` runs it"
+        ),
+        ServoEvent::Paused {
+            kind: PauseKind::Slug,
+            ..
+        } => tracing::warn!(
+            edmd_event = "slug",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: TAB: the passes are done up to the tab at t={t:.4} s: secure the \
+             slug, then {}",
+            if pauses {
+                "`edmd ctl resume` cuts the tab"
+            } else {
+                "(edmd run has no operator channel: the tab is cut at once)"
+            }
         ),
         ServoEvent::Paused { .. } => tracing::warn!(
             edmd_event = "pause",

@@ -28,7 +28,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::gcode::{Block, BlockKind};
+use crate::gcode::{Block, BlockKind, Travel};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -183,7 +183,7 @@ pub fn path_approach(mut block: Block, feed_mm_per_min: f64) -> Block {
             .feed_mm_per_min
             .map_or(feed_mm_per_min, |f| f.min(feed_mm_per_min)),
     );
-    block.spark_off = true;
+    block.spark_off = Some(Travel::Kerf);
     block.pause = None;
     block.dwell_s = 0.0;
     block
@@ -231,7 +231,7 @@ pub fn direct_approach(
             (BlockKind::Line, Some(feed_mm_per_min))
         };
         let mut block = Block::new(first.line, kind, curve, feed);
-        block.spark_off = true;
+        block.spark_off = Some(Travel::Open);
         block.condition = first.condition;
         moves.push(block);
     }
@@ -315,7 +315,11 @@ mod tests {
         assert_eq!(moves[0].kind, BlockKind::Rapid);
         assert_eq!(moves[2].kind, BlockKind::Line);
         assert_eq!(moves[2].feed_mm_per_min, Some(300.0));
-        assert!(moves.iter().all(|b| b.spark_off && b.line == 9));
+        assert!(
+            moves
+                .iter()
+                .all(|b| b.spark_off == Some(Travel::Open) && b.line == 9)
+        );
         // No safe height: one straight move.
         let moves = direct_approach(&origin, &first, &axes, None, 300.0);
         assert_eq!(moves.len(), 1);
@@ -326,7 +330,7 @@ mod tests {
         assert_eq!(moved.kind, BlockKind::Line);
         assert_eq!(moved.curve, rapid.curve);
         assert_eq!(moved.feed_mm_per_min, Some(100.0));
-        assert!(moved.spark_off);
+        assert_eq!(moved.spark_off, Some(Travel::Kerf));
         assert_eq!(path_approach(rapid, 60.0).feed_mm_per_min, Some(60.0));
     }
 }

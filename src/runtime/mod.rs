@@ -38,6 +38,7 @@ mod run;
 mod snapshot;
 mod spec;
 mod summary;
+pub mod tabs;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -95,6 +96,8 @@ pub enum JobError {
     FromLine(#[from] FromLineError),
     #[error(transparent)]
     Passes(#[from] passes::PassError),
+    #[error(transparent)]
+    Tabs(#[from] tabs::TabError),
 }
 
 /// Logs one trace record (from the main thread).

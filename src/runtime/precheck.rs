@@ -9,6 +9,7 @@ use super::producer::{ProducerError, to_steps};
 use super::program::{CountingReader, JobProgram, Phase, Progress};
 use super::spec::CutPlan;
 use super::spec::start_steps;
+use super::tabs::{self, PassProgram};
 use crate::config::WirePass;
 use crate::config::{Config, GapKind};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
@@ -51,6 +52,29 @@ struct Tally<'a> {
 }
 
 impl Tally<'_> {
+    /// A run in passes ends where it started (the start hole).
+    fn ends_at(&self, start: &Steps) -> Result<(), JobError> {
+        if self.end_steps == *start {
+            return Ok(());
+        }
+        let machine = &self.config.machine;
+        let text = |s: &Steps| {
+            machine
+                .axes
+                .iter()
+                .zip(s.iter().zip(&machine.step_mm))
+                .map(|(a, (&n, mm))| format!("{}{:.4}", a.letter(), n as f64 * mm))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        Err(passes::PassError::NotClosed {
+            program: self.program.to_string(),
+            start: text(start),
+            end: text(&self.end_steps),
+        }
+        .into())
+    }
+
     fn take(&mut self, block: &gcode::Block) -> Result<(), JobError> {
         let machine = &self.config.machine;
         self.blocks += 1;
@@ -117,6 +141,7 @@ pub fn precheck(
         program: program.name.clone(),
     };
     let mut left = None;
+    let mut tabbed = Vec::new();
     for (k, pass) in runs.into_iter().enumerate() {
         let mut reader = gcode::open_program_as(
             &program.path,
@@ -127,6 +152,22 @@ pub fn precheck(
         )?;
         reader.cancel_on(progress.cancel_flag());
         reader.start_at(start);
+        if let (true, Some(pass)) = (cut.tabbed(), pass) {
+            // Planned once every pass is read.
+            tabbed.push(match PassProgram::read(&mut reader, pass, &program.name) {
+                Err(ProducerError::Program(e))
+                    if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
+                {
+                    return Err(cancelled());
+                }
+                read => read?,
+            });
+            if k == 0 {
+                log_warnings(reader.take_warnings(), &program.name);
+            }
+            left = Some((reader.work_offsets(), reader.work_system(), reader.modes()));
+            continue;
+        }
         let mut gate = cut.from_line.map(|f| Gate::new(f, &program.name));
         while let Some(item) = reader.next() {
             let block = match item {
@@ -150,33 +191,26 @@ pub fn precheck(
         if let Some(gate) = &gate {
             gate.finish()?;
         }
-        if pass.is_some() && tally.end_steps != start_at {
-            let text = |s: &Steps| {
-                let names = &config.machine.axes;
-                names
-                    .iter()
-                    .zip(s.iter().zip(&config.machine.step_mm))
-                    .map(|(a, (&n, mm))| format!("{}{:.4}", a.letter(), n as f64 * mm))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            };
-            return Err(passes::PassError::NotClosed {
-                program: program.name.clone(),
-                start: text(&start_at),
-                end: text(&tally.end_steps),
-            }
-            .into());
+        if pass.is_some() {
+            tally.ends_at(&start_at)?;
         }
         if k == 0 {
-            for w in reader.take_warnings() {
-                if w.line == 0 {
-                    tracing::warn!("{}: {}", program.name, w.message);
-                } else {
-                    tracing::warn!("{}:{}:{}: {}", program.name, w.line, w.col, w.message);
-                }
-            }
+            log_warnings(reader.take_warnings(), &program.name);
         }
         left = Some((reader.work_offsets(), reader.work_system(), reader.modes()));
+    }
+    if !tabbed.is_empty() {
+        let blocks = tabs::plan(
+            tabbed,
+            &cut.passes,
+            cut.tab_mm,
+            config.servo.rethread_feed_mm_per_min,
+            &program.name,
+        )?;
+        for b in &blocks {
+            tally.take(&b.block)?;
+        }
+        tally.ends_at(&start_at)?;
     }
     let (work_offsets, work_system, modes) = left.expect("one run at least");
     Ok(Precheck {
@@ -189,4 +223,15 @@ pub fn precheck(
         path_mm: tally.path_mm,
         rapid_spans: tally.rapid_spans,
     })
+}
+
+/// The program's warnings, once (from its first run).
+fn log_warnings(warnings: Vec<gcode::Warning>, program: &str) {
+    for w in warnings {
+        if w.line == 0 {
+            tracing::warn!("{program}: {}", w.message);
+        } else {
+            tracing::warn!("{program}:{}:{}: {}", w.line, w.col, w.message);
+        }
+    }
 }

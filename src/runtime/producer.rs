@@ -15,6 +15,7 @@ use super::passes;
 use super::probe::ProbeLink;
 use super::program::JobProgram;
 use super::spec::{JobSpec, StepCondition};
+use super::tabs::{self, PassProgram};
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::config::WirePass;
 use crate::gcode::{self, BlockKind, GcodeError};
@@ -47,6 +48,8 @@ pub enum ProducerError {
     FromLine(#[from] super::from_line::FromLineError),
     #[error(transparent)]
     Passes(#[from] passes::PassError),
+    #[error(transparent)]
+    Tabs(#[from] super::tabs::TabError),
 }
 
 /// What the producer did.
@@ -88,9 +91,10 @@ pub struct BlockMaker {
     first_of_block: bool,
     /// `[generator] condition`s as the blocks carry them.
     conditions: Vec<StepCondition>,
-    /// The pass the next blocks belong to (0: none), and whether the next block starts it.
+    /// The pass the next blocks belong to (0: none), and the flags of the next block if it
+    /// starts it (`PASS_START`, and `START_HOLE` where it starts at the start hole).
     pass: u8,
-    pass_starts: bool,
+    pass_starts: BlockFlags,
 }
 
 impl BlockMaker {
@@ -105,14 +109,18 @@ impl BlockMaker {
             first_of_block: true,
             conditions: spec.conditions.clone(),
             pass: 0,
-            pass_starts: false,
+            pass_starts: BlockFlags::NONE,
         }
     }
 
-    /// The next blocks are pass `number` (1-based) of the technology table.
-    pub fn start_pass(&mut self, number: u8) {
+    /// The next blocks are pass `number` (1-based) of the technology table; `at_start_hole`:
+    /// it starts there (not at a tab).
+    pub fn start_pass(&mut self, number: u8, at_start_hole: bool) {
         self.pass = number;
-        self.pass_starts = true;
+        self.pass_starts = BlockFlags::PASS_START;
+        if at_start_hole {
+            self.pass_starts |= BlockFlags::START_HOLE;
+        }
     }
 
     /// The path length (mm) the next block starts at: a direct approach counts the program
@@ -144,7 +152,10 @@ impl BlockMaker {
         if segment.last_of_block {
             flags |= BlockFlags::LAST_OF_BLOCK;
         }
-        if segment.block.kind == BlockKind::Rapid || segment.block.spark_off {
+        if segment.block.spark_off == Some(gcode::Travel::Kerf) {
+            flags |= BlockFlags::IN_KERF;
+        }
+        if segment.block.kind == BlockKind::Rapid || segment.block.spark_off.is_some() {
             flags |= BlockFlags::RAPID;
         }
         if segment.block.flushing {
@@ -163,8 +174,9 @@ impl BlockMaker {
         if first && segment.block.pause.is_some() {
             flags |= BlockFlags::PAUSE;
         }
-        if std::mem::take(&mut self.pass_starts) {
-            flags |= BlockFlags::PASS_START;
+        flags |= std::mem::take(&mut self.pass_starts);
+        if first && matches!(segment.block.pause, Some((_, gcode::Pause::Slug))) {
+            flags |= BlockFlags::TAB;
         }
         let block = StepBlock {
             seq: self.seq,
@@ -245,6 +257,12 @@ fn produce_inner(
         spec.cut.passes.iter().map(Some).collect()
     };
     let mut probes = 0;
+    let runs = if spec.cut.tabbed() {
+        tabbed(program, spec, &cancel, &mut pre, &mut out)?;
+        Vec::new()
+    } else {
+        runs
+    };
     for (k, pass) in runs.into_iter().enumerate() {
         if pass.is_some() {
             // Segments leave the preprocessor up to a look-ahead later: the pass's first
@@ -252,7 +270,8 @@ fn produce_inner(
             if k > 0 {
                 pre.finish(|s| out.push(s));
             }
-            out.maker.start_pass(u8::try_from(k + 1).unwrap_or(u8::MAX));
+            out.maker
+                .start_pass(u8::try_from(k + 1).unwrap_or(u8::MAX), true);
         }
         let mut reader = gcode::open_program_as(
             &program.path,
@@ -292,6 +311,58 @@ fn produce_inner(
     report.stats = pre.stats();
     report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
     Ok(report)
+}
+
+/// Passes with a tab ([`tabs`]): every pass read whole, the chain planned, then pushed with
+/// each pass's start marked (only the first starts at the start hole).
+fn tabbed(
+    program: &JobProgram,
+    spec: &JobSpec,
+    cancel: &Arc<AtomicBool>,
+    pre: &mut Preprocessor,
+    out: &mut Pusher<'_>,
+) -> Result<(), ProducerError> {
+    let mut read = Vec::new();
+    for pass in &spec.cut.passes {
+        let mut reader = gcode::open_program_as(
+            &program.path,
+            &program.name,
+            &spec.axes,
+            passes::options(&spec.program, Some(pass)),
+            |f| f,
+        )?;
+        reader.cancel_on(cancel.clone());
+        reader.start_at(&spec.work);
+        match PassProgram::read(&mut reader, pass, &program.name) {
+            Ok(p) => read.push(p),
+            Err(ProducerError::Program(e))
+                if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
+            {
+                out.report.aborted = true;
+                return Ok(());
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    let blocks = tabs::plan(
+        read,
+        &spec.cut.passes,
+        spec.cut.tab_mm,
+        spec.approach_feed_mm_per_min,
+        &program.name,
+    )?;
+    for b in blocks {
+        if b.starts_pass {
+            // Plan the last pass's end as a standstill: its blocks are all out.
+            pre.finish(|s| out.push(s));
+            out.maker.start_pass(b.pass, b.pass == 1);
+        }
+        pre.push_block(Arc::new(b.block), |s| out.push(s));
+        if out.report.aborted {
+            break;
+        }
+    }
+    Ok(())
 }
 
 /// A reversed pass: its blocks read whole, then pushed last first, each run backwards.

@@ -28,6 +28,15 @@ pub struct StepCondition {
 pub struct CutPlan {
     pub from_line: Option<FromLine>,
     pub passes: Vec<WirePass>,
+    /// In passes: the tab left (mm; 0: none), see [`super::tabs`].
+    pub tab_mm: f64,
+}
+
+impl CutPlan {
+    /// Passes that leave a tab.
+    pub fn tabbed(&self) -> bool {
+        self.tab_mm > 0.0 && !self.passes.is_empty()
+    }
 }
 
 /// Everything a job's threads need.

@@ -41,7 +41,9 @@ mod law;
 mod state;
 
 pub use law::{GapReading, Law, LawInput};
-pub use state::{Excursion, Feeds, PathPoint, Rethread, ServoCounters, ServoEvent, ServoState};
+pub use state::{
+    Excursion, Feeds, PathPoint, PauseKind, Rethread, ServoCounters, ServoEvent, ServoState,
+};
 
 use crate::vocab::GapState;
 use law::GapLaw;

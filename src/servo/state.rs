@@ -27,6 +27,44 @@ pub enum ServoState {
     Threading,
 }
 
+/// Why the interpolator stopped before a move, to wait for the operator's resume.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PauseKind {
+    /// The program's `M0`, or `M1` with the optional stop on.
+    Program,
+    /// The operator's single block: before every program block.
+    SingleBlock,
+    /// Before a wire contour's tab: the operator secures the slug the tab's cut frees.
+    Slug,
+}
+
+impl PauseKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PauseKind::Program => "program stop (M0/M1)",
+            PauseKind::SingleBlock => "single block",
+            PauseKind::Slug => "secure the slug",
+        }
+    }
+
+    pub fn code(self) -> u8 {
+        match self {
+            PauseKind::Program => 1,
+            PauseKind::SingleBlock => 2,
+            PauseKind::Slug => 3,
+        }
+    }
+
+    pub fn from_code(code: u8) -> Option<PauseKind> {
+        match code {
+            1 => Some(PauseKind::Program),
+            2 => Some(PauseKind::SingleBlock),
+            3 => Some(PauseKind::Slug),
+            _ => None,
+        }
+    }
+}
+
 /// Where the wire is threaded again after a break.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Rethread {
@@ -146,9 +184,8 @@ pub enum ServoEvent {
     },
     /// The last block is done.
     Done,
-    /// A programmed stop (`M0`, or `M1` with the optional stop on) before the move at `at`:
-    /// the interpolator holds there.
-    Paused { at: PathPoint, single_block: bool },
+    /// A stop before the move at `at` (see [`PauseKind`]): the interpolator holds there.
+    Paused { at: PathPoint, kind: PauseKind },
     /// The gap shorted during a rapid (`G0`): the electrode touched something while
     /// positioning with the spark off. Motion stopped at `at`; the interpolator holds.
     Collision { at: PathPoint },

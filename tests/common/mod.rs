@@ -3,6 +3,7 @@
 pub mod daemon;
 pub mod linuxcnc;
 pub mod web;
+pub mod wire;
 
 use std::path::PathBuf;
 

@@ -473,9 +473,13 @@ pub struct JobStatus {
     pub eta_s: Option<f64>,
     /// That recent average forward feed (mm/min).
     pub recent_feed_mm_per_min: Option<f64>,
-    /// Held by a programmed stop (`M0`/`M1`) before this source line.
+    /// Held by a programmed stop (`M0`/`M1`), single block or a tab's slug before this
+    /// source line.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub paused_before_line: Option<u64>,
+    /// Why it is paused there: "program stop (M0/M1)", "single block", "secure the slug".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pause: Option<String>,
 }
 
 /// The checkpoint on disk, in short.

@@ -166,9 +166,10 @@ impl Status {
             if j.resumed { ", resumed" } else { "" }
         );
         if let Some(line) = j.paused_before_line {
+            let why = j.pause.as_deref().unwrap_or("program stop (M0/M1)");
             let _ = writeln!(
                 t,
-                "paused:       programmed stop (M0/M1) before line {line}; `edmd ctl resume` continues"
+                "paused:       {why} before line {line}; `edmd ctl resume` continues"
             );
         }
         match self.state {

@@ -155,11 +155,15 @@ impl Interpolator {
     }
 
     /// A retreat may not walk back into this block: a probing move (its steps are the
-    /// programmed ones, not the ones taken) and, on purpose, a rapid (the start of the cut).
+    /// programmed ones, not the ones taken) and, on purpose, a rapid (the start of the cut;
+    /// not a spark-off travel along the kerf).
     pub(super) fn is_barrier(&self) -> bool {
         let purposeful = self.servo.state() == ServoState::Retreat;
-        self.motion.block.flags.contains(BlockFlags::PROBE)
-            || (purposeful && self.motion.block.flags.contains(BlockFlags::RAPID))
+        let flags = self.motion.block.flags;
+        flags.contains(BlockFlags::PROBE)
+            || (purposeful
+                && flags.contains(BlockFlags::RAPID)
+                && !flags.contains(BlockFlags::IN_KERF))
     }
 
     /// The way back ends here (start of the reserved area or a barrier): a short's turn-back

@@ -251,7 +251,7 @@ fn a_rethread_goes_back_to_the_start_of_its_pass() {
         &[p2(0, 0), p2(300, 0), p2(0, 0), p2(300, 0), p2(300, 400)],
         5.0,
     );
-    blocks[2].flags |= BlockFlags::PASS_START;
+    blocks[2].flags |= BlockFlags::PASS_START | BlockFlags::START_HOLE;
     let mut d = Driver::new(SETTINGS, blocks);
     while d.fine.position()[1] < 200 {
         d.tick(GapState::Normal);

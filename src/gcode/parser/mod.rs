@@ -157,6 +157,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.out.comp.entry_line()
     }
 
+    /// The source line of the latest wire-offset exit move read so far (the first move after
+    /// a `G40`): where a wire contour's tab ends.
+    pub fn comp_exit_line(&self) -> Option<u64> {
+        self.out.comp.exit_line()
+    }
+
     /// The line of the M2/M30 that ended the program, if one did.
     pub fn program_end_line(&self) -> Option<u64> {
         self.program.ended_at

@@ -94,6 +94,8 @@ pub(super) struct Compensator {
     pending: Option<Piece>,
     /// The source line of the latest entry move (the first move after `G41`/`G42`).
     entry_line: Option<u64>,
+    /// The source line of the latest exit move (the first move after `G40`).
+    exit_line: Option<u64>,
 }
 
 impl Compensator {
@@ -106,6 +108,7 @@ impl Compensator {
             plane,
             pending: None,
             entry_line: None,
+            exit_line: None,
         }
     }
 
@@ -117,6 +120,11 @@ impl Compensator {
     /// The source line of the latest entry move read so far.
     pub(super) fn entry_line(&self) -> Option<u64> {
         self.entry_line
+    }
+
+    /// The source line of the latest exit move read so far.
+    pub(super) fn exit_line(&self) -> Option<u64> {
+        self.exit_line
     }
 
     /// `G41` (`left`) or `G42` with offset `d` (mm). Errors are messages for the G word.
@@ -233,6 +241,7 @@ impl Compensator {
                 };
                 self.emit(Piece::line(from, p1, block), out).map_err(fail)?;
                 self.phase = Phase::Off;
+                self.exit_line = Some(line);
             }
             Phase::Off => unreachable!("handled above"),
         }
