@@ -670,7 +670,7 @@ fn the_page_in_headless_chromium() {
         stops.push(s["job"]["paused_before_line"].as_u64().unwrap());
         wait(
             "Resume enabled",
-            "return document.getElementById('state').textContent === 'paused' && !document.getElementById('resume').disabled",
+            "return document.getElementById('state').textContent === 'paused: single block' && !document.getElementById('resume').disabled",
         );
         browser.eval("document.getElementById('resume').click(); return true");
         d.wait_for("the next block", |s| s["state"] != "paused");

@@ -122,6 +122,22 @@ fn a_die_and_a_punch_in_three_passes_leave_the_tab_to_the_end() {
                 "{name} E{condition}: {:?} µm from the contour, want {d}",
                 (far.iter().min(), far.iter().max())
             );
+            // The direction, from the shoelace area of the pass's cut (+: counter-clockwise,
+            // the programs' own direction): a reversed pass runs clockwise.
+            let reversed = match condition {
+                3 => false,
+                2 => part.reverse[0],
+                _ => part.reverse[1],
+            };
+            let area: f64 = pts
+                .windows(2)
+                .map(|w| (w[0].1.0 * w[1].1.1 - w[1].1.0 * w[0].1.1) as f64)
+                .sum::<f64>()
+                / 2e6;
+            assert!(
+                area * if reversed { -1.0 } else { 1.0 } > 5.0,
+                "{name} E{condition}: signed area {area} mm²"
+            );
             if condition == 1 {
                 continue;
             }

@@ -405,6 +405,20 @@ impl Default for Config {
 }
 
 impl Config {
+    /// A wire break can be told on this machine (an open-gap limit, a wire-break input, the
+    /// simulator's breaks, or a gap script, which may script one): only then does a job keep
+    /// the trail a rethread walks back along (`buffer.trail_blocks`), so a machine that never
+    /// rethreads runs in flat memory.
+    pub fn wire_can_break(&self) -> bool {
+        self.servo.max_open_mm > 0.0
+            || match self.gap.kind {
+                GapKind::Parport => self.parport.wire_break_pin.is_some(),
+                GapKind::Sim => self.sim.wire_breaks_per_m > 0.0 || self.sim.events.is_some(),
+                GapKind::Script => true,
+                GapKind::Iio | GapKind::None => false,
+            }
+    }
+
     /// Loads `path` (or the shipped default when `path` is `None`) and applies `overrides`
     /// (`section.key=value` strings, in order).
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Config, ConfigError> {

@@ -24,6 +24,7 @@ use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
+pub use super::controls::RethreadRequest;
 use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
 use super::probe::{ProbeLink, ProbeResult};
@@ -33,7 +34,7 @@ use crate::buffer::BlockSource;
 use crate::fine::{Interpolator, Tick};
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::servo::{Excursion, GapReading, LawInput, PathPoint, Rethread, ServoEvent, ServoState};
+use crate::servo::{Excursion, GapReading, LawInput, PathPoint, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{MAX_AXES, Steps};
 
@@ -152,30 +153,6 @@ fn read_for<G: GapSensor + ?Sized>(input: LawInput, gap: GapState, sensor: &G) -
 /// The snapshot is published every so many ticks (a power of two), besides every servo event
 /// and every held tick: status and periodic checkpoints lag by that much at most.
 pub const PUBLISH_EVERY_TICKS: u64 = 64;
-
-/// A rethread asked for by the supervisor and taken by the consumer's loop, once: one
-/// atomic, so the real-time loop never waits for it.
-#[derive(Debug, Default)]
-pub struct RethreadRequest(AtomicU8);
-
-impl RethreadRequest {
-    pub fn ask(&self, at: Rethread) {
-        let code = match at {
-            Rethread::AtStart => 1,
-            Rethread::Here => 2,
-        };
-        self.0.store(code, Ordering::Release);
-    }
-
-    /// The request, if one is waiting (it is taken).
-    pub fn take(&self) -> Option<Rethread> {
-        match self.0.swap(0, Ordering::Acquire) {
-            1 => Some(Rethread::AtStart),
-            2 => Some(Rethread::Here),
-            _ => None,
-        }
-    }
-}
 
 impl Published {
     pub fn new(event_capacity: usize) -> Published {

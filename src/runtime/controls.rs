@@ -1,11 +1,12 @@
 //! The operator's controls on their way to the tick: the feed and rapid overrides and single
-//! block. The daemon stores them in one word; the consumer's loop loads it every tick (one
+//! block, and a rethread after a wire break. The daemon stores them in one word; the consumer's loop loads it every tick (one
 //! relaxed load, no lock) and hands a change to the tick core, which uses it in that very
 //! tick.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 
 use crate::fine::Overrides;
+use crate::servo::Rethread;
 
 /// Highest feed override, percent.
 pub const MAX_FEED_OVERRIDE_PCT: u32 = 200;
@@ -87,6 +88,30 @@ impl ControlWord {
 #[inline]
 pub fn controls_of(word: u64) -> Controls {
     Controls::unpack(word)
+}
+
+/// A rethread asked for by the supervisor and taken by the consumer's loop, once: one
+/// atomic, so the real-time loop never waits for it.
+#[derive(Debug, Default)]
+pub struct RethreadRequest(AtomicU8);
+
+impl RethreadRequest {
+    pub fn ask(&self, at: Rethread) {
+        let code = match at {
+            Rethread::AtStart => 1,
+            Rethread::Here => 2,
+        };
+        self.0.store(code, Ordering::Release);
+    }
+
+    /// The request, if one is waiting (it is taken).
+    pub fn take(&self) -> Option<Rethread> {
+        match self.0.swap(0, Ordering::Acquire) {
+            1 => Some(Rethread::AtStart),
+            2 => Some(Rethread::Here),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -90,7 +90,11 @@ impl JobSpec {
             tick: config.fine.tick,
             buffer_capacity: config.buffer.capacity,
             buffer_reserved: config.buffer.reserved,
-            buffer_trail: config.buffer.trail_blocks,
+            buffer_trail: if config.wire_can_break() {
+                config.buffer.trail_blocks
+            } else {
+                0
+            },
             conditions: config
                 .conditions
                 .iter()
