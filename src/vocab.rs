@@ -292,6 +292,24 @@ pub struct HomeSwitch {
     pub at_steps: i64,
 }
 
+/// The wire's two guides. X/Y move the lower guide; U/V are the upper guide's position
+/// relative to the lower one, so the wire crosses the program plane at
+/// `(x, y) + (u, v) · lower_mm / (lower_mm + upper_mm)`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Guides {
+    /// From the lower guide up to the program plane (mm; negative: the plane is below it).
+    pub lower_mm: f64,
+    /// From the program plane up to the upper guide (mm).
+    pub upper_mm: f64,
+}
+
+impl Guides {
+    /// Lower guide to upper guide (mm).
+    pub fn span_mm(&self) -> f64 {
+        self.lower_mm + self.upper_mm
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -24,7 +24,7 @@ mod settings;
 mod tests;
 mod validate;
 mod wire;
-pub use wire::{WireConfig, WirePass};
+pub use wire::{Guides, WireConfig, WirePass};
 
 use std::path::{Path, PathBuf};
 

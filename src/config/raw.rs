@@ -272,6 +272,10 @@ pub(super) struct RawLog {
 pub(super) struct RawWire {
     pub(super) pass: Vec<RawPass>,
     pub(super) tab_mm: f64,
+    pub(super) lower_guide_mm: f64,
+    pub(super) upper_guide_mm: f64,
+    pub(super) thickness_mm: f64,
+    pub(super) diameter_mm: f64,
 }
 
 /// `[[wire.pass]]` as written.

@@ -142,6 +142,7 @@ impl ProgramOptions {
             d_mm: config.compensation.d_mm.clone(),
             offset_tolerance_mm: config.interpolation.chord_tolerance_mm,
             conditions: config.conditions.iter().map(|c| c.number).collect(),
+            guides: config.wire.guides,
         }
     }
 }

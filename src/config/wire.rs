@@ -4,6 +4,7 @@
 use super::raw::RawWire;
 use super::validate::{Invalid, positive};
 use super::{CompensationConfig, Condition};
+pub use crate::vocab::Guides;
 
 /// `[wire]`: the passes a `--passes N` run cuts, first to last.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -11,6 +12,12 @@ pub struct WireConfig {
     pub passes: Vec<WirePass>,
     /// The tab a run in passes leaves (mm of the contour before it closes; 0: none).
     pub tab_mm: f64,
+    /// Where the guides are: what a taper (`G51`/`G52`) is computed with.
+    pub guides: Guides,
+    /// The work's thickness (mm), from the program plane up.
+    pub thickness_mm: f64,
+    /// The wire's diameter (mm).
+    pub diameter_mm: f64,
 }
 
 /// One pass: the wire offset (every `D` of the program reads it), the condition (every `E` of
@@ -88,6 +95,30 @@ impl RawWire {
         } else {
             positive("wire.tab_mm", self.tab_mm, 1000.0, "mm (0: no tab)")?
         };
-        Ok(WireConfig { passes, tab_mm })
+        let lower_mm = self.lower_guide_mm;
+        if !(lower_mm.is_finite() && lower_mm.abs() <= 1000.0) {
+            return Err((
+                "wire.lower_guide_mm",
+                format!("must be -1000 to 1000 mm, got {lower_mm}"),
+            ));
+        }
+        let upper_mm = positive("wire.upper_guide_mm", self.upper_guide_mm, 1000.0, "mm")?;
+        if lower_mm + upper_mm < 1.0 {
+            return Err((
+                "wire.upper_guide_mm",
+                format!(
+                    "the guides must be at least 1 mm apart: lower_guide_mm + upper_guide_mm \
+                     is {}",
+                    lower_mm + upper_mm
+                ),
+            ));
+        }
+        Ok(WireConfig {
+            passes,
+            tab_mm,
+            guides: Guides { lower_mm, upper_mm },
+            thickness_mm: positive("wire.thickness_mm", self.thickness_mm, 1000.0, "mm")?,
+            diameter_mm: positive("wire.diameter_mm", self.diameter_mm, 2.0, "mm")?,
+        })
     }
 }

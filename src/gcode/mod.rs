@@ -39,7 +39,7 @@ pub use parser::{
 pub use work::{StartModes, WORK_SYSTEMS, WorkOffsets, WorkStart, WorkSystem};
 
 use crate::geometry::{NurbsCurve, Point};
-use crate::vocab::Axis;
+use crate::vocab::{Axis, Guides};
 
 /// The three NURBS block forms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -193,6 +193,8 @@ pub struct ProgramOptions {
     pub offset_tolerance_mm: f64,
     /// The machining conditions `E<number>` may select.
     pub conditions: Vec<u32>,
+    /// Where the wire's guides are (`[wire]`): what a taper (`G51`/`G52`) is computed with.
+    pub guides: Guides,
 }
 
 impl Default for ProgramOptions {
@@ -205,6 +207,10 @@ impl Default for ProgramOptions {
             d_mm: vec![0.0],
             offset_tolerance_mm: 0.001,
             conditions: Vec::new(),
+            guides: Guides {
+                lower_mm: 10.0,
+                upper_mm: 40.0,
+            },
         }
     }
 }
@@ -244,6 +250,10 @@ pub struct Block {
     /// kind, and where: the approach of a job run from a line, a tabbed run's travel between
     /// passes (set by the job, never by the program); `None`: as the program says.
     pub spark_off: Option<Travel>,
+    /// The wire's tilt in force (`G51`/`G52`): the tangent of its angle from vertical, + to
+    /// the left of the direction of travel. The reader's taper stage turns it into the guides'
+    /// X/Y and U/V; a block handed out carries the tilt it was cut with.
+    pub taper: f64,
 }
 
 /// Where a spark-off move travels.
@@ -273,6 +283,7 @@ impl Block {
             flushing: false,
             condition: 0,
             spark_off: None,
+            taper: 0.0,
         }
     }
 

@@ -8,10 +8,13 @@ use super::{BlockReader, Fail, Letters, Step, whole};
 
 /// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
 const MAX_DWELL_S: f64 = 86_400.0;
+/// Steepest taper accepted (degrees from vertical).
+const MAX_TAPER_DEG: f64 = 30.0;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::work::WorkSystem;
 use crate::gcode::{NurbsForm, Plane};
+use crate::vocab::Axis;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Motion {
@@ -66,6 +69,13 @@ pub(super) enum GCode {
     Comp {
         left: bool,
     },
+    /// G50 (group 16): the wire vertical again (taper off).
+    TaperOff,
+    /// G51 (left of the direction of travel) / G52 (right) with A, the angle in degrees
+    /// (group 16): a tapered cut.
+    Taper {
+        left: bool,
+    },
     /// G92 family and G10 (group 0).
     Offset(OffsetCode),
     /// G54…G59.3 (group 12): a work coordinate system.
@@ -104,6 +114,7 @@ impl GCode {
             GCode::Dwell | GCode::Offset(_) | GCode::MachineCoords => 0,
             GCode::WorkSystem(_) => 12,
             GCode::CompOff | GCode::Comp { .. } => 7,
+            GCode::TaperOff | GCode::Taper { .. } => 16,
         }
     }
 }
@@ -203,11 +214,9 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         50 | 51 => return unsupported("LinuxCNC splines; use the G5.2/G5.3 NURBS form"),
         60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
         70 | 80 => return unsupported("lathe modes"),
-        520 => {
-            return unsupported(
-                "local offsets (G52); use G92, or a work system set with G10 L2 (G54…G59.3)",
-            );
-        }
+        500 => GCode::TaperOff,
+        510 => GCode::Taper { left: true },
+        520 => GCode::Taper { left: false },
         280 | 281 | 300 | 301 => {
             return unsupported("homing and reference points (G28/G30) need a homed machine");
         }
@@ -289,6 +298,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         .start(left, d, plane)
                         .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
                 }
+                GCode::TaperOff => self.state.modal.taper = 0.0,
+                GCode::Taper { left } => {
+                    self.state.modal.taper = self.taper_angle(w, kept.get('A'), left)?;
+                    *kept = kept.without(&['A']);
+                }
                 GCode::Inch(inch) => self.state.modal.inch = inch,
                 GCode::Incremental(inc) => self.state.modal.incremental = inc,
                 GCode::ArcCentreAbsolute(abs) => self.state.modal.arc_centre_absolute = abs,
@@ -322,6 +336,45 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
         }
         Ok(later)
+    }
+
+    /// The tilt `A` gives `G51`/`G52`, as the signed tangent of the angle (+: to the left of
+    /// the direction of travel), on a machine that can tilt the wire.
+    fn taper_angle(&self, g: &Word, a: Option<&Word>, left: bool) -> Step<f64> {
+        let fail = |col, message: String| Fail::from((col, GcodeErrorKind::Taper(message)));
+        let has = |axis| self.axes.contains(&axis);
+        if !(has(Axis::X) && has(Axis::Y) && has(Axis::U) && has(Axis::V)) {
+            return Err(fail(
+                g.col,
+                format!(
+                    "G{} tilts the wire with the upper guide: it needs the axes X, Y, U and V \
+                     (machine.axes has {})",
+                    g.text,
+                    self.axes_list()
+                ),
+            ));
+        }
+        let Some(a) = a else {
+            return Err(fail(
+                g.col,
+                format!(
+                    "G{} needs A, the wire's angle from vertical in degrees",
+                    g.text
+                ),
+            ));
+        };
+        if !(0.0..=MAX_TAPER_DEG).contains(&a.value) {
+            return Err(fail(
+                a.col,
+                format!(
+                    "A{}: the taper angle is 0 to {MAX_TAPER_DEG} degrees (G51 tilts left of \
+                     the direction of travel, G52 right)",
+                    a.text
+                ),
+            ));
+        }
+        let tan = a.value.to_radians().tan();
+        Ok(if left { tan } else { -tan })
     }
 
     /// The offset `D` names for `G41`/`G42`.

@@ -17,6 +17,7 @@ mod offsets;
 mod state;
 mod structure;
 mod system;
+mod taper;
 
 use std::collections::VecDeque;
 use std::io::{BufRead, Seek};
@@ -118,6 +119,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let plane = index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]);
         let comp = Compensator::new(plane, options.offset_tolerance_mm);
+        let taper = taper::Taper::new(axes, options.guides, options.offset_tolerance_mm);
         Self {
             options,
             source_name: source_name.into(),
@@ -128,6 +130,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             out: Output {
                 comp,
                 queue: VecDeque::new(),
+                taper,
+                tapered: VecDeque::new(),
                 pending: None,
             },
             diag: Diagnostics::default(),
@@ -190,8 +194,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
-            if let Some(block) = self.out.queue.pop_front() {
+            if let Some(block) = self.out.tapered.pop_front() {
                 return Ok(Some(block));
+            }
+            if let Some(block) = self.out.queue.pop_front() {
+                if let Err(e) = self.out.taper.push(block, &mut self.out.tapered) {
+                    return Err(self.located_error(e.line, GcodeErrorKind::Taper(e.message)));
+                }
+                continue;
             }
             if self.program.done {
                 return Ok(None);
@@ -268,7 +278,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let result = self.process_line(line_no, &text, &mut words);
             self.scratch.words = words;
             match result {
-                Ok(Some(block)) => {
+                Ok(Some(mut block)) => {
+                    block.taper = self.state.modal.taper;
                     if let Err(e) = self.out.comp.push(block, &mut self.out.queue) {
                         return Err(self.comp_error(e));
                     }
@@ -281,12 +292,17 @@ impl<R: BufRead + Seek> BlockReader<R> {
     }
 
     fn comp_error(&self, e: comp::CompError) -> GcodeError {
+        self.located_error(e.line, GcodeErrorKind::WireOffset(e.message))
+    }
+
+    /// An error about a move made earlier, at `line` column 1.
+    fn located_error(&self, line: u64, kind: GcodeErrorKind) -> GcodeError {
         let fail = Fail {
             col: 1,
-            kind: GcodeErrorKind::WireOffset(e.message),
-            at: Some((e.line, String::new())),
+            kind,
+            at: Some((line, String::new())),
         };
-        self.error(e.line, "", fail)
+        self.error(line, "", fail)
     }
 
     fn finish(&mut self) -> Result<(), GcodeError> {
@@ -584,7 +600,7 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.program.done && self.out.queue.is_empty() {
+        if self.program.done && self.out.queue.is_empty() && self.out.tapered.is_empty() {
             return None;
         }
         match self.next_block() {

@@ -23,6 +23,9 @@ pub(super) struct Modal {
     pub(super) motion: Option<Motion>,
     /// mm/min
     pub(super) feed: Option<f64>,
+    /// The wire's tilt (`G51`/`G52`): the tangent of its angle from vertical, + to the left
+    /// of the direction of travel; 0: vertical (`G50`).
+    pub(super) taper: f64,
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {

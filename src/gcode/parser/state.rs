@@ -22,6 +22,7 @@ use super::control::Flow;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
 use super::structure::Structure;
+use super::taper::Taper;
 use super::{Fail, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::error::Warning;
@@ -76,6 +77,7 @@ impl InterpState {
                 plane: Plane::XY,
                 motion: None,
                 feed: None,
+                taper: 0.0,
             },
             position: Point::zeros(),
             system: WorkSystem::G54,
@@ -164,6 +166,10 @@ pub(super) struct Output {
     /// G41/G42 wire offset, and the moves it has made final, waiting to be handed out.
     pub comp: Compensator,
     pub queue: VecDeque<Block>,
+    /// G51/G52 taper: the moves of `queue` turned into the guides' paths, waiting to be
+    /// handed out.
+    pub taper: Taper,
+    pub tapered: VecDeque<Block>,
     /// A NURBS curve being collected over several lines.
     pub pending: Option<PendingCurve>,
 }

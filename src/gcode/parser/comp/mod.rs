@@ -516,6 +516,7 @@ impl Compensator {
             let mut b = Block::new(t.line, kind, curve, t.feed_mm_per_min);
             b.flushing = t.flushing;
             b.condition = t.condition;
+            b.taper = t.taper;
             if std::mem::take(&mut first) {
                 b.dwell_s = t.dwell_s;
                 b.pause = t.pause;

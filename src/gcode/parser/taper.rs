@@ -1,0 +1,264 @@
+//! The taper (`G51 A<deg>` left of the direction of travel, `G52 A<deg>` right, `G50` off):
+//! the compensated contour in the program plane turned into the two guides' paths.
+//!
+//! X/Y move the lower guide, U/V are the upper guide relative to the lower one
+//! ([`Guides`]). A wire through the contour point `P` tilted by `θ` towards the unit normal
+//! `n` (left of travel for `G51`, `t = tan θ`; right for `G52`, `t < 0`) has its lower guide
+//! at `P − L·t·n` and the upper one `H·t·n` above it, `L` the lower guide's distance below
+//! the plane and `H` the guides' span: the wire then crosses the plane at
+//! `P − L·t·n + H·t·n · L/H = P` at the angle `θ` from vertical.
+//!
+//! - **Lines**: `n` is constant, so both guides move on straight lines; the angle changes
+//!   only on a line (as the controls do), ramped along it: `t` goes linearly from the last
+//!   angle to the new one, and both guides still move straight.
+//! - **Arcs**: `n` is the radial direction (towards the centre on a counter-clockwise arc),
+//!   so both guide paths are arcs about the same centre: an affine image of the arc's own
+//!   rational control points, exact. An arc keeps the angle in force; one whose lower or
+//!   upper radius would vanish is refused.
+//! - **Corners**: where the direction of travel turns, the wire pivots about the corner point
+//!   `P` with its angle kept: `n` turns from the one before to the one after, so the lower
+//!   guide describes an arc of radius `L·t` about `P` and the upper guide one of radius
+//!   `(H − L)·t`. A conical corner keeps the wire at its angle everywhere and the program-plane
+//!   point exactly on the corner; the sharp-corner alternative (intersecting the offset lines
+//!   of both guide paths) also passes through `P` but tilts the wire by `θ / cos(turn/2)` at
+//!   the corner, beyond the programmed angle.
+//! - NURBS curves under a taper are refused for now (their normal is not rational).
+
+use std::collections::VecDeque;
+
+use nalgebra::Vector2;
+
+use crate::gcode::{Block, BlockKind, Plane};
+use crate::geometry::{NurbsCurve, Point, circular_arc};
+use crate::vocab::{Axis, Guides};
+
+type V2 = Vector2<f64>;
+
+/// Why a move cannot be cut with the taper in force (reported at its line).
+#[derive(Debug)]
+pub(super) struct TaperError {
+    pub(super) line: u64,
+    pub(super) message: String,
+}
+
+#[derive(Debug)]
+pub(super) struct Taper {
+    guides: Guides,
+    /// X, Y, U and V's indices; `None`: the machine cannot tilt the wire (a `G51`/`G52` is
+    /// refused before any block carries a tilt).
+    axes: Option<[usize; 4]>,
+    /// The tilt the wire has now, and the normal it leans along.
+    tan: f64,
+    normal: Option<V2>,
+    tolerance: f64,
+}
+
+impl Taper {
+    pub(super) fn new(axes: &[Axis], guides: Guides, tolerance: f64) -> Taper {
+        let index = |a: Axis| axes.iter().position(|&x| x == a);
+        let axes = (|| {
+            Some([
+                index(Axis::X)?,
+                index(Axis::Y)?,
+                index(Axis::U)?,
+                index(Axis::V)?,
+            ])
+        })();
+        Taper {
+            guides,
+            axes,
+            tan: 0.0,
+            normal: None,
+            tolerance,
+        }
+    }
+
+    /// `block` as the guides cut it, after a corner move where the tilt turns.
+    pub(super) fn push(
+        &mut self,
+        block: Block,
+        out: &mut VecDeque<Block>,
+    ) -> Result<(), TaperError> {
+        let Some(axes) = self.axes else {
+            out.push_back(block);
+            return Ok(());
+        };
+        let line = block.line;
+        let fail = |message: String| TaperError { line, message };
+        let straight = matches!(block.kind, BlockKind::Line | BlockKind::Rapid);
+        if self.tan == 0.0 && !(straight && block.taper != 0.0) {
+            // Vertical, and staying so (an angle waits for a line).
+            self.normal = None;
+            out.push_back(block);
+            return Ok(());
+        }
+        let [ix, iy, ..] = axes;
+        let xy = |p: &Point| V2::new(p[ix], p[iy]);
+        let (p0, p1) = (block.start(), block.end());
+        match block.kind.clone() {
+            BlockKind::Probe(_) => Err(fail(
+                "a probing move cannot be tapered: cancel the taper with G50 and a move first"
+                    .into(),
+            )),
+            BlockKind::Nurbs { .. } => Err(fail(
+                "a NURBS curve cannot be tapered yet: cut it vertical (G50) or as lines and arcs"
+                    .into(),
+            )),
+            BlockKind::Line | BlockKind::Rapid => {
+                let travel = xy(&p1) - xy(&p0);
+                let n = if travel.norm() > 1e-12 {
+                    left(travel.normalize())
+                } else {
+                    self.normal.ok_or_else(|| {
+                        fail("the wire's tilt needs a direction of travel in X/Y".into())
+                    })?
+                };
+                let (t0, t1) = (self.tan, block.taper);
+                let block = self.corner(block, n, out)?;
+                let a = self.place(&p0, n, t0, axes);
+                let b = self.place(&p1, n, t1, axes);
+                let curve = NurbsCurve::line(block.curve.dim(), &a, &b)
+                    .map_err(|e| fail(format!("the tapered move: {e}")))?;
+                out.push_back(Block { curve, ..block });
+                self.tan = t1;
+                self.normal = Some(n);
+                Ok(())
+            }
+            BlockKind::Arc {
+                center,
+                radius,
+                sweep,
+                plane,
+            } => {
+                if plane != Plane::XY {
+                    return Err(fail(
+                        "a taper tilts the wire over arcs in G17 (XY) only".into(),
+                    ));
+                }
+                let (c, r) = (xy(&center), radius);
+                // Left of a counter-clockwise arc is towards its centre.
+                let ccw = sweep.signum();
+                let normal_at = |p: &Point| -(xy(p) - c).normalize() * ccw;
+                let t = self.tan;
+                let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
+                let lower = r + ccw * l * t;
+                let upper = r - ccw * (h - l) * t;
+                if lower.min(upper) <= self.tolerance {
+                    return Err(fail(format!(
+                        "the taper turns this arc (radius {r:.4} mm) inside out at the {} guide \
+                         (radius {:.4} mm there): a smaller angle, or a larger radius",
+                        if lower <= upper { "lower" } else { "upper" },
+                        lower.min(upper)
+                    )));
+                }
+                let block = self.corner(block, normal_at(&p0), out)?;
+                let curve = &block.curve;
+                let points: Vec<Point> = (0..curve.num_points())
+                    .map(|i| {
+                        // Affine in the control point, so the rational arc maps exactly.
+                        let q = curve.control_point(i);
+                        let radial = (xy(&q) - c) / r;
+                        let mut p = q;
+                        let lower_xy = c + radial * lower;
+                        let uv = -radial * (ccw * h * t);
+                        let [ix, iy, iu, iv] = axes;
+                        (p[ix], p[iy], p[iu], p[iv]) = (lower_xy.x, lower_xy.y, uv.x, uv.y);
+                        p
+                    })
+                    .collect();
+                let weights: Vec<f64> = (0..curve.num_points()).map(|i| curve.weight(i)).collect();
+                let mapped = NurbsCurve::new(
+                    curve.degree(),
+                    curve.dim(),
+                    &points,
+                    &weights,
+                    curve.knots().to_vec(),
+                )
+                .map_err(|e| fail(format!("the tapered arc: {e}")))?;
+                self.normal = Some(normal_at(&p1));
+                out.push_back(Block {
+                    kind: BlockKind::Arc {
+                        center,
+                        radius: lower,
+                        sweep,
+                        plane: Plane::XY,
+                    },
+                    curve: mapped,
+                    ..block
+                });
+                Ok(())
+            }
+        }
+    }
+
+    /// The guides' positions for the contour point `p` with the wire tilted by `t` along
+    /// `n`; the other axes as at `p`.
+    fn place(&self, p: &Point, n: V2, t: f64, [ix, iy, iu, iv]: [usize; 4]) -> Point {
+        let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
+        let mut q = *p;
+        q[ix] = p[ix] - l * t * n.x;
+        q[iy] = p[iy] - l * t * n.y;
+        q[iu] = h * t * n.x;
+        q[iv] = h * t * n.y;
+        q
+    }
+
+    /// Where the tilted wire meets a move leaning along `n`: a pivot about the corner point
+    /// (the block's programmed start) from the normal before, the angle kept. The block's
+    /// stops (dwell, pause) come before its motion, so they go with the pivot; the block is
+    /// handed back for its own move.
+    fn corner(
+        &self,
+        mut block: Block,
+        n: V2,
+        out: &mut VecDeque<Block>,
+    ) -> Result<Block, TaperError> {
+        let (Some(before), Some(axes)) = (self.normal, self.axes) else {
+            return Ok(block);
+        };
+        let turn = before.perp(&n).atan2(before.dot(&n));
+        if self.tan == 0.0 || turn.abs() < 1e-9 {
+            return Ok(block);
+        }
+        let fail = |message: String| TaperError {
+            line: block.line,
+            message,
+        };
+        let at = |v: V2| crate::geometry::point(&[v.x, v.y]);
+        let unit = circular_arc(2, [0, 1], &Point::zeros(), &at(before), &at(n), turn)
+            .map_err(|e| fail(format!("the tapered corner: {e}")))?;
+        let p = block.start();
+        let points: Vec<Point> = (0..unit.num_points())
+            .map(|i| {
+                let q = unit.control_point(i);
+                self.place(&p, V2::new(q[0], q[1]), self.tan, axes)
+            })
+            .collect();
+        let weights: Vec<f64> = (0..unit.num_points()).map(|i| unit.weight(i)).collect();
+        let curve = NurbsCurve::new(
+            unit.degree(),
+            block.curve.dim(),
+            &points,
+            &weights,
+            unit.knots().to_vec(),
+        )
+        .map_err(|e| fail(format!("the tapered corner: {e}")))?;
+        let mut corner = block.clone();
+        corner.kind = BlockKind::Arc {
+            center: p,
+            radius: (self.guides.lower_mm * self.tan).abs(),
+            sweep: turn,
+            plane: Plane::XY,
+        };
+        corner.curve = curve;
+        out.push_back(corner);
+        block.dwell_s = 0.0;
+        block.pause = None;
+        Ok(block)
+    }
+}
+
+/// The unit normal to the left of the unit direction `d`.
+fn left(d: V2) -> V2 {
+    V2::new(-d.y, d.x)
+}

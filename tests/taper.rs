@@ -1,0 +1,220 @@
+//! Taper cutting (`G51`/`G52 A<deg>`, issue [6/9]) checked independently of the code that
+//! computes it: `edmd run` writes the pulse log of a four-axis machine (X/Y the lower guide,
+//! U/V the upper guide relative to it); from each tick's positions the test intersects the
+//! wire line with the program plane and measures that point's distance from the programmed
+//! contour (the wire offset) and the wire's angle from vertical, and which side it leans to.
+
+mod common;
+
+use std::path::Path;
+
+use edmd::output::read_pulse_log;
+
+/// Lower guide to program plane, and guide to guide (mm).
+const LOWER_MM: f64 = 10.0;
+const SPAN_MM: f64 = 50.0;
+const OFFSET_MM: f64 = 0.2;
+const ANGLE_DEG: f64 = 2.0;
+
+const CONFIG: &str = "[machine]\naxes = [\"X\", \"Y\", \"U\", \"V\"]\n\
+    step_mm = [0.001, 0.001, 0.001, 0.001]\n\n[compensation]\nd_mm = [0.0, 0.2]\n\n\
+    [wire]\nlower_guide_mm = 10.0\nupper_guide_mm = 40.0\n";
+
+/// A die opening: a 15 × 10 mm rectangle with its lower right corner a quarter circle of
+/// 5 mm, entered from the centre-ish start hole with `G41` (inside), counter-clockwise.
+fn die(taper: &str) -> String {
+    format!(
+        "(tapered die)\nG21 G90 G17\n{taper} A{ANGLE_DEG}\nG41 D1\nG1 X0 Y-5 F300\nG1 X5 Y-5\n\
+         G3 X10 Y0 I0 J5\nG1 X10 Y5\nG1 X-5 Y5\nG1 X-5 Y-5\nG1 X0 Y-5\nG40 G50 G1 X0 Y0\nM2\n"
+    )
+}
+
+/// Distance (mm) of `p` from the die's programmed contour, and whether it lies inside.
+fn die_distance(p: (f64, f64)) -> (f64, bool) {
+    let seg = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let t = (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+        ((p.0 - a.0 - t * dx).powi(2) + (p.1 - a.1 - t * dy).powi(2)).sqrt()
+    };
+    let (cx, cy, r) = (5.0, 0.0, 5.0);
+    let angle = (p.1 - cy).atan2(p.0 - cx);
+    let arc = if (-std::f64::consts::FRAC_PI_2..=0.0).contains(&angle) {
+        (((p.0 - cx).powi(2) + (p.1 - cy).powi(2)).sqrt() - r).abs()
+    } else {
+        f64::INFINITY
+    };
+    let d = [
+        seg((0.0, -5.0), (5.0, -5.0)),
+        arc,
+        seg((10.0, 0.0), (10.0, 5.0)),
+        seg((10.0, 5.0), (-5.0, 5.0)),
+        seg((-5.0, 5.0), (-5.0, -5.0)),
+        seg((-5.0, -5.0), (0.0, -5.0)),
+    ]
+    .into_iter()
+    .fold(f64::INFINITY, f64::min);
+    let in_box = (-5.0..=10.0).contains(&p.0) && (-5.0..=5.0).contains(&p.1);
+    let in_corner = p.0 > cx && p.1 < cy && (p.0 - cx).powi(2) + (p.1 - cy).powi(2) > r * r;
+    (d, in_box && !in_corner)
+}
+
+/// The guides' positions (mm) after every moving tick: (x, y, u, v).
+fn guides(path: &Path) -> Vec<[f64; 4]> {
+    let (_, rows) = read_pulse_log(path).unwrap();
+    let mut at = [0i64; 4];
+    let mut out = Vec::new();
+    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
+        for (a, s) in at.iter_mut().zip(&r.steps) {
+            *a += i64::from(*s);
+        }
+        out.push(at.map(|s| s as f64 * 1e-3));
+    }
+    out
+}
+
+#[test]
+fn a_tapered_die_passes_through_its_offset_contour_at_its_angle_both_ways() {
+    let dir = common::scratch("taper", "die");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    for (taper, leans_in) in [("G51", true), ("G52", false)] {
+        let program = dir.join(format!("die-{taper}.ngc"));
+        std::fs::write(&program, die(taper)).unwrap();
+        let pulses = dir.join(format!("die-{taper}.csv"));
+        let out =
+            common::run_to_pulse_log(&program, &pulses, &["--config", config.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let ticks = guides(&pulses);
+        assert_eq!(
+            ticks.last().unwrap(),
+            &[0.0; 4],
+            "{taper}: ends where it began"
+        );
+        let full_tilt = SPAN_MM * ANGLE_DEG.to_radians().tan();
+        let (mut worst_mm, mut worst_deg, mut counted) = (0.0f64, 0.0f64, 0);
+        for [x, y, u, v] in &ticks {
+            let lean = u.hypot(*v);
+            // The contour, corners included: the wire at its full tilt (not the entry and
+            // exit, which ramp the angle from and to vertical).
+            let k = LOWER_MM / SPAN_MM;
+            let plane = (x + u * k, y + v * k);
+            // The entry and exit ramp the tilt where they meet the contour (the entry at the
+            // first edge's offset start, the exit at the last edge's offset end): their ticks
+            // at nearly the full tilt lie within 0.1 mm of those points.
+            let y = plane.1 + 5.0 - OFFSET_MM;
+            let junction = (plane.0 - OFFSET_MM).hypot(y).min(plane.0.hypot(y));
+            if (lean - full_tilt).abs() > 0.01 || junction < 0.1 {
+                continue;
+            }
+            counted += 1;
+            let (d, inside) = die_distance(plane);
+            assert!(inside, "{taper}: the wire meets the plane outside the die");
+            worst_mm = worst_mm.max((d - OFFSET_MM).abs());
+            let angle = (lean / SPAN_MM).atan().to_degrees();
+            worst_deg = worst_deg.max((angle - ANGLE_DEG).abs());
+            // Which way it leans: a little way up the wire from the plane, towards the
+            // opening's inside (G51, left of counter-clockwise travel) or away (G52).
+            let up = (plane.0 + u / lean * 0.05, plane.1 + v / lean * 0.05);
+            let (d_up, inside_up) = die_distance(up);
+            // (At a corner's pivot the first and last lean run along an edge: no nearer.)
+            let deeper = inside_up && d_up > d - 1e-4;
+            assert_eq!(
+                deeper, leans_in,
+                "{taper}: leans the wrong way at {plane:?}"
+            );
+        }
+        assert!(counted > 10_000, "{taper}: {counted} ticks at full tilt");
+        eprintln!(
+            "{taper}: {counted} ticks, plane point within {:.2} µm of the offset, angle within \
+             {:.5}°",
+            worst_mm * 1e3,
+            worst_deg
+        );
+        // The chord tolerance (1 µm), and each axis up to a step off the exact segment (half
+        // a step rounding its ends, half a step of Bresenham between them): X/Y a step, U/V a
+        // step scaled by lower/span, in two directions.
+        let bound = 1e-3 + (1.0 + LOWER_MM / SPAN_MM) * 1e-3 * std::f64::consts::SQRT_2;
+        assert!(
+            worst_mm < bound,
+            "{taper}: {worst_mm} mm off the offset contour"
+        );
+        assert!(worst_deg < 0.01, "{taper}: {worst_deg}° off the angle");
+    }
+}
+
+#[test]
+fn a_taper_the_machine_or_the_geometry_cannot_cut_is_refused_at_its_line() {
+    let dir = common::scratch("taper", "refused");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    let check = |name: &str, text: &str, args: &[&str]| {
+        let program = dir.join(name);
+        std::fs::write(&program, text).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .arg("check")
+            .arg(&program)
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let cfg = ["--config", config.to_str().unwrap()];
+    // No U/V on the default machine.
+    let err = check("xy.ngc", "G21 G90\nG51 A2\nG1 X5 F100\nM2\n", &[]);
+    assert!(
+        err.contains("xy.ngc:2:1: taper: G51 tilts the wire"),
+        "{err}"
+    );
+    let err = check("steep.ngc", "G21 G90\nG52 A45\nG1 X5 F100\nM2\n", &cfg);
+    assert!(err.contains("steep.ngc:2:5:"), "{err}");
+    // An arc of 1 mm radius, tilted 10° left on the inside: the lower guide's radius
+    // would be 1 - 10 tan 10° < 0.
+    let err = check(
+        "tight.ngc",
+        "G21 G90\nG51 A10\nG1 X0 Y-1 F100\nG3 X1 Y0 I0 J1\nM2\n",
+        &cfg,
+    );
+    assert!(err.contains("tight.ngc:4:1: taper:"), "{err}");
+    assert!(err.contains("inside out"), "{err}");
+}
+
+/// With the simulated gap's debris shorts, the turn-backs retrace all four axes and the job
+/// still ends exactly where it began, in every axis.
+#[test]
+fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
+    let dir = common::scratch("taper", "shorts");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let program = dir.join("die.ngc");
+    std::fs::write(&program, die("G51")).unwrap();
+    let pulses = dir.join("die.csv");
+    let config = dir.join("wire.toml");
+    let out = common::run_to_pulse_log(
+        &program,
+        &pulses,
+        &[
+            "--config",
+            config.to_str().unwrap(),
+            "--set",
+            "gap.kind=\"sim\"",
+            "--set",
+            "sim.debris_shorts=8",
+            "--summary",
+            dir.join("summary.json").to_str().unwrap(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(summary["shorts"].as_u64().unwrap() >= 4, "{summary}");
+    assert_eq!(summary["turn_backs"], summary["shorts"], "{summary}");
+    assert_eq!(guides(&pulses).last().unwrap(), &[0.0; 4]);
+}
