@@ -20,12 +20,18 @@ const CONFIG: &str = "[machine]\naxes = [\"X\", \"Y\", \"U\", \"V\"]\n\
     step_mm = [0.001, 0.001, 0.001, 0.001]\n\n[compensation]\nd_mm = [0.0, 0.2]\n\n\
     [wire]\nlower_guide_mm = 10.0\nupper_guide_mm = 40.0\n";
 
+/// The die's rounded corner as an arc.
+const ARC: &str = "G3 X10 Y0 I0 J5";
+/// The same quarter circle as a rational quadratic NURBS curve (`G5.2`, weights 1, √½, 1).
+const NURBS: &str = "G5.2 X10 Y-5 P0.7071067811865476 L3\nX10 Y0 P1\nG5.3";
+
 /// A die opening: a 15 × 10 mm rectangle with its lower right corner a quarter circle of
-/// 5 mm, entered from the centre-ish start hole with `G41` (inside), counter-clockwise.
-fn die(taper: &str) -> String {
+/// 5 mm (`corner`), entered from the start hole at the origin with `G41` (inside),
+/// counter-clockwise.
+fn die(taper: &str, corner: &str) -> String {
     format!(
         "(tapered die)\nG21 G90 G17\n{taper} A{ANGLE_DEG}\nG41 D1\nG1 X0 Y-5 F300\nG1 X5 Y-5\n\
-         G3 X10 Y0 I0 J5\nG1 X10 Y5\nG1 X-5 Y5\nG1 X-5 Y-5\nG1 X0 Y-5\nG40 G50 G1 X0 Y0\nM2\n"
+         {corner}\nG1 X10 Y5\nG1 X-5 Y5\nG1 X-5 Y-5\nG1 X0 Y-5\nG40 G50 G1 X0 Y0\nM2\n"
     )
 }
 
@@ -73,14 +79,21 @@ fn guides(path: &Path) -> Vec<[f64; 4]> {
 }
 
 #[test]
-fn a_tapered_die_passes_through_its_offset_contour_at_its_angle_both_ways() {
+fn a_tapered_die_with_an_arc_or_a_nurbs_passes_through_its_offset_contour_at_its_angle() {
     let dir = common::scratch("taper", "die");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let config = dir.join("wire.toml");
-    for (taper, leans_in) in [("G51", true), ("G52", false)] {
-        let program = dir.join(format!("die-{taper}.ngc"));
-        std::fs::write(&program, die(taper)).unwrap();
-        let pulses = dir.join(format!("die-{taper}.csv"));
+    let cases = [
+        ("G51", true, "arc", ARC),
+        ("G52", false, "arc", ARC),
+        ("G51", true, "nurbs", NURBS),
+        ("G52", false, "nurbs", NURBS),
+    ];
+    for (taper, leans_in, shape, corner) in cases {
+        let program = dir.join(format!("die-{taper}-{shape}.ngc"));
+        std::fs::write(&program, die(taper, corner)).unwrap();
+        let pulses = dir.join(format!("die-{taper}-{shape}.csv"));
+        let taper = format!("{taper} {shape}");
         let out =
             common::run_to_pulse_log(&program, &pulses, &["--config", config.to_str().unwrap()]);
         assert!(
@@ -190,7 +203,7 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
     let dir = common::scratch("taper", "shorts");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let program = dir.join("die.ngc");
-    std::fs::write(&program, die("G51")).unwrap();
+    std::fs::write(&program, die("G51", ARC)).unwrap();
     let pulses = dir.join("die.csv");
     let config = dir.join("wire.toml");
     let out = common::run_to_pulse_log(

@@ -22,7 +22,10 @@
 //!   point exactly on the corner; the sharp-corner alternative (intersecting the offset lines
 //!   of both guide paths) also passes through `P` but tilts the wire by `θ / cos(turn/2)` at
 //!   the corner, beyond the programmed angle.
-//! - NURBS curves under a taper are refused for now (their normal is not rational).
+//! - **NURBS curves**: their normal is not rational, so each smooth piece (between knots of
+//!   full multiplicity, where it pivots as at a corner) becomes a polyline of the guides'
+//!   positions, halved until every chord's middle is within the tolerance of the curve's,
+//!   the guides in four axes and the contour point in the plane alike.
 
 use std::collections::VecDeque;
 
@@ -100,10 +103,32 @@ impl Taper {
                 "a probing move cannot be tapered: cancel the taper with G50 and a move first"
                     .into(),
             )),
-            BlockKind::Nurbs { .. } => Err(fail(
-                "a NURBS curve cannot be tapered yet: cut it vertical (G50) or as lines and arcs"
-                    .into(),
-            )),
+            BlockKind::Nurbs { .. } => {
+                // Between its corners (knots of full multiplicity) a curve's normal turns
+                // smoothly: each smooth piece becomes a polyline, with a pivot at each corner.
+                let mut rest = block;
+                let corners: Vec<f64> = rest.curve.corner_knots().collect();
+                for k in corners {
+                    let Some((a, b)) = rest.curve.split_at(k) else {
+                        continue;
+                    };
+                    self.smooth_piece(
+                        Block {
+                            curve: a,
+                            ..rest.clone()
+                        },
+                        axes,
+                        out,
+                    )?;
+                    rest = Block {
+                        curve: b,
+                        dwell_s: 0.0,
+                        pause: None,
+                        ..rest
+                    };
+                }
+                self.smooth_piece(rest, axes, out)
+            }
             BlockKind::Line | BlockKind::Rapid => {
                 let travel = xy(&p1) - xy(&p0);
                 let n = if travel.norm() > 1e-12 {
@@ -129,66 +154,156 @@ impl Taper {
                 radius,
                 sweep,
                 plane,
-            } => {
-                if plane != Plane::XY {
-                    return Err(fail(
-                        "a taper tilts the wire over arcs in G17 (XY) only".into(),
-                    ));
-                }
-                let (c, r) = (xy(&center), radius);
-                // Left of a counter-clockwise arc is towards its centre.
-                let ccw = sweep.signum();
-                let normal_at = |p: &Point| -(xy(p) - c).normalize() * ccw;
-                let t = self.tan;
-                let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
-                let lower = r + ccw * l * t;
-                let upper = r - ccw * (h - l) * t;
-                if lower.min(upper) <= self.tolerance {
-                    return Err(fail(format!(
-                        "the taper turns this arc (radius {r:.4} mm) inside out at the {} guide \
-                         (radius {:.4} mm there): a smaller angle, or a larger radius",
-                        if lower <= upper { "lower" } else { "upper" },
-                        lower.min(upper)
-                    )));
-                }
-                let block = self.corner(block, normal_at(&p0), out)?;
-                let curve = &block.curve;
-                let points: Vec<Point> = (0..curve.num_points())
-                    .map(|i| {
-                        // Affine in the control point, so the rational arc maps exactly.
-                        let q = curve.control_point(i);
-                        let radial = (xy(&q) - c) / r;
-                        let mut p = q;
-                        let lower_xy = c + radial * lower;
-                        let uv = -radial * (ccw * h * t);
-                        let [ix, iy, iu, iv] = axes;
-                        (p[ix], p[iy], p[iu], p[iv]) = (lower_xy.x, lower_xy.y, uv.x, uv.y);
-                        p
-                    })
-                    .collect();
-                let weights: Vec<f64> = (0..curve.num_points()).map(|i| curve.weight(i)).collect();
-                let mapped = NurbsCurve::new(
-                    curve.degree(),
-                    curve.dim(),
-                    &points,
-                    &weights,
-                    curve.knots().to_vec(),
-                )
-                .map_err(|e| fail(format!("the tapered arc: {e}")))?;
-                self.normal = Some(normal_at(&p1));
-                out.push_back(Block {
-                    kind: BlockKind::Arc {
-                        center,
-                        radius: lower,
-                        sweep,
-                        plane: Plane::XY,
-                    },
-                    curve: mapped,
-                    ..block
-                });
-                Ok(())
+            } => self.arc(block, (center, radius, sweep, plane), axes, out),
+        }
+    }
+
+    /// An arc under the tilt in force: both guides on arcs about its centre.
+    fn arc(
+        &mut self,
+        block: Block,
+        (center, radius, sweep, plane): (Point, f64, f64, Plane),
+        axes: [usize; 4],
+        out: &mut VecDeque<Block>,
+    ) -> Result<(), TaperError> {
+        let line = block.line;
+        let fail = |message: String| TaperError { line, message };
+        let [ix, iy, ..] = axes;
+        let xy = |p: &Point| V2::new(p[ix], p[iy]);
+        let (p0, p1) = (block.start(), block.end());
+        if plane != Plane::XY {
+            return Err(fail(
+                "a taper tilts the wire over arcs in G17 (XY) only".into(),
+            ));
+        }
+        let (c, r) = (xy(&center), radius);
+        // Left of a counter-clockwise arc is towards its centre.
+        let ccw = sweep.signum();
+        let normal_at = |p: &Point| -(xy(p) - c).normalize() * ccw;
+        let t = self.tan;
+        let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
+        let lower = r + ccw * l * t;
+        let upper = r - ccw * (h - l) * t;
+        if lower.min(upper) <= self.tolerance {
+            return Err(fail(format!(
+                "the taper turns this arc (radius {r:.4} mm) inside out at the {} guide \
+                 (radius {:.4} mm there): a smaller angle, or a larger radius",
+                if lower <= upper { "lower" } else { "upper" },
+                lower.min(upper)
+            )));
+        }
+        let block = self.corner(block, normal_at(&p0), out)?;
+        let curve = &block.curve;
+        let points: Vec<Point> = (0..curve.num_points())
+            .map(|i| {
+                // Affine in the control point, so the rational arc maps exactly.
+                let q = curve.control_point(i);
+                let radial = (xy(&q) - c) / r;
+                let mut p = q;
+                let lower_xy = c + radial * lower;
+                let uv = -radial * (ccw * h * t);
+                let [ix, iy, iu, iv] = axes;
+                (p[ix], p[iy], p[iu], p[iv]) = (lower_xy.x, lower_xy.y, uv.x, uv.y);
+                p
+            })
+            .collect();
+        let weights: Vec<f64> = (0..curve.num_points()).map(|i| curve.weight(i)).collect();
+        let mapped = NurbsCurve::new(
+            curve.degree(),
+            curve.dim(),
+            &points,
+            &weights,
+            curve.knots().to_vec(),
+        )
+        .map_err(|e| fail(format!("the tapered arc: {e}")))?;
+        self.normal = Some(normal_at(&p1));
+        out.push_back(Block {
+            kind: BlockKind::Arc {
+                center,
+                radius: lower,
+                sweep,
+                plane: Plane::XY,
+            },
+            curve: mapped,
+            ..block
+        });
+        Ok(())
+    }
+
+    /// A NURBS curve without corners under the tilt in force, as a polyline of the guides'
+    /// positions: halved until the middle of every chord is within the tolerance of the
+    /// curve's, both the guides' point in four axes and the contour's in the plane.
+    fn smooth_piece(
+        &mut self,
+        block: Block,
+        axes: [usize; 4],
+        out: &mut VecDeque<Block>,
+    ) -> Result<(), TaperError> {
+        let [ix, iy, ..] = axes;
+        let line = block.line;
+        let fail = |message: String| TaperError { line, message };
+        let curve = block.curve.clone();
+        let normal = |u: f64| -> Option<V2> {
+            let d1 = curve.derivs(u).d1;
+            let t = V2::new(d1[ix], d1[iy]);
+            (t.norm() > 1e-12).then(|| left(t.normalize()))
+        };
+        let t = self.tan;
+        let at = |u: f64| -> Option<(Point, Point)> {
+            let p = curve.point(u);
+            Some((self.place(&p, normal(u)?, t, axes), p))
+        };
+        let no_direction =
+            || fail("the tapered curve has no direction of travel in X/Y somewhere".into());
+        let (u0, u1) = (curve.u_min(), curve.u_max());
+        let mut points = vec![at(u0).ok_or_else(no_direction)?];
+        let mut stack = vec![(u1, at(u1).ok_or_else(no_direction)?, 0u32)];
+        let mut from = u0;
+        while let Some((to, end, depth)) = stack.pop() {
+            let start = *points.last().expect("a point");
+            let mid_u = 0.5 * (from + to);
+            let mid = at(mid_u).ok_or_else(no_direction)?;
+            // How far the curve's middle lies from the chord.
+            let off = |m: &Point, a: &Point, b: &Point| {
+                let ab = b - a;
+                let along = (m - a).dot(&ab) / ab.norm_squared().max(f64::MIN_POSITIVE);
+                (m - (a + ab * along.clamp(0.0, 1.0))).norm()
+            };
+            // The middle and the quarters, so an S between two points is not taken for a
+            // straight chord.
+            let mut fine = true;
+            for k in [0.25, 0.5, 0.75] {
+                let m = if k == 0.5 {
+                    mid
+                } else {
+                    at(from + k * (to - from)).ok_or_else(no_direction)?
+                };
+                fine &= off(&m.0, &start.0, &end.0) <= self.tolerance
+                    && off(&m.1, &start.1, &end.1) <= self.tolerance;
+            }
+            if fine || depth >= 24 {
+                points.push(end);
+                from = to;
+            } else {
+                stack.push((to, end, depth + 1));
+                stack.push((mid_u, mid, depth + 1));
             }
         }
+        let start_normal = normal(u0).ok_or_else(no_direction)?;
+        let block = self.corner(block, start_normal, out)?;
+        let n = points.len();
+        let mut knots = vec![0.0, 0.0];
+        knots.extend((1..n - 1).map(|i| i as f64));
+        knots.extend([(n - 1) as f64, (n - 1) as f64]);
+        let guides: Vec<Point> = points.into_iter().map(|(g, _)| g).collect();
+        let polyline = NurbsCurve::new(1, curve.dim(), &guides, &vec![1.0; n], knots)
+            .map_err(|e| fail(format!("the tapered curve: {e}")))?;
+        self.normal = Some(normal(u1).ok_or_else(no_direction)?);
+        out.push_back(Block {
+            curve: polyline,
+            ..block
+        });
+        Ok(())
     }
 
     /// The guides' positions for the contour point `p` with the wire tilted by `t` along
