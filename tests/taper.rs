@@ -231,3 +231,111 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
     assert_eq!(summary["turn_backs"], summary["shorts"], "{summary}");
     assert_eq!(guides(&pulses).last().unwrap(), &[0.0; 4]);
 }
+
+/// A direct four-axis program (a CAM post's two contours as one `G06.2` curve in X, Y, U and
+/// V): the lower guide (X/Y) and the upper guide (X/Y plus U/V) each stay within the chord
+/// tolerance of their own curve, measured against this test's own evaluation of the
+/// rational cubic, sampled densely.
+#[test]
+fn a_direct_xyuv_curve_holds_the_chord_tolerance_on_both_guides() {
+    let dir = common::scratch("taper", "xyuv");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    // Control points (x, y, u, v) and weights of a rational cubic Bézier.
+    let points = [
+        [0.0, 0.0, 0.0, 0.0],
+        [4.0, 8.0, 2.0, -1.0],
+        [12.0, -6.0, -1.0, 2.0],
+        [16.0, 2.0, 1.0, 1.0],
+    ];
+    let weights = [1.0, 2.0, 0.5, 1.0];
+    let mut text = String::from("G21 G90 G17\nG1 X0 Y0 U0 V0 F300\n");
+    for (i, (p, w)) in points.iter().zip(weights).enumerate() {
+        let head = if i == 0 { "G06.2 P4 " } else { "" };
+        text.push_str(&format!(
+            "{head}K0 X{} Y{} U{} V{} R{w}\n",
+            p[0], p[1], p[2], p[3]
+        ));
+    }
+    text.push_str("K1\nK1\nK1\nK1\nG1 X0 Y0 U0 V0\nM2\n");
+    let program = dir.join("xyuv.ngc");
+    std::fs::write(&program, text).unwrap();
+    let pulses = dir.join("xyuv.csv");
+    let out = common::run_to_pulse_log(&program, &pulses, &["--config", config.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The curve, densely: lower (x, y) and upper (x + u, y + v).
+    let eval = |t: f64| {
+        let b = [
+            (1.0 - t).powi(3),
+            3.0 * t * (1.0 - t).powi(2),
+            3.0 * t * t * (1.0 - t),
+            t.powi(3),
+        ];
+        let mut num = [0.0; 4];
+        let mut den = 0.0;
+        for i in 0..4 {
+            for k in 0..4 {
+                num[k] += b[i] * weights[i] * points[i][k];
+            }
+            den += b[i] * weights[i];
+        }
+        num.map(|c| c / den)
+    };
+    const SAMPLES: usize = 40_000;
+    let curve: Vec<[f64; 4]> = (0..=SAMPLES)
+        .map(|i| eval(i as f64 / SAMPLES as f64))
+        .collect();
+    let lower: Vec<(f64, f64)> = curve.iter().map(|c| (c[0], c[1])).collect();
+    let upper: Vec<(f64, f64)> = curve.iter().map(|c| (c[0] + c[2], c[1] + c[3])).collect();
+    let ticks = guides(&pulses);
+    let end = [16.0, 2.0, 1.0, 1.0];
+    let on_curve = ticks
+        .iter()
+        .take_while(|t| t.iter().zip(&end).any(|(a, b)| (a - b).abs() > 1e-9));
+    // Distance to the sampled polyline near where the last tick was (the ticks go along it).
+    let near = |path: &[(f64, f64)], at: &mut usize, p: (f64, f64)| {
+        let lo = at.saturating_sub(200);
+        let hi = (*at + 2_000).min(path.len() - 1);
+        let mut best = (f64::INFINITY, *at);
+        for i in lo..hi {
+            let (a, b) = (path[i], path[i + 1]);
+            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+            let len2 = (dx * dx + dy * dy).max(f64::MIN_POSITIVE);
+            let s = (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0);
+            let d = (p.0 - a.0 - s * dx).hypot(p.1 - a.1 - s * dy);
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        *at = best.1;
+        best.0
+    };
+    let (mut at_lower, mut at_upper) = (0, 0);
+    let (mut worst_lower, mut worst_upper, mut n) = (0.0f64, 0.0f64, 0);
+    for [x, y, u, v] in on_curve {
+        n += 1;
+        worst_lower = worst_lower.max(near(&lower, &mut at_lower, (*x, *y)));
+        worst_upper = worst_upper.max(near(&upper, &mut at_upper, (x + u, y + v)));
+    }
+    eprintln!(
+        "{n} ticks on the curve: lower guide within {:.2} µm, upper within {:.2} µm",
+        worst_lower * 1e3,
+        worst_upper * 1e3
+    );
+    assert!(n > 1000, "{n} ticks");
+    // The chord tolerance (1 µm), and a step of rounding and Bresenham per axis: one axis pair
+    // for the lower guide, two for the upper.
+    let step = 1e-3 * std::f64::consts::SQRT_2;
+    assert!(
+        worst_lower < 1e-3 + step,
+        "lower guide {worst_lower} mm off"
+    );
+    assert!(
+        worst_upper < 1e-3 + 2.0 * step,
+        "upper guide {worst_upper} mm off"
+    );
+}

@@ -15,7 +15,7 @@ use crate::preprocess::PlanSettings;
 use crate::preprocess::corners::CornerRule;
 use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
-use crate::vocab::MAX_AXES;
+use crate::vocab::{Axis, MAX_AXES};
 
 /// `machine.step_mm` as a fixed array, unused axes 0.
 pub(super) fn step_mm(config: &Config) -> [f64; MAX_AXES] {
@@ -26,6 +26,23 @@ pub(super) fn step_mm(config: &Config) -> [f64; MAX_AXES] {
     step_mm
 }
 
+/// The chord tolerance the segmenter holds in machine space. On a four-axis wire machine the
+/// upper guide's path is X/Y plus U/V, whose chord error can be √2 times the four-axis one
+/// (the X/Y and U/V errors side by side): the tolerance is held there too by holding
+/// `tolerance / √2` in four axes.
+fn chord_tolerance(config: &Config) -> f64 {
+    let axes = &config.machine.axes;
+    let wire = [Axis::X, Axis::Y, Axis::U, Axis::V]
+        .iter()
+        .all(|a| axes.contains(a));
+    let tolerance = config.interpolation.chord_tolerance_mm;
+    if wire {
+        tolerance / std::f64::consts::SQRT_2
+    } else {
+        tolerance
+    }
+}
+
 impl PlanSettings {
     /// The preprocessor's settings: `[interpolation]` and the machine's limits, per second.
     pub fn from_config(config: &Config) -> PlanSettings {
@@ -34,7 +51,7 @@ impl PlanSettings {
         PlanSettings {
             predictor: i.predictor,
             segmentation: i.segmentation,
-            tolerance: i.chord_tolerance_mm,
+            tolerance: chord_tolerance(config),
             max_segment: i.max_segment_mm,
             period: i.period_ms / 1000.0,
             max_feed: m.max_feed_mm_per_min / 60.0,
