@@ -339,3 +339,46 @@ fn a_direct_xyuv_curve_holds_the_chord_tolerance_on_both_guides() {
         "upper guide {worst_upper} mm off"
     );
 }
+
+/// `edmd plan` on a tapered die: the trace carries U and V, the path plot draws the upper
+/// guide over the lower one, and the wire's angle is drawn along the path.
+#[test]
+fn plan_draws_both_guides_and_the_wire_angle() {
+    let dir = common::scratch("taper", "plan");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let program = dir.join("die.ngc");
+    std::fs::write(&program, die("G52", ARC)).unwrap();
+    let out_dir = dir.join("plan");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("plan")
+        .arg(&program)
+        .args(["--config", dir.join("wire.toml").to_str().unwrap()])
+        .arg("--out")
+        .arg(&out_dir)
+        .arg("-q")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let trace = std::fs::read_to_string(out_dir.join("trace.csv")).unwrap();
+    let mut lines = trace.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(&header[header.len() - 2..], ["u", "v"]);
+    let steepest = lines
+        .map(|l| {
+            let f: Vec<f64> = l.rsplit(',').take(2).map(|x| x.parse().unwrap()).collect();
+            (f[0].hypot(f[1]) / SPAN_MM).atan().to_degrees()
+        })
+        .fold(0.0f64, f64::max);
+    assert!((steepest - ANGLE_DEG).abs() < 1e-6, "steepest {steepest}°");
+    let path = std::fs::read_to_string(out_dir.join("path.svg")).unwrap();
+    assert!(
+        path.contains("upper guide"),
+        "no upper guide on the path plot"
+    );
+    let angle = std::fs::read_to_string(out_dir.join("wire_angle.svg")).unwrap();
+    assert!(angle.contains("angle from vertical"), "{angle}");
+}

@@ -1,12 +1,15 @@
 //! The files `edmd plan` writes: `summary.json`, `summary.txt` and the SVG charts (path with
 //! rapids and the start, chord error, feed, tangential acceleration, the fluctuation in period
-//! mode, Z along the path on a machine with Z).
+//! mode, Z along the path on a machine with Z; on a four-axis wire machine the upper guide's
+//! path over the lower one's and the wire's angle along the path).
 
 use std::path::Path;
 
-use super::{Collector, PlanError, PlanSummary, io_err};
+use super::{Collector, PLOT_POINTS, PlanError, PlanSummary, io_err};
+use crate::geometry::Point;
 use crate::plot::{Chart, Decimated, Series, Style};
 use crate::preprocess::PlanSettings;
+use crate::vocab::{Axis, Guides};
 
 pub(super) fn write_reports(
     out_dir: &Path,
@@ -88,6 +91,9 @@ pub(super) fn write_reports(
     } else if fluctuation.exists() {
         std::fs::remove_file(&fluctuation).map_err(io_err(&fluctuation))?;
     }
+    if let Some(wire) = &c.wire {
+        write("wire_angle.svg", &wire.angle_chart().render())?;
+    }
     // A path plot shows X and Y; Z gets its own chart against the path length.
     if let Some(z) = &c.z {
         write(
@@ -108,7 +114,7 @@ pub(super) fn write_reports(
 /// The path in the XY plane, the segment ends on it and the rapids.
 fn path_chart(summary: &PlanSummary, c: &Collector) -> Chart {
     let path_points = c.path.points();
-    Chart {
+    let mut chart = Chart {
         title: format!("Path and segment points ({} segments)", summary.segments),
         x_label: "X (mm)".into(),
         y_label: "Y (mm)".into(),
@@ -135,5 +141,73 @@ fn path_chart(summary: &PlanSummary, c: &Collector) -> Chart {
         equal_axes: true,
         start: c.start.map(|p| (p, c.direction.unwrap_or((1.0, 0.0)))),
         ..Chart::default()
+    };
+    if let Some(wire) = &c.wire {
+        // A top view: the upper guide's path over the lower one's.
+        chart.title = format!(
+            "Lower (X/Y) and upper (X+U/Y+V) guide paths ({} segments)",
+            summary.segments
+        );
+        chart.series.insert(
+            1,
+            Series {
+                name: "upper guide".into(),
+                color: "#bf1f5f",
+                style: Style::Line,
+                points: wire.upper.points(),
+            },
+        );
+    }
+    chart
+}
+
+/// What a plan draws of a four-axis wire machine (X, Y, U and V): the upper guide's path
+/// (X + U, Y + V) and the wire's angle from vertical along the path.
+#[derive(Debug)]
+pub(super) struct WireView {
+    axes: [usize; 4],
+    span_mm: f64,
+    upper: Decimated,
+    angle: Decimated,
+}
+
+impl WireView {
+    pub(super) fn new(axes: &[Axis], guides: Guides) -> Option<WireView> {
+        let index = |a: Axis| axes.iter().position(|&x| x == a);
+        Some(WireView {
+            axes: [
+                index(Axis::X)?,
+                index(Axis::Y)?,
+                index(Axis::U)?,
+                index(Axis::V)?,
+            ],
+            span_mm: guides.span_mm(),
+            upper: Decimated::new(PLOT_POINTS),
+            angle: Decimated::new(PLOT_POINTS),
+        })
+    }
+
+    /// A segment ending at `end`, `s` mm along the path.
+    pub(super) fn push(&mut self, s: f64, end: &Point) {
+        let [x, y, u, v] = self.axes;
+        self.upper.push(end[x] + end[u], end[y] + end[v]);
+        let lean = end[u].hypot(end[v]);
+        self.angle
+            .push(s, (lean / self.span_mm).atan().to_degrees());
+    }
+
+    fn angle_chart(&self) -> Chart {
+        Chart {
+            title: "The wire's angle from vertical".into(),
+            x_label: "path length (mm)".into(),
+            y_label: "angle (°)".into(),
+            series: vec![Series {
+                name: "angle".into(),
+                color: "#bf1f5f",
+                style: Style::Line,
+                points: self.angle.points(),
+            }],
+            ..Chart::default()
+        }
     }
 }

@@ -279,6 +279,8 @@ struct Collector {
     fluct: Decimated,
     /// Z against path length, when the machine has a Z axis (a path plot shows X and Y).
     z: Option<Decimated>,
+    /// On a four-axis wire machine: the upper guide's path and the wire's angle.
+    wire: Option<charts::WireView>,
     /// Rapid moves, each G0 block one stroke, [`MAX_RAPID_STROKES`] at most.
     rapids: Vec<(f64, f64)>,
     rapid_strokes: usize,
@@ -415,6 +417,9 @@ impl Collector {
         if let (Some(z), Some(axis)) = (self.z.as_mut(), self.xyz[2]) {
             z.push(self.s, seg.end[axis]);
         }
+        if let Some(wire) = self.wire.as_mut() {
+            wire.push(self.s, &seg.end);
+        }
         self.chord.push(self.s, seg.chord_error);
         self.feed.push(self.t, v);
         let u = match seg.block.kind {
@@ -470,6 +475,7 @@ pub fn plan_program(
 
     let settings = PlanSettings::from_config(config);
     let mut c = Collector::new(trace, trace_path.clone(), axes, &settings);
+    c.wire = charts::WireView::new(axes, config.wire.guides);
 
     let mut pre = Preprocessor::new(settings.clone());
     let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
@@ -559,6 +565,7 @@ impl Collector {
             accel: Decimated::new(PLOT_POINTS),
             fluct: Decimated::new(PLOT_POINTS),
             z: index_of(Axis::Z).map(|_| Decimated::new(PLOT_POINTS)),
+            wire: None,
             rapids: Vec::new(),
             rapid_strokes: 0,
             start: None,
