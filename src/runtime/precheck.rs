@@ -155,7 +155,7 @@ pub fn precheck(
         if let (true, Some(pass)) = (cut.tabbed(), pass) {
             // Planned once every pass is read.
             tabbed.push(match PassProgram::read(&mut reader, pass, &program.name) {
-                Err(ProducerError::Program(e))
+                Err(tabs::TabError::Program(e))
                     if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
                 {
                     return Err(cancelled());

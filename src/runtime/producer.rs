@@ -335,13 +335,13 @@ fn tabbed(
         reader.start_at(&spec.work);
         match PassProgram::read(&mut reader, pass, &program.name) {
             Ok(p) => read.push(p),
-            Err(ProducerError::Program(e))
+            Err(tabs::TabError::Program(e))
                 if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
             {
                 out.report.aborted = true;
                 return Ok(());
             }
-            Err(e) => return Err(e),
+            Err(e) => return Err(e.into()),
         }
     }
     let blocks = tabs::plan(

@@ -24,13 +24,12 @@
 
 use super::from_line::path_approach;
 use super::passes;
-use super::producer::ProducerError;
 use crate::config::WirePass;
-use crate::gcode::{Block, BlockKind, BlockReader, Pause};
+use crate::gcode::{Block, BlockKind, BlockReader, GcodeError, Pause};
 use crate::geometry::{NurbsCurve, Point};
 
 /// Why a program cannot be cut with a tab.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum TabError {
     #[error(
         "{program}: wire.tab_mm needs a wire contour between a G41/G42 entry move and a G40 \
@@ -65,6 +64,17 @@ pub enum TabError {
          but [wire] pass 1 says reverse = true"
     )]
     FirstReversed { program: String },
+    /// Reading a pass's program failed (or was cancelled).
+    #[error(transparent)]
+    Program(Box<GcodeError>),
+    #[error(transparent)]
+    Pass(#[from] passes::PassError),
+}
+
+impl From<GcodeError> for TabError {
+    fn from(e: GcodeError) -> TabError {
+        TabError::Program(Box::new(e))
+    }
 }
 
 /// One pass's program as read with the pass's offset: its blocks, and the lines of its
@@ -82,7 +92,7 @@ impl PassProgram {
         reader: &mut BlockReader<R>,
         pass: &WirePass,
         program: &str,
-    ) -> Result<PassProgram, ProducerError> {
+    ) -> Result<PassProgram, TabError> {
         let mut blocks = Vec::new();
         for item in reader.by_ref() {
             blocks.push(passes::block(item?, Some(pass), program)?);
