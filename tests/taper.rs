@@ -382,3 +382,61 @@ fn plan_draws_both_guides_and_the_wire_angle() {
     let angle = std::fs::read_to_string(out_dir.join("wire_angle.svg")).unwrap();
     assert!(angle.contains("angle from vertical"), "{angle}");
 }
+
+/// A tapered job held and aborted halfway, then resumed by a new daemon: the joined pulse
+/// record, all four axes, is the uninterrupted run's.
+#[test]
+fn a_tapered_job_stopped_halfway_resumes_to_the_uninterrupted_pulses() {
+    let dir = common::daemon::scratch("taper");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    // The wire test's small die (a 4 mm square), tilted 2° to the left.
+    let program = common::wire::DIE.replace("G41 D1", &format!("G51 A{ANGLE_DEG}\nG41 D1"));
+    let program = program.replace("G40 G1", "G40 G50 G1");
+    std::fs::write(dir.join("programs/die.ngc"), &program).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let args = ["--config".to_string(), config.display().to_string()];
+    let daemon = common::daemon::Daemon::start_args(
+        &dir,
+        &args,
+        &common::daemon::base_sets(&dir, "first.csv"),
+        &[],
+    );
+    daemon.ok(&["run", "die.ngc"]);
+    daemon.wait_for("halfway", |s| {
+        s["state"] == "running" && s["job"]["progress"].as_f64().unwrap_or(0.0) > 0.45
+    });
+    let cp = daemon.hold_abort_checkpoint(&dir);
+    let at: Vec<i64> = cp["position_steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect();
+    assert!(
+        at[2] != 0 || at[3] != 0,
+        "the wire is tilted at the stop: {cp}"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    let daemon = common::daemon::Daemon::start_args(
+        &dir,
+        &args,
+        &common::daemon::base_sets(&dir, "second.csv"),
+        &[],
+    );
+    daemon.resume_to_the_end(&[0, 0, 0, 0]);
+    let reference = dir.join("reference.csv");
+    let out = common::run_to_pulse_log(
+        &dir.join("programs/die.ngc"),
+        &reference,
+        &["--config", config.to_str().unwrap()],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
+}
