@@ -207,6 +207,7 @@ impl Default for ProgramOptions {
             d_mm: vec![0.0],
             offset_tolerance_mm: 0.001,
             conditions: Vec::new(),
+            // The shipped `[wire]` guides (config's tests hold the two equal).
             guides: Guides {
                 lower_mm: 10.0,
                 upper_mm: 40.0,

@@ -377,3 +377,76 @@ impl Taper {
 fn left(d: V2) -> V2 {
     V2::new(-d.y, d.x)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::gcode::{Block, BlockKind, BlockReader};
+    use crate::vocab::Axis;
+    use std::io::Cursor;
+
+    fn read(text: &str) -> Vec<Block> {
+        let axes = [Axis::X, Axis::Y, Axis::U, Axis::V];
+        BlockReader::new(Cursor::new(text.to_string()), "t.ngc", &axes)
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap()
+    }
+
+    /// The shipped guides: 10 mm below the plane, 50 mm apart.
+    const L: f64 = 10.0;
+    const H: f64 = 50.0;
+
+    #[test]
+    fn a_line_ramps_the_tilt_a_corner_pivots_and_g50_ramps_back() {
+        let t = 3f64.to_radians().tan();
+        let blocks = read("G21 G90\nG51 A3\nG1 X10 F100\nG1 Y10\nG50 G1 Y20\nM2\n");
+        // The ramp: vertical at the start, tilted left of +X (towards +Y) at the end.
+        let ramp = &blocks[0];
+        assert_eq!(
+            ramp.start().iter().take(4).copied().collect::<Vec<_>>(),
+            [0.0; 4]
+        );
+        let e = ramp.end();
+        assert!((e[0] - 10.0).abs() < 1e-12 && (e[1] + L * t).abs() < 1e-12);
+        assert!(e[2].abs() < 1e-12 && (e[3] - H * t).abs() < 1e-12);
+        // The corner: a quarter turn about (10, 0), the lean from +Y to -X.
+        assert!(matches!(blocks[1].kind, BlockKind::Arc { .. }));
+        let c = blocks[1].end();
+        assert!((c[0] - (10.0 + L * t)).abs() < 1e-12 && c[1].abs() < 1e-12);
+        assert!((c[2] + H * t).abs() < 1e-12 && c[3].abs() < 1e-12);
+        // Along +Y at the tilt, then back to vertical over the last line.
+        assert!((blocks[2].end()[0] - (10.0 + L * t)).abs() < 1e-12);
+        let last = blocks[3].end();
+        assert_eq!(
+            last.iter().take(4).copied().collect::<Vec<_>>(),
+            [10.0, 20.0, 0.0, 0.0]
+        );
+        // The wire meets the plane on the programmed path at every block end.
+        for b in &blocks {
+            let p = b.end();
+            let plane = (p[0] + p[2] * L / H, p[1] + p[3] * L / H);
+            assert!(
+                plane.0.abs() < 1e-9 || (plane.0 - 10.0).abs() < 1e-9,
+                "{plane:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_arc_maps_to_arcs_about_its_centre_at_both_guides() {
+        let t = 2f64.to_radians().tan();
+        // Tilt on a line along +Y, then on tangentially (no corner) into a counter-clockwise
+        // half circle about the origin from (5, 0): left of it is the centre.
+        let blocks = read("G21 G90\nG0 X5 Y-5\nG52 A2\nG1 Y0 F100\nG3 X-5 Y0 I-5 J0\nM2\n");
+        assert_eq!(blocks.len(), 3, "a rapid, the ramp and the arc: no pivot");
+        let arc = &blocks[2];
+        for k in 0..=20 {
+            let u = arc.curve.u_min() + (arc.curve.u_max() - arc.curve.u_min()) * k as f64 / 20.0;
+            let p = arc.curve.point(u);
+            // G52 (right of counter-clockwise travel: outwards) on a radius of 5.
+            let lower = p[0].hypot(p[1]);
+            let upper = (p[0] + p[2]).hypot(p[1] + p[3]);
+            assert!((lower - (5.0 - L * t)).abs() < 1e-9, "lower {lower}");
+            assert!((upper - (5.0 + (H - L) * t)).abs() < 1e-9, "upper {upper}");
+        }
+    }
+}
