@@ -179,7 +179,7 @@ fn a_die_and_a_punch_in_three_passes_leave_the_tab_to_the_end() {
 }
 
 #[test]
-fn the_slug_pause_holds_at_the_tab_and_a_stop_in_pass_2_resumes_to_the_same_pulses() {
+fn a_sigterm_in_pass_2_resumes_and_the_slug_pause_holds_at_the_tab_with_the_same_pulses() {
     let dir = common::daemon::scratch("tabs");
     let config = dir.join("wire.toml");
     std::fs::write(&config, table([true, false])).unwrap();
@@ -191,10 +191,13 @@ fn the_slug_pause_holds_at_the_tab_and_a_stop_in_pass_2_resumes_to_the_same_puls
     daemon.wait_for("the second pass", |s| {
         s["state"] == "running" && s["job"]["progress"].as_f64().unwrap_or(0.0) > 0.45
     });
-    let cp = daemon.hold_abort_checkpoint(&dir);
-    assert_eq!(cp["tab_mm"], TAB_MM, "{cp}");
+    // SIGTERM in pass 2: the job brakes, is checkpointed, and the daemon exits.
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
+    let cp: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(cp["tab_mm"], TAB_MM, "{cp}");
 
     let daemon = Daemon::start_args(&dir, &args, &base_sets(&dir, "second.csv"), &[]);
     daemon.ok(&["resume"]);
