@@ -35,6 +35,31 @@ fn die(taper: &str, corner: &str) -> String {
     )
 }
 
+/// The same die mirrored in X (Y negated): clockwise, `G42` inside.
+fn mirrored_die(taper: &str, corner: &str) -> String {
+    let ccw = die(taper, corner);
+    let mut out = String::new();
+    for line in ccw.lines() {
+        let words: Vec<String> = line
+            .split(' ')
+            .map(|w| match (w.chars().next(), w.get(1..)) {
+                (Some('Y' | 'J'), Some(v)) if v.parse::<f64>().is_ok() => {
+                    let v: f64 = v.parse().unwrap();
+                    format!("{}{}", &w[..1], -v)
+                }
+                _ => match w {
+                    "G3" => "G2".into(),
+                    "G41" => "G42".into(),
+                    _ => w.into(),
+                },
+            })
+            .collect();
+        out.push_str(&words.join(" "));
+        out.push('\n');
+    }
+    out
+}
+
 /// Distance (mm) of `p` from the die's programmed contour, and whether it lies inside.
 fn die_distance(p: (f64, f64)) -> (f64, bool) {
     let seg = |a: (f64, f64), b: (f64, f64)| {
@@ -83,15 +108,22 @@ fn a_tapered_die_with_an_arc_or_a_nurbs_passes_through_its_offset_contour_at_its
     let dir = common::scratch("taper", "die");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let config = dir.join("wire.toml");
+    // Both directions, each leaning to the outside of the corners (leaning into a sharp
+    // corner is refused: see the refusals below).
     let cases = [
-        ("G51", true, "arc", ARC),
         ("G52", false, "arc", ARC),
-        ("G51", true, "nurbs", NURBS),
+        ("G51", true, "arc", ARC),
         ("G52", false, "nurbs", NURBS),
+        ("G51", true, "nurbs", NURBS),
     ];
-    for (taper, leans_in, shape, corner) in cases {
+    for (taper, mirrored, shape, corner) in cases {
         let program = dir.join(format!("die-{taper}-{shape}.ngc"));
-        std::fs::write(&program, die(taper, corner)).unwrap();
+        let text = if mirrored {
+            mirrored_die(taper, corner)
+        } else {
+            die(taper, corner)
+        };
+        std::fs::write(&program, text).unwrap();
         let pulses = dir.join(format!("die-{taper}-{shape}.csv"));
         let taper = format!("{taper} {shape}");
         let out =
@@ -114,6 +146,9 @@ fn a_tapered_die_with_an_arc_or_a_nurbs_passes_through_its_offset_contour_at_its
             // The contour, corners included: the wire at its full tilt (not the entry and
             // exit, which ramp the angle from and to vertical).
             let k = LOWER_MM / SPAN_MM;
+            // In the die's own frame (the mirrored die mirrored back).
+            let f = if mirrored { -1.0 } else { 1.0 };
+            let (y, v) = (y * f, v * f);
             let plane = (x + u * k, y + v * k);
             // The entry and exit ramp the tilt where they meet the contour (the entry at the
             // first edge's offset start, the exit at the last edge's offset end): their ticks
@@ -129,16 +164,13 @@ fn a_tapered_die_with_an_arc_or_a_nurbs_passes_through_its_offset_contour_at_its
             worst_mm = worst_mm.max((d - OFFSET_MM).abs());
             let angle = (lean / SPAN_MM).atan().to_degrees();
             worst_deg = worst_deg.max((angle - ANGLE_DEG).abs());
-            // Which way it leans: a little way up the wire from the plane, towards the
-            // opening's inside (G51, left of counter-clockwise travel) or away (G52).
+            // Which way it leans: a little way up the wire from the plane, away from the
+            // opening's inside (G52 right of counter-clockwise travel, G51 left of clockwise).
             let up = (plane.0 + u / lean * 0.05, plane.1 + v / lean * 0.05);
             let (d_up, inside_up) = die_distance(up);
             // (At a corner's pivot the first and last lean run along an edge: no nearer.)
             let deeper = inside_up && d_up > d - 1e-4;
-            assert_eq!(
-                deeper, leans_in,
-                "{taper}: leans the wrong way at {plane:?}"
-            );
+            assert!(!deeper, "{taper}: leans into the opening at {plane:?}");
         }
         assert!(counted > 10_000, "{taper}: {counted} ticks at full tilt");
         eprintln!(
@@ -185,15 +217,22 @@ fn a_taper_the_machine_or_the_geometry_cannot_cut_is_refused_at_its_line() {
     );
     let err = check("steep.ngc", "G21 G90\nG52 A45\nG1 X5 F100\nM2\n", &cfg);
     assert!(err.contains("steep.ngc:2:5:"), "{err}");
-    // An arc of 1 mm radius, tilted 10° left on the inside: the lower guide's radius
-    // would be 1 - 10 tan 10° < 0.
+    // An arc of 1 mm radius, the wire tilted 10° towards its centre: at the top of the work
+    // (20 mm up) the wall's radius would be 1 - 20 tan 10° < 0.
     let err = check(
         "tight.ngc",
-        "G21 G90\nG51 A10\nG1 X0 Y-1 F100\nG3 X1 Y0 I0 J1\nM2\n",
+        "G21 G90\nG0 X-3 Y-1\nG51 A10\nG1 X0 Y-1 F100\nG3 X1 Y0 I0 J1\nM2\n",
         &cfg,
     );
-    assert!(err.contains("tight.ngc:4:1: taper:"), "{err}");
-    assert!(err.contains("inside out"), "{err}");
+    assert!(err.contains("tight.ngc:5:1: taper:"), "{err}");
+    assert!(err.contains("leans into this arc"), "{err}");
+    // Leaning into the die's corners (G51, left of its counter-clockwise travel): refused at
+    // the first one, where the entry meets the contour.
+    let err = check("into.ngc", &die("G51", ARC), &cfg);
+    assert!(
+        err.contains("into.ngc:6:1: taper: the wire leans into this corner"),
+        "{err}"
+    );
 }
 
 /// With the simulated gap's debris shorts, the turn-backs retrace all four axes and the job
@@ -203,7 +242,7 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
     let dir = common::scratch("taper", "shorts");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let program = dir.join("die.ngc");
-    std::fs::write(&program, die("G51", ARC)).unwrap();
+    std::fs::write(&program, die("G52", ARC)).unwrap();
     let pulses = dir.join("die.csv");
     let config = dir.join("wire.toml");
     let out = common::run_to_pulse_log(
@@ -390,8 +429,8 @@ fn a_tapered_job_stopped_halfway_resumes_to_the_uninterrupted_pulses() {
     let dir = common::daemon::scratch("taper");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let config = dir.join("wire.toml");
-    // The wire test's small die (a 4 mm square), tilted 2° to the left.
-    let program = common::wire::DIE.replace("G41 D1", &format!("G51 A{ANGLE_DEG}\nG41 D1"));
+    // The wire test's small die (a 4 mm square), tilted 2° to the right (outwards).
+    let program = common::wire::DIE.replace("G41 D1", &format!("G52 A{ANGLE_DEG}\nG41 D1"));
     let program = program.replace("G40 G1", "G40 G50 G1");
     std::fs::write(dir.join("programs/die.ngc"), &program).unwrap();
     let _ = std::fs::remove_file(dir.join("machine-state.json"));

@@ -160,6 +160,7 @@ impl ProgramOptions {
             offset_tolerance_mm: config.interpolation.chord_tolerance_mm,
             conditions: config.conditions.iter().map(|c| c.number).collect(),
             guides: config.wire.guides,
+            thickness_mm: config.wire.thickness_mm,
         }
     }
 }

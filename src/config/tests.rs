@@ -226,9 +226,13 @@ fn the_shipped_defaults_hand_down_what_the_lower_floors_unit_tests_assume() {
     assert_eq!(fine.dt, c.fine.tick.secs());
     assert_eq!(fine.feeds.normal, c.servo.normal_feed_mm_per_min / 60.0);
     // A reader without a configuration tapers with the shipped guides.
+    let (reader, shipped) = (
+        crate::gcode::ProgramOptions::default(),
+        crate::gcode::ProgramOptions::from_config(&c),
+    );
     assert_eq!(
-        crate::gcode::ProgramOptions::default().guides,
-        crate::gcode::ProgramOptions::from_config(&c).guides
+        (reader.guides, reader.thickness_mm),
+        (shipped.guides, shipped.thickness_mm)
     );
 }
 

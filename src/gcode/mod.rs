@@ -195,6 +195,9 @@ pub struct ProgramOptions {
     pub conditions: Vec<u32>,
     /// Where the wire's guides are (`[wire]`): what a taper (`G51`/`G52`) is computed with.
     pub guides: Guides,
+    /// The work's thickness above the program plane (`[wire] thickness_mm`): a taper's
+    /// walls end there, so that is where a corner or an arc is checked for gouges.
+    pub thickness_mm: f64,
 }
 
 impl Default for ProgramOptions {
@@ -212,6 +215,7 @@ impl Default for ProgramOptions {
                 lower_mm: 10.0,
                 upper_mm: 40.0,
             },
+            thickness_mm: 20.0,
         }
     }
 }

@@ -119,7 +119,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let plane = index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]);
         let comp = Compensator::new(plane, options.offset_tolerance_mm);
-        let taper = taper::Taper::new(axes, options.guides, options.offset_tolerance_mm);
+        let taper = taper::Taper::new(
+            axes,
+            options.guides,
+            options.thickness_mm,
+            options.offset_tolerance_mm,
+        );
         Self {
             options,
             source_name: source_name.into(),

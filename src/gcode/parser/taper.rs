@@ -13,15 +13,20 @@
 //!   angle to the new one, and both guides still move straight.
 //! - **Arcs**: `n` is the radial direction (towards the centre on a counter-clockwise arc),
 //!   so both guide paths are arcs about the same centre: an affine image of the arc's own
-//!   rational control points, exact. An arc keeps the angle in force; one whose lower or
-//!   upper radius would vanish is refused.
+//!   rational control points, exact. An arc keeps the angle in force. Leaning towards its
+//!   centre, the wall's radius shrinks with height: an arc whose wall would vanish below the
+//!   top of the work (`[wire] thickness_mm`) is refused.
 //! - **Corners**: where the direction of travel turns, the wire pivots about the corner point
 //!   `P` with its angle kept: `n` turns from the one before to the one after, so the lower
 //!   guide describes an arc of radius `L·t` about `P` and the upper guide one of radius
-//!   `(H − L)·t`. A conical corner keeps the wire at its angle everywhere and the program-plane
-//!   point exactly on the corner; the sharp-corner alternative (intersecting the offset lines
-//!   of both guide paths) also passes through `P` but tilts the wire by `θ / cos(turn/2)` at
-//!   the corner, beyond the programmed angle.
+//!   `(H − L)·t`. Leaning to the outside of the turn this conical corner rounds the walls
+//!   above the plane (radius `z·t` at height `z`) and never cuts into them, keeps the wire at
+//!   its angle and the program-plane point exactly on the corner. Leaning into the turn, the
+//!   cone would cut past where the two walls meet, by `z·t·(1/cos(turn/2) − 1)`: such a
+//!   corner is refused unless that stays within the tolerance at the top of the work (the
+//!   exact alternative there, both guides at the intersections of their offset lines with
+//!   the wire along the corner's edge, is not built yet; a corner radius of `thickness·t`
+//!   or more is cut).
 //! - **NURBS curves**: their normal is not rational, so each smooth piece (between knots of
 //!   full multiplicity, where it pivots as at a corner) becomes a polyline of the guides'
 //!   positions, halved until every chord's middle is within the tolerance of the curve's,
@@ -54,10 +59,12 @@ pub(super) struct Taper {
     tan: f64,
     normal: Option<V2>,
     tolerance: f64,
+    /// The work's thickness above the program plane (mm): where the walls end.
+    thickness_mm: f64,
 }
 
 impl Taper {
-    pub(super) fn new(axes: &[Axis], guides: Guides, tolerance: f64) -> Taper {
+    pub(super) fn new(axes: &[Axis], guides: Guides, thickness_mm: f64, tolerance: f64) -> Taper {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let axes = (|| {
             Some([
@@ -73,6 +80,7 @@ impl Taper {
             tan: 0.0,
             normal: None,
             tolerance,
+            thickness_mm,
         }
     }
 
@@ -183,13 +191,15 @@ impl Taper {
         let t = self.tan;
         let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
         let lower = r + ccw * l * t;
-        let upper = r - ccw * (h - l) * t;
-        if lower.min(upper) <= self.tolerance {
+        // The wall's radius at the top of the work: smaller where the wire leans inwards.
+        let top = r - ccw * t * self.thickness_mm;
+        if top <= self.tolerance {
             return Err(fail(format!(
-                "the taper turns this arc (radius {r:.4} mm) inside out at the {} guide \
-                 (radius {:.4} mm there): a smaller angle, or a larger radius",
-                if lower <= upper { "lower" } else { "upper" },
-                lower.min(upper)
+                "the wire leans into this arc (radius {r:.4} mm): at the top of the work \
+                 ({} mm up) its radius would be {top:.4} mm; at this angle it needs a radius of \
+                 at least {:.4} mm",
+                self.thickness_mm,
+                (t * self.thickness_mm).abs()
             )));
         }
         let block = self.corner(block, normal_at(&p0), out)?;
@@ -220,7 +230,7 @@ impl Taper {
         out.push_back(Block {
             kind: BlockKind::Arc {
                 center,
-                radius: lower,
+                radius: lower.abs(),
                 sweep,
                 plane: Plane::XY,
             },
@@ -339,6 +349,19 @@ impl Taper {
             line: block.line,
             message,
         };
+        // Leaning into the turn (left of a left turn), the cone about the corner point cuts
+        // past where the two walls meet: at the top of the work by `h·(1/cos(turn/2) − 1)`,
+        // `h` the lean there.
+        let lean_top = (self.tan * self.thickness_mm).abs();
+        let overcut = lean_top * (1.0 / (turn / 2.0).cos() - 1.0);
+        if self.tan * turn > 0.0 && overcut > self.tolerance {
+            return Err(fail(format!(
+                "the wire leans into this corner ({:.1}° turn): pivoting about it would cut \
+                 {overcut:.4} mm into the walls at the top of the work; give the corner a radius \
+                 of at least {lean_top:.4} mm (the lean at the top), or lean the other way",
+                turn.to_degrees().abs()
+            )));
+        }
         let at = |v: V2| crate::geometry::point(&[v.x, v.y]);
         let unit = circular_arc(2, [0, 1], &Point::zeros(), &at(before), &at(n), turn)
             .map_err(|e| fail(format!("the tapered corner: {e}")))?;
@@ -397,9 +420,10 @@ mod tests {
 
     #[test]
     fn a_line_ramps_the_tilt_a_corner_pivots_and_g50_ramps_back() {
-        let t = 3f64.to_radians().tan();
-        let blocks = read("G21 G90\nG51 A3\nG1 X10 F100\nG1 Y10\nG50 G1 Y20\nM2\n");
-        // The ramp: vertical at the start, tilted left of +X (towards +Y) at the end.
+        // G52: right of travel, so the left turn below leans to its outside.
+        let t = -(3f64.to_radians().tan());
+        let blocks = read("G21 G90\nG52 A3\nG1 X10 F100\nG1 Y10\nG50 G1 Y20\nM2\n");
+        // The ramp: vertical at the start, tilted right of +X (towards -Y) at the end.
         let ramp = &blocks[0];
         assert_eq!(
             ramp.start().iter().take(4).copied().collect::<Vec<_>>(),
@@ -408,7 +432,7 @@ mod tests {
         let e = ramp.end();
         assert!((e[0] - 10.0).abs() < 1e-12 && (e[1] + L * t).abs() < 1e-12);
         assert!(e[2].abs() < 1e-12 && (e[3] - H * t).abs() < 1e-12);
-        // The corner: a quarter turn about (10, 0), the lean from +Y to -X.
+        // The corner: a quarter turn about (10, 0), the lean from -Y to +X.
         assert!(matches!(blocks[1].kind, BlockKind::Arc { .. }));
         let c = blocks[1].end();
         assert!((c[0] - (10.0 + L * t)).abs() < 1e-12 && c[1].abs() < 1e-12);
@@ -429,6 +453,13 @@ mod tests {
                 "{plane:?}"
             );
         }
+        // Leaning into that turn instead (G51) would cut into the walls: refused.
+        let axes = [Axis::X, Axis::Y, Axis::U, Axis::V];
+        let text = "G21 G90\nG51 A3\nG1 X10 F100\nG1 Y10\nM2\n";
+        let err = BlockReader::new(Cursor::new(text.to_string()), "t.ngc", &axes)
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap_err();
+        assert_eq!(err.line, 4, "{err}");
     }
 
     #[test]
