@@ -13,9 +13,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use axum::body::Bytes;
-use axum::extract::rejection::BytesRejection;
+use axum::body::Body;
 use axum::extract::{Query, State};
+use axum::http::header::CONTENT_LENGTH;
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
@@ -41,10 +41,25 @@ pub(super) async fn upload(
     State(app): State<Arc<App>>,
     headers: HeaderMap,
     query: Result<Query<UploadQuery>, axum::extract::rejection::QueryRejection>,
-    raw: Result<Bytes, BytesRejection>,
+    body: Body,
 ) -> Response {
     if let Err(e) = authorised(&app, &headers) {
         return e;
+    }
+    let too_large = || {
+        error(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("a program of over {MAX_UPLOAD_BYTES} bytes is not uploaded"),
+        )
+    };
+    // Refused from its declared length before a byte of it is read (the body is read only
+    // for an authorised request, and never past the limit).
+    let declared = headers
+        .get(CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > MAX_UPLOAD_BYTES as u64) {
+        return too_large();
     }
     let Ok(Query(UploadQuery { name })) = query else {
         return error(
@@ -55,15 +70,10 @@ pub(super) async fn upload(
     if let Err(why) = plain_name(&name) {
         return error(StatusCode::BAD_REQUEST, format!("{name:?}: {why}"));
     }
-    let bytes = match raw {
+    let bytes = match axum::body::to_bytes(body, MAX_UPLOAD_BYTES).await {
         Ok(b) => b,
-        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
-            return error(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                format!("a program of over {MAX_UPLOAD_BYTES} bytes is not uploaded"),
-            );
-        }
-        Err(e) => return error(StatusCode::BAD_REQUEST, e.body_text()),
+        Err(e) if is_length_limit(&e) => return too_large(),
+        Err(e) => return error(StatusCode::BAD_REQUEST, format!("the upload: {e}")),
     };
     let dir = app.live.read().program_dir.clone();
     let target = dir.join(&name);
@@ -192,6 +202,18 @@ fn write_atomically(dir: &Path, target: &PathBuf, bytes: &[u8]) -> std::io::Resu
         let _ = std::fs::remove_file(&tmp);
     }
     result.map(|()| replaced)
+}
+
+/// The body ran past the limit `to_bytes` was given.
+fn is_length_limit(e: &axum::Error) -> bool {
+    let mut source: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = source {
+        if err.is::<http_body_util::LengthLimitError>() {
+            return true;
+        }
+        source = err.source();
+    }
+    false
 }
 
 #[cfg(test)]
