@@ -7,29 +7,10 @@
 
 mod common;
 
-use std::path::Path;
-
 use common::daemon::{Daemon, base_sets};
-use common::wire::{DIE, PUNCH, TABLE, inside_die, outside_punch};
-use edmd::output::read_pulse_log;
+use common::wire::{DIE, PUNCH, TABLE, inside_die, outside_punch, walk};
 
 const TAB_MM: f64 = 1.5;
-
-/// A moving row of a pulse log: position after the row (µm), condition, spark.
-type Row = ((i64, i64), u16, bool);
-
-/// The moving rows of a pulse log, and where it ends.
-fn walk(path: &Path) -> (Vec<Row>, (i64, i64)) {
-    let (_, rows) = read_pulse_log(path).unwrap();
-    let (mut x, mut y) = (0i64, 0i64);
-    let mut out = Vec::new();
-    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
-        x += i64::from(r.steps[0]);
-        y += i64::from(r.steps[1]);
-        out.push(((x, y), r.condition, r.spark));
-    }
-    (out, (x, y))
-}
 
 /// The table with a tab, and pass 2 and 3's directions as given.
 fn table(reverse: [bool; 2]) -> String {

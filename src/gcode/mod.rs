@@ -166,6 +166,25 @@ impl Probe {
 }
 
 impl BlockKind {
+    /// The same kind with an arc's sweep times `factor` (a part of it, or run backwards);
+    /// every other kind as it is.
+    fn sweep_scaled(&self, factor: f64) -> BlockKind {
+        match self {
+            BlockKind::Arc {
+                center,
+                radius,
+                sweep,
+                plane,
+            } => BlockKind::Arc {
+                center: *center,
+                radius: *radius,
+                sweep: sweep * factor,
+                plane: *plane,
+            },
+            other => other.clone(),
+        }
+    }
+
     /// `rapid`, `line`, `arc` or `nurbs`, as in the trace CSV.
     pub fn name(&self) -> &'static str {
         match self {
@@ -295,22 +314,8 @@ impl Block {
     /// The same move run the other way (a pass cut the other way round): the curve reversed,
     /// an arc's sweep negated; no dwell or pause before it (they belonged to the other end).
     pub fn reversed(&self) -> Block {
-        let kind = match &self.kind {
-            BlockKind::Arc {
-                center,
-                radius,
-                sweep,
-                plane,
-            } => BlockKind::Arc {
-                center: *center,
-                radius: *radius,
-                sweep: -sweep,
-                plane: *plane,
-            },
-            other => other.clone(),
-        };
         Block {
-            kind,
+            kind: self.kind.sweep_scaled(-1.0),
             curve: self.curve.reversed(),
             dwell_s: 0.0,
             pause: None,
@@ -328,20 +333,7 @@ impl Block {
         }
         let u = self.curve.u_at_length(mm, 1e-9);
         let (first, second) = self.curve.split_at(u)?;
-        let share = |part: f64| match &self.kind {
-            BlockKind::Arc {
-                center,
-                radius,
-                sweep,
-                plane,
-            } => BlockKind::Arc {
-                center: *center,
-                radius: *radius,
-                sweep: sweep * part,
-                plane: *plane,
-            },
-            other => other.clone(),
-        };
+        let share = |part: f64| self.kind.sweep_scaled(part);
         let before = first.length() / length;
         Some((
             Block {

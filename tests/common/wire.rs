@@ -29,17 +29,30 @@ pub const PASSES: [(u16, f64, f64); 3] = [(3, 0.2, 1.0), (2, 0.15, -1.0), (1, 0.
 /// Positions (µm, X and Y) after each moving tick, in order.
 pub type Walk = Vec<(i64, i64)>;
 
-/// The walk of each condition the ticks cut in, and where the log ends.
-pub fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
+/// A moving row of a pulse log: position after the row (µm, X and Y), condition, spark.
+pub type Row = ((i64, i64), u16, bool);
+
+/// The moving rows of a pulse log, and where it ends.
+pub fn walk(path: &Path) -> (Vec<Row>, (i64, i64)) {
     let (_, rows) = read_pulse_log(path).unwrap();
     let (mut x, mut y) = (0i64, 0i64);
-    let mut by = BTreeMap::new();
+    let mut out = Vec::new();
     for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
         x += i64::from(r.steps[0]);
         y += i64::from(r.steps[1]);
-        by.entry(r.condition).or_insert_with(Vec::new).push((x, y));
+        out.push(((x, y), r.condition, r.spark));
     }
-    (by, (x, y))
+    (out, (x, y))
+}
+
+/// The walk of each condition the ticks cut in, and where the log ends.
+pub fn positions_by_condition(path: &Path) -> (BTreeMap<u16, Walk>, (i64, i64)) {
+    let (rows, end) = walk(path);
+    let mut by = BTreeMap::new();
+    for (at, condition, _) in rows {
+        by.entry(condition).or_insert_with(Vec::new).push(at);
+    }
+    (by, end)
 }
 
 /// Distance (µm) of a point (µm) from the die's square, inside it.
