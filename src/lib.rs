@@ -38,9 +38,10 @@ pub mod sim;
 pub mod trace;
 // Floor 7: configuration, read at the edge and handed down as plain values.
 pub mod config;
-// Floor 8: reports, checkpoints, the machine state and the job runner.
+// Floor 8: reports, checkpoints, the machine state, the setup cycles and the job runner.
 pub mod check;
 pub mod checkpoint;
+pub mod find;
 pub mod machine;
 pub mod plan;
 pub mod report;

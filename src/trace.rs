@@ -215,8 +215,8 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.safety()
     }
 
-    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
-        self.inner.home_switch(switch)
+    fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
+        self.inner.probe_reads(what)
     }
 
     fn wire_broken(&self) -> bool {

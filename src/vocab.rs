@@ -292,6 +292,23 @@ pub struct HomeSwitch {
     pub at_steps: i64,
 }
 
+/// What a job's probing moves read as their contact. Each gap input takes what it has of
+/// it: the parallel port reads a home switch's pin (else the probe's), the simulator
+/// answers from its model, a script as scripted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ProbeReads {
+    /// The probe (the work, through the gap): a program's `G38`.
+    #[default]
+    Probe,
+    /// A homing job's switch.
+    Switch(HomeSwitch),
+    /// A wire-touch cycle's move (`edmd ctl find`): the probe, as always; the simulator
+    /// answers from its part (`sim.part_edge_mm`, `sim.hole_*`) with the wire at `start`
+    /// (the machine position in steps where the job starts). `bounce`: the cycle's first
+    /// approach, which the simulator's `touch_bounce_mm` disturbs.
+    Touch { start: Steps, bounce: bool },
+}
+
 /// The wire's two guides. X/Y move the lower guide; U/V are the upper guide's position
 /// relative to the lower one, so the wire crosses the program plane at
 /// `(x, y) + (u, v) · lower_mm / (lower_mm + upper_mm)`.

@@ -23,6 +23,7 @@ const FLOORS: &[&[&str]] = &[
     &[
         "check",
         "checkpoint",
+        "find",
         "machine",
         "plan",
         "report",

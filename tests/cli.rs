@@ -684,7 +684,7 @@ fn conditions_set_the_feed_and_show_in_the_pulse_log() {
     let (stdout, stderr) = text(&out);
     assert_eq!(out.status.code(), Some(2), "{stdout}{stderr}");
     assert!(
-        stderr.contains("e.ngc:2:1: E7: no such machining condition (generator.condition defines E1, E2, E3, E4, E5)"),
+        stderr.contains("e.ngc:2:1: E7: no such machining condition (generator.condition defines E1, E2, E3, E4, E5, E9)"),
         "{stderr}"
     );
 }

@@ -160,6 +160,7 @@ fn home_touch_off_and_mdi_over_http() {
              latch_feed_mm_per_min=30.0, home_position_mm=10.0, final_move_mm=-1.0, \
              search_distance_mm=20.0, latch_distance_mm=0.5}]",
             "sim.home_switch_mm={X=3.0}",
+            "sim.part_edge_mm={X=[12.0,60.0]}",
         ],
     );
     // The machine's commands: the body is the socket request's fields.
@@ -251,6 +252,26 @@ fn home_touch_off_and_mdi_over_http() {
     let status = String::from_utf8_lossy(&head[..n]).to_string();
     assert!(status.starts_with("HTTP/1.1 413"), "{status}");
     assert!(!_dir.join("programs/big.nc").exists());
+    // A wire-touch cycle: the simulator's part has its X− face at X12; the wire (0.25 mm)
+    // stands at X9.5.
+    let (code, reply) = d.post("/api/find", r#"{"target":"edge W+"}"#);
+    assert_eq!(code, 409, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("is not something to find")
+    );
+    let (code, reply) = d.post("/api/find", r#"{"target":"edge X+","system":"G57"}"#);
+    assert_eq!(code, 200, "{reply}");
+    let s = d.wait_for("the find", |s| {
+        s["state"] == "idle" && s["machine"]["find"]["state"] != "running"
+    });
+    let find = &s["machine"]["find"];
+    assert_eq!(find["state"], "found", "{find}");
+    let x = find["point_mm"][0].as_f64().unwrap();
+    assert!((12.0..12.001).contains(&x), "{find}");
+    assert_eq!(find["system"], "G57");
 }
 
 #[test]
@@ -538,7 +559,13 @@ fn the_page_in_headless_chromium() {
     let Some(chromedriver) = tool("chromedriver") else {
         return;
     };
-    let (d, dir) = start("page", &["servo.normal_feed_mm_per_min=60.0"]);
+    let (d, dir) = start(
+        "page",
+        &[
+            "servo.normal_feed_mm_per_min=60.0",
+            "wire.touch_search_mm=0.5",
+        ],
+    );
     // A program the check refuses: past the travel.
     std::fs::write(dir.join("programs/far.nc"), "G21 G90\nG1 X900 F100\n").unwrap();
     let browser = Browser::start(&chromedriver);
@@ -794,6 +821,21 @@ fn the_page_in_headless_chromium() {
         s["state"] == "idle"
             && (s["machine"]["position_machine_mm"][1].as_f64().unwrap() - 0.05).abs() < 1e-9
     });
+    // A find cycle from the page: the gap input here ("none") never reads contact, so the
+    // short search (wire.touch_search_mm) fails, and the page says so.
+    wait(
+        "the find button",
+        "return !document.getElementById('find').disabled",
+    );
+    browser.eval(
+        "document.getElementById('find-target').value = 'edge X+'; document.getElementById('find-system').value = 'G57'; document.getElementById('find').click(); return true",
+    );
+    let found = wait(
+        "the find's outcome",
+        "const f = document.getElementById('find-result'); return f.className === 'kv error' && f.textContent.includes('edge X+ failed: X+: no contact within 0.500 mm') ? f.textContent : false",
+    );
+    eprintln!("find on the page: {found}");
+    d.wait_for("the find's end", |s| s["state"] == "idle");
     eprintln!(
         "backplot {plot}, progress {progress}, screenshot {}",
         dir.join("page.png").display()

@@ -108,8 +108,8 @@ fn a_tapered_die_with_an_arc_or_a_nurbs_passes_through_its_offset_contour_at_its
     let dir = common::scratch("taper", "die");
     std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
     let config = dir.join("wire.toml");
-    // Both directions, each leaning to the outside of the corners (leaning into a sharp
-    // corner is refused: see the refusals below).
+    // Both directions, each leaning to the outside of the corners (pivoted: the wire keeps
+    // its angle throughout; leaning into them is the sharp-corner test below).
     let cases = [
         ("G52", false, "arc", ARC),
         ("G51", true, "arc", ARC),
@@ -226,13 +226,130 @@ fn a_taper_the_machine_or_the_geometry_cannot_cut_is_refused_at_its_line() {
     );
     assert!(err.contains("tight.ngc:5:1: taper:"), "{err}");
     assert!(err.contains("leans into this arc"), "{err}");
-    // Leaning into the die's corners (G51, left of its counter-clockwise travel): refused at
-    // the first one, where the entry meets the contour.
-    let err = check("into.ngc", &die("G51", ARC), &cfg);
+    // Leaning into a corner where an arc meets a line: the walls do not meet along a line.
+    let err = check(
+        "into.ngc",
+        "G21 G90\nG51 A3\nG1 X10 F100\nG3 X0 Y10 I-10 J0\nM2\n",
+        &cfg,
+    );
     assert!(
-        err.contains("into.ngc:6:1: taper: the wire leans into this corner"),
+        err.contains("into.ngc:4:1: taper: the wire leans into this corner"),
         "{err}"
     );
+}
+
+/// The work's thickness above the program plane (the shipped `[wire] thickness_mm`).
+const THICKNESS_MM: f64 = 20.0;
+
+/// Leaning into the die's corners (`G51` left of its counter-clockwise travel, `G52` right of
+/// the mirrored one: the opening narrows upwards), the corners between lines are cut sharp:
+/// the wire meets the program plane on the offset contour and the top of the work on the
+/// contour offset a further `thickness·tan(angle)` inwards, sharp corners and all, so the
+/// walls stand at the programmed draft everywhere.
+#[test]
+fn leaning_into_the_die_corners_cuts_them_sharp_at_every_height() {
+    let dir = common::scratch("taper", "sharp");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    let t = ANGLE_DEG.to_radians().tan();
+    for (taper, mirrored) in [("G51", false), ("G52", true)] {
+        let program = dir.join(format!("sharp-{taper}.ngc"));
+        let text = if mirrored {
+            mirrored_die(taper, ARC)
+        } else {
+            die(taper, ARC)
+        };
+        std::fs::write(&program, text).unwrap();
+        let pulses = dir.join(format!("sharp-{taper}.csv"));
+        let out =
+            common::run_to_pulse_log(&program, &pulses, &["--config", config.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let ticks = guides(&pulses);
+        assert_eq!(
+            ticks.last().unwrap(),
+            &[0.0; 4],
+            "{taper}: ends where it began"
+        );
+        let f = if mirrored { -1.0 } else { 1.0 };
+        let (mut worst_plane, mut worst_top, mut worst_draft, mut counted) =
+            (0.0f64, 0.0f64, 0.0f64, 0);
+        let mut sharpest = 0.0f64;
+        for [x, y, u, v] in &ticks {
+            let (y, v) = (y * f, v * f);
+            // The wire at height z above the plane: the lower guide plus (u, v)·(L + z)/span.
+            let at = |z: f64| {
+                let k = (LOWER_MM + z) / SPAN_MM;
+                (x + u * k, y + v * k)
+            };
+            let (plane, top) = (at(0.0), at(THICKNESS_MM));
+            // Not the entry and exit, which ramp the angle: the entry from the start hole to
+            // where it meets the first edge's offset (LinuxCNC's entry: offset across its own
+            // direction, at (0.2, −5), met by the edge's offset line at (0.2, −4.8)), the exit
+            // from the last edge's offset end (0, −4.8) back to the start hole.
+            let off_line = |a: (f64, f64), b: (f64, f64)| {
+                let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+                let s = (((plane.0 - a.0) * dx + (plane.1 - a.1) * dy) / (dx * dx + dy * dy))
+                    .clamp(0.0, 1.0);
+                (plane.0 - a.0 - s * dx).hypot(plane.1 - a.1 - s * dy)
+            };
+            let contour_y = -5.0 + OFFSET_MM;
+            let junction = (plane.0 - OFFSET_MM)
+                .hypot(plane.1 - contour_y)
+                .min(plane.0.hypot(plane.1 - contour_y));
+            if junction < 0.1
+                || off_line((0.0, 0.0), (OFFSET_MM, contour_y)) < 0.01
+                || off_line((0.0, 0.0), (0.0, contour_y)) < 0.01
+            {
+                continue;
+            }
+            let lean = u.hypot(v) / SPAN_MM;
+            if lean < t * 0.999 {
+                continue;
+            }
+            counted += 1;
+            sharpest = sharpest.max(lean.atan().to_degrees());
+            let (d0, in0) = die_distance(plane);
+            let (d1, in1) = die_distance(top);
+            assert!(
+                in0 && in1,
+                "{taper}: outside the die at {plane:?} / {top:?}"
+            );
+            worst_plane = worst_plane.max((d0 - OFFSET_MM).abs());
+            worst_top = worst_top.max((d1 - OFFSET_MM - THICKNESS_MM * t).abs());
+            let draft = ((d1 - d0) / THICKNESS_MM).atan().to_degrees();
+            worst_draft = worst_draft.max((draft - ANGLE_DEG).abs());
+        }
+        assert!(counted > 10_000, "{taper}: {counted} ticks");
+        eprintln!(
+            "{taper} sharp: {counted} ticks, plane within {:.2} µm, top within {:.2} µm, draft \
+             within {:.5}°, the wire up to {sharpest:.3}° from vertical at the corners",
+            worst_plane * 1e3,
+            worst_top * 1e3,
+            worst_draft
+        );
+        // As in the die above: the tolerance and a step per axis, U/V scaled to the height.
+        let bound =
+            |z: f64| 1e-3 + (1.0 + (LOWER_MM + z) / SPAN_MM) * 1e-3 * std::f64::consts::SQRT_2;
+        assert!(
+            worst_plane < bound(0.0),
+            "{taper}: {worst_plane} mm at the plane"
+        );
+        assert!(
+            worst_top < bound(THICKNESS_MM),
+            "{taper}: {worst_top} mm at the top"
+        );
+        assert!(worst_draft < 0.01, "{taper}: draft {worst_draft}° off");
+        // The corner edges lean more than the walls (a 90° corner: √2 times the tilt).
+        let edge = (t * std::f64::consts::SQRT_2).atan().to_degrees();
+        assert!(
+            (sharpest - edge).abs() < 0.01,
+            "{taper}: {sharpest}° at the corners, {edge}° expected"
+        );
+    }
 }
 
 /// With the simulated gap's debris shorts, the turn-backs retrace all four axes and the job

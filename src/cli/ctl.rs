@@ -126,6 +126,23 @@ pub(super) enum CtlCommand {
         #[arg(long, value_name = "G5x")]
         system: Option<String>,
     },
+    /// Find the part by touching it with the wire (spark off, in wire.touch_condition):
+    /// `edge X+|X-|Y+|Y-` (the face met moving that way), `corner X+Y+` (etc.: the part lies
+    /// that way from the wire, which stands off the corner) or `center` (of the hole the wire
+    /// stands in). Waits for the result (exit 0: found; 1: failed)
+    Find {
+        /// edge, corner or center
+        kind: String,
+        /// The direction(s): X+, Y-, … for an edge; X+Y+, X-Y+, … for a corner
+        direction: Option<String>,
+        /// Write the result into this work offset (G54 … G59.3) as G10 L20: the edge, corner
+        /// or centre reads 0 there
+        #[arg(long, value_name = "G5x")]
+        system: Option<String>,
+        /// Return as soon as the daemon has started the cycle
+        #[arg(long)]
+        no_wait: bool,
+    },
     /// Home axes by their switches ([[homing.axis]]; all that have one when none is named),
     /// in sequence order. `--here`: no switch: where the axes stand is their home position
     Home {
@@ -172,6 +189,9 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
     };
     if let CtlCommand::Monitor { interval, count } = &args.command {
         return monitor(&socket, *interval, *count, args.json);
+    }
+    if let CtlCommand::Find { no_wait: false, .. } = &args.command {
+        return super::find::find_and_wait(&socket, request_of(&args.command).0, args.json);
     }
     let (request, wait) = request_of(&args.command);
     let reply = match crate::daemon::socket::request(&socket, &request) {
@@ -315,6 +335,20 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
                 system: system.clone(),
             },
             false,
+        ),
+        CtlCommand::Find {
+            kind,
+            direction,
+            system,
+            no_wait,
+        } => (
+            Request::Find {
+                target: format!("{kind} {}", direction.as_deref().unwrap_or_default())
+                    .trim()
+                    .to_string(),
+                system: system.clone(),
+            },
+            !no_wait,
         ),
         CtlCommand::Home { axes, here } => (
             Request::Home {

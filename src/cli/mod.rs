@@ -110,6 +110,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 }
 
 mod ctl;
+mod find;
 mod journal;
 mod run_state;
 

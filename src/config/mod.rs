@@ -20,11 +20,12 @@ mod overrides;
 mod parport;
 mod raw;
 mod settings;
+mod sim;
 #[cfg(test)]
 mod tests;
 mod validate;
 mod wire;
-pub use wire::{Guides, WireConfig, WirePass};
+pub use wire::{Guides, TouchConfig, WireConfig, WirePass};
 
 use std::path::{Path, PathBuf};
 
@@ -146,6 +147,12 @@ impl MachineConfig {
             .map(|(a, _)| a.letter().to_string())
             .collect();
         (!free.is_empty()).then(|| free.join(", "))
+    }
+
+    /// The indices of X and Y in `axes` (the program plane), when the machine has both.
+    pub fn plane_axes(&self) -> Option<[usize; 2]> {
+        let index = |a: Axis| self.axes.iter().position(|&x| x == a);
+        Some([index(Axis::X)?, index(Axis::Y)?])
     }
 
     /// The axis letters as strings, in machine order (for reports).

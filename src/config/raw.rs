@@ -238,6 +238,10 @@ pub(super) struct RawSim {
     pub(super) wire_breaks_per_m: f64,
     pub(super) events: String,
     pub(super) home_switch_mm: std::collections::BTreeMap<String, f64>,
+    pub(super) part_edge_mm: std::collections::BTreeMap<String, [f64; 2]>,
+    pub(super) hole_center_mm: Vec<f64>,
+    pub(super) hole_diameter_mm: f64,
+    pub(super) touch_bounce_mm: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -276,6 +280,13 @@ pub(super) struct RawWire {
     pub(super) upper_guide_mm: f64,
     pub(super) thickness_mm: f64,
     pub(super) diameter_mm: f64,
+    pub(super) touch_condition: i64,
+    pub(super) touch_feed_mm_per_min: f64,
+    pub(super) touch_search_mm: f64,
+    pub(super) touch_backoff_mm: f64,
+    pub(super) touch_retries: i64,
+    pub(super) touch_corner_clearance_mm: f64,
+    pub(super) touch_center_rounds: i64,
 }
 
 /// `[[wire.pass]]` as written.

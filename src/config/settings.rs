@@ -130,6 +130,8 @@ impl SimSettings {
             step_mm: step_mm(config),
             tick: config.fine.tick,
             volts: config.gap.volts,
+            plane: config.machine.plane_axes(),
+            wire_radius_mm: config.wire.diameter_mm / 2.0,
         }
     }
 }

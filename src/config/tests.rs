@@ -246,7 +246,11 @@ fn generator_conditions_as_tables_replace_the_shipped_list() {
     .unwrap();
     assert_eq!(c.conditions.len(), 1);
     assert_eq!((c.conditions[0].number, c.conditions[0].v_ref), (7, 28.0));
-    assert_eq!(Config::default().conditions.len(), 5, "E1-E5 shipped");
+    assert_eq!(
+        Config::default().conditions.len(),
+        6,
+        "E1-E5 and E9 (touch) shipped"
+    );
     let e = load(
         "[[generator.condition]]\nnumber = 2\non_us = 1.0\noff_us = 1.0\ncurrent_a = 1.0\n\
          v_ref = 1.0\nfeed_mm_per_min = 1.0\n[[generator.condition]]\nnumber = 2\non_us = 1.0\n\

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::raw::{
     RawBuffer, RawCompensation, RawConfig, RawDaemon, RawFine, RawGap, RawGenerator,
-    RawInterpolation, RawMachine, RawOutput, RawServo, RawSim,
+    RawInterpolation, RawMachine, RawOutput, RawServo,
 };
 use super::*;
 use crate::vocab::MAX_AXES;
@@ -58,7 +58,7 @@ pub(super) fn short(value: f64) -> String {
 }
 
 /// A quantity that may be 0 (off): from 0 to `max`.
-fn at_most(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
+pub(super) fn at_most(key: &'static str, value: f64, max: f64, unit: &str) -> Result<f64, Invalid> {
     if value.is_finite() && (0.0..=max).contains(&value) {
         Ok(value)
     } else {
@@ -127,7 +127,7 @@ impl RawConfig {
 
         let servo = servo(self.servo)?;
         let homing = self.homing.validate(&machine, &parport, output.kind)?;
-        let sim = sim(self.sim, &machine, &homing)?;
+        let sim = self.sim.validate(&machine, &homing)?;
         let daemon = daemon(self.daemon)?;
         let log = LogConfig {
             level: self.log.level,
@@ -530,36 +530,6 @@ fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
     Ok(servo)
 }
 
-fn sim(m: RawSim, machine: &MachineConfig, homing: &HomingConfig) -> Result<SimConfig, Invalid> {
-    let short_gap = positive("sim.short_gap_um", m.short_gap_um, 1e4, "µm")?;
-    let open_gap = positive("sim.open_gap_um", m.open_gap_um, 1e4, "µm")?;
-    if open_gap <= short_gap {
-        return Err((
-            "sim.open_gap_um",
-            format!("must be greater than sim.short_gap_um ({short_gap}), got {open_gap}"),
-        ));
-    }
-    let home_switch_mm = m.home_switches(machine, homing)?;
-    Ok(SimConfig {
-        seed: in_range("sim.seed", m.seed, 0, i64::MAX)? as u64,
-        initial_gap_mm: non_negative("sim.initial_gap_um", m.initial_gap_um)? / 1000.0,
-        short_gap_mm: short_gap / 1000.0,
-        open_gap_mm: open_gap / 1000.0,
-        erosion_mm_per_s: positive(
-            "sim.erosion_mm_per_min",
-            m.erosion_mm_per_min,
-            1e6,
-            "mm/min",
-        )? / 60.0,
-        debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
-        debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
-        debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")? / 1000.0,
-        wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,
-        events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
-        home_switch_mm,
-    })
-}
-
 fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
     Ok(DaemonConfig {
         socket: non_empty("daemon.socket", d.socket)?,
@@ -688,7 +658,7 @@ fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
     Ok(conditions)
 }
 
-fn non_negative(key: &'static str, value: f64) -> Result<f64, Invalid> {
+pub(super) fn non_negative(key: &'static str, value: f64) -> Result<f64, Invalid> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {

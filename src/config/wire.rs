@@ -2,7 +2,7 @@
 //! against the offset registers and the conditions it names.
 
 use super::raw::RawWire;
-use super::validate::{Invalid, positive};
+use super::validate::{Invalid, in_range, positive};
 use super::{CompensationConfig, Condition};
 pub use crate::vocab::Guides;
 
@@ -18,6 +18,28 @@ pub struct WireConfig {
     pub thickness_mm: f64,
     /// The wire's diameter (mm).
     pub diameter_mm: f64,
+    /// The wire-touch cycles (`edmd ctl find`).
+    pub touch: TouchConfig,
+}
+
+/// `[wire] touch_*`: how the wire-touch cycles touch the part.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TouchConfig {
+    /// The condition (E number) they touch in: the generator's least energy (checked against
+    /// the condition table when a cycle starts).
+    pub condition: u32,
+    /// The approach feed, mm/min; the retouch runs at a tenth of it.
+    pub feed_mm_per_min: f64,
+    /// How far an approach goes before it gives up, mm.
+    pub search_mm: f64,
+    /// How far the wire backs off a contact before it touches again, mm.
+    pub backoff_mm: f64,
+    /// Approaches again after a retouch that found nothing (a false first contact).
+    pub retries: u32,
+    /// How far past the corner a corner cycle moves along one axis to touch the other's face.
+    pub corner_clearance_mm: f64,
+    /// Most rounds of a hole-centre cycle (it ends when two rounds agree within a step).
+    pub center_rounds: u32,
 }
 
 /// One pass: the wire offset (every `D` of the program reads it), the condition (every `E` of
@@ -119,6 +141,33 @@ impl RawWire {
             guides: Guides { lower_mm, upper_mm },
             thickness_mm: positive("wire.thickness_mm", self.thickness_mm, 1000.0, "mm")?,
             diameter_mm: positive("wire.diameter_mm", self.diameter_mm, 2.0, "mm")?,
+            touch: TouchConfig {
+                // Checked against the condition table when a cycle is asked for: a table
+                // replaced without thinking of touching must not make this key an error.
+                condition: in_range("wire.touch_condition", self.touch_condition, 0, 1 << 20)?
+                    as u32,
+                feed_mm_per_min: positive(
+                    "wire.touch_feed_mm_per_min",
+                    self.touch_feed_mm_per_min,
+                    1e5,
+                    "mm/min",
+                )?,
+                search_mm: positive("wire.touch_search_mm", self.touch_search_mm, 1e4, "mm")?,
+                backoff_mm: positive("wire.touch_backoff_mm", self.touch_backoff_mm, 10.0, "mm")?,
+                retries: in_range("wire.touch_retries", self.touch_retries, 0, 10)? as u32,
+                corner_clearance_mm: positive(
+                    "wire.touch_corner_clearance_mm",
+                    self.touch_corner_clearance_mm,
+                    1e3,
+                    "mm",
+                )?,
+                center_rounds: in_range(
+                    "wire.touch_center_rounds",
+                    self.touch_center_rounds,
+                    2,
+                    20,
+                )? as u32,
+            },
         })
     }
 }

@@ -401,8 +401,13 @@ impl Core {
             self.machine.mdi_modes = job.modes;
         }
         self.note_trip(&job, &summary);
-        if let JobKind::Home { switch, .. } = job.kind {
-            self.homing_done(&switch, &summary);
+        // Before a homing sequence or a touch cycle starts its next check: that check's copy
+        // is not this job's and must not be pruned.
+        self.prune_copies(None);
+        match job.kind {
+            JobKind::Home { switch, .. } => self.homing_done(&switch, &summary),
+            JobKind::Touch { .. } => self.find_moved(&summary),
+            _ => {}
         }
         if let Some(dir) = &job.report {
             match crate::report::write_report(dir, &mut job.recording.lock(), &summary) {
@@ -411,7 +416,6 @@ impl Core {
             }
         }
         self.jobs.last = Some(summary);
-        self.prune_copies(None);
         self.notify_status();
     }
 }

@@ -42,6 +42,9 @@ pub(super) enum JobKind {
         switch: crate::vocab::HomeSwitch,
         feed_mm_per_min: f64,
     },
+    /// One move of a wire-touch cycle (`find`), at its touch feed (mm/min, its back-offs'
+    /// too); `first`: the cycle's first approach.
+    Touch { feed_mm_per_min: f64, first: bool },
 }
 
 /// Where a job starts and what it is: decided when its check begins.
@@ -65,6 +68,9 @@ impl Launch {
         if let JobKind::Jog { feed_mm_per_min }
         | JobKind::Home {
             feed_mm_per_min, ..
+        }
+        | JobKind::Touch {
+            feed_mm_per_min, ..
         } = self.kind
         {
             spec.plan.rapid_feed = spec.plan.rapid_feed.min(feed_mm_per_min / 60.0);
@@ -77,6 +83,19 @@ impl Launch {
         match self.kind {
             JobKind::Home { switch, .. } => Some(switch),
             _ => None,
+        }
+    }
+
+    /// What the job's probing moves read (`start`: the job's first ledger, in steps).
+    pub fn probe_reads(&self, start: &crate::vocab::Steps) -> crate::vocab::ProbeReads {
+        use crate::vocab::ProbeReads;
+        match self.kind {
+            JobKind::Home { switch, .. } => ProbeReads::Switch(switch),
+            JobKind::Touch { first, .. } => ProbeReads::Touch {
+                start: *start,
+                bounce: first,
+            },
+            _ => ProbeReads::Probe,
         }
     }
 }

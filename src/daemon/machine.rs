@@ -27,6 +27,10 @@ pub(super) struct MachineKeeper {
     pub tripped: Option<Trip>,
     /// The axes still to home after the one homing now (indices, in order).
     pub homing_queue: Vec<usize>,
+    /// The wire-touch cycle in progress.
+    pub finding: Option<super::find::FindRun>,
+    /// The running or last cycle, as the status shows it.
+    pub find_status: Option<super::protocol::FindStatus>,
 }
 
 /// What stopped the machine and holds it.
@@ -94,6 +98,8 @@ impl MachineKeeper {
             mdi_modes: Default::default(),
             tripped: None,
             homing_queue: Vec::new(),
+            finding: None,
+            find_status: None,
         };
         // The file now says what the daemon believes (an unhomed state stays unhomed after
         // a second crash), and a file that cannot be written is known before any job.
@@ -160,6 +166,7 @@ impl MachineKeeper {
                 .map(|t| t.map(|t| [t.min_mm, t.max_mm]))
                 .collect(),
             state_write_error: self.write_error.clone(),
+            find: self.find_status.clone(),
         }
     }
 }

@@ -32,6 +32,7 @@
 
 mod checkpoints;
 mod console;
+mod find;
 mod homing;
 pub mod http;
 mod jobs;
@@ -487,6 +488,7 @@ impl Core {
                 system,
             } => self.touch_off(&axis, value, system.as_deref()),
             Request::Home { axes, here } => self.home(&axes, here),
+            Request::Find { target, system } => self.find(&target, system.as_deref()),
             Request::Jog {
                 axis,
                 distance_mm,

@@ -298,8 +298,9 @@ impl Core {
                 status.message = Some(message);
             }
             Err(error) => {
-                // A homing sequence stops at its first refusal.
+                // A homing sequence and a touch cycle stop at their first refusal.
                 self.machine.homing_queue.clear();
+                self.find_refused(&error.to_string());
                 tracing::error!(
                     edmd_event = "refusal",
                     edmd_program = check.name,
@@ -334,9 +335,9 @@ impl Core {
         // made first: a job must not learn at its end that its report has nowhere to go.
         let report = job_report(&config, &program.name)?;
         let mut io = self.jobs.job_io(&config, &check, &ledger)?;
-        // A homing job's probing moves read its switch; any other job's the probe (the
-        // claimed port's gap input is lent to every job).
-        io.gap.home_switch(switch);
+        // A homing job's probing moves read its switch, a touch cycle's the part; any other
+        // job's the probe (the claimed port's gap input is lent to every job).
+        io.gap.probe_reads(launch.probe_reads(&spec.start_steps()));
         let recording = self.record(&program.name);
         io.recording = Some(recording.clone());
         let resumed = resume.is_some();

@@ -49,6 +49,7 @@ impl Core {
                         super::launch::JobKind::Mdi => DaemonState::Mdi,
                         super::launch::JobKind::Jog { .. } => DaemonState::Jogging,
                         super::launch::JobKind::Home { .. } => DaemonState::Homing,
+                        super::launch::JobKind::Touch { .. } => DaemonState::Finding,
                     }
                 }
             }

@@ -75,9 +75,10 @@ pub trait GapSensor {
         crate::vocab::SafetyInputs::default()
     }
 
-    /// A homing job's probing moves read this switch as their contact (`None`: the probe
-    /// again). Inputs without switches ignore it: their homing finds no contact and fails.
-    fn home_switch(&mut self, _switch: Option<crate::vocab::HomeSwitch>) {}
+    /// What the job's probing moves read as their contact (a homing job's switch, a touch
+    /// cycle's part, or the probe). Inputs without switches ignore it: their homing finds no
+    /// contact and fails.
+    fn probe_reads(&mut self, _what: crate::vocab::ProbeReads) {}
 }
 
 /// `gap.kind = "none"`: the gap is always normal (a dry run).
@@ -123,7 +124,7 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
         (**self).safety()
     }
 
-    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
-        (**self).home_switch(switch)
+    fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
+        (**self).probe_reads(what)
     }
 }

@@ -400,8 +400,11 @@ impl<P: Port> GapSensor for ParportGap<P> {
         self.safety
     }
 
-    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
-        self.home = switch;
+    fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
+        self.home = match what {
+            crate::vocab::ProbeReads::Switch(switch) => Some(switch),
+            _ => None,
+        };
     }
 }
 

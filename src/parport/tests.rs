@@ -280,7 +280,7 @@ fn a_homing_job_reads_its_switch_pin_not_the_probe() {
         flags: crate::buffer::BlockFlags::PROBE,
         ..Default::default()
     });
-    gap.home_switch(Some(crate::vocab::HomeSwitch {
+    gap.probe_reads(crate::vocab::ProbeReads::Switch(crate::vocab::HomeSwitch {
         axis: 0,
         positive: true,
         pin: Some(15),
@@ -294,7 +294,7 @@ fn a_homing_job_reads_its_switch_pin_not_the_probe() {
     );
     bench.set_inputs(levels(&[15]));
     assert_eq!(gap.sample(1).unwrap(), GapState::Short, "the switch is");
-    gap.home_switch(None);
+    gap.probe_reads(crate::vocab::ProbeReads::Probe);
     assert_eq!(gap.sample(2).unwrap(), GapState::Open, "the probe again");
     bench.set_inputs(levels(&[12]));
     assert_eq!(gap.sample(3).unwrap(), GapState::Short);

@@ -39,6 +39,7 @@
 //! next cut starts at `initial_gap` from the work, as after positioning to a new start hole.
 
 pub mod events;
+mod probe;
 
 use crate::buffer::BlockFlags;
 use std::path::PathBuf;
@@ -49,6 +50,7 @@ use crate::vocab::TickPeriod;
 use crate::vocab::{GapVolts, MAX_AXES};
 
 pub use events::SimEvent;
+pub use probe::{SimHole, SimPart};
 
 /// The simulated gap's own settings (`[sim]`, validated by the configuration), lengths in mm
 /// and speeds in mm/s.
@@ -71,6 +73,8 @@ pub struct SimConfig {
     /// believes (mm; `None`: at the axis's `home_position_mm`). A homed axis finds its
     /// switch at its home position.
     pub home_switch_mm: Vec<Option<f64>>,
+    /// The part a wire-touch cycle finds (`sim.part_edge_mm`, `sim.hole_*`).
+    pub part: SimPart,
 }
 
 /// Everything the model needs: its own settings, the machine's step sizes (unused axes 0)
@@ -82,6 +86,10 @@ pub struct SimSettings {
     pub tick: TickPeriod,
     /// The gap voltage's thresholds: the sparking band of the model maps onto them.
     pub volts: GapVolts,
+    /// Indices of X and Y in the machine's axes (where the part lies), if it has both.
+    pub plane: Option<[usize; 2]>,
+    /// The wire's radius (`wire.diameter_mm` / 2), mm.
+    pub wire_radius_mm: f64,
 }
 
 /// The simulated generator's open-circuit voltage (V): what an open gap reads.
@@ -140,8 +148,9 @@ pub struct SimGap {
     away: bool,
     /// A probing move is in hand.
     probing: bool,
-    /// A homing job's switch and the steps taken on its axis since the job started.
-    home: Option<(crate::vocab::HomeSwitch, i64)>,
+    /// What probing moves read: the gap model, a homing job's switch or a find cycle's part.
+    probe: probe::Target,
+    wire: probe::SimWire,
     /// Cutting travel so far, and where along it the wire breaks next (mm; infinite: never).
     cut_mm: f64,
     next_break_mm: f64,
@@ -197,7 +206,12 @@ impl SimGap {
             spark_off: false,
             away: false,
             probing: false,
-            home: None,
+            probe: probe::Target::Gap,
+            wire: probe::SimWire {
+                part: settings.params.part,
+                plane: settings.plane,
+                radius_mm: settings.wire_radius_mm,
+            },
             cut_mm: 0.0,
             next_break_mm,
             break_rng,
@@ -308,8 +322,9 @@ impl SimGap {
     /// The gap state of tick `tick` from the model (scripted holds, debris, rapids, distance).
     fn sample_state(&mut self, tick: u64) -> GapState {
         self.apply_events(tick);
-        if self.home.is_some() {
-            return self.homing_state();
+        if let Some(state) = self.probe.state(self.probing, &self.wire, &self.step_mm) {
+            self.state = state;
+            return state;
         }
         if let Some((state, until)) = self.hold {
             if tick < until {
@@ -354,26 +369,6 @@ impl SimGap {
         self.state
     }
 
-    /// Homing: the generator is off, nothing erodes; a probing move reads the switch (pressed
-    /// from `at_steps` on in the search direction), every other move the open.
-    #[cold]
-    fn homing_state(&mut self) -> GapState {
-        let Some((switch, moved)) = &self.home else {
-            return self.state;
-        };
-        let pressed = if switch.positive {
-            *moved >= switch.at_steps
-        } else {
-            *moved <= switch.at_steps
-        };
-        self.state = if self.probing && pressed {
-            GapState::Short
-        } else {
-            GapState::Open
-        };
-        self.state
-    }
-
     /// Counts the tick into the pulse-ratio window: an open gap is all open pulses, a shorted
     /// one all short, a sparking one open in proportion to how far across the sparking band the
     /// gap is (a wider gap fails to ignite more often).
@@ -411,9 +406,7 @@ impl GapSensor for SimGap {
     }
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
-        if let Some((switch, moved)) = &mut self.home {
-            *moved += steps[switch.axis] as i64;
-        }
+        self.probe.observe(steps);
         if dir == 0 {
             return;
         }
@@ -450,8 +443,8 @@ impl GapSensor for SimGap {
         self.probing = flags.contains(BlockFlags::PROBE) && !now.excursion;
     }
 
-    fn home_switch(&mut self, switch: Option<crate::vocab::HomeSwitch>) {
-        self.home = switch.map(|s| (s, 0));
+    fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
+        self.probe = probe::Target::new(what);
     }
 
     fn wire_broken(&self) -> bool {
@@ -511,6 +504,7 @@ pub(crate) mod tests {
             wire_breaks_per_m: 0.0,
             events: None,
             home_switch_mm: vec![None, None],
+            part: SimPart::default(),
         };
         for o in overrides {
             let (key, value) = o.split_once('=').expect("sim.KEY=VALUE");
@@ -533,6 +527,8 @@ pub(crate) mod tests {
                 short_below: 5.0,
                 open_above: 60.0,
             },
+            plane: Some([0, 1]),
+            wire_radius_mm: 0.125,
         }
     }
 

@@ -302,10 +302,11 @@ mod tests {
             DaemonState::Jogging => 12,
             DaemonState::Homing => 13,
             DaemonState::Threading => 14,
+            DaemonState::Finding => 15,
         };
         let mut seen: Vec<usize> = DaemonState::ALL.iter().map(|&s| place(s)).collect();
         seen.sort_unstable();
-        assert_eq!(seen, (0..15).collect::<Vec<_>>());
+        assert_eq!(seen, (0..16).collect::<Vec<_>>());
     }
 
     #[test]

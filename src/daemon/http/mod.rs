@@ -218,6 +218,7 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/resume", post(|s, h, b| control(s, h, b, "resume")))
         .route("/api/abort", post(|s, h, b| control(s, h, b, "abort")))
         .route("/api/home", post(|s, h, b| machine(s, h, b, "home")))
+        .route("/api/find", post(|s, h, b| machine(s, h, b, "find")))
         .route("/api/jog", post(|s, h, b| machine(s, h, b, "jog")))
         .route(
             "/api/jog-continuous",
@@ -605,7 +606,7 @@ async fn run(
     }
 }
 
-/// The machine's commands (`home`, `jog`, `mdi`, `touch-off`, `offsets`): the body holds the
+/// The machine's commands (`home`, `find`, `jog`, `mdi`, `touch-off`, `offsets`): the body holds the
 /// socket request's fields (`{"axis":"X","distance_mm":0.5}`), checked as the socket checks
 /// them.
 async fn machine(

@@ -116,6 +116,13 @@ pub enum Request {
     Mdi {
         line: String,
     },
+    /// A wire-touch cycle: `target` is `edge X+|X-|Y+|Y-`, `corner X±Y±` or `center`;
+    /// `system` (`G54` … `G59.3`): the result written into that work offset (`G10 L20`).
+    Find {
+        target: String,
+        #[serde(default)]
+        system: Option<String>,
+    },
     /// Home `axes` by their switches (all with one when empty); `here`: where they stand is
     /// their home position.
     Home {
@@ -252,11 +259,13 @@ pub enum DaemonState {
     Homing,
     /// Parked for threading (at the start hole or where the wire broke) until `resume`.
     Threading,
+    /// A wire-touch cycle (`find`) is touching the part.
+    Finding,
 }
 
 impl DaemonState {
     /// Every state, once (the metrics' `edmd_state` gauges list them all).
-    pub const ALL: [DaemonState; 15] = [
+    pub const ALL: [DaemonState; 16] = [
         DaemonState::Idle,
         DaemonState::Checking,
         DaemonState::Running,
@@ -272,6 +281,7 @@ impl DaemonState {
         DaemonState::Jogging,
         DaemonState::Homing,
         DaemonState::Threading,
+        DaemonState::Finding,
     ];
 
     pub fn name(self) -> &'static str {
@@ -291,6 +301,7 @@ impl DaemonState {
             DaemonState::Jogging => "jogging",
             DaemonState::Homing => "homing",
             DaemonState::Threading => "threading",
+            DaemonState::Finding => "finding",
         }
     }
 }
@@ -346,6 +357,32 @@ pub struct MachineStatus {
     /// Why the last write of the machine state failed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub state_write_error: Option<String>,
+    /// The wire-touch cycle running, or the last one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub find: Option<FindStatus>,
+}
+
+/// A wire-touch cycle (`find`) as the status shows it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct FindStatus {
+    /// Counts the daemon's cycles: the reply to `find` names its own.
+    pub id: u64,
+    /// `edge X+`, `corner X+Y-`, `center`.
+    pub target: String,
+    /// `running`, `found` or `failed`.
+    pub state: String,
+    /// What it found (or why not), as the log says it.
+    pub message: String,
+    /// The edge, corner or centre found, X and Y in machine coordinates, mm (`null`: the
+    /// axis an edge does not measure).
+    #[serde(default)]
+    pub point_mm: Vec<Option<f64>>,
+    /// A hole's diameter on X and on Y, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diameter_mm: Option<[f64; 2]>,
+    /// The work system the result was written into.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub system: Option<String>,
 }
 
 /// Counts over the daemon's life (the jobs that ended plus the running one), only ever

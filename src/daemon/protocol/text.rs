@@ -147,6 +147,10 @@ impl Status {
                 "homed:        not all axes (marked ?): positions are only believed"
             );
         }
+        if let Some(f) = &m.find {
+            let label = format!("find {}:", f.id);
+            let _ = writeln!(t, "{label:<14}{}: {}", f.state, f.message);
+        }
         if let Some(e) = &m.state_write_error {
             let _ = writeln!(t, "warning:      {e}");
         }

@@ -209,6 +209,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 continue;
             }
             if self.program.done {
+                // The taper's held line ends at its own tilt with nothing after it.
+                if let Err(e) = self.out.taper.flush(&mut self.out.tapered) {
+                    return Err(self.located_error(e.line, GcodeErrorKind::Taper(e.message)));
+                }
+                if !self.out.tapered.is_empty() {
+                    continue;
+                }
                 return Ok(None);
             }
             if let Err(fail) = self.program.cancelled() {
@@ -605,7 +612,11 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.program.done && self.out.queue.is_empty() && self.out.tapered.is_empty() {
+        if self.program.done
+            && self.out.queue.is_empty()
+            && self.out.tapered.is_empty()
+            && !self.out.taper.holds()
+        {
             return None;
         }
         match self.next_block() {

@@ -16,17 +16,24 @@
 //!   rational control points, exact. An arc keeps the angle in force. Leaning towards its
 //!   centre, the wall's radius shrinks with height: an arc whose wall would vanish below the
 //!   top of the work (`[wire] thickness_mm`) is refused.
-//! - **Corners**: where the direction of travel turns, the wire pivots about the corner point
-//!   `P` with its angle kept: `n` turns from the one before to the one after, so the lower
-//!   guide describes an arc of radius `L·t` about `P` and the upper guide one of radius
-//!   `(H − L)·t`. Leaning to the outside of the turn this conical corner rounds the walls
-//!   above the plane (radius `z·t` at height `z`) and never cuts into them, keeps the wire at
-//!   its angle and the program-plane point exactly on the corner. Leaning into the turn, the
-//!   cone would cut past where the two walls meet, by `z·t·(1/cos(turn/2) − 1)`: such a
-//!   corner is refused unless that stays within the tolerance at the top of the work (the
-//!   exact alternative there, both guides at the intersections of their offset lines with
-//!   the wire along the corner's edge, is not built yet; a corner radius of `thickness·t`
-//!   or more is cut).
+//! - **Corners**, where the direction of travel turns, are cut one of two ways, by which
+//!   side of the turn the wire leans to:
+//!   - **leaning to the outside**, the wire pivots about the corner point `P` with its angle
+//!     kept: `n` turns from the one before to the one after, so the lower guide describes an
+//!     arc of radius `L·t` about `P` and the upper guide one of radius `(H − L)·t`. The walls
+//!     above the plane get a round corner of radius `z·t` at height `z` (as a wire control's
+//!     "arc" corner mode) and the wire keeps its programmed angle throughout;
+//!   - **leaning into the turn**, that cone would cut past where the two walls meet (by
+//!     `z·t·(1/cos(turn/2) − 1)`), so between two lines the corner is sharp: the wire there
+//!     lies along the edge where the two walls' planes meet (the line through `P` whose lean
+//!     `v` per unit of height satisfies `v·n₁ = v·n₂ = t`), and along each line both guides
+//!     move straight from one corner's edge to the next. Both ends lie in the line's wall,
+//!     so the whole move does: the walls are exact planes at the programmed draft and meet
+//!     in a sharp edge at every height (the wire's angle from vertical grows towards such a
+//!     corner, its draft across the wall does not). Where an arc or a curve meets a corner
+//!     leaning into it, the walls are not planes and do not meet along a line: such a corner
+//!     is refused unless pivoting stays within the tolerance at the top of the work
+//!     (`[wire] thickness_mm`); a corner radius of `thickness·t` or more is always cut.
 //! - **NURBS curves**: their normal is not rational, so each smooth piece (between knots of
 //!   full multiplicity, where it pivots as at a corner) becomes a polyline of the guides'
 //!   positions, halved until every chord's middle is within the tolerance of the curve's,
@@ -61,6 +68,20 @@ pub(super) struct Taper {
     tolerance: f64,
     /// The work's thickness above the program plane (mm): where the walls end.
     thickness_mm: f64,
+    /// A tapered line held back until the next move says how its end corner is cut.
+    held: Option<HeldLine>,
+}
+
+/// A tapered line whose end waits for the next move: sharp where that move is a line the
+/// wire leans into, else at the line's own tilt.
+#[derive(Debug)]
+struct HeldLine {
+    block: Block,
+    /// Where its guides start (the corner's edge, or its own tilt).
+    start: Point,
+    /// Its normal and the tilt at its end.
+    n: V2,
+    tan_end: f64,
 }
 
 impl Taper {
@@ -81,7 +102,25 @@ impl Taper {
             normal: None,
             tolerance,
             thickness_mm,
+            held: None,
         }
+    }
+
+    /// A line is held back (the program is not over until it is out).
+    pub(super) fn holds(&self) -> bool {
+        self.held.is_some()
+    }
+
+    /// The line held back, ended at its own tilt: at the end of the program.
+    pub(super) fn flush(&mut self, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
+        let Some(h) = self.held.take() else {
+            return Ok(());
+        };
+        let Some(axes) = self.axes else {
+            return Ok(());
+        };
+        let end = self.place(&h.block.end(), h.n * h.tan_end, axes);
+        emit_line(h, end, out)
     }
 
     /// `block` as the guides cut it, after a corner move where the tilt turns.
@@ -97,15 +136,34 @@ impl Taper {
         let line = block.line;
         let fail = |message: String| TaperError { line, message };
         let straight = matches!(block.kind, BlockKind::Line | BlockKind::Rapid);
+        let [ix, iy, ..] = axes;
+        let xy = |p: &Point| V2::new(p[ix], p[iy]);
+        let (p0, p1) = (block.start(), block.end());
+        let travel = xy(&p1) - xy(&p0);
+        // The held line's end: a sharp corner into this line, or its own tilt.
+        let mut sharp_start = None;
+        if let Some(h) = self.held.take() {
+            let edge = (straight && travel.norm() > 1e-12)
+                .then(|| self.sharp_edge(h.n, left(travel.normalize()), h.tan_end))
+                .flatten()
+                .transpose()
+                .map_err(fail)?;
+            let end = match edge {
+                Some(v) => {
+                    let end = self.place(&h.block.end(), v, axes);
+                    sharp_start = Some(end);
+                    end
+                }
+                None => self.place(&h.block.end(), h.n * h.tan_end, axes),
+            };
+            emit_line(h, end, out).map_err(|e| fail(e.message))?;
+        }
         if self.tan == 0.0 && !(straight && block.taper != 0.0) {
             // Vertical, and staying so (an angle waits for a line).
             self.normal = None;
             out.push_back(block);
             return Ok(());
         }
-        let [ix, iy, ..] = axes;
-        let xy = |p: &Point| V2::new(p[ix], p[iy]);
-        let (p0, p1) = (block.start(), block.end());
         match block.kind.clone() {
             BlockKind::Probe(_) => Err(fail(
                 "a probing move cannot be tapered: cancel the taper with G50 and a move first"
@@ -138,7 +196,6 @@ impl Taper {
                 self.smooth_piece(rest, axes, out)
             }
             BlockKind::Line | BlockKind::Rapid => {
-                let travel = xy(&p1) - xy(&p0);
                 let n = if travel.norm() > 1e-12 {
                     left(travel.normalize())
                 } else {
@@ -147,12 +204,17 @@ impl Taper {
                     })?
                 };
                 let (t0, t1) = (self.tan, block.taper);
-                let block = self.corner(block, n, out)?;
-                let a = self.place(&p0, n, t0, axes);
-                let b = self.place(&p1, n, t1, axes);
-                let curve = NurbsCurve::line(block.curve.dim(), &a, &b)
-                    .map_err(|e| fail(format!("the tapered move: {e}")))?;
-                out.push_back(Block { curve, ..block });
+                // A sharp corner is cut: no pivot.
+                let (block, start) = match sharp_start {
+                    Some(start) => (block, start),
+                    None => (self.corner(block, n, out)?, self.place(&p0, n * t0, axes)),
+                };
+                self.held = Some(HeldLine {
+                    block,
+                    start,
+                    n,
+                    tan_end: t1,
+                });
                 self.tan = t1;
                 self.normal = Some(n);
                 Ok(())
@@ -261,7 +323,7 @@ impl Taper {
         let t = self.tan;
         let at = |u: f64| -> Option<(Point, Point)> {
             let p = curve.point(u);
-            Some((self.place(&p, normal(u)?, t, axes), p))
+            Some((self.place(&p, normal(u)? * t, axes), p))
         };
         let no_direction =
             || fail("the tapered curve has no direction of travel in X/Y somewhere".into());
@@ -316,16 +378,39 @@ impl Taper {
         Ok(())
     }
 
-    /// The guides' positions for the contour point `p` with the wire tilted by `t` along
-    /// `n`; the other axes as at `p`.
-    fn place(&self, p: &Point, n: V2, t: f64, [ix, iy, iu, iv]: [usize; 4]) -> Point {
+    /// The guides' positions for the contour point `p` with the wire leaning `v` per unit
+    /// of height (`t·n` for a tilt `t` along `n`); the other axes as at `p`.
+    fn place(&self, p: &Point, v: V2, [ix, iy, iu, iv]: [usize; 4]) -> Point {
         let (l, h) = (self.guides.lower_mm, self.guides.span_mm());
         let mut q = *p;
-        q[ix] = p[ix] - l * t * n.x;
-        q[iy] = p[iy] - l * t * n.y;
-        q[iu] = h * t * n.x;
-        q[iv] = h * t * n.y;
+        q[ix] = p[ix] - l * v.x;
+        q[iy] = p[iy] - l * v.y;
+        q[iu] = h * v.x;
+        q[iv] = h * v.y;
         q
+    }
+
+    /// The lean (per unit of height) of the edge where two walls meet, when the wire leans
+    /// into the turn from `n1` to `n2` at tilt `t`: `Some(Ok(v))` with `v·n1 = v·n2 = t`;
+    /// `None` for a corner that is pivoted instead (leaning out, or no turn); an error for a
+    /// turn so sharp that edge would lie flatter than 45°.
+    fn sharp_edge(&self, n1: V2, n2: V2, t: f64) -> Option<Result<V2, String>> {
+        let turn = n1.perp(&n2).atan2(n1.dot(&n2));
+        if t == 0.0 || turn.abs() < 1e-9 || t * turn < 0.0 {
+            return None;
+        }
+        let det = n1.perp(&n2);
+        let v = V2::new(n2.y - n1.y, n1.x - n2.x) * (t / det);
+        Some(if v.norm() <= 1.0 {
+            Ok(v)
+        } else {
+            Err(format!(
+                "the wire leans into this corner ({:.1}° turn): the walls would meet along an \
+                 edge {:.1}° from vertical; round the corner or lean the other way",
+                turn.to_degrees().abs(),
+                v.norm().atan().to_degrees()
+            ))
+        })
     }
 
     /// Where the tilted wire meets a move leaning along `n`: a pivot about the corner point
@@ -356,8 +441,9 @@ impl Taper {
         let overcut = lean_top * (1.0 / (turn / 2.0).cos() - 1.0);
         if self.tan * turn > 0.0 && overcut > self.tolerance {
             return Err(fail(format!(
-                "the wire leans into this corner ({:.1}° turn): pivoting about it would cut \
-                 {overcut:.4} mm into the walls at the top of the work; give the corner a radius \
+                "the wire leans into this corner ({:.1}° turn) where an arc or a curve meets \
+                 it: pivoting about it would cut {overcut:.4} mm into the walls at the top of \
+                 the work (a corner between two lines is cut sharp); give the corner a radius \
                  of at least {lean_top:.4} mm (the lean at the top), or lean the other way",
                 turn.to_degrees().abs()
             )));
@@ -369,7 +455,7 @@ impl Taper {
         let points: Vec<Point> = (0..unit.num_points())
             .map(|i| {
                 let q = unit.control_point(i);
-                self.place(&p, V2::new(q[0], q[1]), self.tan, axes)
+                self.place(&p, V2::new(q[0], q[1]) * self.tan, axes)
             })
             .collect();
         let weights: Vec<f64> = (0..unit.num_points()).map(|i| unit.weight(i)).collect();
@@ -394,6 +480,16 @@ impl Taper {
         block.pause = None;
         Ok(block)
     }
+}
+
+/// A held line's move, from its start to `end` (both guides straight).
+fn emit_line(h: HeldLine, end: Point, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
+    let curve = NurbsCurve::line(h.block.curve.dim(), &h.start, &end).map_err(|e| TaperError {
+        line: h.block.line,
+        message: format!("the tapered move: {e}"),
+    })?;
+    out.push_back(Block { curve, ..h.block });
+    Ok(())
 }
 
 /// The unit normal to the left of the unit direction `d`.
@@ -453,13 +549,32 @@ mod tests {
                 "{plane:?}"
             );
         }
-        // Leaning into that turn instead (G51) would cut into the walls: refused.
+        // Leaning into that turn instead (G51), the corner is sharp: no pivot, the first line
+        // ends with the wire along the edge where the two walls meet (lean (−t, t) per mm of
+        // height), where the second starts.
+        let t = 3f64.to_radians().tan();
+        let blocks = read("G21 G90\nG51 A3\nG1 X10 F100\nG1 Y10\nM2\n");
+        assert_eq!(blocks.len(), 2, "no pivot");
+        let edge = [10.0 + L * t, -L * t, -H * t, H * t];
+        for (p, name) in [(blocks[0].end(), "end"), (blocks[1].start(), "start")] {
+            for k in 0..4 {
+                assert!((p[k] - edge[k]).abs() < 1e-12, "{name} {k}: {p:?}");
+            }
+        }
+        let e = blocks[1].end();
+        let own = [10.0 + L * t, 10.0, -H * t, 0.0];
+        assert!((0..4).all(|k| (e[k] - own[k]).abs() < 1e-12), "{e:?}");
+        // An arc meeting such a corner: refused (the walls do not meet along a line).
         let axes = [Axis::X, Axis::Y, Axis::U, Axis::V];
-        let text = "G21 G90\nG51 A3\nG1 X10 F100\nG1 Y10\nM2\n";
+        let text = "G21 G90\nG51 A3\nG1 X10 F100\nG3 X0 Y10 I-10 J0\nM2\n";
         let err = BlockReader::new(Cursor::new(text.to_string()), "t.ngc", &axes)
             .collect::<Result<Vec<_>, _>>()
             .unwrap_err();
         assert_eq!(err.line, 4, "{err}");
+        assert!(
+            err.to_string().contains("where an arc or a curve meets it"),
+            "{err}"
+        );
     }
 
     #[test]
