@@ -211,6 +211,9 @@ pub struct Recording {
     pub events_left_out: u64,
     pub start: Option<(f64, f64)>,
     pub direction: Option<(f64, f64)>,
+    /// A four-axis wire machine's upper guide (X + U, Y + V; mm), decimated, and the indices
+    /// of U and V.
+    pub upper: Option<([usize; 2], Decimated)>,
     last: Option<Sample>,
     /// Where the feed's current window started: steps are whole, so a feed measured over a
     /// few ticks is mostly quantisation; over [`FEED_WINDOW_S`] it is the feed.
@@ -234,11 +237,19 @@ impl Recording {
             events_left_out: 0,
             start: None,
             direction: None,
+            upper: None,
             last: None,
             feed_from: None,
             turning_back: false,
             turn_back_points: 0,
         }
+    }
+
+    /// Also records the upper guide of a four-axis wire machine, whose U and V (the upper
+    /// guide relative to the lower one) are these axes.
+    pub fn with_upper_guide(mut self, uv: Option<[usize; 2]>) -> Recording {
+        self.upper = uv.map(|uv| (uv, Decimated::new(PLOT_POINTS)));
+        self
     }
 
     /// Machine time of `ticks` (s), exact for whole milliseconds and microseconds.
@@ -293,6 +304,12 @@ impl Recording {
         }
         self.gap.push(t, gap_level(s.gap));
         self.path.push(x, y);
+        if let Some(([u, v], _)) = self.upper {
+            let (du, dv) = (self.mm(&s.position, u), self.mm(&s.position, v));
+            if let Some((_, upper)) = &mut self.upper {
+                upper.push(x + du, y + dv);
+            }
+        }
         self.last = Some(*s);
     }
 
@@ -416,5 +433,22 @@ mod tests {
         let gap = r.gap.points();
         assert_eq!(gap[0], (0.0, 1.0));
         assert!(gap.contains(&(1.0, 2.0)), "{gap:?}");
+    }
+
+    #[test]
+    fn a_four_axis_recording_keeps_the_upper_guide() {
+        let tick = TickPeriod::from_us(1000).unwrap();
+        let mut r = Recording::new(&[0.001; 4], tick).with_upper_guide(Some([2, 3]));
+        for (k, (x, u)) in [(0, 0), (1000, 500), (2000, 1000)].into_iter().enumerate() {
+            r.sample(&Sample {
+                tick: k as u64,
+                position: [x, 0, u, -u, 0, 0],
+                gap: GapState::Normal,
+                rapid: false,
+            });
+        }
+        let (_, upper) = r.upper.as_ref().unwrap();
+        assert_eq!(upper.points(), [(0.0, 0.0), (1.5, -0.5), (3.0, -1.0)]);
+        assert!(Recording::new(&[0.001; 2], tick).upper.is_none());
     }
 }

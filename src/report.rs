@@ -3,7 +3,8 @@
 //!
 //! - `path.svg`: the executed X–Y path, the stretches turned back over and re-advanced marked,
 //!   the short circuits, jumps, wire breaks and probe contacts as dots, the start point and
-//!   the direction it leaves in;
+//!   the direction it leaves in; on a four-axis wire machine the upper guide's path (X+U,
+//!   Y+V) beside the lower guide's;
 //! - `feed.svg`: the feed along the path and the gap state against machine time;
 //! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, jump, wire
 //!   break, probe, end) with its machine time, source line and position;
@@ -46,7 +47,7 @@ pub fn write_report(
     let json = serde_json::to_string_pretty(summary).expect("a summary serialises");
     write("summary.json", &(json + "\n"))?;
     write("events.csv", &events_csv(recording, &summary.axes))?;
-    let path = Chart {
+    let mut path = Chart {
         title: format!(
             "Executed path: {} ({})",
             summary.program,
@@ -112,6 +113,19 @@ pub fn write_report(
             .map(|p| (p, recording.direction.unwrap_or((1.0, 0.0)))),
         ..Chart::default()
     };
+    if let Some((_, upper)) = &recording.upper {
+        // A four-axis wire machine: the lower guide's path above, the upper guide's too.
+        path.series[0].name = "executed path (lower guide, X/Y)".into();
+        path.series.insert(
+            1,
+            Series {
+                name: "upper guide (X+U, Y+V)".into(),
+                color: "#2a9d8f",
+                style: Style::Line,
+                points: upper.points(),
+            },
+        );
+    }
     write("path.svg", &path.render())?;
     let feed_points = recording.feed.points();
     let top = feed_points.iter().map(|p| p.1).fold(0.0, f64::max).max(1.0);

@@ -374,12 +374,20 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
             "sim.debris_shorts=8",
             "--summary",
             dir.join("summary.json").to_str().unwrap(),
+            "--report",
+            dir.join("report").to_str().unwrap(),
         ],
     );
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    // The run's report draws both guides.
+    let svg = std::fs::read_to_string(dir.join("report/path.svg")).unwrap();
+    assert!(
+        svg.contains("executed path (lower guide, X/Y)") && svg.contains("upper guide (X+U, Y+V)"),
+        "{svg}"
     );
     let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
     let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -522,7 +530,16 @@ fn plan_draws_both_guides_and_the_wire_angle() {
     let trace = std::fs::read_to_string(out_dir.join("trace.csv")).unwrap();
     let mut lines = trace.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(&header[header.len() - 2..], ["u", "v"]);
+    // U and V by their letters in upper case (`u` is the curve parameter), once each.
+    assert_eq!(&header[header.len() - 2..], ["U", "V"]);
+    let mut names = header.clone();
+    names.sort_unstable();
+    names.dedup();
+    assert_eq!(
+        names.len(),
+        header.len(),
+        "a column named twice: {header:?}"
+    );
     let steepest = lines
         .map(|l| {
             let f: Vec<f64> = l.rsplit(',').take(2).map(|x| x.parse().unwrap()).collect();

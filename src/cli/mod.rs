@@ -535,10 +535,10 @@ fn run_job(args: &RunArgs) -> ExitCode {
     let terminal = std::io::stderr().is_terminal();
     let progress = job_progress(terminal, cfg.fine.tick);
     let recording = args.report.as_ref().map(|_| {
-        Arc::new(parking_lot::Mutex::new(crate::record::Recording::new(
-            &cfg.machine.step_mm,
-            cfg.fine.tick,
-        )))
+        Arc::new(parking_lot::Mutex::new(
+            crate::record::Recording::new(&cfg.machine.step_mm, cfg.fine.tick)
+                .with_upper_guide(cfg.machine.upper_guide_axes()),
+        ))
     });
     let observers = runtime::Observers {
         progress: Some(progress),

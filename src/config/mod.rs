@@ -155,6 +155,14 @@ impl MachineConfig {
         Some([index(Axis::X)?, index(Axis::Y)?])
     }
 
+    /// The indices of U and V in `axes` (a four-axis wire machine's upper guide), when the
+    /// machine has X, Y, U and V.
+    pub fn upper_guide_axes(&self) -> Option<[usize; 2]> {
+        let index = |a: Axis| self.axes.iter().position(|&x| x == a);
+        self.plane_axes()?;
+        Some([index(Axis::U)?, index(Axis::V)?])
+    }
+
     /// The axis letters as strings, in machine order (for reports).
     pub fn axis_names(&self) -> Vec<String> {
         self.axes.iter().map(|a| a.letter().to_string()).collect()

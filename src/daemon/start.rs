@@ -190,10 +190,10 @@ impl Core {
 
     /// A new job's recording, also the page's executed path from now on.
     fn record(&mut self, program: &str) -> JobRecording {
-        let recording: JobRecording = Arc::new(parking_lot::Mutex::new(Recording::new(
-            &self.config.machine.step_mm,
-            self.config.fine.tick,
-        )));
+        let recording: JobRecording = Arc::new(parking_lot::Mutex::new(
+            Recording::new(&self.config.machine.step_mm, self.config.fine.tick)
+                .with_upper_guide(self.config.machine.upper_guide_axes()),
+        ));
         *self.jobs.executed.lock() = Some(super::http::executed::Executed {
             program: program.to_string(),
             recording: recording.clone(),

@@ -534,7 +534,8 @@ impl Collector {
             .iter()
             .enumerate()
             .filter(|(_, a)| !matches!(a, Axis::X | Axis::Y | Axis::Z))
-            .map(|(i, a)| (i, a.letter().to_ascii_lowercase()))
+            // Upper case: `u` is the curve parameter's column.
+            .map(|(i, a)| (i, a.letter()))
             .collect();
         let mut c = Collector {
             trace,
