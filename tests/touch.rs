@@ -66,6 +66,7 @@ fn find_center_measures_the_hole_and_writes_g55() {
     let (f, code) = find(&daemon, &["center", "--system", "G55"]);
     assert_eq!(code, 0, "{f}\n{}", daemon.log());
     assert_eq!(f["state"], "found", "{f}");
+    eprintln!("find center: {}", f["message"]);
     let p = &f["point_mm"];
     assert!(
         near(&p[0], 12.345, STEP) && near(&p[1], -6.789, STEP),
@@ -138,6 +139,7 @@ fn find_edge_and_corner_add_the_wire_radius_and_retry_a_bounce() {
     assert!((-20.0..-20.0 + STEP).contains(&x), "{f}");
     assert!(f["point_mm"][1].is_null(), "an edge measures one axis: {f}");
     let message = f["message"].as_str().unwrap();
+    eprintln!("find edge X+: {message}");
     // The bounce 0.5 mm before the face was a false contact: retouched away, approached again.
     assert!(message.contains("1 touch, 1 retry"), "{message}");
     let wire = message.split("touched at X").nth(1).unwrap();
