@@ -309,6 +309,52 @@ pub enum ProbeReads {
     Touch { start: Steps, bounce: bool },
 }
 
+/// A die-sinker's orbit (planetary motion) around the tool axis while it sinks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OrbitShape {
+    /// No orbit: a straight plunge.
+    #[default]
+    None,
+    Circle,
+    Square,
+    /// Back and forth along X.
+    VectorX,
+    /// Back and forth along Y.
+    VectorY,
+    /// A circle with the tool axis raised on a sphere: a rounded floor.
+    Sphere,
+}
+
+impl OrbitShape {
+    pub const ALL: [OrbitShape; 6] = [
+        OrbitShape::None,
+        OrbitShape::Circle,
+        OrbitShape::Square,
+        OrbitShape::VectorX,
+        OrbitShape::VectorY,
+        OrbitShape::Sphere,
+    ];
+
+    /// As the configuration spells it: `none`, `circle`, `square`, `vector-x`, `vector-y`,
+    /// `sphere`.
+    pub fn name(self) -> &'static str {
+        match self {
+            OrbitShape::None => "none",
+            OrbitShape::Circle => "circle",
+            OrbitShape::Square => "square",
+            OrbitShape::VectorX => "vector-x",
+            OrbitShape::VectorY => "vector-y",
+            OrbitShape::Sphere => "sphere",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<OrbitShape> {
+        OrbitShape::ALL
+            .into_iter()
+            .find(|s| s.name() == text.trim())
+    }
+}
+
 /// The wire's two guides. X/Y move the lower guide; U/V are the upper guide's position
 /// relative to the lower one, so the wire crosses the program plane at
 /// `(x, y) + (u, v) · lower_mm / (lower_mm + upper_mm)`.

@@ -21,6 +21,7 @@ mod parport;
 mod raw;
 mod settings;
 mod sim;
+mod sinker;
 #[cfg(test)]
 mod tests;
 mod validate;
@@ -316,6 +317,16 @@ pub struct Condition {
     pub jump_feed_mm_per_min: Option<f64>,
     /// Corner control while this condition cuts.
     pub corner: Option<CornerControl>,
+    /// This condition's own orbit (its stage's undersize): each `None` keeps
+    /// `[sinker.orbit]`'s.
+    pub orbit_shape: Option<crate::vocab::OrbitShape>,
+    pub orbit_radius_mm: Option<f64>,
+}
+
+/// `[sinker]`: how a die-sinker's sinking moves orbit.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SinkerConfig {
+    pub orbit: crate::gcode::OrbitOptions,
 }
 
 /// `[compensation]`: the wire offset registers.
@@ -363,6 +374,8 @@ pub struct Config {
     pub homing: HomingConfig,
     /// `[wire]`: the technology table of passes.
     pub wire: WireConfig,
+    /// `[sinker]`: orbiting.
+    pub sinker: SinkerConfig,
 }
 
 /// `[homing]`: when the machine position must be known.

@@ -110,6 +110,24 @@ pub(super) fn overlay(
                     message: unknown_key_message(&section, &key, defaults),
                 });
             }
+            // A table of fixed keys (`[sinker.orbit]`) is overlaid key by key too; a free
+            // map (empty by default: `sim.home_switch_mm`) is replaced whole.
+            if let (Some(toml::Value::Table(inner)), toml::Value::Table(user_inner)) =
+                (defaults.get_mut(&key), &value)
+                && !inner.is_empty()
+            {
+                let path = format!("{section}.{key}");
+                for (sub, v) in user_inner {
+                    if !inner.contains_key(sub) {
+                        return Err(ConfigError::Invalid {
+                            origin: origins.describe(&format!("{path}.{sub}"), source),
+                            message: unknown_key_message(&path, sub, inner),
+                        });
+                    }
+                    inner.insert(sub.clone(), v.clone());
+                }
+                continue;
+            }
             defaults.insert(key, value);
         }
     }
@@ -170,11 +188,28 @@ pub(super) fn apply_override(
             section_names()
         )));
     };
+    let value = parse_override_value(value_text.trim())
+        .ok_or_else(|| fail(format!("`{value_text}` is not a TOML value")))?;
+    // `section.table.key` sets one key of a table of fixed keys (`sinker.orbit.shape`).
+    if let Some((table, sub)) = key.split_once('.') {
+        let inner = match keys.get_mut(table) {
+            Some(toml::Value::Table(inner)) if !inner.is_empty() => inner,
+            _ => return Err(fail(unknown_key_message(section, key, keys))),
+        };
+        if !inner.contains_key(sub) {
+            return Err(fail(unknown_key_message(
+                &format!("{section}.{table}"),
+                sub,
+                inner,
+            )));
+        }
+        inner.insert(sub.to_string(), value);
+        origins.overrides.insert(path.to_string(), arg.to_string());
+        return Ok(());
+    }
     if !known(section, key, keys) {
         return Err(fail(unknown_key_message(section, key, keys)));
     }
-    let value = parse_override_value(value_text.trim())
-        .ok_or_else(|| fail(format!("`{value_text}` is not a TOML value")))?;
     keys.insert(key.to_string(), value);
     origins.overrides.insert(path.to_string(), arg.to_string());
     Ok(())

@@ -27,6 +27,7 @@ pub(super) struct RawConfig {
     pub(super) generator: RawGenerator,
     pub(super) homing: RawHoming,
     pub(super) wire: RawWire,
+    pub(super) sinker: RawSinker,
 }
 
 #[derive(Debug, Deserialize)]
@@ -95,6 +96,10 @@ pub(super) struct RawCondition {
     pub(super) corner_distance_mm: Option<f64>,
     #[serde(default)]
     pub(super) corner_dwell_ms: Option<f64>,
+    #[serde(default)]
+    pub(super) orbit_shape: Option<String>,
+    #[serde(default)]
+    pub(super) orbit_radius_mm: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -268,6 +273,23 @@ pub(super) struct RawDaemon {
 pub(super) struct RawLog {
     pub(super) level: LogLevel,
     pub(super) format: LogFormat,
+}
+
+/// `[sinker]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawSinker {
+    pub(super) orbit: RawOrbit,
+}
+
+/// `[sinker.orbit]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawOrbit {
+    pub(super) shape: String,
+    pub(super) radius_mm: f64,
+    pub(super) feed_mm_per_min: f64,
+    pub(super) expand: bool,
 }
 
 /// `[wire]` as written.

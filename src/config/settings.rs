@@ -163,6 +163,7 @@ impl ProgramOptions {
             conditions: config.conditions.iter().map(|c| c.number).collect(),
             guides: config.wire.guides,
             thickness_mm: config.wire.thickness_mm,
+            orbit: config.sinker.orbit.clone(),
         }
     }
 }

@@ -321,3 +321,36 @@ fn homing_axes_are_checked_and_ordered_by_sequence() {
     let e = load("", &["sim.home_switch_mm={Q=1.0}"]).unwrap_err();
     assert!(e.contains("\"Q\" is not an axis letter"), "{e}");
 }
+
+#[test]
+fn the_orbit_table_overlays_key_by_key_and_conditions_carry_their_own() {
+    use crate::vocab::OrbitShape;
+    let c = load(
+        "[sinker.orbit]\nshape = \"circle\"\n\n[[generator.condition]]\nnumber = 3\n\
+         on_us = 4.0\noff_us = 8.0\ncurrent_a = 5.0\nv_ref = 25.0\nfeed_mm_per_min = 60.0\n\
+         orbit_radius_mm = 0.25\n",
+        &["sinker.orbit.feed_mm_per_min=90"],
+    )
+    .unwrap();
+    let o = &c.sinker.orbit;
+    // The file's shape, the shipped radius and expansion, the override's feed.
+    assert_eq!(
+        (o.default.shape, o.default.radius_mm),
+        (OrbitShape::Circle, 0.1)
+    );
+    assert!(o.expand);
+    assert_eq!(o.feed_mm_per_min, 90.0);
+    // E3 keeps the shape and finishes to its own radius.
+    assert_eq!(o.for_condition(3).radius_mm, 0.25);
+    assert_eq!(o.for_condition(3).shape, OrbitShape::Circle);
+    assert_eq!(o.for_condition(1).radius_mm, 0.1);
+    let e = load("[sinker.orbit]\nshape = \"spiral\"\n", &[]).unwrap_err();
+    assert!(
+        e.contains("\"spiral\" is not an orbit shape: none, circle"),
+        "{e}"
+    );
+    let e = load("[sinker.orbit]\nradius = 1.0\n", &[]).unwrap_err();
+    assert!(e.contains("unknown key `radius` in [sinker.orbit]"), "{e}");
+    let e = load("", &["sinker.orbit.pitch=1"]).unwrap_err();
+    assert!(e.contains("--set sinker.orbit.pitch=1"), "{e}");
+}

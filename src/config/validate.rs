@@ -143,6 +143,7 @@ impl RawConfig {
         let compensation = compensation(self.compensation)?;
         let conditions = conditions(self.generator)?;
         let wire = self.wire.validate(&compensation, &conditions)?;
+        let sinker = self.sinker.validate(&conditions)?;
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
@@ -165,6 +166,7 @@ impl RawConfig {
             conditions,
             homing,
             wire,
+            sinker,
         })
     }
 }
@@ -633,9 +635,12 @@ fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
             return Err((key, format!("E{number} is defined twice")));
         }
         let corner = c.corner_control()?;
+        let (orbit_shape, orbit_radius_mm) = c.orbit()?;
         conditions.push(Condition {
             number,
             corner,
+            orbit_shape,
+            orbit_radius_mm,
             on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
             off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
             current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,

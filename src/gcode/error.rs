@@ -148,6 +148,8 @@ pub enum GcodeErrorKind {
     Control(String),
     #[error("wire offset: {0}")]
     WireOffset(String),
+    #[error("orbit: {0}")]
+    Orbit(String),
     #[error("taper: {0}")]
     Taper(String),
     #[error("{0}")]

@@ -39,7 +39,7 @@ pub use parser::{
 pub use work::{StartModes, WORK_SYSTEMS, WorkOffsets, WorkStart, WorkSystem};
 
 use crate::geometry::{NurbsCurve, Point};
-use crate::vocab::{Axis, Guides};
+use crate::vocab::{Axis, Guides, OrbitShape};
 
 /// The three NURBS block forms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -217,6 +217,8 @@ pub struct ProgramOptions {
     /// The work's thickness above the program plane (`[wire] thickness_mm`): a taper's
     /// walls end there, so that is where a corner or an arc is checked for gouges.
     pub thickness_mm: f64,
+    /// How sinking moves orbit (`[sinker.orbit]`; none by default).
+    pub orbit: OrbitOptions,
 }
 
 impl Default for ProgramOptions {
@@ -235,6 +237,7 @@ impl Default for ProgramOptions {
                 upper_mm: 40.0,
             },
             thickness_mm: 20.0,
+            orbit: OrbitOptions::default(),
         }
     }
 }
@@ -278,6 +281,50 @@ pub struct Block {
     /// the left of the direction of travel. The reader's taper stage turns it into the guides'
     /// X/Y and U/V; a block handed out carries the tilt it was cut with.
     pub taper: f64,
+    /// The orbit this sinking move was turned into (its stage: shape, radius, depths).
+    pub orbit: Option<OrbitStage>,
+}
+
+/// An orbit: its shape and radius (the undersize it finishes to), mm.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Orbit {
+    pub shape: OrbitShape,
+    pub radius_mm: f64,
+}
+
+/// How sinking moves orbit (`[sinker.orbit]` and the conditions' own orbits).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct OrbitOptions {
+    /// The orbit of a condition that sets none (and of no condition).
+    pub default: Orbit,
+    /// The speed around the orbit, mm/min: with the sinking feed, how many turns a move makes.
+    pub feed_mm_per_min: f64,
+    /// The radius grows from nothing at the top of a move to the orbit's at its bottom.
+    pub expand: bool,
+    /// Conditions with their own orbit (`orbit_shape`, `orbit_radius_mm`), by E number.
+    pub by_condition: Vec<(u32, Orbit)>,
+}
+
+impl OrbitOptions {
+    /// The orbit in force while condition `n` cuts.
+    pub fn for_condition(&self, n: u32) -> Orbit {
+        self.by_condition
+            .iter()
+            .find(|(c, _)| *c == n)
+            .map_or(self.default, |&(_, o)| o)
+    }
+}
+
+/// What a sinking move's orbit was (for the stage tables of `plan` and the reports).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrbitStage {
+    pub shape: OrbitShape,
+    pub radius_mm: f64,
+    /// The tool axis at the top and the bottom of the move (mm, machine coordinates).
+    pub from_z: f64,
+    pub to_z: f64,
+    /// Whole turns made on the way down.
+    pub turns: u32,
 }
 
 /// Where a spark-off move travels.
@@ -308,6 +355,7 @@ impl Block {
             condition: 0,
             spark_off: None,
             taper: 0.0,
+            orbit: None,
         }
     }
 

@@ -97,6 +97,24 @@ pub struct PlanSummary {
     pub segments_per_second: f64,
     /// Peak resident memory of the process (KiB, from `/proc/self/status`).
     pub peak_rss_kib: Option<u64>,
+    /// A die-sinker's orbital sinking moves, in program order (at most [`MAX_STAGES`]): the
+    /// stages of a rough-to-finish sequence.
+    pub stages: Vec<StageRow>,
+}
+
+/// Most orbit stages a plan lists.
+pub const MAX_STAGES: usize = 1000;
+
+/// One orbital sinking move: where it sinks from and to, in which condition, on which orbit.
+#[derive(Debug, Clone, Serialize)]
+pub struct StageRow {
+    pub line: u64,
+    pub condition: u32,
+    pub shape: &'static str,
+    pub radius_mm: f64,
+    pub from_z_mm: f64,
+    pub to_z_mm: f64,
+    pub turns: u32,
 }
 
 impl PlanSummary {
@@ -160,6 +178,12 @@ impl PlanSummary {
         );
         if let Some(kib) = self.peak_rss_kib {
             s += &format!("peak RSS           {:.1} MiB\n", kib as f64 / 1024.0);
+        }
+        for st in &self.stages {
+            s += &format!(
+                "orbit stage        line {}: Z {:.4} -> {:.4} mm in E{}, {} of {:.4} mm, {} turns\n",
+                st.line, st.from_z_mm, st.to_z_mm, st.condition, st.shape, st.radius_mm, st.turns
+            );
         }
         s
     }
@@ -481,8 +505,20 @@ pub fn plan_program(
     let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
     let mut bar = Progress::new(progress && io::stderr().is_terminal(), total);
     let mut first = true;
+    let mut stages = Vec::new();
     for item in blocks.by_ref() {
         let block = Arc::new(item?);
+        if let Some(o) = block.orbit.filter(|_| stages.len() < MAX_STAGES) {
+            stages.push(StageRow {
+                line: block.line,
+                condition: block.condition,
+                shape: o.shape.name(),
+                radius_mm: o.radius_mm,
+                from_z_mm: o.from_z,
+                to_z_mm: o.to_z,
+                turns: o.turns,
+            });
+        }
         if first {
             c.first_row(&block);
             first = false;
@@ -515,7 +551,8 @@ pub fn plan_program(
         let refs: Vec<&Block> = k.iter().map(|b| b.as_ref()).collect();
         bound::time_optimal_bound(&refs, &settings, BOUND_SPACING_MM)
     });
-    let summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
+    let mut summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
+    summary.stages = stages;
     write_reports(out_dir, &summary, &c, &settings)?;
     Ok(summary)
 }
@@ -633,5 +670,6 @@ fn summary_of(
         wall_time_s: wall,
         segments_per_second: c.segments as f64 / wall.max(1e-9),
         peak_rss_kib: peak_rss_kib(),
+        stages: Vec::new(),
     }
 }

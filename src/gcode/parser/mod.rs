@@ -14,6 +14,7 @@ mod control;
 mod modal;
 mod nurbs;
 mod offsets;
+mod orbit;
 mod state;
 mod structure;
 mod system;
@@ -125,6 +126,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             options.thickness_mm,
             options.offset_tolerance_mm,
         );
+        let orbit = orbit::Orbiting::new(axes, options.orbit.clone(), options.offset_tolerance_mm);
         Self {
             options,
             source_name: source_name.into(),
@@ -137,6 +139,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 queue: VecDeque::new(),
                 taper,
                 tapered: VecDeque::new(),
+                orbit,
+                orbited: VecDeque::new(),
                 pending: None,
             },
             diag: Diagnostics::default(),
@@ -199,8 +203,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
-            if let Some(block) = self.out.tapered.pop_front() {
+            if let Some(block) = self.out.orbited.pop_front() {
                 return Ok(Some(block));
+            }
+            if let Some(block) = self.out.tapered.pop_front() {
+                if let Err(e) = self.out.orbit.push(block, &mut self.out.orbited) {
+                    return Err(self.located_error(e.line, GcodeErrorKind::Orbit(e.message)));
+                }
+                continue;
             }
             if let Some(block) = self.out.queue.pop_front() {
                 if let Err(e) = self.out.taper.push(block, &mut self.out.tapered) {
@@ -615,6 +625,7 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
         if self.program.done
             && self.out.queue.is_empty()
             && self.out.tapered.is_empty()
+            && self.out.orbited.is_empty()
             && !self.out.taper.holds()
         {
             return None;

@@ -169,6 +169,9 @@ pub(super) struct Output {
     /// G51/G52 taper: the moves of `queue` turned into the guides' paths, waiting to be
     /// handed out.
     pub taper: Taper,
+    /// Sinking moves turned into orbital paths (`[sinker.orbit]`), after the taper.
+    pub orbit: super::orbit::Orbiting,
+    pub orbited: VecDeque<Block>,
     pub tapered: VecDeque<Block>,
     /// A NURBS curve being collected over several lines.
     pub pending: Option<PendingCurve>,
