@@ -48,6 +48,7 @@ fn settings(feed: f64) -> FineSettings {
         law: edmd::servo::Law::ThreeState,
         excursions: edmd::fine::ExcursionSettings::OFF,
         dry_run: false,
+        breakthrough: edmd::fine::BreakthroughSettings::OFF,
     }
 }
 

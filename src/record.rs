@@ -134,6 +134,8 @@ pub enum EventKind {
     WireBreak,
     Probe,
     ProbeMissed,
+    /// A drilling move broke through (1) or ended without (0).
+    Breakthrough,
     /// The operator's hold, its release, a rethread asked for, an abort.
     Hold,
     Released,
@@ -163,6 +165,7 @@ impl EventKind {
             EventKind::WireBreak => "wire_break",
             EventKind::Probe => "probe",
             EventKind::ProbeMissed => "probe_missed",
+            EventKind::Breakthrough => "breakthrough",
             EventKind::Hold => "hold",
             EventKind::Released => "released",
             EventKind::Rethread => "rethread",

@@ -47,6 +47,44 @@ pub fn write_report(
     let json = serde_json::to_string_pretty(summary).expect("a summary serialises");
     write("summary.json", &(json + "\n"))?;
     write("events.csv", &events_csv(recording, &summary.axes))?;
+    let path = path_chart(recording, summary);
+    write("path.svg", &path.render())?;
+    let feed_points = recording.feed.points();
+    let top = feed_points.iter().map(|p| p.1).fold(0.0, f64::max).max(1.0);
+    // The gap state on the feed's scale: open at 0, normal at half the top feed, short at it.
+    let gap: Vec<(f64, f64)> = recording
+        .gap
+        .points()
+        .into_iter()
+        .map(|(t, level)| (t, level * top / 2.0))
+        .collect();
+    let feed = Chart {
+        title: "Feed and gap state".into(),
+        x_label: "machine time (s)".into(),
+        y_label: "feed (mm/min)".into(),
+        series: vec![
+            Series {
+                name: "feed along the path".into(),
+                color: "#1f8f3f",
+                style: Style::Line,
+                points: feed_points,
+            },
+            Series {
+                name: "gap: open (bottom), normal (middle), short (top)".into(),
+                color: "#d08000",
+                style: Style::Dashed,
+                points: gap,
+            },
+        ],
+        ..Chart::default()
+    };
+    write("feed.svg", &feed.render())
+}
+
+/// The events of `kind` as dots where they happened, named with their count.
+/// `path.svg`: the executed path (and a four-axis machine's upper guide), the turn-backs and
+/// the events as dots.
+fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
     let mut path = Chart {
         title: format!(
             "Executed path: {} ({})",
@@ -126,40 +164,9 @@ pub fn write_report(
             },
         );
     }
-    write("path.svg", &path.render())?;
-    let feed_points = recording.feed.points();
-    let top = feed_points.iter().map(|p| p.1).fold(0.0, f64::max).max(1.0);
-    // The gap state on the feed's scale: open at 0, normal at half the top feed, short at it.
-    let gap: Vec<(f64, f64)> = recording
-        .gap
-        .points()
-        .into_iter()
-        .map(|(t, level)| (t, level * top / 2.0))
-        .collect();
-    let feed = Chart {
-        title: "Feed and gap state".into(),
-        x_label: "machine time (s)".into(),
-        y_label: "feed (mm/min)".into(),
-        series: vec![
-            Series {
-                name: "feed along the path".into(),
-                color: "#1f8f3f",
-                style: Style::Line,
-                points: feed_points,
-            },
-            Series {
-                name: "gap: open (bottom), normal (middle), short (top)".into(),
-                color: "#d08000",
-                style: Style::Dashed,
-                points: gap,
-            },
-        ],
-        ..Chart::default()
-    };
-    write("feed.svg", &feed.render())
+    path
 }
 
-/// The events of `kind` as dots where they happened, named with their count.
 fn dots(
     recording: &Recording,
     kind: EventKind,

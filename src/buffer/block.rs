@@ -78,6 +78,9 @@ impl BlockFlags {
     /// With `RAPID`: a spark-off move along a path already cut, not through the open (a
     /// retreat may walk back through it).
     pub const IN_KERF: BlockFlags = BlockFlags(1024);
+    /// A drilling move watched for breakthrough (`[sinker] breakthrough`): the producer
+    /// waits for where it ends, as after a probing move.
+    pub const BREAKTHROUGH: BlockFlags = BlockFlags(2048);
 
     /// Every flag of `other` is set.
     pub const fn contains(self, other: BlockFlags) -> bool {

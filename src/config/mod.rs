@@ -327,6 +327,12 @@ pub struct Condition {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SinkerConfig {
     pub orbit: crate::gcode::OrbitOptions,
+    /// Breakthrough on drilling moves: on or off, the extra travel past it (mm), the open
+    /// ratio that tells it and the window it is judged over (s of cutting).
+    pub breakthrough: bool,
+    pub breakthrough_extra_mm: f64,
+    pub breakthrough_open_ratio: f64,
+    pub breakthrough_window_s: f64,
 }
 
 /// `[compensation]`: the wire offset registers.

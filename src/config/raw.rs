@@ -247,6 +247,7 @@ pub(super) struct RawSim {
     pub(super) hole_center_mm: Vec<f64>,
     pub(super) hole_diameter_mm: f64,
     pub(super) touch_bounce_mm: f64,
+    pub(super) breakthrough_at_mm: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -279,6 +280,10 @@ pub(super) struct RawLog {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawSinker {
+    pub(super) breakthrough: bool,
+    pub(super) breakthrough_extra_mm: f64,
+    pub(super) breakthrough_open_ratio: f64,
+    pub(super) breakthrough_window_ms: f64,
     pub(super) orbit: RawOrbit,
 }
 

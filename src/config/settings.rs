@@ -94,6 +94,17 @@ impl FineSettings {
             },
             step_mm: step_mm(config),
             dry_run: false,
+            breakthrough: {
+                let s = &config.sinker;
+                crate::fine::BreakthroughSettings {
+                    enabled: s.breakthrough,
+                    window_ticks: (s.breakthrough_window_s / config.fine.tick.secs())
+                        .round()
+                        .max(1.0) as u32,
+                    open_ratio: s.breakthrough_open_ratio,
+                    extra_mm: s.breakthrough_extra_mm,
+                }
+            },
             excursions: crate::fine::ExcursionSettings {
                 jump_interval_ticks: (servo.jumps.interval_s / config.fine.tick.secs()).round()
                     as u64,

@@ -51,6 +51,15 @@ fn sim(m: RawSim, machine: &MachineConfig, homing: &HomingConfig) -> Result<SimC
         events: (!m.events.trim().is_empty()).then(|| PathBuf::from(m.events)),
         home_switch_mm,
         part,
+        breakthrough_at_mm: match at_most(
+            "sim.breakthrough_at_mm",
+            m.breakthrough_at_mm,
+            1e6,
+            "mm",
+        )? {
+            0.0 => f64::INFINITY,
+            mm => mm,
+        },
     })
 }
 

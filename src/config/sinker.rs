@@ -63,6 +63,25 @@ impl RawSinker {
             })
             .collect();
         Ok(SinkerConfig {
+            breakthrough: self.breakthrough,
+            breakthrough_extra_mm: at_most(
+                "sinker.breakthrough_extra_mm",
+                self.breakthrough_extra_mm,
+                100.0,
+                "mm",
+            )?,
+            breakthrough_open_ratio: positive(
+                "sinker.breakthrough_open_ratio",
+                self.breakthrough_open_ratio,
+                1.0,
+                "(a share of the window)",
+            )?,
+            breakthrough_window_s: positive(
+                "sinker.breakthrough_window_ms",
+                self.breakthrough_window_ms,
+                1e4,
+                "ms",
+            )? / 1000.0,
             orbit: OrbitOptions {
                 default,
                 feed_mm_per_min: positive(

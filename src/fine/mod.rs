@@ -41,10 +41,12 @@
 //! [`ServoEvent::Paused`], released by [`Interpolator::set_hold`]. Re-entering a block after a
 //! turn-back, or walking over it to a checkpoint, does not repeat them.
 
+mod breakthrough;
 pub mod bresenham;
 mod excursion;
 mod motion;
 
+pub use breakthrough::BreakthroughSettings;
 pub use motion::Overrides;
 mod skip;
 mod stops;
@@ -84,6 +86,8 @@ pub struct FineSettings {
     /// A dry run: the program's moves at their planned feed with the spark off and the servo
     /// out of the loop (a short is a collision, as on a rapid).
     pub dry_run: bool,
+    /// Breakthrough on drilling moves.
+    pub breakthrough: BreakthroughSettings,
 }
 
 /// What one tick produced.
@@ -387,6 +391,13 @@ impl Interpolator {
     #[inline(always)]
     fn cut(&mut self, gap: GapState, tick: &mut Tick) -> Decision {
         let here = self.here();
+        if self.servo.state() == ServoState::Forward && self.motion.holds(BlockFlags::BREAKTHROUGH)
+        {
+            let at = self.motion.position;
+            self.excursions
+                .drill
+                .tick(&self.settings.breakthrough, gap, &at);
+        }
         tick.event = self.servo.on_gap(gap, here);
         if let Some(alarm) = self.servo.count_short(gap, here) {
             self.motion.stop();
@@ -492,9 +503,19 @@ impl Interpolator {
                 .block
                 .flags
                 .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
+        let drilling = self.servo.state() == ServoState::Forward
+            && self.motion.block.flags.contains(BlockFlags::BREAKTHROUGH)
+            && !self
+                .motion
+                .block
+                .flags
+                .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
         self.step_forward(tick, source);
         if cutting_open {
             self.open_travel(tick);
+        }
+        if drilling {
+            self.drilled(tick);
         }
         self.excursions.contact_grace_mm =
             (self.excursions.contact_grace_mm - self.motion.event_mm).max(0.0);
@@ -531,9 +552,12 @@ impl Interpolator {
                 kind,
             });
         }
-        // A probing move waits at its end point for the next tick's contact check.
-        let probe_end = BlockFlags::PROBE | BlockFlags::LAST_OF_BLOCK;
-        if self.motion.walk.at_end() && !self.motion.block.flags.contains(probe_end) {
+        // A probing move waits at its end point for the next tick's contact check, a drilling
+        // move for its breakthrough report.
+        let flags = self.motion.block.flags;
+        let waits = flags.contains(BlockFlags::LAST_OF_BLOCK)
+            && flags.intersects(BlockFlags::PROBE | BlockFlags::BREAKTHROUGH);
+        if self.motion.walk.at_end() && !waits {
             match self.fetch_forward(source) {
                 Fetch::Block => {
                     if let Some(e) = self.servo.on_forward(self.here()) {

@@ -18,6 +18,7 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
     law: crate::servo::Law::ThreeState,
     excursions: ExcursionSettings::OFF,
     dry_run: false,
+    breakthrough: super::BreakthroughSettings::OFF,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.

@@ -359,6 +359,16 @@ impl Block {
         }
     }
 
+    /// A sinking move along axis `tool` (Z): a feed move (`G1`) straight down it, every other
+    /// axis still. An orbit turns one into an orbital path; breakthrough watches one.
+    pub fn sinks(&self, tool: usize) -> bool {
+        let (p0, p1) = (self.start(), self.end());
+        self.kind == BlockKind::Line
+            && self.spark_off.is_none()
+            && p1[tool] < p0[tool]
+            && (0..self.curve.dim()).all(|i| i == tool || (p1[i] - p0[i]).abs() < 1e-9)
+    }
+
     /// The same move run the other way (a pass cut the other way round): the curve reversed,
     /// an arc's sweep negated; no dwell or pause before it (they belonged to the other end).
     pub fn reversed(&self) -> Block {

@@ -627,6 +627,13 @@ fn route_event(
             published.probe.publish(&result);
         }
         Some(ServoEvent::ProbeMissed { at }) => report.probe_missed = Some((at, fine.line())),
+        // The producer waits for where a drilling move ended, as for a probe.
+        Some(ServoEvent::Breakthrough { steps, found, .. }) => {
+            published.probe.publish(&ProbeResult {
+                steps,
+                contact: found,
+            });
+        }
         _ => {}
     }
     if let Some(event) = tick.event

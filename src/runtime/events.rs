@@ -245,6 +245,33 @@ fn log_excursion(program: &str, line: u64, t: f64, event: ServoEvent, spec: &Job
             },
             spec.position_text(&steps)
         ),
+        ServoEvent::Breakthrough {
+            steps,
+            last_spark,
+            found: true,
+            ..
+        } => tracing::info!(
+            edmd_event = "breakthrough",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: breakthrough at t={t:.4} s: the last spark at {}, stopped at {} \
+             ({:.4} mm further): the program goes on from there",
+            spec.position_text(&last_spark),
+            spec.position_text(&steps),
+            spec.distance_mm(&last_spark, &steps)
+        ),
+        ServoEvent::Breakthrough {
+            steps,
+            found: false,
+            ..
+        } => tracing::warn!(
+            edmd_event = "no_breakthrough",
+            edmd_program = program,
+            edmd_line = line,
+            "{program}:{line}: the drilling move reached its end at {} at t={t:.4} s without \
+             breaking through",
+            spec.position_text(&steps)
+        ),
         // The others are logged by log_event.
         _ => {}
     }
@@ -281,6 +308,9 @@ pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, event
                 ServoEvent::WireBreak { .. } => (EventKind::WireBreak, None),
                 ServoEvent::Probed { contact, .. } => (EventKind::Probe, Some(contact as u64)),
                 ServoEvent::ProbeMissed { .. } => (EventKind::ProbeMissed, None),
+                ServoEvent::Breakthrough { found, .. } => {
+                    (EventKind::Breakthrough, Some(found as u64))
+                }
             };
             recording.event(e.tick, e.line, kind, depth);
         }

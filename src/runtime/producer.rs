@@ -95,6 +95,9 @@ pub struct BlockMaker {
     /// starts it (`PASS_START`, and `START_HOLE` where it starts at the start hole).
     pass: u8,
     pass_starts: BlockFlags,
+    /// The tool axis (Z) whose sinking moves are watched for breakthrough, when
+    /// `[sinker] breakthrough` is on.
+    drills_along: Option<usize>,
 }
 
 impl BlockMaker {
@@ -110,7 +113,19 @@ impl BlockMaker {
             conditions: spec.conditions.clone(),
             pass: 0,
             pass_starts: BlockFlags::NONE,
+            drills_along: spec
+                .fine
+                .breakthrough
+                .enabled
+                .then(|| spec.axes.iter().position(|&a| a == crate::vocab::Axis::Z))
+                .flatten(),
         }
+    }
+
+    /// `block` is a drilling move watched for breakthrough: a sinking move (or its orbit).
+    pub fn drills(&self, block: &gcode::Block) -> bool {
+        self.drills_along
+            .is_some_and(|z| block.orbit.is_some() || block.sinks(z))
     }
 
     /// The next blocks are pass `number` (1-based) of the technology table; `at_start_hole`:
@@ -160,6 +175,9 @@ impl BlockMaker {
         }
         if segment.block.flushing {
             flags |= BlockFlags::FLUSH;
+        }
+        if self.drills(&segment.block) {
+            flags |= BlockFlags::BREAKTHROUGH;
         }
         if let BlockKind::Probe(p) = segment.block.kind {
             flags |= BlockFlags::PROBE;
@@ -425,10 +443,12 @@ fn stream<R: std::io::BufRead + std::io::Seek>(
                 None => continue,
             },
         };
-        let probing = matches!(block.kind, BlockKind::Probe(_));
+        // A probing move, and a drilling move watched for breakthrough, end where the
+        // consumer says.
+        let probing = matches!(block.kind, BlockKind::Probe(_)) || out.maker.drills(&block);
         pre.push_block(Arc::new(block), |s| out.push(s));
         if probing && !out.report.aborted && out.failed.is_none() {
-            // The rest of the program starts where the probe stops: plan to a standstill at
+            // The rest of the program starts where the move stops: plan to a standstill at
             // its end, hand everything over, and wait for the consumer to say where.
             pre.finish(|s| out.push(s));
             *probes += 1;

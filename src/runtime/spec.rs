@@ -129,6 +129,16 @@ impl JobSpec {
         self.axes.iter().map(|a| a.letter().to_string()).collect()
     }
 
+    /// The straight distance between two step positions, mm.
+    pub fn distance_mm(&self, a: &[i64], b: &[i64]) -> f64 {
+        self.step_mm
+            .iter()
+            .zip(a.iter().zip(b))
+            .map(|(mm, (a, b))| ((b - a) as f64 * mm).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// `X1.234 Y5.678` (mm) of a step position.
     pub fn position_text(&self, steps: &[i64]) -> String {
         self.axes

@@ -228,6 +228,15 @@ pub enum ServoEvent {
     },
     /// A `G38.2`/`G38.4` reached its end point without contact: the job cannot go on.
     ProbeMissed { at: PathPoint },
+    /// A drilling move (`[sinker] breakthrough`) ended: `found`, it broke through (the last
+    /// spark at `last_spark`) and stopped `breakthrough_extra_mm` past it at `steps`; else it
+    /// reached its end point. The program goes on from `steps`.
+    Breakthrough {
+        at: PathPoint,
+        steps: [i64; crate::vocab::MAX_AXES],
+        last_spark: [i64; crate::vocab::MAX_AXES],
+        found: bool,
+    },
 }
 
 /// A state travels as its index in [`ServoState::ALL`].

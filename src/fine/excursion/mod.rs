@@ -75,8 +75,11 @@ pub(super) struct ExcursionState {
     pub open_mm: f64,
     /// The wire-break input, as the thread loop last read it.
     pub wire_input: bool,
-    /// The probing move in hand found its contact (or its end): the rest of it is dropped.
+    /// The probing move in hand found its contact (or its end), or the drilling move in hand
+    /// broke through (or ended): the rest of it is dropped.
     pub probe_hit: bool,
+    /// The breakthrough detector of the drilling move in hand.
+    pub drill: super::breakthrough::Breakthrough,
     /// Travel left (mm) over which a short is still the last probe's contact.
     pub contact_grace_mm: f64,
     /// This tick's reading is of the probe's contact (the probe, a home switch): the gap
@@ -331,6 +334,33 @@ impl Interpolator {
         });
     }
 
+    /// One forward cutting event of a drilling move: far enough past a breakthrough, or at
+    /// the move's end, it stops and reports where (the producer waits for it).
+    pub(super) fn drilled(&mut self, tick: &mut Tick) {
+        let at = self.motion.position;
+        let stop = self.excursions.drill.event(self.motion.event_mm);
+        let end = self.motion.walk.at_end()
+            && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
+        if !(stop || end) {
+            return;
+        }
+        self.motion.stop();
+        self.excursions.probe_hit = true;
+        let event = ServoEvent::Breakthrough {
+            at: self.motion.here(),
+            steps: at,
+            last_spark: self.excursions.drill.last_spark,
+            found: self.excursions.drill.found(),
+        };
+        self.excursions.drill = Default::default();
+        // The report must not be lost to another event of this tick: the producer waits for
+        // it. It goes out next tick then.
+        match tick.event {
+            None => tick.event = Some(event),
+            Some(_) => self.pending = Some(event),
+        }
+    }
+
     /// After a probing move ended: the next move starts where it ended (the producer planned
     /// it from there). `false`: none yet, the tick ends.
     pub(super) fn drop_probe_rest<S: crate::buffer::BlockSource + ?Sized>(
@@ -343,7 +373,11 @@ impl Interpolator {
         // The probing move's other segments are already in the buffer: pass over them (they
         // stay in the reserved area as barriers) to the first move planned from here.
         while self.motion.has_block
-            && self.motion.block.flags.contains(BlockFlags::PROBE)
+            && self
+                .motion
+                .block
+                .flags
+                .intersects(BlockFlags::PROBE | BlockFlags::BREAKTHROUGH)
             && !self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK)
         {
             if source.next(&mut self.motion.block) != Fetch::Block {

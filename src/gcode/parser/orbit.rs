@@ -27,7 +27,7 @@
 use std::collections::VecDeque;
 
 use super::taper::TaperError as StageError;
-use crate::gcode::{Block, BlockKind, OrbitOptions, OrbitStage};
+use crate::gcode::{Block, OrbitOptions, OrbitStage};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 use crate::vocab::OrbitShape;
@@ -63,11 +63,7 @@ impl Orbiting {
         let orbit = self.options.for_condition(block.condition);
         let (p0, p1) = (block.start(), block.end());
         let [ix, iy, iz] = axes;
-        let sinking = block.kind == BlockKind::Line
-            && block.spark_off.is_none()
-            && p1[iz] < p0[iz]
-            && (0..block.curve.dim()).all(|i| i == iz || (p1[i] - p0[i]).abs() < 1e-9);
-        if orbit.shape == OrbitShape::None || orbit.radius_mm <= 0.0 || !sinking {
+        if orbit.shape == OrbitShape::None || orbit.radius_mm <= 0.0 || !block.sinks(iz) {
             out.push_back(block);
             return Ok(());
         }
