@@ -283,6 +283,25 @@ fn stages_take_their_orbit_from_the_condition_and_plan_lists_them() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // The run's summary (and its report's summary.json) lists the stages too.
+    let summary = dir.join("summary.json");
+    let mut args: Vec<&str> = Vec::new();
+    for s in &sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    args.extend(["--summary", summary.to_str().unwrap()]);
+    let out = common::run_to_pulse_log(&path, &dir.join("again.csv"), &args);
+    assert!(out.status.success());
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let radii: Vec<f64> = s["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|st| st["radius_mm"].as_f64().unwrap())
+        .collect();
+    assert_eq!(radii, [0.3, 0.1], "{s}");
+    assert_eq!(s["stages"][1]["condition"], 1);
     let text = std::fs::read_to_string(dir.join("plan/summary.txt")).unwrap();
     assert!(
         text.contains(

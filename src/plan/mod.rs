@@ -99,22 +99,7 @@ pub struct PlanSummary {
     pub peak_rss_kib: Option<u64>,
     /// A die-sinker's orbital sinking moves, in program order (at most [`MAX_STAGES`]): the
     /// stages of a rough-to-finish sequence.
-    pub stages: Vec<StageRow>,
-}
-
-/// Most orbit stages a plan lists.
-pub const MAX_STAGES: usize = 1000;
-
-/// One orbital sinking move: where it sinks from and to, in which condition, on which orbit.
-#[derive(Debug, Clone, Serialize)]
-pub struct StageRow {
-    pub line: u64,
-    pub condition: u32,
-    pub shape: &'static str,
-    pub radius_mm: f64,
-    pub from_z_mm: f64,
-    pub to_z_mm: f64,
-    pub turns: u32,
+    pub stages: Vec<crate::runtime::StageRow>,
 }
 
 impl PlanSummary {
@@ -180,10 +165,7 @@ impl PlanSummary {
             s += &format!("peak RSS           {:.1} MiB\n", kib as f64 / 1024.0);
         }
         for st in &self.stages {
-            s += &format!(
-                "orbit stage        line {}: Z {:.4} -> {:.4} mm in E{}, {} of {:.4} mm, {} turns\n",
-                st.line, st.from_z_mm, st.to_z_mm, st.condition, st.shape, st.radius_mm, st.turns
-            );
+            s += &format!("orbit stage        {}\n", st.text());
         }
         s
     }
@@ -508,16 +490,10 @@ pub fn plan_program(
     let mut stages = Vec::new();
     for item in blocks.by_ref() {
         let block = Arc::new(item?);
-        if let Some(o) = block.orbit.filter(|_| stages.len() < MAX_STAGES) {
-            stages.push(StageRow {
-                line: block.line,
-                condition: block.condition,
-                shape: o.shape.name(),
-                radius_mm: o.radius_mm,
-                from_z_mm: o.from_z,
-                to_z_mm: o.to_z,
-                turns: o.turns,
-            });
+        if stages.len() < crate::runtime::MAX_STAGES
+            && let Some(stage) = crate::runtime::StageRow::of(&block)
+        {
+            stages.push(stage);
         }
         if first {
             c.first_row(&block);

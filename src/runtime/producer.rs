@@ -53,7 +53,7 @@ pub enum ProducerError {
 }
 
 /// What the producer did.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ProducerReport {
     pub stats: PreprocessStats,
     /// Blocks pushed into the loop buffer.
@@ -63,6 +63,8 @@ pub struct ProducerReport {
     /// Wall time spent reading, preprocessing and converting, not waiting for buffer space
     /// (ns): what the producer's real-time margin is measured against.
     pub busy_ns: u64,
+    /// The orbital sinking moves read, in order (the stages the summary lists).
+    pub stages: Vec<super::summary::StageRow>,
 }
 
 /// Rounds a point in mm to absolute step positions.
@@ -443,6 +445,11 @@ fn stream<R: std::io::BufRead + std::io::Seek>(
                 None => continue,
             },
         };
+        if out.report.stages.len() < super::summary::MAX_STAGES
+            && let Some(stage) = super::summary::StageRow::of(&block)
+        {
+            out.report.stages.push(stage);
+        }
         // A probing move, and a drilling move watched for breakthrough, end where the
         // consumer says.
         let probing = matches!(block.kind, BlockKind::Probe(_)) || out.maker.drills(&block);
