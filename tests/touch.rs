@@ -123,6 +123,24 @@ fn find_center_measures_the_hole_and_writes_g55() {
         "{log}"
     );
     assert!(!log.contains("ERROR"), "{log}");
+    // An abort ends a cycle: failed, and said so; nothing more moves.
+    go_to(&daemon, 11.0, -5.0);
+    daemon.ok(&["find", "center", "--no-wait"]);
+    daemon.wait_for("a find move", |s| s["state"] == "finding");
+    daemon.ok(&["abort"]);
+    let s = daemon.wait_for("the cycle's end", |s| {
+        s["state"] == "idle" && s["machine"]["find"]["state"] != "running"
+    });
+    let f = &s["machine"]["find"];
+    assert_eq!(f["state"], "failed", "{f}");
+    assert!(f["id"].as_u64() == Some(2), "{f}");
+    assert!(f["message"].as_str().unwrap().contains("stopped"), "{f}");
+    let before = floats(&s["machine"]["position_machine_mm"]);
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    assert_eq!(
+        floats(&daemon.status()["machine"]["position_machine_mm"]),
+        before
+    );
 }
 
 #[test]

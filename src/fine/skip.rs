@@ -31,6 +31,12 @@ pub enum SkipError {
          not known to a resumed job; run the program from its start"
     )]
     Probed { line: u64 },
+    #[error(
+        "the program drills through at line {line} before the checkpoint (sinker.breakthrough): \
+         where that drill broke through is not known to a resumed job; run the program from \
+         its start"
+    )]
+    Drilled { line: u64 },
 }
 
 impl Interpolator {
@@ -57,6 +63,14 @@ impl Interpolator {
             }
             if self.motion.block.flags.contains(BlockFlags::PROBE) {
                 return Err(SkipError::Probed {
+                    line: self.motion.block.line,
+                });
+            }
+            // Passing the end of a drilling move watched for breakthrough: where it ended is
+            // the run's (the producer waits to hear it); into one, the run decides again.
+            let drill_end = BlockFlags::BREAKTHROUGH | BlockFlags::LAST_OF_BLOCK;
+            if self.motion.block.flags.contains(drill_end) && self.motion.block.seq < target.seq {
+                return Err(SkipError::Drilled {
                     line: self.motion.block.line,
                 });
             }
