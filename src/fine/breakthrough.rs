@@ -153,4 +153,98 @@ mod tests {
         }
         assert!(!b.found());
     }
+
+    /// The tick core with a drilling move in hand: it cuts while the gap sparks, and once
+    /// the gap stays open stops `extra_mm` past the last spark and reports where.
+    #[test]
+    fn the_tick_core_stops_a_drill_past_its_last_spark_and_reports_where() {
+        use crate::buffer::{BlockFlags, VecSource};
+        use crate::fine::tests::{SETTINGS, chain, p2};
+        use crate::fine::{FineSettings, Interpolator};
+        use crate::servo::ServoEvent;
+        // The tick core knows no tool axis: a 5 mm move along X flagged as drilling.
+        let mut blocks = chain(&[p2(0, 0), p2(5000, 0)], 10.0);
+        blocks[0].flags = BlockFlags::BREAKTHROUGH | BlockFlags::LAST_OF_BLOCK;
+        let settings = FineSettings {
+            breakthrough: BreakthroughSettings {
+                enabled: true,
+                window_ticks: 100,
+                open_ratio: 0.95,
+                extra_mm: 0.2,
+            },
+            ..SETTINGS
+        };
+        let mut fine = Interpolator::new(settings, p2(0, 0));
+        let mut source = VecSource::new(blocks, 4);
+        let mut report = None;
+        for t in 0..2_000_000u64 {
+            // Sparking (every other tick) until X2 mm, then the material has ended.
+            let gap = if fine.position()[0] < 2000 && t % 2 == 0 {
+                GapState::Normal
+            } else {
+                GapState::Open
+            };
+            if let Some(e @ ServoEvent::Breakthrough { .. }) = fine.tick(gap, &mut source).event {
+                report = Some(e);
+                break;
+            }
+        }
+        let Some(ServoEvent::Breakthrough {
+            steps,
+            last_spark,
+            found,
+            ..
+        }) = report
+        else {
+            panic!("no breakthrough report");
+        };
+        assert!(found);
+        assert!((1998..=2000).contains(&last_spark[0]), "{last_spark:?}");
+        assert_eq!(steps[0] - last_spark[0], 200, "0.2 mm past the last spark");
+        assert_eq!(fine.position(), steps, "stopped there");
+        // Without it the move runs to its end and says so.
+        let mut blocks = chain(&[p2(0, 0), p2(500, 0)], 10.0);
+        blocks[0].flags = BlockFlags::BREAKTHROUGH | BlockFlags::LAST_OF_BLOCK;
+        let mut fine = Interpolator::new(settings, p2(0, 0));
+        let mut source = VecSource::new(blocks, 4);
+        let mut end = None;
+        for t in 0..2_000_000u64 {
+            let gap = if t % 2 == 0 {
+                GapState::Normal
+            } else {
+                GapState::Open
+            };
+            if let Some(e @ ServoEvent::Breakthrough { .. }) = fine.tick(gap, &mut source).event {
+                end = Some(e);
+                break;
+            }
+        }
+        assert!(
+            matches!(end, Some(ServoEvent::Breakthrough { found: false, steps, .. }) if steps[0] == 500),
+            "{end:?}"
+        );
+    }
+
+    /// A resumed job may walk into a drilling move (the run decides its end again), never
+    /// past one's end (where it ended was that run's).
+    #[test]
+    fn a_resume_walks_into_a_drilling_move_but_not_past_it() {
+        use crate::buffer::{BlockFlags, VecSource};
+        use crate::fine::Interpolator;
+        use crate::fine::skip::SkipError;
+        use crate::fine::tests::{SETTINGS, chain, p2};
+        use crate::servo::PathPoint;
+        let mut blocks = chain(&[p2(0, 0), p2(300, 0), p2(300, 300)], 10.0);
+        blocks[0].flags = BlockFlags::BREAKTHROUGH | BlockFlags::LAST_OF_BLOCK;
+        let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+        let into = PathPoint { seq: 0, event: 100 };
+        fine.skip_to(into, &[100, 0], &mut VecSource::new(blocks.clone(), 4))
+            .unwrap();
+        let mut fine = Interpolator::new(SETTINGS, p2(0, 0));
+        let past = PathPoint { seq: 1, event: 10 };
+        let err = fine
+            .skip_to(past, &[300, 10], &mut VecSource::new(blocks, 4))
+            .unwrap_err();
+        assert!(matches!(err, SkipError::Drilled { .. }), "{err}");
+    }
 }
