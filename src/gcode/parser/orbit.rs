@@ -32,7 +32,8 @@ use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 use crate::vocab::OrbitShape;
 
-/// Most whole turns of one sinking move (a bound on its polyline's size).
+/// Most whole turns of one sinking move (a bound on its polyline's size); more is refused at
+/// the move's line.
 const MAX_TURNS: f64 = 10_000.0;
 
 #[derive(Debug)]
@@ -81,9 +82,13 @@ impl Orbiting {
         let turns = (depth / sink_feed * self.options.feed_mm_per_min
             / (2.0 * std::f64::consts::PI * r))
             .ceil()
-            .clamp(1.0, MAX_TURNS);
-        if !turns.is_finite() {
-            return Err(fail("the orbit has no turns (a zero sinking feed?)".into()));
+            .max(1.0);
+        if turns.is_nan() || turns > MAX_TURNS {
+            return Err(fail(format!(
+                "the orbit would make {turns:.0} turns on this {depth:.4} mm sinking move (at \
+                 most {MAX_TURNS:.0}: the path is held whole): sink it in shorter moves, or \
+                 raise its feed against sinker.orbit.feed_mm_per_min"
+            )));
         }
         let expand = self.options.expand;
         let offset = |s: f64| -> [f64; 3] {
@@ -281,6 +286,26 @@ mod tests {
         // The sphere: at half the radius, raised by R − √(R² − r²).
         let p = orbit_offset(OrbitShape::Sphere, 0.5, 1.0, 0.0);
         assert!((p[2] - (1.0 - 0.75f64.sqrt())).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_orbit_of_too_many_turns_is_refused_at_its_line() {
+        let axes = [Axis::X, Axis::Y, Axis::Z];
+        let options = ProgramOptions {
+            orbit: circle(true),
+            ..ProgramOptions::default()
+        };
+        // 50 mm at 0.01 mm/min: 5000 min around a 0.2 mm circle at 60 mm/min.
+        let text = "G21 G90\nG1 Z-50 F0.01\nM2\n";
+        let err = BlockReader::with_options(Cursor::new(text.to_string()), "t.ngc", &axes, options)
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap_err();
+        assert_eq!(err.line, 2, "{err}");
+        assert!(
+            err.to_string()
+                .contains("turns on this 50.0000 mm sinking move"),
+            "{err}"
+        );
     }
 
     #[test]
