@@ -37,6 +37,7 @@ pub mod progress;
 mod run;
 mod snapshot;
 mod spec;
+mod stages;
 mod summary;
 pub mod tabs;
 
@@ -64,7 +65,8 @@ pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
 pub use run::{JobRun, run};
 pub use spec::{CutPlan, JobSpec, StepCondition, start_steps};
-pub use summary::{JobSummary, LastProbe, MAX_STAGES, Outcome, StageRow, StopPoint, axis_list};
+pub use stages::{MAX_STAGES, StageRow};
+pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// A job that could not start: bad program, gap script or output. Nothing has moved.
 #[derive(Debug, thiserror::Error)]

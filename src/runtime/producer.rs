@@ -64,7 +64,7 @@ pub struct ProducerReport {
     /// (ns): what the producer's real-time margin is measured against.
     pub busy_ns: u64,
     /// The orbital sinking moves read, in order (the stages the summary lists).
-    pub stages: Vec<super::summary::StageRow>,
+    pub stages: Vec<super::stages::StageRow>,
 }
 
 /// Rounds a point in mm to absolute step positions.
@@ -445,8 +445,8 @@ fn stream<R: std::io::BufRead + std::io::Seek>(
                 None => continue,
             },
         };
-        if out.report.stages.len() < super::summary::MAX_STAGES
-            && let Some(stage) = super::summary::StageRow::of(&block)
+        if out.report.stages.len() < super::stages::MAX_STAGES
+            && let Some(stage) = super::stages::StageRow::of(&block)
         {
             out.report.stages.push(stage);
         }
