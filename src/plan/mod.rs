@@ -99,6 +99,7 @@ pub struct PlanSummary {
     pub peak_rss_kib: Option<u64>,
     /// A die-sinker's orbital sinking moves, in program order (at most [`MAX_STAGES`]): the
     /// stages of a rough-to-finish sequence.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub stages: Vec<crate::runtime::StageRow>,
 }
 
