@@ -49,6 +49,7 @@ fn settings(feed: f64) -> FineSettings {
         excursions: edmd::fine::ExcursionSettings::OFF,
         dry_run: false,
         breakthrough: edmd::fine::BreakthroughSettings::OFF,
+        jerk: 0.0,
     }
 }
 
@@ -74,6 +75,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,
                 path_end_mm: 0.0,
+                rest_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
                 condition_feed: 0.0,

@@ -34,6 +34,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,
                 path_end_mm: 0.1 * (i + 1) as f64,
+                rest_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
                 condition_feed: 0.0,

@@ -32,6 +32,9 @@ pub struct StepBlock {
     /// Path length from the program's start to the move's end (mm, forward, chords summed):
     /// how far along the job this move ends, for progress and ETA.
     pub path_end_mm: f64,
+    /// Path from the move's end to the end of its G-code block (mm), on spark-off moves
+    /// (`RAPID`); 0 on the block's last move and on cuts. A jerk-limited rapid brakes over it.
+    pub rest_mm: f64,
     /// `G4` dwell before the move, s (first move of its G-code block only).
     pub dwell_s: f64,
     /// The machining condition in force (`E<number>`; 0 none), and what it sets for the
@@ -136,6 +139,7 @@ impl StepBlock {
         u_end: f64::NAN,
         flags: BlockFlags::NONE,
         path_end_mm: 0.0,
+        rest_mm: 0.0,
         dwell_s: 0.0,
         condition: 0,
         condition_feed: 0.0,

@@ -76,6 +76,7 @@ impl PlanSettings {
                     })
                 })
                 .collect(),
+            rapid_stops: m.max_jerk_mm_per_s3 > 0.0,
         }
     }
 }
@@ -94,6 +95,7 @@ impl FineSettings {
             },
             step_mm: step_mm(config),
             dry_run: false,
+            jerk: config.machine.max_jerk_mm_per_s3,
             breakthrough: {
                 let s = &config.sinker;
                 crate::fine::BreakthroughSettings {

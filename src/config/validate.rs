@@ -239,6 +239,12 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
             1e7,
             "mm/s²",
         )?,
+        max_jerk_mm_per_s3: at_most(
+            "machine.max_jerk_mm_per_s3",
+            m.max_jerk_mm_per_s3,
+            1e12,
+            "mm/s³",
+        )?,
     })
 }
 

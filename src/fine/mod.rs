@@ -44,6 +44,7 @@
 mod breakthrough;
 pub mod bresenham;
 mod excursion;
+mod jerk;
 mod motion;
 
 pub use breakthrough::BreakthroughSettings;
@@ -88,6 +89,8 @@ pub struct FineSettings {
     pub dry_run: bool,
     /// Breakthrough on drilling moves.
     pub breakthrough: BreakthroughSettings,
+    /// Jerk limit of rapids, jumps and rethread returns (mm/s³); 0: trapezoids.
+    pub jerk: f64,
 }
 
 /// What one tick produced.
@@ -440,6 +443,7 @@ impl Interpolator {
         if want_dir != self.motion.dir && self.motion.speed == 0.0 {
             self.motion.dir = want_dir;
             self.motion.phase = 0.0;
+            self.motion.accel = -self.motion.accel;
         }
         if self.motion.dir < 0
             && (!self.motion.has_block || self.motion.walk.at_start())
@@ -450,20 +454,18 @@ impl Interpolator {
         if !self.motion.has_block {
             return;
         }
-        let dv = self.settings.accel * self.settings.dt;
-        // The operator's override scales a forward move's cruise; a turn-back, a retreat and
-        // a return go as the servo asks.
-        let cruise = if self.motion.dir > 0 && self.servo.state() == ServoState::Forward {
-            self.motion.aim
-        } else {
-            self.motion.block.v_cruise
+        let (accel, dt) = (self.settings.accel, self.settings.dt);
+        // The operator's override scales a forward move's cruise; a turn-back goes as the
+        // servo asks, a retreat and a return at their own feed up to the path's limits.
+        let cruise = match self.servo.state() {
+            ServoState::Forward if self.motion.dir > 0 => self.motion.aim,
+            ServoState::Retreat | ServoState::Return => self.motion.block.v_limit,
+            _ => self.motion.block.v_cruise,
         };
         // Single block: the end of a program block is a standstill.
         let stop_at_end =
             self.stops.single_block && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
-        let limit = self
-            .motion
-            .planned_limit(self.settings.accel, self.settings.dt, stop_at_end);
+        let limit = self.motion.planned_limit(accel, dt, stop_at_end);
         // The plan's cruise, scaled: lowering it lowers the speed aimed for, which brakes
         // down under a_T (the limit is the plan's braking, not the cruise).
         let target = if want_dir != self.motion.dir || self.stops.hold {
@@ -471,8 +473,17 @@ impl Interpolator {
         } else {
             feed.min(limit).min(cruise)
         };
-        self.motion.follow(target, limit, dv);
-        if self.motion.speed <= 0.0 || !self.motion.event_due(self.settings.dt) {
+        match self.jerk_room(want_dir) {
+            Some(room) => {
+                let limits = jerk::JerkLimits {
+                    accel,
+                    jerk: self.settings.jerk,
+                };
+                self.motion.follow_jerk(target, limit, room, limits, dt);
+            }
+            None => self.motion.follow(target, limit, accel, dt),
+        }
+        if self.motion.speed <= 0.0 || !self.motion.event_due(dt) {
             return;
         }
         if self.motion.dir > 0 {
@@ -510,6 +521,9 @@ impl Interpolator {
                 .block
                 .flags
                 .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
+        if self.servo.state() == ServoState::Return {
+            self.excursions.returned_mm += self.motion.event_mm;
+        }
         self.step_forward(tick, source);
         if cutting_open {
             self.open_travel(tick);

@@ -4,6 +4,7 @@
 //! the planner's limits.
 
 use super::bresenham::Bresenham;
+use super::jerk::{self, JerkLimits, Room};
 use crate::buffer::{BlockFlags, StepBlock};
 use crate::servo::PathPoint;
 use crate::vocab::{MAX_AXES, Steps};
@@ -23,6 +24,9 @@ pub(super) struct Motion {
     pub position: Steps,
     /// Path speed (mm/s), always >= 0; `dir` gives its sense.
     pub speed: f64,
+    /// Rate of change of `speed` over the last tick (mm/s²): where a jerk-limited tick
+    /// carries on from (its sign flips with `dir` on a reversal through a standstill).
+    pub accel: f64,
     pub dir: i8,
     /// Fraction of the next event already covered.
     pub phase: f64,
@@ -64,6 +68,7 @@ impl Motion {
             lattice_mm: 0.0,
             position: start,
             speed: 0.0,
+            accel: 0.0,
             dir: 1,
             phase: 0.0,
             overrides: Overrides::default(),
@@ -106,6 +111,7 @@ impl Motion {
     #[inline]
     pub fn stop(&mut self) {
         self.speed = 0.0;
+        self.accel = 0.0;
         self.phase = 0.0;
     }
 
@@ -157,14 +163,60 @@ impl Motion {
         v2.sqrt().max(creep).min(b.v_limit.max(b.v_cruise)).min(cap)
     }
 
-    /// Moves the speed towards `target` by at most `dv`, never above `limit` while braking.
+    /// The lattice distance to the end of the block in hand in the current direction (mm).
     #[inline]
-    pub fn follow(&mut self, target: f64, limit: f64, dv: f64) {
+    pub fn way_left(&self) -> f64 {
+        if self.walk.events() == 0 {
+            return 0.0;
+        }
+        let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
+            / self.walk.events() as f64;
+        let s = done.clamp(0.0, 1.0) * self.lattice_mm;
+        if self.dir > 0 { self.lattice_mm - s } else { s }
+    }
+
+    /// Moves the speed towards `target` by at most `a_T · dt`, never above `limit` while
+    /// braking (the trapezoid).
+    #[inline]
+    pub fn follow(&mut self, target: f64, limit: f64, accel: f64, dt: f64) {
+        let (before, dv) = (self.speed, accel * dt);
         self.speed = if self.speed > target {
             (self.speed - dv).max(target).min(limit)
         } else {
             (self.speed + dv).min(target)
         };
+        self.accel = (self.speed - before) / dt;
+    }
+
+    /// Moves the speed towards `target` with the acceleration changing by at most `J · dt`
+    /// ([`super::jerk::step`]), able to stop within `room`, never above `limit` (the plan's
+    /// hard ceiling: a corner of the path on an excursion).
+    #[inline]
+    pub fn follow_jerk(
+        &mut self,
+        target: f64,
+        limit: f64,
+        room: Option<Room>,
+        limits: JerkLimits,
+        dt: f64,
+    ) {
+        let creep = jerk::creep(limits.jerk, self.event_mm);
+        let (v, a) = jerk::step(
+            self.speed,
+            self.accel,
+            target.min(limit),
+            room,
+            creep,
+            limits,
+            dt,
+        );
+        if v > limit {
+            self.accel = (limit - self.speed) / dt;
+            self.speed = limit;
+        } else {
+            self.speed = v;
+            self.accel = a;
+        }
     }
 
     /// The DDA: covers one tick of `dt` at the current speed; `true` when that completes an

@@ -19,6 +19,7 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
     excursions: ExcursionSettings::OFF,
     dry_run: false,
     breakthrough: super::BreakthroughSettings::OFF,
+    jerk: 0.0,
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.
@@ -47,6 +48,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,
                 path_end_mm: 0.0,
+                rest_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
                 condition_feed: 0.0,

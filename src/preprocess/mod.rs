@@ -72,6 +72,9 @@ pub struct PlanSettings {
     pub max_corrections: u32,
     /// Corner control, per condition ([`corners`]); empty: off.
     pub corners: Vec<corners::CornerRule>,
+    /// Positioning moves (rapids, spark-off travel) start and end at a standstill: under a
+    /// jerk limit the tick core's S-curve brings them to rest at their end.
+    pub rapid_stops: bool,
 }
 
 /// A chord of a curve piece, before speed planning.

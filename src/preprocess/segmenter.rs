@@ -87,6 +87,8 @@ pub struct SegmenterStats {
 pub struct Segmenter {
     settings: PlanSettings,
     prev_tangent: Option<Point>,
+    /// The last block was a positioning move (for `rapid_stops`).
+    after_positioning: bool,
     history: History,
     /// Measured chord error over the circle formula's sagitta on the last segment: how far the
     /// curve is from its osculating circle here. Scales the next prediction.
@@ -99,6 +101,7 @@ impl Segmenter {
         Segmenter {
             settings,
             prev_tangent: None,
+            after_positioning: false,
             history: History::default(),
             gain: 1.0,
             stats: SegmenterStats::default(),
@@ -118,6 +121,11 @@ impl Segmenter {
             // A dwell or a programmed stop first: the move before it ends at a standstill.
             self.prev_tangent = None;
         }
+        let positioning = block.kind == crate::gcode::BlockKind::Rapid || block.spark_off.is_some();
+        if self.settings.rapid_stops && (positioning || self.after_positioning) {
+            self.prev_tangent = None;
+        }
+        self.after_positioning = positioning;
         let mut lo = u_min;
         let mut corners = curve.corner_knots().chain(std::iter::once(u_max));
         while let Some(hi) = corners.next().filter(|_| lo < u_max) {

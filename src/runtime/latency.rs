@@ -121,6 +121,7 @@ impl BlockSource for SquarePath {
             u_end: f64::NAN,
             flags: BlockFlags::NONE,
             path_end_mm: 0.0,
+            rest_mm: 0.0,
             dwell_s: 0.0,
             condition: 0,
             condition_feed: 0.0,

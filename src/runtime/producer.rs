@@ -100,6 +100,8 @@ pub struct BlockMaker {
     /// The tool axis (Z) whose sinking moves are watched for breakthrough, when
     /// `[sinker] breakthrough` is on.
     drills_along: Option<usize>,
+    /// Path left of the curved spark-off move being made (mm): its length less its chords.
+    curve_left_mm: f64,
 }
 
 impl BlockMaker {
@@ -121,7 +123,26 @@ impl BlockMaker {
                 .enabled
                 .then(|| spec.axes.iter().position(|&a| a == crate::vocab::Axis::Z))
                 .flatten(),
+            curve_left_mm: 0.0,
         }
+    }
+
+    /// Path from `segment`'s end to the end of its G-code block (mm), on a spark-off move:
+    /// a straight one to its end point, a curved one (a pass's travel along the kerf) by its
+    /// length less the chords made so far.
+    fn rest_mm(&mut self, segment: &Segment, first: bool, flags: BlockFlags) -> f64 {
+        if !flags.contains(BlockFlags::RAPID) || segment.last_of_block {
+            return 0.0;
+        }
+        let curve = &segment.block.curve;
+        if curve.degree() == 1 {
+            return (curve.end_point() - segment.end).norm();
+        }
+        if first {
+            self.curve_left_mm = curve.length();
+        }
+        self.curve_left_mm -= segment.length;
+        self.curve_left_mm.max(0.0)
     }
 
     /// `block` is a drilling move watched for breakthrough: a sinking move (or its orbit).
@@ -198,6 +219,7 @@ impl BlockMaker {
         if first && matches!(segment.block.pause, Some((_, gcode::Pause::Slug))) {
             flags |= BlockFlags::TAB;
         }
+        let rest_mm = self.rest_mm(segment, first, flags);
         let block = StepBlock {
             seq: self.seq,
             start: self.last_end,
@@ -214,6 +236,7 @@ impl BlockMaker {
             },
             flags,
             path_end_mm: self.path_mm + segment.length,
+            rest_mm,
             dwell_s: if first { segment.block.dwell_s } else { 0.0 } + segment.corner_dwell_s,
             condition: segment.block.condition as u16,
             condition_feed: 0.0,

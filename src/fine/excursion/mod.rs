@@ -69,8 +69,9 @@ pub(super) struct ExcursionState {
     pub jump_feed: f64,
     /// Ticks cut forward since the last jump.
     pub cut_ticks: u64,
-    /// Path gone back in the current retreat (mm).
+    /// Path gone back in the current retreat (mm), and come forward again on its return.
     pub retreat_mm: f64,
+    pub returned_mm: f64,
     /// Cutting travel since the gap was last not open (mm).
     pub open_mm: f64,
     /// The wire-break input, as the thread loop last read it.
@@ -148,6 +149,7 @@ impl Interpolator {
             return false;
         }
         self.excursions.retreat_mm = 0.0;
+        self.excursions.returned_mm = 0.0;
         self.motion.phase = 0.0;
         true
     }
@@ -256,6 +258,7 @@ impl Interpolator {
         }
         self.excursions.cut_ticks = 0;
         self.excursions.retreat_mm = 0.0;
+        self.excursions.returned_mm = 0.0;
         tick.event = self.servo.start_jump(self.motion.here());
         Some((-1, self.excursions.jump_feed))
     }
@@ -305,7 +308,10 @@ impl Interpolator {
                     tick.event = Some(event);
                     return Some(self.servo.motion(gap));
                 }
-                Some((1, feed))
+                // Brake so as to arrive at the mark slowly: the gap is there.
+                let left = (self.excursions.retreat_mm - self.excursions.returned_mm).max(0.0);
+                let braking = (2.0 * self.settings.accel * left).sqrt();
+                Some((1, feed.min(braking)))
             }
             _ => Some((0, 0.0)),
         }
