@@ -50,6 +50,7 @@ fn settings(feed: f64) -> FineSettings {
         dry_run: false,
         breakthrough: edmd::fine::BreakthroughSettings::OFF,
         jerk: 0.0,
+        lift_axis: None,
     }
 }
 

@@ -312,3 +312,97 @@ fn stages_take_their_orbit_from_the_condition_and_plan_lists_them() {
         "{text}"
     );
 }
+
+/// Jumps while orbiting lift straight up the tool axis from the orbit's current point and
+/// come straight back down to it (retracing the spiral would rub the wall just cut); the
+/// orbit carries on from there on its path, and the job ends exactly on its end point. With
+/// a jerk limit too, which the lift keeps.
+#[test]
+fn jumps_off_an_orbit_lift_along_the_tool_axis_and_come_back_to_it() {
+    let dir = common::scratch("orbit", "jumps");
+    let summary = dir.join("summary.json");
+    let sets = machine(&[
+        "sinker.orbit.shape=\"circle\"",
+        "servo.jump_interval_s=0.5",
+        "servo.jump_height_mm=0.1",
+        "machine.max_jerk_mm_per_s3=1e5",
+    ]);
+    let path = dir.join("p.ngc");
+    std::fs::write(&path, PLUNGE).unwrap();
+    let pulses = dir.join("p.csv");
+    let mut args: Vec<&str> = Vec::new();
+    for s in &sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    args.extend(["--summary", summary.to_str().unwrap()]);
+    let out = common::run_to_pulse_log(&path, &pulses, &args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let jumps = s["jumps"].as_u64().unwrap();
+    assert!(jumps >= 3, "{jumps} jumps");
+    let (_, rows) = read_pulse_log(&pulses).unwrap();
+    let mut at = [0i64; 3];
+    let mut worst = 0.0f64;
+    // Each spark-off stretch below the top (but the rapid out at the end, which no spark
+    // closes): the path steps of the cut braking before it, then
+    // where the lift left the orbit, how far up it went, and whether X or Y moved after.
+    let mut lifts: Vec<(usize, [i64; 3], i64, bool)> = Vec::new();
+    let mut lift: Option<(usize, Option<[i64; 3]>, i64, bool)> = None;
+    let mut bottom = false;
+    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
+        let before = at;
+        for (a, s) in at.iter_mut().zip(&r.steps) {
+            *a += i64::from(*s);
+        }
+        let p = at.map(|s| s as f64 * STEP);
+        bottom |= p[2] <= -DEPTH + 1e-9;
+        let sideways = r.steps[..2] != [0, 0];
+        if !r.spark && lift.is_none() && before[2] < 0 {
+            lift = Some((0, None, 0, false));
+        }
+        match (r.spark, &mut lift) {
+            (false, Some((braking, from, up, moved))) => match from {
+                // Forward along the orbit (sideways or down) until it stands still.
+                None if sideways || r.steps[2] < 0 => *braking += 1,
+                None => *from = Some(before),
+                Some(f) => {
+                    *up = (*up).max(at[2] - f[2]);
+                    *moved |= sideways;
+                }
+            },
+            (true, Some((braking, from, up, moved))) => {
+                // Back where it left the orbit, sparking again (the step that arrives
+                // there carries the spark).
+                let from = from.expect("a jump without a lift");
+                assert_eq!(at, from, "a jump came back elsewhere");
+                assert_eq!(r.steps, [0, 0, -1]);
+                lifts.push((*braking, from, *up, *moved));
+                lift = None;
+            }
+            _ => {}
+        }
+        if r.spark && !bottom && p[2] < -1e-9 {
+            let r = (p[0] - AXIS.0).hypot(p[1] - AXIS.1);
+            worst = worst.max((r - RADIUS * -p[2] / DEPTH).abs());
+        }
+    }
+    eprintln!(
+        "{jumps} jumps off the orbit, each straight up 0.1 mm and back; the orbit within \
+         {:.3} µm",
+        worst * 1e3
+    );
+    assert_eq!(lifts.len() as u64, jumps, "{lifts:?}");
+    for (braking, from, up, sideways) in &lifts {
+        // The cut at 10 mm/min stops within a step or two of where the jump began.
+        assert!(*braking <= 2, "{braking} steps of braking before the jump from {from:?}");
+        assert_eq!(*up, 100, "a jump from {from:?} lifted {up} steps");
+        assert!(!sideways, "a jump from {from:?} moved in X or Y");
+    }
+    assert!(worst <= BOUND, "{worst} mm off the orbit");
+    assert_eq!(at, [5000, 5000, 1000]);
+}

@@ -84,6 +84,9 @@ impl BlockFlags {
     /// A drilling move watched for breakthrough (`[sinker] breakthrough`): the producer
     /// waits for where it ends, as after a probing move.
     pub const BREAKTHROUGH: BlockFlags = BlockFlags(2048);
+    /// A move of an orbit (`[sinker.orbit]`): a jump lifts off it along the tool axis rather
+    /// than back along the spiral it came.
+    pub const ORBIT: BlockFlags = BlockFlags(4096);
 
     /// Every flag of `other` is set.
     pub const fn contains(self, other: BlockFlags) -> bool {

@@ -91,6 +91,8 @@ pub struct FineSettings {
     pub breakthrough: BreakthroughSettings,
     /// Jerk limit of rapids, jumps and rethread returns (mm/s³); 0: trapezoids.
     pub jerk: f64,
+    /// The tool axis (Z) a jump off an orbit lifts along; `None`: the machine has none.
+    pub lift_axis: Option<usize>,
 }
 
 /// What one tick produced.
@@ -445,6 +447,10 @@ impl Interpolator {
             self.motion.phase = 0.0;
             self.motion.accel = -self.motion.accel;
         }
+        if self.lifting() {
+            self.drive_lift(want_dir, feed, tick);
+            return;
+        }
         if self.motion.dir < 0
             && (!self.motion.has_block || self.motion.walk.at_start())
             && !self.retreat(tick, source)
@@ -479,7 +485,8 @@ impl Interpolator {
                     accel,
                     jerk: self.settings.jerk,
                 };
-                self.motion.follow_jerk(target, limit, room, limits, dt);
+                let event_mm = self.motion.event_mm;
+                self.motion.follow_jerk(target, limit, room, limits, dt, event_mm);
             }
             None => self.motion.follow(target, limit, accel, dt),
         }

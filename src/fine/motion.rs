@@ -190,7 +190,8 @@ impl Motion {
 
     /// Moves the speed towards `target` with the acceleration changing by at most `J · dt`
     /// ([`super::jerk::step`]), able to stop within `room`, never above `limit` (the plan's
-    /// hard ceiling: a corner of the path on an excursion).
+    /// hard ceiling: a corner of the path on an excursion), finishing the last `event_mm` at
+    /// the creep speed.
     #[inline]
     pub fn follow_jerk(
         &mut self,
@@ -199,8 +200,9 @@ impl Motion {
         room: Option<Room>,
         limits: JerkLimits,
         dt: f64,
+        event_mm: f64,
     ) {
-        let creep = jerk::creep(limits.jerk, self.event_mm);
+        let creep = jerk::creep(limits.jerk, event_mm);
         let (v, a) = jerk::step(
             self.speed,
             self.accel,

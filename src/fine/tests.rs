@@ -20,6 +20,7 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
     dry_run: false,
     breakthrough: super::BreakthroughSettings::OFF,
     jerk: 0.0,
+    lift_axis: Some(2),
 };
 
 /// Blocks through lattice points (steps), planned as one long cruise at `v`.

@@ -199,6 +199,9 @@ impl BlockMaker {
         if segment.block.flushing {
             flags |= BlockFlags::FLUSH;
         }
+        if segment.block.orbit.is_some() {
+            flags |= BlockFlags::ORBIT;
+        }
         if self.drills(&segment.block) {
             flags |= BlockFlags::BREAKTHROUGH;
         }

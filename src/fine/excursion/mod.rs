@@ -21,6 +21,7 @@
 //!   move: the start hole) or threads in place; the resume returns along the path to the
 //!   break point with the spark off and cutting carries on there.
 
+use super::jerk::{JerkLimits, Room};
 use super::{Interpolator, Tick};
 use crate::buffer::{BlockFlags, StepBlock};
 
@@ -83,9 +84,19 @@ pub(super) struct ExcursionState {
     pub drill: super::breakthrough::Breakthrough,
     /// Travel left (mm) over which a short is still the last probe's contact.
     pub contact_grace_mm: f64,
+    /// A jump off an orbit: how far up the tool axis it is (`None`: jumps go along the path).
+    pub lift: Option<Lift>,
     /// This tick's reading is of the probe's contact (the probe, a home switch): the gap
     /// input had been told a probing move is in hand when it read, as the thread loop knows.
     pub contact_reading: bool,
+}
+
+/// A jump lifted straight off the orbit: along `axis`, `sign` the way up, `steps` up so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Lift {
+    pub axis: usize,
+    pub sign: i8,
+    pub steps: i64,
 }
 
 impl ExcursionState {
@@ -260,6 +271,18 @@ impl Interpolator {
         self.excursions.retreat_mm = 0.0;
         self.excursions.returned_mm = 0.0;
         tick.event = self.servo.start_jump(self.motion.here());
+        if let Some(axis) = self.settings.lift_axis
+            && self.motion.holds(BlockFlags::ORBIT)
+        {
+            // Up is away from where the orbit sinks (+ on the flat bottom's return).
+            let sinks = self.motion.block.end[axis] - self.motion.block.start[axis];
+            let sign = if sinks > 0 { -1 } else { 1 };
+            self.excursions.lift = Some(Lift {
+                axis,
+                sign,
+                steps: 0,
+            });
+        }
         Some((-1, self.excursions.jump_feed))
     }
 
@@ -304,6 +327,11 @@ impl Interpolator {
             }
             ServoState::Retreat => Some((-1, feed)),
             ServoState::Return => {
+                if self.excursions.lift.is_some() {
+                    // Off the path: a short on the way down goes back up until it clears.
+                    let dir = if gap == GapState::Short { -1 } else { 1 };
+                    return Some((dir, feed));
+                }
                 if let Some(event) = self.servo.on_gap(gap, here) {
                     tick.event = Some(event);
                     return Some(self.servo.motion(gap));
@@ -402,6 +430,88 @@ impl Interpolator {
             Fetch::End => {
                 tick.event = self.servo.on_end();
                 false
+            }
+        }
+    }
+}
+
+impl Interpolator {
+    /// A jump off an orbit is under way, up or down the tool axis (the braking of the cut
+    /// before it goes along the path as usual).
+    pub(super) fn lifting(&self) -> bool {
+        self.excursions.lift.is_some()
+            && match self.servo.state() {
+                ServoState::Retreat => self.motion.dir < 0,
+                ServoState::Return => true,
+                _ => false,
+            }
+    }
+
+    /// One tick of a jump off an orbit: straight up the tool axis by the jump height from
+    /// where the orbit is, and straight back down to it (retracing the spiral would rub the
+    /// wall just cut). Up counts as a backward event and down as a forward one, so the
+    /// ledger, the simulator's gap and the counters see an excursion as usual; the path
+    /// point stays the mark, where the orbit carries on.
+    pub(super) fn drive_lift(&mut self, want_dir: i8, feed: f64, tick: &mut Tick) {
+        let Some(lift) = self.excursions.lift else {
+            return;
+        };
+        let step = self.settings.step_mm[lift.axis];
+        let (accel, dt) = (self.settings.accel, self.settings.dt);
+        let up_mm = lift.steps as f64 * step;
+        let left = if self.motion.dir < 0 {
+            (self.excursions.jump_height - up_mm).max(0.0)
+        } else {
+            up_mm
+        };
+        let cap = step / dt;
+        let toward = want_dir == self.motion.dir && !self.stops.hold;
+        let target = if toward { feed.min(cap) } else { 0.0 };
+        if self.settings.jerk > 0.0 {
+            let room = toward.then_some(Room {
+                mm: left,
+                v_end: 0.0,
+            });
+            let limits = JerkLimits {
+                accel,
+                jerk: self.settings.jerk,
+            };
+            self.motion.follow_jerk(target, cap, room, limits, dt, step);
+        } else {
+            let braking = (2.0 * accel * left).sqrt().max((accel * step).sqrt());
+            self.motion.follow(target.min(braking), cap, accel, dt);
+        }
+        if self.motion.speed <= 0.0 {
+            return;
+        }
+        self.motion.phase += self.motion.speed * dt / step;
+        if self.motion.phase < 1.0 {
+            return;
+        }
+        self.motion.phase = (self.motion.phase - 1.0).min(0.999_999);
+        let up = self.motion.dir < 0;
+        tick.steps[lift.axis] = if up { lift.sign } else { -lift.sign };
+        self.apply(tick);
+        let steps = lift.steps + if up { 1 } else { -1 };
+        self.excursions.lift = Some(Lift { steps, ..lift });
+        if up {
+            self.counters.events_backward += 1;
+            self.excursions.retreat_mm = steps as f64 * step;
+            if self.excursions.retreat_mm >= self.excursions.jump_height - 0.5 * step {
+                self.motion.stop();
+                tick.event = self.servo.on_retreat_done(
+                    self.motion.here(),
+                    self.excursions.retreat_mm,
+                    false,
+                );
+            }
+        } else {
+            self.counters.events_forward += 1;
+            if steps == 0 {
+                // Back on the orbit: it carries on from here.
+                self.motion.stop();
+                self.excursions.lift = None;
+                tick.event = self.servo.on_forward(self.motion.here());
             }
         }
     }
