@@ -77,6 +77,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 flags: BlockFlags::NONE,
                 path_end_mm: 0.0,
                 rest_mm: 0.0,
+                contour_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
                 condition_feed: 0.0,

@@ -399,7 +399,10 @@ fn jumps_off_an_orbit_lift_along_the_tool_axis_and_come_back_to_it() {
     assert_eq!(lifts.len() as u64, jumps, "{lifts:?}");
     for (braking, from, up, sideways) in &lifts {
         // The cut at 10 mm/min stops within a step or two of where the jump began.
-        assert!(*braking <= 2, "{braking} steps of braking before the jump from {from:?}");
+        assert!(
+            *braking <= 2,
+            "{braking} steps of braking before the jump from {from:?}"
+        );
         assert_eq!(*up, 100, "a jump from {from:?} lifted {up} steps");
         assert!(!sideways, "a jump from {from:?} moved in X or Y");
     }

@@ -35,6 +35,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 flags: BlockFlags::NONE,
                 path_end_mm: 0.1 * (i + 1) as f64,
                 rest_mm: 0.0,
+                contour_mm: 0.0,
                 dwell_s: 0.0,
                 condition: 0,
                 condition_feed: 0.0,

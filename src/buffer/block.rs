@@ -35,6 +35,10 @@ pub struct StepBlock {
     /// Path from the move's end to the end of its G-code block (mm), on spark-off moves
     /// (`RAPID`); 0 on the block's last move and on cuts. A jerk-limited rapid brakes over it.
     pub rest_mm: f64,
+    /// Lattice path from the start of the contour (the move after a rapid through the open or
+    /// a probing move, or the start hole) to the move's end (mm): how far a rethread's way
+    /// back to the start hole has to go.
+    pub contour_mm: f64,
     /// `G4` dwell before the move, s (first move of its G-code block only).
     pub dwell_s: f64,
     /// The machining condition in force (`E<number>`; 0 none), and what it sets for the
@@ -143,6 +147,7 @@ impl StepBlock {
         flags: BlockFlags::NONE,
         path_end_mm: 0.0,
         rest_mm: 0.0,
+        contour_mm: 0.0,
         dwell_s: 0.0,
         condition: 0,
         condition_feed: 0.0,

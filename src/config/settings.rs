@@ -96,7 +96,11 @@ impl FineSettings {
             step_mm: step_mm(config),
             dry_run: false,
             jerk: config.machine.max_jerk_mm_per_s3,
-            lift_axis: config.machine.axes.iter().position(|&a| a == crate::vocab::Axis::Z),
+            lift_axis: config
+                .machine
+                .axes
+                .iter()
+                .position(|&a| a == crate::vocab::Axis::Z),
             breakthrough: {
                 let s = &config.sinker;
                 crate::fine::BreakthroughSettings {

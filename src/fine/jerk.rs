@@ -152,7 +152,7 @@ impl Interpolator {
     /// Whether this tick's speed is jerk-limited, and the way to the stop it must make:
     /// `None` for the trapezoid (no jerk limit, or a cut, a turn-back, a probing move);
     /// `Some(None)` for a jerk-limited move with no stop ahead in its direction (braking
-    /// to reverse, a rethread's way back, which ends where the start hole is found).
+    /// to reverse).
     pub(super) fn jerk_room(&self, want_dir: i8) -> Option<Option<Room>> {
         if self.settings.jerk <= 0.0 || !self.motion.has_block {
             return None;
@@ -171,11 +171,15 @@ impl Interpolator {
                 Excursion::Jump => {
                     stop((self.excursions.jump_height - self.excursions.retreat_mm).max(0.0))
                 }
-                Excursion::Rethread => None,
+                // Back to the start of the contour: the lattice path there from the point
+                // of the block in hand.
+                Excursion::Rethread => stop(
+                    (self.motion.block.contour_mm - self.motion.lattice_mm
+                        + self.motion.way_left())
+                    .max(0.0),
+                ),
             }),
-            ServoState::Return => Some(stop(
-                (self.excursions.retreat_mm - self.excursions.returned_mm).max(0.0),
-            )),
+            ServoState::Return => Some(stop(self.excursions.behind_mm)),
             _ => None,
         }
     }
@@ -382,6 +386,65 @@ mod tick_core {
         }
         assert_eq!(fine.position(), p2(10_000, 0));
         assert!(stood >= 100, "never stood still while held");
+        assert!(worst <= jerk * 1.001, "{worst:.4e} mm/s³");
+    }
+
+    /// A rethread's way back to the start hole and its return to the break, under a jerk
+    /// limit: within it every tick, slowing to the creep speed before the start hole (the
+    /// contour's lattice length tells the tick core how far that is).
+    #[test]
+    fn a_rethread_goes_back_and_returns_within_the_jerk() {
+        use crate::servo::{Excursion, Rethread, ServoEvent, ServoState};
+        let jerk = 1e5;
+        let settings = crate::fine::FineSettings { jerk, ..SETTINGS };
+        let mut blocks = chain(&[p2(0, 0), p2(300, 0), p2(800, 0), p2(800, 600)], 5.0);
+        blocks[0].flags |= BlockFlags::RAPID;
+        blocks[1].contour_mm = 0.5;
+        blocks[2].contour_mm = 1.1;
+        let mut source = VecSource::new(blocks, 64);
+        let mut fine = Interpolator::new(settings, p2(0, 0));
+        while fine.position()[1] < 200 {
+            fine.tick(GapState::Normal, &mut source);
+        }
+        fine.set_wire_input(true);
+        fine.tick(GapState::Normal, &mut source);
+        assert_eq!(fine.state(), ServoState::WireBroken);
+        assert!(fine.rethread(Rethread::AtStart));
+        fine.set_wire_input(false);
+        fine.set_hold(false);
+        let dt = settings.dt;
+        let creep = super::creep(jerk, 0.001);
+        let (mut v0, mut a0, mut worst, mut arrival) = (0.0, 0.0, 0.0f64, 0.0);
+        let mut fastest = 0.0f64;
+        let mut back = false;
+        for _ in 0..100_000 {
+            let tick = fine.tick(GapState::Open, &mut source);
+            let v = fine.speed();
+            let a = (v - v0) / dt;
+            if v0 > creep * 1.01 || v > creep * 1.01 {
+                worst = worst.max((a - a0).abs() / dt);
+            }
+            fastest = fastest.max(v);
+            if let Some(ServoEvent::Retreated {
+                why: Excursion::Rethread,
+                ..
+            }) = tick.event
+            {
+                arrival = v0;
+                assert_eq!(fine.position(), p2(300, 0), "at the start hole");
+                fine.set_hold(true);
+                fine.set_hold(false);
+            }
+            if let Some(ServoEvent::Returned { .. }) = tick.event {
+                back = true;
+                break;
+            }
+            v0 = v;
+            a0 = a;
+        }
+        assert!(back, "never returned to the break");
+        assert!(fastest > 4.9, "the rethread feed never reached: {fastest}");
+        assert!(arrival <= creep * 1.01, "arrived at {arrival} mm/s");
         assert!(worst <= jerk * 1.001, "{worst:.4e} mm/s³");
     }
 }

@@ -486,7 +486,8 @@ impl Interpolator {
                     jerk: self.settings.jerk,
                 };
                 let event_mm = self.motion.event_mm;
-                self.motion.follow_jerk(target, limit, room, limits, dt, event_mm);
+                self.motion
+                    .follow_jerk(target, limit, room, limits, dt, event_mm);
             }
             None => self.motion.follow(target, limit, accel, dt),
         }
@@ -499,6 +500,7 @@ impl Interpolator {
             self.motion.walk.backward(&mut tick.steps);
             self.apply(tick);
             self.counters.events_backward += 1;
+            self.excursions.behind_mm += self.motion.event_mm;
             if self.servo.state() == ServoState::Retreat {
                 self.retreated(tick);
             }
@@ -528,9 +530,7 @@ impl Interpolator {
                 .block
                 .flags
                 .intersects(BlockFlags::RAPID | BlockFlags::PROBE);
-        if self.servo.state() == ServoState::Return {
-            self.excursions.returned_mm += self.motion.event_mm;
-        }
+        self.excursions.behind_mm = (self.excursions.behind_mm - self.motion.event_mm).max(0.0);
         self.step_forward(tick, source);
         if cutting_open {
             self.open_travel(tick);

@@ -122,6 +122,7 @@ impl BlockSource for SquarePath {
             flags: BlockFlags::NONE,
             path_end_mm: 0.0,
             rest_mm: 0.0,
+            contour_mm: 0.0,
             dwell_s: 0.0,
             condition: 0,
             condition_feed: 0.0,

@@ -102,6 +102,8 @@ pub struct BlockMaker {
     drills_along: Option<usize>,
     /// Path left of the curved spark-off move being made (mm): its length less its chords.
     curve_left_mm: f64,
+    /// Lattice path since the start of the contour (mm).
+    contour_path_mm: f64,
 }
 
 impl BlockMaker {
@@ -124,7 +126,29 @@ impl BlockMaker {
                 .then(|| spec.axes.iter().position(|&a| a == crate::vocab::Axis::Z))
                 .flatten(),
             curve_left_mm: 0.0,
+            contour_path_mm: 0.0,
         }
+    }
+
+    /// The lattice path from the start of the contour to `end` (mm), the move's flags saying
+    /// where a contour starts: at the start hole, and after a rapid through the open or a
+    /// probing move (where a rethread's way back stops).
+    fn contour_mm(&mut self, end: &Steps, flags: BlockFlags) -> f64 {
+        if flags.contains(BlockFlags::START_HOLE) {
+            self.contour_path_mm = 0.0;
+        }
+        let mut len2 = 0.0;
+        for ((e, s), mm) in end.iter().zip(&self.last_end).zip(&self.step_mm) {
+            len2 += ((e - s) as f64 * mm).powi(2);
+        }
+        self.contour_path_mm += len2.sqrt();
+        let at = self.contour_path_mm;
+        let barrier = flags.contains(BlockFlags::PROBE)
+            || (flags.contains(BlockFlags::RAPID) && !flags.contains(BlockFlags::IN_KERF));
+        if barrier {
+            self.contour_path_mm = 0.0;
+        }
+        at
     }
 
     /// Path from `segment`'s end to the end of its G-code block (mm), on a spark-off move:
@@ -223,6 +247,7 @@ impl BlockMaker {
             flags |= BlockFlags::TAB;
         }
         let rest_mm = self.rest_mm(segment, first, flags);
+        let contour_mm = self.contour_mm(&end, flags);
         let block = StepBlock {
             seq: self.seq,
             start: self.last_end,
@@ -240,6 +265,7 @@ impl BlockMaker {
             flags,
             path_end_mm: self.path_mm + segment.length,
             rest_mm,
+            contour_mm,
             dwell_s: if first { segment.block.dwell_s } else { 0.0 } + segment.corner_dwell_s,
             condition: segment.block.condition as u16,
             condition_feed: 0.0,

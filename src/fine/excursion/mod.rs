@@ -70,9 +70,10 @@ pub(super) struct ExcursionState {
     pub jump_feed: f64,
     /// Ticks cut forward since the last jump.
     pub cut_ticks: u64,
-    /// Path gone back in the current retreat (mm), and come forward again on its return.
+    /// Path gone back in the current retreat (mm).
     pub retreat_mm: f64,
-    pub returned_mm: f64,
+    /// Lattice path behind the farthest point cut (mm): how far a return has to go.
+    pub behind_mm: f64,
     /// Cutting travel since the gap was last not open (mm).
     pub open_mm: f64,
     /// The wire-break input, as the thread loop last read it.
@@ -160,7 +161,6 @@ impl Interpolator {
             return false;
         }
         self.excursions.retreat_mm = 0.0;
-        self.excursions.returned_mm = 0.0;
         self.motion.phase = 0.0;
         true
     }
@@ -269,7 +269,6 @@ impl Interpolator {
         }
         self.excursions.cut_ticks = 0;
         self.excursions.retreat_mm = 0.0;
-        self.excursions.returned_mm = 0.0;
         tick.event = self.servo.start_jump(self.motion.here());
         if let Some(axis) = self.settings.lift_axis
             && self.motion.holds(BlockFlags::ORBIT)
@@ -337,8 +336,11 @@ impl Interpolator {
                     return Some(self.servo.motion(gap));
                 }
                 // Brake so as to arrive at the mark slowly: the gap is there.
-                let left = (self.excursions.retreat_mm - self.excursions.returned_mm).max(0.0);
-                let braking = (2.0 * self.settings.accel * left).sqrt();
+                let accel = self.settings.accel;
+                let left = self.excursions.behind_mm;
+                let braking = (2.0 * accel * left)
+                    .sqrt()
+                    .max((accel * self.motion.event_mm).sqrt());
                 Some((1, feed.min(braking)))
             }
             _ => Some((0, 0.0)),
