@@ -1,6 +1,7 @@
 //! Excursions from the cut: sinker jumps, probing moves, wire breaks and rethreading.
 //!
-//! All of them move only over lattice points the program already has, so the pulse ledger
+//! All of them but a jump off an orbit move only over lattice points the program already has,
+//! and that one only straight up the tool axis and back by whole steps, so the pulse ledger
 //! stays exact whatever happens on the way:
 //!
 //! - A **jump** (`servo.jump_interval_s`, per machining condition where one sets it) lifts
@@ -8,8 +9,10 @@
 //!   spark off (on a plunge that is straight up the plunge), then comes back to the point it
 //!   left and the servo takes over again. The retreat brakes so that it stops at the height;
 //!   it stops early at the start of the cut (a rapid or a probing move behind it, or the end
-//!   of the reserved area). Coming back down is a re-advance with the spark off: a short on
-//!   the way turns back as usual.
+//!   of the reserved area). Coming back down is a re-advance with the spark off, braking onto
+//!   the point it left: a short on the way turns back as usual. On an orbit the jump lifts
+//!   straight up the tool axis instead (the spiral behind it would rub the wall just cut)
+//!   and comes straight back down.
 //! - A **probing move** (`G38.2`…`G38.5`, `G31`) runs at its programmed feed with the servo
 //!   out of the loop; contact is the gap reading `short` (the gap input may map a probe pin
 //!   onto it). On contact (or, probing away, on losing it) the move stops within the tick and
