@@ -688,3 +688,45 @@ fn conditions_set_the_feed_and_show_in_the_pulse_log() {
         "{stderr}"
     );
 }
+
+/// Completions and man pages come from the command-line definition itself: every command is
+/// in them, nested ones included, and an unknown shell is a usage error.
+#[test]
+fn completions_and_man_pages_cover_every_command() {
+    for (shell, marker) in [
+        ("bash", "_edmd()"),
+        ("zsh", "#compdef edmd"),
+        ("fish", "complete -c edmd"),
+    ] {
+        let out = edmd(&["completions", shell]);
+        assert!(out.status.success(), "{shell}");
+        let (stdout, _) = text(&out);
+        assert!(stdout.contains(marker), "{shell}: {marker} missing");
+        for command in ["rethread", "monitor", "find", "completions"] {
+            assert!(stdout.contains(command), "{shell}: no {command}");
+        }
+    }
+    assert_eq!(edmd(&["completions", "tcsh"]).status.code(), Some(2));
+    let dir = std::env::temp_dir().join(format!("edmd-cli-man-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = edmd(&["man", "--out", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{:?}", text(&out));
+    for page in [
+        "edmd",
+        "edmd-run",
+        "edmd-ctl",
+        "edmd-ctl-hold",
+        "edmd-ctl-rethread",
+    ] {
+        let roff = std::fs::read_to_string(dir.join(format!("{page}.1")))
+            .unwrap_or_else(|e| panic!("{page}.1: {e}"));
+        assert!(
+            roff.starts_with(".ie") || roff.contains(&format!(".TH {page} 1")),
+            "{page}"
+        );
+    }
+    // A page's synopsis names the command as typed.
+    let hold = std::fs::read_to_string(dir.join("edmd-ctl-hold.1")).unwrap();
+    assert!(hold.contains("edmd ctl hold"), "{hold}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

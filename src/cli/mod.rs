@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 
 use crate::check;
 use crate::config::{self, Config, LogFormat};
@@ -44,12 +44,19 @@ enum Command {
     /// socket (daemon.socket). SIGTERM/SIGINT: controlled stop and checkpoint; SIGHUP:
     /// reload; SIGUSR1: status into the log.
     Serve(ServeArgs),
-    /// Talk to a running daemon: run, hold, resume, abort, status.
+    /// Talk to a running daemon: jobs (run, hold, resume, abort, rethread), the machine (home,
+    /// jog, mdi, find, touch-off, offsets, override, single-block, reset) and what it does
+    /// (status, monitor).
     Ctl(CtlArgs),
     /// Bench mode: run the real-time loop alone for a while (an endless square path, pulses
     /// discarded, gap always normal) and print its wake-up latency histogram in cyclictest's
     /// format. See scripts/latency-vs-cyclictest.sh.
     Latency(LatencyArgs),
+    /// Print the shell completion script for bash, zsh or fish.
+    Completions(docs::CompletionsArgs),
+    /// Write the man pages (edmd(1), one per subcommand) into a directory.
+    #[command(hide = true)]
+    Man(docs::ManArgs),
 }
 
 #[derive(Args, Debug)]
@@ -110,6 +117,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 }
 
 mod ctl;
+mod docs;
 mod find;
 mod journal;
 mod run_state;
@@ -288,6 +296,8 @@ pub fn main() -> ExitCode {
         Command::Serve(args) => run_serve(&args),
         Command::Ctl(args) => run_ctl(&args),
         Command::Latency(args) => run_latency(args),
+        Command::Completions(args) => docs::completions(&args, Cli::command()),
+        Command::Man(args) => docs::man(&args, Cli::command()),
     }
 }
 
