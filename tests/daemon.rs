@@ -41,6 +41,25 @@ fn run_hold_resume_abort_and_status() {
     let (reply, code) = daemon.ctl(&["run", PROGRAM]);
     assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
     assert!(reply["error"].as_str().unwrap().contains("abort it first"));
+    // As text: the reason first, then one line of what the daemon is doing; no status block.
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(&daemon.socket)
+        .args(["run", PROGRAM])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(
+        lines[0].starts_with("edmd: error: ") && lines[0].contains("abort it first"),
+        "{stderr}"
+    );
+    assert!(lines[1].starts_with("edmd: the daemon: "), "{stderr}");
+    assert!(
+        !String::from_utf8_lossy(&out.stdout).contains("state:"),
+        "a status block printed"
+    );
 
     let status = daemon.wait_for("cutting", is_moving);
     let job = &status["job"];

@@ -242,8 +242,10 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
         {
             outln!("{message}");
         }
-        if let Some(status) = &reply.status
-            && (request == Request::Status {} || !reply.ok)
+        if let Some(status) = reply
+            .status
+            .as_ref()
+            .filter(|_| request == Request::Status {})
         {
             out!("{}", status.text());
         }
@@ -251,10 +253,14 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
     match (&reply.ok, &reply.error) {
         (true, _) => ExitCode::SUCCESS,
         (false, error) => {
+            // The reason first; what the daemon is doing after it, in one line.
             eprintln!(
                 "edmd: error: {}",
                 error.as_deref().unwrap_or("the daemon refused")
             );
+            if let Some(status) = reply.status.as_ref().filter(|_| !args.json) {
+                eprintln!("edmd: the daemon: {}", status.line());
+            }
             ExitCode::from(EXIT_RUNTIME)
         }
     }

@@ -172,7 +172,7 @@ struct CheckArgs {
     program: PathBuf,
     #[command(flatten)]
     config: ConfigArgs,
-    /// Print only the totals, not one line per block
+    /// Print only the summary (the totals): no line per block, no progress bar
     #[arg(short, long)]
     quiet: bool,
     /// Also say which configuration file is in use
@@ -189,7 +189,7 @@ struct PlanArgs {
     out: PathBuf,
     #[command(flatten)]
     config: ConfigArgs,
-    /// No progress bar, even on a terminal
+    /// Print only the summary: no progress bar, even on a terminal
     #[arg(short, long)]
     quiet: bool,
 }

@@ -76,7 +76,7 @@ pub(super) fn write_reports(
         write(
             "fluctuation.svg",
             &Chart {
-                title: "Feed fluctuation per period (seed 001 eq. 16)".into(),
+                title: "Feed fluctuation per period (Jin, Zhu & Li, eq. 16)".into(),
                 x_label: "time (s)".into(),
                 y_label: "|L - ΔL| / ΔL".into(),
                 series: vec![series("fluctuation", "#7f1fbf", Style::Dots, &c.fluct)],
