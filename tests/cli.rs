@@ -204,7 +204,7 @@ fn plan_writes_trace_summary_and_plots() {
             "y",
             "z",
             "t",
-            "feed",
+            "feed_mm_per_min",
             "chord_err",
             "chord_bound",
         ] {
@@ -255,7 +255,12 @@ fn plan_writes_trace_summary_and_plots() {
         }
         let time = json["planned_time_s"].as_f64().unwrap();
         let bound = json["time_optimal_bound_s"].as_f64().unwrap();
-        assert!(time >= bound && time <= 1.01 * bound, "{time} vs {bound}");
+        // The bound samples the same limits (one step per tick included) every 5 µm, the plan
+        // takes chords: they agree to a few parts per million from below.
+        assert!(
+            time >= bound * (1.0 - 1e-5) && time <= 1.01 * bound,
+            "{time} vs {bound}"
+        );
         for svg in [
             "path.svg",
             "chord_error.svg",
@@ -549,9 +554,9 @@ fn rapids_run_at_rapid_speed_and_a_short_in_one_is_a_collision() {
     assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
     let planned: f64 = stdout
         .lines()
-        .find_map(|l| l.strip_prefix("planned time"))
-        .and_then(|t| t.trim().trim_end_matches(" s").parse().ok())
-        .unwrap_or_else(|| panic!("no planned time in {stdout}"));
+        .find_map(|l| l.strip_prefix("motion time"))
+        .and_then(|t| t.split_whitespace().next()?.parse().ok())
+        .unwrap_or_else(|| panic!("no motion time in {stdout}"));
     assert!(
         (planned - end).abs() < 0.02 * end,
         "planned {planned} s, ran {end} s"
@@ -728,5 +733,54 @@ fn completions_and_man_pages_cover_every_command() {
     // A page's synopsis names the command as typed.
     let hold = std::fs::read_to_string(dir.join("edmd-ctl-hold.1")).unwrap();
     assert!(hold.contains("edmd ctl hold"), "{hold}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `plan`'s estimated time is the machine's: the papers' Huang program on the default
+/// simulator runs within 25 % of it, and sparking throughout within 1 %.
+#[test]
+fn plans_estimated_time_is_within_a_quarter_of_the_run() {
+    let dir = std::env::temp_dir().join(format!("edmd-cli-estimate-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = repo().join("programs/huang-table1-g38.nc");
+    let program = program.to_str().unwrap();
+    let out = edmd(&[
+        "plan",
+        program,
+        "--out",
+        dir.join("plan").to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(out.status.success(), "{:?}", text(&out));
+    let plan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("plan/summary.json")).unwrap())
+            .unwrap();
+    let run = |extra: &[&str]| {
+        let summary = dir.join("run.json");
+        let mut args = vec!["run", program, "--summary", summary.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let out = edmd(&args);
+        assert!(out.status.success(), "{:?}", text(&out));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        s["virtual_time_s"].as_f64().unwrap()
+    };
+    let estimated = plan["estimated_time_s"].as_f64().unwrap();
+    let motion = plan["planned_time_s"].as_f64().unwrap();
+    let cut = run(&[]);
+    println!("huang: estimated {estimated:.2} s, ran {cut:.2} s; motion {motion:.4} s");
+    assert!(
+        (cut / estimated - 1.0).abs() < 0.25,
+        "estimated {estimated} s, ran {cut} s"
+    );
+    // With no gap input the gap reads sparking throughout: the estimate's own model.
+    let steady = run(&["--set", "gap.kind=\"none\""]);
+    println!("huang sparking throughout: ran {steady:.4} s");
+    assert!(
+        (steady / estimated - 1.0).abs() < 0.01,
+        "estimated {estimated} s, ran {steady} s"
+    );
+    assert!(motion < estimated / 10.0);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -249,7 +249,7 @@ fn the_plan_stops_at_the_ends_of_rapids_under_a_jerk_limit() {
             .to_string();
         row.split(',').nth(7).unwrap().parse::<f64>().unwrap()
     };
-    assert_eq!(feed_at("0", "10"), 20.0);
+    assert_eq!(feed_at("0", "10"), 1200.0);
     assert_eq!(feed_at("1e5", "10"), 0.0);
     assert_eq!(feed_at("1e5", "20"), 0.0);
 }

@@ -51,7 +51,7 @@ enum Command {
     /// Bench mode: run the real-time loop alone for a while (an endless square path, pulses
     /// discarded, gap always normal) and print its wake-up latency histogram in cyclictest's
     /// format. See scripts/latency-vs-cyclictest.sh.
-    Latency(LatencyArgs),
+    Latency(latency::LatencyArgs),
     /// Print the shell completion script for bash, zsh or fish.
     Completions(docs::CompletionsArgs),
     /// Write the man pages (edmd(1), one per subcommand) into a directory.
@@ -120,6 +120,7 @@ mod ctl;
 mod docs;
 mod find;
 mod journal;
+mod latency;
 mod run_state;
 
 use ctl::{CtlArgs, run_ctl};
@@ -267,24 +268,6 @@ impl RunArgs {
     }
 }
 
-#[derive(Args, Debug)]
-struct LatencyArgs {
-    #[command(flatten)]
-    config: ConfigArgs,
-    /// Tick period in µs [default: fine.tick_us]
-    #[arg(long, value_name = "US")]
-    tick_us: Option<u32>,
-    /// SCHED_FIFO priority, 0 for none [default: fine.rt_priority]
-    #[arg(long, value_name = "PRIO")]
-    priority: Option<u8>,
-    /// How long to run
-    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
-    seconds: f64,
-    /// Write the histogram (cyclictest's -h layout) to FILE instead of standard output
-    #[arg(long, value_name = "FILE")]
-    histogram: Option<PathBuf>,
-}
-
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -295,7 +278,7 @@ pub fn main() -> ExitCode {
         Command::Run(args) => run_job(&args),
         Command::Serve(args) => run_serve(&args),
         Command::Ctl(args) => run_ctl(&args),
-        Command::Latency(args) => run_latency(args),
+        Command::Latency(args) => latency::run_latency(args),
         Command::Completions(args) => docs::completions(&args, Cli::command()),
         Command::Man(args) => docs::man(&args, Cli::command()),
     }
@@ -309,6 +292,15 @@ fn on_parser_stack(name: &str, work: impl FnOnce() -> ExitCode + Send) -> ExitCo
 }
 
 /// Sets up logging as configured; returns the way to change the level later (SIGHUP).
+/// Logging for a command that plans or moves, with the configuration's warnings said once.
+fn init_logging_for(cfg: &Config) -> crate::daemon::SetLogLevel {
+    let set_level = init_logging(&cfg.log);
+    if let Some(warning) = config::max_feed_warning(cfg) {
+        tracing::warn!("{warning}");
+    }
+    set_level
+}
+
 fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
     use tracing_subscriber::layer::SubscriberExt;
     use tracing_subscriber::util::SubscriberInitExt;
@@ -433,7 +425,7 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    let _ = init_logging(&cfg.log);
+    let _ = init_logging_for(&cfg);
     match plan::plan_program(&args.program, &cfg, &args.out, !args.quiet) {
         Ok(summary) => {
             out!("{}", summary.text());
@@ -449,68 +441,6 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
             ExitCode::from(EXIT_RUNTIME)
         }
     }
-}
-
-fn run_latency(mut args: LatencyArgs) -> ExitCode {
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        eprintln!(
-            "edmd: error: --seconds {}: must be a positive number",
-            args.seconds
-        );
-        return ExitCode::from(EXIT_BAD_INPUT);
-    }
-    if let Some(us) = args.tick_us {
-        args.config.set.push(format!("fine.tick_us={us}"));
-    }
-    if let Some(priority) = args.priority {
-        args.config.set.push(format!("fine.rt_priority={priority}"));
-    }
-    let cfg = match load_config(&args.config) {
-        Ok(c) => c,
-        Err(code) => return code,
-    };
-    let _ = init_logging(&cfg.log);
-    let run =
-        match runtime::latency::measure(&cfg, std::time::Duration::from_secs_f64(args.seconds)) {
-            Ok(run) => run,
-            Err(e) => {
-                eprintln!("edmd: error: cannot start the loop thread: {e}");
-                return ExitCode::from(EXIT_RUNTIME);
-            }
-        };
-    let s = run.histogram.summary();
-    let header = format!(
-        "# edmd latency: tick {} µs, SCHED_FIFO {}, {:.1} s, {} ticks, {} pulses\n\
-         # p50 {:.1} µs  p99 {:.1} µs  p99.9 {:.1} µs  max {:.1} µs  mean {:.2} µs\n\
-         # overruns {} ({} deadlines skipped)\n",
-        cfg.fine.tick.us(),
-        cfg.fine.rt_priority,
-        run.wall_ns as f64 * 1e-9,
-        run.ticks,
-        run.pulses,
-        s.p50_us,
-        s.p99_us,
-        s.p999_us,
-        s.max_us,
-        s.mean_us,
-        run.overruns,
-        run.missed_deadlines,
-    );
-    let histogram = run.histogram.cyclictest_format();
-    for reason in &run.rt_refused {
-        eprintln!("edmd: warning: {reason}");
-    }
-    match &args.histogram {
-        Some(path) => {
-            if let Err(e) = std::fs::write(path, format!("{header}{histogram}")) {
-                eprintln!("edmd: error: {}: {e}", path.display());
-                return ExitCode::from(EXIT_RUNTIME);
-            }
-            out!("{header}");
-        }
-        None => out!("{header}{histogram}"),
-    }
-    ExitCode::SUCCESS
 }
 
 /// SIGINT and SIGTERM set the returned flag: the job stops where it is, the outputs go
@@ -539,7 +469,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    let _ = init_logging(&cfg.log);
+    let _ = init_logging_for(&cfg);
     tracing::info!("{}", args.config.describe());
     let stop = stop_on_signals();
     let terminal = std::io::stderr().is_terminal();
@@ -642,7 +572,7 @@ fn run_serve(args: &ServeArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let set_level = init_logging(&cfg.log);
+    let set_level = init_logging_for(&cfg);
     tracing::info!("{}", args.config.describe());
     let source = crate::daemon::ConfigSource {
         path,

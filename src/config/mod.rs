@@ -20,6 +20,7 @@ mod overrides;
 mod parport;
 mod raw;
 mod settings;
+pub use settings::max_feed_warning;
 mod sim;
 mod sinker;
 #[cfg(test)]

@@ -77,6 +77,7 @@ impl PlanSettings {
                 })
                 .collect(),
             rapid_stops: m.max_jerk_mm_per_s3 > 0.0,
+            axis_cap: axis_cap(config),
         }
     }
 }
@@ -184,4 +185,37 @@ impl ProgramOptions {
             orbit: config.sinker.orbit.clone(),
         }
     }
+}
+
+/// The fastest each axis of `config`'s machine can be stepped (mm/s): a step per tick.
+pub fn axis_cap(config: &Config) -> [f64; MAX_AXES] {
+    let mut cap = [f64::INFINITY; MAX_AXES];
+    for (c, s) in cap.iter_mut().zip(&config.machine.step_mm) {
+        *c = s / config.fine.tick.secs();
+    }
+    cap
+}
+
+/// The warning for a machine whose `max_feed_mm_per_min` is above what its outputs can step
+/// (one step per tick on the slowest axis): the planner plans with the real limit.
+pub fn max_feed_warning(config: &Config) -> Option<String> {
+    let m = &config.machine;
+    let cap = axis_cap(config);
+    let (i, slowest) = cap
+        .iter()
+        .take(m.axes.len())
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
+    let real = (slowest * 60.0 * 1e6).round() / 1e6;
+    (m.max_feed_mm_per_min > real).then(|| {
+        format!(
+            "machine.max_feed_mm_per_min = {} is more than the outputs can step: one step of {} mm \
+             per {} µs tick is {real} mm/min on {} (faster along a diagonal); moves are planned \
+             at that",
+            m.max_feed_mm_per_min,
+            m.step_mm[i],
+            (config.fine.tick.secs() * 1e6).round(),
+            m.axes[i].letter(),
+        )
+    })
 }

@@ -354,3 +354,15 @@ fn the_orbit_table_overlays_key_by_key_and_conditions_carry_their_own() {
     let e = load("", &["sinker.orbit.pitch=1"]).unwrap_err();
     assert!(e.contains("--set sinker.orbit.pitch=1"), "{e}");
 }
+
+#[test]
+fn a_max_feed_above_one_step_per_tick_is_accepted_with_the_real_limit() {
+    let c = load("", &[]).unwrap();
+    let w = max_feed_warning(&c).expect("18000 mm/min is above 1 µm per 50 µs");
+    assert!(w.contains("is 1200 mm/min on X"), "{w}");
+    let c = load("", &["machine.max_feed_mm_per_min=1200"]).unwrap();
+    assert_eq!(max_feed_warning(&c), None);
+    // The slowest axis names the limit.
+    let c = load("", &["machine.step_mm=[0.001, 0.0005]"]).unwrap();
+    assert!(max_feed_warning(&c).unwrap().contains("600 mm/min on Y"));
+}

@@ -49,7 +49,7 @@ pub(super) fn write_reports(
         &Chart {
             title: "Planned feed".into(),
             x_label: "time (s)".into(),
-            y_label: "feed (mm/s)".into(),
+            y_label: "feed (mm/min)".into(),
             series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
             limits: vec![(settings.max_feed, "max feed".into())],
             ..Chart::default()

@@ -22,6 +22,7 @@ use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment, bo
 use crate::vocab::{Axis, Predictor, Segmentation};
 
 mod charts;
+mod estimate;
 use charts::write_reports;
 
 /// Largest program (in blocks) for which the time-optimal bound is computed.
@@ -61,6 +62,9 @@ pub struct PlanSummary {
     pub segments: u64,
     pub length_mm: f64,
     pub planned_time_s: f64,
+    /// The estimated machining time (s): cuts at the servo's nominal feed where that is
+    /// slower than the plan ([`estimate`]).
+    pub estimated_time_s: f64,
     /// Dense forward/backward pass under the same limits; `None` when skipped (long programs).
     pub time_optimal_bound_s: Option<f64>,
     /// `planned / bound - 1`.
@@ -79,7 +83,7 @@ pub struct PlanSummary {
     pub refused_by_bound: u64,
     /// Bézier pieces examined by the certificates, per segment.
     pub certified_pieces_per_segment: f64,
-    pub max_feed_mm_per_s: f64,
+    pub max_feed_mm_per_min: f64,
     /// Period mode: `|step - planned| / planned` (seed 001 eq. 16).
     pub max_fluctuation: Option<f64>,
     pub mean_fluctuation: Option<f64>,
@@ -119,7 +123,14 @@ impl PlanSummary {
         s += &format!("blocks             {}\n", self.blocks);
         s += &format!("segments           {}\n", self.segments);
         s += &format!("length             {:.4} mm\n", self.length_mm);
-        s += &format!("planned time       {:.4} s\n", self.planned_time_s);
+        s += &format!(
+            "motion time        {:.4} s (the path at its planned feeds)\n",
+            self.planned_time_s
+        );
+        s += &format!(
+            "estimated time     {:.1} s (cuts at the servo's nominal feed)\n",
+            self.estimated_time_s
+        );
         s += &format!(
             "time-optimal bound {}{}\n",
             opt(self.time_optimal_bound_s, " s", 1.0, 4),
@@ -136,7 +147,10 @@ impl PlanSummary {
             "max chord bound    {:.6} mm certified ({} over tolerance, {} measurements refused)\n",
             self.max_chord_bound_mm, self.segments_bound_over_tolerance, self.refused_by_bound
         );
-        s += &format!("max feed           {:.3} mm/s\n", self.max_feed_mm_per_s);
+        s += &format!(
+            "max feed           {:.1} mm/min\n",
+            self.max_feed_mm_per_min
+        );
         s += &format!(
             "fluctuation        max {}  mean {}\n",
             opt(self.max_fluctuation, "", 1.0, 9),
@@ -295,6 +309,8 @@ struct Collector {
     start: Option<(f64, f64)>,
     direction: Option<(f64, f64)>,
     error: Option<io::Error>,
+    /// The estimated machining time.
+    cut: estimate::CutTime,
 }
 
 /// Rapid strokes kept for the path plot (a program with more draws the first ones).
@@ -379,6 +395,7 @@ impl Collector {
         }
         let v = seg.v_exit;
         self.max_feed = self.max_feed.max(seg.v_peak);
+        self.cut.add(seg);
         if let Some(f) = seg.fluctuation {
             self.fl_max = self.fl_max.max(f);
             self.fl_sum += f;
@@ -428,7 +445,7 @@ impl Collector {
             wire.push(self.s, &seg.end);
         }
         self.chord.push(self.s, seg.chord_error);
-        self.feed.push(self.t, v);
+        self.feed.push(self.t, v * 60.0);
         let u = match seg.block.kind {
             BlockKind::Nurbs { .. } => format!("{}", seg.u_end),
             _ => String::new(),
@@ -438,7 +455,7 @@ impl Collector {
             &u,
             &seg.end,
             self.t,
-            v,
+            v * 60.0,
             (seg.chord_error, seg.chord_bound),
             seg.fluctuation,
             seg.rho_end,
@@ -483,6 +500,7 @@ pub fn plan_program(
     let settings = PlanSettings::from_config(config);
     let mut c = Collector::new(trace, trace_path.clone(), axes, &settings);
     c.wire = charts::WireView::new(axes, config.wire.guides);
+    c.cut = estimate::CutTime::new(config);
 
     let mut pre = Preprocessor::new(settings.clone());
     let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
@@ -586,9 +604,11 @@ impl Collector {
             start: None,
             direction: None,
             error: None,
+            cut: estimate::CutTime::default(),
         };
         let mut header =
-            "line,kind,u,x,y,z,t,feed,chord_err,chord_bound,fluctuation,rho,evals".to_string();
+            "line,kind,u,x,y,z,t,feed_mm_per_min,chord_err,chord_bound,fluctuation,rho,evals"
+                .to_string();
         for (_, letter) in &extra {
             header += &format!(",{letter}");
         }
@@ -627,6 +647,7 @@ fn summary_of(
         segments: c.segments,
         length_mm: c.length,
         planned_time_s: c.t,
+        estimated_time_s: c.cut.seconds,
         time_optimal_bound_s: bound,
         time_over_bound: bound.map(|b| c.t / b - 1.0),
         max_chord_error_mm: c.max_err,
@@ -637,7 +658,7 @@ fn summary_of(
         certified_pieces_per_segment: (stats.segmenter.certified_pieces + stats.certified_pieces)
             as f64
             / segments,
-        max_feed_mm_per_s: c.max_feed,
+        max_feed_mm_per_min: c.max_feed * 60.0,
         max_fluctuation: (c.fl_count > 0).then_some(c.fl_max),
         mean_fluctuation: (c.fl_count > 0).then(|| c.fl_sum / c.fl_count as f64),
         max_tangential_accel_mm_per_s2: c.max_at,

@@ -24,9 +24,13 @@ pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f
     let mut prev_tangent: Option<Point> = None;
     for block in blocks {
         let curve = &block.curve;
-        let feed = block
-            .feed_mm_per_min
-            .map_or(settings.max_feed, |f| (f / 60.0).min(settings.max_feed));
+        let feed = if block.kind == crate::gcode::BlockKind::Rapid {
+            settings.rapid_feed
+        } else {
+            block
+                .feed_mm_per_min
+                .map_or(settings.max_feed, |f| (f / 60.0).min(settings.max_feed))
+        };
         let n = (curve.length() / spacing).ceil().clamp(16.0, 4.0e6) as usize;
         let (u0, u1) = (curve.u_min(), curve.u_max());
         let first = curve.derivs(u0);
@@ -48,7 +52,11 @@ pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f
             if settings.segmentation == Segmentation::Period {
                 v = v.min(chord_length_limit(rho, settings.tolerance) / settings.period);
             }
-            ds.push((d.point - p).norm());
+            let step = d.point - p;
+            let length = step.norm();
+            // The outputs' one step per tick, as the planner honours it.
+            v = v.min(super::step_cap(&settings.axis_cap, &step, length));
+            ds.push(length);
             limit.push(v);
             p = d.point;
             if k == n {

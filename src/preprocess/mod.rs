@@ -75,6 +75,9 @@ pub struct PlanSettings {
     /// Positioning moves (rapids, spark-off travel) start and end at a standstill: under a
     /// jerk limit the tick core's S-curve brings them to rest at their end.
     pub rapid_stops: bool,
+    /// The fastest each axis can be stepped (mm/s): one step per tick (infinite for the axes
+    /// the machine does not have). A segment is planned no faster than its direction allows.
+    pub axis_cap: [f64; crate::vocab::MAX_AXES],
 }
 
 /// A chord of a curve piece, before speed planning.
@@ -153,6 +156,18 @@ pub struct Segment {
     pub last_of_block: bool,
     /// Corner control's stop at the segment's start (s): the electrode holds there this long.
     pub corner_dwell_s: f64,
+}
+
+/// The fastest the outputs can step a move `d` of length `chord` along it (mm/s): one step
+/// per tick (`axis_cap`, mm/s per axis) on the axis that moves most for its step size.
+pub fn step_cap(axis_cap: &[f64; crate::vocab::MAX_AXES], d: &Point, chord: f64) -> f64 {
+    let mut cap = f64::INFINITY;
+    for (x, c) in d.iter().zip(axis_cap) {
+        if x.abs() > 0.0 {
+            cap = cap.min(c * chord / x.abs());
+        }
+    }
+    cap
 }
 
 /// The junction-deviation corner speed between two unit tangents (Grbl's rule): the speed at

@@ -190,6 +190,7 @@ impl Segmenter {
             let rho_end = b.d.curvature_radius();
             let rho_min = rho_start.min(rho_end).min(err.rho_min);
             let chord = (b.d.point - a.d.point).norm();
+            let stepped = self.step_cap(&(b.d.point - a.d.point), chord);
             let seg = GeoSegment {
                 block: Arc::clone(block),
                 u_start: a.u,
@@ -202,8 +203,10 @@ impl Segmenter {
                 chord_bound: bound,
                 rho_min,
                 rho_end,
-                feed_limit: self.feed_limit(feed, rho_min, chord, err.max),
-                speed_limit: self.feed_limit(self.ceiling(block), rho_min, chord, err.max),
+                feed_limit: self.feed_limit(feed, rho_min, chord, err.max).min(stepped),
+                speed_limit: self
+                    .feed_limit(self.ceiling(block), rho_min, chord, err.max)
+                    .min(stepped),
                 entry_limit,
                 evals: tried + err.evals,
                 first_of_piece,
@@ -227,6 +230,10 @@ impl Segmenter {
             }
         }
         self.prev_tangent = Some(unit(&a.d.d1));
+    }
+
+    fn step_cap(&self, d: &Point, chord: f64) -> f64 {
+        super::step_cap(&self.settings.axis_cap, d, chord)
     }
 
     /// Cruise speed limit on a segment (mm/s): programmed feed, normal acceleration over the
