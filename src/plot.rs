@@ -112,7 +112,7 @@ const HEIGHT: f64 = 560.0;
 const LEFT: f64 = 90.0;
 const RIGHT: f64 = 30.0;
 /// Room above the plot for the title and, below it, the legend (never over the data).
-const TOP: f64 = 64.0;
+const TOP: f64 = 72.0;
 const BOTTOM: f64 = 60.0;
 
 impl Chart {
@@ -235,10 +235,10 @@ impl Chart {
         }
     }
 
-    /// The series, each with its legend entry (one row between the title and the plot).
+    /// The series, each with its legend entry (between the title and the plot).
     fn series_svg(&self, svg: &mut String, f: &Frame) {
-        let mut legend_x = LEFT;
-        for s in &self.series {
+        let places = self.legend_places();
+        for (s, &(legend_x, ly)) in self.series.iter().zip(&places) {
             match s.style {
                 Style::Line | Style::Dashed => {
                     let mut d = String::new();
@@ -280,8 +280,6 @@ impl Chart {
                     }
                 }
             }
-            // The legend: one row between the title and the plot, left to right.
-            let ly = TOP - 12.0;
             let _ = writeln!(
                 svg,
                 r#"<rect x="{:.1}" y="{:.1}" width="12" height="4" fill="{}"/><text x="{:.1}" y="{:.1}">{}</text>"#,
@@ -292,8 +290,25 @@ impl Chart {
                 ly,
                 escape(&s.name)
             );
-            legend_x += 40.0 + 7.0 * s.name.chars().count() as f64;
         }
+    }
+
+    /// Where each series' legend entry goes: rows between the title and the plot, left to
+    /// right, a second row when the first is full, so no entry runs off the right edge.
+    fn legend_places(&self) -> Vec<(f64, f64)> {
+        let width = |s: &Series| 40.0 + 7.0 * s.name.chars().count() as f64;
+        let fits_one = LEFT + self.series.iter().map(width).sum::<f64>() <= WIDTH - RIGHT + 20.0;
+        let (mut x, mut y) = (LEFT, if fits_one { TOP - 12.0 } else { TOP - 26.0 });
+        let mut places = Vec::with_capacity(self.series.len());
+        for s in &self.series {
+            if x > LEFT && x + width(s) > WIDTH - RIGHT + 20.0 {
+                x = LEFT;
+                y += 14.0;
+            }
+            places.push((x, y));
+            x += width(s);
+        }
+        places
     }
 
     /// The start marker: a circle and an arrow along the first move.

@@ -114,7 +114,7 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
             },
             Series {
                 name: format!("short circuits ({})", summary.servo.shorts),
-                color: "#d02020",
+                color: "#111111",
                 style: Style::Dots,
                 points: recording
                     .events
@@ -133,7 +133,7 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
             dots(
                 recording,
                 EventKind::WireBreak,
-                "#000000",
+                "#8c564b",
                 "wire breaks",
                 summary.servo.wire_breaks,
             ),
@@ -151,6 +151,10 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
             .map(|p| (p, recording.direction.unwrap_or((1.0, 0.0)))),
         ..Chart::default()
     };
+    // The legend names only what happened (the executed path always).
+    let mut first = true;
+    path.series
+        .retain(|s| std::mem::take(&mut first) || !s.points.is_empty());
     if let Some((_, upper)) = &recording.upper {
         // A four-axis wire machine: the lower guide's path above, the upper guide's too.
         path.series[0].name = "executed path (lower guide, X/Y)".into();
@@ -194,18 +198,27 @@ fn events_csv(recording: &Recording, axes: &[String]) -> String {
         let _ = write!(csv, ",{}_mm", a.to_ascii_lowercase());
     }
     csv.push('\n');
+    // Times to the tick and positions to the step: the digits that mean something.
+    let time_digits = decimals(recording.tick.ns() as f64 * 1e-9);
+    let mm_digits = recording
+        .step_mm
+        .iter()
+        .map(|s| decimals(*s))
+        .max()
+        .unwrap_or(3);
     for e in &recording.events {
         let _ = write!(
             csv,
-            "{},{},{},{},{}",
+            "{},{:.*},{},{},{}",
             e.tick,
+            time_digits,
             recording.secs(e.tick),
             e.line,
             e.kind.name(),
             e.depth.map(|d| d.to_string()).unwrap_or_default()
         );
         for p in &e.position_mm {
-            let _ = write!(csv, ",{p}");
+            let _ = write!(csv, ",{p:.mm_digits$}");
         }
         csv.push('\n');
     }
@@ -218,4 +231,30 @@ fn events_csv(recording: &Recording, axes: &[String]) -> String {
         );
     }
     csv
+}
+
+/// The decimals that show a quantity of resolution `unit` (0.05 ms: 5; 1 µm in mm: 3).
+fn decimals(unit: f64) -> usize {
+    if unit.is_nan() || unit <= 0.0 {
+        return 6;
+    }
+    let mut d = 0;
+    while d < 12
+        && ((unit * 10f64.powi(d as i32)).round() - unit * 10f64.powi(d as i32)).abs() > 1e-9
+    {
+        d += 1;
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn decimals_show_the_resolution() {
+        assert_eq!(super::decimals(50e-6), 5);
+        assert_eq!(super::decimals(1e-3), 3);
+        assert_eq!(super::decimals(0.0005), 4);
+        assert_eq!(super::decimals(1e-4), 4);
+        assert_eq!(super::decimals(1.0), 0);
+    }
 }

@@ -517,13 +517,20 @@ fn edits_of_the_program_change_nothing_about_the_motion() {
         .collect();
     assert_eq!(reports.len(), 1);
     let report = reports[0].path();
-    assert!(
-        report.to_string_lossy().ends_with("-runtime-path"),
-        "{}",
-        report.display()
-    );
+    // Named by the local date and time it started: 2026-11-23T20-10-03-runtime-path.
+    let name = report.file_name().unwrap().to_string_lossy().into_owned();
+    let stamp = name.strip_suffix("-runtime-path").unwrap_or_else(|| panic!("{name}"));
+    let shape: String = stamp
+        .chars()
+        .map(|c| if c.is_ascii_digit() { '9' } else { c })
+        .collect();
+    assert_eq!(shape, "9999-99-99T99-99-99", "{name}");
+    // Times to the tick, positions to the step.
     let events = std::fs::read_to_string(report.join("events.csv")).unwrap();
-    assert!(events.trim_end().ends_with("done,,7.5,8.25"), "{events}");
+    assert!(events.trim_end().ends_with("done,,7.500,8.250"), "{events}");
+    let done = events.lines().last().unwrap();
+    let time = done.split(',').nth(1).unwrap();
+    assert_eq!(time.split('.').nth(1).map(str::len), Some(5), "{done}");
     for file in ["path.svg", "feed.svg", "summary.json"] {
         assert!(report.join(file).exists(), "{file}");
     }

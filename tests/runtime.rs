@@ -543,6 +543,10 @@ fn run_report_shows_what_ran_turn_backs_included() {
     let path = std::fs::read_to_string(report.join("path.svg")).unwrap();
     assert!(path.contains("turned back and re-advanced") && path.contains(">start</text>"));
     assert!(path.contains("short circuits (1)"));
+    // The legend names only what happened: no jumps, wire breaks or probes in this job.
+    for absent in ["jumps (", "wire breaks (", "probe contacts ("] {
+        assert!(!path.contains(absent), "{absent} in the legend");
+    }
     let feed = std::fs::read_to_string(report.join("feed.svg")).unwrap();
     assert!(feed.contains("machine time (s)") && feed.contains("feed (mm/min)"));
 }

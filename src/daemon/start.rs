@@ -11,7 +11,7 @@ use super::jobs::{Check, Resume};
 use super::launch::{Checked, JobKind, Launch, Source, copy_and_check};
 use super::protocol::CheckStatus;
 use super::refusal::{CheckRefusal, Refusal};
-use super::{Core, CoreMsg, Job, JobRecording, confine, unix_now};
+use super::{Core, CoreMsg, Job, JobRecording, confine};
 use crate::checkpoint::{self, Reason};
 use crate::config::Config;
 use crate::record::Recording;
@@ -26,11 +26,23 @@ fn job_report(config: &Config, program_name: &str) -> Result<Option<PathBuf>, Re
             let stem = Path::new(program_name)
                 .file_stem()
                 .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
-            let dir = dir.join(format!("{}-{stem}", unix_now()));
-            if let Err(source) = std::fs::create_dir_all(&dir) {
-                return Err(Refusal::ReportDir { dir, source });
+            // Named by the local date and time it started; a second job in the same second
+            // gets a suffix rather than the first one's folder.
+            let stamp = crate::sys::local_stamp();
+            let mut n = 1;
+            loop {
+                let name = match n {
+                    1 => format!("{stamp}-{stem}"),
+                    n => format!("{stamp}-{stem}-{n}"),
+                };
+                let path = dir.join(name);
+                let made = std::fs::create_dir_all(dir).and_then(|()| std::fs::create_dir(&path));
+                match made {
+                    Ok(()) => break Some(path),
+                    Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && n < 100 => n += 1,
+                    Err(source) => return Err(Refusal::ReportDir { dir: path, source }),
+                }
             }
-            Some(dir)
         }
         None => None,
     })

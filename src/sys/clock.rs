@@ -37,8 +37,45 @@ pub fn sleep_until_ns(deadline_ns: u64) {
     }
 }
 
+/// The wall clock now in the machine's local time zone, as `2026-11-23T20-10-03`: a name for
+/// files and folders that sorts by time and that a shop reads in its own hours (no `:`, which
+/// some file systems and tools refuse).
+pub fn local_stamp() -> String {
+    // SAFETY: a null pointer asks time() for the current time only.
+    let now = unsafe { libc::time(std::ptr::null_mut()) };
+    // SAFETY: `tm` is plain data, all-zero is a valid value.
+    let mut tm: libc::tm = unsafe { std::mem::zeroed() };
+    // SAFETY: both pointers are valid for the call; localtime_r is the reentrant form.
+    let ok = !unsafe { libc::localtime_r(&now, &mut tm) }.is_null();
+    if !ok {
+        return format!("{now}");
+    }
+    format!(
+        "{:04}-{:02}-{:02}T{:02}-{:02}-{:02}",
+        tm.tm_year + 1900,
+        tm.tm_mon + 1,
+        tm.tm_mday,
+        tm.tm_hour,
+        tm.tm_min,
+        tm.tm_sec
+    )
+}
+
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn the_local_stamp_is_a_date_and_a_time() {
+        let s = super::local_stamp();
+        let b = s.as_bytes();
+        assert_eq!(s.len(), 19, "{s}");
+        assert_eq!(
+            (b[4], b[7], b[10], b[13], b[16]),
+            (b'-', b'-', b'T', b'-', b'-'),
+            "{s}"
+        );
+        assert!(s[..4].parse::<u32>().unwrap() >= 2024, "{s}");
+    }
     use super::*;
 
     #[test]
