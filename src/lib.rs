@@ -11,11 +11,12 @@
 #![deny(unsafe_code)]
 #![warn(clippy::undocumented_unsafe_blocks)]
 
-// Floor 0: vocabulary, kernel calls, the seeded generator and SVG charts, importing nothing
-// of edmd's.
+// Floor 0: vocabulary, kernel calls, the seeded generator, SVG charts and the terminal,
+// importing nothing of edmd's above them (the terminal reads the local time through sys).
 pub mod plot;
 pub mod rng;
 pub mod sys;
+pub mod term;
 pub mod vocab;
 pub mod words;
 // Floor 1: curves.

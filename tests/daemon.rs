@@ -519,7 +519,9 @@ fn edits_of_the_program_change_nothing_about_the_motion() {
     let report = reports[0].path();
     // Named by the local date and time it started: 2026-11-23T20-10-03-runtime-path.
     let name = report.file_name().unwrap().to_string_lossy().into_owned();
-    let stamp = name.strip_suffix("-runtime-path").unwrap_or_else(|| panic!("{name}"));
+    let stamp = name
+        .strip_suffix("-runtime-path")
+        .unwrap_or_else(|| panic!("{name}"));
     let shape: String = stamp
         .chars()
         .map(|c| if c.is_ascii_digit() { '9' } else { c })

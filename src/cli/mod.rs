@@ -335,8 +335,16 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
         (LogFormat::Plain | LogFormat::Journal, None) => {
             layer.with_ansi(false).fmt_fields(text_fields).boxed()
         }
+        // On a terminal: local time, no module paths, each line printed with the progress
+        // bar lifted (`term`).
+        (LogFormat::Human | LogFormat::Auto, None) if terminal => fmt::layer()
+            .with_writer(crate::term::LogWriter)
+            .with_timer(crate::term::LocalTime)
+            .with_target(false)
+            .fmt_fields(text_fields)
+            .boxed(),
         (LogFormat::Human | LogFormat::Auto, None) => {
-            layer.with_ansi(terminal).fmt_fields(text_fields).boxed()
+            layer.with_ansi(false).fmt_fields(text_fields).boxed()
         }
     };
     // A second initialisation (tests calling twice) is harmless, so its error is ignored.
@@ -500,9 +508,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         &stop,
         observers,
     );
-    if terminal {
-        eprintln!();
-    }
+    crate::term::finish();
     let summary = match result {
         Ok((summary, left)) => {
             if let Err(code) = machine.stopped(&summary, left) {
@@ -596,6 +602,7 @@ const PROGRESS_LOG_EVERY: std::time::Duration = std::time::Duration::from_secs(1
 fn job_progress(terminal: bool, tick: crate::vocab::TickPeriod) -> runtime::ProgressFn {
     use crate::daemon::protocol::duration_text;
     let mut last_log: Option<std::time::Instant> = None;
+    let bar = crate::term::bar(1000, terminal);
     Box::new(move |tracker, snap| {
         let eta = tracker.eta_s().map_or_else(
             || "ETA unknown".to_string(),
@@ -603,15 +610,12 @@ fn job_progress(terminal: bool, tick: crate::vocab::TickPeriod) -> runtime::Prog
         );
         let fraction = tracker.fraction();
         if terminal {
-            let filled = (fraction * 30.0) as usize;
-            eprint!(
-                "\r[{}{}] {:5.1} %  line {}  {:.1} s machine time  {eta}   ",
-                "#".repeat(filled),
-                "-".repeat(30 - filled.min(30)),
-                fraction * 100.0,
+            bar.set_position((fraction * 1000.0) as u64);
+            bar.set_message(format!(
+                "line {}  {:.1} s machine time  {eta}",
                 snap.line,
                 tick.ticks_to_secs(snap.tick)
-            );
+            ));
         } else if last_log.is_none_or(|t| t.elapsed() >= PROGRESS_LOG_EVERY) {
             last_log = Some(std::time::Instant::now());
             tracing::info!(

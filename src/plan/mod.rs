@@ -216,55 +216,51 @@ impl<R: io::Seek> io::Seek for Counting<R> {
     }
 }
 
-/// A one-line progress bar on stderr, redrawn at most every 200 ms, shown only after the job
-/// has run for a second (short jobs print nothing).
+/// The progress bar on stderr (`term`), shown only after planning has run for a second
+/// (short plans print nothing), updated at most every 200 ms.
 struct Progress {
+    bar: Option<indicatif::ProgressBar>,
     enabled: bool,
     total: u64,
     started: Instant,
     last: Instant,
-    shown: bool,
 }
 
 impl Progress {
     fn new(enabled: bool, total: u64) -> Progress {
         let now = Instant::now();
         Progress {
+            bar: None,
             enabled,
             total: total.max(1),
             started: now,
             last: now,
-            shown: false,
         }
     }
 
     fn tick(&mut self, done: u64, blocks: u64) {
-        if !self.enabled {
-            return;
-        }
         let now = Instant::now();
-        if now.duration_since(self.started) < Duration::from_secs(1)
+        if !self.enabled
+            || now.duration_since(self.started) < Duration::from_secs(1)
             || now.duration_since(self.last) < Duration::from_millis(200)
         {
             return;
         }
         self.last = now;
-        self.shown = true;
-        let frac = (done as f64 / self.total as f64).min(1.0);
-        let filled = (frac * 30.0) as usize;
-        eprint!(
-            "\r[{}{}] {:5.1} %  {} blocks  {:.1} s ",
-            "#".repeat(filled),
-            "-".repeat(30 - filled),
-            100.0 * frac,
-            blocks,
+        let total = self.total;
+        let bar = self
+            .bar
+            .get_or_insert_with(|| crate::term::bar(total, true));
+        bar.set_position(done.min(total));
+        bar.set_message(format!(
+            "{blocks} blocks  {:.1} s",
             now.duration_since(self.started).as_secs_f64()
-        );
+        ));
     }
 
     fn finish(&mut self) {
-        if self.shown {
-            eprintln!();
+        if self.bar.take().is_some() {
+            crate::term::clear();
         }
     }
 }

@@ -125,18 +125,10 @@ pub fn run(
     finish(&job, done, producer, &buffer, &published, tracer.as_deref())
 }
 
-/// The job's first log lines: what it runs, and a feed the outputs cannot reach.
+/// The job's first log line: what it runs. (A feed the outputs cannot reach is the
+/// configuration's warning, said once by the command: `config::max_feed_warning`.)
 fn announce(job: &JobRun<'_>) {
     let spec = job.spec;
-    if spec.max_feed_mm_per_min / 60.0 > spec.speed_cap {
-        tracing::info!(
-            "fine.tick_us = {} allows at most one step per axis per tick: path speeds above \
-             about {:.0} mm/min (machine.max_feed_mm_per_min = {}) are not reachable",
-            spec.tick.us(),
-            spec.speed_cap * 60.0,
-            spec.max_feed_mm_per_min
-        );
-    }
     tracing::info!(
         "{}: {} blocks; {} time, tick {}",
         job.program.name,

@@ -42,7 +42,12 @@ pub fn sleep_until_ns(deadline_ns: u64) {
 /// some file systems and tools refuse).
 pub fn local_stamp() -> String {
     // SAFETY: a null pointer asks time() for the current time only.
-    let now = unsafe { libc::time(std::ptr::null_mut()) };
+    local_stamp_of(unsafe { libc::time(std::ptr::null_mut()) })
+}
+
+/// [`local_stamp`] of `now`, seconds since the Unix epoch.
+pub fn local_stamp_of(now: i64) -> String {
+    let now = now as libc::time_t;
     // SAFETY: `tm` is plain data, all-zero is a valid value.
     let mut tm: libc::tm = unsafe { std::mem::zeroed() };
     // SAFETY: both pointers are valid for the call; localtime_r is the reentrant form.

@@ -23,7 +23,7 @@ mod proc;
 #[allow(unsafe_code)]
 mod rt;
 
-pub use clock::{local_stamp, monotonic_ns, sleep_until_ns};
+pub use clock::{local_stamp, local_stamp_of, monotonic_ns, sleep_until_ns};
 pub use files::{open_regular, read_regular, temporary_path, write_atomic};
 pub use group::group_id;
 pub use limits::raise_descriptor_limit;
