@@ -59,6 +59,27 @@ fn run(dir: &Path, name: &str, program: &str, sets: &[String]) -> Vec<[f64; 3]> 
     ticks
 }
 
+/// Runs [`PLUNGE`] with `sets`: its summary, and the path of its pulse log.
+fn plunge_with_summary(dir: &Path, sets: &[String]) -> (serde_json::Value, std::path::PathBuf) {
+    let path = dir.join("p.ngc");
+    std::fs::write(&path, PLUNGE).unwrap();
+    let pulses = dir.join("p.csv");
+    let summary = dir.join("summary.json");
+    let mut args: Vec<&str> = Vec::new();
+    for s in sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    args.extend(["--summary", summary.to_str().unwrap()]);
+    let out = common::run_to_pulse_log(&path, &pulses, &args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    (s, pulses)
+}
+
 /// The ticks of the plunge's orbit: below the top, until the bottom is reached (then the
 /// return to the axis and the rapid up).
 fn sinking(ticks: &[[f64; 3]]) -> impl Iterator<Item = (f64, f64, f64, f64)> + '_ {
@@ -123,28 +144,12 @@ fn a_circular_expanding_orbit_stays_on_its_path_and_ends_on_the_axis() {
 #[test]
 fn with_shorts_the_turn_backs_retrace_the_orbit_and_the_job_ends_on_its_end_point() {
     let dir = common::scratch("orbit", "shorts");
-    let summary = dir.join("summary.json");
     let sets = machine(&[
         "sinker.orbit.shape=\"circle\"",
         "gap.kind=\"sim\"",
         "sim.debris_shorts=6",
     ]);
-    let path = dir.join("p.ngc");
-    std::fs::write(&path, PLUNGE).unwrap();
-    let pulses = dir.join("p.csv");
-    let mut args: Vec<&str> = Vec::new();
-    for s in &sets {
-        args.extend(["--set", s.as_str()]);
-    }
-    args.extend(["--summary", summary.to_str().unwrap()]);
-    let out = common::run_to_pulse_log(&path, &pulses, &args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let (s, pulses) = plunge_with_summary(&dir, &sets);
     assert!(s["shorts"].as_u64().unwrap() >= 3, "{s}");
     assert_eq!(s["turn_backs"], s["shorts"]);
     // Every tick, turn-backs and re-advances included, on the orbit; the end exact.
@@ -320,29 +325,13 @@ fn stages_take_their_orbit_from_the_condition_and_plan_lists_them() {
 #[test]
 fn jumps_off_an_orbit_lift_along_the_tool_axis_and_come_back_to_it() {
     let dir = common::scratch("orbit", "jumps");
-    let summary = dir.join("summary.json");
     let sets = machine(&[
         "sinker.orbit.shape=\"circle\"",
         "servo.jump_interval_s=0.5",
         "servo.jump_height_mm=0.1",
         "machine.max_jerk_mm_per_s3=1e5",
     ]);
-    let path = dir.join("p.ngc");
-    std::fs::write(&path, PLUNGE).unwrap();
-    let pulses = dir.join("p.csv");
-    let mut args: Vec<&str> = Vec::new();
-    for s in &sets {
-        args.extend(["--set", s.as_str()]);
-    }
-    args.extend(["--summary", summary.to_str().unwrap()]);
-    let out = common::run_to_pulse_log(&path, &pulses, &args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let (s, pulses) = plunge_with_summary(&dir, &sets);
     let jumps = s["jumps"].as_u64().unwrap();
     assert!(jumps >= 3, "{jumps} jumps");
     let (_, rows) = read_pulse_log(&pulses).unwrap();
