@@ -9,7 +9,7 @@
 //! Must never: import another edmd module, do I/O, or grow behaviour beyond naming,
 //! parsing and converting its own values.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Most axes a machine (and so a curve) can have.
 pub const MAX_AXES: usize = 6;
@@ -111,7 +111,8 @@ impl GapVolts {
 }
 
 /// The state of the spark gap.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum GapState {
     /// Discharging: machine at the normal servo feed.
     Normal,
@@ -122,6 +123,18 @@ pub enum GapState {
 }
 
 impl GapState {
+    /// In the order of the counts by gap state (`gap_ticks`): [`GapState::index`].
+    pub const ALL: [GapState; 3] = [GapState::Normal, GapState::Open, GapState::Short];
+
+    /// Where this state stands in [`GapState::ALL`].
+    pub fn index(self) -> usize {
+        match self {
+            GapState::Normal => 0,
+            GapState::Open => 1,
+            GapState::Short => 2,
+        }
+    }
+
     /// `normal`, `open` or `short`, as in the pulse log and gap scripts.
     pub fn name(self) -> &'static str {
         match self {

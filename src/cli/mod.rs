@@ -307,8 +307,8 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
     use tracing_subscriber::{EnvFilter, Layer, Registry, fmt, reload};
 
     let from_env = std::env::var_os("RUST_LOG").is_some();
-    let filter =
-        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(cfg.level.name()));
+    let filter = EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| EnvFilter::new(filter_directives(cfg.level.name())));
     let (filter, handle) = reload::Layer::<EnvFilter, Registry>::new(filter);
     let terminal = std::io::stderr().is_terminal();
     // The journal's structured fields (`edmd_event`, …) are for the journal; the text formats
@@ -356,8 +356,20 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
         if from_env {
             return Err("RUST_LOG is set and takes precedence; level unchanged".into());
         }
-        handle.reload(EnvFilter::new(level)).map_err(Into::into)
+        handle
+            .reload(EnvFilter::new(filter_directives(level)))
+            .map_err(Into::into)
     })
+}
+
+/// The log filter for `level`: at `info`, the OPC UA library's own chatter (a line per
+/// connection and session) is left out, its warnings and errors (a client certificate
+/// rejected) kept.
+fn filter_directives(level: &str) -> String {
+    match level {
+        "info" => "info,opcua_server=warn,opcua_core=warn,opcua_crypto=warn".to_string(),
+        _ => level.to_string(),
+    }
 }
 
 fn load_config(args: &ConfigArgs) -> Result<Config, ExitCode> {

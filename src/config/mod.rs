@@ -16,6 +16,8 @@
 mod corners;
 pub use corners::CornerControl;
 mod homing;
+mod opcua;
+pub use opcua::OpcUaEndpoint;
 mod overrides;
 mod parport;
 mod raw;
@@ -301,6 +303,12 @@ pub struct DaemonConfig {
     pub http_allowed_hosts: Vec<String>,
     /// HTTP connections at once (the daemon keeps it below its descriptor limit too).
     pub http_max_connections: usize,
+    /// Where the OPC UA server listens; `None`: off.
+    pub opcua: Option<OpcUaEndpoint>,
+    /// The OPC UA users (`name:password` lines) allowed to call Hold and Abort.
+    pub opcua_users_file: PathBuf,
+    /// The OPC UA server's certificate store: its own key pair, trusted and rejected clients.
+    pub opcua_pki_dir: PathBuf,
 }
 
 /// One machining condition of the generator (`[generator] condition`), selected by `E<number>`.

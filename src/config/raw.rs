@@ -268,6 +268,9 @@ pub(super) struct RawDaemon {
     pub(super) http_token_file: String,
     pub(super) http_allowed_hosts: Vec<String>,
     pub(super) http_max_connections: i64,
+    pub(super) opcua: String,
+    pub(super) opcua_users_file: String,
+    pub(super) opcua_pki_dir: String,
 }
 
 #[derive(Debug, Deserialize)]

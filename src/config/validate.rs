@@ -604,6 +604,9 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
             1,
             65_536,
         )? as usize,
+        opcua: super::opcua::endpoint(&d.opcua)?,
+        opcua_users_file: non_empty("daemon.opcua_users_file", d.opcua_users_file)?,
+        opcua_pki_dir: non_empty("daemon.opcua_pki_dir", d.opcua_pki_dir)?,
     })
 }
 

@@ -40,6 +40,7 @@ mod launch;
 mod machine;
 mod manual;
 pub mod notify;
+pub mod opcua;
 pub mod protocol;
 pub mod refusal;
 pub mod reload;
@@ -99,6 +100,8 @@ pub enum DaemonError {
     },
     #[error(transparent)]
     Token(#[from] http::token::TokenError),
+    #[error(transparent)]
+    OpcUa(#[from] opcua::OpcUaError),
     #[error("{0}")]
     MachineState(String),
 }
@@ -208,6 +211,8 @@ struct Clients {
     max_clients: Arc<AtomicUsize>,
     /// The web side, when `daemon.http` is on.
     http: Option<http::HttpServer>,
+    /// The OPC UA server, when `daemon.opcua` is on.
+    opcua: Option<opcua::OpcUaServer>,
 }
 
 /// Runs the daemon until a signal stops it. `Ok` is exit 0.
@@ -249,6 +254,7 @@ pub fn serve(
     };
     let executed = http::executed::ExecutedSlot::default();
     let http = start_http(&config, descriptors, &to_core, &executed)?;
+    let opcua = start_opcua(&config, &to_core)?;
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -288,6 +294,7 @@ pub fn serve(
             to_core,
             max_clients,
             http,
+            opcua,
         },
         notifier,
         watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
@@ -349,6 +356,31 @@ fn start_http(
         }
         None => Ok(None),
     }
+}
+
+/// The OPC UA server, when `daemon.opcua` is on.
+fn start_opcua(
+    config: &Config,
+    to_core: &Sender<CoreMsg>,
+) -> Result<Option<opcua::OpcUaServer>, DaemonError> {
+    let Some(endpoint) = config.daemon.opcua.clone() else {
+        return Ok(None);
+    };
+    let settings = opcua::OpcUaSettings {
+        endpoint,
+        users_file: config.daemon.opcua_users_file.clone(),
+        pki_dir: config.daemon.opcua_pki_dir.clone(),
+        axes: config.machine.axes.iter().map(|a| a.to_string()).collect(),
+    };
+    let server = opcua::spawn(settings, to_core.clone())?;
+    tracing::info!(
+        "opcua: the machine on {} (Hold and Abort need a user of {} on the encrypted endpoint; \
+         certificates in {})",
+        server.url,
+        config.daemon.opcua_users_file.display(),
+        config.daemon.opcua_pki_dir.display()
+    );
+    Ok(Some(server))
 }
 
 fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {

@@ -5,9 +5,9 @@
 //!
 //! | class | keys | while a job runs | idle |
 //! |---|---|---|---|
-//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients`, `daemon.http_token_file`, `daemon.http_allowed_hosts` | applied | applied |
+//! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients`, `daemon.http_token_file`, `daemon.http_allowed_hosts`, `daemon.opcua_users_file` | applied | applied |
 //! | job | everything that shapes or times motion: `machine.*`, `interpolation.*`, `buffer.*`, `fine.tick_us`, `servo.*`, `gap.*`, `sim.*`, `output.path`, … | refused | applied (next job) |
-//! | restart | what was set up at startup: `daemon.socket*`, `daemon.http`, `daemon.http_max_connections`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
+//! | restart | what was set up at startup: `daemon.socket*`, `daemon.http`, `daemon.http_max_connections`, `daemon.opcua`, `daemon.opcua_pki_dir`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
 //!
 //! A reload is all or nothing: if any change is refused, none is applied, and the log says
 //! which keys and why. What changed is logged as `key: old -> new`.
@@ -32,12 +32,15 @@ pub fn classify(key: &str) -> KeyClass {
         | "daemon.report_dir"
         | "daemon.max_clients"
         | "daemon.http_token_file"
-        | "daemon.http_allowed_hosts" => KeyClass::Live,
+        | "daemon.http_allowed_hosts"
+        | "daemon.opcua_users_file" => KeyClass::Live,
         "daemon.socket"
         | "daemon.socket_mode"
         | "daemon.socket_group"
         | "daemon.http"
         | "daemon.http_max_connections"
+        | "daemon.opcua"
+        | "daemon.opcua_pki_dir"
         | "log.format"
         | "fine.virtual_time"
         | "fine.rt_priority"

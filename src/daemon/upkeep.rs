@@ -64,6 +64,7 @@ impl Core {
                     }
                 }
                 self.reload_http();
+                self.reload_opcua_users();
                 self.notify_status();
             }
             SIGUSR1 => {
@@ -94,6 +95,22 @@ impl Core {
             }
             Err(e) => {
                 tracing::error!(target: TARGET, "reload: http: {e}; the previous token stays in force")
+            }
+        }
+    }
+
+    /// SIGHUP: the OPC UA users file is read again; on an error the users in force stay.
+    pub(super) fn reload_opcua_users(&mut self) {
+        let Some(server) = &self.clients.opcua else {
+            return;
+        };
+        let path = &self.config.daemon.opcua_users_file;
+        match server.reload_users(path) {
+            Ok(n) => {
+                tracing::info!(target: TARGET, "reload: opcua: {n} user(s) of {} in force", path.display())
+            }
+            Err(e) => {
+                tracing::error!(target: TARGET, "reload: opcua: {e}; the previous users stay in force")
             }
         }
     }

@@ -96,6 +96,8 @@ pub struct Published {
     pub latency_buckets: [AtomicU64; LATENCY_BUCKETS_US.len() + 1],
     /// Ticks by the gap state the input read (normal, open, short).
     pub gap_ticks: [AtomicU64; 3],
+    /// The gap state read in the last tick: 1 + its [`GapState::index`], 0 before the first.
+    pub gap: AtomicU8,
     /// Times the job was held: by the operator, a programmed stop, a collision, an alarm
     /// or a wire break.
     pub holds: AtomicU64,
@@ -166,6 +168,7 @@ impl Published {
             latency_max_ns: AtomicU64::new(0),
             latency_buckets: std::array::from_fn(|_| AtomicU64::new(0)),
             gap_ticks: std::array::from_fn(|_| AtomicU64::new(0)),
+            gap: AtomicU8::new(0),
             holds: AtomicU64::new(0),
             snapshot: SeqLock::default(),
             buffer_unprocessed: AtomicU64::new(0),
@@ -185,6 +188,14 @@ impl Published {
     /// The latest consistent snapshot of the interpolator (a few retries at most).
     pub fn snapshot(&self) -> Snapshot {
         Snapshot::decode(&self.snapshot.read())
+    }
+
+    /// The gap state read in the last tick (none before the first).
+    pub fn gap(&self) -> Option<GapState> {
+        match self.gap.load(Ordering::Relaxed) {
+            0 => None,
+            code => GapState::ALL.get(usize::from(code) - 1).copied(),
+        }
     }
 
     pub fn position(&self) -> Steps {
@@ -375,12 +386,10 @@ where
                 break;
             }
         };
-        let gap_index = match gap {
-            GapState::Normal => 0,
-            GapState::Open => 1,
-            GapState::Short => 2,
-        };
-        published.gap_ticks[gap_index].fetch_add(1, Ordering::Relaxed);
+        published.gap_ticks[gap.index()].fetch_add(1, Ordering::Relaxed);
+        published
+            .gap
+            .store(gap.index() as u8 + 1, Ordering::Relaxed);
         // An E-stop or a limit switch stops motion in the tick it is seen: no step of this
         // tick is taken; the output's finish then drops the drives' enable and the spark.
         let safety = sensor.safety();

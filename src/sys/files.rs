@@ -84,6 +84,27 @@ pub fn temporary_path(path: &Path) -> std::path::PathBuf {
     std::path::PathBuf::from(tmp)
 }
 
+/// `bytes` random bytes from the kernel, as lower-case hex (secrets: tokens, passwords).
+pub fn random_hex(bytes: usize) -> io::Result<String> {
+    use std::io::Read;
+    let mut raw = vec![0u8; bytes];
+    File::open("/dev/urandom")?.read_exact(&mut raw)?;
+    Ok(raw.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Writes `text` to a new file at `path` that only its owner may read (mode 0600), and
+/// syncs it; an existing file is an error, never overwritten.
+pub fn create_private(path: &Path, text: &str) -> io::Result<()> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)?;
+    file.write_all(text.as_bytes())?;
+    file.sync_all()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -24,7 +24,9 @@ mod proc;
 mod rt;
 
 pub use clock::{local_stamp, local_stamp_of, monotonic_ns, sleep_until_ns};
-pub use files::{open_regular, read_regular, temporary_path, write_atomic};
+pub use files::{
+    create_private, open_regular, random_hex, read_regular, temporary_path, write_atomic,
+};
 pub use group::group_id;
 pub use limits::raise_descriptor_limit;
 pub use proc::peak_rss_kib;

@@ -238,19 +238,7 @@ mod tests {
 
     fn status() -> Status {
         Status {
-            machine: Default::default(),
-            overrides: Default::default(),
-            single_block: false,
-            state: DaemonState::Held,
-            version: "0".into(),
             uptime_s: 12.5,
-            axes: vec!["X".into(), "Y".into()],
-            job: None,
-            last_job: None,
-            checkpoint: None,
-            checkpoint_write_error: None,
-            check: None,
-            rt_refused: Vec::new(),
             counters: Counters {
                 jobs: 2,
                 servo: crate::servo::ServoCounters {
@@ -262,6 +250,7 @@ mod tests {
                 latency_sum_us: 40.0,
                 ..Counters::default()
             },
+            ..Status::bare(DaemonState::Held)
         }
     }
 

@@ -6,8 +6,7 @@
 //! The file must be a regular file: a FIFO put in its place is an error, not a daemon
 //! waiting for a writer.
 
-use std::io::{Read, Write};
-use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 
 /// Fewest characters a token may have: 128 bits written as hex.
@@ -85,20 +84,8 @@ fn create(path: &Path) -> Result<String, TokenError> {
         path: path.display().to_string(),
         source,
     };
-    let mut bytes = [0u8; 32];
-    std::fs::File::open("/dev/urandom")
-        .and_then(|mut f| f.read_exact(&mut bytes))
-        .map_err(fail)?;
-    let token: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
-    let mut file = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)
-        .map_err(fail)?;
-    file.write_all(format!("{token}\n").as_bytes())
-        .and_then(|()| file.sync_all())
-        .map_err(fail)?;
+    let token = crate::sys::random_hex(32).map_err(fail)?;
+    crate::sys::create_private(path, &format!("{token}\n")).map_err(fail)?;
     tracing::info!("{}: a new HTTP token was made (mode 0600)", path.display());
     Ok(token)
 }

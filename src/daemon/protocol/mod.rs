@@ -342,6 +342,29 @@ pub struct Status {
     pub single_block: bool,
 }
 
+#[cfg(test)]
+impl Status {
+    /// A status for tests: `state`, axes X and Y, no job, nothing counted.
+    pub fn bare(state: DaemonState) -> Status {
+        Status {
+            machine: Default::default(),
+            overrides: Default::default(),
+            single_block: false,
+            state,
+            version: "0".into(),
+            uptime_s: 0.0,
+            axes: vec!["X".into(), "Y".into()],
+            job: None,
+            last_job: None,
+            checkpoint: None,
+            checkpoint_write_error: None,
+            check: None,
+            rt_refused: Vec::new(),
+            counters: Counters::default(),
+        }
+    }
+}
+
 /// The machine, always (idle, held, running).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct MachineStatus {
@@ -477,6 +500,9 @@ pub struct JobStatus {
     pub parameter: Option<f64>,
     /// The servo's state: forward, turn-back, re-advance, hold (starved), alarm, done.
     pub servo: crate::servo::ServoState,
+    /// The gap state read in the last tick (none before the first).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap: Option<crate::vocab::GapState>,
     pub position_steps: Vec<i64>,
     pub position_mm: Vec<f64>,
     pub feed_mm_per_min: f64,

@@ -1,0 +1,107 @@
+//! Validation of `daemon.opcua`: the OPC UA endpoint URL, `opc.tcp://HOST:PORT`.
+
+use super::validate::Invalid;
+
+/// Where the OPC UA server listens: the host (a name or an IP address, as clients will
+/// write it in their URLs) and the TCP port.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OpcUaEndpoint {
+    pub host: String,
+    pub port: u16,
+}
+
+impl OpcUaEndpoint {
+    /// The URL clients connect to.
+    pub fn url(&self) -> String {
+        if self.host.contains(':') {
+            format!("opc.tcp://[{}]:{}/", self.host, self.port)
+        } else {
+            format!("opc.tcp://{}:{}/", self.host, self.port)
+        }
+    }
+}
+
+/// `text` as an endpoint; `""` is off.
+pub(super) fn endpoint(text: &str) -> Result<Option<OpcUaEndpoint>, Invalid> {
+    const KEY: &str = "daemon.opcua";
+    let text = text.trim();
+    if text.is_empty() {
+        return Ok(None);
+    }
+    let wrong = |why: &str| {
+        (
+            KEY,
+            format!(
+                "{text:?} {why}: write \"opc.tcp://HOST:PORT\", e.g. \"opc.tcp://127.0.0.1:4840\" \
+                 (\"\" turns OPC UA off)"
+            ),
+        )
+    };
+    let rest = text
+        .strip_prefix("opc.tcp://")
+        .ok_or_else(|| wrong("is not an opc.tcp URL"))?;
+    let authority = rest.strip_suffix('/').unwrap_or(rest);
+    if authority.contains('/') {
+        return Err(wrong(
+            "has a path; edmd serves its one endpoint at the root",
+        ));
+    }
+    let (host, port) = match authority.strip_prefix('[') {
+        Some(v6) => {
+            let (host, port) = v6.split_once("]:").ok_or_else(|| wrong("has no port"))?;
+            (host, port)
+        }
+        None => authority
+            .rsplit_once(':')
+            .ok_or_else(|| wrong("has no port"))?,
+    };
+    let host_ok = !host.is_empty()
+        && (host.parse::<std::net::IpAddr>().is_ok()
+            || host
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.'));
+    if !host_ok {
+        return Err(wrong("does not name a host"));
+    }
+    let port: u16 = port
+        .parse()
+        .ok()
+        .filter(|p| *p > 0)
+        .ok_or_else(|| wrong("has no port from 1 to 65535"))?;
+    Ok(Some(OpcUaEndpoint {
+        host: host.to_string(),
+        port,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoints() {
+        assert_eq!(endpoint("  ").unwrap(), None);
+        let e = endpoint("opc.tcp://127.0.0.1:4840").unwrap().unwrap();
+        assert_eq!((e.host.as_str(), e.port), ("127.0.0.1", 4840));
+        assert_eq!(e.url(), "opc.tcp://127.0.0.1:4840/");
+        let e = endpoint("opc.tcp://edm-7.shop.lan:48010/")
+            .unwrap()
+            .unwrap();
+        assert_eq!((e.host.as_str(), e.port), ("edm-7.shop.lan", 48010));
+        let e = endpoint("opc.tcp://[::1]:4840").unwrap().unwrap();
+        assert_eq!(e.url(), "opc.tcp://[::1]:4840/");
+        for (text, why) in [
+            ("127.0.0.1:4840", "not an opc.tcp URL"),
+            ("opc.tcp://127.0.0.1", "no port"),
+            ("opc.tcp://127.0.0.1:0", "no port from 1"),
+            ("opc.tcp://127.0.0.1:99999", "no port from 1"),
+            ("opc.tcp://:4840", "does not name a host"),
+            ("opc.tcp://a b:4840", "does not name a host"),
+            ("opc.tcp://127.0.0.1:4840/edmd", "has a path"),
+        ] {
+            let (key, e) = endpoint(text).unwrap_err();
+            assert_eq!(key, "daemon.opcua");
+            assert!(e.contains(why), "{text}: {e}");
+        }
+    }
+}

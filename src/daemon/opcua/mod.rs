@@ -1,0 +1,339 @@
+//! `daemon.opcua`: an OPC UA server for the shop floor's MES and SCADA.
+//!
+//! ```text
+//!  MES / SCADA ──opc.tcp──► async-opcua server (its own thread, 2 tokio workers)
+//!     browse, read, subscribe   ◄── the address space (space.rs), refreshed every POLL
+//!                                    from CoreMsg::Request(Status): the snapshot /metrics reads
+//!     events                    ◄── holds, shorts, alarms between two refreshes (events.rs)
+//!     call Hold / Abort         ──► CoreMsg::Request(Hold | Abort): the control loop decides
+//!                                    (a signed-in user on the encrypted endpoint only, auth.rs)
+//! ```
+//!
+//! **Why the control loop again.** Like the socket and the web side, OPC UA reads the status
+//! a client of the socket reads and asks for a hold as a client does, so no view of the
+//! machine can disagree with another, and nothing here touches the real-time thread.
+//!
+//! **Two endpoints at one URL.** `None` (no signing, no encryption) takes anonymous clients
+//! only: they browse, read and subscribe. `Basic256Sha256` with `SignAndEncrypt` also takes a
+//! name and password of `daemon.opcua_users_file`, and only such a session may call Hold or
+//! Abort. The server's key pair is made in `daemon.opcua_pki_dir` on first start
+//! (self-signed); a client's certificate it does not know is put in `rejected/`, and the
+//! encrypted endpoint takes that client once an administrator moves it to `trusted/`, the
+//! usual OPC UA workflow.
+//!
+//! **What it is not.** Prometheus stays the place for metrics; this is the machine as the
+//! shop floor's systems see it. The nodes follow OPC 40501's layout and names without being
+//! instances of its types (see [`space`]).
+
+mod auth;
+mod events;
+mod space;
+pub mod users;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use crossbeam::channel::Sender;
+use opcua::nodes::{BaseEventType, Event};
+use opcua::server::diagnostics::NamespaceMetadata;
+use opcua::server::node_manager::memory::{SimpleNodeManager, simple_node_manager};
+use opcua::server::{ANONYMOUS_USER_TOKEN_ID, ServerBuilder, ServerEndpoint, SubscriptionCache};
+use opcua::types::{
+    BuildInfo, ByteString, DataValue, DateTime, NodeId, ObjectId, StatusCode, UAString, Variant,
+};
+
+use super::CoreMsg;
+use super::protocol::{Reply, Request, Status};
+use crate::config::OpcUaEndpoint;
+
+/// How often the address space is refreshed from the status: the finest sampling a client
+/// sees.
+pub const POLL: Duration = Duration::from_millis(100);
+/// Longest wait for the control loop's reply.
+const CORE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// What the server is started with.
+pub struct OpcUaSettings {
+    pub endpoint: OpcUaEndpoint,
+    pub users_file: PathBuf,
+    pub pki_dir: PathBuf,
+    /// Axis names, in order: one Axes/<name> object each.
+    pub axes: Vec<String>,
+}
+
+/// Why the OPC UA server did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum OpcUaError {
+    #[error(transparent)]
+    Users(#[from] users::UsersError),
+    #[error("daemon.opcua = {url}: cannot listen there: {source}")]
+    Listen { url: String, source: std::io::Error },
+    #[error("{path}: cannot make the OPC UA certificate store (daemon.opcua_pki_dir): {source}")]
+    Pki {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("daemon.opcua: the server cannot be set up: {0}")]
+    Setup(String),
+}
+
+/// The running server: its URL, and the users in force (SIGHUP rereads them).
+pub struct OpcUaServer {
+    pub url: String,
+    gatekeeper: Arc<auth::Gatekeeper>,
+}
+
+impl OpcUaServer {
+    /// Puts the users of `path` in force; on an error the previous users stay.
+    pub fn reload_users(&self, path: &std::path::Path) -> Result<usize, users::UsersError> {
+        let users = users::load_or_create(path)?;
+        let n = users.len();
+        self.gatekeeper.set_users(users);
+        Ok(n)
+    }
+}
+
+/// The host's name, for the server's URIs.
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|s| s.trim().to_string())
+        .ok()
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "localhost".to_string())
+}
+
+/// The certificate store's folders, private to the daemon's user (the private key is in it).
+fn make_pki_dir(dir: &std::path::Path) -> Result<(), OpcUaError> {
+    use std::os::unix::fs::PermissionsExt;
+    let fail = |source| OpcUaError::Pki {
+        path: dir.display().to_string(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(fail)?;
+    std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(fail)
+}
+
+/// Binds the endpoint (so a taken port is an error at startup) and serves on a thread of
+/// its own.
+pub fn spawn(settings: OpcUaSettings, to_core: Sender<CoreMsg>) -> Result<OpcUaServer, OpcUaError> {
+    let url = settings.endpoint.url();
+    let listen_error = |source| OpcUaError::Listen {
+        url: url.clone(),
+        source,
+    };
+    let users = users::load_or_create(&settings.users_file)?;
+    make_pki_dir(&settings.pki_dir)?;
+    let listener =
+        std::net::TcpListener::bind((settings.endpoint.host.as_str(), settings.endpoint.port))
+            .map_err(listen_error)?;
+    listener.set_nonblocking(true).map_err(listen_error)?;
+    let host = host_name();
+    let version = env!("CARGO_PKG_VERSION");
+    let gatekeeper = Arc::new(auth::Gatekeeper::new(users));
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("edmd-opcua")
+        .enable_all()
+        .build()
+        .map_err(listen_error)?;
+    // The server starts tasks of its own as it is built: in this runtime.
+    let entered = runtime.enter();
+    let (server, handle) = ServerBuilder::new()
+        .application_name("edmd")
+        .application_uri(format!("urn:edmd:{host}"))
+        .product_uri("urn:edmd")
+        .build_info(BuildInfo {
+            product_uri: "urn:edmd".into(),
+            manufacturer_name: "edmd".into(),
+            product_name: "edmd EDM controller".into(),
+            software_version: version.into(),
+            build_number: version.into(),
+            build_date: DateTime::now(),
+        })
+        .host(settings.endpoint.host.clone())
+        .port(settings.endpoint.port)
+        .pki_dir(&settings.pki_dir)
+        .create_sample_keypair(true)
+        .trust_client_certs(false)
+        .add_endpoint(
+            "none",
+            ServerEndpoint::new_none("/", &[ANONYMOUS_USER_TOKEN_ID.to_string()]),
+        )
+        .add_endpoint(
+            "basic256sha256_sign_encrypt",
+            ServerEndpoint::new_basic256sha256_sign_encrypt(
+                "/",
+                &[ANONYMOUS_USER_TOKEN_ID.to_string()],
+            ),
+        )
+        .discovery_urls(vec![url.clone()])
+        .with_authenticator(gatekeeper.clone())
+        .with_node_manager(simple_node_manager(
+            NamespaceMetadata {
+                namespace_uri: space::NAMESPACE.to_owned(),
+                ..Default::default()
+            },
+            "edmd",
+        ))
+        .build()
+        .map_err(OpcUaError::Setup)?;
+    let ns = handle
+        .get_namespace_index(space::NAMESPACE)
+        .ok_or_else(|| OpcUaError::Setup("edmd's namespace was not registered".into()))?;
+    let manager = handle
+        .node_managers()
+        .get_of_type::<SimpleNodeManager>()
+        .ok_or_else(|| OpcUaError::Setup("no node manager".into()))?;
+    let identity = space::Identity {
+        manufacturer: "edmd".into(),
+        model: "edmd EDM controller".into(),
+        product_instance_uri: format!("urn:edmd:{host}"),
+        software_revision: version.into(),
+    };
+    let space = Arc::new(space::Space::build(
+        &mut manager.address_space().write(),
+        ns,
+        &settings.axes,
+        &identity,
+    ));
+    gatekeeper.guard(vec![space.hold.clone(), space.abort.clone()]);
+    for (method, request, what) in [
+        (space.hold.clone(), Request::Hold {}, "Hold"),
+        (space.abort.clone(), Request::Abort {}, "Abort"),
+    ] {
+        let to_core = to_core.clone();
+        manager
+            .inner()
+            .add_method_callback(method, move |_| call(&to_core, request.clone(), what));
+    }
+    drop(entered);
+    let subscriptions = handle.subscriptions().clone();
+    // Event ids are unique for the server's life: its start time and a count.
+    let epoch = DateTime::now().ticks();
+    std::thread::Builder::new()
+        .name("edmd-opcua".to_string())
+        .spawn(move || {
+            runtime.block_on(async move {
+                tokio::spawn(refresh(space, manager, subscriptions, to_core, epoch));
+                let listener = match tokio::net::TcpListener::from_std(listener) {
+                    Ok(listener) => listener,
+                    Err(e) => return tracing::error!("opcua: {e}"),
+                };
+                if let Err(e) = server.run_with(listener).await {
+                    tracing::error!("opcua: the server stopped: {e}");
+                }
+            })
+        })
+        .map_err(listen_error)?;
+    Ok(OpcUaServer { url, gatekeeper })
+}
+
+/// Asks the control loop and waits for its reply, from a method call (which the server
+/// makes synchronously on one of its workers: the loop answers in microseconds).
+fn call(
+    to_core: &Sender<CoreMsg>,
+    request: Request,
+    what: &str,
+) -> Result<Vec<Variant>, StatusCode> {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    to_core
+        .send(CoreMsg::Request(request, tx))
+        .map_err(|_| StatusCode::BadShutdown)?;
+    let reply: Reply = tokio::task::block_in_place(|| {
+        tokio::runtime::Handle::current().block_on(tokio::time::timeout(CORE_TIMEOUT, rx))
+    })
+    .map_err(|_| StatusCode::BadTimeout)?
+    .map_err(|_| StatusCode::BadShutdown)?;
+    if reply.ok {
+        let message = reply.message.unwrap_or_default();
+        tracing::info!("opcua: {what}: {message}");
+        Ok(vec![Variant::from(message)])
+    } else {
+        tracing::info!(
+            "opcua: {what} refused: {}",
+            reply.error.as_deref().unwrap_or("")
+        );
+        Err(StatusCode::BadInvalidState)
+    }
+}
+
+/// Asks for the status, as `/metrics` does.
+async fn status(to_core: &Sender<CoreMsg>) -> Option<Status> {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    to_core
+        .send(CoreMsg::Request(Request::Status {}, tx))
+        .ok()?;
+    let reply = tokio::time::timeout(CORE_TIMEOUT, rx).await.ok()?.ok()?;
+    reply.status
+}
+
+/// Every [`POLL`]: the variables from a fresh status, and the events since the last one.
+async fn refresh(
+    space: Arc<space::Space>,
+    manager: Arc<SimpleNodeManager>,
+    subscriptions: Arc<SubscriptionCache>,
+    to_core: Sender<CoreMsg>,
+    epoch: i64,
+) {
+    let mut interval = tokio::time::interval(POLL);
+    interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut before: Option<Status> = None;
+    let mut next_event: u64 = 0;
+    loop {
+        interval.tick().await;
+        let Some(now) = status(&to_core).await else {
+            if to_core.is_empty() && before.is_some() {
+                tracing::debug!("opcua: no status this time");
+            }
+            continue;
+        };
+        let values: Vec<(&NodeId, Variant)> = space.values(&now).collect();
+        if let Err(e) = manager.set_values(
+            &subscriptions,
+            values
+                .iter()
+                .map(|(id, value)| (*id, None, DataValue::new_now(value.clone()))),
+        ) {
+            tracing::warn!("opcua: cannot set the values: {e}");
+        }
+        if let Some(before) = &before {
+            for happened in events::between(before, &now) {
+                next_event += 1;
+                raise(
+                    &space,
+                    &subscriptions,
+                    &happened,
+                    format!("{epoch}-{next_event}"),
+                );
+            }
+        }
+        before = Some(now);
+    }
+}
+
+/// Raises one event on the machine, its Notification object and the Server object.
+fn raise(
+    space: &space::Space,
+    subscriptions: &SubscriptionCache,
+    happened: &events::Happened,
+    id: String,
+) {
+    let kind = match happened.kind {
+        events::EventKind::Hold => &space.events.hold,
+        events::EventKind::Short => &space.events.short,
+        events::EventKind::Alarm => &space.events.alarm,
+    };
+    let event = BaseEventType::new(
+        kind.clone(),
+        ByteString::from(id.into_bytes()),
+        happened.message.as_str(),
+        DateTime::now(),
+    )
+    .set_source_node(space.machine.clone())
+    .set_source_name(UAString::from("edmd"))
+    .set_severity(happened.kind.severity());
+    let server: NodeId = ObjectId::Server.into();
+    let emitters = [&space.machine, &space.notification, &server];
+    subscriptions.notify_events(emitters.into_iter().map(|e| (&event as &dyn Event, e)));
+}
