@@ -101,7 +101,26 @@ pub struct Chart {
     /// A start point and the direction the path leaves it in (a path plot): a ring and an
     /// arrow.
     pub start: Option<((f64, f64), (f64, f64))>,
+    /// A band of states under the plot, on its x axis (the gap state under the feed).
+    pub band: Option<Band>,
 }
+
+/// A state over x, drawn as a strip of coloured spans under a chart's plot, its states named
+/// in the legend.
+#[derive(Debug, Clone, Default)]
+pub struct Band {
+    /// Written left of the strip.
+    pub label: String,
+    /// Each state's name and colour.
+    pub states: Vec<(String, &'static str)>,
+    /// `(x, state)` where each state begins; it lasts until the next one (the last until the
+    /// data's end).
+    pub changes: Vec<(f64, usize)>,
+}
+
+/// Height of a [`Band`]'s strip, and the room it takes under the plot with its gap.
+const BAND_HEIGHT: f64 = 16.0;
+const BAND_ROOM: f64 = 26.0;
 
 /// A point that breaks a [`Style::Line`] or [`Style::Dashed`] series: the next point starts a
 /// new stroke.
@@ -132,6 +151,7 @@ impl Chart {
         );
         self.grid_svg(&mut svg, &f);
         self.series_svg(&mut svg, &f);
+        self.band_svg(&mut svg, &f);
         self.start_svg(&mut svg, &f);
         svg.push_str("</svg>\n");
         svg
@@ -151,6 +171,10 @@ impl Chart {
             y0 = y0.min(*y);
             y1 = y1.max(*y);
         }
+        for (x, _) in self.band.iter().flat_map(|b| b.changes.iter()) {
+            x0 = x0.min(*x);
+            x1 = x1.max(*x);
+        }
         if x0 > x1 {
             (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
         }
@@ -162,7 +186,10 @@ impl Chart {
         }
         let pad = 0.04 * (y1 - y0);
         (y0, y1) = (y0 - pad, y1 + pad);
-        let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
+        let (pw, ph) = (
+            WIDTH - LEFT - RIGHT,
+            HEIGHT - TOP - BOTTOM - self.band_room(),
+        );
         if self.equal_axes {
             let scale = (pw / (x1 - x0)).min(ph / (y1 - y0));
             let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
@@ -189,7 +216,7 @@ impl Chart {
                 svg,
                 r##"<line x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
                 TOP + ph,
-                TOP + ph + 18.0,
+                TOP + ph + self.band_room() + 18.0,
                 fmt_tick(t)
             );
         }
@@ -296,19 +323,78 @@ impl Chart {
     /// Where each series' legend entry goes: rows between the title and the plot, left to
     /// right, a second row when the first is full, so no entry runs off the right edge.
     fn legend_places(&self) -> Vec<(f64, f64)> {
-        let width = |s: &Series| 40.0 + 7.0 * s.name.chars().count() as f64;
-        let fits_one = LEFT + self.series.iter().map(width).sum::<f64>() <= WIDTH - RIGHT + 20.0;
+        let names: Vec<&str> = self.legend_names().collect();
+        let width = |name: &str| 40.0 + 7.0 * name.chars().count() as f64;
+        let fits_one = LEFT + names.iter().map(|n| width(n)).sum::<f64>() <= WIDTH - RIGHT + 20.0;
         let (mut x, mut y) = (LEFT, if fits_one { TOP - 12.0 } else { TOP - 26.0 });
-        let mut places = Vec::with_capacity(self.series.len());
-        for s in &self.series {
-            if x > LEFT && x + width(s) > WIDTH - RIGHT + 20.0 {
+        let mut places = Vec::with_capacity(names.len());
+        for name in names {
+            if x > LEFT && x + width(name) > WIDTH - RIGHT + 20.0 {
                 x = LEFT;
                 y += 14.0;
             }
             places.push((x, y));
-            x += width(s);
+            x += width(name);
         }
         places
+    }
+
+    /// The legend's entries: the series, then the band's states.
+    fn legend_names(&self) -> impl Iterator<Item = &str> {
+        let series = self.series.iter().map(|s| s.name.as_str());
+        let states = self
+            .band
+            .iter()
+            .flat_map(|b| b.states.iter().map(|s| s.0.as_str()));
+        series.chain(states)
+    }
+
+    fn band_room(&self) -> f64 {
+        if self.band.is_some() { BAND_ROOM } else { 0.0 }
+    }
+
+    /// The band: a span per state from where it begins to where the next does, its label at
+    /// the left, its states in the legend after the series.
+    fn band_svg(&self, svg: &mut String, f: &Frame) {
+        let Some(band) = &self.band else {
+            return;
+        };
+        let top = TOP + f.ph + (BAND_ROOM - BAND_HEIGHT) / 2.0;
+        let _ = writeln!(
+            svg,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"#,
+            LEFT - 6.0,
+            top + BAND_HEIGHT - 4.0,
+            escape(&band.label)
+        );
+        for (k, &(x, state)) in band.changes.iter().enumerate() {
+            let end = band.changes.get(k + 1).map_or(f.x1, |c| c.0);
+            let (a, b) = (f.sx(x.max(f.x0)), f.sx(end.min(f.x1)));
+            if let Some((_, color)) = band.states.get(state)
+                && b > a
+            {
+                let _ = writeln!(
+                    svg,
+                    r#"<rect x="{a:.2}" y="{top:.1}" width="{:.2}" height="{BAND_HEIGHT}" fill="{color}"/>"#,
+                    (b - a).max(0.5)
+                );
+            }
+        }
+        let _ = writeln!(
+            svg,
+            r#"<rect x="{LEFT}" y="{top:.1}" width="{:.1}" height="{BAND_HEIGHT}" fill="none" stroke="black"/>"#,
+            f.pw
+        );
+        let places = self.legend_places();
+        for ((name, color), &(lx, ly)) in band.states.iter().zip(&places[self.series.len()..]) {
+            let _ = writeln!(
+                svg,
+                r#"<rect x="{lx:.1}" y="{:.1}" width="12" height="8" fill="{color}"/><text x="{:.1}" y="{ly:.1}">{}</text>"#,
+                ly - 8.0,
+                lx + 18.0,
+                escape(name)
+            );
+        }
     }
 
     /// The start marker: a circle and an arrow along the first move.

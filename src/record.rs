@@ -205,6 +205,9 @@ pub struct Recording {
     pub turn_back: Vec<(f64, f64)>,
     /// Rapid moves (mm), one stroke each between [`crate::plot::BREAK`]s.
     pub rapids: Vec<(f64, f64)>,
+    /// The programmed cutting path (mm, machine coordinates), strokes between
+    /// [`crate::plot::BREAK`]s, when whoever asked for the report drew it.
+    pub programmed: Vec<(f64, f64)>,
     /// Feed along the path (mm/min) against machine time (s).
     pub feed: Decimated,
     /// Gap state against machine time: 0 open, 1 normal, 2 short (decimated, peaks kept: a
@@ -234,6 +237,7 @@ impl Recording {
             path: Decimated::new(PLOT_POINTS),
             turn_back: Vec::new(),
             rapids: Vec::new(),
+            programmed: Vec::new(),
             feed: Decimated::new(PLOT_POINTS),
             gap: Decimated::new(PLOT_POINTS),
             events: Vec::new(),

@@ -536,6 +536,9 @@ fn edits_of_the_program_change_nothing_about_the_motion() {
     for file in ["path.svg", "feed.svg", "summary.json"] {
         assert!(report.join(file).exists(), "{file}");
     }
+    // The programmed path, drawn on its own thread while the job ran, under the executed one.
+    let path = std::fs::read_to_string(report.join("path.svg")).unwrap();
+    assert!(path.contains("programmed path"), "{path}");
     daemon.signal(libc::SIGTERM);
     assert_eq!(daemon.wait().0, 0);
 }

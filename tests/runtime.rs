@@ -547,8 +547,55 @@ fn run_report_shows_what_ran_turn_backs_included() {
     for absent in ["jumps (", "wire breaks (", "probe contacts ("] {
         assert!(!path.contains(absent), "{absent} in the legend");
     }
+    // The programmed path under the executed one, in the same (machine) coordinates: drawn
+    // first, and over the same ground.
+    let (programmed, executed) = (
+        svg_path_box(&path, "#b8b8b8"),
+        svg_path_box(&path, "#1f5fbf"),
+    );
+    assert!(path.contains("programmed path"), "named in the legend");
+    assert!(
+        path.find("stroke=\"#b8b8b8\"").unwrap() < path.find("stroke=\"#1f5fbf\"").unwrap(),
+        "drawn under the executed path"
+    );
+    for (p, e) in programmed.iter().zip(&executed) {
+        assert!((p - e).abs() < 3.0, "{programmed:?} vs {executed:?} (px)");
+    }
+    // The gap state on a band of its own, the short on it, not on the feed's axis.
     let feed = std::fs::read_to_string(report.join("feed.svg")).unwrap();
     assert!(feed.contains("machine time (s)") && feed.contains("feed (mm/min)"));
+    assert!(feed.contains(">gap</text>"), "the band's label");
+    for state in [">gap open</text>", ">normal</text>", ">short</text>"] {
+        assert!(feed.contains(state), "{state} in the legend");
+    }
+    let shorts = feed
+        .lines()
+        .filter(|l| l.starts_with("<rect") && l.contains("height=\"16\" fill=\"#d02020\""))
+        .count();
+    assert_eq!(shorts, 1, "one short span on the band");
+    assert_eq!(
+        feed.matches("<path d=").count(),
+        1,
+        "the feed alone on the mm/min axis"
+    );
+}
+
+/// The bounding box (min x, min y, max x, max y; px) of the `<path>`s drawn in `color`.
+fn svg_path_box(svg: &str, color: &str) -> [f64; 4] {
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for line in svg
+        .lines()
+        .filter(|l| l.starts_with("<path d=") && l.contains(&format!("stroke=\"{color}\"")))
+    {
+        let d = line.split('"').nth(1).unwrap();
+        for point in d.split_whitespace() {
+            let (x, y) = point[1..].split_once(',').unwrap();
+            let (x, y): (f64, f64) = (x.parse().unwrap(), y.parse().unwrap());
+            b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+        }
+    }
+    assert!(b[0] <= b[2], "a {color} path");
+    b
 }
 
 #[test]

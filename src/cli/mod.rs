@@ -543,7 +543,18 @@ fn run_job(args: &RunArgs) -> ExitCode {
     };
     out!("{}", summary.text());
     if let (Some(dir), Some(recording)) = (&args.report, &recording)
-        && let Err(e) = crate::report::write_report(dir, &mut recording.lock(), &summary)
+        && let Err(e) = {
+            let programmed = crate::report::programmed::for_report(
+                &args.program,
+                &args.program.display().to_string(),
+                &cfg.machine.axes,
+                crate::gcode::ProgramOptions::from_config(&cfg),
+                &start,
+            );
+            let mut recording = recording.lock();
+            recording.programmed = programmed;
+            crate::report::write_report(dir, &mut recording, &summary)
+        }
     {
         eprintln!("edmd: error: {e}");
         return ExitCode::from(EXIT_RUNTIME);

@@ -18,6 +18,28 @@ use crate::record::Recording;
 use crate::runtime::program::{JobProgram, Progress};
 use crate::runtime::{self, ResumePoint};
 
+/// The report's programmed path, drawn on a thread of its own (a long program must not
+/// hold the control loop) into the job's recording; a job that ends first has its report
+/// without it.
+fn draw_programmed(recording: &JobRecording, program: &JobProgram, spec: &runtime::JobSpec) {
+    let (recording, file, name) = (
+        recording.clone(),
+        program.path.clone(),
+        program.name.clone(),
+    );
+    let (axes, options, start) = (spec.axes.clone(), spec.program.clone(), spec.work.clone());
+    let spawned = std::thread::Builder::new()
+        .name("edmd-report-path".into())
+        .stack_size(crate::gcode::PARSER_STACK_BYTES)
+        .spawn(move || {
+            let drawn = crate::report::programmed::for_report(&file, &name, &axes, options, &start);
+            recording.lock().programmed = drawn;
+        });
+    if let Err(e) = spawned {
+        tracing::warn!("report: the programmed path is not drawn: {e}");
+    }
+}
+
 /// The folder of a job's report, when the configuration asks for one. The folder is made
 /// first: a job must not learn at its end that its report has nowhere to go.
 fn job_report(config: &Config, program_name: &str) -> Result<Option<PathBuf>, Refusal> {
@@ -351,6 +373,9 @@ impl Core {
         // job's the probe (the claimed port's gap input is lent to every job).
         io.gap.probe_reads(launch.probe_reads(&spec.start_steps()));
         let recording = self.record(&program.name);
+        if report.is_some() {
+            draw_programmed(&recording, &program, &spec);
+        }
         io.recording = Some(recording.clone());
         let resumed = resume.is_some();
         let progress = runtime::ProgressTracker::with_rapids(

@@ -21,9 +21,9 @@
 //! real-time thread, whose only link to any of it is the job's `Published` atomics.
 //!
 //! **Work that is not the machine's waits its turn.** Drawing a program's path
-//! ([`path::programmed_path`]) and listing programs run on tokio's blocking threads, at most
+//! ([`crate::report::programmed::programmed_path`]) and listing programs run on tokio's blocking threads, at most
 //! [`MAX_PREVIEWS`] and [`MAX_LISTINGS`] at once (more get 503 at once), each drawing within
-//! [`PREVIEW_TIME`] and [`path::MAX_POINTS`]; the blocking pool is larger than both together.
+//! [`PREVIEW_TIME`] and [`crate::report::programmed::MAX_POINTS`]; the blocking pool is larger than both together.
 //!
 //! **Safety.** Reading is open (status, programs, metrics) to clients that name the machine
 //! in `Host` ([`guard`]); every `POST` needs `Authorization: Bearer <token>` with the token
@@ -69,6 +69,7 @@ use tokio::sync::Semaphore;
 use super::CoreMsg;
 use super::protocol::{Reply, Request};
 use super::refusal::NameRefusal;
+use crate::report::programmed;
 
 pub use server::connection_cap;
 
@@ -458,12 +459,12 @@ async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -
     let Ok(_turn) = app.previews.try_acquire() else {
         return busy("path drawings");
     };
-    let budget = path::Budget {
+    let budget = programmed::Budget {
         cancel: Arc::new(AtomicBool::new(false)),
-        max_blocks: path::MAX_BLOCKS,
+        max_blocks: programmed::MAX_BLOCKS,
     };
     let (axes, options, cancel) = (app.axes.clone(), app.options.clone(), budget.cancel.clone());
-    let plot = move || path::programmed_path(&file, &name, &axes, options, &budget);
+    let plot = move || programmed::programmed_path(&file, &name, &axes, options, None, &budget);
     let work = tokio::task::spawn_blocking(plot);
     tokio::pin!(work);
     let done = tokio::select! {

@@ -1,11 +1,12 @@
 //! The report of a job that ran (`edmd run --report DIR`): what the machine did, from the
 //! [`Recording`] its supervisor gathered, where `edmd plan` shows what was planned.
 //!
-//! - `path.svg`: the executed X–Y path, the stretches turned back over and re-advanced marked,
+//! - `path.svg`: the executed X–Y path over the programmed one, the stretches turned back over and re-advanced marked,
 //!   the short circuits, jumps, wire breaks and probe contacts as dots, the start point and
 //!   the direction it leaves in; on a four-axis wire machine the upper guide's path (X+U,
 //!   Y+V) beside the lower guide's;
-//! - `feed.svg`: the feed along the path and the gap state against machine time;
+//! - `feed.svg`: the feed along the path against machine time, the gap state on a band of
+//!   its own under it;
 //! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, jump, wire
 //!   break, probe, end) with its machine time, source line and position;
 //! - `summary.json`: the job's summary, as `--summary` writes it.
@@ -13,10 +14,12 @@
 //! Every series is decimated to a fixed number of points, so a report's size does not grow
 //! with the job.
 
+pub mod programmed;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::plot::{Chart, Series, Style};
+use crate::plot::{Band, Chart, Series, Style};
 use crate::record::{EventKind, Recording};
 use crate::runtime::JobSummary;
 
@@ -49,39 +52,47 @@ pub fn write_report(
     write("events.csv", &events_csv(recording, &summary.axes))?;
     let path = path_chart(recording, summary);
     write("path.svg", &path.render())?;
-    let feed_points = recording.feed.points();
-    let top = feed_points.iter().map(|p| p.1).fold(0.0, f64::max).max(1.0);
-    // The gap state on the feed's scale: open at 0, normal at half the top feed, short at it.
-    let gap: Vec<(f64, f64)> = recording
-        .gap
-        .points()
-        .into_iter()
-        .map(|(t, level)| (t, level * top / 2.0))
-        .collect();
     let feed = Chart {
         title: "Feed and gap state".into(),
         x_label: "machine time (s)".into(),
         y_label: "feed (mm/min)".into(),
-        series: vec![
-            Series {
-                name: "feed along the path".into(),
-                color: "#1f8f3f",
-                style: Style::Line,
-                points: feed_points,
-            },
-            Series {
-                name: "gap: open (bottom), normal (middle), short (top)".into(),
-                color: "#d08000",
-                style: Style::Dashed,
-                points: gap,
-            },
-        ],
+        series: vec![Series {
+            name: "feed along the path".into(),
+            color: "#1f8f3f",
+            style: Style::Line,
+            points: recording.feed.points(),
+        }],
+        band: Some(gap_band(recording)),
         ..Chart::default()
     };
     write("feed.svg", &feed.render())
 }
 
-/// The events of `kind` as dots where they happened, named with their count.
+/// The gap state against machine time, on its own band: where each state begins (the
+/// recording keeps shorts through its decimation, so a short is never lost from the band).
+fn gap_band(recording: &Recording) -> Band {
+    let mut changes: Vec<(f64, usize)> = Vec::new();
+    for (t, level) in recording.gap.points() {
+        // The recording's levels: 0 open, 1 normal, 2 short (the band's states in order).
+        let state = level.round().clamp(0.0, 2.0) as usize;
+        if changes.last().is_none_or(|&(_, s)| s != state) {
+            changes.push((t, state));
+        }
+    }
+    Band {
+        label: "gap".into(),
+        states: vec![
+            ("gap open".into(), "#e8e8e8"),
+            ("normal".into(), "#8fd18f"),
+            ("short".into(), "#d02020"),
+        ],
+        changes,
+    }
+}
+
+/// The executed path's name in the legend.
+const EXECUTED: &str = "executed path";
+
 /// `path.svg`: the executed path (and a four-axis machine's upper guide), the turn-backs and
 /// the events as dots.
 fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
@@ -95,7 +106,13 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
         y_label: "Y (mm)".into(),
         series: vec![
             Series {
-                name: "executed path".into(),
+                name: "programmed path".into(),
+                color: "#b8b8b8",
+                style: Style::Line,
+                points: recording.programmed.clone(),
+            },
+            Series {
+                name: EXECUTED.into(),
                 color: "#1f5fbf",
                 style: Style::Line,
                 points: recording.path.points(),
@@ -151,15 +168,20 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
             .map(|p| (p, recording.direction.unwrap_or((1.0, 0.0)))),
         ..Chart::default()
     };
-    // The legend names only what happened (the executed path always).
-    let mut first = true;
+    // The legend names only what happened (the executed path always); the programmed path
+    // is drawn first, under the rest.
     path.series
-        .retain(|s| std::mem::take(&mut first) || !s.points.is_empty());
+        .retain(|s| s.name == EXECUTED || !s.points.is_empty());
+    let executed = path
+        .series
+        .iter()
+        .position(|s| s.name == EXECUTED)
+        .expect("the executed path is kept");
     if let Some((_, upper)) = &recording.upper {
         // A four-axis wire machine: the lower guide's path above, the upper guide's too.
-        path.series[0].name = "executed path (lower guide, X/Y)".into();
+        path.series[executed].name = "executed path (lower guide, X/Y)".into();
         path.series.insert(
-            1,
+            executed + 1,
             Series {
                 name: "upper guide (X+U, Y+V)".into(),
                 color: "#2a9d8f",
@@ -171,6 +193,7 @@ fn path_chart(recording: &Recording, summary: &JobSummary) -> Chart {
     path
 }
 
+/// The events of `kind` as dots where they happened, named with their count.
 fn dots(
     recording: &Recording,
     kind: EventKind,
