@@ -407,7 +407,8 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     for item in reader.by_ref() {
         match item {
             Ok(block) => {
-                let length = block.curve.length();
+                // A measure for the table and totals: exact for lines and arcs.
+                let length = block.curve.length_estimate();
                 if !args.quiet {
                     outln!("{}", check::describe_block(&block, length, axes));
                 }

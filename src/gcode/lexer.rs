@@ -22,7 +22,65 @@ pub(crate) struct Word {
     pub letter: char,
     pub value: f64,
     pub col: usize,
-    pub text: String,
+    pub text: WordText,
+}
+
+/// A word's value as text, held inline: a literal has at most [`MAX_NUMBER_CHARS`]
+/// characters, so lexing a line allocates nothing per word. An expression's value written
+/// longer (a tiny number's every decimal) is cut at that many bytes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) struct WordText {
+    len: u8,
+    bytes: [u8; MAX_NUMBER_CHARS],
+}
+
+impl WordText {
+    pub(crate) fn new(text: &str) -> WordText {
+        let mut t = WordText {
+            len: 0,
+            bytes: [0; MAX_NUMBER_CHARS],
+        };
+        let _ = std::fmt::Write::write_str(&mut t, text);
+        t
+    }
+
+    pub(crate) fn as_str(&self) -> &str {
+        // Only whole characters are ever copied in (`write_str`).
+        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or("")
+    }
+}
+
+impl std::fmt::Write for WordText {
+    /// Appends what fits, whole characters only.
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        let at = usize::from(self.len);
+        let mut n = s.len().min(MAX_NUMBER_CHARS - at);
+        while !s.is_char_boundary(n) {
+            n -= 1;
+        }
+        self.bytes[at..at + n].copy_from_slice(&s.as_bytes()[..n]);
+        self.len += n as u8;
+        Ok(())
+    }
+}
+
+impl std::ops::Deref for WordText {
+    type Target = str;
+    fn deref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl std::fmt::Display for WordText {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::fmt::Debug for WordText {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Debug::fmt(self.as_str(), f)
+    }
 }
 
 /// An O-word's label: `O100` or `o<name>` (lower case).
@@ -252,11 +310,13 @@ fn word(
                 },
             ));
         }
+        let mut text = WordText::new("");
+        let _ = std::fmt::Write::write_fmt(&mut text, format_args!("{value}"));
         return Ok(Word {
             letter,
             value,
             col,
-            text: format!("{value}"),
+            text,
         });
     }
     let start = sc.pos;
@@ -266,7 +326,7 @@ fn word(
     while matches!(sc.peek(), Some(d) if d.is_ascii_digit() || d == '.') {
         sc.bump();
     }
-    let text = line[start..sc.pos].to_string();
+    let text = &line[start..sc.pos];
     // `X1e308`: an exponent glued to a number is not a word `E`; say so rather
     // than "word E is not used".
     if !text.is_empty() {
@@ -416,41 +476,57 @@ pub(crate) fn has_m99(line: &str) -> bool {
     false
 }
 
-fn number_word(letter: char, col: usize, text: String) -> Result<Word, LexError> {
-    let unsigned = text.trim_start_matches(['+', '-']);
-    let digits = unsigned.chars().filter(char::is_ascii_digit).count();
-    if digits == 0 {
-        return Err(if unsigned.is_empty() {
-            (col, GcodeErrorKind::MissingNumber { letter })
-        } else {
-            (col, GcodeErrorKind::BadNumber { letter, text })
-        });
-    }
-    if unsigned.matches('.').count() > 1 {
-        return Err((col, GcodeErrorKind::BadNumber { letter, text }));
-    }
-    let int_digits = unsigned
-        .split('.')
-        .next()
-        .unwrap_or("")
-        .trim_start_matches('0');
-    if int_digits.len() > MAX_INT_DIGITS || text.len() > MAX_NUMBER_CHARS {
-        return Err((col, GcodeErrorKind::NumberOutOfRange { letter, text }));
-    }
-    let value: f64 = text.parse().map_err(|_| {
+fn number_word(letter: char, col: usize, text: &str) -> Result<Word, LexError> {
+    let bad = || {
         (
             col,
             GcodeErrorKind::BadNumber {
                 letter,
-                text: text.clone(),
+                text: text.to_string(),
             },
         )
-    })?;
+    };
+    let unsigned = text.trim_start_matches(['+', '-']);
+    // One pass over the bytes: digits, dots, and the integer part's digits past leading zeros.
+    let (mut digits, mut dots, mut int_digits, mut leading) = (0usize, 0usize, 0usize, true);
+    for b in unsigned.bytes() {
+        match b {
+            b'.' => dots += 1,
+            b'0'..=b'9' => {
+                digits += 1;
+                if dots == 0 {
+                    leading &= b == b'0';
+                    int_digits += usize::from(!leading);
+                }
+            }
+            _ => {}
+        }
+    }
+    if digits == 0 {
+        return Err(if unsigned.is_empty() {
+            (col, GcodeErrorKind::MissingNumber { letter })
+        } else {
+            bad()
+        });
+    }
+    if dots > 1 {
+        return Err(bad());
+    }
+    if int_digits > MAX_INT_DIGITS || text.len() > MAX_NUMBER_CHARS {
+        return Err((
+            col,
+            GcodeErrorKind::NumberOutOfRange {
+                letter,
+                text: text.to_string(),
+            },
+        ));
+    }
+    let value: f64 = text.parse().map_err(|_| bad())?;
     Ok(Word {
         letter,
         value,
         col,
-        text,
+        text: WordText::new(text),
     })
 }
 

@@ -4,7 +4,10 @@
 //! 10 MB line costs no memory) and reported; invalid UTF-8 is reported at its column.
 //!
 //! The source keeps the byte offset of the next line, so the interpreter can come back to a
-//! line it read before (a loop, a subroutine) by seeking rather than by keeping the lines.
+//! line it read before (a loop, a subroutine). The last [`WINDOW_BYTES`] read are kept: a
+//! jump back inside them (a loop body, a subroutine called again) is served from memory,
+//! without a system call per iteration; a jump further back seeks the file. Memory stays
+//! bounded whatever the program.
 
 use std::io::{self, BufRead, Seek, SeekFrom};
 
@@ -18,6 +21,10 @@ pub(crate) struct Pos {
 
 /// Longest line accepted, in bytes (without the line break).
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Bytes of the program kept behind the reading point for jumps back (loops, subroutines):
+/// a loop body up to about half of it is always replayed from memory.
+pub const WINDOW_BYTES: usize = 1024 * 1024;
 
 /// What one physical line turned out to be.
 pub(crate) enum Line<'a> {
@@ -38,6 +45,11 @@ pub(crate) struct LineSource<R> {
     line_no: u64,
     /// Byte offset of the next line.
     offset: u64,
+    /// The bytes from `window_start` to `reader_at`, the reader's position; the next line
+    /// comes from here while `offset < reader_at` (after a jump back into it).
+    window: Vec<u8>,
+    window_start: u64,
+    reader_at: u64,
 }
 
 impl<R: BufRead + Seek> LineSource<R> {
@@ -47,6 +59,9 @@ impl<R: BufRead + Seek> LineSource<R> {
             buf: Vec::with_capacity(256),
             line_no: 0,
             offset: 0,
+            window: Vec::new(),
+            window_start: 0,
+            reader_at: 0,
         }
     }
 
@@ -58,19 +73,64 @@ impl<R: BufRead + Seek> LineSource<R> {
         }
     }
 
-    /// Makes the line at `pos` the next one.
+    /// Makes the line at `pos` the next one: from memory if the window holds it, else by
+    /// seeking the file.
     pub(crate) fn seek(&mut self, pos: Pos) -> io::Result<()> {
         if pos.offset != self.offset {
-            self.reader.seek(SeekFrom::Start(pos.offset))?;
-            self.offset = pos.offset;
+            if (self.window_start..=self.reader_at).contains(&pos.offset) {
+                self.offset = pos.offset;
+            } else {
+                self.reader.seek(SeekFrom::Start(pos.offset))?;
+                self.offset = pos.offset;
+                self.reader_at = pos.offset;
+                self.window_start = pos.offset;
+                self.window.clear();
+            }
         }
         self.line_no = pos.line - 1;
         Ok(())
     }
 
+    /// Whether the last seek came from memory (for tests).
+    #[cfg(test)]
+    fn replaying(&self) -> bool {
+        self.offset < self.reader_at
+    }
+
+    /// The next line of the window into `buf` (the reading point is behind the reader).
+    fn replay_line(&mut self) {
+        let from = (self.offset - self.window_start) as usize;
+        let rest = &self.window[from..];
+        let (line, consumed) = match rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (&rest[..i], i + 1),
+            None => (rest, rest.len()),
+        };
+        self.buf.extend_from_slice(line);
+        self.offset += consumed as u64;
+    }
+
+    /// Keeps `bytes`, just read, in the window, dropping its older half when it is full.
+    fn remember(&mut self, bytes: &[u8]) {
+        if self.window.len() + bytes.len() > WINDOW_BYTES {
+            let drop = self
+                .window
+                .len()
+                .min(self.window.len() + bytes.len() - WINDOW_BYTES / 2);
+            self.window.drain(..drop);
+            self.window_start += drop as u64;
+        }
+        self.window.extend_from_slice(bytes);
+    }
+
     /// The next line and its 1-based number, or `None` at the end of input.
     pub(crate) fn next_line(&mut self) -> io::Result<Option<(u64, Line<'_>)>> {
         self.buf.clear();
+        if self.offset < self.reader_at {
+            self.replay_line();
+            self.line_no += 1;
+            return Ok(Some((self.line_no, self.finish_line())));
+        }
+        let start = self.offset;
         let mut too_long = false;
         let mut read_any = false;
         loop {
@@ -102,28 +162,44 @@ impl<R: BufRead + Seek> LineSource<R> {
                 break;
             }
         }
+        self.reader_at = self.offset;
         if !read_any {
             return Ok(None);
         }
         self.line_no += 1;
         if too_long {
+            // Not kept: the window restarts after it (a jump back past it seeks).
+            self.window.clear();
+            self.window_start = self.offset;
             return Ok(Some((self.line_no, Line::TooLong)));
         }
+        let line = std::mem::take(&mut self.buf);
+        self.remember(&line);
+        if (self.offset - start) as usize > line.len() {
+            // Its line break.
+            self.remember(b"\n");
+        }
+        self.buf = line;
+        Ok(Some((self.line_no, self.finish_line())))
+    }
+
+    /// `buf` as a line: its `\r` and a first line's byte-order mark taken off, checked as
+    /// UTF-8.
+    fn finish_line(&mut self) -> Line<'_> {
         if self.buf.last() == Some(&b'\r') {
             self.buf.pop();
         }
         if self.line_no == 1 && self.buf.starts_with(crate::vocab::BOM.as_bytes()) {
             self.buf.drain(..crate::vocab::BOM.len());
         }
-        let line = match std::str::from_utf8(&self.buf) {
+        match std::str::from_utf8(&self.buf) {
             Ok(text) => Line::Text(text),
             Err(e) => Line::BadUtf8 {
                 // Safe: the prefix up to valid_up_to is valid UTF-8 by definition.
                 valid_prefix: std::str::from_utf8(&self.buf[..e.valid_up_to()]).unwrap_or(""),
                 bytes: &self.buf,
             },
-        };
-        Ok(Some((self.line_no, line)))
+        }
     }
 }
 
@@ -171,6 +247,59 @@ mod tests {
             _ => panic!("line 2 expected"),
         }
         assert_eq!(src.position(), Pos { offset: 8, line: 3 });
+    }
+
+    #[test]
+    fn jumps_back_inside_the_window_are_served_from_memory() {
+        let text = b"o1 while\r\nG1 X1\nG1 X2\no1 endwhile\nlast";
+        let mut src = LineSource::new(io::BufReader::with_capacity(4, io::Cursor::new(&text[..])));
+        src.next_line().unwrap();
+        let body = src.position();
+        let mut seen = Vec::new();
+        for _ in 0..3 {
+            src.seek(body).unwrap();
+            assert!(src.replaying() || seen.is_empty());
+            while let Some((n, Line::Text(t))) = src.next_line().unwrap() {
+                seen.push(format!("{n}:{t}"));
+                if t.ends_with("endwhile") {
+                    break;
+                }
+            }
+        }
+        assert_eq!(seen.len(), 9);
+        assert_eq!(&seen[..3], ["2:G1 X1", "3:G1 X2", "4:o1 endwhile"]);
+        assert_eq!(seen[3..6], seen[..3]);
+        assert_eq!(seen[6..], seen[..3]);
+        // Past the window's end the reader goes on: the last line, without a line break.
+        match src.next_line().unwrap() {
+            Some((5, Line::Text(t))) => assert_eq!(t, "last"),
+            _ => panic!("line 5"),
+        }
+        assert!(src.next_line().unwrap().is_none());
+        // And back to the first line, CR and all, from memory.
+        src.seek(Pos { offset: 0, line: 1 }).unwrap();
+        assert!(src.replaying());
+        match src.next_line().unwrap() {
+            Some((1, Line::Text(t))) => assert_eq!(t, "o1 while"),
+            _ => panic!("line 1"),
+        }
+    }
+
+    #[test]
+    fn a_jump_further_back_than_the_window_seeks() {
+        // Lines of 1 KiB: the window keeps the last WINDOW_BYTES, the first line falls out.
+        let line = format!("({})\n", "x".repeat(1021));
+        let text = line.repeat(2 * WINDOW_BYTES / line.len());
+        let mut src = LineSource::new(io::BufReader::new(io::Cursor::new(text.as_bytes())));
+        while src.next_line().unwrap().is_some() {}
+        src.seek(Pos { offset: 0, line: 1 }).unwrap();
+        assert!(!src.replaying(), "sought, not replayed");
+        match src.next_line().unwrap() {
+            Some((1, Line::Text(t))) => assert_eq!(t.len(), 1023),
+            _ => panic!("line 1"),
+        }
+        // The window never held more than its bound.
+        assert!(src.window.len() <= WINDOW_BYTES);
     }
 
     #[test]

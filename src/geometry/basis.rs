@@ -56,6 +56,19 @@ pub(crate) fn basis_derivs(
     knots: &[f64],
     ders: &mut [[f64; MAX_ORDER]; 3],
 ) {
+    basis_derivs_to::<true>(span, u, degree, knots, ders);
+}
+
+/// [`basis_derivs`] with the second derivatives only if `SECOND` (row 2 is left as it was
+/// otherwise): an arc length needs the speed alone.
+#[inline(always)]
+pub(crate) fn basis_derivs_to<const SECOND: bool>(
+    span: usize,
+    u: f64,
+    degree: usize,
+    knots: &[f64],
+    ders: &mut [[f64; MAX_ORDER]; 3],
+) {
     let p = degree;
     let mut left = [0.0f64; MAX_ORDER];
     let mut right = [0.0f64; MAX_ORDER];
@@ -95,6 +108,9 @@ pub(crate) fn basis_derivs(
     // c[0] and c[p + 1] stand for the zero neighbours outside the support.
     for j in 0..=p {
         ders[1][j] = pf * (c[j] - c[j + 1]);
+    }
+    if !SECOND {
+        return;
     }
     if p < 2 {
         ders[2][..=p].fill(0.0);

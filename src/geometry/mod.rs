@@ -14,11 +14,13 @@ mod arc;
 mod basis;
 mod bezier;
 mod extent;
+mod length;
 mod nurbs;
 mod split;
 
 pub use arc::circular_arc;
 pub use bezier::Bezier;
+pub use length::ESTIMATE_TOLERANCE;
 pub use nurbs::{CurveDerivs, CurveEnd, NurbsCurve, NurbsError};
 
 /// Highest curve degree accepted (order 10).

@@ -1,6 +1,6 @@
 //! The validated NURBS curve and its evaluation.
 
-use super::basis::{MAX_ORDER, basis_derivs, find_span};
+use super::basis::{MAX_ORDER, basis_derivs, basis_derivs_to, find_span};
 use super::{MAX_AXES, MAX_DEGREE, Point};
 
 /// Why a set of NURBS data is not a curve edmd can run. One variant per rule, so that the
@@ -385,37 +385,44 @@ impl NurbsCurve {
         out
     }
 
-    /// Arc length between parameters `a <= b`, by adaptive Gauss–Legendre quadrature on each knot
-    /// span (the speed is smooth inside a span), to a relative accuracy of about 1e-12 or an
-    /// absolute one of about 2e-13 of the largest coordinate, whichever is looser.
-    ///
-    /// The absolute floor matters: the speed of a short piece far from the origin carries the
-    /// rounding noise of its coordinates, so a purely relative target is unreachable there (a
-    /// 20 µm arc at X 200 mm once drove the quadrature to its depth limit, 16 M leaves per
-    /// call).
-    pub fn length_between(&self, a: f64, b: f64) -> f64 {
-        let (a, b) = (a.max(self.u_min()), b.min(self.u_max()));
-        if b <= a {
-            return 0.0;
+    /// `|C'(u)|`, the speed alone: the kernel without the second derivative (an arc length's
+    /// quadrature needs nothing else).
+    pub fn speed_at(&self, u: f64) -> f64 {
+        let u = u.clamp(self.u_min(), self.u_max());
+        let span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
+        match self.degree {
+            1 => self.speed_kernel(span, u, 1),
+            2 => self.speed_kernel(span, u, 2),
+            3 => self.speed_kernel(span, u, 3),
+            p => self.speed_kernel(span, u, p),
         }
-        let scale = (0..self.num_points())
-            .map(|i| self.control_point(i).amax())
-            .fold(1.0, f64::max);
-        let noise = 1e3 * f64::EPSILON * scale;
-        let mut total = 0.0;
-        let mut lo = a;
-        for &k in &self.knots {
-            if k > lo && k < b {
-                total += adaptive_length(self, lo, k, noise, 0);
-                lo = k;
-            }
-        }
-        total + adaptive_length(self, lo, b, noise, 0)
     }
 
-    /// Arc length of the whole curve (mm).
-    pub fn length(&self) -> f64 {
-        self.length_between(self.u_min(), self.u_max())
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn speed_kernel(&self, span: usize, u: f64, p: usize) -> f64 {
+        let mut ders = [[0.0f64; MAX_ORDER]; 3];
+        basis_derivs_to::<false>(span, u, p, &self.knots, &mut ders);
+        let mut sums = [[0.0f64; HOMOGENEOUS_WIDTH]; 2];
+        let first = span - p;
+        for j in 0..=p {
+            let hp = &self.homogeneous[first + j];
+            for k in 0..2 {
+                let b = ders[k][j];
+                for c in 0..HOMOGENEOUS_WIDTH {
+                    sums[k][c] += b * hp[c];
+                }
+            }
+        }
+        let (w, w1) = (sums[0][WEIGHT_SLOT], sums[1][WEIGHT_SLOT]);
+        let inv_w = 1.0 / w;
+        let mut speed_sq = 0.0;
+        for axis in 0..MAX_AXES {
+            let c = sums[0][axis] * inv_w;
+            let c1 = (sums[1][axis] - w1 * c) * inv_w;
+            speed_sq += c1 * c1;
+        }
+        speed_sq.sqrt()
     }
 }
 
@@ -476,40 +483,4 @@ fn validate_knots(degree: usize, points: usize, knots: &[f64]) -> Result<(), Nur
         i = j + 1;
     }
     Ok(())
-}
-
-/// 8-point Gauss–Legendre nodes and weights on [-1, 1] (positive half).
-const GL8: [(f64, f64); 4] = [
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
-    (0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
-];
-
-fn gauss_length(curve: &NurbsCurve, a: f64, b: f64) -> f64 {
-    let (mid, half) = (0.5 * (a + b), 0.5 * (b - a));
-    GL8.iter()
-        .map(|&(x, w)| {
-            w * (curve.derivs(mid - half * x).speed() + curve.derivs(mid + half * x).speed())
-        })
-        .sum::<f64>()
-        * half
-}
-
-/// Deepest halving: 2^16 leaves bound one call's work (3 M evaluations) even where the
-/// tolerance cannot be met; smooth pieces converge in a few levels.
-const MAX_LENGTH_DEPTH: u32 = 16;
-
-/// `noise`: absolute tolerance (mm) below which differences are rounding, not error.
-fn adaptive_length(curve: &NurbsCurve, a: f64, b: f64, noise: f64, depth: u32) -> f64 {
-    let whole = gauss_length(curve, a, b);
-    let m = 0.5 * (a + b);
-    let halves = gauss_length(curve, a, m) + gauss_length(curve, m, b);
-    let tolerance = (1e-13 * halves.abs()).max(noise);
-    if depth >= MAX_LENGTH_DEPTH || (whole - halves).abs() <= tolerance {
-        halves
-    } else {
-        adaptive_length(curve, a, m, noise, depth + 1)
-            + adaptive_length(curve, m, b, noise, depth + 1)
-    }
 }

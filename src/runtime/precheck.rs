@@ -79,6 +79,8 @@ impl Tally<'_> {
         let machine = &self.config.machine;
         self.blocks += 1;
         crate::check::hold_to_travel(block, &machine.axes, &machine.travel, self.program)?;
+        // Exact: the simulated gap places its debris along these lengths, so they are the
+        // same to the last digit whatever reads them (lines and arcs in closed form).
         let length = block.curve.length();
         let path_mm = self.path_mm;
         if self.measure && block.kind != gcode::BlockKind::Rapid {

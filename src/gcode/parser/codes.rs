@@ -126,7 +126,7 @@ pub(super) fn g_code_tenths(w: &Word) -> Step<u32> {
         return Err((
             w.col,
             GcodeErrorKind::UnknownG {
-                code: w.text.clone(),
+                code: w.text.to_string(),
             },
         )
             .into());
@@ -421,8 +421,8 @@ pub(super) fn g_codes(words: &[Word]) -> Result<Vec<(GCode, &Word)>, Fail> {
             return Err((
                 w.col,
                 GcodeErrorKind::ConflictingG {
-                    a: other.text.clone(),
-                    b: w.text.clone(),
+                    a: other.text.to_string(),
+                    b: w.text.to_string(),
                 },
             )
                 .into());

@@ -563,7 +563,7 @@ pub(super) fn whole_as(w: &Word, min: f64, max: f64, what: &'static str) -> Step
             w.col,
             GcodeErrorKind::NotAWholeNumber {
                 letter: w.letter,
-                text: w.text.clone(),
+                text: w.text.to_string(),
             },
         )
             .into());

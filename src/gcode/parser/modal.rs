@@ -57,8 +57,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 return Err((
                     m.col,
                     GcodeErrorKind::ConflictingG {
-                        a: w.text.clone(),
-                        b: m.text.clone(),
+                        a: w.text.to_string(),
+                        b: m.text.to_string(),
                     },
                 )
                     .into());
@@ -154,7 +154,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     return Err((
                         w.col,
                         GcodeErrorKind::UnknownM {
-                            code: w.text.clone(),
+                            code: w.text.to_string(),
                         },
                     )
                         .into());
