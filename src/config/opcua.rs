@@ -1,7 +1,5 @@
 //! Validation of `daemon.opcua`: the OPC UA endpoint URL, `opc.tcp://HOST:PORT`.
 
-use super::validate::Invalid;
-
 /// Where the OPC UA server listens: the host (a name or an IP address, as clients will
 /// write it in their URLs) and the TCP port.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -21,20 +19,16 @@ impl OpcUaEndpoint {
     }
 }
 
-/// `text` as an endpoint; `""` is off.
-pub(super) fn endpoint(text: &str) -> Result<Option<OpcUaEndpoint>, Invalid> {
-    const KEY: &str = "daemon.opcua";
+/// `text` as an endpoint; `""` is off. The error says what is wrong with it.
+pub(super) fn endpoint(text: &str) -> Result<Option<OpcUaEndpoint>, String> {
     let text = text.trim();
     if text.is_empty() {
         return Ok(None);
     }
     let wrong = |why: &str| {
-        (
-            KEY,
-            format!(
-                "{text:?} {why}: write \"opc.tcp://HOST:PORT\", e.g. \"opc.tcp://127.0.0.1:4840\" \
-                 (\"\" turns OPC UA off)"
-            ),
+        format!(
+            "{text:?} {why}: write \"opc.tcp://HOST:PORT\", e.g. \"opc.tcp://127.0.0.1:4840\" \
+             (\"\" turns OPC UA off)"
         )
     };
     let rest = text
@@ -99,8 +93,7 @@ mod tests {
             ("opc.tcp://a b:4840", "does not name a host"),
             ("opc.tcp://127.0.0.1:4840/edmd", "has a path"),
         ] {
-            let (key, e) = endpoint(text).unwrap_err();
-            assert_eq!(key, "daemon.opcua");
+            let e = endpoint(text).unwrap_err();
             assert!(e.contains(why), "{text}: {e}");
         }
     }

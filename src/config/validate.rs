@@ -604,7 +604,7 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
             1,
             65_536,
         )? as usize,
-        opcua: super::opcua::endpoint(&d.opcua)?,
+        opcua: super::opcua::endpoint(&d.opcua).map_err(|e| ("daemon.opcua", e))?,
         opcua_users_file: non_empty("daemon.opcua_users_file", d.opcua_users_file)?,
         opcua_pki_dir: non_empty("daemon.opcua_pki_dir", d.opcua_pki_dir)?,
     })
