@@ -114,5 +114,49 @@ fn bench_pipeline(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_segmenter, bench_pipeline);
+/// A trace row's numbers as text: `decimal::push_f64` against `format!("{x}")` (the same text),
+/// on 1000 numbers of the sizes a trace holds (coordinates, times, feeds, micron errors).
+fn bench_trace_numbers(c: &mut Criterion) {
+    let mut rng = edmd::rng::SplitMix64::new(39);
+    let numbers: Vec<f64> = (0..1000)
+        .map(|i| match i % 4 {
+            0 => rng.uniform(-200.0, 200.0),
+            1 => rng.uniform(0.0, 10_000.0),
+            2 => rng.uniform(0.0, 1200.0),
+            _ => rng.uniform(0.0, 1e-3),
+        })
+        .collect();
+    let mut group = c.benchmark_group("trace numbers");
+    group.throughput(Throughput::Elements(numbers.len() as u64));
+    group.bench_function("decimal::push_f64", |b| {
+        let mut out = Vec::with_capacity(32 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in &numbers {
+                edmd::decimal::push_f64(&mut out, x);
+                out.push(b',');
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.bench_function("format!", |b| {
+        let mut out = String::with_capacity(32 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in &numbers {
+                out += &format!("{x}");
+                out.push(',');
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_segmenter,
+    bench_pipeline,
+    bench_trace_numbers
+);
 criterion_main!(benches);

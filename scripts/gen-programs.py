@@ -7,10 +7,16 @@
   nurbs.ngc   5,000 cubic `G5.2` curves of 4 control points
   loop.ngc    a 100,000-iteration `while` loop with SIN/COS and parameters
 
+and, named on the command line (not made otherwise), the two `edmd plan` is measured on for
+its memory (BENCHMARKS.md, "plan in flat memory"):
+
+  moves.ngc   9,000 `G1` moves of 10 mm
+  million.ngc 1,000,000 `G1` moves of 20 to 60 µm
+
 Every program runs on a three-axis (X, Y, Z) mm machine, is accepted by both and ends where
 both say it ends. Seeded: the same files every time.
 
-Usage: scripts/gen-programs.py DIR
+Usage: scripts/gen-programs.py DIR [NAME...]   (NAME: lines arcs nurbs loop moves million)
 """
 
 import math
@@ -84,13 +90,44 @@ M2
 """
 
 
+def moves(rng):
+    # A zig-zag of 10 mm moves at varying angles, inside a 100 mm square.
+    out = [HEADER, "G1 X0 Y0\n"]
+    x, y = 0.0, 0.0
+    for _ in range(9_000):
+        a = rng.uniform(0, 2 * math.pi)
+        nx, ny = x + 10 * math.cos(a), y + 10 * math.sin(a)
+        if abs(nx) > 50 or abs(ny) > 50:
+            nx, ny = x - 10 * math.cos(a), y - 10 * math.sin(a)
+        x, y = nx, ny
+        out.append(f"G1 X{x:.4f} Y{y:.4f}\n")
+    out.append("M2\n")
+    return "".join(out)
+
+
+def million(rng):
+    # A million short moves, 20 to 60 µm each, wandering round the origin.
+    out = [HEADER, "G1 X0 Y0\n"]
+    x, y = 0.0, 0.0
+    for i in range(1_000_000):
+        a = i * 0.001 + rng.uniform(-0.5, 0.5)
+        d = rng.uniform(0.02, 0.06)
+        x, y = x + d * math.cos(a), y + d * math.sin(a)
+        out.append(f"G1 X{x:.4f} Y{y:.4f}\n")
+    out.append("M2\n")
+    return "".join(out)
+
+
+PROGRAMS = {"lines": lines, "arcs": arcs, "nurbs": nurbs, "loop": loop, "moves": moves, "million": million}
+
+
 def main():
-    if len(sys.argv) != 2:
+    if len(sys.argv) < 2 or any(n not in PROGRAMS for n in sys.argv[2:]):
         sys.exit(__doc__)
     out = Path(sys.argv[1])
     out.mkdir(parents=True, exist_ok=True)
-    for name, make in [("lines", lines), ("arcs", arcs), ("nurbs", nurbs), ("loop", loop)]:
-        (out / f"{name}.ngc").write_text(make(random.Random(39)))
+    for name in sys.argv[2:] or ["lines", "arcs", "nurbs", "loop"]:
+        (out / f"{name}.ngc").write_text(PROGRAMS[name](random.Random(39)))
         print(out / f"{name}.ngc")
 
 

@@ -13,6 +13,7 @@
 
 // Floor 0: vocabulary, kernel calls, the seeded generator, SVG charts and the terminal,
 // importing nothing of edmd's above them (the terminal reads the local time through sys).
+pub mod decimal;
 pub mod plot;
 pub mod rng;
 pub mod sys;

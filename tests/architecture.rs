@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 /// The floors, lowest first: shared vocabulary at the bottom, the command line at the top.
 const FLOORS: &[&[&str]] = &[
-    &["plot", "rng", "sys", "term", "vocab", "words"],
+    &["decimal", "plot", "rng", "sys", "term", "vocab", "words"],
     &["geometry"],
     &["gcode"],
     &["preprocess"],

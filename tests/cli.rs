@@ -289,6 +289,42 @@ fn plan_writes_trace_summary_and_plots() {
     let _ = std::fs::remove_dir_all(&out_dir);
 }
 
+/// The time-optimal bound is streamed: a program past the 10,000 blocks beyond which it used to
+/// be skipped, long enough that its 5 µm samples held at once would take 60 MB, gets a bound
+/// within 1 % of its plan (nothing on it is slow), and the plan's peak memory stays flat.
+#[test]
+fn plan_bounds_a_long_program_in_flat_memory() {
+    let dir = temp_dir("plan-long");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("long.ngc");
+    let mut source = String::from("G21 G90 G17\nF600\n");
+    for i in 1..=12_000 {
+        // A zig-zag of 1 mm moves at 60° to each other.
+        let (x, y) = (0.5 * i as f64, if i % 2 == 0 { 0.0 } else { 0.866 });
+        source += &format!("G1 X{x:.4} Y{y:.4}\n");
+    }
+    std::fs::write(&program, source + "M2\n").unwrap();
+    let out = dir.join("plan");
+    let result = edmd(&[
+        "plan",
+        program.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(result.status.success(), "{:?}", text(&result));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["blocks"].as_u64(), Some(12_000));
+    let time = json["planned_time_s"].as_f64().unwrap();
+    let bound = json["time_optimal_bound_s"].as_f64().unwrap();
+    assert!(
+        bound <= time * (1.0 + 1e-5) && time <= 1.01 * bound,
+        "{time} vs {bound}"
+    );
+    let peak_mib = json["peak_rss_kib"].as_u64().unwrap() as f64 / 1024.0;
+    assert!(peak_mib < 32.0, "peak RSS {peak_mib:.1} MiB");
+}
+
 #[test]
 fn plan_reports_bad_programs_with_their_location() {
     let dir = temp_dir("plan-bad");

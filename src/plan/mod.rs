@@ -2,9 +2,8 @@
 //! of `design.md`, a summary (text and JSON) and SVG plots.
 //!
 //! It streams: blocks are read, segmented, planned and written as they come, so the memory used
-//! is the planner's window plus the bounded plot series, whatever the program's length. The one
-//! exception is the time-optimal bound, which needs the whole path; it is computed for programs
-//! of up to [`BOUND_MAX_BLOCKS`] blocks and reported as skipped beyond.
+//! is the planner's window, the time-optimal bound's horizon of samples and the bounded plot
+//! series, whatever the program's length.
 
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, IsTerminal, Read, Write};
@@ -23,12 +22,9 @@ use crate::vocab::{Axis, Predictor, Segmentation};
 
 mod charts;
 mod estimate;
+mod row;
 use charts::write_reports;
 
-/// Largest program (in blocks) for which the time-optimal bound is computed.
-pub const BOUND_MAX_BLOCKS: usize = 10_000;
-/// Sample spacing of the time-optimal bound (mm).
-pub const BOUND_SPACING_MM: f64 = 0.005;
 /// Points kept per plotted series.
 const PLOT_POINTS: usize = 20_000;
 
@@ -136,7 +132,7 @@ impl PlanSummary {
             opt(self.time_optimal_bound_s, " s", 1.0, 4),
             match self.time_over_bound {
                 Some(r) => format!(" (planned is {:+.3} % over)", 100.0 * r),
-                None => " (skipped: program too long)".into(),
+                None => " (no path)".into(),
             }
         );
         s += &format!(
@@ -269,8 +265,7 @@ impl Progress {
 struct Collector {
     trace: BufWriter<File>,
     trace_path: PathBuf,
-    axis_columns: Vec<(usize, char)>,
-    xyz: [Option<usize>; 3],
+    rows: row::RowWriter,
     t: f64,
     s: f64,
     segments: u64,
@@ -316,61 +311,28 @@ impl Collector {
     fn first_row(&mut self, block: &Block) {
         let p = block.start();
         let u = match block.kind {
-            BlockKind::Nurbs { .. } => format!("{}", block.curve.u_min()),
-            _ => String::new(),
+            BlockKind::Nurbs { .. } => Some(block.curve.u_min()),
+            _ => None,
         };
-        let row = self.row_text(block, &u, &p, 0.0, 0.0, (0.0, 0.0), None, f64::INFINITY, 0);
-        self.write(&row);
+        self.write_row(&row::Row {
+            block,
+            u,
+            point: &p,
+            t: 0.0,
+            feed_mm_per_min: 0.0,
+            chord_err: 0.0,
+            chord_bound: 0.0,
+            fluctuation: None,
+            rho: f64::INFINITY,
+            evals: 0,
+        });
         self.path.push(p[0], p[1]);
         self.start.get_or_insert((p[0], p[1]));
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn row_text(
-        &self,
-        block: &Block,
-        u: &str,
-        p: &crate::geometry::Point,
-        t: f64,
-        feed: f64,
-        (err, bound): (f64, f64),
-        fluct: Option<f64>,
-        rho: f64,
-        evals: u32,
-    ) -> String {
-        // Every number at full precision: the shortest decimal that reads back as the same
-        // double, so a 0.1 µm tolerance is not drowned by the printing.
-        let coord = |i: Option<usize>| i.map_or(String::new(), |i| format!("{}", p[i]));
-        let mut row = format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
-            block.line,
-            block.kind.name(),
-            u,
-            coord(self.xyz[0]),
-            coord(self.xyz[1]),
-            coord(self.xyz[2]),
-            t,
-            feed,
-            err,
-            bound,
-            fluct.map_or(String::new(), |f| format!("{f:e}")),
-            if rho.is_finite() {
-                format!("{rho}")
-            } else {
-                String::new()
-            },
-            evals
-        );
-        for &(i, _) in &self.axis_columns {
-            row += &format!(",{}", p[i]);
-        }
-        row.push('\n');
-        row
-    }
-
-    fn write(&mut self, row: &str) {
+    fn write_row(&mut self, row: &row::Row) {
         if self.error.is_none()
-            && let Err(e) = self.trace.write_all(row.as_bytes())
+            && let Err(e) = self.trace.write_all(self.rows.format(row))
         {
             self.error = Some(e);
         }
@@ -434,7 +396,7 @@ impl Collector {
             }
             self.rapids.push((seg.end[0], seg.end[1]));
         }
-        if let (Some(z), Some(axis)) = (self.z.as_mut(), self.xyz[2]) {
+        if let (Some(z), Some(axis)) = (self.z.as_mut(), self.rows.z()) {
             z.push(self.s, seg.end[axis]);
         }
         if let Some(wire) = self.wire.as_mut() {
@@ -443,21 +405,21 @@ impl Collector {
         self.chord.push(self.s, seg.chord_error);
         self.feed.push(self.t, v * 60.0);
         let u = match seg.block.kind {
-            BlockKind::Nurbs { .. } => format!("{}", seg.u_end),
-            _ => String::new(),
+            BlockKind::Nurbs { .. } => Some(seg.u_end),
+            _ => None,
         };
-        let row = self.row_text(
-            &seg.block,
-            &u,
-            &seg.end,
-            self.t,
-            v * 60.0,
-            (seg.chord_error, seg.chord_bound),
-            seg.fluctuation,
-            seg.rho_end,
-            seg.evals,
-        );
-        self.write(&row);
+        self.write_row(&row::Row {
+            block: &seg.block,
+            u,
+            point: &seg.end,
+            t: self.t,
+            feed_mm_per_min: v * 60.0,
+            chord_err: seg.chord_error,
+            chord_bound: seg.chord_bound,
+            fluctuation: seg.fluctuation,
+            rho: seg.rho_end,
+            evals: seg.evals,
+        });
     }
 }
 
@@ -499,7 +461,7 @@ pub fn plan_program(
     c.cut = estimate::CutTime::new(config);
 
     let mut pre = Preprocessor::new(settings.clone());
-    let mut kept: Option<Vec<Arc<Block>>> = Some(vec![]);
+    let mut bound = bound::TimeOptimalBound::new(&settings, bound::MAX_SPACING_MM);
     let mut bar = Progress::new(progress && io::stderr().is_terminal(), total);
     let mut first = true;
     let mut stages = Vec::new();
@@ -514,13 +476,7 @@ pub fn plan_program(
             c.first_row(&block);
             first = false;
         }
-        if let Some(k) = kept.as_mut() {
-            if k.len() < BOUND_MAX_BLOCKS {
-                k.push(Arc::clone(&block));
-            } else {
-                kept = None;
-            }
-        }
+        bound.push_block(&block);
         pre.push_block(block, |seg| c.add(&seg));
         bar.tick(count.load(Ordering::Relaxed), pre.stats().blocks);
     }
@@ -538,10 +494,7 @@ pub fn plan_program(
     c.trace.flush().map_err(io_err(&trace_path))?;
     let wall = started.elapsed().as_secs_f64();
 
-    let bound = kept.filter(|k| !k.is_empty()).map(|k| {
-        let refs: Vec<&Block> = k.iter().map(|b| b.as_ref()).collect();
-        bound::time_optimal_bound(&refs, &settings, BOUND_SPACING_MM)
-    });
+    let bound = bound.finish();
     let mut summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
     summary.stages = stages;
     write_reports(out_dir, &summary, &c, &settings)?;
@@ -557,19 +510,11 @@ impl Collector {
         axes: &[Axis],
         settings: &PlanSettings,
     ) -> Collector {
-        let index_of = |a: Axis| axes.iter().position(|&x| x == a);
-        let extra: Vec<(usize, char)> = axes
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| !matches!(a, Axis::X | Axis::Y | Axis::Z))
-            // Upper case: `u` is the curve parameter's column.
-            .map(|(i, a)| (i, a.letter()))
-            .collect();
+        let has_z = axes.contains(&Axis::Z);
         let mut c = Collector {
             trace,
             trace_path,
-            axis_columns: extra.clone(),
-            xyz: [index_of(Axis::X), index_of(Axis::Y), index_of(Axis::Z)],
+            rows: row::RowWriter::new(axes),
             t: 0.0,
             s: 0.0,
             segments: 0,
@@ -593,7 +538,7 @@ impl Collector {
             feed: Decimated::new(PLOT_POINTS),
             accel: Decimated::new(PLOT_POINTS),
             fluct: Decimated::new(PLOT_POINTS),
-            z: index_of(Axis::Z).map(|_| Decimated::new(PLOT_POINTS)),
+            z: has_z.then(|| Decimated::new(PLOT_POINTS)),
             wire: None,
             rapids: Vec::new(),
             rapid_strokes: 0,
@@ -602,14 +547,9 @@ impl Collector {
             error: None,
             cut: estimate::CutTime::default(),
         };
-        let mut header =
-            "line,kind,u,x,y,z,t,feed_mm_per_min,chord_err,chord_bound,fluctuation,rho,evals"
-                .to_string();
-        for (_, letter) in &extra {
-            header += &format!(",{letter}");
+        if let Err(e) = c.trace.write_all(c.rows.header()) {
+            c.error = Some(e);
         }
-        header.push('\n');
-        c.write(&header);
         c
     }
 }

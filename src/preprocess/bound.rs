@@ -1,43 +1,107 @@
 //! The time-optimal bound: the shortest time any planner could take along the path under the
-//! same limits, by a dense forward/backward pass. A reference for `edmd plan`, not part of the
-//! producer (it holds the whole path in memory).
+//! same limits, by a forward/backward pass over samples of the path. A reference for
+//! `edmd plan`, not part of the producer.
 //!
-//! The path is sampled every ~`spacing` mm. At each sample the speed limit is the pointwise
-//! minimum of the programmed feed, `sqrt(a_N rho)` and, in period mode, the chord-error speed
-//! `2 sqrt(2 rho h - h²) / T`; corners between blocks get the planner's junction speed. The
-//! forward pass caps `v²` growth at `2 a_T Δs`, the backward pass caps its fall the same way, the
-//! path starts and ends at rest, and the time is `Σ 2 Δs / (v_k + v_k+1)` (exact for constant
-//! acceleration between samples). With the samples dense enough this converges to the optimum
-//! from below the planner's discretisation: a planner cannot beat it.
+//! **Samples.** At each sample the speed limit is the pointwise minimum of the programmed feed,
+//! `sqrt(a_N rho)`, the outputs' one step per tick along the tangent and, in period mode, the
+//! chord-error speed `2 sqrt(2 rho h - h²) / T`; a junction between blocks also gets the
+//! planner's corner speed and both blocks' limits. Between two samples of a block the speed may
+//! reach the larger of their limits. A straight block's limits are the same all along it, so it
+//! is one interval, exactly; a curved one is sampled at most [`MAX_TURN`] of tangent apart and
+//! at most `spacing` mm apart (16 samples at least), which resolves the step cap's change with
+//! direction and the curvature's along the curve. An interval's length is its chord lengthened
+//! by the turn between its tangents (`θ²/24`, exact to fourth order on a circle).
+//!
+//! **Profile.** The forward pass caps `v²` growth at `2 a_T Δs`, the backward pass caps its fall
+//! the same way, the path starts and ends at rest. Over each interval the fastest profile
+//! under its cap is then exact: accelerate from one end, cruise at the cap or meet the
+//! deceleration to the other end ([`interval_time`]). A planner cannot beat it by more than the
+//! sampling misses of a limit's dips.
+//!
+//! **Streamed, in bounded memory.** The forward pass needs only the past, so it runs as the
+//! samples come. The backward pass needs the future, but not much of it: no sample can be
+//! slowed by a stop more than `v_max² / (2 a_T)` ahead, since from there even a stop allows
+//! `v_max`, above every limit. [`TimeOptimalBound`] therefore keeps only the samples of the
+//! last [`horizon`](TimeOptimalBound::horizon) mm (twice that distance, so rounding cannot
+//! matter), runs the backward pass over them from the newest (whose speed is provisional: an
+//! upper bound of its true one), and settles the samples farther back than the horizon: their
+//! backward values are the whole path's. The memory is a few thousand samples whatever the
+//! program's length, and the figure is, bit for bit, the one the whole path in memory gives
+//! (a test holds it).
+
+use std::collections::VecDeque;
 
 use super::chord::chord_length_limit;
 use super::segmenter::unit;
 use super::{PlanSettings, corner_speed};
-use crate::gcode::Block;
-use crate::geometry::Point;
+use crate::gcode::{Block, BlockKind};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point};
 use crate::vocab::Segmentation;
 
-/// Time-optimal traversal time (s) of `blocks` in order, sampled about every `spacing` mm.
-pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f64) -> f64 {
-    let mut ds: Vec<f64> = vec![];
-    let mut limit: Vec<f64> = vec![0.0];
-    let mut prev_tangent: Option<Point> = None;
-    for block in blocks {
+/// Longest interval between two samples of a curved block (mm), as `plan` samples.
+pub const MAX_SPACING_MM: f64 = 0.25;
+
+/// Largest turn of the tangent between two samples of a curved block (rad): 5°.
+pub const MAX_TURN: f64 = 5.0 * std::f64::consts::PI / 180.0;
+
+/// One sample of the path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sample {
+    /// Path length from the sample before (mm; zero for the first).
+    ds: f64,
+    /// The speed limit here (mm/s); after the forward pass, its value.
+    v: f64,
+    /// The speed the interval from the sample before may reach (mm/s).
+    cap: f64,
+}
+
+/// What sampling a block gives the profile.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Step {
+    /// A cap on the newest sample: the junction with the next block.
+    Junction(f64),
+    Sample(Sample),
+}
+
+/// Turns blocks into samples.
+#[derive(Debug)]
+struct Sampler {
+    settings: PlanSettings,
+    spacing: f64,
+    /// The tangent the last block ended on, once there is one.
+    prev_tangent: Option<Point>,
+}
+
+impl Sampler {
+    fn block(&mut self, block: &Block, mut step: impl FnMut(Step)) {
+        let s = &self.settings;
         let curve = &block.curve;
-        let feed = if block.kind == crate::gcode::BlockKind::Rapid {
-            settings.rapid_feed
+        let feed = if block.kind == BlockKind::Rapid {
+            s.rapid_feed
         } else {
             block
                 .feed_mm_per_min
-                .map_or(settings.max_feed, |f| (f / 60.0).min(settings.max_feed))
+                .map_or(s.max_feed, |f| (f / 60.0).min(s.max_feed))
         };
-        let n = (curve.length() / spacing).ceil().clamp(16.0, 4.0e6) as usize;
+        let n = if curve.degree() == 1 && curve.num_points() == 2 {
+            1
+        } else {
+            let by_length = (curve.length() / self.spacing).ceil();
+            let by_turn = (polygon_turn(curve) / MAX_TURN).ceil();
+            by_length.max(by_turn).clamp(16.0, 4.0e6) as usize
+        };
         let (u0, u1) = (curve.u_min(), curve.u_max());
         let first = curve.derivs(u0);
-        if let Some(prev) = prev_tangent {
-            let corner = corner_speed(&prev, &unit(&first.d1), settings);
-            let last = limit.len() - 1;
-            limit[last] = limit[last].min(corner);
+        let mut limit = self.limit(feed, &first);
+        let mut tangent = unit(&first.d1);
+        match self.prev_tangent {
+            Some(prev) => step(Step::Junction(limit.min(corner_speed(&prev, &tangent, s)))),
+            // The path starts at rest.
+            None => step(Step::Sample(Sample {
+                ds: 0.0,
+                v: 0.0,
+                cap: 0.0,
+            })),
         }
         let mut p = first.point;
         for k in 1..=n {
@@ -47,38 +111,364 @@ pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f
             } else {
                 curve.derivs(u)
             };
-            let rho = d.curvature_radius();
-            let mut v = feed.min((settings.max_normal_accel * rho).sqrt());
-            if settings.segmentation == Segmentation::Period {
-                v = v.min(chord_length_limit(rho, settings.tolerance) / settings.period);
-            }
-            let step = d.point - p;
-            let length = step.norm();
-            // The outputs' one step per tick, as the planner honours it.
-            v = v.min(super::step_cap(&settings.axis_cap, &step, length));
-            ds.push(length);
-            limit.push(v);
-            p = d.point;
-            if k == n {
-                prev_tangent = Some(unit(&d.d1));
-            }
+            let here = self.limit(feed, &d);
+            let next_tangent = unit(&d.d1);
+            // The arc over its chord: 1 + θ²/24 for a turn of θ between the tangents.
+            let turn = 2.0 * ((next_tangent - tangent).norm() / 2.0).min(1.0).asin();
+            step(Step::Sample(Sample {
+                ds: (d.point - p).norm() * (1.0 + turn * turn / 24.0),
+                v: here,
+                cap: limit.max(here),
+            }));
+            (p, limit, tangent) = (d.point, here, next_tangent);
+        }
+        self.prev_tangent = Some(tangent);
+    }
+
+    /// The speed limit at a point of a block programmed at `feed` (mm/s).
+    fn limit(&self, feed: f64, d: &CurveDerivs) -> f64 {
+        let s = &self.settings;
+        let rho = d.curvature_radius();
+        let mut v = feed.min((s.max_normal_accel * rho).sqrt());
+        if s.segmentation == Segmentation::Period {
+            v = v.min(chord_length_limit(rho, s.tolerance) / s.period);
+        }
+        // The outputs' one step per tick, as the planner honours it.
+        v.min(super::step_cap(&s.axis_cap, &d.d1, d.d1.norm()))
+    }
+}
+
+/// The turn of `curve`'s control polygon (rad): the sum of the angles between its edges,
+/// which bounds the turn of the curve's tangent.
+fn polygon_turn(curve: &NurbsCurve) -> f64 {
+    let mut turn = 0.0;
+    let mut prev: Option<Point> = None;
+    for i in 1..curve.num_points() {
+        let edge = curve.control_point(i) - curve.control_point(i - 1);
+        if edge.norm() == 0.0 {
+            continue;
+        }
+        let edge = unit(&edge);
+        if let Some(before) = prev {
+            turn += 2.0 * ((edge - before).norm() / 2.0).min(1.0).asin();
+        }
+        prev = Some(edge);
+    }
+    turn
+}
+
+/// The least time (s) over an interval of `ds` mm entered at `a` and left at `b` (mm/s),
+/// at most `cap` inside, at most `accel` (mm/s²) of acceleration either way: up from `a`, on
+/// at the peak, down to `b`. `a` and `b` are at most `cap` and within reach of each other.
+fn interval_time(a: f64, b: f64, cap: f64, ds: f64, accel: f64) -> f64 {
+    if ds <= 0.0 {
+        return 0.0;
+    }
+    let peak_sq = (cap * cap).min((a * a + b * b + 2.0 * accel * ds) / 2.0);
+    let peak = peak_sq.sqrt();
+    let ramps = (peak_sq - a * a + peak_sq - b * b) / (2.0 * accel);
+    let cruise = (ds - ramps).max(0.0);
+    (peak - a) / accel + (peak - b) / accel + cruise / peak
+}
+
+/// The time-optimal bound over a path given block by block, in bounded memory.
+#[derive(Debug)]
+pub struct TimeOptimalBound {
+    sampler: Sampler,
+    profile: Profile,
+}
+
+/// The speed profile over the samples: the passes, and the time of what is settled.
+#[derive(Debug)]
+struct Profile {
+    accel: f64,
+    /// How far back from the newest sample a sample is settled (mm): twice the longest stop.
+    horizon: f64,
+    /// Samples not yet settled, oldest first, and their path length after the oldest.
+    open: VecDeque<Sample>,
+    open_length: f64,
+    /// The backward pass's values over `open`, reused.
+    backward: Vec<f64>,
+    /// The speed of the last settled sample.
+    settled: Option<f64>,
+    time: f64,
+    /// The most samples held at once.
+    peak_open: usize,
+}
+
+impl TimeOptimalBound {
+    /// A bound sampling curved blocks at most `spacing` mm apart.
+    pub fn new(settings: &PlanSettings, spacing: f64) -> TimeOptimalBound {
+        let accel = settings.max_tangential_accel;
+        let v_max = settings.max_feed.max(settings.rapid_feed);
+        TimeOptimalBound {
+            sampler: Sampler {
+                settings: settings.clone(),
+                spacing,
+                prev_tangent: None,
+            },
+            profile: Profile {
+                accel,
+                horizon: v_max * v_max / accel,
+                open: VecDeque::new(),
+                open_length: 0.0,
+                backward: Vec::new(),
+                settled: None,
+                time: 0.0,
+                peak_open: 0,
+            },
         }
     }
-    let last = limit.len() - 1;
-    limit[last] = 0.0;
-    let a2 = 2.0 * settings.max_tangential_accel;
-    let mut v = limit.clone();
-    for k in 1..v.len() {
-        v[k] = v[k].min((v[k - 1] * v[k - 1] + a2 * ds[k - 1]).sqrt());
+
+    /// The distance behind the newest sample beyond which samples are settled (mm).
+    pub fn horizon(&self) -> f64 {
+        self.profile.horizon
     }
-    for k in (0..v.len() - 1).rev() {
-        v[k] = v[k].min((v[k + 1] * v[k + 1] + a2 * ds[k]).sqrt());
+
+    /// The most samples held at once so far.
+    pub fn peak_samples(&self) -> usize {
+        self.profile.peak_open
     }
-    ds.iter()
-        .enumerate()
-        .map(|(k, &d)| {
-            let sum = v[k] + v[k + 1];
-            if d > 0.0 { 2.0 * d / sum } else { 0.0 }
-        })
-        .sum()
+
+    /// Samples `block`, the next along the path.
+    pub fn push_block(&mut self, block: &Block) {
+        let profile = &mut self.profile;
+        self.sampler.block(block, |step| profile.step(step));
+    }
+
+    /// The bound (s), the path ending at rest; `None` for a path of no blocks.
+    pub fn finish(mut self) -> Option<f64> {
+        let last = self.profile.open.back_mut()?;
+        last.v = 0.0;
+        self.profile.settle(true);
+        Some(self.profile.time)
+    }
+}
+
+impl Profile {
+    fn step(&mut self, step: Step) {
+        match step {
+            // The newest sample is never settled before the end: it is open.
+            Step::Junction(limit) => {
+                if let Some(last) = self.open.back_mut() {
+                    last.v = last.v.min(limit);
+                }
+            }
+            Step::Sample(sample) => self.push_sample(sample),
+        }
+    }
+
+    /// The forward pass over a new sample.
+    fn push_sample(&mut self, mut sample: Sample) {
+        if let Some(prev) = self.open.back() {
+            let reach = (prev.v * prev.v + 2.0 * self.accel * sample.ds).sqrt();
+            sample.v = sample.v.min(reach);
+            self.open_length += sample.ds;
+        }
+        self.open.push_back(sample);
+        self.peak_open = self.peak_open.max(self.open.len());
+        if self.open_length > 2.0 * self.horizon {
+            self.settle(false);
+        }
+    }
+
+    /// The backward pass over the open samples from the newest; settles those at least a
+    /// horizon behind it (all of them at the path's end), adding their time.
+    fn settle(&mut self, all: bool) {
+        let len = self.open.len();
+        backward_pass(self.open.iter(), self.accel, &mut self.backward);
+        // Settle while the next sample is a horizon or more behind the newest; the newest
+        // stays open before the end, for the junction the next block may put on it.
+        let mut behind = self.open_length;
+        let mut count = 0;
+        while count < len && (all || (count + 1 < len && behind >= self.horizon)) {
+            if count + 1 < len {
+                behind -= self.open[count + 1].ds;
+            }
+            count += 1;
+        }
+        for &v in &self.backward[..count] {
+            let sample = self.open.pop_front().expect("counted among the open");
+            if let Some(prev) = self.settled {
+                self.time += interval_time(prev, v, sample.cap, sample.ds, self.accel);
+            }
+            self.settled = Some(v);
+        }
+        self.open_length = self.open.iter().skip(1).map(|s| s.ds).sum();
+    }
+}
+
+/// The backward pass over `samples` from the last: each speed capped by what a stop at the
+/// next allows, into `out`.
+fn backward_pass<'a>(
+    samples: impl DoubleEndedIterator<Item = &'a Sample> + ExactSizeIterator,
+    accel: f64,
+    out: &mut Vec<f64>,
+) {
+    out.clear();
+    out.resize(samples.len(), 0.0);
+    let mut next: Option<(f64, f64)> = None;
+    for (k, sample) in samples.enumerate().rev() {
+        let v = match next {
+            Some((v_next, ds_next)) => sample
+                .v
+                .min((v_next * v_next + 2.0 * accel * ds_next).sqrt()),
+            None => sample.v,
+        };
+        out[k] = v;
+        next = Some((v, sample.ds));
+    }
+}
+
+/// Time-optimal traversal time (s) of `blocks` in order, curved blocks sampled at most
+/// `spacing` mm apart (zero for no blocks).
+pub fn time_optimal_bound(blocks: &[&Block], settings: &PlanSettings, spacing: f64) -> f64 {
+    let mut bound = TimeOptimalBound::new(settings, spacing);
+    for block in blocks {
+        bound.push_block(block);
+    }
+    bound.finish().unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::BlockReader;
+    use crate::rng::SplitMix64;
+    use crate::vocab::Axis;
+    use std::io::Cursor;
+
+    const SPACING: f64 = MAX_SPACING_MM;
+
+    /// The default machine's limits (`config/edmd.toml`): 1 µm steps every 50 µs cap each
+    /// axis at 20 mm/s. This module stands below `config`, so they are written out.
+    fn settings() -> PlanSettings {
+        let mut axis_cap = [f64::INFINITY; crate::vocab::MAX_AXES];
+        axis_cap[0] = 20.0;
+        axis_cap[1] = 20.0;
+        PlanSettings {
+            predictor: crate::vocab::Predictor::Taylor,
+            segmentation: Segmentation::Chord,
+            tolerance: 0.001,
+            max_segment: 1.0,
+            period: 0.001,
+            max_feed: 300.0,
+            rapid_feed: 20.0,
+            max_normal_accel: 4900.0,
+            max_tangential_accel: 2400.0,
+            lookahead: 1024,
+            fluctuation_tolerance: 1e-6,
+            max_corrections: 8,
+            corners: vec![],
+            rapid_stops: false,
+            axis_cap,
+        }
+    }
+
+    fn read(text: &str) -> Vec<Block> {
+        BlockReader::new(Cursor::new(text.to_string()), "b.ngc", &[Axis::X, Axis::Y])
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap()
+    }
+
+    /// The bound with the whole path in memory: every sample first, then the forward pass,
+    /// the backward pass and the sum over all.
+    fn whole_path(blocks: &[Block], settings: &PlanSettings, spacing: f64) -> (f64, usize) {
+        let mut sampler = Sampler {
+            settings: settings.clone(),
+            spacing,
+            prev_tangent: None,
+        };
+        let mut samples: Vec<Sample> = vec![];
+        for block in blocks {
+            sampler.block(block, |step| match step {
+                Step::Junction(limit) => {
+                    let last = samples.last_mut().unwrap();
+                    last.v = last.v.min(limit);
+                }
+                Step::Sample(sample) => samples.push(sample),
+            });
+        }
+        samples.last_mut().unwrap().v = 0.0;
+        let accel = settings.max_tangential_accel;
+        for k in 1..samples.len() {
+            let reach = (samples[k - 1].v.powi(2) + 2.0 * accel * samples[k].ds).sqrt();
+            samples[k].v = samples[k].v.min(reach);
+        }
+        let mut v = vec![];
+        backward_pass(samples.iter(), accel, &mut v);
+        let time = (1..samples.len())
+            .map(|k| interval_time(v[k - 1], v[k], samples[k].cap, samples[k].ds, accel))
+            .sum();
+        (time, samples.len())
+    }
+
+    /// A seeded program of lines, arcs, rapids and feed changes, some moves far longer than
+    /// the horizon and some far shorter.
+    fn program(seed: u64, moves: usize) -> String {
+        let mut rng = SplitMix64::new(seed);
+        let mut text = String::from("G21 G90 G17\nF300\n");
+        let (mut x, mut y) = (0.0, 0.0);
+        for i in 0..moves {
+            let length = [0.02, 0.3, 2.0, 12.0][rng.below(4)];
+            let angle = rng.uniform(0.0, std::f64::consts::TAU);
+            let (nx, ny) = (x + length * angle.cos(), y + length * angle.sin());
+            match rng.below(6) {
+                0 => text += &format!("G0 X{nx:.4} Y{ny:.4}\n"),
+                1 | 2 => {
+                    // A half circle on the chord: centre at its middle.
+                    let (i_, j_) = ((nx - x) / 2.0, (ny - y) / 2.0);
+                    let g = if i % 2 == 0 { 2 } else { 3 };
+                    text += &format!("G{g} X{nx:.4} Y{ny:.4} I{i_:.4} J{j_:.4}\n");
+                    // The end the reader computes differs in the last digit at most.
+                }
+                3 => text += &format!("G1 X{nx:.4} Y{ny:.4} F{}\n", 60 + rng.below(1500)),
+                _ => text += &format!("G1 X{nx:.4} Y{ny:.4}\n"),
+            }
+            (x, y) = ((nx * 1e4).round() / 1e4, (ny * 1e4).round() / 1e4);
+        }
+        text + "M2\n"
+    }
+
+    #[test]
+    fn streamed_bound_is_the_whole_paths_bit_for_bit_in_bounded_memory() {
+        let mut period = settings();
+        period.segmentation = Segmentation::Period;
+        let mut papers = settings();
+        papers.axis_cap = [f64::INFINITY; crate::vocab::MAX_AXES];
+        for (seed, settings) in [(1, settings()), (2, period), (3, papers)] {
+            let blocks = read(&program(seed, 300));
+            let mut streamed = TimeOptimalBound::new(&settings, SPACING);
+            for block in &blocks {
+                streamed.push_block(block);
+            }
+            let peak = streamed.peak_samples();
+            let horizon = streamed.horizon();
+            let got = streamed.finish().unwrap();
+            let (want, samples) = whole_path(&blocks, &settings, SPACING);
+            assert_eq!(
+                got.to_bits(),
+                want.to_bits(),
+                "seed {seed}: {got} against {want}"
+            );
+            // What is held is about two horizons of samples, not the path.
+            assert!(
+                peak < samples / 4,
+                "seed {seed}: {peak} of {samples} samples held (horizon {horizon} mm)"
+            );
+        }
+    }
+
+    #[test]
+    fn an_empty_path_has_no_bound_and_one_block_ends_at_rest() {
+        let settings = settings();
+        assert_eq!(TimeOptimalBound::new(&settings, SPACING).finish(), None);
+        // 10 mm at 600 mm/min: 1 s at speed plus the ramps at either end.
+        let blocks = read("G1 X10 F600\n");
+        let t = time_optimal_bound(&blocks.iter().collect::<Vec<_>>(), &settings, SPACING);
+        let a = settings.max_tangential_accel;
+        let v = 10.0f64.min(settings.axis_cap[0]);
+        let exact = 10.0 / v + v / a;
+        assert!((t - exact).abs() < 1e-3 * exact, "{t} against {exact}");
+    }
 }

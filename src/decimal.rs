@@ -1,0 +1,393 @@
+//! Numbers as text, fast: an `f64` as the shortest decimal that reads back as the same double,
+//! laid out exactly as std's `{}` and `{:e}` lay it out, and integers, appended to a byte
+//! buffer without going through `core::fmt` and without allocating.
+//!
+//! Why not `format!`: `edmd plan` writes a trace row per segment, a dozen numbers a row, and
+//! `core::fmt`'s shortest-digits path (Grisu with a Dragon fallback, behind the formatter's
+//! padding machinery) cost about 13,000 instructions a row, more than segmenting and planning
+//! the segment. Ryū (the `ryu` crate) finds the same shortest round-trip digits in a few
+//! hundred; it lays them out its own way (`1e-7`, `1.0`), so this module takes its digits and
+//! exponent and writes them in std's layout. A test holds the two equal on millions of
+//! doubles, so a trace written here is byte-for-byte the one `format!` wrote.
+//!
+//! Must never: import another edmd module outside its tests, allocate beyond growing the
+//! caller's buffer, or print a number that reads back as a different double.
+
+/// A decimal `0.d₁d₂…dₙ × 10^point` with `d₁ ≠ 0` and `dₙ ≠ 0` (no digits for zero).
+struct Digits {
+    negative: bool,
+    digits: [u8; 20],
+    len: usize,
+    point: i32,
+}
+
+impl Digits {
+    /// The shortest round-trip digits of a finite `x`.
+    fn of(x: f64) -> Digits {
+        let mut buffer = zmij::Buffer::new();
+        let text = buffer.format_finite(x).as_bytes();
+        let (negative, text) = match text.split_first() {
+            Some((b'-', rest)) => (true, rest),
+            _ => (false, text),
+        };
+        let (mantissa, exponent) = match text.iter().position(|&b| b == b'e') {
+            Some(e) => (&text[..e], parse_exponent(&text[e + 1..])),
+            None => (text, 0),
+        };
+        let mut d = Digits {
+            negative,
+            digits: [0; 20],
+            len: 0,
+            point: 0,
+        };
+        // Digits before the mantissa's point count towards `point`; leading zeros do not
+        // count as digits, and a zero before the point is not a digit either.
+        let mut before_point = true;
+        for &b in mantissa {
+            if b == b'.' {
+                before_point = false;
+                continue;
+            }
+            if d.len == 0 && b == b'0' {
+                if !before_point {
+                    d.point -= 1;
+                }
+                continue;
+            }
+            d.digits[d.len] = b;
+            d.len += 1;
+            if before_point {
+                d.point += 1;
+            }
+        }
+        while d.len > 0 && d.digits[d.len - 1] == b'0' {
+            d.len -= 1;
+        }
+        if d.len == 0 {
+            d.point = 0;
+        }
+        d.point += exponent;
+        if d.len > 0 && d.is_tie_below(x) {
+            d.round_up();
+        }
+        d
+    }
+
+    /// Whether `|x|` lies exactly halfway between these digits and the next decimal up of the
+    /// same length. Ryū breaks such a tie to an even last digit, std upwards; both are the
+    /// same distance from `x`, so both read back as `x`, and std's is the one to print.
+    ///
+    /// With `|x| = m · 2^e` (`m` odd) and the halfway point `(2D + 1) · 5^(f+1) · 2^f`
+    /// (`D` the digits as an integer, `f` one below the last digit's power of ten), the two
+    /// are equal exactly when the powers of two agree and the odd parts do: integers only.
+    fn is_tie_below(&self, x: f64) -> bool {
+        let (m, e) = odd_mantissa(x);
+        let f = self.point - self.len as i32 - 1;
+        if e != f {
+            return false;
+        }
+        let d = self
+            .digits()
+            .iter()
+            .fold(0u128, |v, &b| v * 10 + u128::from(b - b'0'));
+        let odd = 2 * d + 1;
+        let five = |k: i32| 5u128.checked_pow(k.unsigned_abs());
+        if f + 1 >= 0 {
+            five(f + 1).and_then(|p| odd.checked_mul(p)) == Some(u128::from(m))
+        } else {
+            five(f + 1).and_then(|p| u128::from(m).checked_mul(p)) == Some(odd)
+        }
+    }
+
+    /// The next decimal up with this many digits (or one digit fewer: `99` becomes `1` with
+    /// the point moved), trailing zeros dropped.
+    fn round_up(&mut self) {
+        let mut i = self.len;
+        loop {
+            if i == 0 {
+                self.digits[0] = b'1';
+                self.len = 1;
+                self.point += 1;
+                return;
+            }
+            i -= 1;
+            if self.digits[i] == b'9' {
+                self.digits[i] = b'0';
+            } else {
+                self.digits[i] += 1;
+                break;
+            }
+        }
+        while self.digits[self.len - 1] == b'0' {
+            self.len -= 1;
+        }
+    }
+
+    fn digits(&self) -> &[u8] {
+        &self.digits[..self.len]
+    }
+}
+
+fn parse_exponent(text: &[u8]) -> i32 {
+    let (negative, digits) = match text.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        Some((b'+', rest)) => (false, rest),
+        _ => (false, text),
+    };
+    let value = digits
+        .iter()
+        .fold(0i32, |v, &b| v * 10 + i32::from(b - b'0'));
+    if negative { -value } else { value }
+}
+
+/// Non-finite values as std prints them (`NaN`, `inf`, `-inf`); `false` for a finite `x`.
+fn push_non_finite(out: &mut Vec<u8>, x: f64) -> bool {
+    if x.is_nan() {
+        out.extend_from_slice(b"NaN");
+    } else if x.is_infinite() {
+        out.extend_from_slice(if x < 0.0 { b"-inf" } else { b"inf" });
+    } else {
+        return false;
+    }
+    true
+}
+
+fn push_zeros(out: &mut Vec<u8>, n: usize) {
+    out.resize(out.len() + n, b'0');
+}
+
+/// Appends `x` as `format!("{x}")` prints it: the shortest round-trip digits, never an
+/// exponent (`0.0000001`, `1000000000000000000000`), no point for a whole number (`1`, `-0`).
+pub fn push_f64(out: &mut Vec<u8>, x: f64) {
+    if push_non_finite(out, x) {
+        return;
+    }
+    if !may_tie(x) {
+        // The common case: Ryū's own decimal layout is std's but for the `.0` it gives a
+        // whole number; only its exponent layout (below 1e-5, from 1e16) needs laying out.
+        let mut buffer = zmij::Buffer::new();
+        let text = buffer.format_finite(x).as_bytes();
+        // An exponent, if any, is in the last five bytes (`e-308`).
+        if !text.iter().rev().take(5).any(|&b| b == b'e') {
+            out.extend_from_slice(text.strip_suffix(b".0").unwrap_or(text));
+            return;
+        }
+    }
+    let d = Digits::of(x);
+    if d.negative {
+        out.push(b'-');
+    }
+    let digits = d.digits();
+    if digits.is_empty() {
+        out.push(b'0');
+    } else if d.point <= 0 {
+        out.extend_from_slice(b"0.");
+        push_zeros(out, d.point.unsigned_abs() as usize);
+        out.extend_from_slice(digits);
+    } else if (d.point as usize) < digits.len() {
+        let (whole, fraction) = digits.split_at(d.point as usize);
+        out.extend_from_slice(whole);
+        out.push(b'.');
+        out.extend_from_slice(fraction);
+    } else {
+        out.extend_from_slice(digits);
+        push_zeros(out, d.point as usize - digits.len());
+    }
+}
+
+/// Whether `x`'s shortest digits could be a tie between two candidates (see
+/// [`Digits::is_tie_below`]): only when its exact decimal expansion has at most 18
+/// significant digits, one more than the shortest can have. A whole number below 2^53 is
+/// its own shortest; `m · 2^-k` (`m` odd) has the digits of `m · 5^k`.
+fn may_tie(x: f64) -> bool {
+    let (m, e) = odd_mantissa(x);
+    if e >= 0 {
+        return x.abs() >= 9_007_199_254_740_992.0;
+    }
+    let k = e.unsigned_abs() as usize;
+    k < POW5.len() && u128::from(m) * u128::from(POW5[k]) < 1_000_000_000_000_000_000
+}
+
+/// `5^k` for the `k` where `m · 5^k` can stay under 10^18.
+const POW5: [u64; 27] = {
+    let mut table = [1u64; 27];
+    let mut k = 1;
+    while k < table.len() {
+        table[k] = table[k - 1] * 5;
+        k += 1;
+    }
+    table
+};
+
+/// `|x| = m · 2^e` with `m` odd (or zero).
+fn odd_mantissa(x: f64) -> (u64, i32) {
+    let bits = x.to_bits();
+    let field = ((bits >> 52) & 0x7ff) as i32;
+    let fraction = bits & ((1 << 52) - 1);
+    let (m, e) = if field == 0 {
+        (fraction, -1074)
+    } else {
+        (fraction | (1 << 52), field - 1075)
+    };
+    if m == 0 {
+        return (0, 0);
+    }
+    let zeros = m.trailing_zeros();
+    (m >> zeros, e + zeros as i32)
+}
+
+/// Appends `x` as `format!("{x:e}")` prints it: the shortest round-trip digits as
+/// `d.ddd` times a power of ten (`1.5e-7`, `1e0`, `0e0`).
+pub fn push_f64_exp(out: &mut Vec<u8>, x: f64) {
+    if push_non_finite(out, x) {
+        return;
+    }
+    let d = Digits::of(x);
+    if d.negative {
+        out.push(b'-');
+    }
+    let digits = d.digits();
+    let exponent = match digits.split_first() {
+        None => {
+            out.push(b'0');
+            0
+        }
+        Some((first, rest)) => {
+            out.push(*first);
+            if !rest.is_empty() {
+                out.push(b'.');
+                out.extend_from_slice(rest);
+            }
+            d.point - 1
+        }
+    };
+    out.push(b'e');
+    push_i64(out, i64::from(exponent));
+}
+
+/// Appends an integer in decimal, as `{}` prints it.
+pub fn push_i64(out: &mut Vec<u8>, n: i64) {
+    out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
+}
+
+/// Appends an unsigned integer in decimal, as `{}` prints it.
+pub fn push_u64(out: &mut Vec<u8>, n: u64) {
+    out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn display(x: f64) -> String {
+        let mut out = Vec::new();
+        push_f64(&mut out, x);
+        String::from_utf8(out).unwrap()
+    }
+
+    fn exp(x: f64) -> String {
+        let mut out = Vec::new();
+        push_f64_exp(&mut out, x);
+        String::from_utf8(out).unwrap()
+    }
+
+    fn same_as_std(x: f64) {
+        assert_eq!(
+            display(x),
+            format!("{x}"),
+            "{{}} of {:e} ({:#x})",
+            x,
+            x.to_bits()
+        );
+        assert_eq!(
+            exp(x),
+            format!("{x:e}"),
+            "{{:e}} of {:e} ({:#x})",
+            x,
+            x.to_bits()
+        );
+    }
+
+    #[test]
+    fn edge_values_print_as_std_prints_them() {
+        let edges = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            0.3,
+            1.5,
+            10.0,
+            100.0,
+            123.456,
+            1e-7,
+            1.5e-7,
+            1e15,
+            1e16,
+            1.2345e16,
+            1e21,
+            1e22,
+            1e300,
+            f64::MAX,
+            f64::MIN,
+            f64::MIN_POSITIVE,
+            f64::EPSILON,
+            5e-324,
+            -5e-324,
+            9007199254740993.0,
+            0.000_001,
+            2.703574470692675,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for x in edges {
+            same_as_std(x);
+        }
+    }
+
+    /// Doubles per family (`EDMD_DECIMAL_TESTS` raises it for a long run).
+    fn count() -> usize {
+        std::env::var("EDMD_DECIMAL_TESTS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(200_000)
+    }
+
+    #[test]
+    fn random_doubles_print_as_std_prints_them() {
+        // Random bit patterns cover every exponent; numbers of the size a trace holds
+        // (coordinates, times, feeds, micron errors) cover the layouts it uses.
+        let mut rng = crate::rng::SplitMix64::new(0x5eed);
+        let n = count();
+        for _ in 0..n {
+            same_as_std(f64::from_bits(rng.next_u64()));
+        }
+        for _ in 0..n {
+            let magnitude = (rng.next_u64() % 40) as i32 - 20;
+            let x = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64 * 10f64.powi(magnitude);
+            same_as_std(x);
+            same_as_std(-x);
+        }
+        // Short dyadic numbers, whose exact decimals are short: where ties between two
+        // shortest candidates live (Ryū rounds them to even, std up).
+        for _ in 0..n {
+            let m = (rng.next_u64() >> 40) as f64;
+            let x = m * 2f64.powi((rng.next_u64() % 140) as i32 - 70);
+            same_as_std(x);
+        }
+    }
+
+    #[test]
+    fn integers_print_as_std_prints_them() {
+        for n in [0, 1, -1, 42, i64::MAX, i64::MIN] {
+            let mut out = Vec::new();
+            push_i64(&mut out, n);
+            assert_eq!(out, n.to_string().into_bytes());
+        }
+        let mut out = Vec::new();
+        push_u64(&mut out, u64::MAX);
+        assert_eq!(out, u64::MAX.to_string().into_bytes());
+    }
+}
