@@ -92,6 +92,31 @@ pub fn random_hex(bytes: usize) -> io::Result<String> {
     Ok(raw.iter().map(|b| format!("{b:02x}")).collect())
 }
 
+/// A secret's file as read: its text, and its permission bits when others than its owner
+/// may read it (the reader warns: a secret should be mode 0600).
+#[derive(Debug)]
+pub struct PrivateText {
+    pub text: String,
+    pub loose_mode: Option<u32>,
+}
+
+/// The secret at `path` (see [`read_regular`]), `None` when there is no file: the half of
+/// load-or-create that the HTTP token and the OPC UA users share.
+pub fn read_private(path: &Path) -> io::Result<Option<PrivateText>> {
+    use std::os::unix::fs::PermissionsExt;
+    match read_regular(path) {
+        Ok(text) => {
+            let loose_mode = std::fs::metadata(path)
+                .ok()
+                .map(|meta| meta.permissions().mode() & 0o777)
+                .filter(|mode| mode & 0o077 != 0);
+            Ok(Some(PrivateText { text, loose_mode }))
+        }
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
 /// Writes `text` to a new file at `path` that only its owner may read (mode 0600), and
 /// syncs it; an existing file is an error, never overwritten.
 pub fn create_private(path: &Path, text: &str) -> io::Result<()> {
@@ -108,6 +133,29 @@ pub fn create_private(path: &Path, text: &str) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_private_file_is_read_with_its_loose_mode_and_a_missing_one_is_none() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = std::env::temp_dir().join(format!("edmd-private-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("secret");
+        assert!(read_private(&path).unwrap().is_none());
+        create_private(&path, "s3cret\n").unwrap();
+        let file = read_private(&path).unwrap().unwrap();
+        assert_eq!((file.text.as_str(), file.loose_mode), ("s3cret\n", None));
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
+        assert_eq!(
+            read_private(&path).unwrap().unwrap().loose_mode,
+            Some(0o640)
+        );
+        assert!(
+            read_private(&dir).is_err(),
+            "a directory is an error, not a missing file"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_fifo_is_refused_at_once() {

@@ -25,7 +25,8 @@ mod rt;
 
 pub use clock::{local_stamp, local_stamp_of, monotonic_ns, sleep_until_ns};
 pub use files::{
-    create_private, open_regular, random_hex, read_regular, temporary_path, write_atomic,
+    PrivateText, create_private, open_regular, random_hex, read_private, read_regular,
+    temporary_path, write_atomic,
 };
 pub use group::group_id;
 pub use limits::raise_descriptor_limit;

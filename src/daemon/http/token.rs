@@ -6,7 +6,6 @@
 //! The file must be a regular file: a FIFO put in its place is an error, not a daemon
 //! waiting for a writer.
 
-use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 
 /// Fewest characters a token may have: 128 bits written as hex.
@@ -40,20 +39,17 @@ pub enum TokenError {
 /// The token in `path`; a new one (64 hex digits) written there first when there is none.
 pub fn load_or_create(path: &Path) -> Result<String, TokenError> {
     let name = path.display().to_string();
-    match crate::sys::read_regular(path) {
-        Ok(text) => {
-            let token = validate(&name, text.trim())?;
-            if let Ok(meta) = std::fs::metadata(path)
-                && meta.permissions().mode() & 0o077 != 0
-            {
+    match crate::sys::read_private(path) {
+        Ok(Some(file)) => {
+            let token = validate(&name, file.text.trim())?;
+            if let Some(mode) = file.loose_mode {
                 tracing::warn!(
-                    "{name}: the HTTP token is readable by others (mode {:o}); chmod 600 it",
-                    meta.permissions().mode() & 0o777
+                    "{name}: the HTTP token is readable by others (mode {mode:o}); chmod 600 it"
                 );
             }
             Ok(token)
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => create(path),
+        Ok(None) => create(path),
         Err(source) => Err(TokenError::Read { path: name, source }),
     }
 }
@@ -101,6 +97,7 @@ pub fn same(a: &[u8], b: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::os::unix::fs::PermissionsExt;
 
     #[test]
     fn a_missing_token_is_made_private_and_then_kept() {

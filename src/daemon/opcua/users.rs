@@ -7,7 +7,6 @@
 //! user is compared, so the answer's timing tells neither which names exist nor how much of a
 //! password was right.
 
-use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 
 /// Fewest characters a password may have.
@@ -77,20 +76,17 @@ impl Users {
 /// is none.
 pub fn load_or_create(path: &Path) -> Result<Users, UsersError> {
     let name = path.display().to_string();
-    match crate::sys::read_regular(path) {
-        Ok(text) => {
-            let users = parse(&name, &text)?;
-            if let Ok(meta) = std::fs::metadata(path)
-                && meta.permissions().mode() & 0o077 != 0
-            {
+    match crate::sys::read_private(path) {
+        Ok(Some(file)) => {
+            let users = parse(&name, &file.text)?;
+            if let Some(mode) = file.loose_mode {
                 tracing::warn!(
-                    "{name}: the OPC UA passwords are readable by others (mode {:o}); chmod 600 it",
-                    meta.permissions().mode() & 0o777
+                    "{name}: the OPC UA passwords are readable by others (mode {mode:o}); chmod 600 it"
                 );
             }
             Ok(users)
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => create(path),
+        Ok(None) => create(path),
         Err(source) => Err(UsersError::Read { path: name, source }),
     }
 }
@@ -170,6 +166,7 @@ fn create(path: &Path) -> Result<Users, UsersError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::os::unix::fs::PermissionsExt;
 
     #[test]
     fn a_missing_file_is_made_private_with_one_operator() {
