@@ -60,3 +60,19 @@ pub fn circular_arc(
     knots.extend([1.0; 3]);
     NurbsCurve::new(2, dim, &points, &weights, knots)
 }
+
+/// The test curves' semicircle: radius 10 about the origin in X/Y, counter-clockwise from
+/// (10, 0) to (−10, 0).
+#[cfg(test)]
+pub fn semicircle() -> NurbsCurve {
+    use super::point;
+    circular_arc(
+        2,
+        [0, 1],
+        &point(&[0.0, 0.0]),
+        &point(&[10.0, 0.0]),
+        &point(&[-10.0, 0.0]),
+        std::f64::consts::PI,
+    )
+    .unwrap()
+}

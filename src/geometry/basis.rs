@@ -7,7 +7,7 @@
 use super::MAX_DEGREE;
 
 /// Number of basis functions that are non-zero on one knot span, at the highest degree.
-pub(crate) const MAX_ORDER: usize = MAX_DEGREE + 1;
+pub const MAX_ORDER: usize = MAX_DEGREE + 1;
 
 /// Index `i` of the knot span `[knots[i], knots[i+1])` that holds `u` (A2.1, binary search).
 ///

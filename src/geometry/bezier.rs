@@ -17,21 +17,24 @@
 //! Casteljau ([`Bezier::split`]) gives control polygons that converge to the curve
 //! quadratically, so such bounds tighten by about four at each halving.
 
-use super::basis::find_span;
+use super::basis::{MAX_ORDER, find_span};
 use super::nurbs::{HOMOGENEOUS_WIDTH, WEIGHT_SLOT};
-use super::{MAX_DEGREE, NurbsCurve, Point};
-
-const ORDER: usize = MAX_DEGREE + 1;
+use super::{NurbsCurve, Point};
 
 /// A rational Bézier curve in homogeneous form `(w x, w)`: degree `p`, `p + 1` control points,
-/// all weights positive, each a row of `W` numbers (the coordinates, zeros, the weight last).
-/// `W = 4` holds curves of up to three axes in half the room of `W = 8` (up to seven), which
-/// matters: pieces and their halves are copied on the stack. Fixed-size, so nothing allocates.
+/// all weights positive, each a row of `W` numbers (the coordinates, zeros, the weight last),
+/// in `R` rows (`p < R`; the rows past `p` are zero).
+///
+/// Both sizes are parameters because pieces and their halves are copied on the stack, and the
+/// certificate makes millions of them: `W = 4` holds curves of up to three axes in half the
+/// room of `W = 8` (up to seven), and `R = 4` holds up to cubics (arcs are quadratics) in
+/// two fifths of the room of [`MAX_ORDER`] rows (any degree). The arithmetic is the same at every
+/// size: only the unused zero rows and columns go. Fixed-size, so nothing allocates.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bezier<const W: usize = HOMOGENEOUS_WIDTH> {
+pub struct Bezier<const W: usize = HOMOGENEOUS_WIDTH, const R: usize = MAX_ORDER> {
     degree: usize,
     dim: usize,
-    points: [[f64; W]; ORDER],
+    points: [[f64; W]; R],
 }
 
 #[inline]
@@ -43,7 +46,7 @@ fn lerp<const W: usize>(a: &[f64; W], b: &[f64; W], t: f64) -> [f64; W] {
     out
 }
 
-impl<const W: usize> Bezier<W> {
+impl<const W: usize, const R: usize> Bezier<W, R> {
     const WEIGHT: usize = W - 1;
 
     pub fn degree(&self) -> usize {
@@ -83,27 +86,20 @@ impl<const W: usize> Bezier<W> {
     }
 
     /// The two halves, on `[0, ½]` and `[½, 1]` (de Casteljau at `½`).
-    pub fn split(&self) -> (Bezier<W>, Bezier<W>) {
+    pub fn split(&self) -> (Bezier<W, R>, Bezier<W, R>) {
         self.split_at(0.5)
     }
 
     /// The two parts on `[0, t]` and `[t, 1]`, `t ∈ [0, 1]` (de Casteljau at `t`). Their control
     /// points are convex combinations of this curve's, so they stay in its convex hull and
     /// keep positive weights.
-    pub fn split_at(&self, t: f64) -> (Bezier<W>, Bezier<W>) {
+    pub fn split_at(&self, t: f64) -> (Bezier<W, R>, Bezier<W, R>) {
         let p = self.degree;
-        let mut left = Bezier {
-            degree: p,
-            dim: self.dim,
-            points: [[0.0; W]; ORDER],
-        };
-        let mut right = Bezier {
-            degree: p,
-            dim: self.dim,
-            points: [[0.0; W]; ORDER],
-        };
-        let mut work = [[0.0; W]; ORDER];
-        work[..=p].copy_from_slice(&self.points[..=p]);
+        // Copies, not zeroed arrays: the rows past `p` are zero already, and the rows up to
+        // `p` are all overwritten below.
+        let mut left = *self;
+        let mut right = *self;
+        let mut work = self.points;
         left.points[0] = work[0];
         right.points[p] = work[p];
         for r in 1..=p {
@@ -137,18 +133,25 @@ impl NurbsCurve {
     /// per non-empty knot span the interval crosses, in order along the curve; nothing when
     /// the interval is empty. Each comes with the parameter interval it covers. Allocation-free.
     ///
-    /// `W` is the row width: 8 holds any curve; 4 holds curves of up to three axes (panics on
-    /// more: the caller picks the width from [`dim`](Self::dim)).
-    pub fn bezier_pieces<const W: usize>(
+    /// `W` is the row width: 8 holds any curve; 4 holds curves of up to three axes. `R` is the
+    /// row count: [`MAX_ORDER`] holds any degree; 4 holds up to cubics. Panics on a curve that does
+    /// not fit: the caller picks the sizes from [`dim`](Self::dim) and
+    /// [`degree`](Self::degree).
+    pub fn bezier_pieces<const W: usize, const R: usize>(
         &self,
         u0: f64,
         u1: f64,
-        mut each: impl FnMut(&Bezier<W>, f64, f64),
+        mut each: impl FnMut(&Bezier<W, R>, f64, f64),
     ) {
         assert!(
             self.dim() < W,
             "a {W}-wide Bézier holds at most {} axes",
             W - 1
+        );
+        assert!(
+            self.degree() < R,
+            "{R} rows hold Bézier pieces up to degree {}",
+            R - 1
         );
         let (u0, u1) = (
             u0.clamp(self.u_min(), self.u_max()),
@@ -179,11 +182,16 @@ impl NurbsCurve {
     /// The blossom is symmetric, so control point `j` may take `t` at the first `j` levels and
     /// `s` after: the `t` levels are a prefix shared by every `j`, computed once (`p(p+1)/2`
     /// lerps), and each point finishes with its own `s` levels (`(p−j)(p−j+1)/2`).
-    fn span_bezier<const W: usize>(&self, span: usize, s: f64, t: f64) -> Bezier<W> {
+    fn span_bezier<const W: usize, const R: usize>(
+        &self,
+        span: usize,
+        s: f64,
+        t: f64,
+    ) -> Bezier<W, R> {
         let p = self.degree();
         let dim = self.dim();
         let knots = self.knots();
-        let level = |d: &mut [[f64; W]; ORDER], r: usize, x: f64| {
+        let level = |d: &mut [[f64; W]; R], r: usize, x: f64| {
             for i in (r..=p).rev() {
                 let k = span - p + i;
                 let alpha = (x - knots[k]) / (knots[k + p + 1 - r] - knots[k]);
@@ -193,11 +201,11 @@ impl NurbsCurve {
         let mut out = Bezier {
             degree: p,
             dim,
-            points: [[0.0; W]; ORDER],
+            points: [[0.0; W]; R],
         };
         // `prefix` after j levels at t; `d` finishes each point (only the live rows copied).
-        let mut prefix = [[0.0; W]; ORDER];
-        let mut d = [[0.0; W]; ORDER];
+        let mut prefix = [[0.0; W]; R];
+        let mut d = [[0.0; W]; R];
         for (row, h) in prefix.iter_mut().zip(&self.homogeneous()[span - p..=span]) {
             row[..dim].copy_from_slice(&h[..dim]);
             row[W - 1] = h[WEIGHT_SLOT];
@@ -219,7 +227,7 @@ impl NurbsCurve {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{circular_arc, clamped_uniform_knots, point};
+    use crate::geometry::{clamped_uniform_knots, point, semicircle};
     use crate::rng::SplitMix64;
 
     fn random_curve(rng: &mut SplitMix64, degree: usize, n: usize, repeat: bool) -> NurbsCurve {
@@ -254,13 +262,30 @@ mod tests {
             let a = rng.uniform(lo, hi);
             let b = rng.uniform(a, hi);
             let mut pieces = Vec::new();
-            curve.bezier_pieces::<8>(a, b, |bz, _, _| pieces.push(*bz));
-            // The narrow rows give the same points.
+            curve.bezier_pieces::<8, MAX_ORDER>(a, b, |bz, _, _| pieces.push(*bz));
+            // The narrow rows give the same points, and so do the few rows of a low degree:
+            // bit for bit, since the arithmetic is the same.
             let mut narrow = Vec::new();
-            curve.bezier_pieces::<4>(a, b, |bz, _, _| narrow.push(*bz));
-            for (w, n) in pieces.iter().zip(&narrow) {
+            curve.bezier_pieces::<4, MAX_ORDER>(a, b, |bz, _, _| narrow.push(*bz));
+            let mut short = Vec::new();
+            if degree < 4 {
+                curve.bezier_pieces::<4, 4>(a, b, |bz, _, _| short.push(*bz));
+                assert_eq!(short.len(), narrow.len());
+            }
+            for (k, (w, n)) in pieces.iter().zip(&narrow).enumerate() {
                 for j in 0..=degree {
                     assert!((w.control_point(j) - n.control_point(j)).norm() < 1e-12);
+                    if let Some(s) = short.get(k) {
+                        assert_eq!(s.control_point(j), n.control_point(j));
+                    }
+                }
+                if let Some(s) = short.get(k) {
+                    let (sl, sr) = s.split_at(0.3);
+                    let (nl, nr) = n.split_at(0.3);
+                    for j in 0..=degree {
+                        assert_eq!(sl.control_point(j), nl.control_point(j));
+                        assert_eq!(sr.control_point(j), nr.control_point(j));
+                    }
                 }
             }
             assert!(!pieces.is_empty());
@@ -302,16 +327,8 @@ mod tests {
 
     #[test]
     fn halves_are_the_two_halves_and_stay_in_the_hull() {
-        let arc = circular_arc(
-            2,
-            [0, 1],
-            &point(&[0.0, 0.0]),
-            &point(&[10.0, 0.0]),
-            &point(&[-10.0, 0.0]),
-            std::f64::consts::PI,
-        )
-        .unwrap();
-        let mut piece: Option<Bezier<4>> = None;
+        let arc = semicircle();
+        let mut piece: Option<Bezier<4, 4>> = None;
         arc.bezier_pieces(
             arc.u_min(),
             arc.u_min() + 0.3 * (arc.u_max() - arc.u_min()),

@@ -8,6 +8,7 @@
 //! extent) at most `tolerance` beyond it. A line is settled at once (its control points are its
 //! end points); an arc in a few halvings.
 
+use super::basis::MAX_ORDER;
 use super::nurbs::HOMOGENEOUS_WIDTH;
 use super::{Bezier, NurbsCurve};
 
@@ -20,10 +21,14 @@ impl NurbsCurve {
     pub fn axis_extent(&self, axis: usize, tolerance: f64) -> (f64, f64) {
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
-        self.bezier_pieces::<HOMOGENEOUS_WIDTH>(self.u_min(), self.u_max(), |piece, _, _| {
-            hi = hi.max(piece_max(piece, |c| c[axis], tolerance));
-            lo = lo.min(-piece_max(piece, |c| -c[axis], tolerance));
-        });
+        self.bezier_pieces::<HOMOGENEOUS_WIDTH, MAX_ORDER>(
+            self.u_min(),
+            self.u_max(),
+            |piece, _, _| {
+                hi = hi.max(piece_max(piece, |c| c[axis], tolerance));
+                lo = lo.min(-piece_max(piece, |c| -c[axis], tolerance));
+            },
+        );
         (lo, hi)
     }
 }

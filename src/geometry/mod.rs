@@ -19,6 +19,9 @@ mod nurbs;
 mod split;
 
 pub use arc::circular_arc;
+#[cfg(test)]
+pub use arc::semicircle;
+pub use basis::MAX_ORDER;
 pub use bezier::Bezier;
 pub use length::ESTIMATE_TOLERANCE;
 pub use nurbs::{CurveDerivs, CurveEnd, NurbsCurve, NurbsError};

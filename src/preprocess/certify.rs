@@ -32,7 +32,7 @@
 //! Cost: no curve evaluations, and no allocation: one blossom per knot span crossed (`O(p³)`
 //! lerps of eight numbers) and a fixed-size stack for the halving.
 
-use crate::geometry::{Bezier, NurbsCurve, Point};
+use crate::geometry::{Bezier, MAX_ORDER, NurbsCurve, Point};
 
 /// Halvings of one Bézier piece before its bound is reported as it stands.
 pub const MAX_DEPTH: u32 = 24;
@@ -88,7 +88,7 @@ impl Segment {
         (r - self.dir * along).norm()
     }
 
-    fn largest_control_distance<const W: usize>(&self, bz: &Bezier<W>) -> f64 {
+    fn largest_control_distance<const W: usize, const R: usize>(&self, bz: &Bezier<W, R>) -> f64 {
         let dim = self.dim;
         bz.max_over_control_points(|c| {
             let mut along = 0.0;
@@ -169,11 +169,13 @@ pub fn certify(
         pieces: 0,
         over: false,
     };
-    // Narrow rows for up to three axes: half the copying.
-    if curve.dim() < 4 {
-        walk.curve::<4>(curve, u0, u1, farthest);
-    } else {
-        walk.curve::<8>(curve, u0, u1, farthest);
+    // Narrow rows for up to three axes and few rows for up to cubics (an arc is a
+    // quadratic): a fifth of the copying of the widest pieces, the same arithmetic.
+    match (curve.dim() < 4, curve.degree() < 4) {
+        (true, true) => walk.curve::<4, 4>(curve, u0, u1, farthest),
+        (true, false) => walk.curve::<4, MAX_ORDER>(curve, u0, u1, farthest),
+        (false, true) => walk.curve::<8, 4>(curve, u0, u1, farthest),
+        (false, false) => walk.curve::<8, MAX_ORDER>(curve, u0, u1, farthest),
     }
     Certificate {
         bound: walk.bound + allowance,
@@ -195,8 +197,14 @@ struct Walk<'a> {
 impl Walk<'_> {
     /// Every Bézier piece of `curve` between `u0` and `u1`, in rows `W` wide; the piece
     /// holding `farthest` is cut there first.
-    fn curve<const W: usize>(&mut self, curve: &NurbsCurve, u0: f64, u1: f64, farthest: f64) {
-        curve.bezier_pieces::<W>(u0, u1, |piece, s, t| {
+    fn curve<const W: usize, const R: usize>(
+        &mut self,
+        curve: &NurbsCurve,
+        u0: f64,
+        u1: f64,
+        farthest: f64,
+    ) {
+        curve.bezier_pieces::<W, R>(u0, u1, |piece, s, t| {
             if self.over {
                 return;
             }
@@ -217,7 +225,7 @@ impl Walk<'_> {
         });
     }
 
-    fn visit<const W: usize>(&mut self, bz: &Bezier<W>, depth: u32) {
+    fn visit<const W: usize, const R: usize>(&mut self, bz: &Bezier<W, R>, depth: u32) {
         self.pieces += 1;
         let b = self.chord.largest_control_distance(bz);
         if b <= self.target {
@@ -238,20 +246,7 @@ impl Walk<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{circular_arc, point};
-
-    /// Radius 10 about the origin, counter-clockwise from (10, 0) to (−10, 0).
-    fn semicircle() -> NurbsCurve {
-        circular_arc(
-            2,
-            [0, 1],
-            &point(&[0.0, 0.0]),
-            &point(&[10.0, 0.0]),
-            &point(&[-10.0, 0.0]),
-            std::f64::consts::PI,
-        )
-        .unwrap()
-    }
+    use crate::geometry::{point, semicircle};
 
     #[test]
     fn the_bound_of_an_arc_tightens_to_the_sagitta() {

@@ -509,7 +509,7 @@ impl StraightPiece {
         // The piece's end weights: its one Bézier piece's (any knot of a degree-1 curve is a
         // corner knot, so the piece is one span).
         let (mut w0, mut w1, mut spans) = (1.0, 1.0, 0);
-        curve.bezier_pieces::<8>(lo, hi, |bz, _, _| {
+        curve.bezier_pieces::<8, 2>(lo, hi, |bz, _, _| {
             (w0, w1) = (bz.weight(0), bz.weight(1));
             spans += 1;
         });
