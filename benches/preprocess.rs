@@ -3,6 +3,7 @@
 
 mod common;
 
+use std::fmt::Write as _;
 use std::hint::black_box;
 use std::sync::Arc;
 
@@ -153,10 +154,42 @@ fn bench_trace_numbers(c: &mut Criterion) {
     group.finish();
 }
 
+/// A chart path's coordinates as text: `decimal::push_fixed` against `format!("{x:.2}")` (the
+/// same text), on 1000 pixel coordinates.
+fn bench_chart_coordinates(c: &mut Criterion) {
+    let mut rng = edmd::rng::SplitMix64::new(39);
+    let numbers: Vec<f64> = (0..1000).map(|_| rng.uniform(0.0, 900.0)).collect();
+    let mut group = c.benchmark_group("chart coordinates");
+    group.throughput(Throughput::Elements(numbers.len() as u64));
+    group.bench_function("decimal::push_fixed", |b| {
+        let mut out = Vec::with_capacity(16 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in &numbers {
+                edmd::decimal::push_fixed(&mut out, x, 2);
+                out.push(b',');
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.bench_function("format!", |b| {
+        let mut out = String::with_capacity(16 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in &numbers {
+                let _ = write!(out, "{x:.2},");
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.finish();
+}
+
 criterion_group!(
     benches,
     bench_segmenter,
     bench_pipeline,
-    bench_trace_numbers
+    bench_trace_numbers,
+    bench_chart_coordinates
 );
 criterion_main!(benches);

@@ -1,6 +1,7 @@
 //! Numbers as text, fast: an `f64` as the shortest decimal that reads back as the same double,
-//! laid out exactly as std's `{}` and `{:e}` lay it out, and integers, appended to a byte
-//! buffer without going through `core::fmt` and without allocating.
+//! laid out exactly as std's `{}` and `{:e}` lay it out, an `f64` to a few fixed places as
+//! `{:.2}` rounds it (`core::fmt` only near a tie), and integers, appended to a byte buffer
+//! without allocating.
 //!
 //! Why not `format!`: `edmd plan` writes a trace row per segment, a dozen numbers a row, and
 //! `core::fmt`'s shortest-digits path (Grisu with a Dragon fallback, behind the formatter's
@@ -286,6 +287,49 @@ pub fn push_f64_exp(out: &mut Vec<u8>, x: f64) {
     push_i64(out, i64::from(exponent));
 }
 
+/// Appends `x` as `format!("{x:.places$}")` prints it, for `places` up to 3: a chart's pixel
+/// coordinate (`123.46`, `-0.00`).
+///
+/// `core::fmt` rounds the exact binary value to `places` decimals, ties to even, through Grisu
+/// with a Dragon fallback: about a thousand instructions a number, and a chart of a long plan
+/// has hundreds of thousands. Here the value is scaled by `10^places` in floating point; below
+/// 2^30 that product is within 1.2e-7 of the exact one, so wherever its fraction is more than
+/// 1e-6 from one half, rounding it rounds the exact value the same way. Near a tie, and for
+/// large or non-finite values, `core::fmt` itself writes the number.
+pub fn push_fixed(out: &mut Vec<u8>, x: f64, places: usize) {
+    const SCALES: [f64; 4] = [1.0, 10.0, 100.0, 1000.0];
+    const TIE_MARGIN: f64 = 1e-6;
+    let scaled = x.abs() * SCALES[places];
+    // `NaN < limit` is false: NaN goes to `core::fmt` too.
+    if scaled < 1_073_741_824.0 {
+        let whole = scaled as u64;
+        let fraction = scaled - whole as f64;
+        if (fraction - 0.5).abs() > TIE_MARGIN {
+            let rounded = whole + u64::from(fraction > 0.5);
+            // std keeps the sign of what rounds to zero: `-0.00`.
+            if x.is_sign_negative() {
+                out.push(b'-');
+            }
+            let unit = 10u64.pow(places as u32);
+            push_u64(out, rounded / unit);
+            if places > 0 {
+                out.push(b'.');
+                let mut digits = [b'0'; 3];
+                let mut rest = rounded % unit;
+                for slot in digits[..places].iter_mut().rev() {
+                    *slot = b'0' + (rest % 10) as u8;
+                    rest /= 10;
+                }
+                out.extend_from_slice(&digits[..places]);
+            }
+            return;
+        }
+    }
+    use std::io::Write as _;
+    // Writing to a Vec cannot fail.
+    let _ = write!(out, "{x:.places$}");
+}
+
 /// Appends an integer in decimal, as `{}` prints it.
 pub fn push_i64(out: &mut Vec<u8>, n: i64) {
     out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
@@ -411,6 +455,58 @@ mod tests {
             let m = (rng.next_u64() >> 40) as f64;
             let x = m * 2f64.powi((rng.next_u64() % 140) as i32 - 70);
             same_as_std(x);
+        }
+    }
+
+    #[test]
+    fn fixed_places_print_as_std_prints_them() {
+        let fixed = |x: f64, places: usize| {
+            let mut out = Vec::new();
+            push_fixed(&mut out, x, places);
+            String::from_utf8(out).unwrap()
+        };
+        let mut rng = crate::rng::SplitMix64::new(0xf1_7ed);
+        let n = count();
+        let check = |x: f64| {
+            for places in 0..=3 {
+                assert_eq!(
+                    fixed(x, places),
+                    format!("{x:.places$}"),
+                    "{{:.{places}}} of {x:e} ({:#x})",
+                    x.to_bits()
+                );
+            }
+        };
+        // Ties and near-ties (k/16 are exact halves at every place count), zeros, the edges of
+        // the fast path, the non-finite values.
+        for x in [
+            0.0,
+            -0.0,
+            0.125,
+            0.375,
+            2.5,
+            -2.5,
+            -0.001,
+            0.005,
+            1.005,
+            0.135,
+            1_073_741_823.5,
+            1_073_741_824.0,
+            1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            check(x);
+        }
+        for _ in 0..n {
+            // Pixel coordinates and beyond, and short dyadic numbers (the ties).
+            let magnitude = (rng.next_u64() % 14) as i32 - 4;
+            let x = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64 * 10f64.powi(magnitude);
+            check(x);
+            check(-x);
+            let m = (rng.next_u64() >> 44) as f64;
+            check(m / f64::from(1u32 << (rng.next_u64() % 12)));
         }
     }
 

@@ -7,6 +7,8 @@
 
 use std::fmt::Write as _;
 
+use crate::decimal;
+
 /// A bounded series of `(x, y)` points.
 #[derive(Debug, Clone)]
 pub struct Decimated {
@@ -268,22 +270,25 @@ impl Chart {
         for (s, &(legend_x, ly)) in self.series.iter().zip(&places) {
             match s.style {
                 Style::Line | Style::Dashed => {
-                    let mut d = String::new();
+                    // Built as bytes through `decimal`: a long plan's path has hundreds of
+                    // thousands of coordinates, and `core::fmt` spent more on them than on
+                    // the rest of the chart.
+                    let mut d = Vec::new();
                     let mut pen_up = true;
                     for &(x, y) in &s.points {
                         if x.is_nan() || y.is_nan() {
                             pen_up = true;
                             continue;
                         }
-                        let _ = write!(
-                            d,
-                            "{}{:.2},{:.2} ",
-                            if pen_up { "M" } else { "L" },
-                            f.sx(x),
-                            f.sy(y)
-                        );
+                        d.push(if pen_up { b'M' } else { b'L' });
+                        decimal::push_fixed(&mut d, f.sx(x), 2);
+                        d.push(b',');
+                        decimal::push_fixed(&mut d, f.sy(y), 2);
+                        d.push(b' ');
                         pen_up = false;
                     }
+                    // ASCII throughout: borrowed, not copied.
+                    let d = String::from_utf8_lossy(&d);
                     let dash = if matches!(s.style, Style::Dashed) {
                         r#" stroke-dasharray="5 4""#
                     } else {

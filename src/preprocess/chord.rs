@@ -87,40 +87,126 @@ const GOLDEN_STEPS: u32 = 16;
 /// Samples when the Hermite model cannot be trusted.
 const FALLBACK_SAMPLES: usize = 24;
 
-/// The chord line of a piece and the helpers to measure against it.
-struct Chord {
+/// Vector arithmetic on the first `N` coordinates of a [`Point`], the rest being zero: a
+/// three-axis curve's measurement works on three numbers where a `Point` holds six.
+///
+/// Bit for bit nalgebra's on the whole point, which is what keeps every segment where it was:
+/// nalgebra sums a six-wide dot product in order from `+0` (its unrolled loop starts at eight),
+/// and the terms past `N` are `±0`, which leave such a sum as it is; the component-wise
+/// operations give `+0` past `N` either way.
+mod lanes {
+    use crate::geometry::Point;
+
+    #[inline(always)]
+    pub fn dot<const N: usize>(a: &Point, b: &Point) -> f64 {
+        let mut sum = 0.0;
+        for i in 0..N {
+            sum += a[i] * b[i];
+        }
+        sum
+    }
+
+    #[inline(always)]
+    pub fn norm<const N: usize>(a: &Point) -> f64 {
+        dot::<N>(a, a).sqrt()
+    }
+
+    /// `a - b`.
+    #[inline(always)]
+    pub fn sub<const N: usize>(a: &Point, b: &Point) -> Point {
+        let mut out = Point::zeros();
+        for i in 0..N {
+            out[i] = a[i] - b[i];
+        }
+        out
+    }
+
+    /// `a - b * k`.
+    #[inline(always)]
+    pub fn sub_scaled<const N: usize>(a: &Point, b: &Point, k: f64) -> Point {
+        let mut out = Point::zeros();
+        for i in 0..N {
+            out[i] = a[i] - b[i] * k;
+        }
+        out
+    }
+
+    /// `a * k`.
+    #[inline(always)]
+    pub fn scale<const N: usize>(a: &Point, k: f64) -> Point {
+        let mut out = Point::zeros();
+        for i in 0..N {
+            out[i] = a[i] * k;
+        }
+        out
+    }
+
+    /// `a / k`.
+    #[inline(always)]
+    pub fn div<const N: usize>(a: &Point, k: f64) -> Point {
+        let mut out = Point::zeros();
+        for i in 0..N {
+            out[i] = a[i] / k;
+        }
+        out
+    }
+}
+
+/// Coordinates a measurement works on for a curve of `dim` axes, and the call of `$f::<N>`
+/// with them: three for up to three axes, all of a [`Point`] beyond.
+macro_rules! with_lanes {
+    ($dim:expr, $f:ident($($arg:expr),* $(,)?)) => {
+        if $dim <= 3 {
+            $f::<3>($($arg),*)
+        } else {
+            $f::<{ crate::vocab::MAX_AXES }>($($arg),*)
+        }
+    };
+}
+
+/// The chord line of a piece and the helpers to measure against it, on the first `N`
+/// coordinates ([`lanes`]).
+struct Chord<const N: usize> {
     start: Point,
     end: Point,
     dir: Point,
     len: f64,
 }
 
-impl Chord {
-    fn new(start: Point, end: Point) -> Chord {
-        let v = end - start;
-        let len = v.norm();
+impl<const N: usize> Chord<N> {
+    fn new(start: Point, end: Point) -> Chord<N> {
+        let v = lanes::sub::<N>(&end, &start);
+        let len = lanes::norm::<N>(&v);
         Chord {
             start,
             end,
-            dir: if len > 0.0 { v / len } else { Point::zeros() },
+            dir: if len > 0.0 {
+                lanes::div::<N>(&v, len)
+            } else {
+                Point::zeros()
+            },
             len,
         }
     }
 
     fn perp(&self, v: &Point) -> Point {
-        v - self.dir * v.dot(&self.dir)
+        lanes::sub_scaled::<N>(v, &self.dir, lanes::dot::<N>(v, &self.dir))
+    }
+
+    fn dot(&self, a: &Point, b: &Point) -> f64 {
+        lanes::dot::<N>(a, b)
     }
 
     /// Distance from `p` to the chord segment (not just its line).
     fn distance(&self, p: &Point) -> f64 {
-        let r = p - self.start;
-        let along = r.dot(&self.dir);
+        let r = lanes::sub::<N>(p, &self.start);
+        let along = lanes::dot::<N>(&r, &self.dir);
         if along <= 0.0 {
-            r.norm()
+            lanes::norm::<N>(&r)
         } else if along >= self.len {
-            (p - self.end).norm()
+            lanes::norm::<N>(&lanes::sub::<N>(p, &self.end))
         } else {
-            self.perp(&r).norm()
+            lanes::norm::<N>(&self.perp(&r))
         }
     }
 }
@@ -128,8 +214,8 @@ impl Chord {
 /// The cubic Hermite model of the normal offset, `H(s) = s (1-s)² ta - s² (1-s) tb` on
 /// `s ∈ [0, 1]`, sampled at eighths. Returns `|H|²` at `s = k/8`, `k = 0..=8`, from three dot
 /// products: `|H|² = s²(1-s)² ((1-s)² |ta|² - 2 s (1-s) ta·tb + s² |tb|²)`.
-fn hermite_profile(ta: &Point, tb: &Point) -> [f64; 9] {
-    let (aa, ab, bb) = (ta.norm_squared(), ta.dot(tb), tb.norm_squared());
+fn hermite_profile<const N: usize>(chord: &Chord<N>, ta: &Point, tb: &Point) -> [f64; 9] {
+    let (aa, ab, bb) = (chord.dot(ta, ta), chord.dot(ta, tb), chord.dot(tb, tb));
     let mut g = [0.0; 9];
     // An index loop: the iterator form (`enumerate().take(8).skip(1)`) did not unroll and cost
     // more than the arithmetic.
@@ -148,10 +234,10 @@ fn hermite_profile(ta: &Point, tb: &Point) -> [f64; 9] {
 /// cubic by a fair part of the tolerance, the piece has more going on inside than its end
 /// tangents tell (a sharp turn or a wiggle between the ends). And the along-chord motion it
 /// does not model at all: a piece that runs past an end of its chord and comes back.
-fn model_untrusted(
+fn model_untrusted<const N: usize>(
     a: &Sample,
     b: &Sample,
-    chord: &Chord,
+    chord: &Chord<N>,
     ta: &Point,
     tb: &Point,
     peak: f64,
@@ -225,22 +311,22 @@ const DISAGREEMENT_AT_EIGHTHS: [[f64; 10]; 7] = {
 /// (all scaled to `s ∈ [0, 1]`). Arithmetic only: no curve evaluation. The difference is
 /// `D = ta·va + tb·vb + na·aa + nb·ab`, so `|D|²` comes from the ten dot products of the four
 /// vectors, taken once.
-fn model_disagreement(
+fn model_disagreement<const N: usize>(
     a: &Sample,
     b: &Sample,
-    chord: &Chord,
+    chord: &Chord<N>,
     du: f64,
     ta: &Point,
     tb: &Point,
 ) -> f64 {
-    let na = chord.perp(&a.d.d2) * (du * du);
-    let nb = chord.perp(&b.d.d2) * (du * du);
+    let na = lanes::scale::<N>(&chord.perp(&a.d.d2), du * du);
+    let nb = lanes::scale::<N>(&chord.perp(&b.d.d2), du * du);
     let v = [ta, tb, &na, &nb];
     let mut gram = [0.0; 10];
     let mut n = 0;
     for i in 0..4 {
         for j in i..4 {
-            gram[n] = v[i].dot(v[j]);
+            gram[n] = chord.dot(v[i], v[j]);
             n += 1;
         }
     }
@@ -256,14 +342,23 @@ fn model_disagreement(
 /// hairpin at an end: the curve overshoots the end point and comes back to it), which the
 /// normal-offset models cannot see: an end tangent pointing backwards along the chord, or the
 /// quintic Hermite model of the along-chord coordinate leaving `[-slack, len + slack]`.
-fn overshoots_the_chord(a: &Sample, b: &Sample, chord: &Chord, du: f64, slack: f64) -> bool {
-    let (v0, v1) = (a.d.d1.dot(&chord.dir) * du, b.d.d1.dot(&chord.dir) * du);
+fn overshoots_the_chord<const N: usize>(
+    a: &Sample,
+    b: &Sample,
+    chord: &Chord<N>,
+    du: f64,
+    slack: f64,
+) -> bool {
+    let (v0, v1) = (
+        chord.dot(&a.d.d1, &chord.dir) * du,
+        chord.dot(&b.d.d1, &chord.dir) * du,
+    );
     if v0 < 0.0 || v1 < 0.0 {
         return true;
     }
     let (a0, a1) = (
-        a.d.d2.dot(&chord.dir) * du * du,
-        b.d.d2.dot(&chord.dir) * du * du,
+        chord.dot(&a.d.d2, &chord.dir) * du * du,
+        chord.dot(&b.d.d2, &chord.dir) * du * du,
     );
     HERMITE_AT_EIGHTHS.iter().any(|q| {
         let x = chord.len * q[5] + v0 * q[1] + a0 * q[2] + a1 * q[3] + v1 * q[4];
@@ -304,11 +399,16 @@ fn profile_peaks(g: &[f64]) -> [(f64, f64); 2] {
 /// `tol` is the tolerance the estimate will be compared with: where the model cannot be
 /// trusted at that scale (see [`chord_error`]) the estimate is infinite, so the caller measures.
 pub fn chord_error_estimate(a: &Sample, b: &Sample, tol: f64) -> f64 {
-    let chord = Chord::new(a.d.point, b.d.point);
+    // No curve to say how many axes it has: all of them.
+    estimate::<{ crate::vocab::MAX_AXES }>(a, b, tol)
+}
+
+fn estimate<const N: usize>(a: &Sample, b: &Sample, tol: f64) -> f64 {
+    let chord = Chord::<N>::new(a.d.point, b.d.point);
     let du = b.u - a.u;
-    let ta = chord.perp(&a.d.d1) * du;
-    let tb = chord.perp(&b.d.d1) * du;
-    let peak = profile_peaks(&hermite_profile(&ta, &tb))[0]
+    let ta = lanes::scale::<N>(&chord.perp(&a.d.d1), du);
+    let tb = lanes::scale::<N>(&chord.perp(&b.d.d1), du);
+    let peak = profile_peaks(&hermite_profile(&chord, &ta, &tb))[0]
         .1
         .max(0.0)
         .sqrt();
@@ -323,6 +423,10 @@ pub fn chord_error_estimate(a: &Sample, b: &Sample, tol: f64) -> f64 {
 /// `tol` only steers effort: disagreements between model and curve far below it are not
 /// chased. Evaluations are counted in the result.
 pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> ChordError {
+    with_lanes!(curve.dim(), measure(curve, a, b, tol))
+}
+
+fn measure<const N: usize>(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> ChordError {
     let mut out = ChordError {
         max: 0.0,
         at: f64::NAN,
@@ -333,15 +437,15 @@ pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> Chor
     if du <= 0.0 {
         return out;
     }
-    let chord = Chord::new(a.d.point, b.d.point);
+    let chord = Chord::<N>::new(a.d.point, b.d.point);
     if chord.len <= 1e-12 {
         // A closed piece (the curve leaves and comes back): no chord direction to model.
         sampled_maximum(curve, a.u, du, &chord, &mut out);
         return out;
     }
-    let ta = chord.perp(&a.d.d1) * du;
-    let tb = chord.perp(&b.d.d1) * du;
-    let g = hermite_profile(&ta, &tb);
+    let ta = lanes::scale::<N>(&chord.perp(&a.d.d1), du);
+    let tb = lanes::scale::<N>(&chord.perp(&b.d.d1), du);
+    let g = hermite_profile(&chord, &ta, &tb);
     let peaks = profile_peaks(&g);
     if model_untrusted(a, b, &chord, &ta, &tb, peaks[0].1.max(0.0).sqrt(), tol) {
         sampled_maximum(curve, a.u, du, &chord, &mut out);
@@ -373,11 +477,11 @@ pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> Chor
 /// piece). Records every evaluated point's distance to the chord segment and, once converged, the
 /// quadratic model's maximum. Returns the squared normal offset at the first evaluated point,
 /// for the caller's model check.
-fn polish(
+fn polish<const N: usize>(
     curve: &NurbsCurve,
     u0: f64,
     du: f64,
-    chord: &Chord,
+    chord: &Chord<N>,
     s0: f64,
     out: &mut ChordError,
 ) -> f64 {
@@ -388,13 +492,14 @@ fn polish(
         out.evals += 1;
         out.rho_min = out.rho_min.min(d.curvature_radius());
         out.note(chord.distance(&d.point), u0 + s * du);
-        let r = chord.perp(&(d.point - chord.start));
-        let f = r.norm_squared();
+        let r = chord.perp(&lanes::sub::<N>(&d.point, &chord.start));
+        let f = chord.dot(&r, &r);
         if first < 0.0 {
             first = f;
         }
-        let slope = r.dot(&d.d1);
-        let curv = chord.perp(&d.d1).norm_squared() + r.dot(&d.d2);
+        let slope = chord.dot(&r, &d.d1);
+        let across = chord.perp(&d.d1);
+        let curv = chord.dot(&across, &across) + chord.dot(&r, &d.d2);
         if curv >= 0.0 {
             // Not in the concave neighbourhood of a maximum: Newton would walk away.
             break;
@@ -411,7 +516,13 @@ fn polish(
 }
 
 /// Dense sampling of the piece, then Newton from the best samples.
-fn sampled_maximum(curve: &NurbsCurve, u0: f64, du: f64, chord: &Chord, out: &mut ChordError) {
+fn sampled_maximum<const N: usize>(
+    curve: &NurbsCurve,
+    u0: f64,
+    du: f64,
+    chord: &Chord<N>,
+    out: &mut ChordError,
+) {
     let mut g = [0.0; FALLBACK_SAMPLES + 1];
     for (k, slot) in g.iter_mut().enumerate().take(FALLBACK_SAMPLES).skip(1) {
         let u = u0 + du * k as f64 / FALLBACK_SAMPLES as f64;
@@ -471,7 +582,7 @@ mod tests {
 
     /// Brute force: the largest distance over 20,001 points of the piece.
     fn dense(curve: &NurbsCurve, a: f64, b: f64) -> f64 {
-        let chord = Chord::new(curve.point(a), curve.point(b));
+        let chord = Chord::<{ crate::vocab::MAX_AXES }>::new(curve.point(a), curve.point(b));
         (0..=20_000)
             .map(|k| chord.distance(&curve.point(a + (b - a) * k as f64 / 20_000.0)))
             .fold(0.0, f64::max)
@@ -593,7 +704,7 @@ mod tests {
             let a = rng.uniform(0.0, 0.9);
             let b = (a + rng.uniform(0.001, 0.5)).min(1.0);
             let (sa, sb) = (Sample::at(&c, a), Sample::at(&c, b));
-            let chord = Chord::new(sa.d.point, sb.d.point);
+            let chord = Chord::<3>::new(sa.d.point, sb.d.point);
             let du = b - a;
             let ta = chord.perp(&sa.d.d1) * du;
             let tb = chord.perp(&sb.d.d1) * du;
