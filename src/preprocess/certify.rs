@@ -195,7 +195,7 @@ struct Walk<'a> {
 }
 
 impl Walk<'_> {
-    /// Every Bézier piece of `curve` between `u0` and `u1`, in rows `W` wide; the piece
+    /// Every Bézier piece of `curve` between `u0` and `u1`, in `R` rows `W` wide; the piece
     /// holding `farthest` is cut there first.
     fn curve<const W: usize, const R: usize>(
         &mut self,
