@@ -115,6 +115,42 @@ fn bench_pipeline(c: &mut Criterion) {
     group.finish();
 }
 
+/// Numbers as text, `decimal`'s way against `core::fmt`'s (the same text), one comma after
+/// each: a criterion group of the two.
+fn bench_number_text(
+    c: &mut Criterion,
+    group: &str,
+    numbers: &[f64],
+    fast: (&str, fn(&mut Vec<u8>, f64)),
+    fmt: fn(&mut String, f64),
+) {
+    let mut group = c.benchmark_group(group);
+    group.throughput(Throughput::Elements(numbers.len() as u64));
+    group.bench_function(fast.0, |b| {
+        let mut out = Vec::with_capacity(32 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in numbers {
+                (fast.1)(&mut out, x);
+                out.push(b',');
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.bench_function("format!", |b| {
+        let mut out = String::with_capacity(32 * 1024);
+        b.iter(|| {
+            out.clear();
+            for &x in numbers {
+                fmt(&mut out, x);
+                out.push(',');
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    group.finish();
+}
+
 /// A trace row's numbers as text: `decimal::push_f64` against `format!("{x}")` (the same text),
 /// on 1000 numbers of the sizes a trace holds (coordinates, times, feeds, micron errors).
 fn bench_trace_numbers(c: &mut Criterion) {
@@ -127,31 +163,13 @@ fn bench_trace_numbers(c: &mut Criterion) {
             _ => rng.uniform(0.0, 1e-3),
         })
         .collect();
-    let mut group = c.benchmark_group("trace numbers");
-    group.throughput(Throughput::Elements(numbers.len() as u64));
-    group.bench_function("decimal::push_f64", |b| {
-        let mut out = Vec::with_capacity(32 * 1024);
-        b.iter(|| {
-            out.clear();
-            for &x in &numbers {
-                edmd::decimal::push_f64(&mut out, x);
-                out.push(b',');
-            }
-            std::hint::black_box(out.len())
-        })
-    });
-    group.bench_function("format!", |b| {
-        let mut out = String::with_capacity(32 * 1024);
-        b.iter(|| {
-            out.clear();
-            for &x in &numbers {
-                out += &format!("{x}");
-                out.push(',');
-            }
-            std::hint::black_box(out.len())
-        })
-    });
-    group.finish();
+    bench_number_text(
+        c,
+        "trace numbers",
+        &numbers,
+        ("decimal::push_f64", edmd::decimal::push_f64),
+        |out, x| *out += &format!("{x}"),
+    );
 }
 
 /// A chart path's coordinates as text: `decimal::push_fixed` against `format!("{x:.2}")` (the
@@ -159,30 +177,17 @@ fn bench_trace_numbers(c: &mut Criterion) {
 fn bench_chart_coordinates(c: &mut Criterion) {
     let mut rng = edmd::rng::SplitMix64::new(39);
     let numbers: Vec<f64> = (0..1000).map(|_| rng.uniform(0.0, 900.0)).collect();
-    let mut group = c.benchmark_group("chart coordinates");
-    group.throughput(Throughput::Elements(numbers.len() as u64));
-    group.bench_function("decimal::push_fixed", |b| {
-        let mut out = Vec::with_capacity(16 * 1024);
-        b.iter(|| {
-            out.clear();
-            for &x in &numbers {
-                edmd::decimal::push_fixed(&mut out, x, 2);
-                out.push(b',');
-            }
-            std::hint::black_box(out.len())
-        })
-    });
-    group.bench_function("format!", |b| {
-        let mut out = String::with_capacity(16 * 1024);
-        b.iter(|| {
-            out.clear();
-            for &x in &numbers {
-                let _ = write!(out, "{x:.2},");
-            }
-            std::hint::black_box(out.len())
-        })
-    });
-    group.finish();
+    bench_number_text(
+        c,
+        "chart coordinates",
+        &numbers,
+        ("decimal::push_fixed", |out, x| {
+            edmd::decimal::push_fixed(out, x, 2)
+        }),
+        |out, x| {
+            let _ = write!(out, "{x:.2}");
+        },
+    );
 }
 
 criterion_group!(

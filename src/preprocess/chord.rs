@@ -19,6 +19,7 @@
 //! curve disagree (near-cusps, pieces whose end tangents say little about their middle) the
 //! bulges are found by sampling instead.
 
+use super::lanes;
 use crate::geometry::{CurveDerivs, NurbsCurve, Point};
 
 /// A point of a curve with its derivatives: the unit of work the segmenter passes around.
@@ -86,83 +87,6 @@ const MODEL_TRUST: f64 = 0.25;
 const GOLDEN_STEPS: u32 = 16;
 /// Samples when the Hermite model cannot be trusted.
 const FALLBACK_SAMPLES: usize = 24;
-
-/// Vector arithmetic on the first `N` coordinates of a [`Point`], the rest being zero: a
-/// three-axis curve's measurement works on three numbers where a `Point` holds six.
-///
-/// Bit for bit nalgebra's on the whole point, which is what keeps every segment where it was:
-/// nalgebra sums a six-wide dot product in order from `+0` (its unrolled loop starts at eight),
-/// and the terms past `N` are `±0`, which leave such a sum as it is; the component-wise
-/// operations give `+0` past `N` either way.
-mod lanes {
-    use crate::geometry::Point;
-
-    #[inline(always)]
-    pub fn dot<const N: usize>(a: &Point, b: &Point) -> f64 {
-        let mut sum = 0.0;
-        for i in 0..N {
-            sum += a[i] * b[i];
-        }
-        sum
-    }
-
-    #[inline(always)]
-    pub fn norm<const N: usize>(a: &Point) -> f64 {
-        dot::<N>(a, a).sqrt()
-    }
-
-    /// `a - b`.
-    #[inline(always)]
-    pub fn sub<const N: usize>(a: &Point, b: &Point) -> Point {
-        let mut out = Point::zeros();
-        for i in 0..N {
-            out[i] = a[i] - b[i];
-        }
-        out
-    }
-
-    /// `a - b * k`.
-    #[inline(always)]
-    pub fn sub_scaled<const N: usize>(a: &Point, b: &Point, k: f64) -> Point {
-        let mut out = Point::zeros();
-        for i in 0..N {
-            out[i] = a[i] - b[i] * k;
-        }
-        out
-    }
-
-    /// `a * k`.
-    #[inline(always)]
-    pub fn scale<const N: usize>(a: &Point, k: f64) -> Point {
-        let mut out = Point::zeros();
-        for i in 0..N {
-            out[i] = a[i] * k;
-        }
-        out
-    }
-
-    /// `a / k`.
-    #[inline(always)]
-    pub fn div<const N: usize>(a: &Point, k: f64) -> Point {
-        let mut out = Point::zeros();
-        for i in 0..N {
-            out[i] = a[i] / k;
-        }
-        out
-    }
-}
-
-/// Coordinates a measurement works on for a curve of `dim` axes, and the call of `$f::<N>`
-/// with them: three for up to three axes, all of a [`Point`] beyond.
-macro_rules! with_lanes {
-    ($dim:expr, $f:ident($($arg:expr),* $(,)?)) => {
-        if $dim <= 3 {
-            $f::<3>($($arg),*)
-        } else {
-            $f::<{ crate::vocab::MAX_AXES }>($($arg),*)
-        }
-    };
-}
 
 /// The chord line of a piece and the helpers to measure against it, on the first `N`
 /// coordinates ([`lanes`]).
@@ -423,7 +347,12 @@ fn estimate<const N: usize>(a: &Sample, b: &Sample, tol: f64) -> f64 {
 /// `tol` only steers effort: disagreements between model and curve far below it are not
 /// chased. Evaluations are counted in the result.
 pub fn chord_error(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> ChordError {
-    with_lanes!(curve.dim(), measure(curve, a, b, tol))
+    // Three coordinates for up to three axes, all of a `Point` beyond.
+    if curve.dim() <= 3 {
+        measure::<3>(curve, a, b, tol)
+    } else {
+        measure::<{ crate::vocab::MAX_AXES }>(curve, a, b, tol)
+    }
 }
 
 fn measure<const N: usize>(curve: &NurbsCurve, a: &Sample, b: &Sample, tol: f64) -> ChordError {

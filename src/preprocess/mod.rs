@@ -32,6 +32,7 @@ pub mod bound;
 pub mod certify;
 pub mod chord;
 pub mod corners;
+mod lanes;
 pub mod period;
 pub mod planner;
 pub mod predictor;
