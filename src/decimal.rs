@@ -153,26 +153,8 @@ fn push_non_finite(out: &mut Vec<u8>, x: f64) -> bool {
     true
 }
 
-/// A whole number of magnitude below 2^53 (a feed of `600`, a coordinate of `0`) as `{}`
-/// prints it, through the integer path: such a double is its own shortest decimal, so its
-/// digits are the integer's. A trace has two or three of them a row, and this costs a tenth of
-/// the shortest-digits search. `false` for anything else (NaN included: it is not equal to
-/// its truncation).
-#[inline]
-fn push_whole(out: &mut Vec<u8>, x: f64) -> bool {
-    const LIMIT: f64 = 9_007_199_254_740_992.0;
-    // `as` saturates and maps NaN to 0, so the comparison back rejects both.
-    let n = x as i64;
-    if n as f64 != x || x.abs() >= LIMIT {
-        return false;
-    }
-    if n == 0 && x.is_sign_negative() {
-        out.extend_from_slice(b"-0");
-    } else {
-        push_i64(out, n);
-    }
-    true
-}
+/// 2^53: below it, a whole double is its own shortest decimal.
+const WHOLE_BELOW: f64 = 9_007_199_254_740_992.0;
 
 fn push_zeros(out: &mut Vec<u8>, n: usize) {
     out.resize(out.len() + n, b'0');
@@ -181,19 +163,28 @@ fn push_zeros(out: &mut Vec<u8>, n: usize) {
 /// Appends `x` as `format!("{x}")` prints it: the shortest round-trip digits, never an
 /// exponent (`0.0000001`, `1000000000000000000000`), no point for a whole number (`1`, `-0`).
 pub fn push_f64(out: &mut Vec<u8>, x: f64) {
-    if push_whole(out, x) || push_non_finite(out, x) {
+    if !x.is_finite() {
+        push_non_finite(out, x);
         return;
     }
-    if !may_tie(x) {
-        // The common case: Ryū's own decimal layout is std's but for the `.0` it gives a
-        // whole number; only its exponent layout (below 1e-5, from 1e16) needs laying out.
-        let mut buffer = zmij::Buffer::new();
-        let text = buffer.format_finite(x).as_bytes();
-        // An exponent, if any, is in the last five bytes (`e-308`).
-        if !text.iter().rev().take(5).any(|&b| b == b'e') {
-            out.extend_from_slice(text.strip_suffix(b".0").unwrap_or(text));
+    let (m, e) = odd_mantissa(x);
+    if e >= 0 {
+        // A whole number (a feed of `600`, a coordinate of `0`): below 2^53 it is its own
+        // shortest decimal, so its digits are the integer's, `m · 2^e`. A trace has two or
+        // three a row, and this costs a tenth of the shortest-digits search.
+        if x.abs() < WHOLE_BELOW {
+            if x.is_sign_negative() {
+                out.push(b'-');
+            }
+            push_u64(out, m << e);
             return;
         }
+    } else if x.abs() >= PLAIN_FROM && !may_tie(m, e) {
+        // The common case: Ryū's own decimal layout is std's. A fraction is below 2^52, so
+        // Ryū writes it without an exponent from `1e-5` up, and never with a bare `.0`.
+        let mut buffer = zmij::Buffer::new();
+        out.extend_from_slice(buffer.format_finite(x).as_bytes());
+        return;
     }
     let d = Digits::of(x);
     if d.negative {
@@ -217,15 +208,19 @@ pub fn push_f64(out: &mut Vec<u8>, x: f64) {
     }
 }
 
-/// Whether `x`'s shortest digits could be a tie between two candidates (see
-/// [`Digits::is_tie_below`]): only when its exact decimal expansion has at most 18
-/// significant digits, one more than the shortest can have. A whole number below 2^53 is
-/// its own shortest; `m · 2^-k` (`m` odd) has the digits of `m · 5^k`.
-fn may_tie(x: f64) -> bool {
-    let (m, e) = odd_mantissa(x);
-    if e >= 0 {
-        return x.abs() >= 9_007_199_254_740_992.0;
-    }
+/// The magnitudes Ryū writes without an exponent: shortest digits from `1e-5` up to but not
+/// including `1e16`. Both ends are doubles' own shortest digits, and the shortest digits of a
+/// double lie between its neighbours, so the digits of `x` are in that range exactly when `x`
+/// is: a comparison, where looking for an `e` in the text cost a tenth of the conversion.
+/// (The upper end needs no test: a double with a fraction is below 2^52.)
+/// `edge_values_print_as_std_prints_them` walks the neighbours of both ends.
+const PLAIN_FROM: f64 = 1e-5;
+
+/// Whether the shortest digits of the fraction `m · 2^e` (`m` odd, `e < 0`) could be a tie
+/// between two candidates (see [`Digits::is_tie_below`]): only when its exact decimal
+/// expansion, the digits of `m · 5^-e`, has at most 18 significant digits, one more than
+/// the shortest can have.
+fn may_tie(m: u64, e: i32) -> bool {
     let k = e.unsigned_abs() as usize;
     k < POW5.len() && u128::from(m) * u128::from(POW5[k]) < 1_000_000_000_000_000_000
 }
@@ -417,6 +412,20 @@ mod tests {
         ];
         for x in edges {
             same_as_std(x);
+        }
+        // Either side of where Ryū's layout changes to an exponent, both signs (written out,
+        // not the constants, so a wrong constant fails here).
+        for end in [1e-5, 1e16] {
+            let mut below = end;
+            let mut above = end;
+            for _ in 0..1000 {
+                for x in [below, above] {
+                    same_as_std(x);
+                    same_as_std(-x);
+                }
+                below = below.next_down();
+                above = above.next_up();
+            }
         }
     }
 

@@ -19,17 +19,19 @@
 
 use super::basis::{MAX_ORDER, find_span};
 use super::nurbs::{HOMOGENEOUS_WIDTH, WEIGHT_SLOT};
-use super::{NurbsCurve, Point};
+use super::{MAX_AXES, NurbsCurve, Point};
 
 /// A rational Bézier curve in homogeneous form `(w x, w)`: degree `p`, `p + 1` control points,
 /// all weights positive, each a row of `W` numbers (the coordinates, zeros, the weight last),
-/// in `R` rows (`p < R`; the rows past `p` are zero).
+/// in `R` rows.
 ///
 /// Both sizes are parameters because pieces and their halves are copied on the stack, and the
-/// certificate makes millions of them: `W = 4` holds curves of up to three axes in half the
-/// room of `W = 8` (up to seven), and `R = 4` holds up to cubics (arcs are quadratics) in
-/// two fifths of the room of [`MAX_ORDER`] rows (any degree). The arithmetic is the same at every
-/// size: only the unused zero rows and columns go. Fixed-size, so nothing allocates.
+/// certificate makes millions of them. `W = 4` holds curves of up to three axes in half the
+/// room of `W = 8` (up to six). [`MAX_ORDER`] rows hold any degree (`p < R`, the rows past `p`
+/// zero); every smaller `R` holds degree `R − 1` exactly (an arc, a quadratic, in three rows),
+/// so that the degree is a constant and the loops over rows and coordinates unroll. The
+/// arithmetic is the same at every size: only the unused zero rows and columns go, and the
+/// loop bookkeeping. Fixed-size, so nothing allocates.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bezier<const W: usize = HOMOGENEOUS_WIDTH, const R: usize = MAX_ORDER> {
     degree: usize,
@@ -48,9 +50,19 @@ fn lerp<const W: usize>(a: &[f64; W], b: &[f64; W], t: f64) -> [f64; W] {
 
 impl<const W: usize, const R: usize> Bezier<W, R> {
     const WEIGHT: usize = W - 1;
+    /// Coordinates a row can hold (the rest of it is zero padding and the weight).
+    const LANES: usize = if W - 1 < MAX_AXES { W - 1 } else { MAX_AXES };
+    /// Whether the degree is `R − 1` exactly: every size but [`MAX_ORDER`] rows.
+    const EXACT: bool = R < MAX_ORDER;
 
     pub fn degree(&self) -> usize {
-        self.degree
+        self.p()
+    }
+
+    /// The degree, as a constant where the size fixes it.
+    #[inline(always)]
+    fn p(&self) -> usize {
+        if Self::EXACT { R - 1 } else { self.degree }
     }
 
     /// Weight of control point `j` (positive).
@@ -71,7 +83,7 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
 
     /// The curve's point at `t ∈ [0, 1]` (de Casteljau in homogeneous form).
     pub fn point(&self, t: f64) -> Point {
-        let p = self.degree;
+        let p = self.p();
         let mut work = self.points;
         for r in 1..=p {
             for j in 0..=p - r {
@@ -94,7 +106,7 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
     /// points are convex combinations of this curve's, so they stay in its convex hull and
     /// keep positive weights.
     pub fn split_at(&self, t: f64) -> (Bezier<W, R>, Bezier<W, R>) {
-        let p = self.degree;
+        let p = self.p();
         // Copies, not zeroed arrays: the rows past `p` are zero already, and the rows up to
         // `p` are all overwritten below.
         let mut left = *self;
@@ -113,16 +125,17 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
     }
 
     /// The largest of `f` over the control points (Cartesian), without building vectors:
-    /// `f` gets each point's first `dim` coordinates.
+    /// `f` gets each point's coordinates in every lane the row has (`min(W − 1, MAX_AXES)`),
+    /// zero past the curve's axes, so that its loops have a constant length.
     pub fn max_over_control_points(&self, mut f: impl FnMut(&[f64]) -> f64) -> f64 {
         let mut best = 0.0f64;
         let mut c = [0.0; W];
-        for h in &self.points[..=self.degree] {
+        for h in &self.points[..=self.p()] {
             let inv = 1.0 / h[Self::WEIGHT];
-            for axis in 0..self.dim {
+            for axis in 0..Self::LANES {
                 c[axis] = h[axis] * inv;
             }
-            best = best.max(f(&c[..self.dim]));
+            best = best.max(f(&c[..Self::LANES]));
         }
         best
     }
@@ -134,8 +147,8 @@ impl NurbsCurve {
     /// the interval is empty. Each comes with the parameter interval it covers. Allocation-free.
     ///
     /// `W` is the row width: 8 holds any curve; 4 holds curves of up to three axes. `R` is the
-    /// row count: [`MAX_ORDER`] holds any degree; 4 holds up to cubics. Panics on a curve that does
-    /// not fit: the caller picks the sizes from [`dim`](Self::dim) and
+    /// row count: [`MAX_ORDER`] holds any degree; a smaller `R` holds degree `R − 1` only. Panics
+    /// on a curve that does not fit: the caller picks the sizes from [`dim`](Self::dim) and
     /// [`degree`](Self::degree).
     pub fn bezier_pieces<const W: usize, const R: usize>(
         &self,
@@ -149,9 +162,13 @@ impl NurbsCurve {
             W - 1
         );
         assert!(
-            self.degree() < R,
-            "{R} rows hold Bézier pieces up to degree {}",
-            R - 1
+            if Bezier::<W, R>::EXACT {
+                self.degree() + 1 == R
+            } else {
+                self.degree() < R
+            },
+            "{R} rows do not hold Bézier pieces of degree {}",
+            self.degree()
         );
         let (u0, u1) = (
             u0.clamp(self.u_min(), self.u_max()),
@@ -188,7 +205,12 @@ impl NurbsCurve {
         s: f64,
         t: f64,
     ) -> Bezier<W, R> {
-        let p = self.degree();
+        // Checked equal to the curve's by `bezier_pieces` where the size fixes it.
+        let p = if Bezier::<W, R>::EXACT {
+            R - 1
+        } else {
+            self.degree()
+        };
         let dim = self.dim();
         let knots = self.knots();
         let level = |d: &mut [[f64; W]; R], r: usize, x: f64| {
@@ -252,6 +274,29 @@ mod tests {
         NurbsCurve::new(degree, 3, &points, &weights, knots).unwrap()
     }
 
+    /// Each piece's control points, then those of its two parts split at 0.3, then the
+    /// largest control-point distance from the origin.
+    type Rows = Vec<(Vec<Point>, Vec<Point>, Vec<Point>, f64)>;
+
+    fn rows_of<const W: usize, const R: usize>(
+        bz: &Bezier<W, R>,
+    ) -> (Vec<Point>, Vec<Point>, Vec<Point>, f64) {
+        let points = |b: &Bezier<W, R>| (0..=b.degree()).map(|j| b.control_point(j)).collect();
+        let (l, r) = bz.split_at(0.3);
+        let far = bz.max_over_control_points(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt());
+        (points(bz), points(&l), points(&r), far)
+    }
+
+    fn exact_rows<const R: usize>(curve: &NurbsCurve, a: f64, b: f64) -> Rows {
+        let mut out = Vec::new();
+        curve.bezier_pieces::<4, R>(a, b, |bz, _, _| out.push(rows_of(bz)));
+        out
+    }
+
+    fn general_rows(pieces: &[Bezier<4, MAX_ORDER>]) -> Rows {
+        pieces.iter().map(rows_of).collect()
+    }
+
     #[test]
     fn pieces_reproduce_the_curve_between_the_parameters() {
         let mut rng = SplitMix64::new(7);
@@ -263,30 +308,23 @@ mod tests {
             let b = rng.uniform(a, hi);
             let mut pieces = Vec::new();
             curve.bezier_pieces::<8, MAX_ORDER>(a, b, |bz, _, _| pieces.push(*bz));
-            // The narrow rows give the same points, and so do the few rows of a low degree:
-            // bit for bit, since the arithmetic is the same.
+            // The narrow rows give the same points, and the exact rows of a low degree the
+            // same points, parts and distances bit for bit, since the arithmetic is the same.
             let mut narrow = Vec::new();
             curve.bezier_pieces::<4, MAX_ORDER>(a, b, |bz, _, _| narrow.push(*bz));
-            let mut short = Vec::new();
-            if degree < 4 {
-                curve.bezier_pieces::<4, 4>(a, b, |bz, _, _| short.push(*bz));
-                assert_eq!(short.len(), narrow.len());
-            }
-            for (k, (w, n)) in pieces.iter().zip(&narrow).enumerate() {
+            for (w, n) in pieces.iter().zip(&narrow) {
                 for j in 0..=degree {
                     assert!((w.control_point(j) - n.control_point(j)).norm() < 1e-12);
-                    if let Some(s) = short.get(k) {
-                        assert_eq!(s.control_point(j), n.control_point(j));
-                    }
                 }
-                if let Some(s) = short.get(k) {
-                    let (sl, sr) = s.split_at(0.3);
-                    let (nl, nr) = n.split_at(0.3);
-                    for j in 0..=degree {
-                        assert_eq!(sl.control_point(j), nl.control_point(j));
-                        assert_eq!(sr.control_point(j), nr.control_point(j));
-                    }
-                }
+            }
+            let exact = match degree {
+                1 => exact_rows::<2>(&curve, a, b),
+                2 => exact_rows::<3>(&curve, a, b),
+                3 => exact_rows::<4>(&curve, a, b),
+                _ => Vec::new(),
+            };
+            if degree < 4 {
+                assert_eq!(exact, general_rows(&narrow), "case {case}");
             }
             assert!(!pieces.is_empty());
             // The pieces chain and end on the curve's points at a and b.
@@ -328,7 +366,7 @@ mod tests {
     #[test]
     fn halves_are_the_two_halves_and_stay_in_the_hull() {
         let arc = semicircle();
-        let mut piece: Option<Bezier<4, 4>> = None;
+        let mut piece: Option<Bezier<4, 3>> = None;
         arc.bezier_pieces(
             arc.u_min(),
             arc.u_min() + 0.3 * (arc.u_max() - arc.u_min()),

@@ -290,7 +290,9 @@ impl NurbsCurve {
     pub fn derivs(&self, u: f64) -> CurveDerivs {
         let u = u.clamp(self.u_min(), self.u_max());
         let span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
-        self.at_ends_exactly(u, self.derivs_on_span(span, u))
+        let mut d = self.derivs_on_span(span, u);
+        self.pin_ends(u, &mut d);
+        d
     }
 
     /// Like [`derivs`](Self::derivs), but at a knot takes the span that ends there: the
@@ -303,20 +305,22 @@ impl NurbsCurve {
         while span > self.degree && self.knots[span] >= u {
             span -= 1;
         }
-        self.at_ends_exactly(u, self.derivs_on_span(span, u))
+        let mut d = self.derivs_on_span(span, u);
+        self.pin_ends(u, &mut d);
+        d
     }
 
     /// At the ends the point is the end control point itself, bit for bit: the sums of the
     /// basis can round a rational curve's end by an ulp, and a block's last segment must end
     /// exactly where the next block starts (both are rounded to steps independently).
+    /// In place: the derivatives are built where the caller returns them, not copied through.
     #[inline]
-    fn at_ends_exactly(&self, u: f64, mut d: CurveDerivs) -> CurveDerivs {
+    fn pin_ends(&self, u: f64, d: &mut CurveDerivs) {
         if u == self.u_max() {
             d.point = self.end_point();
         } else if u == self.u_min() {
             d.point = self.start_point();
         }
-        d
     }
 
     /// Interior parameters where the curve may have a corner: knots of multiplicity at least
@@ -334,20 +338,31 @@ impl NurbsCurve {
 
     /// Dispatches on the degree so that each common degree gets its own copy of the kernel with
     /// the loop bounds known at compile time (unrolled, no dead table work).
+    ///
+    /// Curves of up to three axes (lines, arcs, a plane's or a wire's cubics) also get copies
+    /// that sum three coordinates and the weight rather than every slot: the slots past the
+    /// curve's axes hold zeros, whose sums and quotients are `+0` (a `±0` term leaves a sum
+    /// from `+0` unchanged, and the weight is positive), which is what `Point::zeros` leaves
+    /// there. The same numbers, bit for bit, for half the multiplications.
     fn derivs_on_span(&self, span: usize, u: f64) -> CurveDerivs {
-        match self.degree {
-            1 => self.kernel(span, u, 1),
-            2 => self.kernel(span, u, 2),
-            3 => self.kernel(span, u, 3),
-            4 => self.kernel(span, u, 4),
-            5 => self.kernel(span, u, 5),
-            p => self.kernel(span, u, p),
+        match (self.degree, self.dim <= 3) {
+            (1, true) => self.kernel::<3>(span, u, 1),
+            (2, true) => self.kernel::<3>(span, u, 2),
+            (3, true) => self.kernel::<3>(span, u, 3),
+            (1, false) => self.kernel::<MAX_AXES>(span, u, 1),
+            (2, false) => self.kernel::<MAX_AXES>(span, u, 2),
+            (3, false) => self.kernel::<MAX_AXES>(span, u, 3),
+            (4, _) => self.kernel::<MAX_AXES>(span, u, 4),
+            (5, _) => self.kernel::<MAX_AXES>(span, u, 5),
+            (p, _) => self.kernel::<MAX_AXES>(span, u, p),
         }
     }
 
+    /// The point and two derivatives from the basis on `span`, in the first `LANES`
+    /// coordinates (the rest left zero).
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
-    fn kernel(&self, span: usize, u: f64, p: usize) -> CurveDerivs {
+    fn kernel<const LANES: usize>(&self, span: usize, u: f64, p: usize) -> CurveDerivs {
         let mut ders = [[0.0f64; MAX_ORDER]; 3];
         basis_derivs(span, u, p, &self.knots, &mut ders);
 
@@ -357,9 +372,10 @@ impl NurbsCurve {
             let hp = &self.homogeneous[first + j];
             for k in 0..3 {
                 let b = ders[k][j];
-                for c in 0..HOMOGENEOUS_WIDTH {
+                for c in 0..LANES {
                     sums[k][c] += b * hp[c];
                 }
+                sums[k][WEIGHT_SLOT] += b * hp[WEIGHT_SLOT];
             }
         }
         let (w, w1, w2) = (
@@ -374,7 +390,7 @@ impl NurbsCurve {
             d2: Point::zeros(),
         };
         // Slots past `dim` hold zeros, so they produce zeros: no need to stop at `dim`.
-        for axis in 0..MAX_AXES {
+        for axis in 0..LANES {
             let c = sums[0][axis] * inv_w;
             let c1 = (sums[1][axis] - w1 * c) * inv_w;
             let c2 = (sums[2][axis] - 2.0 * w1 * c1 - w2 * c) * inv_w;
