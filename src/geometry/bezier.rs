@@ -249,30 +249,8 @@ impl NurbsCurve {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{clamped_uniform_knots, point, semicircle};
+    use crate::geometry::{random_curve, semicircle};
     use crate::rng::SplitMix64;
-
-    fn random_curve(rng: &mut SplitMix64, degree: usize, n: usize, repeat: bool) -> NurbsCurve {
-        let points: Vec<Point> = (0..n)
-            .map(|_| {
-                point(&[
-                    rng.uniform(-50.0, 50.0),
-                    rng.uniform(-50.0, 50.0),
-                    rng.uniform(-5.0, 5.0),
-                ])
-            })
-            .collect();
-        let weights: Vec<f64> = (0..n).map(|_| rng.uniform(0.2, 5.0)).collect();
-        let mut knots = clamped_uniform_knots(n, degree);
-        if repeat && n > degree + 2 {
-            // Repeat one interior knot up to the degree (replacing its neighbours).
-            let i = degree + 1;
-            for k in 1..degree.min(n - degree - 1) {
-                knots[i + k] = knots[i];
-            }
-        }
-        NurbsCurve::new(degree, 3, &points, &weights, knots).unwrap()
-    }
 
     /// Each piece's control points, then those of its two parts split at 0.3, then the
     /// largest control-point distance from the origin.
@@ -302,7 +280,7 @@ mod tests {
         let mut rng = SplitMix64::new(7);
         for case in 0..200 {
             let degree = 1 + case % 7;
-            let curve = random_curve(&mut rng, degree, degree + 1 + case % 6, case % 3 == 0);
+            let curve = random_curve(&mut rng, degree, 3, degree + 1 + case % 6, case % 3 == 0);
             let (lo, hi) = (curve.u_min(), curve.u_max());
             let a = rng.uniform(lo, hi);
             let b = rng.uniform(a, hi);

@@ -54,5 +54,38 @@ pub fn point(coords: &[f64]) -> Point {
     p
 }
 
+/// A random curve for tests: `n` control points of `dim` axes (within ±50 mm, the third
+/// within ±5), weights 0.2 to 5, clamped uniform knots, with `repeat` one interior knot
+/// repeated up to the degree.
+#[cfg(test)]
+pub fn random_curve(
+    rng: &mut crate::rng::SplitMix64,
+    degree: usize,
+    dim: usize,
+    n: usize,
+    repeat: bool,
+) -> NurbsCurve {
+    let points: Vec<Point> = (0..n)
+        .map(|_| {
+            let mut p = Point::zeros();
+            for axis in 0..dim {
+                let reach = if axis == 2 { 5.0 } else { 50.0 };
+                p[axis] = rng.uniform(-reach, reach);
+            }
+            p
+        })
+        .collect();
+    let weights: Vec<f64> = (0..n).map(|_| rng.uniform(0.2, 5.0)).collect();
+    let mut knots = clamped_uniform_knots(n, degree);
+    if repeat && n > degree + 2 {
+        // Repeat one interior knot up to the degree (replacing its neighbours).
+        let i = degree + 1;
+        for k in 1..degree.min(n - degree - 1) {
+            knots[i + k] = knots[i];
+        }
+    }
+    NurbsCurve::new(degree, dim, &points, &weights, knots).unwrap()
+}
+
 #[cfg(test)]
 mod tests;

@@ -515,27 +515,7 @@ mod tests {
             let degree = 1 + case % 3;
             let dim = 1 + (case / 3) % 3;
             let count = degree + 1 + rng.below(6);
-            let points: Vec<Point> = (0..count)
-                .map(|_| {
-                    let mut p = Point::zeros();
-                    for axis in 0..dim {
-                        p[axis] = rng.uniform(-300.0, 300.0);
-                    }
-                    p
-                })
-                .collect();
-            let weights: Vec<f64> = (0..count).map(|_| rng.uniform(0.2, 5.0)).collect();
-            let mut interior: Vec<f64> = (0..count - degree - 1)
-                .map(|_| rng.uniform(0.05, 0.95))
-                .collect();
-            interior.sort_by(f64::total_cmp);
-            if case % 4 == 0 && degree > 1 && interior.len() > 1 {
-                interior[1] = interior[0];
-            }
-            let mut knots = vec![0.0; degree + 1];
-            knots.extend(interior);
-            knots.extend(std::iter::repeat_n(1.0, degree + 1));
-            let curve = NurbsCurve::new(degree, dim, &points, &weights, knots).unwrap();
+            let curve = crate::geometry::random_curve(&mut rng, degree, dim, count, case % 4 == 0);
             for k in 0..=40 {
                 let u = if k == 40 { 1.0 } else { rng.uniform(0.0, 1.0) };
                 let span = find_span(count - 1, degree, curve.knots(), u);
