@@ -62,7 +62,14 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
     /// The degree, as a constant where the size fixes it.
     #[inline(always)]
     fn p(&self) -> usize {
-        if Self::EXACT { R - 1 } else { self.degree }
+        Self::degree_of(self.degree)
+    }
+
+    /// The degree of a piece of a curve of degree `degree` at this size: `R − 1`, a constant,
+    /// where the size fixes it (and `bezier_pieces` checks the curve agrees).
+    #[inline(always)]
+    fn degree_of(degree: usize) -> usize {
+        if Self::EXACT { R - 1 } else { degree }
     }
 
     /// Weight of control point `j` (positive).
@@ -205,12 +212,7 @@ impl NurbsCurve {
         s: f64,
         t: f64,
     ) -> Bezier<W, R> {
-        // Checked equal to the curve's by `bezier_pieces` where the size fixes it.
-        let p = if Bezier::<W, R>::EXACT {
-            R - 1
-        } else {
-            self.degree()
-        };
+        let p = Bezier::<W, R>::degree_of(self.degree());
         let dim = self.dim();
         let knots = self.knots();
         let level = |d: &mut [[f64; W]; R], r: usize, x: f64| {
