@@ -70,6 +70,9 @@ pub(crate) fn basis_derivs_to<const SECOND: bool>(
     ders: &mut [[f64; MAX_ORDER]; 3],
 ) {
     let p = degree;
+    // The 2p knots the basis on `span` reads, `k[i] = knots[span + 1 - p + i]`, taken once:
+    // with the degree a constant, every index below is then known to be in range.
+    let k = &knots[span + 1 - p..=span + p];
     let mut left = [0.0f64; MAX_ORDER];
     let mut right = [0.0f64; MAX_ORDER];
     // `values[r]` = N_{span-j+r, j} after step j; `lower1`/`lower2` keep degrees p-1 and p-2.
@@ -84,8 +87,8 @@ pub(crate) fn basis_derivs_to<const SECOND: bool>(
         if j == p {
             lower1 = values;
         }
-        left[j] = u - knots[span + 1 - j];
-        right[j] = knots[span + j] - u;
+        left[j] = u - k[p - j];
+        right[j] = k[p - 1 + j] - u;
         let mut saved = 0.0;
         for r in 0..j {
             let temp = values[r] / (right[r + 1] + left[j - r]);
@@ -102,7 +105,7 @@ pub(crate) fn basis_derivs_to<const SECOND: bool>(
     let mut inv_d = [0.0f64; MAX_ORDER];
     let mut c = [0.0f64; MAX_ORDER + 1];
     for r in 0..p {
-        inv_d[r] = 1.0 / (knots[span + r + 1] - knots[span + 1 + r - p]);
+        inv_d[r] = 1.0 / (k[p + r] - k[r]);
         c[r + 1] = lower1[r] * inv_d[r];
     }
     // c[0] and c[p + 1] stand for the zero neighbours outside the support.
@@ -119,7 +122,7 @@ pub(crate) fn basis_derivs_to<const SECOND: bool>(
     // First derivatives of the degree p-1 basis, from the degree p-2 values.
     let mut c2 = [0.0f64; MAX_ORDER + 1];
     for q in 0..p - 1 {
-        c2[q + 1] = lower2[q] / (knots[span + q + 1] - knots[span + 2 + q - p]);
+        c2[q + 1] = lower2[q] / (k[p + q] - k[q + 1]);
     }
     // e[r + 1] = N'_{span-p+1+r, p-1} / D[r], with zero neighbours at e[0] and e[p + 1].
     let mut e = [0.0f64; MAX_ORDER + 1];

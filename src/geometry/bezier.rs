@@ -214,11 +214,12 @@ impl NurbsCurve {
     ) -> Bezier<W, R> {
         let p = Bezier::<W, R>::degree_of(self.degree());
         let dim = self.dim();
-        let knots = self.knots();
+        // The 2p knots the span's levels read, `k[i] = knots[span + 1 - p + i]`, taken once so
+        // that, the degree a constant, their indices need no checks.
+        let k = &self.knots()[span + 1 - p..=span + p];
         let level = |d: &mut [[f64; W]; R], r: usize, x: f64| {
             for i in (r..=p).rev() {
-                let k = span - p + i;
-                let alpha = (x - knots[k]) / (knots[k + p + 1 - r] - knots[k]);
+                let alpha = (x - k[i - 1]) / (k[p + i - r] - k[i - 1]);
                 d[i] = lerp(&d[i - 1], &d[i], alpha);
             }
         };
@@ -227,18 +228,20 @@ impl NurbsCurve {
             dim,
             points: [[0.0; W]; R],
         };
-        // `prefix` after j levels at t; `d` finishes each point (only the live rows copied).
+        // `prefix` after j levels at t; `d` finishes each point. Both are copied whole, in
+        // constant lengths (every lane a row has: the slots past the curve's axes are zero in
+        // the curve's points too; every row, though point `j` reads only rows `j..=p`):
+        // copies of a length known only at run time went through `memcpy` calls, four a piece.
         let mut prefix = [[0.0; W]; R];
-        let mut d = [[0.0; W]; R];
         for (row, h) in prefix.iter_mut().zip(&self.homogeneous()[span - p..=span]) {
-            row[..dim].copy_from_slice(&h[..dim]);
+            row[..Bezier::<W, R>::LANES].copy_from_slice(&h[..Bezier::<W, R>::LANES]);
             row[W - 1] = h[WEIGHT_SLOT];
         }
         for j in 0..=p {
             if j > 0 {
                 level(&mut prefix, j, t);
             }
-            d[j..=p].copy_from_slice(&prefix[j..=p]);
+            let mut d = prefix;
             for r in j + 1..=p {
                 level(&mut d, r, s);
             }

@@ -33,10 +33,10 @@ use std::collections::VecDeque;
 
 use super::chord::chord_length_limit;
 use super::segmenter::unit;
-use super::{PlanSettings, corner_speed};
+use super::{PlanSettings, corner_speed, lanes};
 use crate::gcode::{Block, BlockKind};
 use crate::geometry::{CurveDerivs, NurbsCurve, Point};
-use crate::vocab::Segmentation;
+use crate::vocab::{MAX_AXES, Segmentation};
 
 /// Longest interval between two samples of a curved block (mm), as `plan` samples.
 pub const MAX_SPACING_MM: f64 = 0.25;
@@ -73,7 +73,17 @@ struct Sampler {
 }
 
 impl Sampler {
-    fn block(&mut self, block: &Block, mut step: impl FnMut(Step)) {
+    fn block(&mut self, block: &Block, step: impl FnMut(Step)) {
+        // Three coordinates for up to three axes, all of a `Point` beyond: the same numbers
+        // ([`lanes`]), for half the arithmetic on a sample.
+        if block.curve.dim() <= 3 {
+            self.block_on::<3>(block, step);
+        } else {
+            self.block_on::<MAX_AXES>(block, step);
+        }
+    }
+
+    fn block_on<const N: usize>(&mut self, block: &Block, mut step: impl FnMut(Step)) {
         let s = &self.settings;
         let curve = &block.curve;
         let feed = if block.kind == BlockKind::Rapid {
@@ -92,8 +102,8 @@ impl Sampler {
         };
         let (u0, u1) = (curve.u_min(), curve.u_max());
         let first = curve.derivs(u0);
-        let mut limit = self.limit(feed, &first);
-        let mut tangent = unit(&first.d1);
+        let mut limit = self.limit::<N>(feed, &first);
+        let mut tangent = lanes::unit::<N>(&first.d1);
         match self.prev_tangent {
             Some(prev) => step(Step::Junction(limit.min(corner_speed(&prev, &tangent, s)))),
             // The path starts at rest.
@@ -111,12 +121,13 @@ impl Sampler {
             } else {
                 curve.derivs(u)
             };
-            let here = self.limit(feed, &d);
-            let next_tangent = unit(&d.d1);
+            let here = self.limit::<N>(feed, &d);
+            let next_tangent = lanes::unit::<N>(&d.d1);
             // The arc over its chord: 1 + θ²/24 for a turn of θ between the tangents.
-            let turn = 2.0 * ((next_tangent - tangent).norm() / 2.0).min(1.0).asin();
+            let gap = lanes::norm::<N>(&lanes::sub::<N>(&next_tangent, &tangent));
+            let turn = 2.0 * (gap / 2.0).min(1.0).asin();
             step(Step::Sample(Sample {
-                ds: (d.point - p).norm() * (1.0 + turn * turn / 24.0),
+                ds: lanes::norm::<N>(&lanes::sub::<N>(&d.point, &p)) * (1.0 + turn * turn / 24.0),
                 v: here,
                 cap: limit.max(here),
             }));
@@ -126,15 +137,19 @@ impl Sampler {
     }
 
     /// The speed limit at a point of a block programmed at `feed` (mm/s).
-    fn limit(&self, feed: f64, d: &CurveDerivs) -> f64 {
+    fn limit<const N: usize>(&self, feed: f64, d: &CurveDerivs) -> f64 {
         let s = &self.settings;
-        let rho = d.curvature_radius();
+        let rho = lanes::curvature_radius::<N>(d);
         let mut v = feed.min((s.max_normal_accel * rho).sqrt());
         if s.segmentation == Segmentation::Period {
             v = v.min(chord_length_limit(rho, s.tolerance) / s.period);
         }
         // The outputs' one step per tick, as the planner honours it.
-        v.min(super::step_cap(&s.axis_cap, &d.d1, d.d1.norm()))
+        v.min(lanes::step_cap::<N>(
+            &s.axis_cap,
+            &d.d1,
+            lanes::norm::<N>(&d.d1),
+        ))
     }
 }
 

@@ -419,7 +419,7 @@ fn polish<const N: usize>(
     for _ in 0..MAX_NEWTON {
         let d = curve.derivs(u0 + s * du);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(d.curvature_radius());
+        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
         out.note(chord.distance(&d.point), u0 + s * du);
         let r = chord.perp(&lanes::sub::<N>(&d.point, &chord.start));
         let f = chord.dot(&r, &r);
@@ -457,7 +457,7 @@ fn sampled_maximum<const N: usize>(
         let u = u0 + du * k as f64 / FALLBACK_SAMPLES as f64;
         let d = curve.derivs(u);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(d.curvature_radius());
+        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
         let dist = chord.distance(&d.point);
         out.note(dist, u);
         *slot = dist * dist;
@@ -479,7 +479,7 @@ fn sampled_maximum<const N: usize>(
     let distance_at = |s: f64, out: &mut ChordError| {
         let d = curve.derivs(u0 + du * s);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(d.curvature_radius());
+        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
         let dist = chord.distance(&d.point);
         out.note(dist, u0 + du * s);
         dist

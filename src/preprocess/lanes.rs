@@ -10,7 +10,7 @@
 //!
 //! Must never: hold state, or compute anything nalgebra would round differently.
 
-use crate::geometry::Point;
+use crate::geometry::{CurveDerivs, Point};
 
 #[inline(always)]
 pub fn dot<const N: usize>(a: &Point, b: &Point) -> f64 {
@@ -66,6 +66,47 @@ pub fn div<const N: usize>(a: &Point, k: f64) -> Point {
     out
 }
 
+/// `v / |v|`, zero staying zero, as [`unit`](super::segmenter::unit) gives it.
+#[inline(always)]
+pub fn unit<const N: usize>(v: &Point) -> Point {
+    let n = norm::<N>(v);
+    if n > 0.0 { div::<N>(v, n) } else { *v }
+}
+
+/// The radius of curvature, as [`CurveDerivs::curvature_radius`] computes it.
+#[inline(always)]
+pub fn curvature_radius<const N: usize>(d: &CurveDerivs) -> f64 {
+    let (a, b) = (&d.d1, &d.d2);
+    let speed_sq = dot::<N>(a, a);
+    if speed_sq == 0.0 {
+        return 0.0;
+    }
+    let normal_norm = norm::<N>(&sub_scaled::<N>(b, a, dot::<N>(a, b) / speed_sq));
+    if normal_norm == 0.0 {
+        f64::INFINITY
+    } else {
+        speed_sq / normal_norm
+    }
+}
+
+/// The fastest the outputs can step a move `d` of length `chord`, as
+/// [`step_cap`](super::step_cap) gives it.
+#[inline(always)]
+pub fn step_cap<const N: usize>(
+    axis_cap: &[f64; crate::vocab::MAX_AXES],
+    d: &Point,
+    chord: f64,
+) -> f64 {
+    let mut cap = f64::INFINITY;
+    for i in 0..N {
+        let x = d[i].abs();
+        if x > 0.0 {
+            cap = cap.min(axis_cap[i] * chord / x);
+        }
+    }
+    cap
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -111,6 +152,30 @@ mod tests {
                 // And any dot product they enter is the same to the bit.
                 assert_eq!(dot::<3>(&mine, &b).to_bits(), theirs.dot(&b).to_bits());
             }
+            let (mine, theirs) = (unit::<3>(&a), super::super::segmenter::unit(&a));
+            assert_eq!(mine.map(f64::to_bits), theirs.map(f64::to_bits));
+            let d = CurveDerivs {
+                point: Point::zeros(),
+                d1: a,
+                d2: b,
+            };
+            assert_eq!(
+                curvature_radius::<3>(&d).to_bits(),
+                d.curvature_radius().to_bits()
+            );
+            let caps = [rng.uniform(1.0, 100.0); crate::vocab::MAX_AXES];
+            let chord = a.norm();
+            assert_eq!(
+                step_cap::<3>(&caps, &a, chord).to_bits(),
+                super::super::step_cap(&caps, &a, chord).to_bits()
+            );
         }
+        // A straight piece: no curvature, an infinite radius either way.
+        let d = CurveDerivs {
+            point: Point::zeros(),
+            d1: three_axes(&mut rng),
+            d2: Point::zeros(),
+        };
+        assert_eq!(curvature_radius::<3>(&d), d.curvature_radius());
     }
 }

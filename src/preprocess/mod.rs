@@ -333,6 +333,6 @@ fn chord_segment(p: PlannedSegment) -> Segment {
         fluctuation: None,
         last_of_block: g.last_of_block,
         corner_dwell_s: g.corner_dwell_s,
-        block: g.block,
+        block: Arc::clone(&g.block),
     }
 }

@@ -95,10 +95,12 @@ impl Profile {
     }
 }
 
-/// A segment with its planned speeds.
-#[derive(Debug, Clone)]
-pub struct PlannedSegment {
-    pub geo: GeoSegment,
+/// A segment with its planned speeds, lent to the caller as the segment leaves the window: a
+/// `GeoSegment` is over 200 bytes, and handing it over by value cost one more copy of it a
+/// segment.
+#[derive(Debug, Clone, Copy)]
+pub struct PlannedSegment<'a> {
+    pub geo: &'a GeoSegment,
     pub profile: Profile,
 }
 
@@ -210,44 +212,47 @@ impl Planner {
         self.travelled = 0.0;
     }
 
-    /// Highest entry speed of the window's first segment that can still stop in time.
-    fn front_v_back(&self) -> f64 {
-        let Some(front) = self.window.front() else {
+    /// Highest entry speed of the window's `i`-th segment that can still stop in time (the
+    /// caps before it already dropped).
+    fn v_back_at(&self, i: usize) -> f64 {
+        let Some(entry) = self.window.get(i) else {
             return 0.0;
         };
         let two_a = 2.0 * self.accel;
         let end = two_a * self.travelled;
-        // Caps before the front were dropped when their segment left.
+        // Caps before the segment were dropped when their segment left.
         let bound = self.caps.front().map_or(end, |c| c.key.min(end));
-        // The front's own junction, applied directly: the key's rounding must not lift a
+        // The segment's own junction, applied directly: the key's rounding must not lift a
         // speed above its limit.
-        (bound - two_a * front.before)
+        (bound - two_a * entry.before)
             .max(0.0)
             .sqrt()
-            .min(front.junction)
+            .min(entry.junction)
     }
 
+    /// Plans the window's first segment, lends it to `emit`, then drops it from the window:
+    /// lent in place, not moved out and handed over.
     fn release<F: FnMut(PlannedSegment)>(&mut self, emit: &mut F) {
-        let v_back = self.front_v_back();
-        let Some(e) = self.window.pop_front() else {
+        if self.window.is_empty() {
             return;
-        };
-        if let Some(next) = self.window.front() {
-            while self.caps.front().is_some_and(|c| c.seq < next.seq) {
+        }
+        let v_back = self.v_back_at(0);
+        // The leaving segment's caps go; the next one's bound starts at its own junction.
+        if let Some(next) = self.window.get(1).map(|e| e.seq) {
+            while self.caps.front().is_some_and(|c| c.seq < next) {
                 self.caps.pop_front();
             }
         } else {
             self.caps.clear();
         }
         let v0 = self.v_start.min(v_back);
-        let next_max = self.front_v_back();
-        let v1 = next_max.min((v0 * v0 + 2.0 * self.accel * e.geo.arc).sqrt());
-        let profile = Profile::new(e.geo.arc, v0, v1, e.geo.feed_limit, self.accel);
+        let next_max = self.v_back_at(1);
+        let geo = &self.window[0].geo;
+        let v1 = next_max.min((v0 * v0 + 2.0 * self.accel * geo.arc).sqrt());
+        let profile = Profile::new(geo.arc, v0, v1, geo.feed_limit, self.accel);
         self.v_start = v1;
-        emit(PlannedSegment {
-            geo: e.geo,
-            profile,
-        });
+        emit(PlannedSegment { geo, profile });
+        self.window.pop_front();
     }
 
     /// Moves the origin to the window's first segment (rarely: every [`REBASE_AFTER_MM`]).

@@ -32,9 +32,9 @@ use std::sync::Arc;
 use super::certify::{certify, hull_excess};
 use super::chord::{ChordError, Sample, chord_error, chord_length_limit};
 use super::predictor::{History, hamming_increments, taylor_increment};
-use super::{GeoSegment, PlanSettings, corner_speed};
+use super::{GeoSegment, PlanSettings, corner_speed, lanes};
 use crate::gcode::Block;
-use crate::geometry::{NurbsCurve, Point};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point};
 use crate::vocab::{Predictor, Segmentation};
 
 /// Fraction of the tolerance that predictions aim at, leaving room for the circle formula's
@@ -187,10 +187,13 @@ impl Segmenter {
                 self.curved_step(curve, &a, rho_start, hi)
             };
             let at_end = b.u >= hi;
-            let rho_end = b.d.curvature_radius();
+            // On three coordinates for up to three axes: the same numbers ([`lanes`]).
+            let (rho_end, chord, stepped) = if curve.dim() <= 3 {
+                self.end_of_step::<3>(&a.d.point, &b.d)
+            } else {
+                self.end_of_step::<{ crate::vocab::MAX_AXES }>(&a.d.point, &b.d)
+            };
             let rho_min = rho_start.min(rho_end).min(err.rho_min);
-            let chord = (b.d.point - a.d.point).norm();
-            let stepped = self.step_cap(&(b.d.point - a.d.point), chord);
             let seg = GeoSegment {
                 block: Arc::clone(block),
                 u_start: a.u,
@@ -232,8 +235,12 @@ impl Segmenter {
         self.prev_tangent = Some(unit(&a.d.d1));
     }
 
-    fn step_cap(&self, d: &Point, chord: f64) -> f64 {
-        super::step_cap(&self.settings.axis_cap, d, chord)
+    /// A step's radius of curvature at its end, its chord and the outputs' speed cap along it.
+    fn end_of_step<const N: usize>(&self, start: &Point, end: &CurveDerivs) -> (f64, f64, f64) {
+        let d = lanes::sub::<N>(&end.point, start);
+        let chord = lanes::norm::<N>(&d);
+        let cap = lanes::step_cap::<N>(&self.settings.axis_cap, &d, chord);
+        (lanes::curvature_radius::<N>(end), chord, cap)
     }
 
     /// Cruise speed limit on a segment (mm/s): programmed feed, normal acceleration over the

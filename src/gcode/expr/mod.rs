@@ -84,16 +84,21 @@ impl<'a> Scanner<'a> {
         self.depth -= 1;
     }
 
+    // The four below are inlined: a lexed line calls them once or twice a character, and the
+    // calls cost more than the look at a byte.
+    #[inline]
     pub(crate) fn peek(&self) -> Option<char> {
         self.s[self.pos..].chars().next()
     }
 
+    #[inline]
     pub(crate) fn peek2(&self) -> Option<char> {
         let mut it = self.s[self.pos..].chars();
         it.next();
         it.next()
     }
 
+    #[inline]
     pub(crate) fn bump(&mut self) -> Option<char> {
         let c = self.peek()?;
         self.pos += c.len_utf8();
@@ -101,6 +106,7 @@ impl<'a> Scanner<'a> {
         Some(c)
     }
 
+    #[inline]
     pub(crate) fn skip_ws(&mut self) {
         while matches!(self.peek(), Some(' ' | '\t')) {
             self.bump();

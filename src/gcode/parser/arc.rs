@@ -29,9 +29,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let plane = self.state.modal.plane;
         let [la, lb] = plane.axis_letters();
         let [oa, ob] = plane.offset_letters();
-        let context = format!("in {} ({}) arcs", plane.g_code(), plane.name());
-        let extra: String = [oa, ob, 'R', 'P'].iter().collect();
-        self.check_letters(letters, true, &extra, &context)?;
+        self.check_letters_with(letters, true, &|c| [oa, ob, 'R', 'P'].contains(&c), &|| {
+            format!("in {} ({}) arcs", plane.g_code(), plane.name())
+        })?;
         if let Some(p) = letters.get('P') {
             return Err((
                 p.col,
