@@ -133,7 +133,9 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
 
     /// The largest of `f` over the control points (Cartesian), without building vectors:
     /// `f` gets each point's coordinates in every lane the row has (`min(W − 1, MAX_AXES)`),
-    /// zero past the curve's axes, so that its loops have a constant length.
+    /// zero past the curve's axes, so that its loops have a constant length. Inlined into
+    /// the certificate's walk, which calls it for every piece it looks at.
+    #[inline]
     pub fn max_over_control_points(&self, mut f: impl FnMut(&[f64]) -> f64) -> f64 {
         let mut best = 0.0f64;
         let mut c = [0.0; W];

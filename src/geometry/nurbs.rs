@@ -341,7 +341,9 @@ impl NurbsCurve {
     /// that sum three coordinates and the weight rather than every slot: the slots past the
     /// curve's axes hold zeros, whose sums and quotients are `+0` (a `±0` term leaves a sum
     /// from `+0` unchanged, and the weight is positive), which is what `Point::zeros` leaves
-    /// there. The same numbers, bit for bit, for half the multiplications.
+    /// there. The same numbers, bit for bit, for half the multiplications. Inlined into its
+    /// two callers: one call an evaluation, not two.
+    #[inline(always)]
     fn derivs_on_span(&self, span: usize, u: f64) -> CurveDerivs {
         match (self.degree, self.dim <= 3) {
             (1, true) => self.kernel::<3>(span, u, 1),

@@ -137,6 +137,7 @@ impl Sampler {
     }
 
     /// The speed limit at a point of a block programmed at `feed` (mm/s).
+    #[inline]
     fn limit<const N: usize>(&self, feed: f64, d: &CurveDerivs) -> f64 {
         let s = &self.settings;
         let rho = lanes::curvature_radius::<N>(d);
