@@ -14,6 +14,7 @@ mod arc;
 mod basis;
 mod bezier;
 mod extent;
+pub mod lanes;
 mod length;
 mod nurbs;
 mod split;

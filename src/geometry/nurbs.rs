@@ -92,19 +92,7 @@ impl CurveDerivs {
     /// curve is straight, zero where it has no speed (a cusp of the parametrisation, which the
     /// planner must treat like a corner).
     pub fn curvature_radius(&self) -> f64 {
-        // |C' x C''| = |C'| |C''_perp|, with C''_perp the part of C'' normal to C'.
-        let (a, b) = (&self.d1, &self.d2);
-        let speed_sq = a.norm_squared();
-        if speed_sq == 0.0 {
-            return 0.0;
-        }
-        let normal = b - a * (a.dot(b) / speed_sq);
-        let normal_norm = normal.norm();
-        if normal_norm == 0.0 {
-            f64::INFINITY
-        } else {
-            speed_sq / normal_norm
-        }
+        super::lanes::curvature_radius::<MAX_AXES>(self)
     }
 }
 

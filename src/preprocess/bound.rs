@@ -33,9 +33,9 @@ use std::collections::VecDeque;
 
 use super::chord::chord_length_limit;
 use super::segmenter::unit;
-use super::{PlanSettings, corner_speed, lanes};
+use super::{PlanSettings, corner_speed, step_cap};
 use crate::gcode::{Block, BlockKind};
-use crate::geometry::{CurveDerivs, NurbsCurve, Point};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes};
 use crate::vocab::{MAX_AXES, Segmentation};
 
 /// Longest interval between two samples of a curved block (mm), as `plan` samples.
@@ -146,11 +146,7 @@ impl Sampler {
             v = v.min(chord_length_limit(rho, s.tolerance) / s.period);
         }
         // The outputs' one step per tick, as the planner honours it.
-        v.min(lanes::step_cap::<N>(
-            &s.axis_cap,
-            &d.d1,
-            lanes::norm::<N>(&d.d1),
-        ))
+        v.min(step_cap::<N>(&s.axis_cap, &d.d1, lanes::norm::<N>(&d.d1)))
     }
 }
 

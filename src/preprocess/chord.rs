@@ -19,8 +19,7 @@
 //! curve disagree (near-cusps, pieces whose end tangents say little about their middle) the
 //! bulges are found by sampling instead.
 
-use super::lanes;
-use crate::geometry::{CurveDerivs, NurbsCurve, Point};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes};
 
 /// A point of a curve with its derivatives: the unit of work the segmenter passes around.
 #[derive(Debug, Clone, Copy, PartialEq)]

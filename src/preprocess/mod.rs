@@ -32,7 +32,6 @@ pub mod bound;
 pub mod certify;
 pub mod chord;
 pub mod corners;
-mod lanes;
 pub mod period;
 pub mod planner;
 pub mod predictor;
@@ -161,11 +160,18 @@ pub struct Segment {
 
 /// The fastest the outputs can step a move `d` of length `chord` along it (mm/s): one step
 /// per tick (`axis_cap`, mm/s per axis) on the axis that moves most for its step size.
-pub fn step_cap(axis_cap: &[f64; crate::vocab::MAX_AXES], d: &Point, chord: f64) -> f64 {
+///
+/// On the first `N` coordinates of `d` (the rest zero): a three-axis curve's step costs half.
+pub fn step_cap<const N: usize>(
+    axis_cap: &[f64; crate::vocab::MAX_AXES],
+    d: &Point,
+    chord: f64,
+) -> f64 {
     let mut cap = f64::INFINITY;
-    for (x, c) in d.iter().zip(axis_cap) {
-        if x.abs() > 0.0 {
-            cap = cap.min(c * chord / x.abs());
+    for i in 0..N {
+        let x = d[i].abs();
+        if x > 0.0 {
+            cap = cap.min(axis_cap[i] * chord / x);
         }
     }
     cap

@@ -32,9 +32,9 @@ use std::sync::Arc;
 use super::certify::{certify, hull_excess};
 use super::chord::{ChordError, Sample, chord_error, chord_length_limit};
 use super::predictor::{History, hamming_increments, taylor_increment};
-use super::{GeoSegment, PlanSettings, corner_speed, lanes};
+use super::{GeoSegment, PlanSettings, corner_speed, step_cap};
 use crate::gcode::Block;
-use crate::geometry::{CurveDerivs, NurbsCurve, Point};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes};
 use crate::vocab::{Predictor, Segmentation};
 
 /// Fraction of the tolerance that predictions aim at, leaving room for the circle formula's
@@ -239,7 +239,7 @@ impl Segmenter {
     fn end_of_step<const N: usize>(&self, start: &Point, end: &CurveDerivs) -> (f64, f64, f64) {
         let d = lanes::sub::<N>(&end.point, start);
         let chord = lanes::norm::<N>(&d);
-        let cap = lanes::step_cap::<N>(&self.settings.axis_cap, &d, chord);
+        let cap = step_cap::<N>(&self.settings.axis_cap, &d, chord);
         (lanes::curvature_radius::<N>(end), chord, cap)
     }
 
@@ -555,8 +555,7 @@ impl StraightPiece {
 
 /// Unit vector along `v` (zero stays zero).
 pub(crate) fn unit(v: &Point) -> Point {
-    let n = v.norm();
-    if n > 0.0 { v / n } else { *v }
+    lanes::unit::<{ crate::vocab::MAX_AXES }>(v)
 }
 
 /// Arc length of a gently curved piece from its chord and sagitta (`L + 8h²/(3L)`, the

@@ -1,5 +1,6 @@
 //! Vector arithmetic on the first `N` coordinates of a [`Point`], the rest being zero: a
-//! three-axis curve's measurement works on three numbers where a `Point` holds six.
+//! three-axis curve's chord measurement, step ends and bound samples work on three numbers
+//! where a `Point` holds six. The all-axis forms are the same functions at `N = MAX_AXES`.
 //!
 //! Bit for bit nalgebra's on the whole point, which is what keeps every segment where it was:
 //! nalgebra sums a six-wide dot product in order from `+0` (its unrolled loop starts at eight),
@@ -10,7 +11,7 @@
 //!
 //! Must never: hold state, or compute anything nalgebra would round differently.
 
-use crate::geometry::{CurveDerivs, Point};
+use super::{CurveDerivs, Point};
 
 #[inline(always)]
 pub fn dot<const N: usize>(a: &Point, b: &Point) -> f64 {
@@ -66,14 +67,16 @@ pub fn div<const N: usize>(a: &Point, k: f64) -> Point {
     out
 }
 
-/// `v / |v|`, zero staying zero, as [`unit`](super::segmenter::unit) gives it.
+/// `v / |v|`, zero staying zero.
 #[inline(always)]
 pub fn unit<const N: usize>(v: &Point) -> Point {
     let n = norm::<N>(v);
     if n > 0.0 { div::<N>(v, n) } else { *v }
 }
 
-/// The radius of curvature, as [`CurveDerivs::curvature_radius`] computes it.
+/// The radius of curvature `|C'|³ / |C' × C''|`, as `|C'|² / |C''⊥|` with `C''⊥` the part of
+/// `C''` normal to `C'` (`|C' × C''| = |C'| |C''⊥|`): zero where the curve stops, infinite
+/// where it runs straight. [`CurveDerivs::curvature_radius`] is this on every axis.
 #[inline(always)]
 pub fn curvature_radius<const N: usize>(d: &CurveDerivs) -> f64 {
     let (a, b) = (&d.d1, &d.d2);
@@ -87,24 +90,6 @@ pub fn curvature_radius<const N: usize>(d: &CurveDerivs) -> f64 {
     } else {
         speed_sq / normal_norm
     }
-}
-
-/// The fastest the outputs can step a move `d` of length `chord`, as
-/// [`step_cap`](super::step_cap) gives it.
-#[inline(always)]
-pub fn step_cap<const N: usize>(
-    axis_cap: &[f64; crate::vocab::MAX_AXES],
-    d: &Point,
-    chord: f64,
-) -> f64 {
-    let mut cap = f64::INFINITY;
-    for i in 0..N {
-        let x = d[i].abs();
-        if x > 0.0 {
-            cap = cap.min(axis_cap[i] * chord / x);
-        }
-    }
-    cap
 }
 
 #[cfg(test)]
@@ -123,6 +108,20 @@ mod tests {
             };
         }
         p
+    }
+
+    /// The radius of curvature in nalgebra's whole-point arithmetic.
+    fn nalgebra_radius(a: &Point, b: &Point) -> f64 {
+        let speed_sq = a.norm_squared();
+        if speed_sq == 0.0 {
+            return 0.0;
+        }
+        let normal_norm = (b - a * (a.dot(b) / speed_sq)).norm();
+        if normal_norm == 0.0 {
+            f64::INFINITY
+        } else {
+            speed_sq / normal_norm
+        }
     }
 
     #[test]
@@ -152,8 +151,10 @@ mod tests {
                 // And any dot product they enter is the same to the bit.
                 assert_eq!(dot::<3>(&mine, &b).to_bits(), theirs.dot(&b).to_bits());
             }
-            let (mine, theirs) = (unit::<3>(&a), super::super::segmenter::unit(&a));
-            assert_eq!(mine.map(f64::to_bits), theirs.map(f64::to_bits));
+            // The vector helpers on three lanes against nalgebra's formulas on all six.
+            let n = a.norm();
+            let theirs = if n > 0.0 { a / n } else { a };
+            assert_eq!(unit::<3>(&a).map(f64::to_bits), theirs.map(f64::to_bits));
             let d = CurveDerivs {
                 point: Point::zeros(),
                 d1: a,
@@ -161,13 +162,11 @@ mod tests {
             };
             assert_eq!(
                 curvature_radius::<3>(&d).to_bits(),
-                d.curvature_radius().to_bits()
+                nalgebra_radius(&a, &b).to_bits()
             );
-            let caps = [rng.uniform(1.0, 100.0); crate::vocab::MAX_AXES];
-            let chord = a.norm();
             assert_eq!(
-                step_cap::<3>(&caps, &a, chord).to_bits(),
-                super::super::step_cap(&caps, &a, chord).to_bits()
+                curvature_radius::<3>(&d).to_bits(),
+                d.curvature_radius().to_bits()
             );
         }
         // A straight piece: no curvature, an infinite radius either way.
@@ -177,5 +176,38 @@ mod tests {
             d2: Point::zeros(),
         };
         assert_eq!(curvature_radius::<3>(&d), d.curvature_radius());
+    }
+
+    /// On all six lanes the helpers are nalgebra's own formulas, bit for bit: what the
+    /// all-axis callers (`unit`, `CurveDerivs::curvature_radius`) used before they came here.
+    #[test]
+    fn six_lanes_are_nalgebras_formulas_bit_for_bit() {
+        let mut rng = SplitMix64::new(6);
+        let six = |rng: &mut SplitMix64| {
+            let mut p = Point::zeros();
+            for slot in p.iter_mut() {
+                *slot = match rng.next_u64() % 8 {
+                    0 => -0.0,
+                    1 => 0.0,
+                    _ => rng.uniform(-100.0, 100.0),
+                };
+            }
+            p
+        };
+        for _ in 0..100_000 {
+            let (a, b) = (six(&mut rng), six(&mut rng));
+            let n = a.norm();
+            let theirs = if n > 0.0 { a / n } else { a };
+            assert_eq!(unit::<6>(&a).map(f64::to_bits), theirs.map(f64::to_bits));
+            let d = CurveDerivs {
+                point: Point::zeros(),
+                d1: a,
+                d2: b,
+            };
+            assert_eq!(
+                curvature_radius::<6>(&d).to_bits(),
+                nalgebra_radius(&a, &b).to_bits()
+            );
+        }
     }
 }
