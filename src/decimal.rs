@@ -6,8 +6,9 @@
 //! Why not `format!`: `edmd plan` writes a trace row per segment, a dozen numbers a row, and
 //! `core::fmt`'s shortest-digits path (Grisu with a Dragon fallback, behind the formatter's
 //! padding machinery) cost about 13,000 instructions a row, more than segmenting and planning
-//! the segment. Ryū (the `ryu` crate) finds the same shortest round-trip digits in a few
-//! hundred; it lays them out its own way (`1e-7`, `1.0`), so this module takes its digits and
+//! the segment. A Ryū-family search (the `zmij` crate, Schubfach's method; "Ryū" below) finds
+//! the same shortest round-trip digits in under two hundred; it lays them out its own way
+//! (`1e-7`, `1.0`), so where that layout is not std's this module takes its digits and
 //! exponent and writes them in std's layout. A test holds the two equal on millions of
 //! doubles, so a trace written here is byte-for-byte the one `format!` wrote.
 //!
@@ -162,28 +163,45 @@ fn push_zeros(out: &mut Vec<u8>, n: usize) {
 
 /// Appends `x` as `format!("{x}")` prints it: the shortest round-trip digits, never an
 /// exponent (`0.0000001`, `1000000000000000000000`), no point for a whole number (`1`, `-0`).
+///
+/// Inlined where it is called, with the two cases a trace row is made of up front: a whole
+/// number below 2^53 and a fraction whose shortest digits Ryū lays out as std does. Everything
+/// else (non-finite, tiny, a possible tie) goes to [`push_f64_general`]. As a call of its own
+/// this front cost about fifty instructions a number before the conversion started, six
+/// numbers a row.
+#[inline(always)]
 pub fn push_f64(out: &mut Vec<u8>, x: f64) {
-    if !x.is_finite() {
-        push_non_finite(out, x);
-        return;
-    }
-    let (m, e) = odd_mantissa(x);
-    if e >= 0 {
-        // A whole number (a feed of `600`, a coordinate of `0`): below 2^53 it is its own
-        // shortest decimal, so its digits are the integer's, `m · 2^e`. A trace has two or
-        // three a row, and this costs a tenth of the shortest-digits search.
-        if x.abs() < WHOLE_BELOW {
+    let magnitude = x.abs();
+    // `NaN` and the infinities fail the first test.
+    if magnitude < WHOLE_BELOW {
+        // Exact below 2^53: the conversion back gives `x` only for a whole number.
+        let whole = x as i64;
+        if whole as f64 == x {
+            // A whole number (a feed of `600`, a coordinate of `0`) is its own shortest
+            // decimal: the integer's digits, a sign for `-0` too.
             if x.is_sign_negative() {
                 out.push(b'-');
             }
-            push_u64(out, m << e);
+            push_u64(out, whole.unsigned_abs());
             return;
         }
-    } else if x.abs() >= PLAIN_FROM && !may_tie(m, e) {
-        // The common case: Ryū's own decimal layout is std's. A fraction is below 2^52, so
-        // Ryū writes it without an exponent from `1e-5` up, and never with a bare `.0`.
-        let mut buffer = zmij::Buffer::new();
-        out.extend_from_slice(buffer.format_finite(x).as_bytes());
+        // A fraction is below 2^52, so Ryū writes it without an exponent from `1e-5` up,
+        // and never with a bare `.0`: its layout is std's.
+        if magnitude >= PLAIN_FROM && !fraction_may_tie(x) {
+            out.extend_from_slice(zmij::Buffer::new().format_finite(x).as_bytes());
+            return;
+        }
+    }
+    push_f64_general(out, x);
+}
+
+/// [`push_f64`] for what its fast cases leave (a whole number from 2^53, a fraction below
+/// `1e-5` or one that may be a tie, non-finite values): through the digits, with std's tie
+/// rule applied.
+#[cold]
+#[inline(never)]
+fn push_f64_general(out: &mut Vec<u8>, x: f64) {
+    if push_non_finite(out, x) {
         return;
     }
     let d = Digits::of(x);
@@ -223,6 +241,18 @@ const PLAIN_FROM: f64 = 1e-5;
 fn may_tie(m: u64, e: i32) -> bool {
     let k = e.unsigned_abs() as usize;
     k < POW5.len() && u128::from(m) * u128::from(POW5[k]) < 1_000_000_000_000_000_000
+}
+
+/// [`may_tie`] for a normal double with a fraction (what [`push_f64`]'s fast path sees):
+/// its odd mantissa from the bits directly, without the zero and subnormal cases of
+/// [`odd_mantissa`].
+#[inline]
+fn fraction_may_tie(x: f64) -> bool {
+    let bits = x.to_bits();
+    let m = (bits & ((1 << 52) - 1)) | (1 << 52);
+    let zeros = m.trailing_zeros();
+    let e = ((bits >> 52) & 0x7ff) as i32 - 1075 + zeros as i32;
+    may_tie(m >> zeros, e)
 }
 
 /// `5^k` for the `k` where `m · 5^k` can stay under 10^18.
@@ -330,13 +360,19 @@ pub fn push_i64(out: &mut Vec<u8>, n: i64) {
     out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
 }
 
-/// Appends an unsigned integer in decimal, as `{}` prints it. A single digit (a trace row's
-/// evaluations, a coordinate of `0`) is pushed as one byte: through `itoa` and a copy it
-/// cost thirty-odd instructions, a row has two, and a plan has a million rows.
-#[inline]
+/// Appends an unsigned integer in decimal, as `{}` prints it. Up to three digits (a trace
+/// row's evaluations, a coordinate of `0`, a feed of `600`) are written in place: through
+/// `itoa` and a copy a number cost sixty-odd instructions, a row has three, and a plan has a
+/// million rows.
+#[inline(always)]
 pub fn push_u64(out: &mut Vec<u8>, n: u64) {
+    let digit = |d: u64| b'0' + d as u8;
     if n < 10 {
-        out.push(b'0' + n as u8);
+        out.push(digit(n));
+    } else if n < 100 {
+        out.extend_from_slice(&[digit(n / 10), digit(n % 10)]);
+    } else if n < 1000 {
+        out.extend_from_slice(&[digit(n / 100), digit(n / 10 % 10), digit(n % 10)]);
     } else {
         out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
     }
@@ -533,8 +569,8 @@ mod tests {
             push_i64(&mut out, n);
             assert_eq!(out, n.to_string().into_bytes());
         }
-        // Both sides of the single-digit shortcut, and the largest.
-        for n in (0..=101).chain([999, u64::MAX]) {
+        // Both sides of each short form, and the largest.
+        for n in (0..=1001).chain([9999, 10_000, u64::MAX]) {
             let mut out = b"x".to_vec();
             push_u64(&mut out, n);
             assert_eq!(out, format!("x{n}").into_bytes());

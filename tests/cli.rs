@@ -340,6 +340,13 @@ fn plan_reports_bad_programs_with_their_location() {
     let (_, stderr) = text(&out);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("bad.nc:3:"), "{stderr}");
+    // The trace keeps what was written before the bad block: the header and the path's
+    // first point (line 2's segment was still in the planner's window).
+    let trace = std::fs::read_to_string(dir.join("out/trace.csv")).unwrap();
+    let rows: Vec<&str> = trace.lines().collect();
+    assert_eq!(rows.len(), 2, "{trace}");
+    assert!(rows[0].starts_with("line,kind,u,x,y,z,t,"), "{trace}");
+    assert!(rows[1].starts_with("2,line,,0,0,"), "{trace}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

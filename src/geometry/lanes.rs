@@ -152,18 +152,7 @@ mod tests {
                 assert_eq!(dot::<3>(&mine, &b).to_bits(), theirs.dot(&b).to_bits());
             }
             // The vector helpers on three lanes against nalgebra's formulas on all six.
-            let n = a.norm();
-            let theirs = if n > 0.0 { a / n } else { a };
-            assert_eq!(unit::<3>(&a).map(f64::to_bits), theirs.map(f64::to_bits));
-            let d = CurveDerivs {
-                point: Point::zeros(),
-                d1: a,
-                d2: b,
-            };
-            assert_eq!(
-                curvature_radius::<3>(&d).to_bits(),
-                nalgebra_radius(&a, &b).to_bits()
-            );
+            let d = assert_helpers_are_nalgebras::<3>(&a, &b);
             assert_eq!(
                 curvature_radius::<3>(&d).to_bits(),
                 d.curvature_radius().to_bits()
@@ -196,18 +185,25 @@ mod tests {
         };
         for _ in 0..100_000 {
             let (a, b) = (six(&mut rng), six(&mut rng));
-            let n = a.norm();
-            let theirs = if n > 0.0 { a / n } else { a };
-            assert_eq!(unit::<6>(&a).map(f64::to_bits), theirs.map(f64::to_bits));
-            let d = CurveDerivs {
-                point: Point::zeros(),
-                d1: a,
-                d2: b,
-            };
-            assert_eq!(
-                curvature_radius::<6>(&d).to_bits(),
-                nalgebra_radius(&a, &b).to_bits()
-            );
+            assert_helpers_are_nalgebras::<6>(&a, &b);
         }
+    }
+
+    /// `unit` of `a` and the radius of curvature of `C' = a`, `C'' = b` on `N` lanes, bit for
+    /// bit nalgebra's formulas on the whole `Point`; returns those derivatives.
+    fn assert_helpers_are_nalgebras<const N: usize>(a: &Point, b: &Point) -> CurveDerivs {
+        let n = a.norm();
+        let theirs = if n > 0.0 { a / n } else { *a };
+        assert_eq!(unit::<N>(a).map(f64::to_bits), theirs.map(f64::to_bits));
+        let d = CurveDerivs {
+            point: Point::zeros(),
+            d1: *a,
+            d2: *b,
+        };
+        assert_eq!(
+            curvature_radius::<N>(&d).to_bits(),
+            nalgebra_radius(a, b).to_bits()
+        );
+        d
     }
 }

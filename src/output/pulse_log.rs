@@ -20,6 +20,7 @@ use std::io::{BufRead, BufWriter, Write};
 use std::path::Path;
 
 use super::{OutputError, PulseOutput};
+use crate::decimal::push_u64;
 use crate::gap::GapState;
 use crate::vocab::Axis;
 use crate::vocab::MAX_AXES;
@@ -88,21 +89,6 @@ impl PulseLog {
             source,
         }
     }
-}
-
-/// Appends the decimal digits of `value` (no allocation, unlike `format!`).
-fn push_u64(line: &mut Vec<u8>, mut value: u64) {
-    let mut digits = [0u8; 20];
-    let mut at = digits.len();
-    loop {
-        at -= 1;
-        digits[at] = b'0' + (value % 10) as u8;
-        value /= 10;
-        if value == 0 {
-            break;
-        }
-    }
-    line.extend_from_slice(&digits[at..]);
 }
 
 impl PulseOutput for PulseLog {

@@ -6,7 +6,7 @@
 //! series, whatever the program's length.
 
 use std::fs::File;
-use std::io::{self, BufReader, BufWriter, IsTerminal, Read, Write};
+use std::io::{self, BufReader, IsTerminal, Read};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -263,9 +263,9 @@ impl Progress {
 
 /// Running figures over the emitted segments, and the plot series.
 struct Collector {
-    trace: BufWriter<File>,
     trace_path: PathBuf,
-    rows: row::RowWriter,
+    /// The trace file's writer.
+    rows: row::RowWriter<File>,
     t: f64,
     s: f64,
     segments: u64,
@@ -332,7 +332,7 @@ impl Collector {
 
     fn write_row(&mut self, row: &row::Row) {
         if self.error.is_none()
-            && let Err(e) = self.trace.write_all(self.rows.format(row))
+            && let Err(e) = self.rows.push(row)
         {
             self.error = Some(e);
         }
@@ -453,7 +453,7 @@ pub fn plan_program(
     let mut blocks = BlockReader::with_options(reader, &name, axes, options);
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let trace_path = out_dir.join("trace.csv");
-    let trace = BufWriter::new(File::create(&trace_path).map_err(io_err(&trace_path))?);
+    let trace = File::create(&trace_path).map_err(io_err(&trace_path))?;
 
     let settings = PlanSettings::from_config(config);
     let mut c = Collector::new(trace, trace_path.clone(), axes, &settings);
@@ -491,7 +491,7 @@ pub fn plan_program(
             source: e,
         });
     }
-    c.trace.flush().map_err(io_err(&trace_path))?;
+    c.rows.finish().map_err(io_err(&trace_path))?;
     let wall = started.elapsed().as_secs_f64();
 
     let bound = bound.finish();
@@ -502,19 +502,13 @@ pub fn plan_program(
 }
 
 impl Collector {
-    /// A collector writing the trace to `trace` (at `trace_path`), its header written, with a
+    /// A collector writing the trace to `trace` (at `trace_path`), its header gathered, with a
     /// column per axis beyond X, Y and Z.
-    fn new(
-        trace: BufWriter<File>,
-        trace_path: PathBuf,
-        axes: &[Axis],
-        settings: &PlanSettings,
-    ) -> Collector {
+    fn new(trace: File, trace_path: PathBuf, axes: &[Axis], settings: &PlanSettings) -> Collector {
         let has_z = axes.contains(&Axis::Z);
-        let mut c = Collector {
-            trace,
+        Collector {
             trace_path,
-            rows: row::RowWriter::new(axes),
+            rows: row::RowWriter::new(axes, trace),
             t: 0.0,
             s: 0.0,
             segments: 0,
@@ -546,11 +540,7 @@ impl Collector {
             direction: None,
             error: None,
             cut: estimate::CutTime::default(),
-        };
-        if let Err(e) = c.trace.write_all(c.rows.header()) {
-            c.error = Some(e);
         }
-        c
     }
 }
 
