@@ -93,13 +93,15 @@ impl<W: Write> RowWriter<W> {
     }
 
     /// Writes what has gathered to the file and empties the buffer, once there is at least
-    /// `at_least` bytes of it.
+    /// `at_least` bytes of it. After an error the buffer is emptied too: how much of it
+    /// reached the file is unknown, and writing it again could repeat rows.
     fn write_out(&mut self, at_least: usize) -> io::Result<()> {
-        if self.text.len() >= at_least.max(1) {
-            self.file.write_all(&self.text)?;
-            self.text.clear();
+        if self.text.len() < at_least.max(1) {
+            return Ok(());
         }
-        Ok(())
+        let written = self.file.write_all(&self.text);
+        self.text.clear();
+        written
     }
 
     /// Writes every row gathered so far.
@@ -233,15 +235,70 @@ mod tests {
             writer.push(&row(&line, &p, 0.5)).unwrap();
             pushed += 1;
         }
+        assert!(writer.file.is_empty(), "nothing written before FLUSH_AT");
         let gathered = writer.text.len();
         while writer.text.len() >= gathered {
             writer.push(&row(&line, &p, 0.5)).unwrap();
             pushed += 1;
         }
-        // The row that brought the buffer to FLUSH_AT went out with it.
+        // The row that brought the buffer to FLUSH_AT went out with it, in one piece.
         assert!(writer.text.is_empty());
+        assert!(writer.file.len() >= FLUSH_AT);
+        assert!(writer.file.ends_with(b"\n"));
+        writer.push(&row(&line, &p, 0.5)).unwrap();
         drop(writer);
-        assert!(file.len() >= FLUSH_AT);
-        assert_eq!(file.iter().filter(|&&b| b == b'\n').count(), pushed + 1);
+        assert_eq!(file.iter().filter(|&&b| b == b'\n').count(), pushed + 2);
+    }
+
+    /// A file that takes `room` bytes, fails once, then takes everything again.
+    struct Flaky {
+        taken: Vec<u8>,
+        room: usize,
+        failed: bool,
+    }
+
+    impl Write for Flaky {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            let n = if self.failed {
+                buf.len()
+            } else {
+                buf.len().min(self.room - self.taken.len())
+            };
+            if n == 0 {
+                self.failed = true;
+                return Err(io::Error::other("disk full"));
+            }
+            self.taken.extend_from_slice(&buf[..n]);
+            Ok(n)
+        }
+
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_failed_write_is_reported_and_nothing_is_written_twice() {
+        let axes = [Axis::X, Axis::Y];
+        let line = block("G1 X1 Y1", &axes);
+        let p = line.end();
+        let mut flaky = Flaky {
+            taken: Vec::new(),
+            room: FLUSH_AT / 2,
+            failed: false,
+        };
+        let mut writer = RowWriter::new(&axes, &mut flaky);
+        let mut failed = None;
+        for _ in 0..FLUSH_AT {
+            if let Err(e) = writer.push(&row(&line, &p, 0.5)) {
+                failed = Some(e.to_string());
+                break;
+            }
+        }
+        assert_eq!(failed.as_deref(), Some("disk full"));
+        // Dropped after the error (as a failed plan drops it): the rows the file did not take
+        // are not offered again, so nothing before them is repeated.
+        drop(writer);
+        assert_eq!(flaky.taken.len(), FLUSH_AT / 2);
     }
 }
