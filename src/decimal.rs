@@ -244,15 +244,11 @@ fn may_tie(m: u64, e: i32) -> bool {
 }
 
 /// [`may_tie`] for a normal double with a fraction (what [`push_f64`]'s fast path sees):
-/// its odd mantissa from the bits directly, without the zero and subnormal cases of
-/// [`odd_mantissa`].
+/// without the zero and subnormal cases of [`odd_mantissa`].
 #[inline]
 fn fraction_may_tie(x: f64) -> bool {
-    let bits = x.to_bits();
-    let m = (bits & ((1 << 52) - 1)) | (1 << 52);
-    let zeros = m.trailing_zeros();
-    let e = ((bits >> 52) & 0x7ff) as i32 - 1075 + zeros as i32;
-    may_tie(m >> zeros, e)
+    let (m, e) = normal_odd_mantissa(x.to_bits());
+    may_tie(m, e)
 }
 
 /// `5^k` for the `k` where `m · 5^k` can stay under 10^18.
@@ -269,16 +265,28 @@ const POW5: [u64; 27] = {
 /// `|x| = m · 2^e` with `m` odd (or zero).
 fn odd_mantissa(x: f64) -> (u64, i32) {
     let bits = x.to_bits();
-    let field = ((bits >> 52) & 0x7ff) as i32;
-    let fraction = bits & ((1 << 52) - 1);
-    let (m, e) = if field == 0 {
-        (fraction, -1074)
-    } else {
-        (fraction | (1 << 52), field - 1075)
-    };
-    if m == 0 {
-        return (0, 0);
+    if (bits >> 52) & 0x7ff != 0 {
+        return normal_odd_mantissa(bits);
     }
+    match bits & FRACTION_BITS {
+        0 => (0, 0),
+        fraction => without_twos(fraction, -1074),
+    }
+}
+
+/// [`odd_mantissa`] of a normal double (exponent field not zero), from its bits.
+#[inline]
+fn normal_odd_mantissa(bits: u64) -> (u64, i32) {
+    let field = ((bits >> 52) & 0x7ff) as i32;
+    without_twos((bits & FRACTION_BITS) | (1 << 52), field - 1075)
+}
+
+/// The stored fraction of a double.
+const FRACTION_BITS: u64 = (1 << 52) - 1;
+
+/// `m · 2^e` (`m` not zero) with the factors of two moved from `m` to the exponent.
+#[inline]
+fn without_twos(m: u64, e: i32) -> (u64, i32) {
     let zeros = m.trailing_zeros();
     (m >> zeros, e + zeros as i32)
 }
