@@ -49,19 +49,20 @@ impl Decimated {
         }
     }
 
-    /// Halves the kept points, each pair to its larger magnitude, and doubles the stride.
+    /// Halves the kept points, each pair to its larger magnitude (the later of two equal
+    /// ones), and doubles the stride. In place: pair `i` is read before slot `i` is written,
+    /// and the buffer keeps its capacity, so the pushes that refill it never reallocate.
     #[cold]
     fn merge_pairs(&mut self) {
-        let merged: Vec<(f64, f64)> = self
-            .points
-            .chunks(2)
-            .map(|c| {
-                *c.iter()
-                    .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-                    .expect("chunks are non-empty")
-            })
-            .collect();
-        self.points = merged;
+        let halves = self.points.len().div_ceil(2);
+        for i in 0..halves {
+            let pair = &self.points[2 * i..(2 * i + 2).min(self.points.len())];
+            self.points[i] = *pair
+                .iter()
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+                .expect("pairs are non-empty");
+        }
+        self.points.truncate(halves);
         self.stride *= 2;
     }
 
@@ -511,6 +512,33 @@ mod tests {
         let pts = d.points();
         assert!(pts.len() <= 101, "{}", pts.len());
         assert!(pts.iter().any(|&(x, y)| y == 7.0 && x == 54_321.0));
+    }
+
+    #[test]
+    fn merging_in_place_keeps_each_pairs_larger_point() {
+        // Against the pairs merged into a new vector: odd lengths, equal magnitudes (the
+        // later point is kept), signs.
+        let mut rng = crate::rng::SplitMix64::new(5);
+        for len in 0..40 {
+            let points: Vec<(f64, f64)> = (0..len)
+                .map(|i| (i as f64, rng.below(5) as f64 - 2.0))
+                .collect();
+            let want: Vec<(f64, f64)> = points
+                .chunks(2)
+                .map(|c| {
+                    *c.iter()
+                        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+                        .unwrap()
+                })
+                .collect();
+            let mut d = Decimated::new(16);
+            d.points = points;
+            let capacity = d.points.capacity();
+            d.merge_pairs();
+            assert_eq!(d.points, want, "{len} points");
+            assert_eq!(d.points.capacity(), capacity);
+            assert_eq!(d.stride, 2);
+        }
     }
 
     #[test]

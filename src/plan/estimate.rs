@@ -17,6 +17,9 @@ pub(super) struct CutTime {
     normal: f64,
     /// Conditions' sparking feeds (number, mm/s).
     conditions: Vec<(u32, f64)>,
+    /// The last condition looked up and its feed: a block's segments, forty-odd on an arc,
+    /// and most programs' blocks, share one.
+    last: Option<(u32, f64)>,
     /// Seconds so far.
     pub seconds: f64,
 }
@@ -30,16 +33,25 @@ impl CutTime {
                 .iter()
                 .map(|c| (c.number, c.feed_mm_per_min / 60.0))
                 .collect(),
+            last: None,
             seconds: 0.0,
         }
     }
 
     /// The nominal cutting feed of a move in `condition` (mm/s).
-    fn nominal(&self, condition: u32) -> f64 {
-        self.conditions
+    fn nominal(&mut self, condition: u32) -> f64 {
+        if let Some((n, feed)) = self.last
+            && n == condition
+        {
+            return feed;
+        }
+        let feed = self
+            .conditions
             .iter()
             .find(|(n, _)| *n == condition)
-            .map_or(self.normal, |(_, f)| *f)
+            .map_or(self.normal, |(_, f)| *f);
+        self.last = Some((condition, feed));
+        feed
     }
 
     pub fn add(&mut self, seg: &Segment) {
@@ -52,5 +64,27 @@ impl CutTime {
             0.0
         };
         self.seconds += seg.duration.max(at_feed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_conditions_feed_is_its_own_whatever_came_before() {
+        let mut cut = CutTime {
+            normal: 1.0,
+            conditions: vec![(2, 0.5), (4, 0.25)],
+            ..CutTime::default()
+        };
+        let feed = |condition| match condition {
+            2 => 0.5,
+            4 => 0.25,
+            _ => 1.0,
+        };
+        for condition in [0, 2, 2, 4, 2, 9, 9, 4, 4, 0, 2] {
+            assert_eq!(cut.nominal(condition), feed(condition), "E{condition}");
+        }
     }
 }

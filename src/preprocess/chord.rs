@@ -229,6 +229,34 @@ const DISAGREEMENT_AT_EIGHTHS: [[f64; 10]; 7] = {
     table
 };
 
+/// The eighths side by side: a table's columns as rows, one lane per eighth `k = 1..=7` and
+/// an eighth lane of zeros. Summed lane-wise, every eighth goes through the same operations in
+/// the same order as it would alone, so the lanes are the eighths' own numbers bit for bit;
+/// laid out so, the checks compile to fewer instructions than eighth by eighth (BENCHMARKS.md,
+/// "`plan`'s trace rows", seventh session).
+const fn by_eighth<const C: usize>(table: &[[f64; C]; 7]) -> [[f64; EIGHTHS]; C] {
+    let mut out = [[0.0; EIGHTHS]; C];
+    let mut k = 0;
+    while k < 7 {
+        let mut n = 0;
+        while n < C {
+            out[n][k] = table[k][n];
+            n += 1;
+        }
+        k += 1;
+    }
+    out
+}
+
+/// Lanes of the eighths' rows: seven eighths and one of zeros, a whole number of vectors.
+const EIGHTHS: usize = 8;
+
+/// [`DISAGREEMENT_AT_EIGHTHS`], one row per dot product.
+const DISAGREEMENT_BY_PRODUCT: [[f64; EIGHTHS]; 10] = by_eighth(&DISAGREEMENT_AT_EIGHTHS);
+
+/// [`HERMITE_AT_EIGHTHS`], one row per basis function.
+const HERMITE_BY_FUNCTION: [[f64; EIGHTHS]; 8] = by_eighth(&HERMITE_AT_EIGHTHS);
+
 /// Largest distance, over `s = k/8`, between the cubic Hermite model of the normal offset
 /// (end tangents `ta`, `tb`) and the quintic one that also matches the end second derivatives
 /// (all scaled to `s ∈ [0, 1]`). Arithmetic only: no curve evaluation. The difference is
@@ -253,12 +281,26 @@ fn model_disagreement<const N: usize>(
             n += 1;
         }
     }
-    let mut worst: f64 = 0.0;
-    for coefficients in &DISAGREEMENT_AT_EIGHTHS {
-        let d2: f64 = coefficients.iter().zip(&gram).map(|(c, g)| c * g).sum();
-        worst = worst.max(d2);
+    largest_squared_gap(&gram).max(0.0).sqrt()
+}
+
+/// The largest `|D|²` over the eighths from the ten dot products: at each eighth the products
+/// times their coefficients, summed in order from `-0` as `Iterator::sum` sums them, lane by
+/// lane over the eighths. A call of its own: inlined, the measurement around it compiled to
+/// more instructions than the whole cost as a call.
+#[inline(never)]
+fn largest_squared_gap(gram: &[f64; 10]) -> f64 {
+    let mut d2 = [-0.0f64; EIGHTHS];
+    for (coefficients, g) in DISAGREEMENT_BY_PRODUCT.iter().zip(gram) {
+        for (d, c) in d2.iter_mut().zip(coefficients) {
+            *d += c * g;
+        }
     }
-    worst.max(0.0).sqrt()
+    let mut worst: f64 = 0.0;
+    for &d in &d2[..7] {
+        worst = worst.max(d);
+    }
+    worst
 }
 
 /// Whether the piece may run past either end of its chord along the chord's direction (a
@@ -283,10 +325,22 @@ fn overshoots_the_chord<const N: usize>(
         chord.dot(&a.d.d2, &chord.dir) * du * du,
         chord.dot(&b.d.d2, &chord.dir) * du * du,
     );
-    HERMITE_AT_EIGHTHS.iter().any(|q| {
-        let x = chord.len * q[5] + v0 * q[1] + a0 * q[2] + a1 * q[3] + v1 * q[4];
-        x < -slack || x > chord.len + slack
-    })
+    along_at_eighths(chord.len, [v0, a0, a1, v1])[..7]
+        .iter()
+        .any(|&x| x < -slack || x > chord.len + slack)
+}
+
+/// The quintic Hermite model of the along-chord coordinate at every eighth, from the chord's
+/// length and the end derivatives along it `[v0, a0, a1, v1]`: each lane the sum
+/// `len q5 + v0 q1 + a0 q2 + a1 q3 + v1 q4`, in that order.
+#[inline]
+fn along_at_eighths(len: f64, [v0, a0, a1, v1]: [f64; 4]) -> [f64; EIGHTHS] {
+    let q = &HERMITE_BY_FUNCTION;
+    let mut x = [0.0f64; EIGHTHS];
+    for (k, x) in x.iter_mut().enumerate() {
+        *x = len * q[5][k] + v0 * q[1][k] + a0 * q[2][k] + a1 * q[3][k] + v1 * q[4][k];
+    }
+    x
 }
 
 /// Up to two local maxima of a sampled profile, refined by a parabola through the neighbours.
@@ -618,6 +672,46 @@ mod tests {
         let truth = dense(&c, 0.1, 0.12);
         let est = chord_error_estimate(&sa, &sb, truth);
         assert!((est / truth - 1.0).abs() < 0.02, "{est} vs {truth}");
+    }
+
+    #[test]
+    fn eighths_side_by_side_are_each_eighths_own_numbers() {
+        // Eighth by eighth, as the checks were first written: the lanes must be these numbers
+        // bit for bit (a different order of the sums would round differently).
+        let mut rng = crate::rng::SplitMix64::new(23);
+        let mut value = || {
+            let magnitude = 10f64.powf(rng.uniform(-9.0, 3.0));
+            if rng.below(2) == 0 {
+                magnitude
+            } else {
+                -magnitude
+            }
+        };
+        for _ in 0..20_000 {
+            let gram: [f64; 10] = std::array::from_fn(|_| value());
+            let mut worst: f64 = 0.0;
+            for coefficients in &DISAGREEMENT_AT_EIGHTHS {
+                let d2: f64 = coefficients.iter().zip(&gram).map(|(c, g)| c * g).sum();
+                worst = worst.max(d2);
+            }
+            assert_eq!(
+                largest_squared_gap(&gram).to_bits(),
+                worst.to_bits(),
+                "{gram:?}"
+            );
+
+            let (len, ends) = (value().abs(), [value(), value(), value(), value()]);
+            let [v0, a0, a1, v1] = ends;
+            let lanes = along_at_eighths(len, ends);
+            for (k, q) in HERMITE_AT_EIGHTHS.iter().enumerate() {
+                let x = len * q[5] + v0 * q[1] + a0 * q[2] + a1 * q[3] + v1 * q[4];
+                assert_eq!(
+                    lanes[k].to_bits(),
+                    x.to_bits(),
+                    "eighth {k}: {len} {ends:?}"
+                );
+            }
+        }
     }
 
     #[test]
