@@ -317,7 +317,8 @@ fn backward_pass<'a>(
     accel: f64,
     out: &mut Vec<f64>,
 ) {
-    // Every slot is written below: only slots the vector has never had are zeroed first.
+    // Every slot is written below: only the slots past the vector's present length are
+    // zeroed first, not the whole of it on every settle.
     out.truncate(samples.len());
     out.resize(samples.len(), 0.0);
     let mut next: Option<(f64, f64)> = None;
