@@ -14,7 +14,11 @@ pub const MAX_ORDER: usize = MAX_DEGREE + 1;
 /// `n` is the index of the last control point. `u` is clamped to the curve's parameter range;
 /// at the upper end the last non-empty span is returned, so that `u = u_max` evaluates the end
 /// point instead of falling off the knot vector.
-#[inline]
+///
+/// Inside the range only one non-empty span holds `u`, so a walk up the knots and the binary
+/// search find the same one. The walk is taken on curves of at most [`WALK_SPANS`] spans (an
+/// arc has at most four): it looks at fewer knots than the search's first step does.
+#[inline(always)]
 pub(crate) fn find_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize {
     if u >= knots[n + 1] {
         // Last non-empty span: validation guarantees knots[n] < knots[n + 1].
@@ -23,6 +27,24 @@ pub(crate) fn find_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize
     if u <= knots[degree] {
         return degree;
     }
+    if n - degree < WALK_SPANS {
+        // knots[degree] < u < knots[n + 1]: the first span whose end lies beyond `u` holds it.
+        let mut span = degree;
+        while u >= knots[span + 1] {
+            span += 1;
+        }
+        return span;
+    }
+    search_span(n, degree, knots, u)
+}
+
+/// Curves with fewer knot spans than this find theirs by walking up the knots.
+const WALK_SPANS: usize = 8;
+
+/// [`find_span`]'s binary search, for `knots[degree] < u < knots[n + 1]`. A call of its own,
+/// so that the walk stays small enough to inline into every evaluation.
+#[inline(never)]
+fn search_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize {
     let (mut low, mut high) = (degree, n + 1);
     let mut mid = (low + high) / 2;
     while u < knots[mid] || u >= knots[mid + 1] {
@@ -153,6 +175,46 @@ mod tests {
         assert_eq!(find_span(n, 3, &knots, 1.0), 6);
         assert_eq!(find_span(n, 3, &knots, 7.0), 6);
         assert_eq!(find_span(n, 3, &knots, -1.0), 3);
+    }
+
+    #[test]
+    fn the_walk_finds_the_span_the_search_finds() {
+        // Knot vectors of one to seven spans, with double knots, and parameters on and between
+        // their knots: the walk (taken below WALK_SPANS spans) against the binary search.
+        let mut rng = crate::rng::SplitMix64::new(7);
+        for case in 0..2000 {
+            let degree = 1 + case % 3;
+            let mut knots = vec![0.0; degree + 1];
+            let mut k = 0.0;
+            // Interior knots, a double one now and then: fewer than WALK_SPANS in all.
+            let interior = rng.below(WALK_SPANS);
+            while knots.len() < degree + 1 + interior {
+                k += 0.25 * (1 + rng.below(4)) as f64;
+                knots.push(k);
+                if rng.below(3) == 0 && degree > 1 && knots.len() < degree + 1 + interior {
+                    knots.push(k);
+                }
+            }
+            k += 1.0;
+            knots.extend(std::iter::repeat_n(k, degree + 1));
+            let n = knots.len() - degree - 2;
+            assert!(n - degree < WALK_SPANS);
+            for step in 0..=(8.0 * k) as usize {
+                let u = step as f64 / 8.0;
+                let walked = find_span(n, degree, &knots, u);
+                if u > knots[degree] && u < knots[n + 1] {
+                    assert_eq!(
+                        walked,
+                        search_span(n, degree, &knots, u),
+                        "{knots:?} at {u}"
+                    );
+                }
+                assert!(
+                    knots[walked] <= u.max(0.0) && walked <= n,
+                    "{knots:?} at {u}"
+                );
+            }
+        }
     }
 
     #[test]

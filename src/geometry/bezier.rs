@@ -136,15 +136,26 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
     /// zero past the curve's axes, so that its loops have a constant length. Inlined into
     /// the certificate's walk, which calls it for every piece it looks at.
     #[inline]
-    pub fn max_over_control_points(&self, mut f: impl FnMut(&[f64]) -> f64) -> f64 {
+    pub fn max_over_control_points(&self, f: impl FnMut(&[f64]) -> f64) -> f64 {
+        self.max_over_control_points_from::<0>(f)
+    }
+
+    /// [`max_over_control_points`](Self::max_over_control_points) over the control points
+    /// from `FIRST` on (0 when there are none). A constant, so that the loop keeps a
+    /// constant length and unrolls.
+    #[inline]
+    pub fn max_over_control_points_from<const FIRST: usize>(
+        &self,
+        mut f: impl FnMut(&[f64]) -> f64,
+    ) -> f64 {
         let mut best = 0.0f64;
         let mut c = [0.0; W];
-        for h in &self.points[..=self.p()] {
+        for h in self.points[..=self.p()].iter().skip(FIRST) {
             let inv = 1.0 / h[Self::WEIGHT];
             for axis in 0..Self::LANES {
                 c[axis] = h[axis] * inv;
             }
-            best = best.max(f(&c[..Self::LANES]));
+            best = super::running_max(best, f(&c[..Self::LANES]));
         }
         best
     }

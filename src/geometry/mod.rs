@@ -46,6 +46,22 @@ pub fn clamped_uniform_knots(points: usize, degree: usize) -> Vec<f64> {
     knots
 }
 
+/// A running maximum `best` moved up to `x` where `x` is larger: `best.max(x)` bit for bit
+/// while `best` is a number and the two are not zeros of opposite signs, a NaN `x` passed
+/// over as `max` passes over it. One instruction where `max` spends five, the rest on passing
+/// over a NaN `best`, which a maximum started from a number never is. For the maxima of
+/// magnitudes and distances (never `-0`) on the certificate's and the plan's hot paths.
+#[inline(always)]
+pub fn running_max(best: f64, x: f64) -> f64 {
+    if x > best { x } else { best }
+}
+
+/// [`running_max`]'s minimum: `best.min(x)` bit for bit under the same conditions.
+#[inline(always)]
+pub fn running_min(best: f64, x: f64) -> f64 {
+    if x < best { x } else { best }
+}
+
 /// Builds a [`Point`] from up to [`MAX_AXES`] coordinates.
 pub fn point(coords: &[f64]) -> Point {
     let mut p = Point::zeros();

@@ -479,3 +479,39 @@ fn a_reversed_curve_runs_the_same_points_backwards() {
         c.point(a + 0.3 * (b - a))
     );
 }
+
+#[test]
+fn running_extremes_are_std_max_and_min_bit_for_bit() {
+    // Numbers of both signs, infinities, a NaN to pass over, and zeros of one sign: the
+    // cases a running maximum of magnitudes or distances meets.
+    let mut rng = Rng::new(3);
+    let special = [
+        0.0,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NAN,
+        f64::MIN_POSITIVE,
+        1.0,
+    ];
+    for _ in 0..50_000 {
+        let mut pick = || match rng.below(3) {
+            0 => special[rng.below(special.len())],
+            _ => rng.uniform(-1e3, 1e3),
+        };
+        let best = pick();
+        let x = pick();
+        if best.is_nan() {
+            continue;
+        }
+        assert_eq!(
+            running_max(best, x).to_bits(),
+            best.max(x).to_bits(),
+            "{best} {x}"
+        );
+        assert_eq!(
+            running_min(best, x).to_bits(),
+            best.min(x).to_bits(),
+            "{best} {x}"
+        );
+    }
+}

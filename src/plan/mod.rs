@@ -16,6 +16,7 @@ use serde::Serialize;
 
 use crate::config::Config;
 use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
+use crate::geometry::running_max;
 use crate::plot::Decimated;
 use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment, bound};
 use crate::vocab::{Axis, Predictor, Segmentation};
@@ -343,11 +344,11 @@ impl Collector {
         self.s += seg.length;
         self.segments += 1;
         self.length += seg.length;
-        self.max_err = self.max_err.max(seg.chord_error);
+        self.max_err = running_max(self.max_err, seg.chord_error);
         if seg.chord_error > self.tolerance {
             self.over += 1;
         }
-        self.max_bound = self.max_bound.max(seg.chord_bound);
+        self.max_bound = running_max(self.max_bound, seg.chord_bound);
         if seg.chord_bound > self.tolerance {
             self.bound_over += 1;
         }
@@ -374,11 +375,11 @@ impl Collector {
             None
         };
         if let Some(a) = at {
-            self.max_at = self.max_at.max(a.abs());
+            self.max_at = running_max(self.max_at, a.abs());
             self.accel.push(self.t, a);
         }
         if seg.rho_end > 0.0 {
-            self.max_an = self.max_an.max(v * v / seg.rho_end);
+            self.max_an = running_max(self.max_an, v * v / seg.rho_end);
         }
         self.prev = Some((self.t, v, full));
         self.path.push(seg.end[0], seg.end[1]);

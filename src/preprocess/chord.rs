@@ -19,7 +19,7 @@
 //! curve disagree (near-cusps, pieces whose end tangents say little about their middle) the
 //! bulges are found by sampling instead.
 
-use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes, running_min};
 
 mod model;
 
@@ -267,7 +267,7 @@ fn polish<const N: usize>(
     for _ in 0..MAX_NEWTON {
         let d = curve.derivs(u0 + s * du);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
+        out.rho_min = running_min(out.rho_min, lanes::curvature_radius::<N>(&d));
         out.note(chord.distance(&d.point), u0 + s * du);
         let r = chord.perp(&lanes::sub::<N>(&d.point, &chord.start));
         let f = chord.dot(&r, &r);
@@ -305,7 +305,7 @@ fn sampled_maximum<const N: usize>(
         let u = u0 + du * k as f64 / FALLBACK_SAMPLES as f64;
         let d = curve.derivs(u);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
+        out.rho_min = running_min(out.rho_min, lanes::curvature_radius::<N>(&d));
         let dist = chord.distance(&d.point);
         out.note(dist, u);
         *slot = dist * dist;
@@ -327,7 +327,7 @@ fn sampled_maximum<const N: usize>(
     let distance_at = |s: f64, out: &mut ChordError| {
         let d = curve.derivs(u0 + du * s);
         out.evals += 1;
-        out.rho_min = out.rho_min.min(lanes::curvature_radius::<N>(&d));
+        out.rho_min = running_min(out.rho_min, lanes::curvature_radius::<N>(&d));
         let dist = chord.distance(&d.point);
         out.note(dist, u0 + du * s);
         dist

@@ -34,7 +34,7 @@ use super::chord::{ChordError, Sample, chord_error, chord_length_limit};
 use super::predictor::{History, hamming_increments, taylor_increment};
 use super::{GeoSegment, PlanSettings, corner_speed, step_cap};
 use crate::gcode::Block;
-use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes, running_min};
 use crate::vocab::{Predictor, Segmentation};
 
 /// Fraction of the tolerance that predictions aim at, leaving room for the circle formula's
@@ -193,7 +193,9 @@ impl Segmenter {
             } else {
                 self.end_of_step::<{ crate::vocab::MAX_AXES }>(&a.d.point, &b.d)
             };
-            let rho_min = rho_start.min(rho_end).min(err.rho_min);
+            // Running minima (`f64::min`'s results in fewer instructions, on every segment):
+            // radii of a finite curve are numbers.
+            let rho_min = running_min(running_min(rho_start, rho_end), err.rho_min);
             let seg = GeoSegment {
                 block: Arc::clone(block),
                 u_start: a.u,
@@ -206,10 +208,11 @@ impl Segmenter {
                 chord_bound: bound,
                 rho_min,
                 rho_end,
-                feed_limit: self.feed_limit(feed, rho_min, chord, err.max).min(stepped),
-                speed_limit: self
-                    .feed_limit(self.ceiling(block), rho_min, chord, err.max)
-                    .min(stepped),
+                feed_limit: running_min(self.feed_limit(feed, rho_min, chord, err.max), stepped),
+                speed_limit: running_min(
+                    self.feed_limit(self.ceiling(block), rho_min, chord, err.max),
+                    stepped,
+                ),
                 entry_limit,
                 evals: tried + err.evals,
                 first_of_piece,
@@ -248,7 +251,7 @@ impl Segmenter {
     fn feed_limit(&self, feed: f64, rho_min: f64, chord: f64, err: f64) -> f64 {
         let s = &self.settings;
         let a_n = s.max_normal_accel * (1.0 - super::PLANNING_MARGIN);
-        let mut v = feed.min((a_n * rho_min).sqrt());
+        let mut v = running_min(feed, (a_n * rho_min).sqrt());
         if s.segmentation == Segmentation::Period {
             // The circle formula at the tightest radius, and the measured sagitta scaled to the
             // tolerance (sagitta ∝ length²: seed 001 eq. 5), whichever is smaller.
@@ -258,7 +261,7 @@ impl Segmenter {
             } else {
                 f64::INFINITY
             };
-            v = v.min(by_radius.min(by_measure) / s.period);
+            v = running_min(v, by_radius.min(by_measure) / s.period);
         }
         v
     }
