@@ -17,7 +17,8 @@ pub const MAX_ORDER: usize = MAX_DEGREE + 1;
 ///
 /// Inside the range only one non-empty span holds `u`, so a walk up the knots and the binary
 /// search find the same one. The walk is taken on curves of at most [`WALK_SPANS`] spans (an
-/// arc has at most four): it looks at fewer knots than the search's first step does.
+/// arc has one to four): it computes no midpoints, and on so few spans it reads about as
+/// many knots as the search.
 #[inline(always)]
 pub(crate) fn find_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize {
     if u >= knots[n + 1] {
@@ -38,7 +39,7 @@ pub(crate) fn find_span(n: usize, degree: usize, knots: &[f64], u: f64) -> usize
     search_span(n, degree, knots, u)
 }
 
-/// Curves with fewer knot spans than this find theirs by walking up the knots.
+/// Curves of at most this many knot spans find theirs by walking up the knots.
 const WALK_SPANS: usize = 8;
 
 /// [`find_span`]'s binary search, for `knots[degree] < u < knots[n + 1]`. A call of its own,
@@ -179,14 +180,15 @@ mod tests {
 
     #[test]
     fn the_walk_finds_the_span_the_search_finds() {
-        // Knot vectors of one to seven spans, with double knots, and parameters on and between
-        // their knots: the walk (taken below WALK_SPANS spans) against the binary search.
+        // Knot vectors of one to eight spans, with double knots, and parameters on and between
+        // their knots: the walk (taken up to WALK_SPANS spans) against the binary search.
         let mut rng = crate::rng::SplitMix64::new(7);
         for case in 0..2000 {
             let degree = 1 + case % 3;
             let mut knots = vec![0.0; degree + 1];
             let mut k = 0.0;
-            // Interior knots, a double one now and then: fewer than WALK_SPANS in all.
+            // Interior knots, a double one now and then: fewer than WALK_SPANS, so at most
+            // WALK_SPANS spans.
             let interior = rng.below(WALK_SPANS);
             while knots.len() < degree + 1 + interior {
                 k += 0.25 * (1 + rng.below(4)) as f64;
