@@ -297,7 +297,8 @@ fn odd_mantissa(x: f64) -> (u64, i32) {
     }
     match bits & FRACTION_BITS {
         0 => (0, 0),
-        fraction => without_twos(fraction, -1074),
+        // A subnormal's last bit is worth 2^(1 − bias − 52).
+        fraction => without_twos(fraction, 1 - EXPONENT_BIAS as i32 - 52),
     }
 }
 
@@ -305,7 +306,11 @@ fn odd_mantissa(x: f64) -> (u64, i32) {
 #[inline]
 fn normal_odd_mantissa(bits: u64) -> (u64, i32) {
     let field = exponent_field(bits) as i32;
-    without_twos((bits & FRACTION_BITS) | (1 << 52), field - 1075)
+    // The mantissa's last bit is worth 2^(field − bias − 52).
+    without_twos(
+        (bits & FRACTION_BITS) | (1 << 52),
+        field - EXPONENT_BIAS as i32 - 52,
+    )
 }
 
 /// The stored fraction of a double.
