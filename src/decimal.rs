@@ -214,7 +214,7 @@ pub fn push_f64(out: &mut Vec<u8>, x: f64) {
         }
         // A fraction is below 2^52, so Ryū writes it without an exponent from `1e-5` up,
         // and never with a bare `.0`: its layout is std's.
-        if x.abs() >= PLAIN_FROM && !fraction_may_tie(x) {
+        if field >= PLAIN_FIELD_FROM && !fraction_may_tie(bits, field) {
             out.extend_from_slice(zmij::Buffer::new().format_finite(x).as_bytes());
             return;
         }
@@ -253,13 +253,18 @@ fn push_f64_general(out: &mut Vec<u8>, x: f64) {
     }
 }
 
-/// The magnitudes Ryū writes without an exponent: shortest digits from `1e-5` up to but not
-/// including `1e16`. Both ends are doubles' own shortest digits, and the shortest digits of a
-/// double lie between its neighbours, so the digits of `x` are in that range exactly when `x`
-/// is: a comparison, where looking for an `e` in the text cost a tenth of the conversion.
-/// (The upper end needs no test: a double with a fraction is below 2^52.)
-/// `edge_values_print_as_std_prints_them` walks the neighbours of both ends.
-const PLAIN_FROM: f64 = 1e-5;
+/// The exponent field from which Ryū writes a fraction without an exponent: that of 2^-16,
+/// the first power of two above `1e-5`.
+///
+/// Ryū writes shortest digits from `1e-5` up to but not including `1e16` without one. Both
+/// ends are doubles' own shortest digits, and the shortest digits of a double lie between its
+/// neighbours, so the digits of `x` are in that range exactly when `x` is. From 2^-16 up `x`
+/// is, and the exponent field, already at hand, says so in one comparison (a float
+/// comparison of `|x|` took three more instructions, six numbers a row); the few doubles
+/// between `1e-5` and 2^-16 go the general way. (The upper end needs no test: a double with
+/// a fraction is below 2^52.) `edge_values_print_as_std_prints_them` walks the neighbours of
+/// `1e-5`, 2^-16 and `1e16`.
+const PLAIN_FIELD_FROM: u32 = EXPONENT_BIAS - 16;
 
 /// Whether the shortest digits of the fraction `m · 2^e` (`m` odd, `e < 0`) could be a tie
 /// between two candidates (see [`Digits::is_tie_below`]): only when its exact decimal
@@ -270,11 +275,21 @@ fn may_tie(m: u64, e: i32) -> bool {
     k < POW5.len() && u128::from(m) * u128::from(POW5[k]) < 1_000_000_000_000_000_000
 }
 
-/// [`may_tie`] for a normal double with a fraction (what [`push_f64`]'s fast path sees):
-/// without the zero and subnormal cases of [`odd_mantissa`].
-#[inline]
-fn fraction_may_tie(x: f64) -> bool {
-    let (m, e) = normal_odd_mantissa(x.to_bits());
+/// [`may_tie`] for a normal double with a fraction (what [`push_f64`]'s fast path sees), from
+/// its bits and exponent `field`: without the zero and subnormal cases of [`odd_mantissa`].
+///
+/// With `|x| = m · 2^-k` (`m` odd), `k` is `EXPONENT_BIAS + 52 − field` less the mantissa's
+/// trailing zero bits, and only `k` below [`POW5`]'s length can tie. A trace's fractions have
+/// `k` far above it, which the sum of the field and those zeros tells in three instructions;
+/// the odd mantissa itself is taken only below it.
+#[inline(always)]
+fn fraction_may_tie(bits: u64, field: u32) -> bool {
+    // The implicit bit bounds the count at 52, whatever lies above it.
+    let zeros = (bits | 1 << 52).trailing_zeros();
+    if field + zeros + POW5.len() as u32 <= EXPONENT_BIAS + 52 {
+        return false;
+    }
+    let (m, e) = normal_odd_mantissa(bits);
     may_tie(m, e)
 }
 
@@ -518,9 +533,9 @@ mod tests {
                 above = above.next_up();
             }
         }
-        // Either side of where Ryū's layout changes to an exponent, both signs (written out,
-        // not the constants, so a wrong constant fails here).
-        for end in [1e-5, 1e16] {
+        // Either side of where Ryū's layout changes to an exponent and of where the fast path
+        // starts, both signs (written out, not the constants, so a wrong constant fails here).
+        for end in [1e-5, 2f64.powi(-16), 1e16] {
             let mut below = end;
             let mut above = end;
             for _ in 0..1000 {
@@ -532,6 +547,29 @@ mod tests {
                 above = above.next_up();
             }
         }
+    }
+
+    #[test]
+    fn the_tie_filter_answers_as_the_full_test() {
+        // Fractions of every exponent the fast path sees, with few and many trailing zero
+        // bits (the filter's count), against `may_tie` on the odd mantissa. In that range
+        // ties have `k` up to 22 (from 2^-16 up, a larger `k` leaves the odd mantissa too
+        // many bits), which these draws reach: a filter that let `k` of 22 pass as no tie
+        // fails here.
+        let mut rng = crate::rng::SplitMix64::new(0x71e);
+        let mut ties = 0;
+        for _ in 0..count() {
+            let field = PLAIN_FIELD_FROM + (rng.next_u64() % 60) as u32;
+            let fraction = (rng.next_u64() << (rng.next_u64() % 53)) & FRACTION_BITS;
+            let bits = u64::from(field) << 52 | fraction;
+            if whole_magnitude(bits, field).is_some() {
+                continue;
+            }
+            let (m, e) = normal_odd_mantissa(bits);
+            assert_eq!(fraction_may_tie(bits, field), may_tie(m, e), "{bits:#x}");
+            ties += usize::from(may_tie(m, e));
+        }
+        assert!(ties > count() / 200, "only {ties} possible ties drawn");
     }
 
     /// Doubles per family (`EDMD_DECIMAL_TESTS` raises it for a long run).

@@ -296,29 +296,33 @@ impl Chart {
                         d.push(b' ');
                         pen_up = false;
                     }
-                    // ASCII throughout: borrowed, not copied.
-                    let d = String::from_utf8_lossy(&d);
                     let dash = if matches!(s.style, Style::Dashed) {
                         r#" stroke-dasharray="5 4""#
                     } else {
                         ""
                     };
+                    svg.push_str(r#"<path d=""#);
+                    push_ascii(svg, &d);
                     let _ = writeln!(
                         svg,
-                        r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.2"{dash}/>"#,
+                        r#"" fill="none" stroke="{}" stroke-width="1.2"{dash}/>"#,
                         s.color
                     );
                 }
                 Style::Dots => {
+                    // As bytes through `decimal` too: a chord-error chart has a dot a
+                    // segment, up to the decimation's cap, two numbers each.
+                    let mut dots = Vec::new();
                     for &(x, y) in &s.points {
-                        let _ = writeln!(
-                            svg,
-                            r#"<circle cx="{:.2}" cy="{:.2}" r="1.6" fill="{}"/>"#,
-                            f.sx(x),
-                            f.sy(y),
-                            s.color
-                        );
+                        dots.extend_from_slice(br#"<circle cx=""#);
+                        decimal::push_fixed(&mut dots, f.sx(x), 2);
+                        dots.extend_from_slice(br#"" cy=""#);
+                        decimal::push_fixed(&mut dots, f.sy(y), 2);
+                        dots.extend_from_slice(br#"" r="1.6" fill=""#);
+                        dots.extend_from_slice(s.color.as_bytes());
+                        dots.extend_from_slice(b"\"/>\n");
                     }
+                    push_ascii(svg, &dots);
                 }
             }
             let _ = writeln!(
@@ -464,6 +468,15 @@ fn fmt_tick(v: f64) -> String {
     } else {
         let s = format!("{v:.4}");
         s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+/// Appends text built as bytes through [`decimal`] (ASCII throughout) to the SVG. The UTF-8
+/// check passes over ASCII a word at a time; a lossy conversion went byte by byte.
+fn push_ascii(svg: &mut String, bytes: &[u8]) {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => svg.push_str(text),
+        Err(_) => svg.push_str(&String::from_utf8_lossy(bytes)),
     }
 }
 

@@ -85,17 +85,30 @@ impl<'a> Scanner<'a> {
     }
 
     // The four below are inlined: a lexed line calls them once or twice a character, and the
-    // calls cost more than the look at a byte.
+    // calls cost more than the look at a byte. An ASCII byte is its own character: read as
+    // one, without slicing the line (a check that `pos` is on a character's boundary) and
+    // decoding UTF-8; anything else is decoded.
     #[inline]
     pub(crate) fn peek(&self) -> Option<char> {
-        self.s[self.pos..].chars().next()
+        match self.s.as_bytes().get(self.pos) {
+            Some(&b) if b.is_ascii() => Some(char::from(b)),
+            Some(_) => self.s[self.pos..].chars().next(),
+            None => None,
+        }
     }
 
     #[inline]
     pub(crate) fn peek2(&self) -> Option<char> {
-        let mut it = self.s[self.pos..].chars();
-        it.next();
-        it.next()
+        let bytes = self.s.as_bytes();
+        match (bytes.get(self.pos), bytes.get(self.pos + 1)) {
+            (Some(a), Some(&b)) if a.is_ascii() && b.is_ascii() => Some(char::from(b)),
+            (None, _) => None,
+            _ => {
+                let mut it = self.s[self.pos..].chars();
+                it.next();
+                it.next()
+            }
+        }
     }
 
     #[inline]
@@ -582,6 +595,22 @@ mod tests {
         fn named(&self, name: &str) -> Option<f64> {
             Params::named(self, name)
         }
+    }
+
+    #[test]
+    fn the_scanner_reads_ascii_and_wider_characters_alike() {
+        // ASCII is read byte by byte, the rest decoded: the same characters either way, next
+        // to each other in every order, and columns counted in characters.
+        let text = "G1 Xé#µ(°)Y2.5 ü";
+        let chars: Vec<char> = text.chars().collect();
+        let mut sc = Scanner::new(text);
+        for (i, &c) in chars.iter().enumerate() {
+            assert_eq!(sc.peek(), Some(c), "peek at {i}");
+            assert_eq!(sc.peek2(), chars.get(i + 1).copied(), "peek2 at {i}");
+            assert_eq!(sc.bump(), Some(c));
+            assert_eq!(sc.next_col(), i + 2);
+        }
+        assert_eq!((sc.peek(), sc.peek2(), sc.bump()), (None, None, None));
     }
 
     fn ev(text: &str) -> f64 {
