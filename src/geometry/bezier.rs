@@ -230,10 +230,17 @@ impl NurbsCurve {
         // The 2p knots the span's levels read, `k[i] = knots[span + 1 - p + i]`, taken once so
         // that, the degree a constant, their indices need no checks.
         let k = &self.knots()[span + 1 - p..=span + p];
+        // Every loop below runs over all `R` rows and skips the rows a level or a point does
+        // not touch, rather than starting where the level does: with the row count a constant
+        // the loops then have constant lengths and unroll whole, and the lerps happen in the
+        // same order as before, so the points are the same numbers (a third of the
+        // certificate's instructions went on the loops' counting).
         let level = |d: &mut [[f64; W]; R], r: usize, x: f64| {
-            for i in (r..=p).rev() {
-                let alpha = (x - k[i - 1]) / (k[p + i - r] - k[i - 1]);
-                d[i] = lerp(&d[i - 1], &d[i], alpha);
+            for i in (1..R).rev() {
+                if i >= r && i <= p {
+                    let alpha = (x - k[i - 1]) / (k[p + i - r] - k[i - 1]);
+                    d[i] = lerp(&d[i - 1], &d[i], alpha);
+                }
             }
         };
         let mut out = Bezier {
@@ -250,13 +257,15 @@ impl NurbsCurve {
             row[..Bezier::<W, R>::LANES].copy_from_slice(&h[..Bezier::<W, R>::LANES]);
             row[W - 1] = h[WEIGHT_SLOT];
         }
-        for j in 0..=p {
+        for j in (0..R).take_while(|&j| j <= p) {
             if j > 0 {
                 level(&mut prefix, j, t);
             }
             let mut d = prefix;
-            for r in j + 1..=p {
-                level(&mut d, r, s);
+            for r in 1..R {
+                if r > j && r <= p {
+                    level(&mut d, r, s);
+                }
             }
             out.points[j] = d[p];
         }
