@@ -32,7 +32,8 @@
 //! Cost: no curve evaluations, and no allocation: one blossom per knot span crossed (`O(p³)`
 //! lerps of eight numbers) and a fixed-size stack for the halving.
 
-use crate::geometry::{Bezier, MAX_ORDER, NurbsCurve, Point, running_max};
+use crate::geometry::{Bezier, MAX_ORDER, NurbsCurve, Point, lanes, running_max};
+use crate::vocab::MAX_AXES;
 
 /// Halvings of one Bézier piece before its bound is reported as it stands.
 pub const MAX_DEPTH: u32 = 24;
@@ -63,12 +64,23 @@ struct Segment {
 }
 
 impl Segment {
+    #[cfg(test)]
     fn new(a: &Point, b: &Point) -> Segment {
-        let v = b - a;
-        let len = v.norm();
+        Segment::on::<MAX_AXES>(a, b)
+    }
+
+    /// [`new`](Self::new) on the first `N` coordinates ([`lanes`]): the rest are zero in
+    /// both ends of a curve of up to `N` axes, and then the same numbers.
+    fn on<const N: usize>(a: &Point, b: &Point) -> Segment {
+        let v = lanes::sub::<N>(b, a);
+        let len = lanes::norm::<N>(&v);
         Segment {
             a: *a,
-            dir: if len > 0.0 { v / len } else { Point::zeros() },
+            dir: if len > 0.0 {
+                lanes::div::<N>(&v, len)
+            } else {
+                Point::zeros()
+            },
             len,
         }
     }
@@ -134,9 +146,18 @@ pub fn hull_excess(degree: usize) -> f64 {
 /// chord), the computed distances are within `(16 + 2 degree (MAX_DEPTH + 2))` ulps of `scale`
 /// of the exact ones: about 5e-11 mm at 500 mm for degree 9, 1e-11 mm for a cubic.
 pub fn rounding_allowance(a: &Point, b: &Point, degree: usize, tol: f64) -> f64 {
+    allowance_on::<MAX_AXES>(a, b, degree, tol)
+}
+
+/// [`rounding_allowance`] on the first `N` coordinates: the rest, zero, change no maximum.
+fn allowance_on<const N: usize>(a: &Point, b: &Point, degree: usize, tol: f64) -> f64 {
     // The largest magnitude of a coordinate, as nalgebra's `amax` gives it, in a plain loop
     // (`amax` goes through simba's generic comparisons: 3 % of the certificate's cost).
-    let largest = |p: &Point| p.iter().fold(0.0f64, |m, x| running_max(m, x.abs()));
+    let largest = |p: &Point| {
+        p.iter()
+            .take(N)
+            .fold(0.0f64, |m, x| running_max(m, x.abs()))
+    };
     let scale = largest(a).max(largest(b)).max(1.0) + tol;
     let ulps = 16.0 + 2.0 * degree as f64 * f64::from(MAX_DEPTH + 2);
     ulps * f64::EPSILON * scale
@@ -160,8 +181,28 @@ pub fn certify(
     tol: f64,
     farthest: f64,
 ) -> Certificate {
-    let chord = Segment::new(start, end);
-    let allowance = rounding_allowance(start, end, curve.degree(), tol);
+    // Narrow rows for up to three axes, and the chord on three coordinates; exactly as many
+    // rows as an arc (a quadratic), a line or a cubic has: the same arithmetic, with less
+    // copying and loops that unroll.
+    if curve.dim() < 4 {
+        certify_on::<3, 4>(curve, u0, u1, start, end, tol, farthest)
+    } else {
+        certify_on::<MAX_AXES, 8>(curve, u0, u1, start, end, tol, farthest)
+    }
+}
+
+/// [`certify`] with the chord on `N` coordinates and the Bézier rows `W` wide.
+fn certify_on<const N: usize, const W: usize>(
+    curve: &NurbsCurve,
+    u0: f64,
+    u1: f64,
+    start: &Point,
+    end: &Point,
+    tol: f64,
+    farthest: f64,
+) -> Certificate {
+    let chord = Segment::on::<N>(start, end);
+    let allowance = allowance_on::<N>(start, end, curve.degree(), tol);
     // Below this a piece needs no halving; above it after MAX_DEPTH halvings, it is over.
     let mut walk = Walk {
         chord: &chord,
@@ -170,13 +211,7 @@ pub fn certify(
         pieces: 0,
         over: false,
     };
-    // Narrow rows for up to three axes; exactly as many rows as an arc (a quadratic), a line or
-    // a cubic has: the same arithmetic, with less copying and loops that unroll.
-    if curve.dim() < 4 {
-        walk.curve_of_degree::<4>(curve, u0, u1, farthest);
-    } else {
-        walk.curve_of_degree::<8>(curve, u0, u1, farthest);
-    }
+    walk.curve_of_degree::<W>(curve, u0, u1, farthest);
     Certificate {
         bound: walk.bound + allowance,
         pieces: walk.pieces,
@@ -491,6 +526,31 @@ mod tests {
                     ulps * f64::EPSILON * scale
                 );
             }
+        }
+    }
+
+    #[test]
+    fn three_coordinates_certify_as_all_of_them() {
+        // Curves of up to three axes take the narrow chord and rows; the wide ones must give
+        // the same bound and pieces, bit for bit, on their points (zero past the axes).
+        let mut rng = crate::rng::SplitMix64::new(0xce27);
+        for case in 0..3_000 {
+            let degree = 1 + case % 3;
+            let dim = 2 + case % 2;
+            let curve = crate::geometry::random_curve(&mut rng, degree, dim, degree + 3, false);
+            let u0 = rng.uniform(0.0, 0.9);
+            let u1 = (u0 + rng.uniform(1e-3, 0.3)).min(1.0);
+            let (a, b) = (curve.point(u0), curve.point(u1));
+            let tol = [1e-4, 1e-3, 1e-1][case % 3];
+            let farthest = if case % 4 == 0 {
+                f64::NAN
+            } else {
+                0.5 * (u0 + u1)
+            };
+            let narrow = certify(&curve, u0, u1, &a, &b, tol, farthest);
+            let wide = certify_on::<MAX_AXES, 8>(&curve, u0, u1, &a, &b, tol, farthest);
+            assert_eq!(narrow.bound.to_bits(), wide.bound.to_bits(), "case {case}");
+            assert_eq!(narrow.pieces, wide.pieces, "case {case}");
         }
     }
 
