@@ -276,6 +276,17 @@ impl NurbsCurve {
     /// `C = A/w`, `C' = (A' - w' C)/w`, `C'' = (A'' - 2 w' C' - w'' C)/w` (errata, seed 000).
     #[allow(clippy::needless_range_loop)]
     pub fn derivs(&self, u: f64) -> CurveDerivs {
+        self.derivs_inlined(u)
+    }
+
+    /// [`derivs`](Self::derivs) inlined where it is called, with the kernels of curves of up
+    /// to three axes and degree 3 (the rest is a call). For a loop that only evaluates and
+    /// reduces, as the bound's sampling does: there the call cost about sixty of an
+    /// evaluation's three hundred instructions, in saved registers and in derivatives stored
+    /// for the caller to load again. Where the caller keeps much else live (the chord
+    /// measurement), inlined it spilled more than the call saved.
+    #[inline(always)]
+    pub fn derivs_inlined(&self, u: f64) -> CurveDerivs {
         let u = u.clamp(self.u_min(), self.u_max());
         let span = find_span(self.num_points() - 1, self.degree, &self.knots, u);
         self.derivs_on_span(span, u)
@@ -337,6 +348,15 @@ impl NurbsCurve {
             (1, true) => self.kernel::<3>(span, u, 1),
             (2, true) => self.kernel::<3>(span, u, 2),
             (3, true) => self.kernel::<3>(span, u, 3),
+            _ => self.derivs_on_span_wide(span, u),
+        }
+    }
+
+    /// [`derivs_on_span`](Self::derivs_on_span) for more than three axes or a degree above 3:
+    /// a call of its own, so that the inlined evaluation stays small.
+    #[inline(never)]
+    fn derivs_on_span_wide(&self, span: usize, u: f64) -> CurveDerivs {
+        match (self.degree, self.dim <= 3) {
             (1, false) => self.kernel::<MAX_AXES>(span, u, 1),
             (2, false) => self.kernel::<MAX_AXES>(span, u, 2),
             (3, false) => self.kernel::<MAX_AXES>(span, u, 3),

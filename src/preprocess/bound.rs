@@ -119,7 +119,7 @@ impl Sampler {
             let d = if k == n {
                 curve.derivs_from_left(u1)
             } else {
-                curve.derivs(u)
+                curve.derivs_inlined(u)
             };
             let here = self.limit::<N>(feed, &d);
             let next_tangent = lanes::unit::<N>(&d.d1);
