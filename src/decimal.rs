@@ -280,7 +280,7 @@ fn may_tie(m: u64, e: i32) -> bool {
 ///
 /// With `|x| = m · 2^-k` (`m` odd), `k` is `EXPONENT_BIAS + 52 − field` less the mantissa's
 /// trailing zero bits, and only `k` below [`POW5`]'s length can tie. A trace's fractions have
-/// `k` far above it, which the sum of the field and those zeros tells in three instructions;
+/// `k` far above it, which the sum of the field and those zeros tells in a few instructions;
 /// the odd mantissa itself is taken only below it.
 #[inline(always)]
 fn fraction_may_tie(bits: u64, field: u32) -> bool {

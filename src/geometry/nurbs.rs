@@ -281,7 +281,7 @@ impl NurbsCurve {
 
     /// [`derivs`](Self::derivs) inlined where it is called, with the kernels of curves of up
     /// to three axes and degree 3 (the rest is a call). For a loop that only evaluates and
-    /// reduces, as the bound's sampling does: there the call cost about sixty of an
+    /// reduces, as the bound's sampling does: there the call cost about fifty of an
     /// evaluation's three hundred instructions, in saved registers and in derivatives stored
     /// for the caller to load again. Where the caller keeps much else live (the chord
     /// measurement), inlined it spilled more than the call saved.

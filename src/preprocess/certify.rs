@@ -69,8 +69,8 @@ impl Segment {
         Segment::on::<MAX_AXES>(a, b)
     }
 
-    /// [`new`](Self::new) on the first `N` coordinates ([`lanes`]): the rest are zero in
-    /// both ends of a curve of up to `N` axes, and then the same numbers.
+    /// The segment from `a` to `b`, on their first `N` coordinates ([`lanes`]): the rest are
+    /// zero in both ends of a curve of up to `N` axes, and then the same numbers as on all.
     fn on<const N: usize>(a: &Point, b: &Point) -> Segment {
         let v = lanes::sub::<N>(b, a);
         let len = lanes::norm::<N>(&v);
