@@ -14,7 +14,11 @@ use crate::decimal;
 pub struct Decimated {
     capacity: usize,
     stride: usize,
-    pending: Option<(f64, f64)>,
+    /// The point the open bucket keeps so far (meaningful when `pending_count > 0`), and its
+    /// `|y|`, kept so each push compares one number instead of taking two magnitudes.
+    pending: (f64, f64),
+    pending_magnitude: f64,
+    /// Points pushed into the open bucket.
     pending_count: usize,
     points: Vec<(f64, f64)>,
 }
@@ -24,28 +28,33 @@ impl Decimated {
         Decimated {
             capacity: capacity.max(16),
             stride: 1,
-            pending: None,
+            pending: (0.0, 0.0),
+            pending_magnitude: 0.0,
             pending_count: 0,
             points: Vec::new(),
         }
     }
 
     /// Inlined: a plan pushes five series a segment, and the call cost as much as the push.
+    /// A bucket keeps its first point of the largest `|y|`.
     #[inline]
     pub fn push(&mut self, x: f64, y: f64) {
         if !(x.is_finite() && y.is_finite()) {
             return;
         }
-        self.pending = match self.pending {
-            Some(p) if p.1.abs() >= y.abs() => Some(p),
-            _ => Some((x, y)),
-        };
-        self.pending_count += 1;
-        if self.pending_count >= self.stride {
-            self.flush_pending();
+        let magnitude = y.abs();
+        if self.pending_count == 0 || magnitude > self.pending_magnitude {
+            self.pending = (x, y);
+            self.pending_magnitude = magnitude;
         }
-        if self.points.len() >= self.capacity {
-            self.merge_pairs();
+        self.pending_count += 1;
+        // The kept points grow only here, so only here can they reach the capacity.
+        if self.pending_count >= self.stride {
+            self.points.push(self.pending);
+            self.pending_count = 0;
+            if self.points.len() >= self.capacity {
+                self.merge_pairs();
+            }
         }
     }
 
@@ -66,17 +75,12 @@ impl Decimated {
         self.stride *= 2;
     }
 
-    fn flush_pending(&mut self) {
-        if let Some(p) = self.pending.take() {
-            self.points.push(p);
-        }
-        self.pending_count = 0;
-    }
-
     /// The kept points (including a partly filled last bucket).
     pub fn points(&self) -> Vec<(f64, f64)> {
         let mut v = self.points.clone();
-        v.extend(self.pending);
+        if self.pending_count > 0 {
+            v.push(self.pending);
+        }
         v
     }
 }
@@ -551,6 +555,86 @@ mod tests {
             assert_eq!(d.points, want, "{len} points");
             assert_eq!(d.points.capacity(), capacity);
             assert_eq!(d.stride, 2);
+        }
+    }
+
+    /// A bucket of `stride` finite pushes keeps its first point of the largest `|y|`; a full
+    /// series halves its points pairwise. Written plainly, against which `push` is held.
+    struct PlainSeries {
+        capacity: usize,
+        stride: usize,
+        bucket: Vec<(f64, f64)>,
+        points: Vec<(f64, f64)>,
+    }
+
+    impl PlainSeries {
+        fn push(&mut self, x: f64, y: f64) {
+            if !x.is_finite() || !y.is_finite() {
+                return;
+            }
+            self.bucket.push((x, y));
+            if self.bucket.len() == self.stride {
+                let kept = self.bucket.iter().fold(self.bucket[0], |best, &p| {
+                    if p.1.abs() > best.1.abs() { p } else { best }
+                });
+                self.points.push(kept);
+                self.bucket.clear();
+                if self.points.len() == self.capacity {
+                    self.points = self
+                        .points
+                        .chunks(2)
+                        .map(|c| {
+                            if c[1].1.abs() >= c[0].1.abs() {
+                                c[1]
+                            } else {
+                                c[0]
+                            }
+                        })
+                        .collect();
+                    self.stride *= 2;
+                }
+            }
+        }
+
+        fn points(&self) -> Vec<(f64, f64)> {
+            let mut v = self.points.clone();
+            if let Some(&first) = self.bucket.first() {
+                v.push(self.bucket.iter().fold(first, |best, &p| {
+                    if p.1.abs() > best.1.abs() { p } else { best }
+                }));
+            }
+            v
+        }
+    }
+
+    #[test]
+    fn decimation_keeps_what_plain_buckets_keep() {
+        // Ties of magnitude (small integers of both signs), non-finite values that must be
+        // skipped, and lengths that end mid-bucket after several merges.
+        let mut rng = crate::rng::SplitMix64::new(11);
+        for len in [0, 1, 15, 16, 17, 100, 1_000, 4_099] {
+            let mut d = Decimated::new(16);
+            let mut plain = PlainSeries {
+                capacity: 16,
+                stride: 1,
+                bucket: Vec::new(),
+                points: Vec::new(),
+            };
+            for i in 0..len {
+                let y = match rng.below(20) {
+                    0 => f64::NAN,
+                    1 => f64::NEG_INFINITY,
+                    k => k as f64 % 7.0 - 3.0,
+                };
+                let x = if rng.below(50) == 0 {
+                    f64::INFINITY
+                } else {
+                    i as f64
+                };
+                d.push(x, y);
+                plain.push(x, y);
+                assert_eq!(d.points(), plain.points(), "{len} points, after {i}");
+            }
         }
     }
 

@@ -8,6 +8,7 @@
 
 use crate::config::Config;
 use crate::gcode::BlockKind;
+use crate::geometry::running_max;
 use crate::preprocess::Segment;
 
 /// Sums the estimate segment by segment.
@@ -63,7 +64,8 @@ impl CutTime {
         } else {
             0.0
         };
-        self.seconds += seg.duration.max(at_feed);
+        // A running maximum from the duration, a number: `max`'s result, on every segment.
+        self.seconds += running_max(seg.duration, at_feed);
     }
 }
 

@@ -353,7 +353,7 @@ impl Collector {
             self.bound_over += 1;
         }
         let v = seg.v_exit;
-        self.max_feed = self.max_feed.max(seg.v_peak);
+        self.max_feed = running_max(self.max_feed, seg.v_peak);
         self.cut.add(seg);
         if let Some(f) = seg.fluctuation {
             self.fl_max = self.fl_max.max(f);

@@ -35,7 +35,7 @@ use super::chord::chord_length_limit;
 use super::segmenter::unit;
 use super::{PlanSettings, corner_speed, step_cap};
 use crate::gcode::{Block, BlockKind};
-use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes, running_min};
+use crate::geometry::{CurveDerivs, NurbsCurve, Point, lanes, running_max, running_min};
 use crate::vocab::{MAX_AXES, Segmentation};
 
 /// Longest interval between two samples of a curved block (mm), as `plan` samples.
@@ -129,7 +129,7 @@ impl Sampler {
             step(Step::Sample(Sample {
                 ds: lanes::norm::<N>(&lanes::sub::<N>(&d.point, &p)) * (1.0 + turn * turn / 24.0),
                 v: here,
-                cap: limit.max(here),
+                cap: running_max(limit, here),
             }));
             (p, limit, tangent) = (d.point, here, next_tangent);
         }
@@ -293,7 +293,8 @@ impl Profile {
     /// horizon behind it (all of them at the path's end), adding their time.
     fn settle(&mut self, all: bool) {
         let len = self.open.len();
-        backward_pass(self.open.iter(), self.accel, &mut self.backward);
+        let (front, back) = self.open.as_slices();
+        backward_pass([front, back], self.accel, &mut self.backward);
         // Settle while the next sample is a horizon or more behind the newest; the newest
         // stays open before the end, for the junction the next block may put on it.
         let mut behind = self.open_length;
@@ -315,27 +316,26 @@ impl Profile {
     }
 }
 
-/// The backward pass over `samples` from the last: each speed capped by what a stop at the
-/// next allows, into `out`.
-fn backward_pass<'a>(
-    samples: impl DoubleEndedIterator<Item = &'a Sample> + ExactSizeIterator,
-    accel: f64,
-    out: &mut Vec<f64>,
-) {
+/// The backward pass over the samples from the last: each speed capped by what a stop at the
+/// next allows, into `out`. The samples come in path order in two runs (a ring buffer's two
+/// slices), walked as slices: through the ring's own iterator the walk cost twice as much.
+fn backward_pass(runs: [&[Sample]; 2], accel: f64, out: &mut Vec<f64>) {
+    let [front, back] = runs;
+    let len = front.len() + back.len();
     // Every slot is written below: only the slots past the vector's present length are
     // zeroed first, not the whole of it on every settle.
-    out.truncate(samples.len());
-    out.resize(samples.len(), 0.0);
-    let mut next: Option<(f64, f64)> = None;
-    for (k, sample) in samples.enumerate().rev() {
-        let v = match next {
-            Some((v_next, ds_next)) => {
-                running_min(sample.v, (v_next * v_next + 2.0 * accel * ds_next).sqrt())
-            }
-            None => sample.v,
-        };
-        out[k] = v;
-        next = Some((v, sample.ds));
+    out.truncate(len);
+    out.resize(len, 0.0);
+    let (out_front, out_back) = out.split_at_mut(front.len());
+    // What a stop after the last sample allows: an infinite speed, which caps nothing (the
+    // running minimum of a speed and infinity is the speed), so the last keeps its own.
+    let (mut v_next, mut ds_next) = (f64::INFINITY, 0.0);
+    for (samples, out) in [(back, out_back), (front, out_front)] {
+        for (slot, sample) in out.iter_mut().zip(samples).rev() {
+            let v = running_min(sample.v, (v_next * v_next + 2.0 * accel * ds_next).sqrt());
+            *slot = v;
+            (v_next, ds_next) = (v, sample.ds);
+        }
     }
 }
 
@@ -414,8 +414,19 @@ mod tests {
             let reach = (samples[k - 1].v.powi(2) + 2.0 * accel * samples[k].ds).sqrt();
             samples[k].v = samples[k].v.min(reach);
         }
-        let mut v = vec![];
-        backward_pass(samples.iter(), accel, &mut v);
+        // The backward pass written plainly, against which the streamed one (over a ring's
+        // two slices, wrapping as samples settle) is held.
+        let mut v = vec![0.0; samples.len()];
+        let mut next: Option<(f64, f64)> = None;
+        for k in (0..samples.len()).rev() {
+            v[k] = match next {
+                Some((v_next, ds_next)) => samples[k]
+                    .v
+                    .min((v_next * v_next + 2.0 * accel * ds_next).sqrt()),
+                None => samples[k].v,
+            };
+            next = Some((v[k], samples[k].ds));
+        }
         let time = (1..samples.len())
             .map(|k| interval_time(v[k - 1], v[k], samples[k].cap, samples[k].ds, accel))
             .sum();
@@ -475,6 +486,46 @@ mod tests {
                 peak < samples / 4,
                 "seed {seed}: {peak} of {samples} samples held (horizon {horizon} mm)"
             );
+        }
+    }
+
+    #[test]
+    fn the_backward_pass_over_two_runs_is_the_plain_one_at_every_split() {
+        // Fast samples close together ending near rest: the stop binds all the way back,
+        // so a run walked in the wrong order or a lost carry between the runs shows.
+        let mut rng = SplitMix64::new(7);
+        let accel = 100.0;
+        for len in [1, 2, 3, 17, 64] {
+            let samples: Vec<Sample> = (0..len)
+                .map(|k| Sample {
+                    ds: rng.uniform(0.0, 0.01),
+                    v: if k + 1 == len {
+                        0.0
+                    } else {
+                        rng.uniform(30.0, 50.0)
+                    },
+                    cap: 50.0,
+                })
+                .collect();
+            let mut want = vec![0.0; len];
+            let mut next: Option<(f64, f64)> = None;
+            for k in (0..len).rev() {
+                want[k] = match next {
+                    Some((v, ds)) => samples[k].v.min((v * v + 2.0 * accel * ds).sqrt()),
+                    None => samples[k].v,
+                };
+                next = Some((want[k], samples[k].ds));
+            }
+            assert!(
+                want[0] < samples[0].v || len < 3,
+                "the stop binds back to the first"
+            );
+            let mut got = vec![1.0; 3];
+            for split in 0..=len {
+                let (front, back) = samples.split_at(split);
+                backward_pass([front, back], accel, &mut got);
+                assert_eq!(got, want, "{len} samples split at {split}");
+            }
         }
     }
 

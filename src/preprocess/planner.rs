@@ -20,6 +20,12 @@
 use std::collections::VecDeque;
 
 use super::GeoSegment;
+use crate::geometry::{running_max, running_min};
+
+// The minima and maxima of the speeds here, several a segment, are `running_min` and
+// `running_max` from an operand that is a number: `f64::min` and `f64::max` bit for bit, in a
+// fifth of the instructions. The numbers: cruise limits are minima started from the
+// programmed feed, junctions and entry speeds minima of those, and `0.0` is one.
 
 /// Speed profile over one segment: trapezoid (or triangle) at constant tangential acceleration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,10 +46,16 @@ impl Profile {
     /// The end speeds must be reachable (the planner guarantees it); tiny rounding is absorbed.
     pub fn new(length: f64, v_entry: f64, v_exit: f64, cruise: f64, accel: f64) -> Profile {
         let peak_sq = (2.0 * accel * length + v_entry * v_entry + v_exit * v_exit) / 2.0;
-        let v_peak = peak_sq.max(0.0).sqrt().min(cruise).max(v_entry).max(v_exit);
+        let v_peak = running_max(
+            running_max(
+                running_min(cruise, running_max(0.0, peak_sq).sqrt()),
+                v_entry,
+            ),
+            v_exit,
+        );
         let d_accel = (v_peak * v_peak - v_entry * v_entry) / (2.0 * accel);
         let d_decel = (v_peak * v_peak - v_exit * v_exit) / (2.0 * accel);
-        let d_cruise = (length - d_accel - d_decel).max(0.0);
+        let d_cruise = running_max(0.0, length - d_accel - d_decel);
         let t_cruise = if v_peak > 0.0 { d_cruise / v_peak } else { 0.0 };
         Profile {
             v_entry,
@@ -179,7 +191,10 @@ impl Planner {
             self.rebase();
         }
         // `prev_cruise` starts at 0: the first segment of a job starts at rest.
-        let junction = geo.entry_limit.min(geo.feed_limit).min(self.prev_cruise);
+        let junction = running_min(
+            self.prev_cruise,
+            running_min(geo.feed_limit, geo.entry_limit),
+        );
         self.prev_cruise = geo.feed_limit;
         let seq = self.next_seq;
         self.next_seq += 1;
@@ -221,13 +236,13 @@ impl Planner {
         let two_a = 2.0 * self.accel;
         let end = two_a * self.travelled;
         // Caps before the segment were dropped when their segment left.
-        let bound = self.caps.front().map_or(end, |c| c.key.min(end));
+        let bound = self.caps.front().map_or(end, |c| running_min(end, c.key));
         // The segment's own junction, applied directly: the key's rounding must not lift a
         // speed above its limit.
-        (bound - two_a * entry.before)
-            .max(0.0)
-            .sqrt()
-            .min(entry.junction)
+        running_min(
+            entry.junction,
+            running_max(0.0, bound - two_a * entry.before).sqrt(),
+        )
     }
 
     /// Plans the window's first segment, lends it to `emit`, then drops it from the window:
@@ -245,10 +260,10 @@ impl Planner {
         } else {
             self.caps.clear();
         }
-        let v0 = self.v_start.min(v_back);
+        let v0 = running_min(v_back, self.v_start);
         let next_max = self.v_back_at(1);
         let geo = &self.window[0].geo;
-        let v1 = next_max.min((v0 * v0 + 2.0 * self.accel * geo.arc).sqrt());
+        let v1 = running_min(next_max, (v0 * v0 + 2.0 * self.accel * geo.arc).sqrt());
         let profile = Profile::new(geo.arc, v0, v1, geo.feed_limit, self.accel);
         self.v_start = v1;
         emit(PlannedSegment { geo, profile });

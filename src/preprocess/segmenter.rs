@@ -163,7 +163,13 @@ impl Segmenter {
         emit: &mut F,
     ) {
         let curve = &block.curve;
-        let mut a = Sample::at(curve, lo);
+        // A step's start and end samples, in two buffers that trade places by reference: a
+        // step writes its end into the other buffer, which then starts the next step. Moved
+        // by value, a 152-byte sample was copied twice a segment (out of the step, then to
+        // the next start).
+        let mut buffers = [Sample::at(curve, lo); 2];
+        let [a, b] = &mut buffers;
+        let (mut a, mut b) = (a, b);
         self.stats.evals += 1;
         let tangent = unit(&a.d.d1);
         let mut entry_limit = match self.prev_tangent {
@@ -181,10 +187,10 @@ impl Segmenter {
         let mut first_of_piece = true;
         let mut rho_start = a.d.curvature_radius();
         loop {
-            let (b, err, bound, tried) = if let Some(line) = &mut line {
-                line.step(curve)
+            let (err, bound, tried) = if let Some(line) = &mut line {
+                line.step(curve, b)
             } else {
-                self.curved_step(curve, &a, rho_start, hi)
+                self.curved_step(curve, a, rho_start, hi, b)
             };
             let at_end = b.u >= hi;
             // On three coordinates for up to three axes: the same numbers ([`lanes`]).
@@ -230,7 +236,7 @@ impl Segmenter {
             first_of_piece = false;
             rho_start = rho_end;
             self.history.push(b.u);
-            a = b;
+            std::mem::swap(&mut a, &mut b);
             if at_end {
                 break;
             }
@@ -292,7 +298,7 @@ impl Segmenter {
         let c = certify(curve, a.u, b.u, &a.d.point, &b.d.point, tol, farthest);
         self.stats.certified_pieces += u64::from(c.pieces);
         if c.holds(tol) {
-            err.max = err.max.min(c.bound);
+            err.max = running_min(err.max, c.bound);
             Ok(c.bound)
         } else {
             if err.max <= tol {
@@ -303,15 +309,16 @@ impl Segmenter {
     }
 
     /// One chord-bounded step on a curved piece from `a`, whose radius of curvature is `rho`.
-    /// Returns the end sample, its measured chord error, its certified bound and the number of
-    /// end-point evaluations spent.
+    /// Writes the end sample into `b`; returns its measured chord error, its certified bound
+    /// and the number of end-point evaluations spent.
     fn curved_step(
         &mut self,
         curve: &NurbsCurve,
         a: &Sample,
         rho: f64,
         hi: f64,
-    ) -> (Sample, ChordError, f64, u32) {
+        b: &mut Sample,
+    ) -> (ChordError, f64, u32) {
         let s = &self.settings;
         let tol = s.tolerance;
         let cap = s.max_segment;
@@ -325,7 +332,7 @@ impl Segmenter {
         let (mut lo, mut bad) = (0.0f64, f64::INFINITY);
         for attempt in 0..MAX_TRIES {
             let at_end = du >= remaining;
-            let b = self.end_sample(curve, a, du, hi);
+            end_sample(curve, a, du, hi, b);
             evals += 1;
             let len = (b.d.point - a.d.point).norm();
             let next = if len > cap {
@@ -333,7 +340,7 @@ impl Segmenter {
                 bad = du;
                 du * (cap_aim / len).max(0.1)
             } else {
-                let mut err = chord_error(curve, a, &b, tol);
+                let mut err = chord_error(curve, a, b, tol);
                 let capped = len >= cap_floor;
                 // Only a chord about to be accepted is certified: one that would only grow
                 // the bracket is certified if it is ever taken (below). Over the tolerance,
@@ -343,18 +350,18 @@ impl Segmenter {
                 let verdict = if err.max <= tol && !accepting {
                     Ok(f64::NAN)
                 } else if err.max <= tol || at_end {
-                    self.within(curve, a, &b, &mut err)
+                    self.within(curve, a, b, &mut err)
                 } else {
                     Err(err.max)
                 };
                 match verdict {
                     Ok(bound) if accepting => {
                         self.learn(rho, len, err.max);
-                        return (b, err, bound, evals);
+                        return (err, bound, evals);
                     }
                     Ok(_) => {
                         lo = du;
-                        good = Some((b, err, du));
+                        good = Some((*b, err, du));
                         let grow = (AIM * tol / err.max.max(1e-4 * tol)).sqrt().min(4.0);
                         if len * grow > cap_aim {
                             du * (cap_aim / len).max(1.0 + 1e-6)
@@ -385,17 +392,18 @@ impl Segmenter {
             // Past the end of the piece: try exactly the end.
             du = n.min(remaining);
         }
-        if let Some((b, mut err, good_du)) = good {
-            match self.within(curve, a, &b, &mut err) {
+        if let Some((good_b, mut err, good_du)) = good {
+            match self.within(curve, a, &good_b, &mut err) {
                 Ok(bound) => {
-                    self.learn(rho, (b.d.point - a.d.point).norm(), err.max);
-                    return (b, err, bound, evals);
+                    self.learn(rho, (good_b.d.point - a.d.point).norm(), err.max);
+                    *b = good_b;
+                    return (err, bound, evals);
                 }
                 Err(_) => bad = good_du,
             }
         }
         let du = if bad.is_finite() { bad } else { du };
-        self.halve_until_within(curve, a, du, evals)
+        self.halve_until_within(curve, a, du, evals, b)
     }
 
     /// The first increment of a step: the Hamming or Taylor prediction towards the aimed
@@ -406,7 +414,7 @@ impl Segmenter {
         let s = &self.settings;
         let tol = s.tolerance;
         let by_chord = chord_length_limit(rho, AIM * tol / self.gain);
-        let taylor = taylor_increment(a, by_chord.min(cap_aim));
+        let taylor = taylor_increment(a, running_min(cap_aim, by_chord));
         let predicted = match (s.predictor, self.history.full()) {
             // The extrapolation knows nothing of the length cap: where the cap binds, the step
             // is a length, which is what the Taylor update predicts.
@@ -427,49 +435,39 @@ impl Segmenter {
     }
 
     /// Seed 000 Fig. 3: halves `du` until the chord holds (and is within the length cap).
+    /// The end sample is left in `b`: the last one measured, since every halving but the
+    /// last that is not measured is followed by another.
     fn halve_until_within(
         &mut self,
         curve: &NurbsCurve,
         a: &Sample,
         mut du: f64,
         mut evals: u32,
-    ) -> (Sample, ChordError, f64, u32) {
+        b: &mut Sample,
+    ) -> (ChordError, f64, u32) {
         let tol = self.settings.tolerance;
         let cap = self.settings.max_segment;
         self.stats.halvings += 1;
         let mut last = None;
         for halving in 1..=MAX_HALVINGS {
             du *= 0.5;
-            let b = Sample::at(curve, a.u + du);
+            *b = Sample::at(curve, a.u + du);
             evals += 1;
             if (b.d.point - a.d.point).norm() > cap && halving < MAX_HALVINGS {
                 continue;
             }
-            let mut err = chord_error(curve, a, &b, tol);
-            let verdict = self.within(curve, a, &b, &mut err);
+            let mut err = chord_error(curve, a, b, tol);
+            let verdict = self.within(curve, a, b, &mut err);
             let bound = match verdict {
                 Ok(bound) | Err(bound) => bound,
             };
-            last = Some((b, err, bound));
+            last = Some((err, bound));
             if verdict.is_ok() {
                 break;
             }
         }
-        let (b, err, bound) = last.expect("the last halving is always measured");
-        (b, err, bound, evals)
-    }
-
-    /// The sample `du` past `a`, or the piece's end (its derivatives from the left) when that
-    /// reaches or passes `hi`.
-    fn end_sample(&self, curve: &NurbsCurve, a: &Sample, du: f64, hi: f64) -> Sample {
-        if du >= hi - a.u {
-            Sample {
-                u: hi,
-                d: curve.derivs_from_left(hi),
-            }
-        } else {
-            Sample::at(curve, a.u + du)
-        }
+        let (err, bound) = last.expect("the last halving is always measured");
+        (err, bound, evals)
     }
 }
 
@@ -534,9 +532,10 @@ impl StraightPiece {
         }
     }
 
-    fn step(&mut self, curve: &NurbsCurve) -> (Sample, ChordError, f64, u32) {
+    /// The next part's end, written into `b`, and what a step returns.
+    fn step(&mut self, curve: &NurbsCurve, b: &mut Sample) -> (ChordError, f64, u32) {
         self.done += 1;
-        let b = if self.done >= self.parts {
+        *b = if self.done >= self.parts {
             Sample {
                 u: self.hi,
                 d: curve.derivs_from_left(self.hi),
@@ -552,7 +551,20 @@ impl StraightPiece {
             rho_min: f64::INFINITY,
             evals: 0,
         };
-        (b, straight, 0.0, 1)
+        (straight, 0.0, 1)
+    }
+}
+
+/// Writes into `b` the sample `du` past `a`, or the piece's end (its derivatives from the
+/// left) when that reaches or passes `hi`. Field by field: each evaluation then writes its
+/// derivatives straight into `b`, where a `Sample` built and assigned was copied into it.
+fn end_sample(curve: &NurbsCurve, a: &Sample, du: f64, hi: f64, b: &mut Sample) {
+    if du >= hi - a.u {
+        b.u = hi;
+        b.d = curve.derivs_from_left(hi);
+    } else {
+        b.u = a.u + du;
+        b.d = curve.derivs(b.u);
     }
 }
 

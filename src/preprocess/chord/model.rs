@@ -5,7 +5,7 @@
 //! evaluation happens here.
 
 use super::{Chord, MODEL_TRUST, Sample};
-use crate::geometry::{Point, lanes};
+use crate::geometry::{Point, lanes, running_max};
 
 /// The cubic Hermite model of the normal offset, `H(s) = s (1-s)² ta - s² (1-s) tb` on
 /// `s ∈ [0, 1]`, sampled at eighths. Returns `|H|²` at `s = k/8`, `k = 0..=8`, from three dot
@@ -46,7 +46,7 @@ pub(super) fn model_untrusted<const N: usize>(
     let du = b.u - a.u;
     // On a piece far over the tolerance (a segmenter's probe) the model only has to be right
     // to a fraction of its own size to say "too long".
-    let scale = MODEL_TRUST * tol.max(peak);
+    let scale = MODEL_TRUST * running_max(tol, peak);
     overshoots_the_chord(a, b, chord, du, MODEL_TRUST * tol)
         || model_disagreement(a, b, chord, du, ta, tb) > scale
 }
@@ -175,7 +175,7 @@ fn largest_squared_gap(gram: &[f64; 10]) -> f64 {
     }
     let mut worst: f64 = 0.0;
     for &d in &d2[..7] {
-        worst = worst.max(d);
+        worst = running_max(worst, d);
     }
     worst
 }
@@ -202,9 +202,13 @@ fn overshoots_the_chord<const N: usize>(
         chord.dot(&a.d.d2, &chord.dir) * du * du,
         chord.dot(&b.d.d2, &chord.dir) * du * du,
     );
-    along_at_eighths(chord.len, [v0, a0, a1, v1])[..7]
+    // Every lane, the eighth of zeros too (a zero is inside the range; a NaN fails both
+    // comparisons, as in the seven), tested with `|`: a short-circuiting test of the seven
+    // cost a branch a comparison, twice what the comparisons cost.
+    let high = chord.len + slack;
+    along_at_eighths(chord.len, [v0, a0, a1, v1])
         .iter()
-        .any(|&x| x < -slack || x > chord.len + slack)
+        .fold(false, |out, &x| out | (x < -slack) | (x > high))
 }
 
 /// The quintic Hermite model of the along-chord coordinate at every eighth, from the chord's
