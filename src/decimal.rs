@@ -376,6 +376,11 @@ pub fn push_f64_exp(out: &mut Vec<u8>, x: f64) {
 /// 2^30 that product is within 1.2e-7 of the exact one, so wherever its fraction is more than
 /// 1e-6 from one half, rounding it rounds the exact value the same way. Near a tie, and for
 /// large or non-finite values, `core::fmt` itself writes the number.
+///
+/// Inlined, so that a caller's constant `places` folds the scale, the divisions and the digit
+/// loop (a chart's coordinates all have two: a quarter of a million numbers in a long plan);
+/// what goes to `core::fmt` is a call.
+#[inline(always)]
 pub fn push_fixed(out: &mut Vec<u8>, x: f64, places: usize) {
     const SCALES: [f64; 4] = [1.0, 10.0, 100.0, 1000.0];
     const TIE_MARGIN: f64 = 1e-6;
@@ -405,6 +410,13 @@ pub fn push_fixed(out: &mut Vec<u8>, x: f64, places: usize) {
             return;
         }
     }
+    push_fixed_general(out, x, places);
+}
+
+/// [`push_fixed`] near a tie, and for large or non-finite values: through `core::fmt`.
+#[cold]
+#[inline(never)]
+fn push_fixed_general(out: &mut Vec<u8>, x: f64, places: usize) {
     use std::io::Write as _;
     // Writing to a Vec cannot fail.
     let _ = write!(out, "{x:.places$}");

@@ -145,7 +145,11 @@ fn profile_peaks(g: &[f64]) -> [(f64, f64); 2] {
     let h = 1.0 / n as f64;
     let mut peaks = [(0.5, -1.0), (0.5, -1.0)];
     for k in 1..n {
-        if g[k] >= g[k - 1] && g[k] > g[k + 1] || g[k] > g[k - 1] && g[k] >= g[k + 1] {
+        // A local maximum: at least both neighbours and above one of them. (As `(≥ and >) or
+        // (> and ≥)` it took four comparisons where the rising side of the bulge fails the
+        // first of these; a NaN fails both ways.)
+        let (prev, here, next) = (g[k - 1], g[k], g[k + 1]);
+        if here >= next && here >= prev && (here > prev || here > next) {
             let denom = g[k - 1] - 2.0 * g[k] + g[k + 1];
             let shift = if denom < 0.0 {
                 (0.5 * (g[k - 1] - g[k + 1]) / denom).clamp(-0.5, 0.5)
@@ -379,6 +383,50 @@ mod tests {
             vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
         )
         .unwrap()
+    }
+
+    #[test]
+    fn peaks_are_the_local_maxima_as_first_defined() {
+        // `profile_peaks` as first written, its peak test `(≥ and >) or (> and ≥)`, against
+        // the one that fails early: plateaus (small integers tie often), NaNs, and bulges.
+        let first = |g: &[f64; 9]| {
+            let h = 1.0 / 8.0;
+            let mut peaks = [(0.5, -1.0), (0.5, -1.0)];
+            for k in 1..8 {
+                if g[k] >= g[k - 1] && g[k] > g[k + 1] || g[k] > g[k - 1] && g[k] >= g[k + 1] {
+                    let denom = g[k - 1] - 2.0 * g[k] + g[k + 1];
+                    let shift = if denom < 0.0 {
+                        (0.5 * (g[k - 1] - g[k + 1]) / denom).clamp(-0.5, 0.5)
+                    } else {
+                        0.0
+                    };
+                    let peak = ((k as f64 + shift) * h, g[k]);
+                    if peak.1 > peaks[0].1 {
+                        peaks[1] = peaks[0];
+                        peaks[0] = peak;
+                    } else if peak.1 > peaks[1].1 {
+                        peaks[1] = peak;
+                    }
+                }
+            }
+            peaks
+        };
+        let bits = |p: [(f64, f64); 2]| p.map(|(s, v)| (s.to_bits(), v.to_bits()));
+        let mut rng = crate::rng::SplitMix64::new(31);
+        let mut found = 0;
+        for _ in 0..20_000 {
+            let mut g = [0.0; 9];
+            for x in &mut g[1..8] {
+                *x = match rng.below(12) {
+                    0 => f64::NAN,
+                    k => (k % 4) as f64 + rng.below(2) as f64 * 0.25,
+                };
+            }
+            let want = first(&g);
+            found += usize::from(want[1].1 >= 0.0);
+            assert_eq!(bits(profile_peaks(&g)), bits(want), "{g:?}");
+        }
+        assert!(found > 1_000, "two peaks in only {found} profiles");
     }
 
     #[test]
