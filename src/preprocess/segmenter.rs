@@ -165,11 +165,10 @@ impl Segmenter {
         let curve = &block.curve;
         // A step's start and end samples, in two buffers that trade places by reference: a
         // step writes its end into the other buffer, which then starts the next step. Moved
-        // by value, a 152-byte sample was copied twice a segment (out of the step, then to
-        // the next start).
+        // by value, a 152-byte sample was copied twice more a segment (out of the step, then
+        // to the next start).
         let mut buffers = [Sample::at(curve, lo); 2];
-        let [a, b] = &mut buffers;
-        let (mut a, mut b) = (a, b);
+        let [mut a, mut b] = buffers.each_mut();
         self.stats.evals += 1;
         let tangent = unit(&a.d.d1);
         let mut entry_limit = match self.prev_tangent {
