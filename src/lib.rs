@@ -31,8 +31,10 @@ pub mod buffer;
 // Floor 5: the tick core and its servo.
 pub mod fine;
 pub mod servo;
-// Floor 6: the machine's two sides (pulse outputs, gap inputs), their devices and wrappers.
+// Floor 6: the machine's two sides (pulse outputs, gap and machine inputs), their devices and
+// wrappers.
 pub mod gap;
+pub mod inputs;
 pub mod output;
 pub mod parport;
 pub mod record;

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::MachineConfig;
 use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
 use crate::geometry::Point;
-use crate::vocab::{Axis, MAX_AXES, Steps};
+use crate::vocab::{Axis, MAX_AXES, Steps, Trip};
 
 /// Format version written into every state file.
 pub const VERSION: u32 = 1;
@@ -34,6 +34,13 @@ pub struct MachineState {
     pub homed: Vec<bool>,
     pub offsets: WorkOffsets,
     pub system: WorkSystem,
+    /// `false` after an unclean stop (the file said moving): the position is only believed
+    /// until every axis is homed again. A resume or a run from a line is refused meanwhile
+    /// (unless forced): it would cut from wherever the machine really stands.
+    pub position_trusted: bool,
+    /// An E-stop or a limit switch stopped the machine and holds it: kept in the file, so a
+    /// restart does not forget it.
+    pub trip: Option<Trip>,
 }
 
 /// A state file that cannot be used.
@@ -72,6 +79,16 @@ struct StateFile {
     homed: Vec<bool>,
     work_system: String,
     offsets_mm: BTreeMap<String, BTreeMap<String, f64>>,
+    /// Absent in files of older edmds: trusted (their `moving` still distrusts).
+    #[serde(default = "yes")]
+    position_trusted: bool,
+    /// `estop`, a limit switch (`X+`), or absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tripped: Option<String>,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// What a state file held, and whether it can be trusted.
@@ -92,6 +109,8 @@ impl MachineState {
             homed: vec![false; machine.axes.len()],
             offsets: WorkOffsets::default(),
             system: WorkSystem::G54,
+            position_trusted: true,
+            trip: None,
         }
     }
 
@@ -136,10 +155,22 @@ impl MachineState {
         (!names.is_empty()).then(|| names.join(", "))
     }
 
-    /// After an unclean stop: the position is kept as believed, but no axis is homed.
+    /// After an unclean stop: the position is kept as believed, but no axis is homed and
+    /// the position is not trusted until they are.
     pub fn distrusted(mut self) -> MachineState {
         self.homed.iter_mut().for_each(|h| *h = false);
+        self.position_trusted = false;
         self
+    }
+
+    /// Axis `i` is homed; once every axis is, the position is trusted again.
+    pub fn set_homed(&mut self, i: usize) {
+        if let Some(h) = self.homed.get_mut(i) {
+            *h = true;
+        }
+        if self.all_homed() {
+            self.position_trusted = true;
+        }
     }
 
     /// Writes the state to `path` atomically; `moving` marks it as not a standstill.
@@ -154,6 +185,8 @@ impl MachineState {
             homed: self.homed.clone(),
             work_system: self.system.name().to_string(),
             offsets_mm,
+            position_trusted: self.position_trusted,
+            tripped: self.trip.map(Trip::name),
         };
         let mut json = serde_json::to_string_pretty(&file).map_err(std::io::Error::other)?;
         json.push('\n');
@@ -210,6 +243,23 @@ impl MachineState {
             ))
         })?;
         let offsets = offsets_from_table(&file.offsets_mm, &machine.axes).map_err(parse)?;
+        let trip = match &file.tripped {
+            None => None,
+            Some(text) => Some(Trip::parse(text).ok_or_else(|| {
+                parse(format!(
+                    "tripped {text:?} is not \"estop\" or a limit switch (\"X+\")"
+                ))
+            })?),
+        };
+        if let Some(Trip::Limit(switch)) = trip
+            && !machine.axes.contains(&switch.axis)
+        {
+            return Err(parse(format!(
+                "tripped {:?}: axis {} is not on this machine",
+                switch.to_string(),
+                switch.axis
+            )));
+        }
         let mut position = [0; MAX_AXES];
         position[..n].copy_from_slice(&file.position_steps);
         Ok(Some(Loaded {
@@ -220,6 +270,8 @@ impl MachineState {
                 homed: file.homed,
                 offsets,
                 system,
+                position_trusted: file.position_trusted,
+                trip,
             },
             was_moving: file.moving,
         }))
@@ -339,10 +391,24 @@ mod tests {
         state.write(&path, true).unwrap();
         let back = MachineState::load(&path, &m).unwrap().unwrap();
         assert!(back.was_moving);
-        assert_eq!(
-            back.state.clone().distrusted().unhomed().as_deref(),
-            Some("X, Y")
-        );
+        let distrusted = back.state.clone().distrusted();
+        assert_eq!(distrusted.unhomed().as_deref(), Some("X, Y"));
+        assert!(!distrusted.position_trusted);
+        // The distrust and a trip survive the file; homing every axis ends the distrust.
+        let mut kept = distrusted.clone();
+        kept.trip = Some(Trip::Limit(crate::vocab::LimitSwitch::parse("Y-").unwrap()));
+        kept.write(&path, false).unwrap();
+        let back = MachineState::load(&path, &m).unwrap().unwrap();
+        assert_eq!(back.state, kept);
+        kept.set_homed(0);
+        assert!(!kept.position_trusted, "one axis of two");
+        kept.set_homed(1);
+        assert!(kept.position_trusted);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"tripped\": \"Y-\""), "{text}");
+        std::fs::write(&path, text.replace("\"Y-\"", "\"Z+\"")).unwrap();
+        let e = MachineState::load(&path, &m).unwrap_err().to_string();
+        assert!(e.contains("axis Z is not on this machine"), "{e}");
         assert!(state.offsets_text().contains("*G56"));
 
         let mut other = m.clone();

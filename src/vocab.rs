@@ -14,6 +14,11 @@ use serde::{Deserialize, Serialize};
 /// Most axes a machine (and so a curve) can have.
 pub const MAX_AXES: usize = 6;
 
+/// The slowest feed edmd accepts anywhere (mm/min: the G-code `F` word, a jog, the
+/// configuration's feeds): a micrometre a minute. Slower is a typing error (`F1e-300`),
+/// and a move at it would never end.
+pub const MIN_FEED_MM_PER_MIN: f64 = 0.001;
+
 /// A position in steps, one count per axis (the axes a machine lacks stay 0): the unit of the
 /// pulse ledger, of step blocks and of checkpoints.
 pub type Steps = [i64; MAX_AXES];
@@ -274,18 +279,135 @@ impl std::fmt::Display for LimitSwitch {
     }
 }
 
-/// The machine's safety inputs, read with the gap at every tick: the emergency stop and the
-/// limit switches. Either one stops motion within the tick it is seen.
+/// The limit switches that read closed: one bit per axis end (`Axis` index × 2, `+1` for
+/// the upper end), so every switch of a machine fits and motion can be told apart by axis
+/// and direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LimitSet(u16);
+
+impl LimitSet {
+    pub const EMPTY: LimitSet = LimitSet(0);
+
+    fn bit(switch: LimitSwitch) -> u16 {
+        1 << (switch.axis as usize * 2 + usize::from(switch.positive))
+    }
+
+    pub fn insert(&mut self, switch: LimitSwitch) {
+        self.0 |= Self::bit(switch);
+    }
+
+    pub fn remove(&mut self, switch: LimitSwitch) {
+        self.0 &= !Self::bit(switch);
+    }
+
+    pub fn contains(self, switch: LimitSwitch) -> bool {
+        self.0 & Self::bit(switch) != 0
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// The closed switches, X− first.
+    pub fn iter(self) -> impl Iterator<Item = LimitSwitch> {
+        Axis::ALL
+            .into_iter()
+            .flat_map(|axis| [false, true].map(|positive| LimitSwitch { axis, positive }))
+            .filter(move |&s| self.contains(s))
+    }
+
+    /// The first closed switch that a tick's `steps` (machine axis order, `axes` naming
+    /// them) would move further into: motion away from a closed switch, and motion of other
+    /// axes, is allowed, as LinuxCNC allows it.
+    #[inline]
+    pub fn blocking(
+        self,
+        axes: &[Option<Axis>; MAX_AXES],
+        steps: &[i8; MAX_AXES],
+    ) -> Option<LimitSwitch> {
+        if self.0 == 0 {
+            return None;
+        }
+        for (axis, &step) in axes.iter().zip(steps) {
+            if let Some(axis) = *axis
+                && step != 0
+            {
+                let switch = LimitSwitch {
+                    axis,
+                    positive: step > 0,
+                };
+                if self.contains(switch) {
+                    return Some(switch);
+                }
+            }
+        }
+        None
+    }
+}
+
+impl std::fmt::Display for LimitSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<String> = self.iter().map(|s| s.to_string()).collect();
+        f.write_str(&names.join(" "))
+    }
+}
+
+/// The machine's safety inputs, read at every tick: the emergency stop and the limit
+/// switches. An E-stop stops motion within the tick it is seen; a limit switch stops motion
+/// that would go further into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct SafetyInputs {
     pub estop: bool,
-    pub limit: Option<LimitSwitch>,
+    pub limits: LimitSet,
 }
 
 impl SafetyInputs {
     /// Something that stops motion is active.
     pub fn tripped(self) -> bool {
-        self.estop || self.limit.is_some()
+        self.estop || !self.limits.is_empty()
+    }
+
+    /// Both readings: what either source reads active is active.
+    pub fn merged(self, other: SafetyInputs) -> SafetyInputs {
+        SafetyInputs {
+            estop: self.estop || other.estop,
+            limits: LimitSet(self.limits.0 | other.limits.0),
+        }
+    }
+}
+
+/// What stopped the machine and holds it: an E-stop, or a limit switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Trip {
+    /// Nothing moves until the input is released and `reset` is given.
+    EStop,
+    /// Only motion away from the switch moves, until it opens.
+    Limit(LimitSwitch),
+}
+
+impl Trip {
+    /// What the inputs show, the E-stop first.
+    pub fn of(inputs: SafetyInputs) -> Option<Trip> {
+        if inputs.estop {
+            Some(Trip::EStop)
+        } else {
+            inputs.limits.iter().next().map(Trip::Limit)
+        }
+    }
+
+    /// The state file's word: `estop`, or the switch (`X+`).
+    pub fn name(self) -> String {
+        match self {
+            Trip::EStop => "estop".to_string(),
+            Trip::Limit(switch) => switch.to_string(),
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<Trip> {
+        match text {
+            "estop" => Some(Trip::EStop),
+            _ => LimitSwitch::parse(text).map(Trip::Limit),
+        }
     }
 }
 
@@ -443,5 +565,60 @@ mod tests {
         assert_eq!(t.to_string(), "50 µs");
         let max = TickPeriod::from_us(TickPeriod::MAX_US).unwrap();
         assert_eq!(max.ns(), 1_000_000_000);
+    }
+
+    /// Every switch of every axis has its own bit; a step is blocked only by the switch it
+    /// runs further into, never by one it moves away from or one of another axis.
+    #[test]
+    fn a_limit_set_blocks_only_motion_into_a_closed_switch() {
+        let mut set = LimitSet::EMPTY;
+        for axis in Axis::ALL {
+            for positive in [false, true] {
+                let s = LimitSwitch { axis, positive };
+                assert!(!set.contains(s));
+                set.insert(s);
+                assert!(set.contains(s));
+            }
+        }
+        assert_eq!(set.iter().count(), 16);
+        let mut set = LimitSet::EMPTY;
+        let x_plus = LimitSwitch::parse("X+").unwrap();
+        set.insert(x_plus);
+        assert_eq!(set.to_string(), "X+");
+        // A machine X, U (U in slot 1).
+        let mut axes = [None; MAX_AXES];
+        axes[0] = Some(Axis::X);
+        axes[1] = Some(Axis::U);
+        let steps = |x: i8, u: i8| {
+            let mut s = [0; MAX_AXES];
+            s[0] = x;
+            s[1] = u;
+            s
+        };
+        assert_eq!(set.blocking(&axes, &steps(1, 0)), Some(x_plus));
+        assert_eq!(set.blocking(&axes, &steps(1, -1)), Some(x_plus));
+        assert_eq!(set.blocking(&axes, &steps(-1, 0)), None, "away");
+        assert_eq!(set.blocking(&axes, &steps(0, 1)), None, "another axis");
+        assert_eq!(set.blocking(&axes, &steps(0, 0)), None);
+        set.remove(x_plus);
+        assert!(set.is_empty());
+        let u_minus = LimitSwitch::parse("u-").unwrap();
+        set.insert(u_minus);
+        assert_eq!(set.blocking(&axes, &steps(1, -1)), Some(u_minus));
+        let inputs = SafetyInputs {
+            estop: false,
+            limits: set,
+        };
+        assert_eq!(Trip::of(inputs), Some(Trip::Limit(u_minus)));
+        let both = inputs.merged(SafetyInputs {
+            estop: true,
+            limits: LimitSet::EMPTY,
+        });
+        assert_eq!(Trip::of(both), Some(Trip::EStop));
+        assert!(both.limits.contains(u_minus));
+        for trip in [Trip::EStop, Trip::Limit(u_minus)] {
+            assert_eq!(Trip::parse(&trip.name()), Some(trip));
+        }
+        assert_eq!(Trip::parse("limit"), None);
     }
 }

@@ -18,7 +18,9 @@ const FLOORS: &[&[&str]] = &[
     &["preprocess"],
     &["buffer"],
     &["fine", "servo"],
-    &["gap", "output", "parport", "record", "sim", "trace"],
+    &[
+        "gap", "inputs", "output", "parport", "record", "sim", "trace",
+    ],
     &["config"],
     &[
         "check",

@@ -50,8 +50,16 @@ fn the_feed_override_changes_the_speed_within_a_tick_and_is_reported() {
     ));
     let daemon = Daemon::start(&dir, &sets, &[]);
     // Out of range is refused, not clamped.
-    daemon.refused(&["override", "feed", "250"], "give 0 to 200 %");
-    daemon.refused(&["override", "rapid", "120"], "give 0 to 100 %");
+    daemon.refused(
+        &["override", "feed", "250"],
+        "give a whole percent from 0 to 200",
+    );
+    daemon.refused(
+        &["override", "rapid", "120"],
+        "give a whole percent from 0 to 100",
+    );
+    // A fraction would show as another number than the one given.
+    daemon.refused(&["override", "feed", "100.5"], "give a whole percent");
     daemon.ok(&["run", "long.nc"]);
     // Paced by the job's own clock (its ticks), not the wall's: a loaded machine runs late.
     let machine_time = |s: &serde_json::Value| s["job"]["machine_time_s"].as_f64().unwrap_or(0.0);

@@ -236,14 +236,21 @@ fn cases() -> Vec<Case> {
             "G1 X1 F0\n",
             1,
             7,
-            "feed F must be greater than 0",
+            "feed F must be at least 0.001 mm/min",
         ),
         case(
             "negative feed",
             "G1 X1 F-5\n",
             1,
             7,
-            "feed F must be greater than 0",
+            "feed F must be at least 0.001 mm/min",
+        ),
+        case(
+            "a feed below the minimum",
+            "G1 X1 F0.0000001\n",
+            1,
+            7,
+            "feed F must be at least 0.001 mm/min (a micrometre a minute)",
         ),
         case(
             "axis not on machine",

@@ -91,6 +91,33 @@ impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
 
 type FakePortOutput = AtTickTime<ParportOutput<RecordingPort, VirtualClock>>;
 
+/// Sets the fake port's status pins to `levels` once the job's tick reaches `at_tick` (a
+/// switch pressed mid-job), before the output runs.
+struct PressAt<O> {
+    inner: O,
+    bench: Bench,
+    at_tick: u64,
+    levels: edmd::parport::PinLevels,
+}
+
+impl<O: PulseOutput> PulseOutput for PressAt<O> {
+    fn write(
+        &mut self,
+        tick: u64,
+        steps: &[i8; MAX_AXES],
+        gap: GapState,
+    ) -> Result<(), OutputError> {
+        if tick + 1 >= self.at_tick {
+            self.bench.set_inputs(self.levels);
+        }
+        self.inner.write(tick, steps, gap)
+    }
+
+    fn finish(&mut self) -> Result<(), OutputError> {
+        self.inner.finish()
+    }
+}
+
 /// A parport output of `config`'s pin map and timing on a fresh recording fake.
 fn fake_port(config: &Config) -> (FakePortOutput, Bench, PinMap, StepTiming) {
     let bench = Bench::new();
@@ -113,6 +140,31 @@ fn job_on(
     output: impl PulseOutput + Send + 'static,
     gap: impl GapSensor + Send + 'static,
 ) -> runtime::JobSummary {
+    job_with_inputs(config, output, gap, edmd::inputs::NoInputs)
+}
+
+/// [`job_on`] with these machine inputs.
+fn job_with_inputs(
+    config: &Config,
+    output: impl PulseOutput + Send + 'static,
+    gap: impl GapSensor + Send + 'static,
+    inputs: impl edmd::inputs::MachineInputs + Send + 'static,
+) -> runtime::JobSummary {
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let published = Arc::new(runtime::Published::new(4096));
+    job_steered(config, output, gap, inputs, published, &never).summary
+}
+
+/// The test program's job with these devices, steered through `published` and `stop` (as
+/// the daemon steers one), in `config`'s time.
+fn job_steered(
+    config: &Config,
+    output: impl PulseOutput + Send + 'static,
+    gap: impl GapSensor + Send + 'static,
+    inputs: impl edmd::inputs::MachineInputs + Send + 'static,
+    published: Arc<runtime::Published>,
+    stop: &std::sync::atomic::AtomicBool,
+) -> runtime::JobEnd {
     let program = runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap();
     let check = runtime::precheck(
         &program,
@@ -127,6 +179,7 @@ fn job_on(
     let io = runtime::JobIo {
         output: Box::new(output),
         gap: Box::new(gap),
+        inputs: Box::new(inputs),
         tracer: None,
         recording: None,
         progress: None,
@@ -137,15 +190,7 @@ fn job_on(
         spec: &spec,
         resume: None,
     };
-    let never = std::sync::atomic::AtomicBool::new(false);
-    runtime::run(
-        &fine,
-        job,
-        io,
-        Arc::new(runtime::Published::new(4096)),
-        &never,
-    )
-    .summary
+    runtime::run(&fine, job, io, published, stop)
 }
 
 /// Runs the test program in virtual time through a parport output on the recording fake,
@@ -611,6 +656,7 @@ fn fault_then_resume(
         let io = runtime::JobIo {
             output,
             gap: Box::new(edmd::gap::AlwaysNormal),
+            inputs: Box::new(edmd::inputs::NoInputs),
             tracer: None,
             recording: None,
             progress: None,
@@ -673,4 +719,184 @@ fn a_job_cut_short_by_an_output_fault_resumes_exactly_at_any_tick() {
         );
         assert_eq!(second.end_steps, PROGRAM_END.to_vec(), "fault at {tick}");
     }
+}
+
+// ---- machine inputs whatever the gap input is --------------------------------------------
+
+/// The port's E-stop is read with every gap input: the port as the output, the gap from
+/// nothing, a script, the simulator, an IIO ADC (a fake sysfs directory) or the port's own
+/// status pins. Pressed at tick 20,000, the job stops in that tick with outcome `estop`, no
+/// step after it reaches the drives, and the port is left with its outputs inactive.
+#[test]
+fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
+    let mut config = config(&[
+        "output.kind=\"parport\"",
+        "fine.virtual_time=false",
+        "parport.estop_pin=12",
+        "fine.tick_us=50",
+    ]);
+    // The port is the recording fake: its time is virtual.
+    config.fine.virtual_time = true;
+    const PRESS: u64 = 20_000;
+    // 30 V at the gap (sparking): 1500 counts of 1 mV behind a 1:20 divider.
+    let dev = common::scratch("io", "estop-iio").join("iio:device0");
+    std::fs::create_dir_all(&dev).unwrap();
+    std::fs::write(dev.join("in_voltage0_raw"), "1500\n").unwrap();
+    std::fs::write(dev.join("in_voltage_scale"), "1.000000\n").unwrap();
+    let iio = edmd::gap::IioSettings {
+        device: dev,
+        channel: "voltage0".into(),
+        gain: 20.0,
+        rate_hz: 10_000.0,
+    };
+    let gaps: Vec<(&str, Box<dyn GapSensor + Send>)> = vec![
+        ("none", Box::new(edmd::gap::AlwaysNormal)),
+        (
+            "script",
+            Box::new(ScriptGap::parse("0 normal\n", "gap.txt").unwrap()),
+        ),
+        ("sim", {
+            let check = runtime::precheck(
+                &runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap(),
+                &config,
+                &Default::default(),
+                &runtime::CutPlan::default(),
+                &runtime::Progress::new(),
+            )
+            .unwrap();
+            runtime::open_gap(&config, &check, None).unwrap()
+        }),
+        (
+            "iio",
+            Box::new(edmd::gap::IioGap::open(&iio, config.gap.volts).unwrap()),
+        ),
+        ("parport", Box::new(edmd::gap::AlwaysNormal)),
+    ];
+    for (kind, gap) in gaps {
+        let (output, bench, map, _) = fake_port(&config);
+        // The port's own status pins as the gap input, on the same fake.
+        let gap: Box<dyn GapSensor + Send> = if kind == "parport" {
+            Box::new(edmd::parport::ParportGap::new(
+                Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle()))),
+                map.clone(),
+                1,
+                "fake-port",
+            ))
+        } else {
+            gap
+        };
+        let inputs = edmd::parport::ParportInputs::new(
+            Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle()))),
+            map.clone(),
+            "fake-port",
+        );
+        let output = PressAt {
+            inner: output,
+            bench: bench.clone(),
+            at_tick: PRESS,
+            levels: edmd::parport::PinLevels(1 << 12),
+        };
+        let summary = job_with_inputs(&config, output, gap, inputs);
+        assert_eq!(
+            summary.outcome,
+            Outcome::Estop,
+            "gap.kind {kind}: {summary:?}"
+        );
+        assert_eq!(
+            summary.ticks, PRESS,
+            "gap.kind {kind}: stopped in the tick it was seen"
+        );
+        let last_step = bench
+            .writes()
+            .iter()
+            .filter(|w| w.register == edmd::parport::fake::Register::Data)
+            .map(|w| w.at_ns)
+            .max()
+            .unwrap();
+        assert!(
+            last_step < PRESS * config.fine.tick.ns(),
+            "gap.kind {kind}: a write at {last_step} ns after the press"
+        );
+        let (_, last) = *bench.waveform(map.idle()).last().unwrap();
+        assert_eq!(last, map.idle(), "gap.kind {kind}: every output inactive");
+    }
+}
+
+/// A port pin that nothing would read does not validate: the E-stop, a limit switch, the
+/// probe and the wire break need the port as the output.
+#[test]
+fn a_machine_input_pin_without_the_port_is_a_configuration_error() {
+    for set in [
+        "parport.estop_pin=12",
+        "parport.limit_pins={\"X+\"=13}",
+        "parport.probe_pin=15",
+        "parport.wire_break_pin=13",
+    ] {
+        let overrides = vec![set.to_string()];
+        let e = Config::load(None, &overrides).unwrap_err().to_string();
+        assert!(
+            e.contains("nothing reads the parallel port's inputs with output.kind = \"sim\""),
+            "{set}: {e}"
+        );
+    }
+}
+
+/// The dead-man of a continuous jog is kept by the job's own thread: with nobody renewing
+/// (the control loop frozen, here: nothing runs it at all), the job holds within a tick of
+/// its deadline and moves no more.
+#[test]
+fn the_job_thread_holds_at_the_dead_man_deadline_by_itself() {
+    let config = config(&[
+        "fine.virtual_time=false",
+        "output.kind=\"null\"",
+        "gap.kind=\"none\"",
+        "servo.normal_feed_mm_per_min=300.0",
+    ]);
+    let published = Arc::new(runtime::Published::new(4096));
+    let deadline = edmd::sys::monotonic_ns() + 150_000_000;
+    published
+        .dead_man_ns
+        .store(deadline, std::sync::atomic::Ordering::Release);
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let job = s.spawn(|| {
+            job_steered(
+                &config,
+                edmd::output::NullOutput,
+                edmd::gap::AlwaysNormal,
+                edmd::inputs::NoInputs,
+                published.clone(),
+                &stop,
+            )
+        });
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        let moving = published.position();
+        assert!(
+            moving[0] != 0 || moving[1] != 0,
+            "moving before the deadline"
+        );
+        assert!(
+            !published
+                .dead_man_tripped
+                .load(std::sync::atomic::Ordering::Acquire)
+        );
+        std::thread::sleep(std::time::Duration::from_millis(250));
+        assert!(
+            published
+                .dead_man_tripped
+                .load(std::sync::atomic::Ordering::Acquire)
+        );
+        assert!(published.hold.load(std::sync::atomic::Ordering::Acquire));
+        let held = published.snapshot();
+        assert!(held.still, "braked to a standstill: {held:?}");
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert_eq!(
+            published.position(),
+            held.position,
+            "no motion after the dead-man"
+        );
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        let end = job.join().unwrap();
+        assert_eq!(end.summary.outcome, Outcome::Stopped);
+    });
 }

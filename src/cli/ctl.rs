@@ -51,13 +51,19 @@ pub(super) enum CtlCommand {
         /// each at its offset and condition
         #[arg(long, value_name = "N")]
         passes: Option<usize>,
+        /// A run from a line while the position is not trusted (edmd stopped while the
+        /// machine moved, or an axis is unhomed): the operator has checked where it stands
+        #[arg(long, requires = "from_line")]
+        force: bool,
     },
     /// Brake to a standstill and hold there (checkpoint written)
     Hold,
     /// Release a hold; with no job running, resume the checkpoint's job (waiting for its
     /// check, as `run` does)
     Resume {
-        /// Resume from a checkpoint written while cutting (the electrode may be past it)
+        /// Resume although the machine moved since the checkpoint, the offsets changed, an
+        /// axis is unhomed or the position is not trusted after an unclean stop: the
+        /// operator has checked where it stands
         #[arg(long)]
         force: bool,
         /// Return as soon as the daemon has accepted the request
@@ -283,6 +289,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             from_line,
             approach,
             passes,
+            force,
         } => (
             Request::Run {
                 program: program.clone(),
@@ -290,6 +297,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
                 from_line: *from_line,
                 approach: *approach,
                 passes: *passes,
+                force: *force,
             },
             !no_wait,
         ),

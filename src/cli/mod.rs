@@ -347,6 +347,17 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
             layer.with_ansi(false).fmt_fields(text_fields).boxed()
         }
     };
+    // Asked at every event of the library (a budget is spent), at no other callsite.
+    let noise = tracing_subscriber::filter::DynFilterFn::new(|meta, _| library_noise(meta))
+        .with_callsite_filter(|meta| {
+            if meta.is_event() && meta.target().starts_with("opcua") {
+                tracing::subscriber::Interest::sometimes()
+            } else {
+                tracing::subscriber::Interest::always()
+            }
+        });
+    let layer = layer.with_filter(noise);
+    set_noise_limited(cfg.level.name());
     // A second initialisation (tests calling twice) is harmless, so its error is ignored.
     let _ = tracing_subscriber::registry()
         .with(filter)
@@ -358,8 +369,38 @@ fn init_logging(cfg: &config::LogConfig) -> crate::daemon::SetLogLevel {
         }
         handle
             .reload(EnvFilter::new(filter_directives(level)))
-            .map_err(Into::into)
+            .map_err(Into::<Box<dyn std::error::Error + Send + Sync>>::into)?;
+        set_noise_limited(level);
+        Ok(())
     })
+}
+
+/// The OPC UA library's warnings and errors are held to a noise budget below `debug`.
+static NOISE_LIMITED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
+
+fn set_noise_limited(level: &str) {
+    NOISE_LIMITED.store(
+        !matches!(level, "debug" | "trace"),
+        std::sync::atomic::Ordering::Relaxed,
+    );
+}
+
+/// The OPC UA library logs a stranger's malformed connection at ERROR, several lines each,
+/// so anyone who can reach the port could fill the journal: below `debug` its warnings and
+/// errors pass a [`crate::daemon::noise::Budget`] (ten a minute), the rest are dropped.
+fn library_noise(meta: &tracing::Metadata<'_>) -> bool {
+    static LIBRARY: crate::daemon::noise::Budget = crate::daemon::noise::Budget::new();
+    if !meta.is_event()
+        || !meta.target().starts_with("opcua")
+        || *meta.level() > tracing::Level::WARN
+        || !NOISE_LIMITED.load(std::sync::atomic::Ordering::Relaxed)
+    {
+        return true;
+    }
+    matches!(
+        LIBRARY.spend(crate::sys::monotonic_ns()),
+        crate::daemon::noise::Loudness::Warn { .. }
+    )
 }
 
 /// The log filter for `level`: at `info`, the OPC UA library's own chatter (a line per
@@ -505,7 +546,8 @@ fn run_job(args: &RunArgs) -> ExitCode {
         progress: Some(progress),
         recording: recording.clone(),
     };
-    let mut machine = match RunState::open(args.state.as_deref(), &cfg) {
+    let from_line = args.from_line.is_some();
+    let mut machine = match RunState::open(args.state.as_deref(), &cfg, from_line) {
         Ok(m) => m,
         Err(code) => return code,
     };

@@ -17,10 +17,31 @@ pub(super) struct RunState {
 }
 
 impl RunState {
-    /// Reads `path` (a missing file is machine zero) and marks it moving.
-    pub fn open(path: Option<&Path>, cfg: &Config) -> Result<RunState, ExitCode> {
+    /// Reads `path` (a missing file is machine zero) and marks it moving. `from_line`: the
+    /// job cuts from a line, which is refused on a position an unclean stop left (the
+    /// daemon's `--force` has no `edmd run` twin).
+    pub fn open(path: Option<&Path>, cfg: &Config, from_line: bool) -> Result<RunState, ExitCode> {
         let state = match path.map(|p| MachineState::load(p, &cfg.machine)) {
             None | Some(Ok(None)) => MachineState::new(&cfg.machine),
+            Some(Ok(Some(loaded)))
+                if from_line && (loaded.was_moving || !loaded.state.position_trusted) =>
+            {
+                eprintln!(
+                    "edmd: error: {}: the position is not trusted (the machine was moving when \
+                     the last run stopped): a run from a line would cut from a believed place; \
+                     home the machine first (`edmd serve`, `edmd ctl home`)",
+                    path.map_or(String::new(), |p| p.display().to_string())
+                );
+                return Err(ExitCode::from(EXIT_RUNTIME));
+            }
+            Some(Ok(Some(loaded))) if loaded.was_moving => {
+                tracing::warn!(
+                    "{}: the machine was moving when the last run stopped: its position is \
+                     only believed, every axis is unhomed",
+                    path.map_or(String::new(), |p| p.display().to_string())
+                );
+                loaded.state.distrusted()
+            }
             Some(Ok(Some(loaded))) => loaded.state,
             Some(Err(e)) => {
                 eprintln!("edmd: error: {e}");

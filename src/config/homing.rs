@@ -5,7 +5,7 @@
 //! never make another setting an error.
 
 use super::raw::{RawHoming, RawHomingAxis, RawRequired, RawSim};
-use super::validate::{Invalid, positive, short};
+use super::validate::{Invalid, feed, positive, short};
 use super::{HomingAxis, HomingConfig, MachineConfig, OutputKind, ParportConfig};
 use crate::parport::pins::is_input_pin;
 use crate::vocab::Axis;
@@ -69,6 +69,21 @@ fn homing(
         if axes.iter().any(|a| a.axis == axis.axis) {
             return Err((KEY, format!("axis {} is listed twice", axis.axis)));
         }
+        if let Some(pin) = axis.switch_pin
+            && output != OutputKind::Parport
+        {
+            return Err((
+                KEY,
+                format!(
+                    "entry {}: {}: switch_pin = {pin}: nothing reads the parallel port's \
+                     inputs with output.kind = \"{}\"; use output.kind = \"parport\", or \
+                     switch_pin = 0",
+                    n + 1,
+                    axis.axis,
+                    output.name()
+                ),
+            ));
+        }
         axes.push(axis);
     }
     // Stable: equal sequences home in the order listed.
@@ -108,15 +123,14 @@ fn homing_axis(
         }
     };
     let max_feed = machine.max_feed_mm_per_min;
-    let search_feed = positive(KEY, e.search_feed_mm_per_min, max_feed, "mm/min")
+    let search_feed = feed(KEY, e.search_feed_mm_per_min, max_feed)
         .map_err(|(k, m)| (k, format!("{axis}: search_feed_mm_per_min {m}")))?;
-    let latch_feed =
-        positive(KEY, e.latch_feed_mm_per_min, search_feed, "mm/min").map_err(|(k, m)| {
-            (
-                k,
-                format!("{axis}: latch_feed_mm_per_min (at most the search feed) {m}"),
-            )
-        })?;
+    let latch_feed = feed(KEY, e.latch_feed_mm_per_min, search_feed).map_err(|(k, m)| {
+        (
+            k,
+            format!("{axis}: latch_feed_mm_per_min (at most the search feed) {m}"),
+        )
+    })?;
     let travel = machine.travel[index];
     if !e.home_position_mm.is_finite() || e.home_position_mm.abs() > MAX_DISTANCE_MM * 100.0 {
         return Err((KEY, format!("{axis}: home_position_mm is not a coordinate")));

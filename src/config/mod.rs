@@ -71,6 +71,18 @@ pub enum OutputKind {
     Null,
 }
 
+impl OutputKind {
+    /// The configuration's word for it.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputKind::Sim => "sim",
+            OutputKind::File => "file",
+            OutputKind::Parport => "parport",
+            OutputKind::Null => "null",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GapKind {
@@ -479,7 +491,9 @@ impl Config {
         match path {
             None => Config::parse(DEFAULT_CONFIG_TOML, "<built-in default>", overrides),
             Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+                // A regular file only, opened without waiting: a FIFO in its place is an
+                // error at once, not a thread waiting for a writer.
+                let text = crate::sys::read_regular(path).map_err(|source| ConfigError::Io {
                     path: path.to_path_buf(),
                     source,
                 })?;

@@ -227,6 +227,40 @@ fn in_use(
             ));
         }
     }
+    // The machine's inputs on the port are read whenever the port is the output; with any
+    // other output nothing reads them, and a machine that believes its E-stop wired must not
+    // validate.
+    if output.kind != OutputKind::Parport {
+        let unread = [
+            ("parport.estop_pin", p.estop_pin),
+            ("parport.probe_pin", p.probe_pin),
+            ("parport.wire_break_pin", p.wire_break_pin),
+        ]
+        .into_iter()
+        .find_map(|(key, pin)| pin.map(|pin| (key, pin.to_string())))
+        .or_else(|| {
+            (!p.limit_pins.is_empty()).then(|| {
+                (
+                    "parport.limit_pins",
+                    p.limit_pins
+                        .iter()
+                        .map(|(s, pin)| format!("{s} = {pin}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                )
+            })
+        });
+        if let Some((key, pins)) = unread {
+            return Err((
+                key,
+                format!(
+                    "{pins}: nothing reads the parallel port's inputs with output.kind = \
+                     \"{}\"; use output.kind = \"parport\", or set it to 0 (none)",
+                    output.kind.name()
+                ),
+            ));
+        }
+    }
     if gap.kind == GapKind::Parport && p.short_pin.is_none() && p.open_pin.is_none() {
         return Err((
             "parport.short_pin",

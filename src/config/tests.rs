@@ -308,15 +308,19 @@ fn homing_axes_are_checked_and_ordered_by_sequence() {
     )
     .unwrap_err();
     assert!(e.contains("at most the search feed"), "{e}");
+    // A switch pin is read only from the port.
+    let e = load("", &[&axis(", switch_pin=15")]).unwrap_err();
+    assert!(
+        e.contains("switch_pin = 15: nothing reads the parallel port's inputs"),
+        "{e}"
+    );
+    let c = load(PORT, &[&axis(", switch_pin=15, sequence=3")]).unwrap();
+    assert_eq!(c.homing.axes[0].switch_pin, Some(15));
     let c = load(
         "",
-        &[
-            &axis(", switch_pin=15, sequence=3"),
-            "sim.home_switch_mm={X=3.0,Z=1.0}",
-        ],
+        &[&axis(", sequence=3"), "sim.home_switch_mm={X=3.0,Z=1.0}"],
     )
     .unwrap();
-    assert_eq!(c.homing.axes[0].switch_pin, Some(15));
     assert_eq!(c.sim.home_switch_mm, [Some(3.0), None]);
     let e = load("", &["sim.home_switch_mm={Q=1.0}"]).unwrap_err();
     assert!(e.contains("\"Q\" is not an axis letter"), "{e}");

@@ -47,6 +47,24 @@ pub(super) fn positive(
     }
 }
 
+/// A feed (mm/min): at least [`crate::vocab::MIN_FEED_MM_PER_MIN`], at most `max`.
+pub(super) fn feed(key: &'static str, value: f64, max: f64) -> Result<f64, Invalid> {
+    let min = crate::vocab::MIN_FEED_MM_PER_MIN;
+    if value.is_finite() && value >= min && value <= max {
+        Ok(value)
+    } else {
+        Err((
+            key,
+            format!(
+                "must be at least {} and at most {} mm/min, got {}",
+                short(min),
+                short(max),
+                short(value)
+            ),
+        ))
+    }
+}
+
 /// A number as a person would write it: `1e300`, not three hundred digits.
 pub(super) fn short(value: f64) -> String {
     let magnitude = value.abs();
@@ -215,23 +233,17 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
         travel,
         axes,
         step_mm: m.step_mm,
-        max_feed_mm_per_min: positive(
-            "machine.max_feed_mm_per_min",
-            m.max_feed_mm_per_min,
-            1e6,
-            "mm/min",
-        )?,
+        max_feed_mm_per_min: feed("machine.max_feed_mm_per_min", m.max_feed_mm_per_min, 1e6)?,
         max_normal_accel_mm_per_s2: positive(
             "machine.max_normal_accel_mm_per_s2",
             m.max_normal_accel_mm_per_s2,
             1e7,
             "mm/s²",
         )?,
-        max_jog_feed_mm_per_min: positive(
+        max_jog_feed_mm_per_min: feed(
             "machine.max_jog_feed_mm_per_min",
             m.max_jog_feed_mm_per_min,
             1e6,
-            "mm/min",
         )?,
         max_tangential_accel_mm_per_s2: positive(
             "machine.max_tangential_accel_mm_per_s2",
@@ -458,23 +470,16 @@ fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
 
 fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
     let servo = ServoConfig {
-        normal_feed_mm_per_min: positive(
+        normal_feed_mm_per_min: feed(
             "servo.normal_feed_mm_per_min",
             s.normal_feed_mm_per_min,
             1e6,
-            "mm/min",
         )?,
-        open_feed_mm_per_min: positive(
-            "servo.open_feed_mm_per_min",
-            s.open_feed_mm_per_min,
-            1e6,
-            "mm/min",
-        )?,
-        retract_feed_mm_per_min: positive(
+        open_feed_mm_per_min: feed("servo.open_feed_mm_per_min", s.open_feed_mm_per_min, 1e6)?,
+        retract_feed_mm_per_min: feed(
             "servo.retract_feed_mm_per_min",
             s.retract_feed_mm_per_min,
             1e6,
-            "mm/min",
         )?,
         max_short_s: if s.max_short_s.is_finite() && (0.0..=86_400.0).contains(&s.max_short_s) {
             s.max_short_s
@@ -514,19 +519,13 @@ fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
         jumps: Jumps {
             interval_s: at_most("servo.jump_interval_s", s.jump_interval_s, 86_400.0, "s")?,
             height_mm: at_most("servo.jump_height_mm", s.jump_height_mm, 1000.0, "mm")?,
-            feed_mm_per_min: positive(
-                "servo.jump_feed_mm_per_min",
-                s.jump_feed_mm_per_min,
-                1e6,
-                "mm/min",
-            )?,
+            feed_mm_per_min: feed("servo.jump_feed_mm_per_min", s.jump_feed_mm_per_min, 1e6)?,
         },
         max_open_mm: at_most("servo.max_open_mm", s.max_open_mm, 1e6, "mm")?,
-        rethread_feed_mm_per_min: positive(
+        rethread_feed_mm_per_min: feed(
             "servo.rethread_feed_mm_per_min",
             s.rethread_feed_mm_per_min,
             1e6,
-            "mm/min",
         )?,
     };
     if servo.jumps.interval_s > 0.0 && servo.jumps.height_mm <= 0.0 {

@@ -20,12 +20,16 @@ impl Core {
             OverrideKind::Feed => ("feed", MAX_FEED_OVERRIDE_PCT),
             OverrideKind::Rapid => ("rapid", MAX_RAPID_OVERRIDE_PCT),
         };
-        if !(percent.is_finite() && (0.0..=f64::from(max)).contains(&percent)) {
+        // Whole percent, as every console shows them: a fraction would be shown as another
+        // number than the one given.
+        if !(percent.is_finite() && (0.0..=f64::from(max)).contains(&percent))
+            || percent.fract() != 0.0
+        {
             return Err(Refusal::BadArgument(format!(
-                "{name} override {percent} %: give 0 to {max} %"
+                "{name} override {percent} %: give a whole percent from 0 to {max}"
             )));
         }
-        let pct = percent.round() as u32;
+        let pct = percent as u32;
         let controls = &mut self.jobs.controls;
         let was = match kind {
             OverrideKind::Feed => std::mem::replace(&mut controls.feed_pct, pct),

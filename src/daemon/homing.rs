@@ -15,7 +15,7 @@
 use super::Core;
 use super::launch::{JobKind, Launch, Source};
 use super::refusal::Refusal;
-use crate::config::{GapKind, HomingAxis};
+use crate::config::{GapKind, HomingAxis, OutputKind};
 use crate::runtime::{JobSummary, Outcome};
 use crate::vocab::{Axis, HomeSwitch};
 
@@ -83,7 +83,7 @@ impl Core {
                 .map_or(0.0, |h| h.home_position_mm);
             let step = self.config.machine.step_mm[i];
             self.machine.state.position[i] = (home_mm / step).round() as i64;
-            self.machine.state.homed[i] = true;
+            self.machine.state.set_homed(i);
             said.push(format!("{axis}{home_mm:.4}"));
         }
         if let Err(e) = self.machine.save(false) {
@@ -102,7 +102,11 @@ impl Core {
     /// switch, one after the other in `sequence` order.
     fn home_by_switch(&mut self, axes: &[String]) -> Result<String, Refusal> {
         let homing = &self.config.homing;
-        if matches!(self.config.gap.kind, GapKind::None | GapKind::Iio) {
+        // The port's switch pins are read whatever the gap input; without the port only a
+        // simulated machine (the simulator, a script) has switches.
+        if self.config.output.kind != OutputKind::Parport
+            && matches!(self.config.gap.kind, GapKind::None | GapKind::Iio)
+        {
             return Err(Refusal::BadArgument(format!(
                 "gap.kind = \"{}\" reads no home switches: `home --here` declares where the \
                  machine stands to be home",
@@ -153,9 +157,10 @@ impl Core {
     /// What makes an axis's homing impossible in this configuration, said before it moves.
     fn can_home(&self, h: &HomingAxis) -> Result<(), Refusal> {
         let axis = h.axis;
-        if self.config.gap.kind == GapKind::Parport && h.switch_pin.is_none() {
+        if self.config.output.kind == OutputKind::Parport && h.switch_pin.is_none() {
             return Err(Refusal::BadArgument(format!(
-                "{axis} has no switch_pin in [[homing.axis]] and this machine reads the parallel                  port: give the switch's input pin, or `home --here {axis}`"
+                "{axis} has no switch_pin in [[homing.axis]] and this machine reads the parallel \
+                 port: give the switch's input pin, or `home --here {axis}`"
             )));
         }
         let rest = h.home_position_mm + h.final_move_mm;
@@ -163,7 +168,8 @@ impl Core {
             && !(t.min_mm..=t.max_mm).contains(&rest)
         {
             return Err(Refusal::BadArgument(format!(
-                "homing {axis} would end at {rest} mm (home_position_mm + final_move_mm), outside                  machine.travel_mm [{}, {}]: fix one or the other",
+                "homing {axis} would end at {rest} mm (home_position_mm + final_move_mm), outside \
+                 machine.travel_mm [{}, {}]: fix one or the other",
                 t.min_mm, t.max_mm
             )));
         }
@@ -261,7 +267,7 @@ impl Core {
         let home = (h.home_position_mm / step).round() as i64;
         let correction = home - latch;
         state.position[i] += correction;
-        state.homed[i] = true;
+        state.set_homed(i);
         let _ = self.machine.save(false);
         tracing::info!(
             edmd_event = "home",

@@ -16,8 +16,8 @@ use crate::config::{Config, GapKind, OutputKind};
 use crate::record::EventKind;
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{
-    self, BoxedGap, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome,
-    ResumePoint,
+    self, BoxedGap, BoxedInputs, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary,
+    Outcome, ResumePoint,
 };
 use crate::servo::{Rethread, ServoState};
 
@@ -63,6 +63,9 @@ pub(super) struct JobControl {
     /// The parallel port, claimed at startup and lent to each job.
     pub port_output: Option<BoxedOutput>,
     pub port_gap: Option<BoxedGap>,
+    /// The port's machine inputs: lent to each job, read between jobs (an E-stop's reset,
+    /// a limit switch that opened).
+    pub port_inputs: Option<BoxedInputs>,
     pub job: Option<Job>,
     /// The program being copied and checked before its job starts.
     pub check: Option<Check>,
@@ -70,6 +73,8 @@ pub(super) struct JobControl {
     pub last_check: Option<protocol::CheckStatus>,
     /// The continuous jog in progress (being checked or moving) and its dead-man.
     pub continuous: Option<super::manual::ContinuousJog>,
+    /// A continuous jog a hold or the dead-man stopped, whose renewals are refused.
+    pub stopped_jog: Option<super::manual::StoppedJog>,
     pub next_check_id: u64,
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
@@ -83,9 +88,16 @@ pub(super) struct JobControl {
 
 impl JobControl {
     /// A job that ended, or did not start after all, hands the claimed parallel port back.
-    pub(super) fn give_back_io(&mut self, config: &Config, output: BoxedOutput, gap: BoxedGap) {
+    pub(super) fn give_back_io(
+        &mut self,
+        config: &Config,
+        output: BoxedOutput,
+        gap: BoxedGap,
+        inputs: BoxedInputs,
+    ) {
         if config.output.kind == OutputKind::Parport {
             self.port_output = Some(output);
+            self.port_inputs = Some(inputs);
         }
         if config.gap.kind == GapKind::Parport {
             self.port_gap = Some(gap);
@@ -102,9 +114,18 @@ impl JobControl {
         let tracer = (config.output.trace || config.gap.trace).then(|| {
             crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
         });
-        let (output, opened_gap) = match self.port_output.take() {
-            Some(output) => (output, None),
-            None => runtime::open_output(config, start)?,
+        let (output, opened_gap, inputs) = match self.port_output.take() {
+            Some(output) => {
+                let inputs = self
+                    .port_inputs
+                    .take()
+                    .unwrap_or_else(|| Box::new(crate::inputs::NoInputs));
+                (output, None, inputs)
+            }
+            None => {
+                let opened = runtime::open_output(config, start)?;
+                (opened.output, opened.port_gap, opened.inputs)
+            }
         };
         let port_gap = if config.gap.kind == GapKind::Parport {
             self.port_gap.take().or(opened_gap)
@@ -116,6 +137,7 @@ impl JobControl {
             Err(e) => {
                 if config.output.kind == OutputKind::Parport {
                     self.port_output = Some(output);
+                    self.port_inputs = Some(inputs);
                 }
                 return Err(e);
             }
@@ -135,6 +157,7 @@ impl JobControl {
         Ok(JobIo {
             output,
             gap,
+            inputs,
             tracer,
             recording: None,
             progress: None,
@@ -144,6 +167,9 @@ impl JobControl {
 
 impl Core {
     pub(super) fn hold(&mut self) -> Result<String, Refusal> {
+        if self.hold_ends_jog() {
+            return Ok("holding: the continuous jog brakes to a standstill and ends".to_string());
+        }
         let Some(job) = &mut self.jobs.job else {
             return Err(Refusal::NoJob);
         };
@@ -173,6 +199,7 @@ impl Core {
         }
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
+        self.refuse_if_untrusted("resume", force)?;
         let Some(cp) = self.checkpoints.current.clone() else {
             return Err(Refusal::NothingToResume {
                 why: match &self.checkpoints.read_error {
@@ -329,6 +356,15 @@ impl Core {
     }
 
     pub(super) fn abort(&mut self) -> Result<String, Refusal> {
+        // An abort ends a homing sequence whole: no later axis starts, whatever the one in
+        // hand ends with (its latch, its final move, or the stop).
+        if !self.machine.homing_queue.is_empty() {
+            tracing::info!(
+                "abort: the homing sequence is cancelled ({} axis(es) not started)",
+                self.machine.homing_queue.len()
+            );
+            self.machine.homing_queue.clear();
+        }
         if let Some(check) = &self.jobs.check {
             check.progress.cancel();
             tracing::info!("abort: check {} of {} cancelled", check.id, check.name);
@@ -354,7 +390,8 @@ impl Core {
             &job.published,
             &job.published.snapshot(),
         ));
-        self.jobs.give_back_io(&job.config, end.output, end.gap);
+        self.jobs
+            .give_back_io(&job.config, end.output, end.gap, end.inputs);
         if job.kind != JobKind::Program {
             self.jobs.continuous = None;
         }
@@ -400,7 +437,7 @@ impl Core {
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }
-        self.note_trip(&job, &summary);
+        self.note_trip(&summary);
         // Before a homing sequence or a touch cycle starts its next check: that check's copy
         // is not this job's and must not be pruned.
         self.prune_copies(None);

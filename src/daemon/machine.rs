@@ -13,7 +13,10 @@ use crate::checkpoint;
 use crate::config::Config;
 use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
 use crate::machine::MachineState;
-use crate::vocab::{Axis, LimitSwitch, Steps};
+use crate::vocab::{Axis, Steps, Trip};
+
+/// Largest work offset on an axis without soft limits (mm): a 10 m machine.
+pub(super) const MAX_OFFSET_MM: f64 = 1.0e4;
 
 /// The machine state and its file.
 pub(super) struct MachineKeeper {
@@ -23,23 +26,12 @@ pub(super) struct MachineKeeper {
     pub write_error: Option<String>,
     /// The units and distance mode the last MDI lines left (LinuxCNC's MDI keeps them).
     pub mdi_modes: crate::gcode::StartModes,
-    /// An E-stop or a limit switch stopped the last job: what may move until it is cleared.
-    pub tripped: Option<Trip>,
     /// The axes still to home after the one homing now (indices, in order).
     pub homing_queue: Vec<usize>,
     /// The wire-touch cycle in progress.
     pub finding: Option<super::find::FindRun>,
     /// The running or last cycle, as the status shows it.
     pub find_status: Option<super::protocol::FindStatus>,
-}
-
-/// What stopped the machine and holds it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Trip {
-    /// Nothing moves until the input is released and `reset` is given.
-    EStop,
-    /// Only a jog away from the switch moves (and clears it when it ends).
-    Limit(LimitSwitch),
 }
 
 impl MachineKeeper {
@@ -87,7 +79,9 @@ impl MachineKeeper {
             }
             Some(loaded) if config.homing.require_after_start => {
                 tracing::info!("homing.require_after_start: every axis is unhomed");
-                loaded.state.distrusted()
+                let mut state = loaded.state;
+                state.homed.iter_mut().for_each(|h| *h = false);
+                state
             }
             Some(loaded) => loaded.state,
         };
@@ -96,7 +90,6 @@ impl MachineKeeper {
             path,
             write_error: None,
             mdi_modes: Default::default(),
-            tripped: None,
             homing_queue: Vec::new(),
             finding: None,
             find_status: None,
@@ -189,12 +182,17 @@ impl Core {
         system: Option<&str>,
     ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
+        // An offset set while the machine is stopped by an E-stop or a limit is set from a
+        // position nobody has checked since.
+        self.refuse_if_tripped(None)?;
         let (i, axis) = self.machine_axis(axis)?;
         if !value.is_finite() || value.abs() > 1.0e6 {
             return Err(Refusal::BadArgument(format!(
                 "touch-off value {value} is not a coordinate (±1000000 mm)"
             )));
         }
+        let offset_mm = self.machine.state.position_mm()[i] - value;
+        self.offset_in_travel(i, axis, offset_mm)?;
         let state = &mut self.machine.state;
         let system = match system {
             None => state.system,
@@ -223,6 +221,28 @@ impl Core {
             "{system} {axis} offset is {:.4} mm: here reads {axis}{value:.4}",
             offset[i]
         ))
+    }
+
+    /// A work offset must put the system's zero within the axis's travel (soft limits, or
+    /// ±[`MAX_OFFSET_MM`] without them): a zero beyond it is a typing error or a position
+    /// nobody trusts, and every program would run from there.
+    pub(super) fn offset_in_travel(
+        &self,
+        i: usize,
+        axis: Axis,
+        offset_mm: f64,
+    ) -> Result<(), Refusal> {
+        let (min, max) = match self.config.machine.travel.get(i).copied().flatten() {
+            Some(t) => (t.min_mm, t.max_mm),
+            None => (-MAX_OFFSET_MM, MAX_OFFSET_MM),
+        };
+        if !offset_mm.is_finite() || !(min..=max).contains(&offset_mm) {
+            return Err(Refusal::BadArgument(format!(
+                "the {axis} offset would be {offset_mm:.4} mm, outside the axis's travel \
+                 [{min}, {max}] mm: check the value and where the machine stands"
+            )));
+        }
+        Ok(())
     }
 
     /// The machine's axis named `name` and its index.
@@ -313,7 +333,7 @@ impl Core {
     /// `reset` after an E-stop: refused while the E-stop input still reads pressed (on the
     /// claimed parallel port, the only input the daemon reads between jobs).
     pub(super) fn reset(&mut self) -> Result<String, Refusal> {
-        match self.machine.tripped {
+        match self.machine.state.trip {
             None => return Err(Refusal::BadArgument("nothing to reset: no E-stop".into())),
             Some(Trip::Limit(switch)) => {
                 return Err(Refusal::BadArgument(format!(
@@ -325,52 +345,80 @@ impl Core {
             }
             Some(Trip::EStop) => {}
         }
-        if let Some(gap) = self.jobs.port_gap.as_mut() {
-            let pressed = gap.sample(0).is_err() || gap.safety().estop;
+        if let Some(inputs) = self.jobs.port_inputs.as_mut() {
+            let pressed = inputs.sample(0).map_or(true, |r| r.safety.estop);
             if pressed {
                 return Err(Refusal::BadArgument(
                     "the E-stop input still reads pressed: release it first".into(),
                 ));
             }
         }
-        self.machine.tripped = None;
+        self.set_trip(None);
         tracing::warn!(edmd_event = "reset", "reset: the E-stop is cleared");
         Ok("reset: the E-stop is cleared; the machine may move again".into())
     }
 
+    /// The trip in force, kept in the state file (a restart does not forget it).
+    fn set_trip(&mut self, trip: Option<Trip>) {
+        if self.machine.state.trip != trip {
+            self.machine.state.trip = trip;
+            let _ = self.machine.save(false);
+        }
+    }
+
     /// What an ended job leaves: an E-stop or a limit switch holds the machine (an E-stop
-    /// unhomes it with `homing.lost_on_estop`); a jog that ran to its end away from a limit
-    /// switch clears it.
-    pub(super) fn note_trip(&mut self, job: &super::Job, summary: &crate::runtime::JobSummary) {
+    /// unhomes it with `homing.lost_on_estop`); a limit switch's trip is kept until the job's
+    /// last reading shows the switch open (a jog away that left it).
+    pub(super) fn note_trip(&mut self, summary: &crate::runtime::JobSummary) {
         use crate::runtime::Outcome;
         match summary.outcome {
             Outcome::Estop => {
-                self.machine.tripped = Some(Trip::EStop);
                 if self.config.homing.lost_on_estop {
                     self.machine.state.homed.iter_mut().for_each(|h| *h = false);
-                    let _ = self.machine.save(false);
                 }
+                self.set_trip(Some(Trip::EStop));
             }
             Outcome::Limit => {
                 if let Some(switch) = summary.limit_switch {
-                    self.machine.tripped = Some(Trip::Limit(switch));
+                    self.set_trip(Some(Trip::Limit(switch)));
                 }
             }
-            Outcome::Done
-                if matches!(job.kind, super::launch::JobKind::Jog { .. })
-                    && matches!(self.machine.tripped, Some(Trip::Limit(_))) =>
-            {
-                tracing::info!("jogged away from the limit switch: cleared");
-                self.machine.tripped = None;
+            _ if summary.ticks > 0 => {
+                if let Some(Trip::Limit(switch)) = self.machine.state.trip
+                    && !summary.limits_closed.contains(&switch.to_string())
+                {
+                    tracing::info!("limit switch {switch} reads open: the trip is cleared");
+                    self.set_trip(None);
+                }
             }
             _ => {}
+        }
+    }
+
+    /// Between jobs: a limit switch tripped earlier that the claimed port now reads open is
+    /// cleared (the operator moved the axis off it by hand, or the switch was freed).
+    pub(super) fn watch_limit_release(&mut self) {
+        let Some(Trip::Limit(switch)) = self.machine.state.trip else {
+            return;
+        };
+        if self.jobs.job.is_some() {
+            return;
+        }
+        let Some(inputs) = self.jobs.port_inputs.as_mut() else {
+            return;
+        };
+        if let Ok(reading) = inputs.sample(0)
+            && !reading.safety.limits.contains(switch)
+        {
+            tracing::info!("limit switch {switch} reads open: the trip is cleared");
+            self.set_trip(None);
         }
     }
 
     /// Motion refused while an E-stop or a limit switch holds the machine; `jog` names the
     /// axis and direction of a jog (the only motion a limit switch allows, away from it).
     pub(super) fn refuse_if_tripped(&self, jog: Option<(Axis, bool)>) -> Result<(), Refusal> {
-        match self.machine.tripped {
+        match self.machine.state.trip {
             None => Ok(()),
             Some(Trip::EStop) => Err(Refusal::EStop),
             Some(Trip::Limit(switch)) => match jog {
@@ -380,6 +428,31 @@ impl Core {
                 _ => Err(Refusal::Limit { switch }),
             },
         }
+    }
+
+    /// A resume or a run from a line continues a cut where the machine is believed to stand:
+    /// refused while an axis is unhomed under `homing.required`, or while the position is
+    /// distrusted after an unclean stop, unless `force` says the operator checked it.
+    pub(super) fn refuse_if_untrusted(
+        &self,
+        what: &'static str,
+        force: bool,
+    ) -> Result<(), Refusal> {
+        let state = &self.machine.state;
+        let refusal = if self.config.homing.required
+            && let Some(axes) = state.unhomed()
+        {
+            Refusal::UnhomedResume { what, axes }
+        } else if !state.position_trusted {
+            Refusal::Distrusted { what }
+        } else {
+            return Ok(());
+        };
+        if !force {
+            return Err(refusal);
+        }
+        tracing::warn!("{refusal} (forced: the operator says the position was checked)");
+        Ok(())
     }
 
     /// `run` on a machine that must be homed first.

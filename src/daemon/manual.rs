@@ -4,7 +4,7 @@
 //! file's write-ahead), from program text the daemon makes.
 
 use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use super::Core;
 use super::launch::{JobKind, Launch, Source};
@@ -18,11 +18,26 @@ const MAX_JOG_MM: f64 = 1.0e4;
 /// How long a continuous jog moves without a renewal.
 pub(super) const DEAD_MAN: Duration = Duration::from_millis(250);
 
-/// A continuous jog: its axis and direction, and when it stops unless renewed.
+/// A continuous jog: its axis and direction, and when it stops unless renewed (monotonic
+/// ns: the job's thread holds the job at the same deadline, [`crate::runtime::Published`]).
 pub(super) struct ContinuousJog {
     pub axis: usize,
     pub positive: bool,
-    pub deadline: Instant,
+    pub deadline_ns: u64,
+}
+
+/// A continuous jog that a hold or its dead-man stopped: the same request arriving again
+/// within [`DEAD_MAN`] of the last is the stopped jog's client still renewing, and is
+/// refused; a pause longer than that (the button let go) or `jog-stop` ends the latch, and
+/// the next request starts a new jog.
+pub(super) struct StoppedJog {
+    pub axis: usize,
+    pub positive: bool,
+    pub last_ns: u64,
+}
+
+fn dead_man_ns() -> u64 {
+    DEAD_MAN.as_nanos() as u64
 }
 
 fn sign(positive: bool) -> char {
@@ -42,9 +57,12 @@ impl Core {
         let (i, axis) = self.machine_axis(axis)?;
         self.refuse_if_tripped(Some((axis, distance_mm > 0.0)))?;
         self.refuse_if_unhomed()?;
-        if !distance_mm.is_finite() || distance_mm == 0.0 || distance_mm.abs() > MAX_JOG_MM {
+        // Less than a step moves nothing: it would be a jog that never ends or never starts.
+        let step = self.config.machine.step_mm[i];
+        if !distance_mm.is_finite() || distance_mm.abs() < step || distance_mm.abs() > MAX_JOG_MM {
             return Err(Refusal::BadArgument(format!(
-                "jog distance {distance_mm} mm: give a move of up to ±{MAX_JOG_MM} mm"
+                "jog distance {distance_mm} mm: give a move of at least one step ({step} mm on \
+                 {axis}) and at most {MAX_JOG_MM} mm, either way"
             )));
         }
         let feed = self.jog_feed(feed)?;
@@ -66,9 +84,42 @@ impl Core {
         feed: Option<f64>,
     ) -> Result<String, Refusal> {
         let (i, letter) = self.machine_axis(axis)?;
+        let now = crate::sys::monotonic_ns();
+        if let Some(stopped) = &mut self.jobs.stopped_jog {
+            if stopped.axis == i
+                && stopped.positive == positive
+                && now.saturating_sub(stopped.last_ns) <= dead_man_ns()
+            {
+                stopped.last_ns = now;
+                return Err(Refusal::BadArgument(format!(
+                    "jog {letter}{} was stopped (a hold or its dead-man): renewals are refused; \
+                     let go and start it again",
+                    sign(positive)
+                )));
+            }
+            self.jobs.stopped_jog = None;
+        }
+        let stopped_in_job = self.jobs.job.as_ref().is_some_and(|job| {
+            matches!(job.kind, JobKind::Jog { .. })
+                && (job.published.hold.load(Ordering::Relaxed)
+                    || job.published.dead_man_tripped.load(Ordering::Relaxed))
+        });
         if let Some(c) = &mut self.jobs.continuous {
             if c.axis == i && c.positive == positive {
-                c.deadline = Instant::now() + DEAD_MAN;
+                if stopped_in_job {
+                    self.stop_continuous("held: a renewal does not move it again", true);
+                    return Err(Refusal::BadArgument(format!(
+                        "jog {letter}{} was stopped (a hold or its dead-man): renewals are \
+                         refused; let go and start it again",
+                        sign(positive)
+                    )));
+                }
+                c.deadline_ns = now + dead_man_ns();
+                if let Some(job) = &self.jobs.job {
+                    job.published
+                        .dead_man_ns
+                        .store(c.deadline_ns, Ordering::Release);
+                }
                 return Ok(format!("jog {letter}{}: renewed", sign(positive)));
             }
             return Err(Refusal::BadArgument(format!(
@@ -87,7 +138,7 @@ impl Core {
         self.jobs.continuous = Some(ContinuousJog {
             axis: i,
             positive,
-            deadline: Instant::now() + DEAD_MAN,
+            deadline_ns: crate::sys::monotonic_ns() + dead_man_ns(),
         });
         Ok(format!(
             "jog {letter}{} at {feed:.0} mm/min while renewed every {} ms{note} (check {id})",
@@ -98,27 +149,58 @@ impl Core {
 
     /// `jog-stop`: the continuous jog brakes to a standstill now.
     pub(super) fn jog_stop(&mut self) -> Result<String, Refusal> {
+        // The client let go: the next press starts a new jog.
+        let latched = self.jobs.stopped_jog.take().is_some();
         if self.jobs.continuous.is_none() {
+            if latched {
+                return Ok("jog: already stopped".into());
+            }
             return Err(Refusal::BadArgument("no continuous jog is moving".into()));
         }
-        self.stop_continuous("stopped");
+        self.stop_continuous("stopped", false);
         Ok("jog: braking to a standstill".into())
     }
 
-    /// A continuous jog not renewed in time stops (from the control loop's period).
+    /// A continuous jog not renewed in time stops (from the control loop's period; the
+    /// job's own thread has held it at the same deadline already).
     pub(super) fn dead_man(&mut self) {
+        let now = crate::sys::monotonic_ns();
+        let held_by_job = self
+            .jobs
+            .job
+            .as_ref()
+            .is_some_and(|job| job.published.dead_man_tripped.load(Ordering::Relaxed));
         if self
             .jobs
             .continuous
             .as_ref()
-            .is_some_and(|c| Instant::now() >= c.deadline)
+            .is_some_and(|c| now >= c.deadline_ns || held_by_job)
         {
-            self.stop_continuous("not renewed for 250 ms: stopping (dead-man)");
+            self.stop_continuous("not renewed for 250 ms: stopping (dead-man)", true);
         }
     }
 
-    fn stop_continuous(&mut self, why: &str) {
-        self.jobs.continuous = None;
+    /// A hold ends a continuous jog: it brakes and ends, and its renewals are refused.
+    pub(super) fn hold_ends_jog(&mut self) -> bool {
+        if self.jobs.continuous.is_none() {
+            return false;
+        }
+        self.stop_continuous("held: stopping the continuous jog", true);
+        true
+    }
+
+    /// Ends the continuous jog; `latch`: its client's renewals that follow are refused
+    /// ([`StoppedJog`]).
+    fn stop_continuous(&mut self, why: &str, latch: bool) {
+        if let Some(c) = self.jobs.continuous.take()
+            && latch
+        {
+            self.jobs.stopped_jog = Some(StoppedJog {
+                axis: c.axis,
+                positive: c.positive,
+                last_ns: crate::sys::monotonic_ns(),
+            });
+        }
         if let Some(check) = &self.jobs.check {
             check.progress.cancel();
         }
@@ -133,11 +215,13 @@ impl Core {
     /// The jog feed asked for, capped at `machine.max_jog_feed_mm_per_min`.
     fn jog_feed(&self, feed: Option<f64>) -> Result<f64, Refusal> {
         let max = self.config.machine.max_jog_feed_mm_per_min;
+        let min = crate::vocab::MIN_FEED_MM_PER_MIN;
         match feed {
             None => Ok(max),
-            Some(f) if f.is_finite() && f > 0.0 => Ok(f.min(max)),
+            Some(f) if f.is_finite() && f >= min => Ok(f.min(max)),
             Some(f) => Err(Refusal::BadArgument(format!(
-                "jog feed {f} mm/min must be greater than 0"
+                "jog feed {f} mm/min: at least {min} mm/min (a micrometre a minute), at most \
+                 machine.max_jog_feed_mm_per_min = {max}"
             ))),
         }
     }

@@ -39,6 +39,7 @@ mod jobs;
 mod launch;
 mod machine;
 mod manual;
+pub mod noise;
 pub mod notify;
 pub mod opcua;
 pub mod protocol;
@@ -132,6 +133,8 @@ pub enum CoreMsg {
         id: u64,
         result: Box<Result<launch::Checked, refusal::CheckRefusal>>,
     },
+    /// The reload worker's reads (SIGHUP).
+    Reloaded(Box<reload::ReadBack>),
 }
 
 /// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
@@ -139,6 +142,7 @@ pub type SetLogLevel =
     Box<dyn Fn(&str) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + Send>;
 
 /// Where the configuration came from, to reload it the same way.
+#[derive(Debug, Clone)]
 pub struct ConfigSource {
     pub path: Option<PathBuf>,
     pub overrides: Vec<String>,
@@ -202,6 +206,8 @@ struct Core {
     last_status_line: Instant,
     started: Instant,
     shutting_down: bool,
+    /// A SIGHUP's reads in progress on the reload worker.
+    reloading: Option<upkeep::Reloading>,
 }
 
 /// Who talks to the core: the senders handed to clients, the cap on socket clients, the web
@@ -226,13 +232,13 @@ pub fn serve(
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
     let machine = machine::MachineKeeper::open(&config, checkpoints.current.as_ref())?;
     // The port first: if it cannot be claimed, nothing else should start.
-    let (port_output, port_gap) = if config.output.kind == OutputKind::Parport {
-        let (output, gap) =
+    let (port_output, port_gap, port_inputs) = if config.output.kind == OutputKind::Parport {
+        let opened =
             runtime::open_output(&config, &[]).map_err(|e| DaemonError::Job(Box::new(e)))?;
         tracing::info!("{}: parallel port claimed", config.output.path.display());
-        (Some(output), gap)
+        (Some(opened.output), opened.port_gap, Some(opened.inputs))
     } else {
-        (None, None)
+        (None, None, None)
     };
     let fine = Arc::new(
         FineThread::start(&LoopSettings::from_config(&config)).map_err(DaemonError::Thread)?,
@@ -278,10 +284,12 @@ pub fn serve(
             fine,
             port_output,
             port_gap,
+            port_inputs,
             job: None,
             check: None,
             last_check: None,
             continuous: None,
+            stopped_jog: None,
             next_check_id: 0,
             last: None,
             finished: protocol::Counters::default(),
@@ -301,6 +309,7 @@ pub fn serve(
         last_status_line: Instant::now(),
         started,
         shutting_down: false,
+        reloading: None,
     };
 
     core.prune_copies(None);
@@ -465,8 +474,7 @@ impl Core {
         loop {
             // A continuous jog's dead-man is looked at when it falls due, not a period late.
             let wait = self.jobs.continuous.as_ref().map_or(PERIOD, |c| {
-                c.deadline
-                    .saturating_duration_since(Instant::now())
+                Duration::from_nanos(c.deadline_ns.saturating_sub(crate::sys::monotonic_ns()))
                     .min(PERIOD)
             });
             match inbox.recv_timeout(wait) {
@@ -479,6 +487,7 @@ impl Core {
                 Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
                 Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
                 Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, *result),
+                Ok(CoreMsg::Reloaded(read)) => self.on_reloaded(*read),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return,
             }
@@ -500,7 +509,8 @@ impl Core {
                 from_line,
                 approach,
                 passes,
-            } => self.run_program(&program, dry_run, from_line, approach, passes),
+                force,
+            } => self.run_program(&program, dry_run, from_line, approach, passes, force),
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),

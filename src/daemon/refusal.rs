@@ -76,6 +76,18 @@ pub enum Refusal {
     )]
     Unhomed { axes: String },
     #[error(
+        "{what}: the position is not trusted: edmd stopped while the machine was moving, and \
+         where it stands now is only believed; home every axis (`edmd ctl home`, or `home \
+         --here` where it stands at home), or, having checked the position, {what} with \
+         --force"
+    )]
+    Distrusted { what: &'static str },
+    #[error(
+        "{what}: axis {axes} not homed and homing.required is on: home first (`edmd ctl \
+         home`), or, having checked the position, {what} with --force"
+    )]
+    UnhomedResume { what: &'static str, axes: String },
+    #[error(
         "the work offsets changed since the checkpoint was written ({changed}); the job would \
          resume in another place: put them back, or resume with --force"
     )]

@@ -11,9 +11,73 @@
 //!
 //! A reload is all or nothing: if any change is refused, none is applied, and the log says
 //! which keys and why. What changed is logged as `key: old -> new`.
+//!
+//! **Nothing is read on the control loop's thread.** A configuration path that blocks (a
+//! FIFO, a hung network mount) must not stop status, hold or a jog's dead-man, so the files
+//! (the configuration, the HTTP token, the OPC UA users) are read by a worker thread
+//! ([`spawn_read`]) that hands its [`ReadBack`] to the control loop as a message. A read
+//! that has not answered after [`READ_TIMEOUT`] is reported; the configuration in force
+//! stays until one answers, and a SIGHUP meanwhile is read after it.
+
+use std::path::PathBuf;
+use std::time::Duration;
 
 use super::ConfigSource;
-use crate::config::{Config, KeyValues, OutputKind};
+use crate::config::{Config, ConfigError, KeyValues, OutputKind};
+
+/// How long a reload's reads may take before the log says so.
+pub const READ_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// What the reload worker read.
+pub struct ReadBack {
+    pub config: Result<(Config, KeyValues), ConfigError>,
+    /// The HTTP token (when the web side is on), from the file the new configuration names
+    /// (the one in force if it did not load).
+    pub token: Option<Result<String, super::http::token::TokenError>>,
+    /// The OPC UA users (when OPC UA is on), likewise.
+    pub users: Option<Result<super::opcua::users::Users, super::opcua::users::UsersError>>,
+}
+
+/// The secrets' files in force: `None` for a side that is off.
+pub struct SecretPaths {
+    pub token: Option<PathBuf>,
+    pub users: Option<PathBuf>,
+}
+
+/// Reads the configuration (then the secrets) on a thread of its own and sends the result
+/// through `done`.
+pub fn spawn_read(
+    source: ConfigSource,
+    in_force: SecretPaths,
+    done: impl FnOnce(ReadBack) + Send + 'static,
+) -> std::io::Result<()> {
+    std::thread::Builder::new()
+        .name("edmd-reload".to_string())
+        .spawn(move || {
+            let config = Config::load_with_keys(source.path.as_deref(), &source.overrides);
+            let (token_path, users_path) = match &config {
+                Ok((c, _)) => (
+                    in_force
+                        .token
+                        .as_ref()
+                        .map(|_| c.daemon.http_token_file.clone()),
+                    in_force
+                        .users
+                        .as_ref()
+                        .map(|_| c.daemon.opcua_users_file.clone()),
+                ),
+                Err(_) => (in_force.token, in_force.users),
+            };
+            let token = token_path.map(|p| super::http::token::load_or_create(&p));
+            let users = users_path.map(|p| super::opcua::users::load_or_create(&p));
+            done(ReadBack {
+                config,
+                token,
+                users,
+            });
+        })
+        .map(|_| ())
+}
 
 /// When a changed key may take effect.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,18 +154,9 @@ pub enum ReloadRefusal {
     Keys(Vec<RefusedKey>),
 }
 
-/// Reads the configuration again and decides. `Ok(None)`: nothing changed; `Ok(Some)`: the
-/// new configuration with the change lines; `Err`: refused, with the reasons.
-pub fn reload(
-    source: &ConfigSource,
-    keys: &KeyValues,
-    job_running: bool,
-) -> Result<Option<(Config, KeyValues, Vec<String>)>, ReloadRefusal> {
-    let (config, new_keys) = Config::load_with_keys(source.path.as_deref(), &source.overrides)?;
-    decide(keys, config, new_keys, job_running)
-}
-
-fn decide(
+/// Decides on the configuration the worker read. `Ok(None)`: nothing changed; `Ok(Some)`:
+/// the new configuration with the change lines; `Err`: refused, with the reasons.
+pub fn decide(
     keys: &KeyValues,
     config: Config,
     new_keys: KeyValues,

@@ -97,11 +97,19 @@ impl Core {
         from_line: Option<u64>,
         approach: Option<runtime::Approach>,
         passes: Option<usize>,
+        force: bool,
     ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
         let from_line = self.run_from_line(dry_run, from_line, approach)?;
+        if from_line.is_some() {
+            self.refuse_if_untrusted("run from a line", force)?;
+        } else if force {
+            return Err(Refusal::BadArgument(
+                "--force is for a run from a line (a whole program starts where it says)".into(),
+            ));
+        }
         let passes = match passes {
             None => Vec::new(),
             Some(0) => {
@@ -371,7 +379,9 @@ impl Core {
         let mut io = self.jobs.job_io(&config, &check, &ledger)?;
         // A homing job's probing moves read its switch, a touch cycle's the part; any other
         // job's the probe (the claimed port's gap input is lent to every job).
-        io.gap.probe_reads(launch.probe_reads(&spec.start_steps()));
+        let reads = launch.probe_reads(&spec.start_steps());
+        io.gap.probe_reads(reads);
+        io.inputs.probe_reads(reads);
         let recording = self.record(&program.name);
         if report.is_some() {
             draw_programmed(&recording, &program, &spec);
@@ -392,17 +402,27 @@ impl Core {
             resumed,
         );
         let (published, stop) = (job.published.clone(), job.stop.clone());
+        // A continuous jog's dead-man is kept by the job's own thread too.
+        if matches!(kind, JobKind::Jog { .. })
+            && let Some(c) = &self.jobs.continuous
+        {
+            published
+                .dead_man_ns
+                .store(c.deadline_ns, std::sync::atomic::Ordering::Release);
+        }
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
         let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
         self.homing_started(switch.as_ref());
         if let Err(refusal) = self.machine.save(true) {
-            self.jobs.give_back_io(&config, io.output, io.gap);
+            self.jobs
+                .give_back_io(&config, io.output, io.gap, io.inputs);
             return Err(refusal);
         }
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
-            self.jobs.give_back_io(&config, io.output, io.gap);
+            self.jobs
+                .give_back_io(&config, io.output, io.gap, io.inputs);
             return Err(Refusal::WriteAhead {
                 error,
                 consequence: "the job does not start without its checkpoint",

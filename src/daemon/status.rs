@@ -15,9 +15,9 @@ impl Core {
     pub(super) fn state(&self) -> DaemonState {
         match &self.jobs.job {
             None if self.jobs.check.is_some() => DaemonState::Checking,
-            None => match self.machine.tripped {
-                Some(super::machine::Trip::EStop) => DaemonState::Estop,
-                Some(super::machine::Trip::Limit(_)) => DaemonState::Limit,
+            None => match self.machine.state.trip {
+                Some(crate::vocab::Trip::EStop) => DaemonState::Estop,
+                Some(crate::vocab::Trip::Limit(_)) => DaemonState::Limit,
                 None => DaemonState::Idle,
             },
             Some(job) => {

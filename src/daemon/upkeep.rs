@@ -9,6 +9,15 @@ use super::*;
 /// and read by target).
 const TARGET: &str = "edmd::daemon";
 
+/// A SIGHUP's reads in progress.
+pub(super) struct Reloading {
+    since: Instant,
+    /// The time-out was reported.
+    reported: bool,
+    /// Another SIGHUP came meanwhile: read again when this one answers.
+    again: bool,
+}
+
 impl Core {
     pub(super) fn on_signal(&mut self, signal: i32) {
         use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
@@ -40,33 +49,7 @@ impl Core {
                     None => tracing::info!(target: TARGET, "signal {signal}: stopping"),
                 }
             }
-            SIGHUP => {
-                let running = self.jobs.job.is_some();
-                match reload::reload(&self.source, &self.keys, running) {
-                    Ok(None) => tracing::info!(target: TARGET, "reload: nothing changed"),
-                    Ok(Some((config, keys, changes))) => {
-                        for change in &changes {
-                            tracing::info!(target: TARGET, "reload: {change}");
-                        }
-                        if config.log.level != self.config.log.level
-                            && let Err(e) = (self.set_log_level)(config.log.level.name())
-                        {
-                            tracing::warn!(target: TARGET, "reload: log.level: {e}");
-                        }
-                        self.clients
-                            .max_clients
-                            .store(config.daemon.max_clients, Ordering::Relaxed);
-                        self.config = config;
-                        self.keys = keys;
-                    }
-                    Err(e) => {
-                        tracing::error!(target: TARGET, "reload refused, configuration unchanged: {e}")
-                    }
-                }
-                self.reload_http();
-                self.reload_opcua_users();
-                self.notify_status();
-            }
+            SIGHUP => self.start_reload(),
             SIGUSR1 => {
                 for line in self.status().text().lines() {
                     tracing::info!(target: TARGET, "status: {line}");
@@ -76,42 +59,122 @@ impl Core {
         }
     }
 
-    /// SIGHUP: the token file is read again (whether or not its name changed) and the web
-    /// side takes it, the program directory and the host list in force. A token the file no
-    /// longer holds validly leaves the old one in force.
-    pub(super) fn reload_http(&mut self) {
-        let Some(server) = &self.clients.http else {
+    /// SIGHUP: the configuration and the secrets are read on the reload worker; one that
+    /// comes while a read is in progress is read after it.
+    fn start_reload(&mut self) {
+        if let Some(reloading) = &mut self.reloading {
+            reloading.again = true;
+            tracing::info!(target: TARGET, "reload: a read is in progress; this one follows it");
             return;
-        };
+        }
         let d = &self.config.daemon;
-        match http::token::load_or_create(&d.http_token_file) {
-            Ok(token) => {
-                server.reload(http::Reloadable {
-                    token,
-                    program_dir: d.program_dir.clone(),
-                    allowed_hosts: d.http_allowed_hosts.clone(),
-                });
-                tracing::info!(target: TARGET, "reload: http: token, program directory and hosts in force");
+        let in_force = reload::SecretPaths {
+            token: self
+                .clients
+                .http
+                .as_ref()
+                .map(|_| d.http_token_file.clone()),
+            users: self
+                .clients
+                .opcua
+                .as_ref()
+                .map(|_| d.opcua_users_file.clone()),
+        };
+        let to_core = self.clients.to_core.clone();
+        match reload::spawn_read(self.source.clone(), in_force, move |read| {
+            let _ = to_core.send(CoreMsg::Reloaded(Box::new(read)));
+        }) {
+            Ok(()) => {
+                self.reloading = Some(Reloading {
+                    since: Instant::now(),
+                    reported: false,
+                    again: false,
+                })
             }
-            Err(e) => {
-                tracing::error!(target: TARGET, "reload: http: {e}; the previous token stays in force")
-            }
+            Err(e) => tracing::error!(target: TARGET, "reload: cannot start the reader: {e}"),
         }
     }
 
-    /// SIGHUP: the OPC UA users file is read again; on an error the users in force stay.
-    pub(super) fn reload_opcua_users(&mut self) {
-        let Some(server) = &self.clients.opcua else {
-            return;
-        };
-        let path = &self.config.daemon.opcua_users_file;
-        match server.reload_users(path) {
-            Ok(n) => {
-                tracing::info!(target: TARGET, "reload: opcua: {n} user(s) of {} in force", path.display())
+    /// The reload worker's reads: the configuration decided key by key, then the web side's
+    /// token and the OPC UA users put in force.
+    pub(super) fn on_reloaded(&mut self, read: reload::ReadBack) {
+        let again = self.reloading.take().is_some_and(|r| r.again);
+        let running = self.jobs.job.is_some();
+        match read
+            .config
+            .map_err(reload::ReloadRefusal::from)
+            .and_then(|(config, keys)| reload::decide(&self.keys, config, keys, running))
+        {
+            Ok(None) => tracing::info!(target: TARGET, "reload: nothing changed"),
+            Ok(Some((config, keys, changes))) => {
+                for change in &changes {
+                    tracing::info!(target: TARGET, "reload: {change}");
+                }
+                if config.log.level != self.config.log.level
+                    && let Err(e) = (self.set_log_level)(config.log.level.name())
+                {
+                    tracing::warn!(target: TARGET, "reload: log.level: {e}");
+                }
+                self.clients
+                    .max_clients
+                    .store(config.daemon.max_clients, Ordering::Relaxed);
+                self.config = config;
+                self.keys = keys;
             }
             Err(e) => {
-                tracing::error!(target: TARGET, "reload: opcua: {e}; the previous users stay in force")
+                tracing::error!(target: TARGET, "reload refused, configuration unchanged: {e}")
             }
+        }
+        if let (Some(server), Some(token)) = (&self.clients.http, read.token) {
+            let d = &self.config.daemon;
+            match token {
+                Ok(token) => {
+                    server.reload(http::Reloadable {
+                        token,
+                        program_dir: d.program_dir.clone(),
+                        allowed_hosts: d.http_allowed_hosts.clone(),
+                    });
+                    tracing::info!(target: TARGET, "reload: http: token, program directory and hosts in force");
+                }
+                Err(e) => {
+                    tracing::error!(target: TARGET, "reload: http: {e}; the previous token stays in force")
+                }
+            }
+        }
+        if let (Some(server), Some(users)) = (&self.clients.opcua, read.users) {
+            let path = &self.config.daemon.opcua_users_file;
+            match users {
+                Ok(users) => {
+                    let n = server.set_users(users);
+                    tracing::info!(target: TARGET, "reload: opcua: {n} user(s) of {} in force", path.display())
+                }
+                Err(e) => {
+                    tracing::error!(target: TARGET, "reload: opcua: {e}; the previous users stay in force")
+                }
+            }
+        }
+        self.notify_status();
+        if again {
+            self.start_reload();
+        }
+    }
+
+    /// A reload whose reads have not answered in [`reload::READ_TIMEOUT`] is reported once;
+    /// the control loop goes on meanwhile.
+    fn watch_reload(&mut self) {
+        let source = self.source.path.as_ref().map(|p| p.display().to_string());
+        if let Some(r) = &mut self.reloading
+            && !r.reported
+            && r.since.elapsed() >= reload::READ_TIMEOUT
+        {
+            r.reported = true;
+            tracing::error!(
+                target: TARGET,
+                "reload: reading {} has not finished after {} s (a FIFO, a hung mount?); the \
+                 configuration in force stays, and the control loop goes on",
+                source.as_deref().unwrap_or("the configuration"),
+                reload::READ_TIMEOUT.as_secs()
+            );
         }
     }
 
@@ -120,6 +183,8 @@ impl Core {
     pub(super) fn periodic(&mut self) {
         self.watchdog();
         self.dead_man();
+        self.watch_limit_release();
+        self.watch_reload();
         let now = Instant::now();
         if let Some(mut job) = self.jobs.job.take() {
             let snap = job.published.snapshot();

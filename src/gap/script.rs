@@ -10,8 +10,9 @@
 //! The state holds from its tick until the next line's; before the first line the gap is
 //! normal. `wire-break` is not a state but an event: from its tick the wire is broken (the
 //! gap reads open and the wire-break input is set) until the operator's rethread. `estop`
-//! presses the emergency stop and `limit X+` (an axis and its side) trips a limit switch,
-//! from their tick to the end of the job. Ticks must not decrease. The whole script is read and checked before the job starts,
+//! presses the emergency stop and `limit X+` (an axis and its side) closes a limit switch,
+//! from their tick to the end of the job or, for a switch, to a `release X+` line (the
+//! switch opens: the axis moved off it). Ticks must not decrease. The whole script is read and checked before the job starts,
 //! so a bad line is an error with `file:line:col`, never a surprise mid-job.
 
 use std::path::Path;
@@ -154,7 +155,11 @@ impl ScriptGap {
                     })?;
                     changes.push((tick, state));
                 }
-                [(col, tick), (_, "limit"), (switch_col, switch)] => {
+                [
+                    (col, tick),
+                    (_, verb @ ("limit" | "release")),
+                    (switch_col, switch),
+                ] => {
                     let tick: u64 = tick.parse().map_err(|_| {
                         invalid(
                             *col,
@@ -168,7 +173,11 @@ impl ScriptGap {
                         )
                     })?;
                     let mut inputs = trips.last().map(|t| t.1).unwrap_or_default();
-                    inputs.limit = Some(limit);
+                    if *verb == "limit" {
+                        inputs.limits.insert(limit);
+                    } else {
+                        inputs.limits.remove(limit);
+                    }
                     trips.push((tick, inputs));
                 }
                 [(col, _)] => {

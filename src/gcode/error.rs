@@ -52,7 +52,10 @@ pub enum GcodeErrorKind {
     AxisNotOnMachine { axis: char, axes: String },
     #[error("axis words without a motion mode: program G0, G1, G2 or G3 first")]
     NoMotionMode,
-    #[error("feed F must be greater than 0")]
+    #[error(
+        "feed F must be at least {} mm/min (a micrometre a minute)",
+        crate::vocab::MIN_FEED_MM_PER_MIN
+    )]
     BadFeed,
     #[error("work offset: {0}")]
     WorkOffset(String),

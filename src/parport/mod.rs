@@ -5,7 +5,8 @@
 //!  tick steps ─► ParportOutput ─► StepEncoder: dir │ +setup: step │ +length: release
 //!                   │ Clock: spin until each offset inside the tick
 //!                   └─► PortWriter: data/control registers, written only when they change ─┐
-//!  gap state ◄── ParportGap ◄── status register: short pin, open pin, filter ◄─────────────┘
+//!  gap state ◄── ParportGap ◄── status register: short pin, open pin, filter ◄─────────────┤
+//!  inputs ◄── ParportInputs ◄── status register: E-stop, limits, home, probe, wire break ◄─┘
 //! ```
 //!
 //! Three layers, each testable alone:
@@ -15,9 +16,10 @@
 //!   [`ioctl::Ppdev`] and [`SpinClock`] are the real ones; [`fake`] records every write
 //!   with its (virtual) time, so the tests check the byte-level encoding, pin by pin,
 //!   against the drive's timing rules.
-//! - [`ParportOutput`] and [`ParportGap`]: the [`PulseOutput`] and [`GapSensor`] the runtime
-//!   uses. Both share one port (one file, one claim) behind an uncontended mutex: they are
-//!   used by the same thread.
+//! - [`ParportOutput`], [`ParportGap`] and [`ParportInputs`]: the [`PulseOutput`],
+//!   [`GapSensor`] and [`MachineInputs`] the runtime uses. They share one port (one file,
+//!   one claim) behind an uncontended mutex: they are used by the same thread. The inputs
+//!   are read whenever the port is the output, whatever the gap input is.
 //!
 //! **Safety of the hardware.** The port is opened and claimed before the job starts, so a
 //! missing device, a permission problem or a busy port is a startup error with a hint, never
@@ -44,6 +46,7 @@ use std::sync::Arc;
 use parking_lot::Mutex;
 
 use crate::gap::{GapError, GapSensor, GapState};
+use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{OutputError, PulseOutput};
 use crate::vocab::MAX_AXES;
 
@@ -300,13 +303,6 @@ pub struct ParportGap<P: Port> {
     seen: u32,
     /// The believed state; `None` before the first reading.
     state: Option<GapState>,
-    /// A probing move is in hand: the probe pin, if wired, is the contact.
-    probing: bool,
-    /// A homing job's switch: its probing moves read its pin instead of the probe pin.
-    home: Option<crate::vocab::HomeSwitch>,
-    /// The wire-break input at the last reading.
-    wire_broken: bool,
-    safety: crate::vocab::SafetyInputs,
     path: String,
 }
 
@@ -319,10 +315,6 @@ impl<P: Port> ParportGap<P> {
             candidate: GapState::Normal,
             seen: 0,
             state: None,
-            probing: false,
-            home: None,
-            wire_broken: false,
-            safety: crate::vocab::SafetyInputs::default(),
             path: path.to_string(),
         }
     }
@@ -350,30 +342,6 @@ impl<P: Port> GapSensor for ParportGap<P> {
                 path: self.path.clone(),
                 source,
             })?;
-        let active = |pin: Option<u8>| pin.is_some_and(|p| self.map.input_active(status, p));
-        self.wire_broken = active(self.map.wire_break);
-        self.safety = crate::vocab::SafetyInputs {
-            estop: active(self.map.estop),
-            limit: self
-                .map
-                .limits
-                .iter()
-                .find(|(_, pin)| self.map.input_active(status, *pin))
-                .map(|(switch, _)| *switch),
-        };
-        let contact_pin = match self.home {
-            Some(switch) => switch.pin,
-            None => self.map.probe,
-        };
-        if self.probing && contact_pin.is_some() {
-            // A probe's contact (or a home switch) is believed at once: the move stops
-            // within the tick.
-            return Ok(if active(contact_pin) {
-                GapState::Short
-            } else {
-                GapState::Open
-            });
-        }
         let reading = self.decode(status);
         if reading == self.candidate {
             self.seen = self.seen.saturating_add(1);
@@ -387,17 +355,66 @@ impl<P: Port> GapSensor for ParportGap<P> {
         }
         Ok(self.state.unwrap_or(reading))
     }
+}
 
-    fn moving_in(&mut self, now: crate::buffer::Activity) {
-        self.probing = now.flags.contains(crate::buffer::BlockFlags::PROBE);
+/// The port's machine inputs (E-stop, limit switches, home switches, probe, wire break):
+/// read whenever the port is the output, whatever `gap.kind` is.
+#[derive(Debug)]
+pub struct ParportInputs<P: Port> {
+    port: SharedPort<P>,
+    map: PinMap,
+    /// A homing job's switch: its probing moves read its pin instead of the probe pin.
+    home: Option<crate::vocab::HomeSwitch>,
+    path: String,
+}
+
+impl<P: Port> ParportInputs<P> {
+    pub fn new(port: SharedPort<P>, map: PinMap, path: &str) -> ParportInputs<P> {
+        ParportInputs {
+            port,
+            map,
+            home: None,
+            path: path.to_string(),
+        }
     }
 
-    fn wire_broken(&self) -> bool {
-        self.wire_broken
+    /// The inputs a status register value shows.
+    pub fn decode(&self, status: u8) -> InputReading {
+        let active = |pin: Option<u8>| pin.is_some_and(|p| self.map.input_active(status, p));
+        let mut limits = crate::vocab::LimitSet::EMPTY;
+        for &(switch, pin) in &self.map.limits {
+            if self.map.input_active(status, pin) {
+                limits.insert(switch);
+            }
+        }
+        let contact_pin = match self.home {
+            Some(switch) => switch.pin,
+            None => self.map.probe,
+        };
+        InputReading {
+            safety: crate::vocab::SafetyInputs {
+                estop: active(self.map.estop),
+                limits,
+            },
+            wire_broken: active(self.map.wire_break),
+            // A probe's contact (or a home switch) is believed at once, unfiltered: the move
+            // stops within the tick.
+            contact: contact_pin.map(|p| self.map.input_active(status, p)),
+        }
     }
+}
 
-    fn safety(&self) -> crate::vocab::SafetyInputs {
-        self.safety
+impl<P: Port> MachineInputs for ParportInputs<P> {
+    fn sample(&mut self, _tick: u64) -> Result<InputReading, InputError> {
+        let status = self
+            .port
+            .lock()
+            .read_status()
+            .map_err(|source| InputError::Device {
+                path: self.path.clone(),
+                source,
+            })?;
+        Ok(self.decode(status))
     }
 
     fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
@@ -456,13 +473,21 @@ impl StepTiming {
     }
 }
 
-/// Opens the port at `path` for a machine with `axes` axes: its output, and its gap input
-/// (used when `gap.kind = "parport"`; dropping it is harmless).
+/// The port's three sides, sharing one claim.
+pub struct OpenedPort {
+    pub output: ParportOutput<Ppdev, SpinClock>,
+    /// Used when `gap.kind = "parport"`; dropping it is harmless.
+    pub gap: ParportGap<Ppdev>,
+    pub inputs: ParportInputs<Ppdev>,
+}
+
+/// Opens the port at `path` for a machine with `axes` axes: its output, its gap input and
+/// its machine inputs.
 pub fn open(
     path: &Path,
     axes: usize,
     settings: &ParportConfig,
-) -> Result<(ParportOutput<Ppdev, SpinClock>, ParportGap<Ppdev>), ParportError> {
+) -> Result<OpenedPort, ParportError> {
     let name = path.display().to_string();
     let map = PinMap::new(axes, settings);
     let idle = map.idle();
@@ -474,13 +499,18 @@ pub fn open(
         settings.gap_filter_ticks,
         &name,
     );
+    let inputs = ParportInputs::new(shared.clone(), map.clone(), &name);
     let output = ParportOutput::new(shared, map, StepTiming::new(settings), SpinClock, &name)?;
     tracing::info!(
         "{name}: claimed; {axes} axes, step length {} ns, dir setup {} ns",
         settings.step_length_ns,
         settings.dir_setup_ns
     );
-    Ok((output, gap))
+    Ok(OpenedPort {
+        output,
+        gap,
+        inputs,
+    })
 }
 
 #[cfg(test)]

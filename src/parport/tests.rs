@@ -243,29 +243,29 @@ fn probe_and_wire_break_pins() {
     map.probe = Some(12);
     map.wire_break = Some(13);
     let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
-    let mut gap = ParportGap::new(port, map, 5, "fake");
+    let mut inputs = ParportInputs::new(port, map, "fake");
     let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
     bench.set_inputs(levels(&[12]));
-    assert_eq!(gap.sample(0).unwrap(), GapState::Normal, "not probing");
-    gap.moving_in(crate::buffer::Activity {
-        flags: crate::buffer::BlockFlags::PROBE,
-        ..Default::default()
-    });
-    assert_eq!(
-        gap.sample(1).unwrap(),
-        GapState::Short,
-        "contact, unfiltered"
-    );
+    let r = inputs.sample(0).unwrap();
+    assert_eq!(r.contact, Some(true), "contact, unfiltered");
+    assert!(!r.wire_broken);
     bench.set_inputs(levels(&[]));
-    assert_eq!(gap.sample(2).unwrap(), GapState::Open, "no contact");
-    assert!(!gap.wire_broken());
-    gap.moving_in(crate::buffer::Activity::default());
+    assert_eq!(inputs.sample(1).unwrap().contact, Some(false), "no contact");
     bench.set_inputs(levels(&[13]));
-    gap.sample(3).unwrap();
-    assert!(gap.wire_broken());
+    assert!(inputs.sample(2).unwrap().wire_broken);
     bench.set_inputs(levels(&[]));
-    gap.sample(4).unwrap();
-    assert!(!gap.wire_broken());
+    assert!(!inputs.sample(3).unwrap().wire_broken);
+    // Without a probe pin the gap input tells the contact.
+    let mut map = stepconf_map(2, &[]);
+    map.probe = None;
+    let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
+    assert_eq!(
+        ParportInputs::new(port, map, "fake")
+            .sample(4)
+            .unwrap()
+            .contact,
+        None
+    );
 }
 
 #[test]
@@ -274,13 +274,9 @@ fn a_homing_job_reads_its_switch_pin_not_the_probe() {
     let mut map = stepconf_map(2, &[]);
     map.probe = Some(12);
     let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
-    let mut gap = ParportGap::new(port, map, 5, "fake");
+    let mut inputs = ParportInputs::new(port, map, "fake");
     let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
-    gap.moving_in(crate::buffer::Activity {
-        flags: crate::buffer::BlockFlags::PROBE,
-        ..Default::default()
-    });
-    gap.probe_reads(crate::vocab::ProbeReads::Switch(crate::vocab::HomeSwitch {
+    inputs.probe_reads(crate::vocab::ProbeReads::Switch(crate::vocab::HomeSwitch {
         axis: 0,
         positive: true,
         pin: Some(15),
@@ -288,16 +284,24 @@ fn a_homing_job_reads_its_switch_pin_not_the_probe() {
     }));
     bench.set_inputs(levels(&[12]));
     assert_eq!(
-        gap.sample(0).unwrap(),
-        GapState::Open,
+        inputs.sample(0).unwrap().contact,
+        Some(false),
         "the probe is not the switch"
     );
     bench.set_inputs(levels(&[15]));
-    assert_eq!(gap.sample(1).unwrap(), GapState::Short, "the switch is");
-    gap.probe_reads(crate::vocab::ProbeReads::Probe);
-    assert_eq!(gap.sample(2).unwrap(), GapState::Open, "the probe again");
+    assert_eq!(
+        inputs.sample(1).unwrap().contact,
+        Some(true),
+        "the switch is"
+    );
+    inputs.probe_reads(crate::vocab::ProbeReads::Probe);
+    assert_eq!(
+        inputs.sample(2).unwrap().contact,
+        Some(false),
+        "the probe again"
+    );
     bench.set_inputs(levels(&[12]));
-    assert_eq!(gap.sample(3).unwrap(), GapState::Short);
+    assert_eq!(inputs.sample(3).unwrap().contact, Some(true));
 }
 
 fn arb_map() -> impl Strategy<Value = PinMap> {
@@ -373,7 +377,7 @@ proptest! {
     }
 }
 
-/// The E-stop and limit-switch pins are read with the gap every tick; when the consumer stops
+/// The E-stop and limit-switch pins are read every tick; when the consumer stops
 /// on them the output's finish leaves the port with the spark off and the drives disabled.
 #[test]
 fn estop_and_limit_pins_and_the_port_they_leave() {
@@ -389,26 +393,21 @@ fn estop_and_limit_pins_and_the_port_they_leave() {
         12,
     )];
     let port = Arc::new(Mutex::new(PortWriter::new(bench.port(), map.idle())));
-    let mut gap = ParportGap::new(port.clone(), map.clone(), 1, "fake");
+    let mut inputs = ParportInputs::new(port.clone(), map.clone(), "fake");
     let mut out = ParportOutput::new(port, map.clone(), TIMING, bench.clock(), "fake").unwrap();
     let levels = |high: &[Pin]| PinLevels(high.iter().fold(0, |m, &p| m | 1 << p));
     out.moving_in(crate::output::Activity {
         spark: true,
         ..Default::default()
     });
-    gap.sample(0).unwrap();
-    assert!(!gap.safety().tripped());
+    assert!(!inputs.sample(0).unwrap().safety.tripped());
     bench.set_now(TICK_NS);
     out.write(1, &[1, 0, 0, 0, 0, 0], GapState::Normal).unwrap();
     bench.set_inputs(levels(&[12]));
-    gap.sample(2).unwrap();
-    assert_eq!(
-        gap.safety().limit.map(|s| s.to_string()).as_deref(),
-        Some("X+")
-    );
+    assert_eq!(inputs.sample(2).unwrap().safety.limits.to_string(), "X+");
     bench.set_inputs(levels(&[15]));
-    gap.sample(3).unwrap();
-    assert!(gap.safety().estop && gap.safety().limit.is_none());
+    let safety = inputs.sample(3).unwrap().safety;
+    assert!(safety.estop && safety.limits.is_empty());
     // The consumer stops here: no write for tick 3, the output finishes.
     let before = bench.waveform(map.idle()).last().unwrap().1;
     assert!(before.is_high(4), "sparking while it moved");

@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! real time:    deadline += period ─► clock_nanosleep(ABSTIME) ─► latency = now − deadline
-//!               ─► gap = machine.sample_gap(tick) ─► fine.tick(gap) ─► machine.emit(steps)
+//!               ─► inputs.sample(tick) (E-stop, limits, switches, probe, wire break)
+//!               ─► gap = sensor.sample(tick) ─► fine.tick(gap) ─► limits hold? ─► output(steps)
 //!               ─► late for the next deadline? count an overrun, skip the missed deadlines
 //! virtual time: the same without the clock; waiting for the producer stops time
 //! ```
@@ -19,24 +20,22 @@
 //! of steps faster than the planned speed. Motion simply pauses for the missed periods.
 
 use crate::buffer::BlockFlags;
-use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
-
-use crossbeam::queue::ArrayQueue;
-use crossbeam::utils::CachePadded;
+use std::sync::atomic::Ordering;
 
 pub use super::controls::RethreadRequest;
 use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
-use super::probe::{ProbeLink, ProbeResult};
-use super::snapshot::SeqLock;
+use super::probe::ProbeResult;
+pub use super::published::{EventRecord, LATENCY_BUCKETS_US, PUBLISH_EVERY_TICKS, Published};
 pub use super::snapshot::Snapshot;
 use crate::buffer::BlockSource;
 use crate::fine::{Interpolator, Tick};
 use crate::gap::{GapError, GapSensor, GapState};
+use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{Activity, OutputError, PulseOutput};
 use crate::servo::{Excursion, GapReading, LawInput, PathPoint, ServoEvent, ServoState};
 use crate::sys;
-use crate::vocab::{MAX_AXES, Steps};
+use crate::vocab::{Axis, LimitSet, MAX_AXES, SafetyInputs, Trip};
 
 /// How the loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,6 +50,8 @@ pub struct LoopSettings {
     /// `Published::hold` (and `paused_line`), a collision or an alarm holds the job, all until
     /// released. Without one (`edmd run`) stops pass and collisions and alarms end the loop.
     pub program_pauses: bool,
+    /// The machine's axes in step order: which limit switch a step runs into.
+    pub axes: [Option<Axis>; MAX_AXES],
 }
 
 impl LoopSettings {
@@ -63,75 +64,10 @@ impl LoopSettings {
             lock_memory: f.lock_memory,
             cpu: f.cpu,
             program_pauses: false,
+            axes: std::array::from_fn(|i| config.machine.axes.get(i).copied()),
         }
     }
 }
-
-/// A servo event with the tick it happened in and the source line of the block in hand.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EventRecord {
-    pub tick: u64,
-    pub line: u64,
-    pub event: ServoEvent,
-}
-
-/// What the consumer publishes while it runs, for status reports, checkpoints, the
-/// watchdog and the event logger, and the flags other threads use to steer it. The consumer
-/// only stores into it (relaxed atomics, a seqlock for the [`Snapshot`]); it never waits on it.
-#[derive(Debug)]
-pub struct Published {
-    /// Servo events with their tick, drained by a normal-priority thread.
-    pub events: ArrayQueue<EventRecord>,
-    /// Events that found the queue full (the logger fell behind).
-    pub events_dropped: CachePadded<AtomicU64>,
-    /// Ticks executed so far: the watchdog's proof of progress.
-    pub ticks: CachePadded<AtomicU64>,
-    pub overruns: CachePadded<AtomicU64>,
-    /// Real time only: wake-up latency so far (ns): sum, samples and maximum.
-    pub latency_sum_ns: AtomicU64,
-    pub latency_samples: AtomicU64,
-    pub latency_max_ns: AtomicU64,
-    /// Real time only: wake-up latency per bucket of [`LATENCY_BUCKETS_US`] (the last:
-    /// above them all), for a Prometheus histogram.
-    pub latency_buckets: [AtomicU64; LATENCY_BUCKETS_US.len() + 1],
-    /// Ticks by the gap state the input read (normal, open, short).
-    pub gap_ticks: [AtomicU64; 3],
-    /// The gap state read in the last tick: 1 + its [`GapState::index`], 0 before the first.
-    pub gap: AtomicU8,
-    /// Times the job was held: by the operator, a programmed stop, a collision, an alarm
-    /// or a wire break.
-    pub holds: AtomicU64,
-    snapshot: SeqLock,
-    /// Loop-buffer fill, refreshed by the job's supervisor (not the consumer).
-    pub buffer_unprocessed: AtomicU64,
-    pub buffer_reserved: AtomicU64,
-    /// Set by the supervisor: hold (brake to a standstill and stay) while set.
-    pub hold: AtomicBool,
-    /// Set by the supervisor: end the loop where it is (the position is kept). A controlled
-    /// stop sets `hold` first and this once the snapshot says `still`.
-    pub stop: AtomicBool,
-    /// Set by the consumer when its loop has ended.
-    pub finished: AtomicBool,
-    /// Set by the consumer's loop once the output was synced at the current standstill
-    /// (cleared when motion resumes): a checkpoint written now agrees with the pulse record.
-    pub output_synced: AtomicBool,
-    /// Source line of the move a programmed stop (`M0`/`M1`) holds before; 0 for none.
-    /// Set by the consumer's loop, cleared by whoever releases the hold.
-    pub paused_line: AtomicU64,
-    /// Why it holds there ([`PauseKind::code`]); set and cleared with `paused_line`.
-    pub paused_kind: AtomicU8,
-    /// Set by the supervisor after a wire break; the consumer's loop takes it (and clears
-    /// it) before the hold.
-    pub rethread: RethreadRequest,
-    /// Where probing moves ended, for the producer.
-    pub probe: ProbeLink,
-    /// Set by the supervisor: the operator's feed and rapid overrides and single block.
-    pub controls: ControlWord,
-}
-
-/// Upper bounds (µs) of the wake-up latency buckets ([`Published::latency_buckets`]).
-pub const LATENCY_BUCKETS_US: [u64; 13] =
-    [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000];
 
 /// The reading the servo law takes: the input's state, and the voltage or the ratios if the
 /// law reads them (they are not asked for otherwise).
@@ -149,63 +85,6 @@ fn read_for<G: GapSensor + ?Sized>(input: LawInput, gap: GapState, sensor: &G) -
             volts: None,
             ratios: sensor.ratios(),
         },
-    }
-}
-
-/// The snapshot is published every so many ticks (a power of two), besides every servo event
-/// and every held tick: status and periodic checkpoints lag by that much at most.
-pub const PUBLISH_EVERY_TICKS: u64 = 64;
-
-impl Published {
-    pub fn new(event_capacity: usize) -> Published {
-        Published {
-            events: ArrayQueue::new(event_capacity),
-            events_dropped: CachePadded::new(AtomicU64::new(0)),
-            ticks: CachePadded::new(AtomicU64::new(0)),
-            overruns: CachePadded::new(AtomicU64::new(0)),
-            latency_sum_ns: AtomicU64::new(0),
-            latency_samples: AtomicU64::new(0),
-            latency_max_ns: AtomicU64::new(0),
-            latency_buckets: std::array::from_fn(|_| AtomicU64::new(0)),
-            gap_ticks: std::array::from_fn(|_| AtomicU64::new(0)),
-            gap: AtomicU8::new(0),
-            holds: AtomicU64::new(0),
-            snapshot: SeqLock::default(),
-            buffer_unprocessed: AtomicU64::new(0),
-            buffer_reserved: AtomicU64::new(0),
-            hold: AtomicBool::new(false),
-            stop: AtomicBool::new(false),
-            finished: AtomicBool::new(false),
-            output_synced: AtomicBool::new(false),
-            paused_line: AtomicU64::new(0),
-            paused_kind: AtomicU8::new(0),
-            rethread: RethreadRequest::default(),
-            probe: ProbeLink::default(),
-            controls: ControlWord::default(),
-        }
-    }
-
-    /// The latest consistent snapshot of the interpolator (a few retries at most).
-    pub fn snapshot(&self) -> Snapshot {
-        Snapshot::decode(&self.snapshot.read())
-    }
-
-    /// The gap state read in the last tick (none before the first).
-    pub fn gap(&self) -> Option<GapState> {
-        match self.gap.load(Ordering::Relaxed) {
-            0 => None,
-            code => GapState::ALL.get(usize::from(code) - 1).copied(),
-        }
-    }
-
-    pub fn position(&self) -> Steps {
-        self.snapshot().position
-    }
-
-    /// Publishes `fine`'s state (the consumer only).
-    #[inline]
-    pub fn publish(&self, tick: u64, fine: &Interpolator) {
-        self.snapshot.write(&Snapshot::of(tick, fine).encode());
     }
 }
 
@@ -231,6 +110,8 @@ pub struct LoopReport {
     pub untaken_from: Option<(PathPoint, i64)>,
     /// The gap input failed; the loop stopped before that tick moved anything.
     pub gap_error: Option<GapError>,
+    /// The machine inputs failed; the loop stopped before that tick moved anything.
+    pub input_error: Option<InputError>,
     /// The supervisor asked the loop to stop.
     pub stopped: bool,
     /// A collision during a rapid ended a job without an operator: where, and the line.
@@ -240,8 +121,11 @@ pub struct LoopReport {
     pub wire_break: Option<(PathPoint, u64, bool)>,
     /// A `G38.2`/`G38.4` reached its end point without contact: where, and the line.
     pub probe_missed: Option<(PathPoint, u64)>,
-    /// An E-stop or a limit switch stopped the job: the inputs, where, and the line.
-    pub tripped: Option<(crate::vocab::SafetyInputs, PathPoint, u64)>,
+    /// An E-stop or a limit switch stopped the job: which, where, and the line.
+    pub tripped: Option<(Trip, PathPoint, u64)>,
+    /// The limit switches that read closed at the last reading (a trip is kept until its
+    /// switch opens).
+    pub limits_at_end: LimitSet,
     /// Where the last probing move ended.
     pub last_probe: Option<ProbeResult>,
     /// Real-time features the system refused, with the reason.
@@ -261,11 +145,13 @@ impl LoopReport {
             untaken: None,
             untaken_from: None,
             gap_error: None,
+            input_error: None,
             stopped: false,
             collision: None,
             wire_break: None,
             probe_missed: None,
             tripped: None,
+            limits_at_end: LimitSet::EMPTY,
             last_probe: None,
             rt_refused: Vec::new(),
         }
@@ -344,11 +230,12 @@ pub fn apply_realtime(settings: &LoopSettings) -> RealtimeGuard {
 /// Runs the tick core until the program is done, an alarm, an output error or a stop
 /// request. Call from the consumer thread after [`apply_realtime`].
 #[inline(never)]
-pub fn run_loop<S, O, G>(
+pub fn run_loop<S, O, G, I>(
     fine: &mut Interpolator,
     source: &mut S,
     output: &mut O,
     sensor: &mut G,
+    inputs: &mut I,
     settings: &LoopSettings,
     published: &Published,
 ) -> LoopReport
@@ -356,6 +243,7 @@ where
     S: BlockSource + ?Sized,
     O: PulseOutput + ?Sized,
     G: GapSensor + ?Sized,
+    I: MachineInputs + ?Sized,
 {
     let mut latency = (!settings.virtual_time).then(LatencyHistogram::default);
     let mut report = LoopReport::empty();
@@ -370,6 +258,9 @@ where
     // The controls the tick core has (a job starts with the defaults, then takes the word).
     let mut controls_word = ControlWord::default().word();
     apply_controls(Controls::default(), fine);
+    // The limit switches closed at the job's first reading: the job may stand on them and
+    // move away (a jog off a tripped switch); one that closes later stops it.
+    let mut limits_at_start: Option<LimitSet> = None;
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
@@ -378,42 +269,41 @@ where
         {
             sensor.rethreaded();
         }
+        keep_dead_man(published);
         fine.set_hold(published.hold.load(Ordering::Acquire));
-        let gap = match sensor.sample(tick_no) {
-            Ok(gap) => gap,
-            Err(e) => {
-                report.gap_error = Some(e);
-                break;
-            }
+        let probing = activity.flags.contains(BlockFlags::PROBE);
+        let Some((machine, gap)) = sense(inputs, sensor, probing, tick_no, published, &mut report)
+        else {
+            break;
         };
-        published.gap_ticks[gap.index()].fetch_add(1, Ordering::Relaxed);
-        published
-            .gap
-            .store(gap.index() as u8 + 1, Ordering::Relaxed);
-        // An E-stop or a limit switch stops motion in the tick it is seen: no step of this
-        // tick is taken; the output's finish then drops the drives' enable and the spark.
-        let safety = sensor.safety();
-        if safety.tripped() {
-            report.tripped = Some((safety, fine.here(), fine.line()));
+        // An E-stop, or a limit switch that closed during the job, stops motion in the tick
+        // it is seen: no step of this tick is taken; the output's finish then drops the
+        // drives' enable and the spark.
+        let safety = machine.safety.merged(sensor.safety());
+        report.limits_at_end = safety.limits;
+        let allowed = *limits_at_start.get_or_insert(safety.limits);
+        if let Some(trip) = newly_tripped(safety, allowed) {
+            report.tripped = Some((trip, fine.here(), fine.line()));
             break;
         }
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
-        fine.set_wire_input(sensor.wire_broken());
+        fine.set_wire_input(machine.wire_broken || sensor.wire_broken());
         let reading = read_for(law_input, gap, sensor);
         let tick = fine.tick_measured(reading, source);
         tell_activity(&mut activity, fine, tick_no, output, sensor, published);
+        // A step further into a closed limit switch is not taken: motion away from it, and
+        // along other axes, is.
+        if let Some(switch) = safety.limits.blocking(&settings.axes, &tick.steps) {
+            untake(&mut report, fine, &tick, before);
+            report.tripped = Some((Trip::Limit(switch), before, fine.line()));
+            tick_no += 1;
+            break;
+        }
         if let Err(e) = output.write(tick_no, &tick.steps, gap) {
-            if !e.step_taken() && tick.moved() {
-                report.untaken = Some((tick.steps, tick.dir));
-                // A tick takes at most one step event: if it finished the segment, that
-                // segment had one event more than the point before it.
-                let events = match fine.block() {
-                    Some(b) if b.seq == before.seq => b.events() as i64,
-                    _ => before.event + 1,
-                };
-                report.untaken_from = Some((before, events));
+            if !e.step_taken() {
+                untake(&mut report, fine, &tick, before);
             }
             report.output_error = Some(e);
             tick_no += 1;
@@ -457,6 +347,95 @@ where
     published.probe.close();
     published.finished.store(true, Ordering::Release);
     report
+}
+
+/// Phase 2: the machine inputs, then the gap (a probing move reads its contact from the
+/// machine's pin where one is wired); `None` when either failed (the report says which).
+#[inline(always)]
+fn sense<G, I>(
+    inputs: &mut I,
+    sensor: &mut G,
+    probing: bool,
+    tick_no: u64,
+    published: &Published,
+    report: &mut LoopReport,
+) -> Option<(InputReading, GapState)>
+where
+    G: GapSensor + ?Sized,
+    I: MachineInputs + ?Sized,
+{
+    let machine = match inputs.sample(tick_no) {
+        Ok(reading) => reading,
+        Err(e) => {
+            report.input_error = Some(e);
+            return None;
+        }
+    };
+    let mut gap = match sensor.sample(tick_no) {
+        Ok(gap) => gap,
+        Err(e) => {
+            report.gap_error = Some(e);
+            return None;
+        }
+    };
+    if probing && let Some(contact) = machine.contact {
+        gap = if contact {
+            GapState::Short
+        } else {
+            GapState::Open
+        };
+    }
+    published.gap_ticks[gap.index()].fetch_add(1, Ordering::Relaxed);
+    published
+        .gap
+        .store(gap.index() as u8 + 1, Ordering::Relaxed);
+    Some((machine, gap))
+}
+
+/// The tick's steps never reached the drives (the output refused them, or they ran into a
+/// closed limit switch): they go into the report, to be taken back out of the interpolator's
+/// ledger, with the point the electrode stood at before them.
+fn untake(report: &mut LoopReport, fine: &Interpolator, tick: &Tick, before: PathPoint) {
+    if !tick.moved() {
+        return;
+    }
+    report.untaken = Some((tick.steps, tick.dir));
+    // A tick takes at most one step event: if it finished the segment, that segment had one
+    // event more than the point before it.
+    let events = match fine.block() {
+        Some(b) if b.seq == before.seq => b.events() as i64,
+        _ => before.event + 1,
+    };
+    report.untaken_from = Some((before, events));
+}
+
+/// Phase 2b: what stops the job at once: the E-stop, or a limit switch that was not closed
+/// when the job started.
+#[inline(always)]
+fn newly_tripped(safety: SafetyInputs, allowed: LimitSet) -> Option<Trip> {
+    if safety.estop {
+        return Some(Trip::EStop);
+    }
+    let mut closed = safety.limits;
+    for switch in allowed.iter() {
+        closed.remove(switch);
+    }
+    closed.iter().next().map(Trip::Limit)
+}
+
+/// Phase 1c: a continuous jog whose renewal deadline passed is held here, on the job's own
+/// thread, whatever the control loop is doing (the control loop then ends it). Reads the
+/// clock only while a dead-man is armed.
+#[inline(always)]
+fn keep_dead_man(published: &Published) {
+    let deadline = published.dead_man_ns.load(Ordering::Acquire);
+    if deadline == 0 {
+        return;
+    }
+    if sys::monotonic_ns() >= deadline && !published.dead_man_tripped.load(Ordering::Relaxed) {
+        published.dead_man_tripped.store(true, Ordering::Release);
+        hold(published);
+    }
 }
 
 /// Phase 1 of a tick: wait for its deadline (real time: sleep to it and record how late the

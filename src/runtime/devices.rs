@@ -1,5 +1,6 @@
 //! The machine's two sides, opened from the configuration: the pulse output
-//! (`output.kind`: simulated drives, pulse log, parallel port, null) and the gap source
+//! (`output.kind`: simulated drives, pulse log, parallel port, null) with the machine inputs
+//! that come with it (the port's status pins; none otherwise), and the gap source
 //! (`gap.kind`: simulator, script, the port's status pins, none), each wrapped in the fault
 //! injector and the tracer when configured.
 //!
@@ -11,55 +12,76 @@ use std::sync::Arc;
 use super::{JobError, Precheck};
 use crate::config::{Config, GapKind, OutputKind};
 use crate::gap::{AlwaysNormal, GapSensor, IioGap, ScriptGap};
+use crate::inputs::{MachineInputs, NoInputs};
 use crate::output::{FaultInjector, NullOutput, PulseLog, PulseLogHeader, PulseOutput};
 use crate::sim::{SimGap, SimSettings};
 use crate::trace::{TracedGap, TracedOutput, Tracer};
 
 pub type BoxedOutput = Box<dyn PulseOutput + Send>;
 pub type BoxedGap = Box<dyn GapSensor + Send>;
+pub type BoxedInputs = Box<dyn MachineInputs + Send>;
 
-/// Opens the output and the gap source of `config`, with the fault injector and the tracer
-/// when configured: everything that can fail at startup fails here, before anything moves.
+/// An opened output, with what comes with it.
+pub struct OpenedOutput {
+    pub output: BoxedOutput,
+    /// The port's status pins as a gap input (used when `gap.kind = "parport"`).
+    pub port_gap: Option<BoxedGap>,
+    /// The machine inputs wired to the output's device: read whatever the gap input is.
+    pub inputs: BoxedInputs,
+}
+
+/// Opens the output, the machine inputs and the gap source of `config`, with the fault
+/// injector and the tracer when configured: everything that can fail at startup fails here,
+/// before anything moves.
 pub fn open_io(
     config: &Config,
     check: &Precheck,
     start: &[i64],
     tracer: Option<&Arc<Tracer>>,
-) -> Result<(BoxedOutput, BoxedGap), JobError> {
-    let (output, port_gap) = open_output(config, start)?;
-    let gap = open_gap(config, check, port_gap)?;
-    Ok(wrap_io(config, output, gap, tracer))
+) -> Result<(BoxedOutput, BoxedGap, BoxedInputs), JobError> {
+    let opened = open_output(config, start)?;
+    let gap = open_gap(config, check, opened.port_gap)?;
+    let (output, gap) = wrap_io(config, opened.output, gap, tracer);
+    Ok((output, gap, opened.inputs))
 }
 
 /// Opens the pulse output of `config`; a parallel port comes with its status pins (the gap
-/// input), opened together under one claim. `start`: the ledger the job starts from (steps
-/// per axis; empty for zero), for the pulse log's header.
-pub fn open_output(
-    config: &Config,
-    start: &[i64],
-) -> Result<(BoxedOutput, Option<BoxedGap>), JobError> {
+/// input and the machine inputs), opened together under one claim. `start`: the ledger the
+/// job starts from (steps per axis; empty for zero), for the pulse log's header.
+pub fn open_output(config: &Config, start: &[i64]) -> Result<OpenedOutput, JobError> {
     let axes = config.machine.axes.len();
-    Ok(match config.output.kind {
-        // The simulated drives take every step and report nothing: the ledger is their position.
-        OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None),
-        OutputKind::File => (
-            Box::new(PulseLog::create(
-                &config.output.path,
-                &PulseLogHeader {
-                    axes: config.machine.axes.clone(),
-                    step_mm: config.machine.step_mm.clone(),
-                    tick_us: config.fine.tick.us(),
-                    start: (0..axes)
-                        .map(|i| start.get(i).copied().unwrap_or(0))
-                        .collect(),
-                },
-            )?),
-            None,
-        ),
-        OutputKind::Parport => {
-            let (output, gap) = crate::parport::open(&config.output.path, axes, &config.parport)?;
-            (Box::new(output), Some(Box::new(gap)))
-        }
+    let (output, port_gap, inputs): (BoxedOutput, Option<BoxedGap>, BoxedInputs) =
+        match config.output.kind {
+            // The simulated drives take every step and report nothing: the ledger is their position.
+            OutputKind::Null | OutputKind::Sim => (Box::new(NullOutput), None, Box::new(NoInputs)),
+            OutputKind::File => (
+                Box::new(PulseLog::create(
+                    &config.output.path,
+                    &PulseLogHeader {
+                        axes: config.machine.axes.clone(),
+                        step_mm: config.machine.step_mm.clone(),
+                        tick_us: config.fine.tick.us(),
+                        start: (0..axes)
+                            .map(|i| start.get(i).copied().unwrap_or(0))
+                            .collect(),
+                    },
+                )?),
+                None,
+                Box::new(NoInputs),
+            ),
+            OutputKind::Parport => {
+                let port = crate::parport::open(&config.output.path, axes, &config.parport)?;
+                (
+                    Box::new(port.output),
+                    Some(Box::new(port.gap)),
+                    Box::new(port.inputs),
+                )
+            }
+        };
+    Ok(OpenedOutput {
+        output,
+        port_gap,
+        inputs,
     })
 }
 

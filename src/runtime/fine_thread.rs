@@ -12,8 +12,8 @@
 //! heartbeat ([`FineThread::heartbeat`]) plus the job's tick counter are what the systemd
 //! watchdog pings on. `edmd run` starts one for its single job.
 //!
-//! A job's output and gap source are moved in and handed back in [`FineDone`], so a
-//! parallel port claimed once by the daemon is used by every job.
+//! A job's output, gap source and machine inputs are moved in and handed back in
+//! [`FineDone`], so a parallel port claimed once by the daemon is used by every job.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -23,7 +23,7 @@ use std::time::Duration;
 use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 
 use super::consumer::{self, LoopReport, LoopSettings, Published};
-use super::{BoxedGap, BoxedOutput};
+use super::{BoxedGap, BoxedInputs, BoxedOutput};
 use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::output::OutputError;
@@ -51,6 +51,7 @@ pub struct FineJob {
     pub published: Arc<Published>,
     pub output: BoxedOutput,
     pub gap: BoxedGap,
+    pub inputs: BoxedInputs,
     pub settings: FineSettings,
     pub loop_settings: LoopSettings,
     pub resume: Option<ResumePoint>,
@@ -70,6 +71,7 @@ pub struct FineDone {
     pub skip: Result<(), SkipError>,
     pub output: BoxedOutput,
     pub gap: BoxedGap,
+    pub inputs: BoxedInputs,
 }
 
 type Submission = (FineJob, Sender<FineDone>);
@@ -165,6 +167,7 @@ fn run(job: FineJob, rt_refused: &[String]) -> FineDone {
         published,
         mut output,
         mut gap,
+        mut inputs,
         settings,
         loop_settings,
         resume,
@@ -189,6 +192,7 @@ fn run(job: FineJob, rt_refused: &[String]) -> FineDone {
             &mut source,
             &mut output,
             &mut gap,
+            &mut inputs,
             &loop_settings,
             &published,
         );
@@ -208,5 +212,6 @@ fn run(job: FineJob, rt_refused: &[String]) -> FineDone {
         skip,
         output,
         gap,
+        inputs,
     }
 }

@@ -57,6 +57,7 @@ pub fn measure(config: &Config, duration: Duration) -> std::io::Result<LatencyRu
                 &mut source,
                 &mut NullOutput,
                 &mut AlwaysNormal,
+                &mut crate::inputs::NoInputs,
                 &loop_settings,
                 &thread_published,
             );

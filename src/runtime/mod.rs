@@ -34,6 +34,7 @@ pub mod probe;
 pub mod producer;
 pub mod program;
 pub mod progress;
+mod published;
 mod run;
 mod snapshot;
 mod spec;
@@ -55,7 +56,10 @@ use crate::record::Recording;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
-pub use devices::{BoxedGap, BoxedOutput, fine_speed_cap, open_gap, open_io, open_output, wrap_io};
+pub use devices::{
+    BoxedGap, BoxedInputs, BoxedOutput, OpenedOutput, fine_speed_cap, open_gap, open_io,
+    open_output, wrap_io,
+};
 pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
 pub use from_line::{Approach, FromLine, FromLineError};
 pub use histogram::{LatencyHistogram, LatencySummary};
@@ -178,10 +182,11 @@ pub fn run_file_from(
     let mut spec = JobSpec::from_config(config, false);
     spec.work = start.clone();
     spec.cut = cut.clone();
-    let (output, gap) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
+    let (output, gap, inputs) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
         output,
         gap,
+        inputs,
         tracer,
         recording: observers.recording,
         progress: observers.progress,
@@ -231,6 +236,7 @@ pub fn copy_and_check(
 pub struct JobIo {
     pub output: BoxedOutput,
     pub gap: BoxedGap,
+    pub inputs: BoxedInputs,
     pub tracer: Option<Arc<Tracer>>,
     /// What actually ran, for a report (`edmd run --report`): the output is wrapped in a
     /// recorder and the supervisor fills the recording.
@@ -247,4 +253,5 @@ pub struct JobEnd {
     pub stopped_at: Snapshot,
     pub output: BoxedOutput,
     pub gap: BoxedGap,
+    pub inputs: BoxedInputs,
 }

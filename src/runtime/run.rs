@@ -63,6 +63,7 @@ pub fn run(
     let JobIo {
         output,
         gap,
+        inputs,
         tracer,
         recording,
         progress,
@@ -104,6 +105,7 @@ pub fn run(
             published: published.clone(),
             output,
             gap,
+            inputs,
             settings: spec.fine,
             loop_settings: spec.run_loop,
             resume: job.resume.clone(),
@@ -279,6 +281,7 @@ fn finish(
         skip,
         output,
         gap,
+        inputs,
     } = done;
     let (summary, stopped_at) = JobSummary::of(summary::JobFacts {
         program: job.program,
@@ -299,5 +302,6 @@ fn finish(
         stopped_at,
         output,
         gap,
+        inputs,
     }
 }

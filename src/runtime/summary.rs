@@ -10,7 +10,7 @@ use super::producer::{ProducerError, ProducerReport};
 use crate::fine::{FineCounters, Interpolator, SkipError};
 use crate::output::OutputError;
 use crate::servo::{ServoCounters, ServoState};
-use crate::vocab::Steps;
+use crate::vocab::{Steps, Trip};
 
 /// How a job ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -139,6 +139,10 @@ pub struct JobSummary {
     /// The limit switch that stopped the job (outcome `limit`).
     #[serde(default, skip_serializing_if = "Option::is_none", with = "limit_text")]
     pub limit_switch: Option<crate::vocab::LimitSwitch>,
+    /// The limit switches that read closed at the job's last tick (a trip is kept until its
+    /// switch opens).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub limits_closed: Vec<String>,
     pub axes: Vec<String>,
     /// G-code blocks of the program.
     pub blocks: u64,
@@ -249,7 +253,11 @@ impl JobSummary {
             program: program.name.clone(),
             outcome,
             error,
-            limit_switch: report.tripped.and_then(|(inputs, _, _)| inputs.limit),
+            limit_switch: report.tripped.and_then(|(trip, _, _)| match trip {
+                Trip::Limit(switch) => Some(switch),
+                Trip::EStop => None,
+            }),
+            limits_closed: report.limits_at_end.iter().map(|s| s.to_string()).collect(),
             axes: spec.axis_names(),
             blocks: check.blocks,
             segments: producer.pushed,
@@ -447,20 +455,22 @@ fn outcome(
 ) -> (Outcome, Option<String>) {
     if let Err(e) = skip {
         (Outcome::ResumeRefused, Some(e.to_string()))
+    } else if let Some(e) = report.input_error.as_ref() {
+        (Outcome::GapError, Some(e.to_string()))
     } else if let Some(e) = report.gap_error.as_ref() {
         (Outcome::GapError, Some(e.to_string()))
     } else if let Some(e) = report.output_error.as_ref() {
         (Outcome::OutputError, Some(e.to_string()))
     } else if let Err(e) = finished {
         (Outcome::OutputError, Some(e.to_string()))
-    } else if let Some((inputs, at, line)) = report.tripped {
+    } else if let Some((trip, at, line)) = report.tripped {
         let stopped = format!(
             "motion stopped in the tick it was seen (segment {}, step {}), spark off, drives \
              disabled",
             at.seq, at.event
         );
-        match inputs.limit.filter(|_| !inputs.estop) {
-            Some(switch) => (
+        match trip {
+            Trip::Limit(switch) => (
                 Outcome::Limit,
                 Some(format!(
                     "line {line}: limit switch {switch} ({} end of axis {}): {stopped}; only a \
@@ -469,7 +479,7 @@ fn outcome(
                     switch.axis
                 )),
             ),
-            None => (
+            Trip::EStop => (
                 Outcome::Estop,
                 Some(format!(
                     "line {line}: E-stop: {stopped}; release it, then `edmd ctl reset`"

@@ -295,7 +295,7 @@ impl SimGap {
                     self.hold = Some((state, at.saturating_add(ticks)));
                 }
                 SimEvent::Estop => self.safety.estop = true,
-                SimEvent::Limit(switch) => self.safety.limit = Some(switch),
+                SimEvent::Limit(switch) => self.safety.limits.insert(switch),
             }
         }
     }

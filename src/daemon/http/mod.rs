@@ -265,7 +265,8 @@ async fn guarded(State(app): State<Arc<App>>, request: HttpRequest, next: Next) 
         next.run(request).await
     } else {
         let host = guard::host_name(request.headers()).unwrap_or_default();
-        tracing::warn!("http: refused a request for host {host:?}");
+        static REFUSED_HOSTS: super::noise::Budget = super::noise::Budget::new();
+        REFUSED_HOSTS.log(format_args!("http: refused a request for host {host:?}"));
         error(
             StatusCode::FORBIDDEN,
             format!(
@@ -535,7 +536,7 @@ fn body<T: serde::de::DeserializeOwned>(
     } else {
         &bytes[..]
     };
-    serde_json::from_slice(text).map_err(|e| {
+    super::protocol::from_json(text).map_err(|e| {
         error(
             StatusCode::BAD_REQUEST,
             format!(
@@ -571,6 +572,8 @@ struct RunBody {
     approach: Option<crate::runtime::Approach>,
     #[serde(default)]
     passes: Option<usize>,
+    #[serde(default)]
+    force: bool,
 }
 
 async fn run(
@@ -587,6 +590,7 @@ async fn run(
         from_line,
         approach,
         passes,
+        force,
     } = match body(raw) {
         Ok(b) => b,
         Err(e) => return e,
@@ -600,6 +604,7 @@ async fn run(
         from_line,
         approach,
         passes,
+        force,
     };
     match ask(&app, run).await {
         Ok(reply) => verdict(reply),

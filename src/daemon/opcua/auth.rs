@@ -76,9 +76,11 @@ impl AuthManager for Gatekeeper {
             tracing::info!("opcua: {username} signed in");
             Ok(UserToken(username.to_string()))
         } else {
-            tracing::warn!(
+            static REFUSED_SIGN_INS: crate::daemon::noise::Budget =
+                crate::daemon::noise::Budget::new();
+            REFUSED_SIGN_INS.log(format_args!(
                 "opcua: sign-in as {username:?} refused: no such user or wrong password"
-            );
+            ));
             Err(Error::new(
                 StatusCode::BadUserAccessDenied,
                 "no such user or wrong password",

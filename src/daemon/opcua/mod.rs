@@ -85,12 +85,12 @@ pub struct OpcUaServer {
 }
 
 impl OpcUaServer {
-    /// Puts the users of `path` in force; on an error the previous users stay.
-    pub fn reload_users(&self, path: &std::path::Path) -> Result<usize, users::UsersError> {
-        let users = users::load_or_create(path)?;
+    /// Puts `users` (read by the reload worker, [`users::load_or_create`]) in force; their
+    /// number.
+    pub fn set_users(&self, users: users::Users) -> usize {
         let n = users.len();
         self.gatekeeper.set_users(users);
-        Ok(n)
+        n
     }
 }
 

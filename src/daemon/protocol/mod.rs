@@ -45,6 +45,10 @@ pub enum Request {
         /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         passes: Option<usize>,
+        /// A run from a line on a position not trusted (after an unclean stop): the operator
+        /// checked it.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        force: bool,
     },
     /// Brake to a standstill and stay there. (Empty struct variants, not unit ones: serde
     /// checks unknown fields only on those.)
@@ -145,11 +149,79 @@ pub struct RequestError {
 impl Request {
     /// Parses one request line; errors are `request:LINE:COL: what`.
     pub fn parse(line: &str) -> Result<Request, RequestError> {
-        serde_json::from_str(line).map_err(|e| RequestError {
+        from_json(line.as_bytes()).map_err(|e| RequestError {
             line: e.line(),
             col: e.column(),
             what: strip_location(&e),
         })
+    }
+}
+
+/// Parses JSON text into `T`, refusing an object that names a key twice (anywhere in it):
+/// serde would take one of them silently, and a client that sent `"axis":"X","axis":"Y"`
+/// would have a command carried out that it did not mean.
+pub fn from_json<T: serde::de::DeserializeOwned>(text: &[u8]) -> Result<T, serde_json::Error> {
+    let mut scan = serde_json::Deserializer::from_slice(text);
+    serde::Deserialize::deserialize(&mut scan).map(|UniqueKeys| ())?;
+    serde_json::from_slice(text)
+}
+
+/// Any JSON value whose objects name each key once.
+struct UniqueKeys;
+
+impl<'de> serde::Deserialize<'de> for UniqueKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(UniqueKeys)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for UniqueKeys {
+    type Value = UniqueKeys;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_bool<E>(self, _: bool) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_i64<E>(self, _: i64) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_u64<E>(self, _: u64) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_f64<E>(self, _: f64) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_str<E>(self, _: &str) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_unit<E>(self) -> Result<UniqueKeys, E> {
+        Ok(UniqueKeys)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<UniqueKeys, A::Error> {
+        while seq.next_element::<UniqueKeys>()?.is_some() {}
+        Ok(UniqueKeys)
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<UniqueKeys, A::Error> {
+        let mut seen = std::collections::BTreeSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if !seen.insert(key.clone()) {
+                return Err(serde::de::Error::custom(format!(
+                    "duplicate key {key:?}: name each key once"
+                )));
+            }
+            map.next_value::<UniqueKeys>()?;
+        }
+        Ok(UniqueKeys)
     }
 }
 
@@ -573,6 +645,7 @@ mod tests {
                 from_line: None,
                 approach: None,
                 passes: None,
+                force: false,
             }
         );
         assert_eq!(
@@ -584,6 +657,7 @@ mod tests {
                 from_line: Some(12),
                 approach: Some(crate::runtime::Approach::Direct),
                 passes: None,
+                force: false,
             }
         );
         assert_eq!(
@@ -610,5 +684,35 @@ mod tests {
             .to_string();
         assert!(e.contains("unknown field"), "{e}");
         assert!(!e.contains(" at line "), "{e}");
+    }
+
+    /// A key named twice is refused at its second place, whichever key and however deep;
+    /// the same keys once each still parse.
+    #[test]
+    fn a_key_named_twice_is_refused() {
+        for (line, col) in [
+            (r#"{"cmd":"jog","axis":"X","axis":"Y","distance_mm":1}"#, 30),
+            (r#"{"cmd":"hold","cmd":"abort"}"#, 19),
+            (r#"{"cmd":"resume","force":false,"force":true}"#, 37),
+        ] {
+            let e = Request::parse(line).unwrap_err();
+            assert!(e.what.contains("duplicate key"), "{line}: {e}");
+            assert_eq!((e.line, e.col), (1, col), "{line}: {e}");
+        }
+        let nested: Result<serde_json::Value, _> = from_json(br#"{"a":[{"b":1,"b":2}]}"#);
+        assert!(
+            nested
+                .unwrap_err()
+                .to_string()
+                .contains("duplicate key \"b\"")
+        );
+        assert_eq!(
+            Request::parse(r#"{"cmd":"jog","axis":"X","distance_mm":1}"#).unwrap(),
+            Request::Jog {
+                axis: "X".into(),
+                distance_mm: 1.0,
+                feed_mm_per_min: None
+            }
+        );
     }
 }

@@ -207,7 +207,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         if let Some(f) = letters.get('F') {
             // The lexer only yields finite numbers, so this also covers the sign.
-            if f.value <= 0.0 {
+            if f.value * self.state.scale() < crate::vocab::MIN_FEED_MM_PER_MIN {
                 return Err((f.col, GcodeErrorKind::BadFeed).into());
             }
             self.state.modal.feed = Some(f.value * self.state.scale());
