@@ -233,7 +233,9 @@ impl Checkpoint {
     pub fn write_atomic(&self, path: &Path) -> std::io::Result<()> {
         let mut json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
         json.push('\n');
-        crate::sys::write_atomic(path, json.as_bytes())
+        // Bounded: a hung disk fails the write rather than stop the caller (the daemon's
+        // control loop) for ever.
+        crate::sys::write_atomic_bounded(path, json.as_bytes())
     }
 
     /// Removes a temporary file a write interrupted by a crash left beside `path`; `true`

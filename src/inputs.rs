@@ -46,6 +46,12 @@ pub trait MachineInputs {
     /// The inputs at tick `tick` (ticks come in increasing order).
     fn sample(&mut self, tick: u64) -> Result<InputReading, InputError>;
 
+    /// Something is wired: `false` lets the loop skip [`sample`](Self::sample), which would
+    /// read nothing, on every tick.
+    fn wired(&self) -> bool {
+        true
+    }
+
     /// What the job's probing moves read as their contact (a homing job's switch, or the
     /// probe).
     fn probe_reads(&mut self, _what: ProbeReads) {}
@@ -59,11 +65,19 @@ impl MachineInputs for NoInputs {
     fn sample(&mut self, _tick: u64) -> Result<InputReading, InputError> {
         Ok(InputReading::default())
     }
+
+    fn wired(&self) -> bool {
+        false
+    }
 }
 
 impl<I: MachineInputs + ?Sized> MachineInputs for Box<I> {
     fn sample(&mut self, tick: u64) -> Result<InputReading, InputError> {
         (**self).sample(tick)
+    }
+
+    fn wired(&self) -> bool {
+        (**self).wired()
     }
 
     fn probe_reads(&mut self, what: ProbeReads) {

@@ -190,7 +190,9 @@ impl MachineState {
         };
         let mut json = serde_json::to_string_pretty(&file).map_err(std::io::Error::other)?;
         json.push('\n');
-        crate::sys::write_atomic(path, json.as_bytes())
+        // Bounded: a hung disk fails the write rather than stop the caller (the daemon's
+        // control loop) for ever.
+        crate::sys::write_atomic_bounded(path, json.as_bytes())
     }
 
     /// Reads the state at `path` for `machine`; `None` when there is no file.

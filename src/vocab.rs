@@ -308,6 +308,12 @@ impl LimitSet {
         self.0 == 0
     }
 
+    /// The switches of `self` that are not in `other`.
+    #[inline]
+    pub fn without(self, other: LimitSet) -> LimitSet {
+        LimitSet(self.0 & !other.0)
+    }
+
     /// The closed switches, X− first.
     pub fn iter(self) -> impl Iterator<Item = LimitSwitch> {
         Axis::ALL

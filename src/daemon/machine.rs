@@ -395,23 +395,55 @@ impl Core {
         }
     }
 
-    /// Between jobs: a limit switch tripped earlier that the claimed port now reads open is
-    /// cleared (the operator moved the axis off it by hand, or the switch was freed).
-    pub(super) fn watch_limit_release(&mut self) {
-        let Some(Trip::Limit(switch)) = self.machine.state.trip else {
-            return;
-        };
+    /// Between jobs the claimed port's inputs are read too, as LinuxCNC reads them when
+    /// nothing moves: an E-stop pressed or a limit switch closed while idle trips the machine
+    /// at once; a limit switch's trip ends when the switch reads open (the axis moved off it
+    /// by hand, or the switch was freed). An E-stop's trip ends only with `reset`.
+    pub(super) fn watch_inputs(&mut self) {
         if self.jobs.job.is_some() {
             return;
         }
         let Some(inputs) = self.jobs.port_inputs.as_mut() else {
             return;
         };
-        if let Ok(reading) = inputs.sample(0)
-            && !reading.safety.limits.contains(switch)
-        {
-            tracing::info!("limit switch {switch} reads open: the trip is cleared");
-            self.set_trip(None);
+        let reading = match inputs.sample(0) {
+            Ok(r) => r.safety,
+            Err(e) => {
+                // A port that stopped answering reads as pressed: nothing may move.
+                if self.machine.state.trip != Some(Trip::EStop) {
+                    tracing::error!("{e}: the machine is held as in an E-stop");
+                    self.set_trip(Some(Trip::EStop));
+                }
+                return;
+            }
+        };
+        match self.machine.state.trip {
+            Some(Trip::EStop) => {}
+            Some(Trip::Limit(switch)) if reading.estop || !reading.limits.contains(switch) => {
+                let next = Trip::of(reading);
+                tracing::info!(
+                    "limit switch {switch} reads open{}",
+                    match next {
+                        Some(t) => format!("; now {}", t.name()),
+                        None => ": the trip is cleared".to_string(),
+                    }
+                );
+                self.set_trip(next);
+            }
+            Some(Trip::Limit(_)) => {}
+            None => {
+                if let Some(trip) = Trip::of(reading) {
+                    tracing::warn!(
+                        edmd_event = "trip",
+                        "{} while idle: nothing moves until it is cleared",
+                        match trip {
+                            Trip::EStop => "E-stop pressed".to_string(),
+                            Trip::Limit(s) => format!("limit switch {s} closed"),
+                        }
+                    );
+                    self.set_trip(Some(trip));
+                }
+            }
         }
     }
 

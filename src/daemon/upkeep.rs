@@ -183,7 +183,7 @@ impl Core {
     pub(super) fn periodic(&mut self) {
         self.watchdog();
         self.dead_man();
-        self.watch_limit_release();
+        self.watch_inputs();
         self.watch_reload();
         let now = Instant::now();
         if let Some(mut job) = self.jobs.job.take() {

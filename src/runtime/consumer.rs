@@ -27,6 +27,7 @@ use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
 use super::probe::ProbeResult;
 pub use super::published::{EventRecord, LATENCY_BUCKETS_US, PUBLISH_EVERY_TICKS, Published};
+pub use super::realtime::{RealtimeGuard, apply_realtime};
 pub use super::snapshot::Snapshot;
 use crate::buffer::BlockSource;
 use crate::fine::{Interpolator, Tick};
@@ -166,67 +167,6 @@ fn hold(published: &Published) {
     }
 }
 
-/// Real-time features in force for the loop; dropping it releases them.
-#[derive(Debug, Default)]
-pub struct RealtimeGuard {
-    /// Holds the zero wake-up latency request while open.
-    _cpu_latency: Option<std::fs::File>,
-    /// What the system refused, as operator-facing reasons.
-    pub refused: Vec<String>,
-}
-
-/// Applies the configured real-time features to the calling thread; refusals come back as
-/// human-readable reasons (and are logged as warnings), never as errors. In real time the
-/// timer slack is always minimised and, with `lock_memory`, CPUs are kept out of deep idle
-/// states (`/dev/cpu_dma_latency`, as cyclictest does).
-pub fn apply_realtime(settings: &LoopSettings) -> RealtimeGuard {
-    let mut guard = RealtimeGuard::default();
-    if settings.virtual_time {
-        return guard;
-    }
-    let refused = &mut guard.refused;
-    if let Err(e) = sys::minimise_timer_slack() {
-        refused.push(format!(
-            "timer slack: cannot minimise it ({e}); wake-ups may come up to 50 µs late"
-        ));
-    }
-    if settings.lock_memory {
-        if let Err(e) = sys::lock_all_memory() {
-            refused.push(format!(
-                "fine.lock_memory: mlockall refused ({e}); running with pageable memory \
-                 (raise RLIMIT_MEMLOCK, e.g. systemd LimitMEMLOCK=infinity)"
-            ));
-        }
-        match sys::hold_zero_cpu_wakeup_latency() {
-            Ok(file) => guard._cpu_latency = Some(file),
-            Err(e) => refused.push(format!(
-                "fine.lock_memory: cannot hold /dev/cpu_dma_latency at 0 ({e}); CPUs may sleep \
-                 in deep idle states between ticks"
-            )),
-        }
-    }
-    if let Some(cpu) = settings.cpu
-        && let Err(e) = sys::pin_to_cpu(cpu)
-    {
-        refused.push(format!(
-            "fine.cpu: cannot pin to CPU {cpu} ({e}); running on any CPU"
-        ));
-    }
-    if settings.rt_priority > 0
-        && let Err(e) = sys::set_fifo_priority(settings.rt_priority)
-    {
-        refused.push(format!(
-            "fine.rt_priority: SCHED_FIFO {} refused ({e}); running at normal priority \
-             (needs CAP_SYS_NICE or RLIMIT_RTPRIO, e.g. systemd LimitRTPRIO={})",
-            settings.rt_priority, settings.rt_priority
-        ));
-    }
-    for reason in &guard.refused {
-        tracing::warn!("{reason}");
-    }
-    guard
-}
-
 /// Runs the tick core until the program is done, an alarm, an output error or a stop
 /// request. Call from the consumer thread after [`apply_realtime`].
 #[inline(never)]
@@ -261,20 +201,19 @@ where
     // The limit switches closed at the job's first reading: the job may stand on them and
     // move away (a jog off a tripped switch); one that closes later stops it.
     let mut limits_at_start: Option<LimitSet> = None;
+    let inputs_wired = inputs.wired();
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
-        if let Some(at) = published.rethread.take()
-            && fine.rethread(at)
-        {
-            sensor.rethreaded();
-        }
-        keep_dead_man(published);
-        fine.set_hold(published.hold.load(Ordering::Acquire));
+        take_requests(fine, sensor, published);
         let probing = activity.flags.contains(BlockFlags::PROBE);
-        let Some((machine, gap)) = sense(inputs, sensor, probing, tick_no, published, &mut report)
-        else {
-            break;
+        let sensed = sense(inputs, inputs_wired, sensor, probing, tick_no, published);
+        let (machine, gap) = match sensed {
+            Ok(sensed) => sensed,
+            Err(failed) => {
+                failed.into_report(&mut report);
+                break;
+            }
         };
         // An E-stop, or a limit switch that closed during the job, stops motion in the tick
         // it is seen: no step of this tick is taken; the output's finish then drops the
@@ -295,7 +234,9 @@ where
         tell_activity(&mut activity, fine, tick_no, output, sensor, published);
         // A step further into a closed limit switch is not taken: motion away from it, and
         // along other axes, is.
-        if let Some(switch) = safety.limits.blocking(&settings.axes, &tick.steps) {
+        if !safety.limits.is_empty()
+            && let Some(switch) = safety.limits.blocking(&settings.axes, &tick.steps)
+        {
             untake(&mut report, fine, &tick, before);
             report.tripped = Some((Trip::Limit(switch), before, fine.line()));
             tick_no += 1;
@@ -349,35 +290,27 @@ where
     report
 }
 
-/// Phase 2: the machine inputs, then the gap (a probing move reads its contact from the
-/// machine's pin where one is wired); `None` when either failed (the report says which).
+/// Phase 2: the machine inputs (when something is wired), then the gap (a probing move reads
+/// its contact from the machine's pin where one is wired).
 #[inline(always)]
 fn sense<G, I>(
     inputs: &mut I,
+    wired: bool,
     sensor: &mut G,
     probing: bool,
     tick_no: u64,
     published: &Published,
-    report: &mut LoopReport,
-) -> Option<(InputReading, GapState)>
+) -> Result<(InputReading, GapState), SenseError>
 where
     G: GapSensor + ?Sized,
     I: MachineInputs + ?Sized,
 {
-    let machine = match inputs.sample(tick_no) {
-        Ok(reading) => reading,
-        Err(e) => {
-            report.input_error = Some(e);
-            return None;
-        }
+    let machine = if wired {
+        inputs.sample(tick_no).map_err(SenseError::Inputs)?
+    } else {
+        InputReading::default()
     };
-    let mut gap = match sensor.sample(tick_no) {
-        Ok(gap) => gap,
-        Err(e) => {
-            report.gap_error = Some(e);
-            return None;
-        }
-    };
+    let mut gap = sensor.sample(tick_no).map_err(SenseError::Gap)?;
     if probing && let Some(contact) = machine.contact {
         gap = if contact {
             GapState::Short
@@ -389,7 +322,23 @@ where
     published
         .gap
         .store(gap.index() as u8 + 1, Ordering::Relaxed);
-    Some((machine, gap))
+    Ok((machine, gap))
+}
+
+/// Which input failed.
+enum SenseError {
+    Inputs(InputError),
+    Gap(GapError),
+}
+
+impl SenseError {
+    #[cold]
+    fn into_report(self, report: &mut LoopReport) {
+        match self {
+            SenseError::Inputs(e) => report.input_error = Some(e),
+            SenseError::Gap(e) => report.gap_error = Some(e),
+        }
+    }
 }
 
 /// The tick's steps never reached the drives (the output refused them, or they ran into a
@@ -416,14 +365,31 @@ fn newly_tripped(safety: SafetyInputs, allowed: LimitSet) -> Option<Trip> {
     if safety.estop {
         return Some(Trip::EStop);
     }
-    let mut closed = safety.limits;
-    for switch in allowed.iter() {
-        closed.remove(switch);
+    // Bit operations on every tick; the switches are named only when one closed.
+    let closed = safety.limits.without(allowed);
+    if closed.is_empty() {
+        return None;
     }
     closed.iter().next().map(Trip::Limit)
 }
 
-/// Phase 1c: a continuous jog whose renewal deadline passed is held here, on the job's own
+/// Phase 1c: what the other threads asked for: a rethread, a hold (the dead-man's too).
+#[inline(always)]
+fn take_requests<G: GapSensor + ?Sized>(
+    fine: &mut Interpolator,
+    sensor: &mut G,
+    published: &Published,
+) {
+    if let Some(at) = published.rethread.take()
+        && fine.rethread(at)
+    {
+        sensor.rethreaded();
+    }
+    keep_dead_man(published);
+    fine.set_hold(published.hold.load(Ordering::Acquire));
+}
+
+/// A continuous jog whose renewal deadline passed is held here, on the job's own
 /// thread, whatever the control loop is doing (the control loop then ends it). Reads the
 /// clock only while a dead-man is armed.
 #[inline(always)]

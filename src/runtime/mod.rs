@@ -35,6 +35,7 @@ pub mod producer;
 pub mod program;
 pub mod progress;
 mod published;
+mod realtime;
 mod run;
 mod snapshot;
 mod spec;

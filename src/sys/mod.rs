@@ -22,6 +22,7 @@ mod limits;
 mod proc;
 #[allow(unsafe_code)]
 mod rt;
+mod writer;
 
 pub use clock::{local_stamp, local_stamp_of, monotonic_ns, sleep_until_ns};
 pub use files::{
@@ -35,3 +36,4 @@ pub use rt::{
     hold_zero_cpu_wakeup_latency, lock_all_memory, minimise_timer_slack, pin_to_cpu,
     set_fifo_priority,
 };
+pub use writer::{WRITE_TIMEOUT, write_atomic_bounded};
