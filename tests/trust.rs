@@ -169,9 +169,10 @@ fn a_fifo_config_and_a_vanished_jog_client_freeze_nothing() {
         }
         std::thread::sleep(Duration::from_millis(10));
     }
+    // The dead-man's 250 ms, then the braking; a loaded machine's scheduling on top.
     let after = halted_at.saturating_duration_since(last);
     assert!(
-        after <= Duration::from_millis(350),
+        after <= Duration::from_millis(400),
         "halted {after:?} after the last renewal"
     );
     daemon.wait_for_log("reload refused, configuration unchanged");
@@ -205,8 +206,9 @@ fn a_hold_ends_a_continuous_jog_and_renewals_move_nothing() {
         held["message"].as_str().unwrap().contains("continuous jog"),
         "{held}"
     );
-    // The client did not see the hold: it renews on, every 100 ms, for a second.
-    for _ in 0..10 {
+    // The client did not see the hold: it renews on, every 50 ms (the page's 100 ms, with
+    // room for a loaded machine), for a second.
+    for _ in 0..20 {
         let reply = &raw_exchange(&daemon.socket, &[request])[0];
         assert_eq!(reply["ok"], false, "{reply}");
         assert!(
@@ -216,7 +218,7 @@ fn a_hold_ends_a_continuous_jog_and_renewals_move_nothing() {
                 .contains("renewals are refused"),
             "{reply}"
         );
-        std::thread::sleep(Duration::from_millis(100));
+        std::thread::sleep(Duration::from_millis(50));
     }
     let stopped = daemon.wait_for("idle", |s| s["state"] == "idle");
     let at = x_mm(&stopped);
