@@ -66,11 +66,13 @@ fn end_steps(summary: &serde_json::Value) -> Vec<i64> {
 // ---- the parallel port's encoding under whole jobs ----------------------------------------
 
 /// Puts the fake's clock at each tick's start before the port output runs, as the real-time
-/// loop's wake-up would.
+/// loop's wake-up would; with `press`, sets the status pins to its levels once the job's tick
+/// reaches its tick (a switch pressed mid-job).
 struct AtTickTime<O> {
     inner: O,
     bench: Bench,
     tick_ns: u64,
+    press: Option<(u64, edmd::parport::PinLevels)>,
 }
 
 impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
@@ -81,6 +83,11 @@ impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
         gap: GapState,
     ) -> Result<(), OutputError> {
         self.bench.set_now(tick * self.tick_ns);
+        if let Some((at_tick, levels)) = self.press
+            && tick + 1 >= at_tick
+        {
+            self.bench.set_inputs(levels);
+        }
         self.inner.write(tick, steps, gap)
     }
 
@@ -90,33 +97,6 @@ impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
 }
 
 type FakePortOutput = AtTickTime<ParportOutput<RecordingPort, VirtualClock>>;
-
-/// Sets the fake port's status pins to `levels` once the job's tick reaches `at_tick` (a
-/// switch pressed mid-job), before the output runs.
-struct PressAt<O> {
-    inner: O,
-    bench: Bench,
-    at_tick: u64,
-    levels: edmd::parport::PinLevels,
-}
-
-impl<O: PulseOutput> PulseOutput for PressAt<O> {
-    fn write(
-        &mut self,
-        tick: u64,
-        steps: &[i8; MAX_AXES],
-        gap: GapState,
-    ) -> Result<(), OutputError> {
-        if tick + 1 >= self.at_tick {
-            self.bench.set_inputs(self.levels);
-        }
-        self.inner.write(tick, steps, gap)
-    }
-
-    fn finish(&mut self) -> Result<(), OutputError> {
-        self.inner.finish()
-    }
-}
 
 /// A parport output of `config`'s pin map and timing on a fresh recording fake.
 fn fake_port(config: &Config) -> (FakePortOutput, Bench, PinMap, StepTiming) {
@@ -130,6 +110,7 @@ fn fake_port(config: &Config) -> (FakePortOutput, Bench, PinMap, StepTiming) {
         inner: output,
         bench: bench.clone(),
         tick_ns: config.fine.tick.ns(),
+        press: None,
     };
     (output, bench, map, timing)
 }
@@ -773,7 +754,7 @@ fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
         ("parport", Box::new(edmd::gap::AlwaysNormal)),
     ];
     for (kind, gap) in gaps {
-        let (output, bench, map, _) = fake_port(&config);
+        let (mut output, bench, map, _) = fake_port(&config);
         // The port's own status pins as the gap input, on the same fake.
         let gap: Box<dyn GapSensor + Send> = if kind == "parport" {
             Box::new(edmd::parport::ParportGap::new(
@@ -790,12 +771,7 @@ fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
             map.clone(),
             "fake-port",
         );
-        let output = PressAt {
-            inner: output,
-            bench: bench.clone(),
-            at_tick: PRESS,
-            levels: edmd::parport::PinLevels(1 << 12),
-        };
+        output.press = Some((PRESS, edmd::parport::PinLevels(1 << 12)));
         let summary = job_with_inputs(&config, output, gap, inputs);
         assert_eq!(
             summary.outcome,
