@@ -54,7 +54,7 @@ fn settings(segmentation: Segmentation, predictor: Predictor, max_segment: f64) 
     // The papers' machine (300 mm/s), not held to one step of 1 µm per 50 µs tick: the
     // figures stay comparable with the papers' and with earlier runs.
     PlanSettings {
-        axis_cap: [f64::INFINITY; edmd::vocab::MAX_AXES],
+        axis_cap_mm_per_s: [f64::INFINITY; edmd::vocab::MAX_AXES],
         ..PlanSettings::from_config(&cfg)
     }
 }

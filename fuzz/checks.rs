@@ -1,4 +1,4 @@
-//! What each fuzz target checks, shared with `tests/fuzz_regressions.rs` (which replays the
+//! What each fuzz target checks, shared with `tests/it/fuzz_regressions.rs` (which replays the
 //! saved inputs on stable Rust in CI) so the two can never drift apart.
 //!
 //! Each check feeds untrusted input to one of edmd's front doors and panics if the door

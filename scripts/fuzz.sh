@@ -8,7 +8,7 @@
 # `cargo install cargo-fuzz`). The growing corpus lives in fuzz/corpus/<target> (not committed);
 # the committed seeds in fuzz/seeds/<target> are read as a second corpus. A crash is written to
 # fuzz/artifacts/<target>/; copy it to fuzz/regressions/<target>/ once fixed, and
-# `cargo test --test fuzz_regressions` replays it on stable Rust from then on.
+# `cargo test --test it fuzz_regressions::` replays it on stable Rust from then on.
 set -euo pipefail
 cd "$(dirname "$0")/../fuzz"
 seconds=${1:-600}

@@ -2,7 +2,6 @@
 
 use std::fmt::Write as _;
 
-use crate::config::Travel;
 use crate::gcode::{Block, BlockKind};
 use crate::geometry::Point;
 use crate::vocab::Axis;
@@ -166,69 +165,4 @@ pub fn describe_totals(t: &Totals, axes: &[Axis], max_feed_mm_per_min: f64) -> S
         let _ = write!(s, "\nend position: {}", format_point(end, axes));
     }
     s
-}
-
-/// How far past a soft limit a path may reach before it is refused, mm: the extent of a curve
-/// is found to this (a tenth of the finest step a configuration is likely to have).
-pub const TRAVEL_TOLERANCE_MM: f64 = 1e-4;
-
-/// A block whose path leaves the machine's travel.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error(
-    "{program}:{line}:1: the path leaves the machine's travel: axis {axis} reaches {} mm \
-     (machine coordinates), {} mm {} its {} limit {} mm (machine.travel_mm)",
-    crate::vocab::Num(*.reach_mm),
-    crate::vocab::Num((.reach_mm - .limit_mm).abs()),
-    if *.above { "above" } else { "below" },
-    if *.above { "upper" } else { "lower" },
-    crate::vocab::Num(*.limit_mm)
-)]
-pub struct TravelError {
-    pub program: String,
-    pub line: u64,
-    pub axis: Axis,
-    /// The farthest point of the path on that axis, mm.
-    pub reach_mm: f64,
-    pub limit_mm: f64,
-    pub above: bool,
-}
-
-/// Holds `block`'s path (machine coordinates) to the soft limits `travel` (one per axis of
-/// `axes`): the control polygon settles most blocks at once (the curve lies in its hull);
-/// a block whose polygon pokes out is measured to [`TRAVEL_TOLERANCE_MM`].
-pub fn hold_to_travel(
-    block: &Block,
-    axes: &[Axis],
-    travel: &[Option<Travel>],
-    program: &str,
-) -> Result<(), TravelError> {
-    let curve = &block.curve;
-    for (i, (axis, limits)) in axes.iter().zip(travel).enumerate() {
-        let Some(t) = limits else { continue };
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for k in 0..curve.num_points() {
-            let v = curve.control_point(k)[i];
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
-        if lo >= t.min_mm && hi <= t.max_mm {
-            continue;
-        }
-        let (lo, hi) = curve.axis_extent(i, TRAVEL_TOLERANCE_MM);
-        let fail = |reach_mm: f64, limit_mm: f64, above: bool| TravelError {
-            program: program.to_string(),
-            line: block.line,
-            axis: *axis,
-            reach_mm,
-            limit_mm,
-            above,
-        };
-        if hi > t.max_mm + TRAVEL_TOLERANCE_MM {
-            return Err(fail(hi, t.max_mm, true));
-        }
-        if lo < t.min_mm - TRAVEL_TOLERANCE_MM {
-            return Err(fail(lo, t.min_mm, false));
-        }
-    }
-    Ok(())
 }

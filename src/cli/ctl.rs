@@ -197,7 +197,7 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
         return monitor(&socket, *interval, *count, args.json);
     }
     if let CtlCommand::Find { no_wait: false, .. } = &args.command {
-        return super::find::find_and_wait(&socket, request_of(&args.command).0, args.json);
+        return super::touch::find_and_wait(&socket, request_of(&args.command).0, args.json);
     }
     let (request, wait) = request_of(&args.command);
     let reply = match crate::daemon::socket::request(&socket, &request) {

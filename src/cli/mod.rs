@@ -118,10 +118,10 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 
 mod ctl;
 mod docs;
-mod find;
 mod journal;
 mod latency;
 mod run_state;
+mod touch;
 
 use ctl::{CtlArgs, run_ctl};
 use run_state::RunState;
@@ -551,7 +551,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Ok(m) => m,
         Err(code) => return code,
     };
-    let start = machine.state.work_start();
+    let start = machine.work_start();
     let result = runtime::run_file_from(
         &args.program,
         &cfg,

@@ -1,19 +1,19 @@
 //! `edmd run --state FILE`: the machine state a single job starts from and leaves behind,
 //! with the daemon's write-ahead rule (marked moving before the job, the stop point after).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 
 use super::{EXIT_BAD_INPUT, EXIT_RUNTIME};
 use crate::config::Config;
-use crate::gcode::{WorkOffsets, WorkSystem};
-use crate::machine::MachineState;
+use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
+use crate::machine::{Admission, Found, Machine, OpenError};
 use crate::runtime::{JobSummary, Outcome};
 
-/// The state of one `edmd run`: from the file, or machine zero with no offsets and no file.
+/// The state of one `edmd run`: the machine of the file (the daemon's write-ahead path,
+/// [`Machine`]), or machine zero with no offsets and no file.
 pub(super) struct RunState {
-    pub state: MachineState,
-    path: Option<PathBuf>,
+    machine: Machine,
 }
 
 impl RunState {
@@ -21,51 +21,45 @@ impl RunState {
     /// job cuts from a line, which is refused on a position an unclean stop left (the
     /// daemon's `--force` has no `edmd run` twin).
     pub fn open(path: Option<&Path>, cfg: &Config, from_line: bool) -> Result<RunState, ExitCode> {
-        let state = match path.map(|p| MachineState::load(p, &cfg.machine)) {
-            None | Some(Ok(None)) => MachineState::new(&cfg.machine),
-            Some(Ok(Some(loaded)))
-                if from_line && (loaded.was_moving || !loaded.state.position_trusted) =>
-            {
-                eprintln!(
-                    "edmd: error: {}: the position is not trusted (the machine was moving when \
-                     the last run stopped): a run from a line would cut from a believed place; \
-                     home the machine first (`edmd serve`, `edmd ctl home`)",
-                    path.map_or(String::new(), |p| p.display().to_string())
-                );
-                return Err(ExitCode::from(EXIT_RUNTIME));
-            }
-            Some(Ok(Some(loaded))) if loaded.was_moving => {
-                tracing::warn!(
-                    "{}: the machine was moving when the last run stopped: its position is \
-                     only believed, every axis is unhomed",
-                    path.map_or(String::new(), |p| p.display().to_string())
-                );
-                loaded.state.distrusted()
-            }
-            Some(Ok(Some(loaded))) => loaded.state,
-            Some(Err(e)) => {
-                eprintln!("edmd: error: {e}");
-                return Err(ExitCode::from(EXIT_BAD_INPUT));
-            }
-        };
-        let run = RunState {
-            state,
-            path: path.map(Path::to_path_buf),
-        };
+        let shown = path.map_or(String::new(), |p| p.display().to_string());
+        let (machine, found) = Machine::open(path, &cfg.machine).map_err(|e| {
+            eprintln!("edmd: error: {e}");
+            ExitCode::from(match e {
+                OpenError::Read(_) => EXIT_BAD_INPUT,
+                OpenError::Write(_) => EXIT_RUNTIME,
+            })
+        })?;
+        let continued = machine.admit(Admission::Continue {
+            homing_required: false,
+        });
+        if from_line && continued.is_err() {
+            eprintln!(
+                "edmd: error: {shown}: the position is not trusted (the machine was moving when \
+                 the last run stopped): a run from a line would cut from a believed place; \
+                 home the machine first (`edmd serve`, `edmd ctl home`)"
+            );
+            return Err(ExitCode::from(EXIT_RUNTIME));
+        }
+        if found == Found::Moving {
+            tracing::warn!(
+                "{shown}: the machine was moving when the last run stopped: its position is \
+                 only believed, every axis is unhomed"
+            );
+        }
+        let mut run = RunState { machine };
         run.save(true)?;
         Ok(run)
     }
 
+    /// Where the job starts: the machine's work system and offsets.
+    pub fn work_start(&self) -> WorkStart {
+        self.machine.state.work_start()
+    }
+
     /// Writes the state (nothing without a file).
-    pub fn save(&self, moving: bool) -> Result<(), ExitCode> {
-        let Some(path) = &self.path else {
-            return Ok(());
-        };
-        self.state.write(path, moving).map_err(|e| {
-            eprintln!(
-                "edmd: error: {}: cannot write the machine state: {e}",
-                path.display()
-            );
+    pub fn save(&mut self, moving: bool) -> Result<(), ExitCode> {
+        self.machine.save(moving).map_err(|e| {
+            eprintln!("edmd: error: {e}");
             ExitCode::from(EXIT_RUNTIME)
         })
     }
@@ -77,13 +71,15 @@ impl RunState {
         summary: &JobSummary,
         left: (WorkOffsets, WorkSystem),
     ) -> Result<(), ExitCode> {
-        for (p, s) in self.state.position.iter_mut().zip(&summary.end_steps) {
+        let mut at = self.machine.state.position;
+        for (p, s) in at.iter_mut().zip(&summary.end_steps) {
             *p = *s;
         }
-        if summary.outcome == Outcome::Done {
-            (self.state.offsets, self.state.system) = left;
-        }
-        self.save(false)
+        let left = (summary.outcome == Outcome::Done).then_some(left);
+        self.machine.stopped(&at, left).map_err(|e| {
+            eprintln!("edmd: error: {e}");
+            ExitCode::from(EXIT_RUNTIME)
+        })
     }
 }
 

@@ -51,15 +51,15 @@ impl PlanSettings {
         PlanSettings {
             predictor: i.predictor,
             segmentation: i.segmentation,
-            tolerance: chord_tolerance(config),
-            max_segment: i.max_segment_mm,
-            period: i.period_ms / 1000.0,
-            max_feed: m.max_feed_mm_per_min / 60.0,
+            tolerance_mm: chord_tolerance(config),
+            max_segment_mm: i.max_segment_mm,
+            period_s: i.period_ms / 1000.0,
+            max_feed_mm_per_s: m.max_feed_mm_per_min / 60.0,
             // One step per axis per tick: the coarsest axis along its own direction.
-            rapid_feed: (m.max_feed_mm_per_min / 60.0)
+            rapid_feed_mm_per_s: (m.max_feed_mm_per_min / 60.0)
                 .min(m.step_mm.iter().cloned().fold(0.0, f64::max) / config.fine.tick.secs()),
-            max_normal_accel: m.max_normal_accel_mm_per_s2,
-            max_tangential_accel: m.max_tangential_accel_mm_per_s2,
+            max_normal_accel_mm_per_s2: m.max_normal_accel_mm_per_s2,
+            max_tangential_accel_mm_per_s2: m.max_tangential_accel_mm_per_s2,
             lookahead: i.lookahead_segments,
             fluctuation_tolerance: i.fluctuation_tolerance,
             max_corrections: i.max_corrections,
@@ -77,7 +77,7 @@ impl PlanSettings {
                 })
                 .collect(),
             rapid_stops: m.max_jerk_mm_per_s3 > 0.0,
-            axis_cap: axis_cap(config),
+            axis_cap_mm_per_s: axis_cap(config),
         }
     }
 }

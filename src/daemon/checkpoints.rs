@@ -5,49 +5,16 @@
 use super::launch::JobKind;
 use std::path::{Path, PathBuf};
 
+use super::jobs::JobControl;
 use super::refusal::CheckpointWriteError;
 use super::status::mm;
-use super::{Core, Job, unix_now};
+use super::{Job, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
 use crate::runtime::{JobSummary, Outcome, Snapshot};
 
 /// The copies of the daemon's job programs live beside its checkpoint.
 pub(super) fn copy_dir(checkpoint: &Path) -> PathBuf {
     checkpoint.with_file_name("job-programs")
-}
-
-impl Core {
-    /// Where the daemon keeps the private copies of its jobs' programs: beside the checkpoint.
-    pub(super) fn copy_dir(&self) -> PathBuf {
-        copy_dir(&self.config.daemon.checkpoint)
-    }
-
-    /// Removes the program copies no job or checkpoint needs (and half-written ones).
-    pub(super) fn prune_copies(&self, running: Option<&str>) {
-        let Ok(entries) = std::fs::read_dir(self.copy_dir()) else {
-            return;
-        };
-        let keep: Vec<String> = running
-            .into_iter()
-            .map(str::to_string)
-            .chain(
-                self.checkpoints
-                    .current
-                    .as_ref()
-                    .map(|c| c.program_sha256.clone()),
-            )
-            .chain(self.jobs.job.as_ref().map(|j| j.program_sha256.clone()))
-            .map(|sha| format!("{sha}.nc"))
-            .collect();
-        for entry in entries.flatten() {
-            let name = entry.file_name().to_string_lossy().to_string();
-            let ours = name.ends_with(".nc");
-            let busy = self.jobs.check.is_some() && name.starts_with(".incoming-");
-            if ours && !busy && !keep.contains(&name) {
-                let _ = std::fs::remove_file(entry.path());
-            }
-        }
-    }
 }
 
 /// The checkpoint on disk and what went wrong with it: written through here only, so the
@@ -65,6 +32,29 @@ pub(super) struct CheckpointKeeper {
 }
 
 impl CheckpointKeeper {
+    /// Removes the program copies beside `checkpoint` that no job, check or checkpoint
+    /// needs (and half-written ones); `running` is a job's copy about to start.
+    pub(super) fn prune_copies(&self, checkpoint: &Path, jobs: &JobControl, running: Option<&str>) {
+        let Ok(entries) = std::fs::read_dir(copy_dir(checkpoint)) else {
+            return;
+        };
+        let keep: Vec<String> = running
+            .into_iter()
+            .map(str::to_string)
+            .chain(self.current.as_ref().map(|c| c.program_sha256.clone()))
+            .chain(jobs.job.as_ref().map(|j| j.program_sha256.clone()))
+            .map(|sha| format!("{sha}.nc"))
+            .collect();
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().to_string();
+            let ours = name.ends_with(".nc");
+            let busy = jobs.check.is_some() && name.starts_with(".incoming-");
+            if ours && !busy && !keep.contains(&name) {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
+    }
+
     /// The checkpoint at `path` as the daemon starts: a write that did not finish is
     /// cleaned up, one that cannot be read is reported and left in place.
     pub(super) fn open(path: &Path) -> CheckpointKeeper {

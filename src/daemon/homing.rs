@@ -86,7 +86,7 @@ impl Core {
             self.machine.state.set_homed(i);
             said.push(format!("{axis}{home_mm:.4}"));
         }
-        if let Err(e) = self.machine.save(false) {
+        if let Err(e) = self.machine.save(false).map_err(super::machine::unwritten) {
             self.machine.state = before;
             return Err(e);
         }
@@ -259,7 +259,7 @@ impl Core {
                     }
                 );
                 self.machine.homing_queue.clear();
-                let _ = self.machine.save(false);
+                let _ = self.machine.save(false).map_err(super::machine::unwritten);
                 return;
             }
         };
@@ -268,7 +268,7 @@ impl Core {
         let correction = home - latch;
         state.position[i] += correction;
         state.set_homed(i);
-        let _ = self.machine.save(false);
+        let _ = self.machine.save(false).map_err(super::machine::unwritten);
         tracing::info!(
             edmd_event = "home",
             "homed {}: the switch latched where the machine believed {:.4} mm; it is \

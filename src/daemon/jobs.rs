@@ -231,7 +231,10 @@ impl Core {
         // The private copy the checkpoint's job ran, if it is still there: the very bytes,
         // whatever became of the original. Otherwise the original, copied again and held to
         // the checkpoint's hash.
-        let copy = program::copy_path(&self.copy_dir(), &cp.program_sha256);
+        let copy = program::copy_path(
+            &super::checkpoints::copy_dir(&self.config.daemon.checkpoint),
+            &cp.program_sha256,
+        );
         let source = match std::fs::metadata(&copy) {
             Ok(meta) if meta.is_file() => Source::Copy(JobProgram {
                 path: copy,
@@ -287,7 +290,7 @@ impl Core {
                 error,
                 consequence: "the job stays held",
             })?;
-        self.machine.save(true)?;
+        self.machine.save(true).map_err(super::machine::unwritten)?;
         job.published.hold.store(false, Ordering::Release);
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
@@ -324,7 +327,7 @@ impl Core {
                     error,
                     consequence: "the wire stays where it broke",
                 })?;
-            self.machine.save(true)?;
+            self.machine.save(true).map_err(super::machine::unwritten)?;
             job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
@@ -432,15 +435,19 @@ impl Core {
         for (p, s) in at.iter_mut().zip(&summary.end_steps) {
             *p = *s;
         }
-        self.machine
-            .stopped(&at, ran_to_the_end.then(|| job.leaves.clone()));
+        // A failed write is logged and shown in the status; the next one may succeed.
+        let _ = self
+            .machine
+            .stopped(&at, ran_to_the_end.then(|| job.leaves.clone()))
+            .map_err(super::machine::unwritten);
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }
         self.note_trip(&summary);
         // Before a homing sequence or a touch cycle starts its next check: that check's copy
         // is not this job's and must not be pruned.
-        self.prune_copies(None);
+        self.checkpoints
+            .prune_copies(&self.config.daemon.checkpoint, &self.jobs, None);
         match job.kind {
             JobKind::Home { switch, .. } => self.homing_done(&switch, &summary),
             JobKind::Touch { .. } => self.find_moved(&summary),

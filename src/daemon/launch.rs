@@ -73,7 +73,8 @@ impl Launch {
             feed_mm_per_min, ..
         } = self.kind
         {
-            spec.plan.rapid_feed = spec.plan.rapid_feed.min(feed_mm_per_min / 60.0);
+            spec.plan.rapid_feed_mm_per_s =
+                spec.plan.rapid_feed_mm_per_s.min(feed_mm_per_min / 60.0);
         }
         spec
     }

@@ -4,163 +4,99 @@
 //! standstill, written at the standstill where it ends. The operator's commands that change
 //! it without motion live here too: `offsets`, `touch-off` (homing: [`super::homing`]).
 
-use std::path::PathBuf;
-
-use super::protocol::MachineStatus;
+use super::protocol::{FindStatus, MachineStatus};
 use super::refusal::Refusal;
 use super::{Core, DaemonError};
 use crate::checkpoint;
 use crate::config::Config;
-use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
-use crate::machine::MachineState;
+use crate::gcode::{WorkStart, WorkSystem};
+use crate::machine::travel::offset_allowed;
+use crate::machine::{Admission, Denial, Found, Machine, WriteError};
 use crate::vocab::{Axis, Steps, Trip};
 
-/// Largest work offset on an axis without soft limits (mm): a 10 m machine.
-pub(super) const MAX_OFFSET_MM: f64 = 1.0e4;
-
-/// The machine state and its file.
-pub(super) struct MachineKeeper {
-    pub state: MachineState,
-    path: PathBuf,
-    /// Why the last write of the state file failed; `None` once one succeeds.
-    pub write_error: Option<String>,
-    /// The units and distance mode the last MDI lines left (LinuxCNC's MDI keeps them).
-    pub mdi_modes: crate::gcode::StartModes,
-    /// The axes still to home after the one homing now (indices, in order).
-    pub homing_queue: Vec<usize>,
-    /// The wire-touch cycle in progress.
-    pub finding: Option<super::find::FindRun>,
-    /// The running or last cycle, as the status shows it.
-    pub find_status: Option<super::protocol::FindStatus>,
+/// Opens the machine of `config` (`daemon.state_file`): a clean standstill restores position
+/// and homed axes (unless `homing.require_after_start`), a moving one restores the position but
+/// unhomes every axis, none starts at machine zero, unhomed. A file that cannot be read or
+/// belongs to another machine configuration stops the daemon.
+///
+/// Without a state file but with a checkpoint (one `edmd run --checkpoint` wrote, or an older
+/// edmd's), the machine is believed to stand where the checkpoint's job stopped.
+pub(super) fn open_machine(
+    config: &Config,
+    checkpoint: Option<&checkpoint::Checkpoint>,
+) -> Result<Machine, DaemonError> {
+    let path = &config.daemon.state_file;
+    let (mut machine, found) = Machine::open(Some(path), &config.machine)
+        .map_err(|e| DaemonError::MachineState(e.to_string()))?;
+    match found {
+        Found::Nothing => {
+            let state = &mut machine.state;
+            match checkpoint.filter(|cp| cp.position_steps.len() == state.axes.len()) {
+                Some(cp) => {
+                    state.position[..cp.position_steps.len()].copy_from_slice(&cp.position_steps);
+                    tracing::info!(
+                        "{}: no machine state yet: the machine is believed to stand where the \
+                         checkpoint's job stopped, no axis homed",
+                        path.display()
+                    );
+                }
+                None => tracing::info!(
+                    "{}: no machine state yet: at machine zero, no axis homed",
+                    path.display()
+                ),
+            }
+        }
+        Found::Moving => tracing::warn!(
+            "{}: the machine was moving when edmd last stopped: its position is only believed, \
+             every axis is unhomed",
+            path.display()
+        ),
+        Found::Standstill if config.homing.require_after_start => {
+            tracing::info!("homing.require_after_start: every axis is unhomed");
+            machine.state.homed.iter_mut().for_each(|h| *h = false);
+        }
+        Found::Standstill => {}
+    }
+    // The file now says what the daemon believes (an unhomed state stays unhomed after a
+    // second crash).
+    machine
+        .save(false)
+        .map_err(|e| DaemonError::MachineState(e.to_string()))?;
+    Ok(machine)
 }
 
-impl MachineKeeper {
-    /// Reads the state file of `config`: a clean standstill restores position and homed
-    /// axes (unless `homing.require_after_start`), a moving one restores the position but
-    /// unhomes every axis, none starts at machine zero, unhomed. A file that cannot be read
-    /// or belongs to another machine configuration stops the daemon.
-    ///
-    /// Without a state file but with a checkpoint (one `edmd run --checkpoint` wrote, or an
-    /// older edmd's), the machine is believed to stand where the checkpoint's job stopped.
-    pub fn open(
-        config: &Config,
-        checkpoint: Option<&checkpoint::Checkpoint>,
-    ) -> Result<MachineKeeper, DaemonError> {
-        let path = config.daemon.state_file.clone();
-        let state = match MachineState::load(&path, &config.machine)
-            .map_err(|e| DaemonError::MachineState(e.to_string()))?
-        {
-            None => {
-                let mut state = MachineState::new(&config.machine);
-                match checkpoint.filter(|cp| cp.position_steps.len() == state.axes.len()) {
-                    Some(cp) => {
-                        state.position[..cp.position_steps.len()]
-                            .copy_from_slice(&cp.position_steps);
-                        tracing::info!(
-                            "{}: no machine state yet: the machine is believed to stand where \
-                             the checkpoint's job stopped, no axis homed",
-                            path.display()
-                        );
-                    }
-                    None => tracing::info!(
-                        "{}: no machine state yet: at machine zero, no axis homed",
-                        path.display()
-                    ),
-                }
-                state
-            }
-            Some(loaded) if loaded.was_moving => {
-                tracing::warn!(
-                    "{}: the machine was moving when edmd last stopped: its position is only \
-                     believed, every axis is unhomed",
-                    path.display()
-                );
-                loaded.state.distrusted()
-            }
-            Some(loaded) if config.homing.require_after_start => {
-                tracing::info!("homing.require_after_start: every axis is unhomed");
-                let mut state = loaded.state;
-                state.homed.iter_mut().for_each(|h| *h = false);
-                state
-            }
-            Some(loaded) => loaded.state,
-        };
-        let mut keeper = MachineKeeper {
-            state,
-            path,
-            write_error: None,
-            mdi_modes: Default::default(),
-            homing_queue: Vec::new(),
-            finding: None,
-            find_status: None,
-        };
-        // The file now says what the daemon believes (an unhomed state stays unhomed after
-        // a second crash), and a file that cannot be written is known before any job.
-        keeper
-            .save(false)
-            .map_err(|e| DaemonError::MachineState(e.to_string()))?;
-        Ok(keeper)
-    }
+/// A failed write of the state file, as the operator is told (and the log says).
+pub(super) fn unwritten(e: WriteError) -> Refusal {
+    tracing::error!("{e}");
+    Refusal::MachineState(e.to_string())
+}
 
-    /// Writes the state; `moving` before motion leaves a standstill.
-    pub fn save(&mut self, moving: bool) -> Result<(), Refusal> {
-        match self.state.write(&self.path, moving) {
-            Ok(()) => {
-                self.write_error = None;
-                Ok(())
-            }
-            Err(e) => {
-                let text = format!(
-                    "{}: cannot write the machine state: {e}",
-                    self.path.display()
-                );
-                tracing::error!("{text}");
-                self.write_error = Some(text.clone());
-                Err(Refusal::MachineState(text))
-            }
-        }
+/// What the status shows of the machine; `live` is a running job's ledger, `find` the running
+/// or last touch cycle.
+pub(super) fn machine_status(
+    machine: &Machine,
+    config: &Config,
+    live: Option<&Steps>,
+    find: Option<FindStatus>,
+) -> MachineStatus {
+    let mut state = machine.state.clone();
+    if let Some(p) = live {
+        state.position = *p;
     }
-
-    /// A job stopped at `position` (its ledger); with `left` the work offsets and system the
-    /// program ended with (a job that ran to its end).
-    pub fn stopped(&mut self, position: &Steps, left: Option<(WorkOffsets, WorkSystem)>) {
-        self.state.position = *position;
-        if let Some((offsets, system)) = left {
-            self.state.offsets = offsets;
-            self.state.system = system;
-        }
-        // A failed write is logged and shown in the status; the next one may succeed.
-        let _ = self.save(false);
-    }
-
-    /// A job holds at a standstill at `position`: the file says so (a failed write is logged
-    /// and shown; the file still says moving, which only distrusts more).
-    pub fn standstill(&mut self, position: &Steps) {
-        self.state.position = *position;
-        let _ = self.save(false);
-    }
-
-    /// What the status shows of the machine; `live` is a running job's ledger.
-    pub fn status(&self, config: &Config, live: Option<&Steps>) -> MachineStatus {
-        let mut state = self.state.clone();
-        if let Some(p) = live {
-            state.position = *p;
-        }
-        let n = state.axes.len();
-        MachineStatus {
-            position_machine_mm: state.position_mm().as_slice()[..n].to_vec(),
-            position_work_mm: state.position_work_mm().as_slice()[..n].to_vec(),
-            work_system: state.system.name().to_string(),
-            homed: state.homed.clone(),
-            travel_mm: config
-                .machine
-                .travel
-                .iter()
-                .map(|t| t.map(|t| [t.min_mm, t.max_mm]))
-                .collect(),
-            state_write_error: self.write_error.clone(),
-            find: self.find_status.clone(),
-        }
+    let n = state.axes.len();
+    MachineStatus {
+        position_machine_mm: state.position_mm().as_slice()[..n].to_vec(),
+        position_work_mm: state.position_work_mm().as_slice()[..n].to_vec(),
+        work_system: state.system.name().to_string(),
+        homed: state.homed.clone(),
+        travel_mm: config
+            .machine
+            .travel
+            .iter()
+            .map(|t| t.map(|t| [t.min_mm, t.max_mm]))
+            .collect(),
+        state_write_error: machine.write_error.clone(),
+        find,
     }
 }
 
@@ -210,7 +146,7 @@ impl Core {
                 o[i] = before;
                 o
             });
-            return Err(e);
+            return Err(unwritten(e));
         }
         tracing::info!(
             edmd_event = "touch_off",
@@ -224,25 +160,21 @@ impl Core {
     }
 
     /// A work offset must put the system's zero within the axis's travel (soft limits, or
-    /// ±[`MAX_OFFSET_MM`] without them): a zero beyond it is a typing error or a position
-    /// nobody trusts, and every program would run from there.
+    /// ±[`crate::machine::travel::MAX_OFFSET_MM`] without them): a zero beyond it is a typing
+    /// error or a position nobody trusts, and every program would run from there.
     pub(super) fn offset_in_travel(
         &self,
         i: usize,
         axis: Axis,
         offset_mm: f64,
     ) -> Result<(), Refusal> {
-        let (min, max) = match self.config.machine.travel.get(i).copied().flatten() {
-            Some(t) => (t.min_mm, t.max_mm),
-            None => (-MAX_OFFSET_MM, MAX_OFFSET_MM),
-        };
-        if !offset_mm.is_finite() || !(min..=max).contains(&offset_mm) {
-            return Err(Refusal::BadArgument(format!(
+        let travel = self.config.machine.travel.get(i).copied().flatten();
+        offset_allowed(travel, offset_mm).map_err(|(min, max)| {
+            Refusal::BadArgument(format!(
                 "the {axis} offset would be {offset_mm:.4} mm, outside the axis's travel \
                  [{min}, {max}] mm: check the value and where the machine stands"
-            )));
-        }
-        Ok(())
+            ))
+        })
     }
 
     /// The machine's axis named `name` and its index.
@@ -362,7 +294,8 @@ impl Core {
     fn set_trip(&mut self, trip: Option<Trip>) {
         if self.machine.state.trip != trip {
             self.machine.state.trip = trip;
-            let _ = self.machine.save(false);
+            // A failed write is logged and shown in the status; the next one may succeed.
+            let _ = self.machine.save(false).map_err(unwritten);
         }
     }
 
@@ -450,16 +383,9 @@ impl Core {
     /// Motion refused while an E-stop or a limit switch holds the machine; `jog` names the
     /// axis and direction of a jog (the only motion a limit switch allows, away from it).
     pub(super) fn refuse_if_tripped(&self, jog: Option<(Axis, bool)>) -> Result<(), Refusal> {
-        match self.machine.state.trip {
-            None => Ok(()),
-            Some(Trip::EStop) => Err(Refusal::EStop),
-            Some(Trip::Limit(switch)) => match jog {
-                Some((axis, positive)) if axis == switch.axis && positive != switch.positive => {
-                    Ok(())
-                }
-                _ => Err(Refusal::Limit { switch }),
-            },
-        }
+        self.machine
+            .admit(Admission::Motion { jog })
+            .map_err(|d| refusal(d, "move"))
     }
 
     /// A resume or a run from a line continues a cut where the machine is believed to stand:
@@ -470,15 +396,13 @@ impl Core {
         what: &'static str,
         force: bool,
     ) -> Result<(), Refusal> {
-        let state = &self.machine.state;
-        let refusal = if self.config.homing.required
-            && let Some(axes) = state.unhomed()
-        {
-            Refusal::UnhomedResume { what, axes }
-        } else if !state.position_trusted {
-            Refusal::Distrusted { what }
-        } else {
+        let homing_required = self.config.homing.required;
+        let Err(denial) = self.machine.admit(Admission::Continue { homing_required }) else {
             return Ok(());
+        };
+        let refusal = match denial {
+            Denial::Unhomed { axes } => Refusal::UnhomedResume { what, axes },
+            other => refusal(other, what),
         };
         if !force {
             return Err(refusal);
@@ -489,11 +413,19 @@ impl Core {
 
     /// `run` on a machine that must be homed first.
     pub(super) fn refuse_if_unhomed(&self) -> Result<(), Refusal> {
-        if self.config.homing.required
-            && let Some(axes) = self.machine.state.unhomed()
-        {
-            return Err(Refusal::Unhomed { axes });
-        }
-        Ok(())
+        let homing_required = self.config.homing.required;
+        self.machine
+            .admit(Admission::Run { homing_required })
+            .map_err(|d| refusal(d, "run"))
+    }
+}
+
+/// The operator's refusal for the machine's denial of `what`.
+fn refusal(denial: Denial, what: &'static str) -> Refusal {
+    match denial {
+        Denial::EStop => Refusal::EStop,
+        Denial::Limit { switch } => Refusal::Limit { switch },
+        Denial::Unhomed { axes } => Refusal::Unhomed { axes },
+        Denial::Distrusted => Refusal::Distrusted { what },
     }
 }

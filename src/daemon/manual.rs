@@ -9,6 +9,7 @@ use std::time::Duration;
 use super::Core;
 use super::launch::{JobKind, Launch, Source};
 use super::refusal::Refusal;
+use crate::machine::travel::{JogEnd, jog_end};
 use crate::vocab::Axis;
 
 /// Longest MDI text accepted, bytes.
@@ -230,27 +231,15 @@ impl Core {
     /// (with a note), refused when the axis already stands at or past it.
     fn jog_target(&self, i: usize, axis: Axis, distance_mm: f64) -> Result<(f64, String), Refusal> {
         let here = self.machine.state.position_mm()[i];
-        let target = here + distance_mm;
-        let Some(t) = self.config.machine.travel[i] else {
-            return Ok((target, String::new()));
-        };
-        let clamped = target.clamp(t.min_mm, t.max_mm);
-        if clamped == target {
-            return Ok((target, String::new()));
-        }
-        let limit = if distance_mm > 0.0 {
-            t.max_mm
-        } else {
-            t.min_mm
-        };
-        if (limit - here) * distance_mm <= 0.0 {
-            return Err(Refusal::BadArgument(format!(
+        match jog_end(here, distance_mm, self.config.machine.travel[i]) {
+            JogEnd::Full(target) => Ok((target, String::new())),
+            JogEnd::AtLimit(limit) => Ok((limit, format!(" (stops at the soft limit {limit} mm)"))),
+            JogEnd::Past(limit) => Err(Refusal::BadArgument(format!(
                 "{axis} stands at {here:.4} mm, at or past its {} soft limit {limit} mm: \
                  jog the other way",
                 if distance_mm > 0.0 { "upper" } else { "lower" }
-            )));
+            ))),
         }
-        Ok((clamped, format!(" (stops at the soft limit {limit} mm)")))
     }
 
     /// Starts the check of a jog to machine coordinate `target` on `axis`; its id.

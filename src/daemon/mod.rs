@@ -31,26 +31,29 @@
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
 mod checkpoints;
-mod console;
-mod find;
+pub mod error;
 mod homing;
 pub mod http;
 mod jobs;
 mod launch;
+pub mod link;
 mod machine;
 mod manual;
+pub mod names;
 pub mod noise;
 pub mod notify;
 pub mod opcua;
+mod overrides;
 pub mod protocol;
 pub mod refusal;
 pub mod reload;
 pub mod socket;
 mod start;
 mod status;
+mod touch;
 mod upkeep;
 
-use std::path::{Component, Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -59,67 +62,21 @@ use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 
 use crate::checkpoint::{Checkpoint, Reason};
 use crate::config::{Config, KeyValues, OutputKind};
-use crate::runtime::{
-    self, FineThread, JobEnd, JobError, LoopSettings, ProgressTracker, Published,
-};
+use crate::runtime::{self, FineThread, JobEnd, LoopSettings, ProgressTracker, Published};
 use checkpoints::CheckpointKeeper;
+pub use error::DaemonError;
 use jobs::JobControl;
+use link::CoreLink;
+pub use names::{confine, has_control};
 use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{Reply, Request};
-use refusal::{NameRefusal, Refusal};
+use refusal::Refusal;
+pub use reload::ConfigSource;
 
 /// How often the control loop does its periodic work when no message arrives.
 const PERIOD: Duration = Duration::from_millis(250);
 /// Overruns are reported at most this often (a loaded machine would flood the log).
 const OVERRUN_REPORT: Duration = Duration::from_secs(5);
-
-/// Why the daemon could not start.
-#[derive(Debug, thiserror::Error)]
-pub enum DaemonError {
-    #[error("{path}: another edmd answers on this socket; stop it first (systemctl stop edmd)")]
-    SocketInUse { path: PathBuf },
-    #[error("{path}: exists and is not a socket; refusing to replace it (daemon.socket)")]
-    NotASocket { path: PathBuf },
-    #[error("{path}: cannot set up the control socket: {source}")]
-    Socket {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("daemon.socket_group = {group:?}: no such group")]
-    NoGroup { group: String },
-    #[error(transparent)]
-    Job(Box<JobError>),
-    #[error("cannot start a daemon thread: {0}")]
-    Thread(std::io::Error),
-    #[error(
-        "daemon.http = {addr}: cannot listen there: {source}{}",
-        unit_hint(source)
-    )]
-    Http {
-        addr: std::net::SocketAddr,
-        source: std::io::Error,
-    },
-    #[error(transparent)]
-    Token(#[from] http::token::TokenError),
-    #[error(transparent)]
-    OpcUa(#[from] opcua::OpcUaError),
-    #[error("{0}")]
-    MachineState(String),
-}
-
-/// What to add to a listening error that a service manager's sandbox causes.
-fn unit_hint(e: &std::io::Error) -> &'static str {
-    match e.raw_os_error() {
-        Some(libc::EAFNOSUPPORT) => {
-            " (under systemd, the unit's RestrictAddressFamilies= must allow AF_INET and \
-             AF_INET6 for daemon.http; the shipped unit does: see README, \"Running as a service\")"
-        }
-        Some(libc::EACCES) => {
-            " (a port below 1024 needs CAP_NET_BIND_SERVICE: use a port such as 8080)"
-        }
-        _ => "",
-    }
-}
 
 /// A message to the control loop.
 pub enum CoreMsg {
@@ -140,13 +97,6 @@ pub enum CoreMsg {
 /// Changes the log level at run time (SIGHUP); `Err` explains why it cannot.
 pub type SetLogLevel =
     Box<dyn Fn(&str) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + Send>;
-
-/// Where the configuration came from, to reload it the same way.
-#[derive(Debug, Clone)]
-pub struct ConfigSource {
-    pub path: Option<PathBuf>,
-    pub overrides: Vec<String>,
-}
 
 /// Where a job's report goes, and the recording it is written from.
 type JobRecording = Arc<parking_lot::Mutex<crate::record::Recording>>;
@@ -199,7 +149,9 @@ struct Core {
     set_log_level: SetLogLevel,
     jobs: JobControl,
     checkpoints: CheckpointKeeper,
-    machine: machine::MachineKeeper,
+    machine: crate::machine::Machine,
+    /// The wire-touch cycle in progress and the last one, as the status shows it.
+    touch: touch::TouchRuns,
     clients: Clients,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
@@ -230,7 +182,7 @@ pub fn serve(
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
-    let machine = machine::MachineKeeper::open(&config, checkpoints.current.as_ref())?;
+    let machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
     // The port first: if it cannot be claimed, nothing else should start.
     let (port_output, port_gap, port_inputs) = if config.output.kind == OutputKind::Parport {
         let opened =
@@ -246,7 +198,8 @@ pub fn serve(
     let listener = socket::bind(&config.daemon)?;
     let (to_core, inbox) = channel::unbounded();
     let max_clients = Arc::new(AtomicUsize::new(config.daemon.max_clients));
-    socket::spawn_listener(listener, to_core.clone(), max_clients.clone())
+    let link = core_link(&to_core);
+    socket::spawn_listener(listener, link.clone(), max_clients.clone())
         .map_err(DaemonError::Thread)?;
     spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
     // Network clients are served: the soft descriptor limit goes up to the hard one, and
@@ -259,8 +212,8 @@ pub fn serve(
         }
     };
     let executed = http::executed::ExecutedSlot::default();
-    let http = start_http(&config, descriptors, &to_core, &executed)?;
-    let opcua = start_opcua(&config, &to_core)?;
+    let http = start_http(&config, descriptors, &link, &executed)?;
+    let opcua = start_opcua(&config, &link)?;
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -298,6 +251,7 @@ pub fn serve(
         },
         checkpoints,
         machine,
+        touch: touch::TouchRuns::default(),
         clients: Clients {
             to_core,
             max_clients,
@@ -312,7 +266,8 @@ pub fn serve(
         reloading: None,
     };
 
-    core.prune_copies(None);
+    core.checkpoints
+        .prune_copies(&core.config.daemon.checkpoint, &core.jobs, None);
     core.notifier.send("READY=1");
     core.notify_status();
     core.run(&inbox);
@@ -327,7 +282,7 @@ pub fn serve(
 fn start_http(
     config: &Config,
     descriptors: u64,
-    to_core: &Sender<CoreMsg>,
+    to_core: &CoreLink,
     executed: &http::executed::ExecutedSlot,
 ) -> Result<Option<http::HttpServer>, DaemonError> {
     match config.daemon.http {
@@ -370,7 +325,7 @@ fn start_http(
 /// The OPC UA server, when `daemon.opcua` is on.
 fn start_opcua(
     config: &Config,
-    to_core: &Sender<CoreMsg>,
+    to_core: &CoreLink,
 ) -> Result<Option<opcua::OpcUaServer>, DaemonError> {
     let Some(endpoint) = config.daemon.opcua.clone() else {
         return Ok(None);
@@ -392,6 +347,15 @@ fn start_opcua(
     Ok(Some(server))
 }
 
+/// The transports' link to the control loop: their requests onto its inbox.
+fn core_link(to_core: &Sender<CoreMsg>) -> CoreLink {
+    let (submit, idle) = (to_core.clone(), to_core.clone());
+    CoreLink::new(
+        move |request, reply| submit.send(CoreMsg::Request(request, reply)).is_ok(),
+        move || idle.is_empty(),
+    )
+}
+
 fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
     let mut signals = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP, SIGUSR1])?;
@@ -405,62 +369,6 @@ fn spawn_signal_thread(to_core: Sender<CoreMsg>) -> std::io::Result<()> {
             }
         })?;
     Ok(())
-}
-
-/// `text` holds a control character (a newline in a name would forge a log line).
-pub fn has_control(text: &str) -> bool {
-    text.chars().any(char::is_control)
-}
-
-/// Resolves a program a client names inside `program_dir`: no `..` component, and the real
-/// path (symlinks followed) must be a regular file below the real program directory. A name
-/// that is missing, leaves the directory or is not a file gets one answer, with no path in
-/// it, so that a client learns nothing of the machine's other files; the daemon's log says
-/// which it was.
-pub fn confine(program_dir: &Path, requested: &str) -> Result<PathBuf, NameRefusal> {
-    if requested.is_empty() {
-        return Err(NameRefusal::Empty);
-    }
-    if has_control(requested) {
-        return Err(NameRefusal::ControlCharacter {
-            name: requested.to_string(),
-        });
-    }
-    let refuse = |why: String| {
-        tracing::warn!("program {requested:?} refused: {why}");
-        NameRefusal::NoSuchProgram {
-            name: requested.to_string(),
-        }
-    };
-    let path = Path::new(requested);
-    if path.components().any(|c| c == Component::ParentDir) {
-        return Err(refuse("`..` in the name".to_string()));
-    }
-    let dir = program_dir
-        .canonicalize()
-        .map_err(|source| NameRefusal::ProgramDir {
-            dir: program_dir.to_path_buf(),
-            source,
-        })?;
-    let joined = if path.is_absolute() {
-        path.to_path_buf()
-    } else {
-        dir.join(path)
-    };
-    let real = joined
-        .canonicalize()
-        .map_err(|e| refuse(format!("{}: {e}", joined.display())))?;
-    if !real.starts_with(&dir) {
-        return Err(refuse(format!(
-            "it resolves to {}, outside {}",
-            real.display(),
-            dir.display()
-        )));
-    }
-    if !real.is_file() {
-        return Err(refuse(format!("{} is not a regular file", real.display())));
-    }
-    Ok(real)
 }
 
 fn unix_now() -> u64 {
@@ -544,8 +452,8 @@ impl Core {
             } => self.jog_continuous(&axis, positive, feed_mm_per_min),
             Request::JogStop {} => self.jog_stop(),
             Request::Reset {} => self.reset(),
-            Request::Override { kind, percent } => self.set_override(kind, percent),
-            Request::SingleBlock { on } => self.set_single_block(on),
+            Request::Override { kind, percent } => self.jobs.set_override(kind, percent),
+            Request::SingleBlock { on } => self.jobs.set_single_block(on),
         };
         self.notify_status();
         match result {

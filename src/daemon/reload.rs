@@ -22,8 +22,14 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use super::ConfigSource;
 use crate::config::{Config, ConfigError, KeyValues, OutputKind};
+
+/// Where the configuration came from, to reload it the same way.
+#[derive(Debug, Clone)]
+pub struct ConfigSource {
+    pub path: Option<PathBuf>,
+    pub overrides: Vec<String>,
+}
 
 /// How long a reload's reads may take before the log says so.
 pub const READ_TIMEOUT: Duration = Duration::from_secs(10);

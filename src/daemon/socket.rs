@@ -28,13 +28,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use crossbeam::channel::Sender;
 use parking_lot::Mutex;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt};
 use tokio::sync::Notify;
 
+use super::error::DaemonError;
+use super::link::CoreLink;
 use super::protocol::{MAX_REQUEST_BYTES, Reply, Request};
-use super::{CoreMsg, DaemonError};
 use crate::config::DaemonConfig;
 
 /// A client that sends no request for this long is disconnected (blank lines do not count).
@@ -147,7 +147,7 @@ impl Drop for Seat {
 /// Accepts and serves clients for ever on a thread of its own (`edmd-listen`).
 pub fn spawn_listener(
     listener: UnixListener,
-    core: Sender<CoreMsg>,
+    core: CoreLink,
     max_clients: Arc<AtomicUsize>,
 ) -> std::io::Result<()> {
     listener.set_nonblocking(true)?;
@@ -167,11 +167,7 @@ pub fn spawn_listener(
     Ok(())
 }
 
-async fn accept(
-    listener: tokio::net::UnixListener,
-    core: Sender<CoreMsg>,
-    max_clients: Arc<AtomicUsize>,
-) {
+async fn accept(listener: tokio::net::UnixListener, core: CoreLink, max_clients: Arc<AtomicUsize>) {
     let clients = Arc::new(Mutex::new(Clients::default()));
     loop {
         let stream = match listener.accept().await {
@@ -248,7 +244,7 @@ pub enum LineRefusal {
 
 async fn serve_client(
     stream: tokio::net::UnixStream,
-    core: Sender<CoreMsg>,
+    core: CoreLink,
     seat: Seat,
     close: Arc<Notify>,
 ) {
@@ -277,7 +273,7 @@ async fn serve_client(
                     last_request = Instant::now();
                     seat.busy(true);
                     let (tx, rx) = tokio::sync::oneshot::channel();
-                    if core.send(CoreMsg::Request(request, tx)).is_err() {
+                    if !core.ask(request, tx) {
                         return;
                     }
                     let answer = match tokio::time::timeout(REPLY_TIMEOUT, rx).await {

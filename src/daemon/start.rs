@@ -261,7 +261,7 @@ impl Core {
         };
         let (mut config, dir, tx) = (
             self.config.clone(),
-            self.copy_dir(),
+            super::checkpoints::copy_dir(&self.config.daemon.checkpoint),
             self.clients.to_core.clone(),
         );
         if matches!(launch.kind, JobKind::Home { .. }) {
@@ -391,7 +391,7 @@ impl Core {
         let progress = runtime::ProgressTracker::with_rapids(
             check.path_mm,
             check.rapid_spans.clone(),
-            spec.plan.rapid_feed,
+            spec.plan.rapid_feed_mm_per_s,
         );
         let job = self.new_job(
             &program,
@@ -415,7 +415,7 @@ impl Core {
         let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
         self.homing_started(switch.as_ref());
-        if let Err(refusal) = self.machine.save(true) {
+        if let Err(refusal) = self.machine.save(true).map_err(super::machine::unwritten) {
             self.jobs
                 .give_back_io(&config, io.output, io.gap, io.inputs);
             return Err(refusal);
@@ -445,7 +445,11 @@ impl Core {
                 old.program.display()
             );
         }
-        self.prune_copies(Some(&program.sha256));
+        self.checkpoints.prune_copies(
+            &self.config.daemon.checkpoint,
+            &self.jobs,
+            Some(&program.sha256),
+        );
         let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());
         let (job_published, job_stop, job_program) =
             (published.clone(), stop.clone(), program.clone());

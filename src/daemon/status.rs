@@ -120,7 +120,12 @@ impl Core {
             });
         let live = snapshot.as_ref().map(|s| s.position);
         Status {
-            machine: self.machine.status(config, live.as_ref()),
+            machine: super::machine::machine_status(
+                &self.machine,
+                config,
+                live.as_ref(),
+                self.touch.status.clone(),
+            ),
             overrides: OverrideStatus {
                 feed_pct: self.jobs.controls.feed_pct,
                 rapid_pct: self.jobs.controls.rapid_pct,

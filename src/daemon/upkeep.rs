@@ -204,7 +204,10 @@ impl Core {
                 job.hold_checkpointed = true;
                 job.last_checkpoint = now;
                 // The machine state says the standstill too (a restart may resume from it).
-                self.machine.standstill(&snap.position);
+                let _ = self
+                    .machine
+                    .standstill(&snap.position)
+                    .map_err(super::machine::unwritten);
                 tracing::info!(
                     target: TARGET,
                     "held at {}:{} ({:?} steps)",

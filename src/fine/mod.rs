@@ -479,7 +479,13 @@ impl Interpolator {
         } else {
             feed.min(limit).min(cruise)
         };
-        match self.jerk_room(want_dir) {
+        match jerk::room_ahead(
+            &self.motion,
+            &self.servo,
+            &self.excursions,
+            self.settings.jerk,
+            want_dir,
+        ) {
             Some(room) => {
                 let limits = jerk::JerkLimits {
                     accel,

@@ -34,6 +34,28 @@ enum Span {
 }
 
 impl NurbsCurve {
+    /// The parameter at arc length `s` (mm) from the start, to `tolerance_mm` of length
+    /// (bisection on the exact length; a few dozen length integrals).
+    pub fn u_at_length(&self, s: f64, tolerance_mm: f64) -> f64 {
+        let (mut lo, mut hi) = (self.u_min(), self.u_max());
+        if s <= 0.0 {
+            return lo;
+        }
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            let at = self.length_between(self.u_min(), mid);
+            if (at - s).abs() <= tolerance_mm {
+                return mid;
+            }
+            if at < s {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
     /// Arc length between parameters `a <= b`: closed forms for straight and circular spans,
     /// adaptive Gauss–Legendre quadrature elsewhere, to a relative accuracy of about 1e-12
     /// or an absolute one of about 2e-13 of the largest coordinate, whichever is looser.

@@ -13,11 +13,9 @@
 mod arc;
 mod basis;
 mod bezier;
-mod extent;
 pub mod lanes;
 mod length;
 mod nurbs;
-mod split;
 
 pub use arc::circular_arc;
 #[cfg(test)]

@@ -39,7 +39,7 @@ pub(super) fn write_reports(
             x_label: "path length (mm)".into(),
             y_label: "chord error (mm)".into(),
             series: vec![series("chord error", "#1f5fbf", Style::Dots, &c.chord)],
-            limits: vec![(settings.tolerance, "tolerance".into())],
+            limits: vec![(settings.tolerance_mm, "tolerance".into())],
             ..Chart::default()
         }
         .render(),
@@ -51,12 +51,12 @@ pub(super) fn write_reports(
             x_label: "time (s)".into(),
             y_label: "feed (mm/min)".into(),
             series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
-            limits: vec![(settings.max_feed, "max feed".into())],
+            limits: vec![(settings.max_feed_mm_per_s, "max feed".into())],
             ..Chart::default()
         }
         .render(),
     )?;
-    let a = settings.max_tangential_accel;
+    let a = settings.max_tangential_accel_mm_per_s2;
     write(
         "tangential_accel.svg",
         &Chart {

@@ -3,7 +3,7 @@
 //! segment is timed at the servo's nominal feed (the condition's sparking feed where it sets
 //! one, else `servo.normal_feed_mm_per_min`) when that is slower than its plan; positioning
 //! (rapids, spark-off travel) and probing moves at their plan. What the gap really does (open
-//! stretches faster, shorts and turn-backs slower) makes the real time differ: README,
+//! stretches faster, shorts and turn-backs slower) makes the real time differ: docs/commands.md,
 //! "What `plan`'s times mean".
 
 use crate::config::Config;

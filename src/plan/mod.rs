@@ -53,7 +53,13 @@ pub struct PlanSummary {
     pub program: String,
     pub segmentation: String,
     pub predictor: String,
+    /// `interpolation.chord_tolerance_mm`, as configured.
     pub chord_tolerance_mm: f64,
+    /// The tolerance the segmenter holds in machine space where it differs from the
+    /// configured one (four-axis wire machines: the configured one divided by √2, so that the
+    /// upper guide's path keeps the configured one too).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chord_tolerance_held_mm: Option<f64>,
     pub period_ms: f64,
     pub blocks: u64,
     pub segments: u64,
@@ -114,8 +120,15 @@ impl PlanSummary {
         let mut s = String::new();
         s += &format!("program            {}\n", self.program);
         s += &format!(
-            "mode               {} ({} predictor), tolerance {} mm, period {} ms\n",
-            self.segmentation, self.predictor, self.chord_tolerance_mm, self.period_ms
+            "mode               {} ({} predictor), tolerance {} mm{}, period {} ms\n",
+            self.segmentation,
+            self.predictor,
+            self.chord_tolerance_mm,
+            self.chord_tolerance_held_mm
+                .map_or(String::new(), |held| format!(
+                    " (held as {held:.6} mm in four axes)"
+                )),
+            self.period_ms
         );
         s += &format!("blocks             {}\n", self.blocks);
         s += &format!("segments           {}\n", self.segments);
@@ -498,6 +511,11 @@ pub fn plan_program(
     let bound = bound.finish();
     let mut summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
     summary.stages = stages;
+    // The tolerance as configured; on a four-axis wire machine the segmenter holds a tighter
+    // one in machine space (`config::settings`), shown beside it.
+    summary.chord_tolerance_mm = config.interpolation.chord_tolerance_mm;
+    summary.chord_tolerance_held_mm =
+        (settings.tolerance_mm != summary.chord_tolerance_mm).then_some(settings.tolerance_mm);
     write_reports(out_dir, &summary, &c, &settings)?;
     Ok(summary)
 }
@@ -525,8 +543,8 @@ impl Collector {
             max_at: 0.0,
             max_an: 0.0,
             prev: None,
-            tolerance: settings.tolerance,
-            period: settings.period,
+            tolerance: settings.tolerance_mm,
+            period: settings.period_s,
             period_mode: settings.segmentation == Segmentation::Period,
             path: Decimated::new(PLOT_POINTS),
             chord: Decimated::new(PLOT_POINTS),
@@ -568,8 +586,9 @@ fn summary_of(
             Predictor::Hamming => "hamming",
         }
         .into(),
-        chord_tolerance_mm: settings.tolerance,
-        period_ms: settings.period * 1000.0,
+        chord_tolerance_mm: settings.tolerance_mm,
+        chord_tolerance_held_mm: None,
+        period_ms: settings.period_s * 1000.0,
         blocks: stats.blocks,
         segments: c.segments,
         length_mm: c.length,

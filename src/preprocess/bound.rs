@@ -87,11 +87,11 @@ impl Sampler {
         let s = &self.settings;
         let curve = &block.curve;
         let feed = if block.kind == BlockKind::Rapid {
-            s.rapid_feed
+            s.rapid_feed_mm_per_s
         } else {
             block
                 .feed_mm_per_min
-                .map_or(s.max_feed, |f| (f / 60.0).min(s.max_feed))
+                .map_or(s.max_feed_mm_per_s, |f| (f / 60.0).min(s.max_feed_mm_per_s))
         };
         let n = if curve.degree() == 1 && curve.num_points() == 2 {
             1
@@ -143,14 +143,14 @@ impl Sampler {
         let rho = lanes::curvature_radius::<N>(d);
         // Running minima from the feed, a number: `f64::min`'s results, in fewer
         // instructions, on every sample.
-        let mut v = running_min(feed, (s.max_normal_accel * rho).sqrt());
+        let mut v = running_min(feed, (s.max_normal_accel_mm_per_s2 * rho).sqrt());
         if s.segmentation == Segmentation::Period {
-            v = running_min(v, chord_length_limit(rho, s.tolerance) / s.period);
+            v = running_min(v, chord_length_limit(rho, s.tolerance_mm) / s.period_s);
         }
         // The outputs' one step per tick, as the planner honours it.
         running_min(
             v,
-            step_cap::<N>(&s.axis_cap, &d.d1, lanes::norm::<N>(&d.d1)),
+            step_cap::<N>(&s.axis_cap_mm_per_s, &d.d1, lanes::norm::<N>(&d.d1)),
         )
     }
 }
@@ -216,8 +216,8 @@ struct Profile {
 impl TimeOptimalBound {
     /// A bound sampling curved blocks at most `spacing` mm apart.
     pub fn new(settings: &PlanSettings, spacing: f64) -> TimeOptimalBound {
-        let accel = settings.max_tangential_accel;
-        let v_max = settings.max_feed.max(settings.rapid_feed);
+        let accel = settings.max_tangential_accel_mm_per_s2;
+        let v_max = settings.max_feed_mm_per_s.max(settings.rapid_feed_mm_per_s);
         TimeOptimalBound {
             sampler: Sampler {
                 settings: settings.clone(),
@@ -368,19 +368,19 @@ mod tests {
         PlanSettings {
             predictor: crate::vocab::Predictor::Taylor,
             segmentation: Segmentation::Chord,
-            tolerance: 0.001,
-            max_segment: 1.0,
-            period: 0.001,
-            max_feed: 300.0,
-            rapid_feed: 20.0,
-            max_normal_accel: 4900.0,
-            max_tangential_accel: 2400.0,
+            tolerance_mm: 0.001,
+            max_segment_mm: 1.0,
+            period_s: 0.001,
+            max_feed_mm_per_s: 300.0,
+            rapid_feed_mm_per_s: 20.0,
+            max_normal_accel_mm_per_s2: 4900.0,
+            max_tangential_accel_mm_per_s2: 2400.0,
             lookahead: 1024,
             fluctuation_tolerance: 1e-6,
             max_corrections: 8,
             corners: vec![],
             rapid_stops: false,
-            axis_cap,
+            axis_cap_mm_per_s: axis_cap,
         }
     }
 
@@ -409,7 +409,7 @@ mod tests {
             });
         }
         samples.last_mut().unwrap().v = 0.0;
-        let accel = settings.max_tangential_accel;
+        let accel = settings.max_tangential_accel_mm_per_s2;
         for k in 1..samples.len() {
             let reach = (samples[k - 1].v.powi(2) + 2.0 * accel * samples[k].ds).sqrt();
             samples[k].v = samples[k].v.min(reach);
@@ -465,7 +465,7 @@ mod tests {
         let mut period = settings();
         period.segmentation = Segmentation::Period;
         let mut papers = settings();
-        papers.axis_cap = [f64::INFINITY; crate::vocab::MAX_AXES];
+        papers.axis_cap_mm_per_s = [f64::INFINITY; crate::vocab::MAX_AXES];
         for (seed, settings) in [(1, settings()), (2, period), (3, papers)] {
             let blocks = read(&program(seed, 300));
             let mut streamed = TimeOptimalBound::new(&settings, SPACING);
@@ -536,8 +536,8 @@ mod tests {
         // 10 mm at 600 mm/min: 1 s at speed plus the ramps at either end.
         let blocks = read("G1 X10 F600\n");
         let t = time_optimal_bound(&blocks.iter().collect::<Vec<_>>(), &settings, SPACING);
-        let a = settings.max_tangential_accel;
-        let v = 10.0f64.min(settings.axis_cap[0]);
+        let a = settings.max_tangential_accel_mm_per_s2;
+        let v = 10.0f64.min(settings.axis_cap_mm_per_s[0]);
         let exact = 10.0 / v + v / a;
         assert!((t - exact).abs() < 1e-3 * exact, "{t} against {exact}");
     }

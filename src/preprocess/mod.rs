@@ -53,20 +53,20 @@ pub struct PlanSettings {
     pub predictor: Predictor,
     pub segmentation: Segmentation,
     /// Chord tolerance (mm).
-    pub tolerance: f64,
+    pub tolerance_mm: f64,
     /// Longest segment (mm).
-    pub max_segment: f64,
+    pub max_segment_mm: f64,
     /// Interpolation period (s).
-    pub period: f64,
+    pub period_s: f64,
     /// Machine maximum feed (mm/s).
-    pub max_feed: f64,
+    pub max_feed_mm_per_s: f64,
     /// Rapid (`G0`) speed (mm/s): the machine's maximum as far as the output can step it,
     /// so that planned rapid times are the executed ones.
-    pub rapid_feed: f64,
+    pub rapid_feed_mm_per_s: f64,
     /// mm/s².
-    pub max_normal_accel: f64,
+    pub max_normal_accel_mm_per_s2: f64,
     /// mm/s².
-    pub max_tangential_accel: f64,
+    pub max_tangential_accel_mm_per_s2: f64,
     pub lookahead: usize,
     pub fluctuation_tolerance: f64,
     pub max_corrections: u32,
@@ -77,7 +77,7 @@ pub struct PlanSettings {
     pub rapid_stops: bool,
     /// The fastest each axis can be stepped (mm/s): one step per tick (infinite for the axes
     /// the machine does not have). A segment is planned no faster than its direction allows.
-    pub axis_cap: [f64; crate::vocab::MAX_AXES],
+    pub axis_cap_mm_per_s: [f64; crate::vocab::MAX_AXES],
 }
 
 /// A chord of a curve piece, before speed planning.
@@ -190,7 +190,8 @@ pub fn corner_speed(incoming: &Point, outgoing: &Point, settings: &PlanSettings)
         f64::INFINITY
     } else {
         let sin_half = (0.5 * (1.0 - cos_theta)).sqrt();
-        (settings.max_normal_accel * settings.tolerance * sin_half / (1.0 - sin_half)).sqrt()
+        (settings.max_normal_accel_mm_per_s2 * settings.tolerance_mm * sin_half / (1.0 - sin_half))
+            .sqrt()
     }
 }
 
@@ -227,7 +228,7 @@ pub struct Preprocessor {
 
 impl Preprocessor {
     pub fn new(settings: PlanSettings) -> Preprocessor {
-        let accel = settings.max_tangential_accel * (1.0 - PLANNING_MARGIN);
+        let accel = settings.max_tangential_accel_mm_per_s2 * (1.0 - PLANNING_MARGIN);
         let planner = Planner::new(accel, settings.lookahead);
         let period_mode = settings.segmentation == Segmentation::Period;
         let stepper = period_mode.then(|| PeriodStepper::new(settings.clone()));
@@ -235,7 +236,7 @@ impl Preprocessor {
         if period_mode {
             // The output segments are the periods; the segmenter only lays the planning grid,
             // which needs no length cap (the cap bounds loop-buffer blocks in chord mode).
-            grid.max_segment = f64::INFINITY;
+            grid.max_segment_mm = f64::INFINITY;
         }
         Preprocessor {
             corners: corners::CornerControl::new(grid.corners.clone()),

@@ -119,7 +119,7 @@ impl PeriodStepper {
             self.s_grid = 0.0;
             self.history.reset();
         }
-        let period = self.settings.period;
+        let period = self.settings.period_s;
         let duration = planned.profile.duration();
         let end_time = self.clock + duration;
         loop {
@@ -227,7 +227,7 @@ impl PeriodStepper {
         }
         let (mut b, mut len) = best;
         let mut chord_err = self.chord_error(curve, &a, &b, &mut evals);
-        let shortened = chord_err.bound > self.settings.tolerance;
+        let shortened = chord_err.bound > self.settings.tolerance_mm;
         if shortened {
             // The chord-length correction can land past a hairpin (|C(u) - C(u_i)| is not
             // monotone there) or the profile can ask for more than the curve allows: the step is
@@ -266,7 +266,7 @@ impl PeriodStepper {
         b: Sample,
         evals: &mut u32,
     ) -> (Sample, Chord) {
-        let tol = self.settings.tolerance;
+        let tol = self.settings.tolerance_mm;
         let (mut lo, mut hi) = (a.u, b.u);
         let mut best: Option<(Sample, Chord)> = None;
         for _ in 0..48 {
@@ -317,7 +317,7 @@ impl PeriodStepper {
             // cut across, the rest is covered in steps within tolerance, each taking half of
             // the remaining time (the speed they imply is reported as it is).
             let mut extra = 0;
-            while chord_err.bound > self.settings.tolerance && extra < MAX_CLOSING_STEPS {
+            while chord_err.bound > self.settings.tolerance_mm && extra < MAX_CLOSING_STEPS {
                 let (mid, err) = self.shorten_to_tolerance(curve, &a, b, &mut evals);
                 let len = (mid.d.point - a.d.point).norm();
                 let t = self.now + 0.5 * (self.clock - self.now);
@@ -410,7 +410,7 @@ impl PeriodStepper {
                 bound: 0.0,
             };
         }
-        let tol = self.settings.tolerance;
+        let tol = self.settings.tolerance_mm;
         let estimate = chord_error_estimate(a, b, tol);
         let (error, at) = if estimate < CHORD_CHECK_FRACTION * tol {
             (estimate, f64::NAN)

@@ -43,7 +43,7 @@ const AIM: f64 = 0.985;
 /// Accept without trying longer once the error is at least this fraction of the tolerance:
 /// the chord is then within about 1.5 % of the longest possible (length grows as the square
 /// root of the sagitta). Tighter costs more tries per segment; looser costs segments (0.95
-/// left zigzags 3.4 % over the greedy count, `tests/chord_bound.rs`).
+/// left zigzags 3.4 % over the greedy count, `tests/it/chord_bound.rs`).
 const BAND: f64 = 0.97;
 /// Rescaling attempts before settling for the best accepted increment.
 const MAX_TRIES: u32 = 12;
@@ -137,9 +137,9 @@ impl Segmenter {
     /// Feed limit of a block in mm/s: the programmed feed clamped by the machine's maximum.
     fn block_feed(&self, block: &Block) -> f64 {
         if block.kind == crate::gcode::BlockKind::Rapid {
-            return self.settings.rapid_feed;
+            return self.settings.rapid_feed_mm_per_s;
         }
-        let max = self.settings.max_feed;
+        let max = self.settings.max_feed_mm_per_s;
         block.feed_mm_per_min.map_or(max, |f| (f / 60.0).min(max))
     }
 
@@ -147,9 +147,9 @@ impl Segmenter {
     /// rapid, the machine's maximum for the rest.
     fn ceiling(&self, block: &Block) -> f64 {
         if block.kind == crate::gcode::BlockKind::Rapid {
-            self.settings.rapid_feed
+            self.settings.rapid_feed_mm_per_s
         } else {
-            self.settings.max_feed
+            self.settings.max_feed_mm_per_s
         }
     }
 
@@ -181,7 +181,14 @@ impl Segmenter {
         let mut line = (curve.degree() == 1).then(|| {
             self.stats.evals += 1;
             let end = curve.point(hi);
-            StraightPiece::new(curve, lo, hi, &a.d.point, &end, self.settings.max_segment)
+            StraightPiece::new(
+                curve,
+                lo,
+                hi,
+                &a.d.point,
+                &end,
+                self.settings.max_segment_mm,
+            )
         });
         let mut first_of_piece = true;
         let mut rho_start = a.d.curvature_radius();
@@ -227,7 +234,7 @@ impl Segmenter {
             };
             self.stats.segments += 1;
             self.stats.evals += u64::from(tried + err.evals);
-            if bound > self.settings.tolerance {
+            if bound > self.settings.tolerance_mm {
                 self.stats.over_tolerance += 1;
             }
             emit(seg);
@@ -247,7 +254,7 @@ impl Segmenter {
     fn end_of_step<const N: usize>(&self, start: &Point, end: &CurveDerivs) -> (f64, f64, f64) {
         let d = lanes::sub::<N>(&end.point, start);
         let chord = lanes::norm::<N>(&d);
-        let cap = step_cap::<N>(&self.settings.axis_cap, &d, chord);
+        let cap = step_cap::<N>(&self.settings.axis_cap_mm_per_s, &d, chord);
         (lanes::curvature_radius::<N>(end), chord, cap)
     }
 
@@ -255,18 +262,18 @@ impl Segmenter {
     /// tightest radius seen and, in period mode, the chord-error speed (one segment per period).
     fn feed_limit(&self, feed: f64, rho_min: f64, chord: f64, err: f64) -> f64 {
         let s = &self.settings;
-        let a_n = s.max_normal_accel * (1.0 - super::PLANNING_MARGIN);
+        let a_n = s.max_normal_accel_mm_per_s2 * (1.0 - super::PLANNING_MARGIN);
         let mut v = running_min(feed, (a_n * rho_min).sqrt());
         if s.segmentation == Segmentation::Period {
             // The circle formula at the tightest radius, and the measured sagitta scaled to the
             // tolerance (sagitta ∝ length²: seed 001 eq. 5), whichever is smaller.
-            let by_radius = chord_length_limit(rho_min, AIM * s.tolerance);
+            let by_radius = chord_length_limit(rho_min, AIM * s.tolerance_mm);
             let by_measure = if err > 0.0 {
-                chord * (AIM * s.tolerance / err).sqrt()
+                chord * (AIM * s.tolerance_mm / err).sqrt()
             } else {
                 f64::INFINITY
             };
-            v = running_min(v, by_radius.min(by_measure) / s.period);
+            v = running_min(v, by_radius.min(by_measure) / s.period_s);
         }
         v
     }
@@ -283,7 +290,7 @@ impl Segmenter {
         b: &Sample,
         err: &mut ChordError,
     ) -> Result<f64, f64> {
-        let tol = self.settings.tolerance;
+        let tol = self.settings.tolerance_mm;
         if err.max > CERTIFY_ABOVE * tol {
             return Err(err.max);
         }
@@ -319,8 +326,8 @@ impl Segmenter {
         b: &mut Sample,
     ) -> (ChordError, f64, u32) {
         let s = &self.settings;
-        let tol = s.tolerance;
-        let cap = s.max_segment;
+        let tol = s.tolerance_mm;
+        let cap = s.max_segment_mm;
         let cap_aim = cap * (1.0 - 0.5 * CAP_WINDOW);
         let cap_floor = cap * (1.0 - CAP_WINDOW);
         let remaining = hi - a.u;
@@ -411,7 +418,7 @@ impl Segmenter {
     #[inline]
     fn first_increment(&self, a: &Sample, rho: f64, remaining: f64, cap_aim: f64) -> f64 {
         let s = &self.settings;
-        let tol = s.tolerance;
+        let tol = s.tolerance_mm;
         let by_chord = chord_length_limit(rho, AIM * tol / self.gain);
         let taylor = taylor_increment(a, running_min(cap_aim, by_chord));
         let predicted = match (s.predictor, self.history.full()) {
@@ -444,8 +451,8 @@ impl Segmenter {
         mut evals: u32,
         b: &mut Sample,
     ) -> (ChordError, f64, u32) {
-        let tol = self.settings.tolerance;
-        let cap = self.settings.max_segment;
+        let tol = self.settings.tolerance_mm;
+        let cap = self.settings.max_segment_mm;
         self.stats.halvings += 1;
         let mut last = None;
         for halving in 1..=MAX_HALVINGS {

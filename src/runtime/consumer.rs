@@ -27,7 +27,6 @@ use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
 use super::probe::ProbeResult;
 pub use super::published::{EventRecord, LATENCY_BUCKETS_US, PUBLISH_EVERY_TICKS, Published};
-pub use super::realtime::{RealtimeGuard, apply_realtime};
 pub use super::snapshot::Snapshot;
 use crate::buffer::BlockSource;
 use crate::fine::{Interpolator, Tick};

@@ -9,7 +9,8 @@
 
 use std::sync::Arc;
 
-use super::{JobError, Precheck};
+use super::error::JobError;
+use super::precheck::Precheck;
 use crate::config::{Config, GapKind, OutputKind};
 use crate::gap::{AlwaysNormal, GapSensor, IioGap, ScriptGap};
 use crate::inputs::{MachineInputs, NoInputs};
@@ -132,11 +133,4 @@ pub fn wrap_io(
         }
     }
     (output, gap)
-}
-
-/// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
-/// axis per tick.
-pub fn fine_speed_cap(config: &Config) -> f64 {
-    let coarsest = config.machine.step_mm.iter().cloned().fold(0.0, f64::max);
-    coarsest / config.fine.tick.secs()
 }

@@ -23,7 +23,8 @@ use std::time::Duration;
 use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 
 use super::consumer::{self, LoopReport, LoopSettings, Published};
-use super::{BoxedGap, BoxedInputs, BoxedOutput};
+use super::devices::{BoxedGap, BoxedInputs, BoxedOutput};
+use super::realtime::apply_realtime;
 use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::output::OutputError;
@@ -96,7 +97,7 @@ impl FineThread {
         let handle = std::thread::Builder::new()
             .name("edmd-fine".to_string())
             .spawn(move || {
-                let realtime = consumer::apply_realtime(&settings);
+                let realtime = apply_realtime(&settings);
                 let _ = ready.send(realtime.refused.clone());
                 serve_jobs(&inbox, &thread_beat, &realtime.refused);
                 drop(realtime);

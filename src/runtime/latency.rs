@@ -12,8 +12,9 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use super::consumer::{LoopSettings, Published, apply_realtime, run_loop};
+use super::consumer::{LoopSettings, Published, run_loop};
 use super::histogram::LatencyHistogram;
+use super::realtime::apply_realtime;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::config::Config;
 use crate::fine::{FineSettings, Interpolator};

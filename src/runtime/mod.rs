@@ -23,6 +23,7 @@
 pub mod consumer;
 pub mod controls;
 mod devices;
+mod error;
 mod events;
 pub mod fine_thread;
 pub mod from_line;
@@ -49,18 +50,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use crate::config::Config;
-use crate::gap::ScriptError;
-use crate::gcode::{GcodeError, WorkOffsets, WorkStart, WorkSystem};
-use crate::output::OutputError;
-use crate::parport::ParportError;
+use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
 use crate::record::Recording;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
 pub use devices::{
-    BoxedGap, BoxedInputs, BoxedOutput, OpenedOutput, fine_speed_cap, open_gap, open_io,
-    open_output, wrap_io,
+    BoxedGap, BoxedInputs, BoxedOutput, OpenedOutput, open_gap, open_io, open_output, wrap_io,
 };
+pub use error::JobError;
 pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
 pub use from_line::{Approach, FromLine, FromLineError};
 pub use histogram::{LatencyHistogram, LatencySummary};
@@ -68,44 +66,11 @@ pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
 pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
+pub use realtime::{RealtimeGuard, apply_realtime};
 pub use run::{JobRun, run};
-pub use spec::{CutPlan, JobSpec, StepCondition, start_steps};
+pub use spec::{CutPlan, JobSpec, StepCondition, fine_speed_cap, start_steps};
 pub use stages::{MAX_STAGES, StageRow};
 pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
-
-/// A job that could not start: bad program, gap script or output. Nothing has moved.
-#[derive(Debug, thiserror::Error)]
-pub enum JobError {
-    #[error(transparent)]
-    Program(#[from] GcodeError),
-    #[error(transparent)]
-    Producer(#[from] ProducerError),
-    #[error(transparent)]
-    GapScript(#[from] ScriptError),
-    #[error(transparent)]
-    Iio(#[from] crate::gap::IioError),
-    #[error(transparent)]
-    Output(#[from] OutputError),
-    #[error(transparent)]
-    Parport(#[from] ParportError),
-    #[error("cannot start the fine interpolation thread: {0}")]
-    Thread(std::io::Error),
-    /// A combination of settings that cannot run (the validated configuration refuses it).
-    #[error("{0}")]
-    Config(String),
-    #[error(transparent)]
-    Copy(#[from] program::CopyError),
-    #[error(transparent)]
-    Travel(#[from] crate::check::TravelError),
-    #[error("{program}: the check was cancelled")]
-    Cancelled { program: String },
-    #[error(transparent)]
-    FromLine(#[from] FromLineError),
-    #[error(transparent)]
-    Passes(#[from] passes::PassError),
-    #[error(transparent)]
-    Tabs(#[from] tabs::TabError),
-}
 
 /// Logs one trace record (from the main thread).
 fn log_trace(spec: &JobSpec, record: &TraceRecord) {

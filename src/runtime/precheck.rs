@@ -2,7 +2,7 @@
 //! to prove it fits a step counter, before anything moves. A CNC control must not start
 //! cutting a program whose line 10,000 is bad.
 
-use super::JobError;
+use super::error::JobError;
 use super::from_line::Gate;
 use super::passes;
 use super::producer::{ProducerError, to_steps};
@@ -78,7 +78,12 @@ impl Tally<'_> {
     fn take(&mut self, block: &gcode::Block) -> Result<(), JobError> {
         let machine = &self.config.machine;
         self.blocks += 1;
-        crate::check::hold_to_travel(block, &machine.axes, &machine.travel, self.program)?;
+        crate::machine::travel::hold_to_travel(
+            block,
+            &machine.axes,
+            &machine.travel,
+            self.program,
+        )?;
         // Exact: the simulated gap places its debris along these lengths, so they are the
         // same to the last digit whatever reads them (lines and arcs in closed form).
         let length = block.curve.length();

@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::{Receiver, TryRecvError};
 
 use super::consumer::{EventRecord, Published};
+use super::devices::BoxedOutput;
 use super::events;
 use super::fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
 use super::precheck::Precheck;
@@ -24,7 +25,7 @@ use super::program::JobProgram;
 use super::progress::ProgressTracker;
 use super::spec::JobSpec;
 use super::summary::{self, JobSummary};
-use super::{BoxedOutput, JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
+use super::{JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
 use crate::buffer::LoopBuffer;
 use crate::record::{RecordedOutput, Recorder, Recording};
 use crate::trace::Tracer;
@@ -81,7 +82,7 @@ pub fn run(
         tracker: ProgressTracker::with_rapids(
             job.check.path_mm,
             job.check.rapid_spans.clone(),
-            spec.plan.rapid_feed,
+            spec.plan.rapid_feed_mm_per_s,
         ),
         last_progress: Instant::now(),
         stop_asked: None,

@@ -110,7 +110,7 @@ impl JobSpec {
                     ],
                 })
                 .collect(),
-            speed_cap: super::fine_speed_cap(config),
+            speed_cap: fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
             work: WorkStart::default(),
             cut: CutPlan::default(),
@@ -158,4 +158,11 @@ pub fn start_steps(start: &WorkStart, step_mm: &[f64]) -> Steps {
             .get(i)
             .map_or(0, |mm| (start.position_mm[i] / mm).round() as i64)
     })
+}
+
+/// The highest path speed the fine interpolator can reach (mm/s): one step of the coarsest
+/// axis per tick.
+pub fn fine_speed_cap(config: &Config) -> f64 {
+    let coarsest = config.machine.step_mm.iter().cloned().fold(0.0, f64::max);
+    coarsest / config.fine.tick.secs()
 }

@@ -4,8 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::LatencySummary;
 use super::consumer::LoopReport;
+use super::histogram::LatencySummary;
 use super::producer::{ProducerError, ProducerReport};
 use crate::fine::{FineCounters, Interpolator, SkipError};
 use crate::output::OutputError;
@@ -215,7 +215,7 @@ pub(super) struct JobFacts<'a> {
 impl JobSummary {
     /// The summary of a finished job, and the snapshot of where it stands (the checkpoint's
     /// point and ledger).
-    pub(super) fn of(facts: JobFacts<'_>) -> (JobSummary, super::Snapshot) {
+    pub(super) fn of(facts: JobFacts<'_>) -> (JobSummary, super::snapshot::Snapshot) {
         let JobFacts {
             program,
             check,
@@ -242,7 +242,7 @@ impl JobSummary {
         let tick = spec.tick;
         let (outcome, error) = outcome(skip, &report, finished, fine.state(), &producer);
         let producer = producer.unwrap_or_default();
-        let mut stopped_at = super::Snapshot::of(report.ticks, fine);
+        let mut stopped_at = super::snapshot::Snapshot::of(report.ticks, fine);
         if let Some((here, events)) = report.untaken_from {
             // The failed tick's step never reached the drives: the checkpoint's point is the
             // one before it (its ledger is taken back in `delivered`).

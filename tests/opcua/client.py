@@ -1,11 +1,11 @@
-"""A shop-floor OPC UA client against a running `edmd serve`, for tests/opcua.rs.
+"""A shop-floor OPC UA client against a running `edmd serve`, for tests/it/opcua.rs.
 
 Usage: client.py URL PKI_DIR USER PASSWORD EDMD SOCKET WORK_DIR
 
 Connects as the MES would (Python's asyncua), browses the machine, reads it while a job
 runs, subscribes to its state and events, asks for a hold through `edmd ctl` and waits for
 the change, tries the methods anonymously and signed in, and prints what it saw as one JSON
-object on stdout. It asserts nothing itself: tests/opcua.rs judges what it saw.
+object on stdout. It asserts nothing itself: tests/it/opcua.rs judges what it saw.
 """
 
 import asyncio

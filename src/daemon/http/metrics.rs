@@ -2,7 +2,7 @@
 //! name prefixed `edmd_`, base units (seconds, ratios; lengths in mm as the machine's unit).
 //! Counters are the daemon's life-long [`Counters`] (finished jobs plus the running one), so
 //! they only grow; the job's own figures are gauges. Checked by `promtool check metrics` and
-//! scraped by a real Prometheus in `tests/http.rs`.
+//! scraped by a real Prometheus in `tests/it/http.rs`.
 
 use std::fmt::Write;
 

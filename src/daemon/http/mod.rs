@@ -61,12 +61,11 @@ use axum::middleware::Next;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
-use crossbeam::channel::Sender;
 use parking_lot::RwLock;
 use serde::Deserialize;
 use tokio::sync::Semaphore;
 
-use super::CoreMsg;
+use super::link::CoreLink;
 use super::protocol::{Reply, Request};
 use super::refusal::NameRefusal;
 use crate::report::programmed;
@@ -110,7 +109,7 @@ pub struct Reloadable {
 
 /// What the handlers share.
 struct App {
-    to_core: Sender<CoreMsg>,
+    to_core: CoreLink,
     live: RwLock<Reloadable>,
     axes: Vec<crate::vocab::Axis>,
     /// How the daemon's jobs read programs (conditions, `D` registers), for the backplot.
@@ -144,17 +143,12 @@ impl HttpServer {
     }
 }
 
-/// Why `daemon.http` could not listen.
-pub fn bind_error(addr: SocketAddr, e: std::io::Error) -> super::DaemonError {
-    super::DaemonError::Http { addr, source: e }
-}
-
 /// Binds `addr` (so a taken port is an error at startup) and serves on a thread of its own.
 pub fn spawn(
     settings: HttpSettings,
     axes: Vec<crate::vocab::Axis>,
     options: crate::gcode::ProgramOptions,
-    to_core: Sender<CoreMsg>,
+    to_core: CoreLink,
     executed: executed::ExecutedSlot,
 ) -> std::io::Result<HttpServer> {
     let listener = std::net::TcpListener::bind(settings.addr)?;
@@ -289,7 +283,7 @@ fn error(code: StatusCode, message: impl Into<String>) -> Response {
 /// thread.
 async fn ask(app: &App, request: Request) -> Result<Reply, Response> {
     let (tx, rx) = tokio::sync::oneshot::channel();
-    if app.to_core.send(CoreMsg::Request(request, tx)).is_err() {
+    if !app.to_core.ask(request, tx) {
         return Err(error(
             StatusCode::SERVICE_UNAVAILABLE,
             "the daemon is shutting down",
@@ -487,7 +481,7 @@ async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -
 /// outside the program directory (the reply names no path), 400 for a name that is no name.
 fn program_file(app: &App, name: &str) -> Result<PathBuf, Response> {
     let dir = app.live.read().program_dir.clone();
-    super::confine(&dir, name).map_err(|e| {
+    super::names::confine(&dir, name).map_err(|e| {
         let code = match e {
             NameRefusal::Empty | NameRefusal::ControlCharacter { .. } => StatusCode::BAD_REQUEST,
             NameRefusal::NoSuchProgram { .. } | NameRefusal::ProgramDir { .. } => {

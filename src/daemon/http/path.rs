@@ -44,7 +44,7 @@ fn walk(root: &Path, dir: &Path, depth: usize, out: &mut Vec<ProgramEntry>) -> s
         let Some(name) = file_name.to_str() else {
             continue;
         };
-        if name.starts_with('.') || super::super::has_control(name) {
+        if name.starts_with('.') || super::super::names::has_control(name) {
             continue;
         }
         let path = entry.path();

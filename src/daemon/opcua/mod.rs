@@ -34,7 +34,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crossbeam::channel::Sender;
 use opcua::nodes::{BaseEventType, Event};
 use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::{SimpleNodeManager, simple_node_manager};
@@ -43,7 +42,7 @@ use opcua::types::{
     BuildInfo, ByteString, DataValue, DateTime, NodeId, ObjectId, StatusCode, UAString, Variant,
 };
 
-use super::CoreMsg;
+use super::link::CoreLink;
 use super::protocol::{Reply, Request, Status};
 use crate::config::OpcUaEndpoint;
 
@@ -116,7 +115,7 @@ fn make_pki_dir(dir: &std::path::Path) -> Result<(), OpcUaError> {
 
 /// Binds the endpoint (so a taken port is an error at startup) and serves on a thread of
 /// its own.
-pub fn spawn(settings: OpcUaSettings, to_core: Sender<CoreMsg>) -> Result<OpcUaServer, OpcUaError> {
+pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, OpcUaError> {
     let url = settings.endpoint.url();
     let listen_error = |source| OpcUaError::Listen {
         url: url.clone(),
@@ -231,15 +230,11 @@ pub fn spawn(settings: OpcUaSettings, to_core: Sender<CoreMsg>) -> Result<OpcUaS
 
 /// Asks the control loop and waits for its reply, from a method call (which the server
 /// makes synchronously on one of its workers: the loop answers in microseconds).
-fn call(
-    to_core: &Sender<CoreMsg>,
-    request: Request,
-    what: &str,
-) -> Result<Vec<Variant>, StatusCode> {
+fn call(to_core: &CoreLink, request: Request, what: &str) -> Result<Vec<Variant>, StatusCode> {
     let (tx, rx) = tokio::sync::oneshot::channel();
-    to_core
-        .send(CoreMsg::Request(request, tx))
-        .map_err(|_| StatusCode::BadShutdown)?;
+    if !to_core.ask(request, tx) {
+        return Err(StatusCode::BadShutdown);
+    }
     let reply: Reply = tokio::task::block_in_place(|| {
         tokio::runtime::Handle::current().block_on(tokio::time::timeout(CORE_TIMEOUT, rx))
     })
@@ -259,11 +254,11 @@ fn call(
 }
 
 /// Asks for the status, as `/metrics` does.
-async fn status(to_core: &Sender<CoreMsg>) -> Option<Status> {
+async fn status(to_core: &CoreLink) -> Option<Status> {
     let (tx, rx) = tokio::sync::oneshot::channel();
-    to_core
-        .send(CoreMsg::Request(Request::Status {}, tx))
-        .ok()?;
+    if !to_core.ask(Request::Status {}, tx) {
+        return None;
+    }
     let reply = tokio::time::timeout(CORE_TIMEOUT, rx).await.ok()?.ok()?;
     reply.status
 }
@@ -273,7 +268,7 @@ async fn refresh(
     space: Arc<space::Space>,
     manager: Arc<SimpleNodeManager>,
     subscriptions: Arc<SubscriptionCache>,
-    to_core: Sender<CoreMsg>,
+    to_core: CoreLink,
     epoch: i64,
 ) {
     let mut interval = tokio::time::interval(POLL);
@@ -283,7 +278,7 @@ async fn refresh(
     loop {
         interval.tick().await;
         let Some(now) = status(&to_core).await else {
-            if to_core.is_empty() && before.is_some() {
+            if to_core.inbox_empty() && before.is_some() {
                 tracing::debug!("opcua: no status this time");
             }
             continue;

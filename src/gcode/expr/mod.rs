@@ -42,7 +42,7 @@ pub(crate) const ARGUMENTS: usize = 30;
 pub const MAX_NESTING: usize = 256;
 /// The stack of every thread that parses programs. The deepest accepted expression
 /// ([`MAX_NESTING`] levels of the costliest kind) needs a fraction of it in a debug build
-/// (`tests/program_flow.rs` parses it on a thread of exactly this size); the rest is margin.
+/// (`tests/it/program_flow.rs` parses it on a thread of exactly this size); the rest is margin.
 pub const PARSER_STACK_BYTES: usize = 8 << 20;
 
 pub(crate) type ExprError = (usize, GcodeErrorKind);

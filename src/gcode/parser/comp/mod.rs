@@ -16,7 +16,7 @@
 //!   would cut into the part) is an error naming the line;
 //! - **tangent junction**: nothing to add.
 //!
-//! **Entry and exit** as LinuxCNC's interpreter does them (`tests/wire_offset_linuxcnc.rs`
+//! **Entry and exit** as LinuxCNC's interpreter does them (`tests/it/wire_offset_linuxcnc.rs`
 //! compares every end point with `rs274`'s): the first move after `G41`/`G42` starts at the
 //! uncompensated point and must be longer than the offset; a line ends offset perpendicular
 //! to itself at its end, an arc at its end moved along the radius, about a centre moved so the

@@ -1,0 +1,43 @@
+//! Why a job could not start.
+
+use super::from_line::FromLineError;
+use super::producer::ProducerError;
+use super::{passes, program, tabs};
+use crate::gap::ScriptError;
+use crate::gcode::GcodeError;
+use crate::output::OutputError;
+use crate::parport::ParportError;
+
+/// A job that could not start: bad program, gap script or output. Nothing has moved.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    #[error(transparent)]
+    Program(#[from] GcodeError),
+    #[error(transparent)]
+    Producer(#[from] ProducerError),
+    #[error(transparent)]
+    GapScript(#[from] ScriptError),
+    #[error(transparent)]
+    Iio(#[from] crate::gap::IioError),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error(transparent)]
+    Parport(#[from] ParportError),
+    #[error("cannot start the fine interpolation thread: {0}")]
+    Thread(std::io::Error),
+    /// A combination of settings that cannot run (the validated configuration refuses it).
+    #[error("{0}")]
+    Config(String),
+    #[error(transparent)]
+    Copy(#[from] program::CopyError),
+    #[error(transparent)]
+    Travel(#[from] crate::machine::travel::TravelError),
+    #[error("{program}: the check was cancelled")]
+    Cancelled { program: String },
+    #[error(transparent)]
+    FromLine(#[from] FromLineError),
+    #[error(transparent)]
+    Passes(#[from] passes::PassError),
+    #[error(transparent)]
+    Tabs(#[from] tabs::TabError),
+}

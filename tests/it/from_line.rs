@@ -1,0 +1,227 @@
+//! Running a program from a line (`--from-line N`): the interpreter replays the program up
+//! to the line without cutting, the machine approaches the line's start (along the path with
+//! the spark off, or directly over the safe Z), and from there the pulses are the full run's.
+//! Through the real binary: `edmd run` in virtual time, and `edmd ctl run` on a daemon, whose
+//! checkpoint taken during the approach resumes into the approach, never into a cut.
+
+use crate::common;
+
+use std::path::{Path, PathBuf};
+
+use common::daemon::{Daemon, base_sets};
+use edmd::output::{PulseLogRow, read_pulse_log};
+
+const DIE: &str = "die-from-line.ngc";
+const SINK: &str = "sink-from-line.ngc";
+
+fn data(name: &str) -> PathBuf {
+    common::repo().join("tests/data").join(name)
+}
+
+/// `edmd run PROGRAM ARGS` with no gap into `pulses`; the exit code and standard error.
+fn run(program: &Path, pulses: &Path, args: &[&str]) -> (i32, String) {
+    let mut all = vec!["--set", "compensation.d_mm=[0.0, 0.15]"];
+    all.extend(args);
+    let out = common::run_to_pulse_log(program, pulses, &all);
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Every moving tick of a pulse log with the position after it.
+fn walk(path: &Path) -> Vec<(Vec<i64>, PulseLogRow)> {
+    let (_, rows) = read_pulse_log(path).unwrap();
+    let mut here = vec![0i64; rows.first().map_or(0, |r| r.steps.len())];
+    rows.into_iter()
+        .filter(|r| r.steps.iter().any(|&s| s != 0))
+        .map(|r| {
+            for (h, s) in here.iter_mut().zip(&r.steps) {
+                *h += i64::from(*s);
+            }
+            (here.clone(), r)
+        })
+        .collect()
+}
+
+/// The positions of `walk` from the first time it stands at `at` (exclusive) to the end.
+fn tail_from(walk: &[(Vec<i64>, PulseLogRow)], at: &[i64]) -> Vec<Vec<i64>> {
+    let i = walk
+        .iter()
+        .position(|(p, _)| p == at)
+        .unwrap_or_else(|| panic!("the path never reaches {at:?}"));
+    walk[i + 1..].iter().map(|(p, _)| p.clone()).collect()
+}
+
+#[test]
+fn from_a_line_inside_a_loop_the_path_approach_is_dark_and_the_cut_is_the_full_runs() {
+    let dir = common::scratch("from_line", "path");
+    let (full, from) = (dir.join("full.csv"), dir.join("from13.csv"));
+    assert_eq!(run(&data(DIE), &full, &[]).0, 0);
+    let (code, err) = run(&data(DIE), &from, &["--from-line", "13"]);
+    assert_eq!(code, 0, "{err}");
+    let (full, from) = (walk(&full), walk(&from));
+    // The path approach moves the whole path: the same lattice points, in the same order.
+    let points =
+        |w: &[(Vec<i64>, PulseLogRow)]| w.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
+    assert_eq!(points(&from), points(&full));
+    // Dark up to the start of line 13's first pass: the arc's offset end (15 - 0.15, 6),
+    // then sparking in E1, which line 11 selected before the loop.
+    let start = vec![14850, 6000];
+    // (The tick that arrives there already sparks: the cut's block is in hand at its end.)
+    let i = from.iter().position(|(p, _)| *p == start).unwrap();
+    assert!(
+        from[..i].iter().all(|(_, r)| !r.spark),
+        "a spark during the approach"
+    );
+    assert!(from[i + 1].1.spark, "no spark after the approach");
+    assert_eq!(from[i + 1].1.condition, 1);
+    // The full run sparked along all of it; the approach ran slower (the rethread feed
+    // below the program's F300) and faster than nothing.
+    assert!(full[..=i].iter().filter(|(_, r)| r.spark).count() > i / 2);
+    let ticks = |w: &[(Vec<i64>, PulseLogRow)], i: usize| w[i].1.tick;
+    let approach = ticks(&from, i) as f64;
+    let cut = ticks(&full, i) as f64;
+    assert!(approach > 0.0 && cut > 0.0);
+    assert_eq!(tail_from(&from, &start), tail_from(&full, &start));
+}
+
+#[test]
+fn the_direct_approach_rises_to_the_safe_z_crosses_and_plunges_then_cuts_the_tail() {
+    let dir = common::scratch("from_line", "direct");
+    let (full, from) = (dir.join("full.csv"), dir.join("from6.csv"));
+    let xyz = data("xyz.toml");
+    let machine = [
+        "--config",
+        xyz.to_str().unwrap(),
+        "--set",
+        "machine.safe_z_mm=10.0",
+    ];
+    assert_eq!(run(&data(SINK), &full, &machine).0, 0);
+    let mut args = machine.to_vec();
+    args.extend(["--from-line", "6"]);
+    let (code, err) = run(&data(SINK), &from, &args);
+    assert_eq!(code, 0, "{err}");
+    let from = walk(&from);
+    // The corners of the approach: straight up to Z10, across at Z10, down to line 6's
+    // start (5, 0, -1), all dark; the rest is the full run's tail from there.
+    let corners: Vec<Vec<i64>> = from
+        .windows(3)
+        .filter(|w| {
+            let d = |a: &Vec<i64>, b: &Vec<i64>| {
+                a.iter().zip(b).map(|(x, y)| y - x).collect::<Vec<_>>()
+            };
+            d(&w[0].0, &w[1].0) != d(&w[1].0, &w[2].0)
+        })
+        .map(|w| w[1].0.clone())
+        .collect();
+    let start = vec![5000, 0, -1000];
+    assert_eq!(corners[..2], [vec![0, 0, 10000], vec![5000, 0, 10000]]);
+    let i = from.iter().position(|(p, _)| *p == start).unwrap();
+    assert!(
+        from[..i].iter().all(|(_, r)| !r.spark),
+        "a spark during the approach"
+    );
+    assert!(from[i + 1].1.spark);
+    assert_eq!(tail_from(&from, &start), tail_from(&walk(&full), &start));
+}
+
+#[test]
+fn lines_a_run_cannot_start_from_are_refused_at_their_line_before_anything_moves() {
+    let dir = common::scratch("from_line", "refused");
+    let pulses = dir.join("p.csv");
+    // The entry move of the wire offset (line 8; line 7 holds the G41, so it starts there too).
+    for line in ["7", "8"] {
+        let (code, err) = run(&data(DIE), &pulses, &["--from-line", line]);
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("die-from-line.ngc:8:1: this is the wire offset's entry move"),
+            "{err}"
+        );
+    }
+    let (code, err) = run(&data(DIE), &pulses, &["--from-line", "18"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("die-from-line.ngc:18:1: no move at or after line 18"),
+        "{err}"
+    );
+    let probing = dir.join("probe.ngc");
+    std::fs::write(&probing, "G21 G90\nG38.3 X3 F100\nG1 X5 F100\nM2\n").unwrap();
+    let (code, err) = run(&probing, &pulses, &["--from-line", "3"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("probe.ngc:2:1: the program probes here, before line 3"),
+        "{err}"
+    );
+    let (code, err) = run(&data(DIE), &pulses, &["--approach", "direct"]);
+    assert_eq!(code, 2, "--approach without --from-line: {err}");
+}
+
+#[test]
+fn a_checkpoint_taken_during_the_approach_resumes_into_the_approach() {
+    let dir = common::daemon::scratch("from-line");
+    // The program without its conditions (E1's 10 mm/min would make the cut minutes long).
+    let text = std::fs::read_to_string(data(DIE)).unwrap();
+    let text = text
+        .replace("\nE2\n", "\n(E2)\n")
+        .replace("\nE1\n", "\n(E1)\n");
+    std::fs::write(dir.join("programs").join(DIE), text).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let mut sets = base_sets(&dir, "first.csv");
+    sets.push("compensation.d_mm=[0.0, 0.15]".into());
+    // A slow approach, so a hold lands inside it.
+    sets.push("servo.rethread_feed_mm_per_min=300.0".into());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.refused(&["run", DIE, "--from-line", "0"], "");
+    daemon.refused(
+        &["run", DIE, "--dry-run", "--from-line", "13"],
+        "does not start from a line",
+    );
+    daemon.ok(&["run", DIE, "--from-line", "13"]);
+    daemon.wait_for("moving", |s| {
+        // On the way from the start (X0) to the start hole: moved, still approaching.
+        s["state"] == "running" && s["job"]["position_steps"][0].as_i64().unwrap_or(0) < -1000
+    });
+    let cp = daemon.hold_abort_checkpoint(&dir);
+    assert_eq!(cp["from_line"]["line"], 13, "{cp}");
+    assert_eq!(cp["from_line"]["approach"], "path", "{cp}");
+    assert!(
+        cp["line"].as_u64().unwrap() < 13,
+        "held before line 13: {cp}"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    let mut sets = base_sets(&dir, "second.csv");
+    sets.push("compensation.d_mm=[0.0, 0.15]".into());
+    sets.push("servo.rethread_feed_mm_per_min=300.0".into());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["resume"]);
+    let idle = daemon.wait_for("the job's end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    // Joined, the two runs are `edmd run --from-line 13`: dark up to line 13's start, the
+    // same lattice points, sparking after.
+    let reference = walk(&{
+        let p = dir.join("reference.csv");
+        assert_eq!(
+            run(&dir.join("programs").join(DIE), &p, &["--from-line", "13"]).0,
+            0
+        );
+        p
+    });
+    let mut joined = walk(&dir.join("first.csv"));
+    let last = joined.last().map(|(p, _)| p.clone()).unwrap();
+    joined.extend(
+        walk(&dir.join("second.csv"))
+            .into_iter()
+            .map(|(p, r)| (p.iter().zip(&last).map(|(a, b)| a + b).collect(), r)),
+    );
+    let points =
+        |w: &[(Vec<i64>, PulseLogRow)]| w.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
+    assert_eq!(points(&joined), points(&reference));
+    let sparks = |w: &[(Vec<i64>, PulseLogRow)]| w.iter().map(|(_, r)| r.spark).collect::<Vec<_>>();
+    assert_eq!(sparks(&joined), sparks(&reference));
+}

@@ -1,0 +1,174 @@
+//! The OPC UA server end to end: the real `edmd serve` with `daemon.opcua` on a free
+//! loopback port, and a real shop-floor client, Python's `asyncua` (PyPI), running
+//! `tests/opcua/client.py` against it while a job cuts.
+//!
+//! `.ci/run` installs asyncua and sets `EDMD_OPCUA_TESTS=1`, which makes it required;
+//! elsewhere the test says it is skipped when asyncua is missing.
+
+use crate::common;
+
+use std::process::Command;
+
+use common::daemon::*;
+use serde_json::Value;
+
+fn have_asyncua() -> bool {
+    Command::new("python3")
+        .args(["-c", "import asyncua"])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+fn free_port() -> u16 {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    listener.local_addr().unwrap().port()
+}
+
+#[test]
+fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
+    if !have_asyncua() {
+        assert!(
+            std::env::var_os("EDMD_OPCUA_TESTS").is_none(),
+            "EDMD_OPCUA_TESTS is set but Python's asyncua is not installed"
+        );
+        eprintln!("skipped: no asyncua (pip install asyncua)");
+        return;
+    }
+    let dir = scratch("opcua");
+    // About 20 s at the servo's 300 mm/min: the client reads it moving, then holds it.
+    std::fs::write(
+        dir.join("programs/long.ngc"),
+        "G21 G90\nG1 X80 Y60 F300\nM2\n",
+    )
+    .unwrap();
+    let pki = dir.join("pki");
+    let users = dir.join("opcua-users");
+    let _ = std::fs::remove_dir_all(&pki);
+    let _ = std::fs::remove_file(&users);
+    let url = format!("opc.tcp://127.0.0.1:{}", free_port());
+    let mut sets = base_sets(&dir, "pulses.log");
+    sets.extend([
+        format!("daemon.opcua=\"{url}\""),
+        format!("daemon.opcua_users_file=\"{}\"", users.display()),
+        format!("daemon.opcua_pki_dir=\"{}\"", pki.display()),
+    ]);
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.wait_for_log("opcua: the machine on");
+    // The users file was made with one operator and a random password.
+    let text = std::fs::read_to_string(&users).unwrap();
+    let password = text
+        .lines()
+        .find_map(|l| l.strip_prefix("operator:"))
+        .expect("an operator line")
+        .to_string();
+    daemon.ok(&["run", "long.ngc"]);
+    daemon.wait_for("the job to move", is_moving);
+
+    let out = Command::new("python3")
+        .arg(common::repo().join("tests/opcua/client.py"))
+        .args([&url, &pki.display().to_string(), "operator", &password])
+        .arg(env!("CARGO_BIN_EXE_edmd"))
+        .arg(&daemon.socket)
+        .arg(&dir)
+        .output()
+        .expect("python3 runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "client.py failed: {}\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let seen: Value =
+        serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    eprintln!("client saw: {seen:#}");
+
+    // Browsed: the machine after OPC 40501's layout, an axis object per configured axis.
+    let tree: Vec<&str> = seen["tree"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p.as_str().unwrap())
+        .collect();
+    for path in [
+        "Identification/SoftwareRevision",
+        "Monitoring/MachineTool/State",
+        "Monitoring/Channel/Feed",
+        "Monitoring/Channel/FeedOverride",
+        "Monitoring/EDMGenerator/GapState",
+        "Monitoring/Axes/X/ActualPosition",
+        "Monitoring/Axes/Y/ActualPosition",
+        "Production/ActiveProgram/Name",
+        "Production/ActiveProgram/Line",
+        "Production/ActiveProgram/Progress",
+        "Production/ActiveProgram/RemainingTime",
+        "Production/Hold",
+        "Production/Abort",
+        "Notification",
+    ] {
+        assert!(tree.contains(&path), "{path} not browsed: {tree:?}");
+    }
+    assert_eq!(seen["software_revision"], env!("CARGO_PKG_VERSION"));
+    // Read while the job runs: its state, program, gap, and an X that moves.
+    assert_eq!(seen["state_running"], "running");
+    assert!(seen["program"].as_str().unwrap().ends_with("long.ngc"));
+    assert_eq!(seen["gap"], "normal", "gap.kind = none reads normal");
+    assert_eq!(seen["line"], 2);
+    let xs: Vec<f64> = seen["x_while_running"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        xs.windows(2).all(|w| w[1] > w[0]),
+        "X moves forward between reads 0.3 s apart: {xs:?}"
+    );
+    // Anonymous: Hold is visible but not executable, and a call is refused without effect.
+    assert_eq!(seen["hold_user_executable_anonymous"], false);
+    assert_eq!(seen["hold_anonymous"]["ok"], false);
+    assert_eq!(seen["hold_anonymous"]["status"], "BadUserAccessDenied");
+    assert_eq!(seen["state_after_anonymous_hold"], "running");
+    // `ctl hold`: the subscription to the state sees held, an event says why, X stands.
+    assert_eq!(seen["ctl_hold_exit"], 0);
+    let states: Vec<&str> = seen["states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|s| s.as_str())
+        .collect();
+    assert!(states.contains(&"running"), "{states:?}");
+    assert_eq!(states.last(), Some(&"held"), "{states:?}");
+    let events = seen["events"].as_array().unwrap();
+    assert!(
+        events.iter().any(|e| e["type"] == "EdmHoldEventType"
+            && e["message"].as_str().unwrap().contains("at line 2")
+            && e["severity"] == 400),
+        "{events:?}"
+    );
+    assert_eq!(seen["x_held"][0], seen["x_held"][1], "held: X stands");
+    // The encrypted endpoint: an unknown client certificate is rejected and kept for the
+    // administrator; once trusted, a wrong password is refused and the operator may abort.
+    assert_eq!(seen["unknown_certificate"], "BadCertificateUntrusted");
+    assert_eq!(seen["rejected"], 1);
+    assert_eq!(seen["wrong_password"], "BadUserAccessDenied");
+    assert_eq!(seen["hold_user_executable_signed_in"], true);
+    assert_eq!(
+        seen["abort_signed_in"]["ok"], true,
+        "{}",
+        seen["abort_signed_in"]
+    );
+    assert_eq!(seen["state_after_abort"], "idle");
+    assert_eq!(seen["last_outcome"], "stopped");
+    // A method the control loop refuses (hold with no job) is an error status, not success.
+    assert_eq!(seen["hold_when_idle"]["status"], "BadInvalidState");
+    let status = daemon.status();
+    assert_eq!(status["state"], "idle");
+    let log = daemon.log();
+    assert!(log.contains("opcua: operator signed in"), "{log}");
+    assert!(log.contains("opcua: Abort: aborting"), "{log}");
+    assert!(
+        !log.contains("INFO opcua_server"),
+        "the library's chatter stays out at info"
+    );
+}
