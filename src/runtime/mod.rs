@@ -20,29 +20,10 @@
 //! run` prints and writes as JSON; the daemon runs its jobs on one long-lived [`FineThread`].
 //! [`run_file`] is `edmd run`'s path: copy, check, open the devices, run.
 
-pub mod consumer;
-pub mod controls;
-mod devices;
-mod error;
-mod events;
-pub mod fine_thread;
-pub mod from_line;
-mod histogram;
-pub mod latency;
-pub mod passes;
-mod precheck;
-pub mod probe;
-pub mod producer;
-pub mod program;
-pub mod progress;
-mod published;
-mod realtime;
+mod job;
 mod run;
-mod snapshot;
-mod spec;
-mod stages;
-mod summary;
-pub mod tabs;
+mod shaping;
+mod tick;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -53,6 +34,13 @@ use crate::config::Config;
 use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
 use crate::record::Recording;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
+
+use job::{devices, error, precheck, spec, summary};
+pub use job::{fine_thread, producer};
+use shaping::stages;
+pub use shaping::{from_line, passes, program, progress, tabs};
+pub use tick::{consumer, controls, latency, probe};
+use tick::{histogram, realtime};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
 pub use devices::{

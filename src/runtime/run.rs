@@ -15,16 +15,16 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{Receiver, TryRecvError};
 
-use super::consumer::{EventRecord, Published};
-use super::devices::BoxedOutput;
-use super::events;
-use super::fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
-use super::precheck::Precheck;
-use super::producer::{self, ProducerError, ProducerReport};
-use super::program::JobProgram;
-use super::progress::ProgressTracker;
-use super::spec::JobSpec;
-use super::summary::{self, JobSummary};
+use super::job::devices::BoxedOutput;
+use super::job::events;
+use super::job::fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
+use super::job::precheck::Precheck;
+use super::job::producer::{self, ProducerError, ProducerReport};
+use super::job::spec::JobSpec;
+use super::job::summary::{self, JobSummary};
+use super::shaping::program::JobProgram;
+use super::shaping::progress::ProgressTracker;
+use super::tick::consumer::{EventRecord, Published};
 use super::{JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
 use crate::buffer::LoopBuffer;
 use crate::record::{RecordedOutput, Recorder, Recording};

@@ -22,9 +22,9 @@ use std::time::Duration;
 
 use crossbeam::channel::{self, Receiver, RecvTimeoutError, Sender};
 
-use super::consumer::{self, LoopReport, LoopSettings, Published};
+use super::super::tick::consumer::{self, LoopReport, LoopSettings, Published};
+use super::super::tick::realtime::apply_realtime;
 use super::devices::{BoxedGap, BoxedInputs, BoxedOutput};
-use super::realtime::apply_realtime;
 use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::output::OutputError;

@@ -2,14 +2,14 @@
 //! to prove it fits a step counter, before anything moves. A CNC control must not start
 //! cutting a program whose line 10,000 is bad.
 
+use super::super::shaping::from_line::Gate;
+use super::super::shaping::passes;
+use super::super::shaping::program::{CountingReader, JobProgram, Phase, Progress};
+use super::super::shaping::tabs::{self, PassProgram};
 use super::error::JobError;
-use super::from_line::Gate;
-use super::passes;
 use super::producer::{ProducerError, to_steps};
-use super::program::{CountingReader, JobProgram, Phase, Progress};
 use super::spec::CutPlan;
 use super::spec::start_steps;
-use super::tabs::{self, PassProgram};
 use crate::config::WirePass;
 use crate::config::{Config, GapKind};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};

@@ -8,8 +8,8 @@ use crate::gcode::{ProgramOptions, WorkStart};
 use crate::preprocess::PlanSettings;
 use crate::vocab::{Axis, Steps, TickPeriod};
 
-use super::consumer::LoopSettings;
-use super::from_line::FromLine;
+use super::super::shaping::from_line::FromLine;
+use super::super::tick::consumer::LoopSettings;
 
 /// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
 /// and the voltage law's reference (V) it sets, and its jumps: interval (s), height (mm) and
@@ -28,7 +28,7 @@ pub struct StepCondition {
 pub struct CutPlan {
     pub from_line: Option<FromLine>,
     pub passes: Vec<WirePass>,
-    /// In passes: the tab left (mm; 0: none), see [`super::tabs`].
+    /// In passes: the tab left (mm; 0: none), see [`super::super::shaping::tabs`].
     pub tab_mm: f64,
 }
 

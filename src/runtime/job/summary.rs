@@ -4,8 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::consumer::LoopReport;
-use super::histogram::LatencySummary;
+use super::super::tick::consumer::LoopReport;
+use super::super::tick::histogram::LatencySummary;
 use super::producer::{ProducerError, ProducerReport};
 use crate::fine::{FineCounters, Interpolator, SkipError};
 use crate::output::OutputError;
@@ -92,7 +92,10 @@ pub struct LastProbe {
 
 impl LastProbe {
     /// The last probe's result (`steps` times `step_mm`), if there was one.
-    pub fn new(probe: Option<&super::probe::ProbeResult>, step_mm: &[f64]) -> LastProbe {
+    pub fn new(
+        probe: Option<&super::super::tick::probe::ProbeResult>,
+        step_mm: &[f64],
+    ) -> LastProbe {
         LastProbe {
             probe_mm: probe.map(|p| {
                 p.steps
@@ -191,14 +194,14 @@ pub struct JobSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stopped_at: Option<StopPoint>,
     /// A die-sinker's orbital sinking moves, in program order (at most
-    /// [`super::stages::MAX_STAGES`]).
+    /// [`super::super::shaping::stages::MAX_STAGES`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub stages: Vec<super::stages::StageRow>,
+    pub stages: Vec<super::super::shaping::stages::StageRow>,
 }
 
 /// What a finished job leaves behind, for its summary.
-pub(super) struct JobFacts<'a> {
-    pub program: &'a super::program::JobProgram,
+pub(in crate::runtime) struct JobFacts<'a> {
+    pub program: &'a super::super::shaping::program::JobProgram,
     pub check: &'a super::precheck::Precheck,
     pub spec: &'a super::spec::JobSpec,
     pub resume: Option<&'a super::fine_thread::ResumePoint>,
@@ -215,7 +218,9 @@ pub(super) struct JobFacts<'a> {
 impl JobSummary {
     /// The summary of a finished job, and the snapshot of where it stands (the checkpoint's
     /// point and ledger).
-    pub(super) fn of(facts: JobFacts<'_>) -> (JobSummary, super::snapshot::Snapshot) {
+    pub(in crate::runtime) fn of(
+        facts: JobFacts<'_>,
+    ) -> (JobSummary, super::super::tick::snapshot::Snapshot) {
         let JobFacts {
             program,
             check,
@@ -242,7 +247,7 @@ impl JobSummary {
         let tick = spec.tick;
         let (outcome, error) = outcome(skip, &report, finished, fine.state(), &producer);
         let producer = producer.unwrap_or_default();
-        let mut stopped_at = super::snapshot::Snapshot::of(report.ticks, fine);
+        let mut stopped_at = super::super::tick::snapshot::Snapshot::of(report.ticks, fine);
         if let Some((here, events)) = report.untaken_from {
             // The failed tick's step never reached the drives: the checkpoint's point is the
             // one before it (its ledger is taken back in `delivered`).

@@ -1,7 +1,7 @@
 //! Servo events, from the consumer's queue to the log and the job's recording (the main
 //! thread; never the consumer).
 
-use super::consumer::EventRecord;
+use super::super::tick::consumer::EventRecord;
 use super::spec::JobSpec;
 use crate::record::{EventKind, Recorder, Recording};
 use crate::servo::{Excursion, PauseKind, ServoEvent};
@@ -9,7 +9,7 @@ use crate::servo::{Excursion, PauseKind, ServoEvent};
 /// Logs one servo event (from the main thread, never the consumer). A programmed stop holds
 /// the job where the spec says an operator is there to resume it (the daemon), and is passed
 /// otherwise (`edmd run`).
-pub(super) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
+pub(in crate::runtime) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
     let pauses = spec.run_loop.program_pauses;
     let t = spec.tick.ticks_to_secs(record.tick);
     let line = record.line;
@@ -278,7 +278,11 @@ fn log_excursion(program: &str, line: u64, t: f64, event: ServoEvent, spec: &Job
 }
 
 /// Hands a batch of samples and servo events to the recording, in tick order.
-pub(super) fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventRecord]) {
+pub(in crate::runtime) fn record_batch(
+    recording: &mut Recording,
+    recorder: &Recorder,
+    events: &[EventRecord],
+) {
     let mut events = events.iter().peekable();
     let mut take_events = |recording: &mut Recording, before: u64| {
         while let Some(e) = events.next_if(|e| e.tick <= before) {

@@ -1,8 +1,10 @@
 //! Why a job could not start.
 
-use super::from_line::FromLineError;
+use super::super::shaping::from_line::FromLineError;
+use super::super::shaping::passes;
+use super::super::shaping::program;
+use super::super::shaping::tabs;
 use super::producer::ProducerError;
-use super::{passes, program, tabs};
 use crate::gap::ScriptError;
 use crate::gcode::GcodeError;
 use crate::output::OutputError;

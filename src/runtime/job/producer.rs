@@ -10,12 +10,12 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use super::from_line::{self, Approach, Gate, Route};
-use super::passes;
-use super::probe::ProbeLink;
-use super::program::JobProgram;
+use super::super::shaping::from_line::{self, Approach, Gate, Route};
+use super::super::shaping::passes;
+use super::super::shaping::program::JobProgram;
+use super::super::shaping::tabs::{self, PassProgram};
+use super::super::tick::probe::ProbeLink;
 use super::spec::{JobSpec, StepCondition};
-use super::tabs::{self, PassProgram};
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::config::WirePass;
 use crate::gcode::{self, BlockKind, GcodeError};
@@ -45,11 +45,11 @@ pub enum ProducerError {
     #[error("cannot start the producer thread: {0}")]
     Thread(std::io::Error),
     #[error(transparent)]
-    FromLine(#[from] super::from_line::FromLineError),
+    FromLine(#[from] super::super::shaping::from_line::FromLineError),
     #[error(transparent)]
     Passes(#[from] passes::PassError),
     #[error(transparent)]
-    Tabs(#[from] super::tabs::TabError),
+    Tabs(#[from] super::super::shaping::tabs::TabError),
 }
 
 /// What the producer did.
@@ -64,7 +64,7 @@ pub struct ProducerReport {
     /// (ns): what the producer's real-time margin is measured against.
     pub busy_ns: u64,
     /// The orbital sinking moves read, in order (the stages the summary lists).
-    pub stages: Vec<super::stages::StageRow>,
+    pub stages: Vec<super::super::shaping::stages::StageRow>,
 }
 
 /// Rounds a point in mm to absolute step positions.
@@ -497,8 +497,8 @@ fn stream<R: std::io::BufRead + std::io::Seek>(
                 None => continue,
             },
         };
-        if out.report.stages.len() < super::stages::MAX_STAGES
-            && let Some(stage) = super::stages::StageRow::of(&block)
+        if out.report.stages.len() < super::super::shaping::stages::MAX_STAGES
+            && let Some(stage) = super::super::shaping::stages::StageRow::of(&block)
         {
             out.report.stages.push(stage);
         }
