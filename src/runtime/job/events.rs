@@ -9,7 +9,7 @@ use crate::servo::{Excursion, PauseKind, ServoEvent};
 /// Logs one servo event (from the main thread, never the consumer). A programmed stop holds
 /// the job where the spec says an operator is there to resume it (the daemon), and is passed
 /// otherwise (`edmd run`).
-pub(in crate::runtime) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
+pub(crate) fn log_event(program: &str, record: &EventRecord, spec: &JobSpec) {
     let pauses = spec.run_loop.program_pauses;
     let t = spec.tick.ticks_to_secs(record.tick);
     let line = record.line;
@@ -278,11 +278,7 @@ fn log_excursion(program: &str, line: u64, t: f64, event: ServoEvent, spec: &Job
 }
 
 /// Hands a batch of samples and servo events to the recording, in tick order.
-pub(in crate::runtime) fn record_batch(
-    recording: &mut Recording,
-    recorder: &Recorder,
-    events: &[EventRecord],
-) {
+pub(crate) fn record_batch(recording: &mut Recording, recorder: &Recorder, events: &[EventRecord]) {
     let mut events = events.iter().peekable();
     let mut take_events = |recording: &mut Recording, before: u64| {
         while let Some(e) = events.next_if(|e| e.tick <= before) {

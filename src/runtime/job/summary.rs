@@ -200,7 +200,7 @@ pub struct JobSummary {
 }
 
 /// What a finished job leaves behind, for its summary.
-pub(in crate::runtime) struct JobFacts<'a> {
+pub(crate) struct JobFacts<'a> {
     pub program: &'a super::super::shaping::program::JobProgram,
     pub check: &'a super::precheck::Precheck,
     pub spec: &'a super::spec::JobSpec,
@@ -218,9 +218,7 @@ pub(in crate::runtime) struct JobFacts<'a> {
 impl JobSummary {
     /// The summary of a finished job, and the snapshot of where it stands (the checkpoint's
     /// point and ledger).
-    pub(in crate::runtime) fn of(
-        facts: JobFacts<'_>,
-    ) -> (JobSummary, super::super::tick::snapshot::Snapshot) {
+    pub(crate) fn of(facts: JobFacts<'_>) -> (JobSummary, super::super::tick::snapshot::Snapshot) {
         let JobFacts {
             program,
             check,

@@ -67,7 +67,7 @@ impl Default for Snapshot {
 }
 
 /// Words of a snapshot in the seqlock.
-pub(in crate::runtime) const WORDS: usize = <Snapshot as Packed>::WORDS;
+pub(crate) const WORDS: usize = <Snapshot as Packed>::WORDS;
 
 impl Snapshot {
     pub fn of(tick: u64, fine: &Interpolator) -> Snapshot {
@@ -104,13 +104,13 @@ impl Snapshot {
         }
     }
 
-    pub(in crate::runtime) fn encode(&self) -> [u64; WORDS] {
+    pub(crate) fn encode(&self) -> [u64; WORDS] {
         let mut words = [0u64; WORDS];
         self.pack(&mut words);
         words
     }
 
-    pub(in crate::runtime) fn decode(words: &[u64; WORDS]) -> Snapshot {
+    pub(crate) fn decode(words: &[u64; WORDS]) -> Snapshot {
         Snapshot::unpack(words)
     }
 }
@@ -118,7 +118,7 @@ impl Snapshot {
 /// A single-writer sequence lock over a few words: the writer never waits, a reader retries
 /// while a write is in progress or happened under it.
 #[derive(Debug)]
-pub(in crate::runtime) struct SeqLock {
+pub(crate) struct SeqLock {
     version: AtomicU64,
     words: [AtomicU64; WORDS],
 }
@@ -136,7 +136,7 @@ impl Default for SeqLock {
 
 impl SeqLock {
     #[inline]
-    pub(in crate::runtime) fn write(&self, data: &[u64; WORDS]) {
+    pub(crate) fn write(&self, data: &[u64; WORDS]) {
         let v = self.version.load(Ordering::Relaxed);
         self.version.store(v.wrapping_add(1), Ordering::Relaxed);
         fence(Ordering::Release);
@@ -146,7 +146,7 @@ impl SeqLock {
         self.version.store(v.wrapping_add(2), Ordering::Release);
     }
 
-    pub(in crate::runtime) fn read(&self) -> [u64; WORDS] {
+    pub(crate) fn read(&self) -> [u64; WORDS] {
         loop {
             let before = self.version.load(Ordering::Acquire);
             if before & 1 == 1 {

@@ -277,10 +277,12 @@ pub fn module_paths(code: &str, here: &[String]) -> Vec<(Vec<String>, usize)> {
             .iter()
             .find(|p| rest.starts_with(*p))
             .copied();
+        // `pub(in crate::x)` names a visibility, not an import.
         let preceded = i > 0
             && (bytes[i - 1].is_ascii_alphanumeric()
                 || bytes[i - 1] == b'_'
-                || bytes[i - 1] == b':');
+                || bytes[i - 1] == b':'
+                || code[..i].ends_with("(in "));
         let Some(start) = starts.filter(|_| !preceded) else {
             i += rest.chars().next().map_or(1, char::len_utf8);
             continue;
