@@ -5,7 +5,6 @@
 use super::launch::JobKind;
 use std::path::{Path, PathBuf};
 
-use super::jobs::JobControl;
 use super::refusal::CheckpointWriteError;
 use super::status::mm;
 use super::{Job, unix_now};
@@ -33,22 +32,22 @@ pub(super) struct CheckpointKeeper {
 
 impl CheckpointKeeper {
     /// Removes the program copies beside `checkpoint` that no job, check or checkpoint
-    /// needs (and half-written ones); `running` is a job's copy about to start.
-    pub(super) fn prune_copies(&self, checkpoint: &Path, jobs: &JobControl, running: Option<&str>) {
+    /// needs (and half-written ones): `jobs` are the copies (SHA-256) of the running job and
+    /// of one about to start; `checking`: a check is reading an incoming copy.
+    pub(super) fn prune_copies(&self, checkpoint: &Path, jobs: &[&str], checking: bool) {
         let Ok(entries) = std::fs::read_dir(copy_dir(checkpoint)) else {
             return;
         };
-        let keep: Vec<String> = running
-            .into_iter()
-            .map(str::to_string)
+        let keep: Vec<String> = jobs
+            .iter()
+            .map(|sha| sha.to_string())
             .chain(self.current.as_ref().map(|c| c.program_sha256.clone()))
-            .chain(jobs.job.as_ref().map(|j| j.program_sha256.clone()))
             .map(|sha| format!("{sha}.nc"))
             .collect();
         for entry in entries.flatten() {
             let name = entry.file_name().to_string_lossy().to_string();
             let ours = name.ends_with(".nc");
-            let busy = jobs.check.is_some() && name.starts_with(".incoming-");
+            let busy = checking && name.starts_with(".incoming-");
             if ours && !busy && !keep.contains(&name) {
                 let _ = std::fs::remove_file(entry.path());
             }

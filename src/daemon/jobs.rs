@@ -3,14 +3,17 @@
 //! checkpoint written at a standstill, or removed when the job is done. A job's I/O is lent
 //! from here (the claimed parallel port).
 
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+use super::checkpoints::CheckpointKeeper;
 use super::launch::{JobKind, Launch, Source};
+use super::names::confine;
 use super::protocol;
 use super::refusal::Refusal;
-use super::{Core, Job, confine};
+use super::{Core, Job};
 use crate::checkpoint::Reason;
 use crate::config::{Config, GapKind, OutputKind};
 use crate::record::EventKind;
@@ -87,6 +90,21 @@ pub(super) struct JobControl {
 }
 
 impl JobControl {
+    /// Removes the program copies no job, check or checkpoint needs; `starting` is the copy
+    /// (SHA-256) of a job about to start.
+    pub(super) fn prune_copies(
+        &self,
+        checkpoints: &CheckpointKeeper,
+        checkpoint: &Path,
+        starting: Option<&str>,
+    ) {
+        let jobs: Vec<&str> = starting
+            .into_iter()
+            .chain(self.job.as_ref().map(|j| j.program_sha256.as_str()))
+            .collect();
+        checkpoints.prune_copies(checkpoint, &jobs, self.check.is_some());
+    }
+
     /// A job that ended, or did not start after all, hands the claimed parallel port back.
     pub(super) fn give_back_io(
         &mut self,
@@ -446,8 +464,8 @@ impl Core {
         self.note_trip(&summary);
         // Before a homing sequence or a touch cycle starts its next check: that check's copy
         // is not this job's and must not be pruned.
-        self.checkpoints
-            .prune_copies(&self.config.daemon.checkpoint, &self.jobs, None);
+        self.jobs
+            .prune_copies(&self.checkpoints, &self.config.daemon.checkpoint, None);
         match job.kind {
             JobKind::Home { switch, .. } => self.homing_done(&switch, &summary),
             JobKind::Touch { .. } => self.find_moved(&summary),

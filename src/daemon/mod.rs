@@ -266,8 +266,8 @@ pub fn serve(
         reloading: None,
     };
 
-    core.checkpoints
-        .prune_copies(&core.config.daemon.checkpoint, &core.jobs, None);
+    core.jobs
+        .prune_copies(&core.checkpoints, &core.config.daemon.checkpoint, None);
     core.notifier.send("READY=1");
     core.notify_status();
     core.run(&inbox);

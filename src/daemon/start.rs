@@ -445,9 +445,9 @@ impl Core {
                 old.program.display()
             );
         }
-        self.checkpoints.prune_copies(
+        self.jobs.prune_copies(
+            &self.checkpoints,
             &self.config.daemon.checkpoint,
-            &self.jobs,
             Some(&program.sha256),
         );
         let (fine, tx) = (self.jobs.fine.clone(), self.clients.to_core.clone());

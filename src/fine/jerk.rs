@@ -17,11 +17,6 @@
 //! `(J · event²)^⅓` (the speed from which a jerk-limited stop takes one event) finishes it:
 //! the pulse log can not tell a stop from that speed from a smooth one by more than a step.
 
-use super::excursion::ExcursionState;
-use super::motion::Motion;
-use crate::buffer::BlockFlags;
-use crate::servo::{Excursion, Servo, ServoState};
-
 /// The limits of a jerk-limited move: acceleration (mm/s²) and jerk (mm/s³), both > 0.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JerkLimits {
@@ -147,42 +142,6 @@ pub fn step(
         return (floor, 0.0);
     }
     (v1.max(0.0), next)
-}
-
-/// Whether this tick's speed is jerk-limited, and the way to the stop it must make: `None`
-/// for the trapezoid (no jerk limit, or a cut, a turn-back, a probing move); `Some(None)` for
-/// a jerk-limited move with no stop ahead in its direction (braking to reverse). A function of
-/// the block in hand, the servo's state and the excursion's distances, with `jerk` the limit.
-pub(super) fn room_ahead(
-    motion: &Motion,
-    servo: &Servo,
-    excursions: &ExcursionState,
-    jerk: f64,
-    want_dir: i8,
-) -> Option<Option<Room>> {
-    if jerk <= 0.0 || !motion.has_block {
-        return None;
-    }
-    let toward = want_dir == motion.dir;
-    let stop = |mm: f64| toward.then_some(Room { mm, v_end: 0.0 });
-    match servo.state() {
-        ServoState::Forward
-            if motion.holds(BlockFlags::RAPID) && !motion.holds(BlockFlags::PROBE) =>
-        {
-            // A rapid ends at a standstill (the planner stops there under a jerk limit).
-            Some(stop(motion.way_left() + motion.block.rest_mm))
-        }
-        ServoState::Retreat => Some(match servo.excursion() {
-            Excursion::Jump => stop((excursions.jump_height - excursions.retreat_mm).max(0.0)),
-            // Back to the start of the contour: the lattice path there from the point of the
-            // block in hand.
-            Excursion::Rethread => {
-                stop((motion.block.contour_mm - motion.lattice_mm + motion.way_left()).max(0.0))
-            }
-        }),
-        ServoState::Return => Some(stop(excursions.behind_mm)),
-        _ => None,
-    }
 }
 
 #[cfg(test)]

@@ -479,7 +479,7 @@ impl Interpolator {
         } else {
             feed.min(limit).min(cruise)
         };
-        match jerk::room_ahead(
+        match excursion::room_ahead(
             &self.motion,
             &self.servo,
             &self.excursions,

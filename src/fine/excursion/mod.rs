@@ -25,10 +25,11 @@
 //!   break point with the spark off and cutting carries on there.
 
 use super::jerk::{JerkLimits, Room};
+use super::motion::Motion;
 use super::{Interpolator, Tick};
 use crate::buffer::{BlockFlags, StepBlock};
 
-use crate::servo::{Excursion, Rethread, ServoEvent, ServoState};
+use crate::servo::{Excursion, Rethread, Servo, ServoEvent, ServoState};
 use crate::vocab::GapState;
 
 /// Jumps, wire-break detection and rethreading, in the interpolator's units.
@@ -519,6 +520,42 @@ impl Interpolator {
                 tick.event = self.servo.on_forward(self.motion.here());
             }
         }
+    }
+}
+
+/// Whether this tick's speed is jerk-limited, and the way to the stop it must make: `None`
+/// for the trapezoid (no jerk limit, or a cut, a turn-back, a probing move); `Some(None)` for
+/// a jerk-limited move with no stop ahead in its direction (braking to reverse). A function of
+/// the block in hand, the servo's state and the excursion's distances, with `jerk` the limit.
+pub(super) fn room_ahead(
+    motion: &Motion,
+    servo: &Servo,
+    excursions: &ExcursionState,
+    jerk: f64,
+    want_dir: i8,
+) -> Option<Option<Room>> {
+    if jerk <= 0.0 || !motion.has_block {
+        return None;
+    }
+    let toward = want_dir == motion.dir;
+    let stop = |mm: f64| toward.then_some(Room { mm, v_end: 0.0 });
+    match servo.state() {
+        ServoState::Forward
+            if motion.holds(BlockFlags::RAPID) && !motion.holds(BlockFlags::PROBE) =>
+        {
+            // A rapid ends at a standstill (the planner stops there under a jerk limit).
+            Some(stop(motion.way_left() + motion.block.rest_mm))
+        }
+        ServoState::Retreat => Some(match servo.excursion() {
+            Excursion::Jump => stop((excursions.jump_height - excursions.retreat_mm).max(0.0)),
+            // Back to the start of the contour: the lattice path there from the point of the
+            // block in hand.
+            Excursion::Rethread => {
+                stop((motion.block.contour_mm - motion.lattice_mm + motion.way_left()).max(0.0))
+            }
+        }),
+        ServoState::Return => Some(stop(excursions.behind_mm)),
+        _ => None,
     }
 }
 
