@@ -37,6 +37,8 @@ install -m 644 systemd/edmd-sysusers.conf "$stage/usr/lib/sysusers.d/edmd.conf"
 install -m 644 systemd/edmd-tmpfiles.conf "$stage/usr/lib/tmpfiles.d/edmd.conf"
 install -m 644 systemd/edmd-modules.conf "$stage/usr/lib/modules-load.d/edmd.conf"
 install -m 644 README.md "$stage/usr/share/doc/edmd/README.md"
+install -d "$stage/usr/share/doc/edmd/docs"
+install -m 644 docs/*.md docs/*.png "$stage/usr/share/doc/edmd/docs/"
 {
   echo "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/"
   echo "Upstream-Name: edmd"
