@@ -479,13 +479,19 @@ impl Interpolator {
         } else {
             feed.min(limit).min(cruise)
         };
-        match excursion::room_ahead(
-            &self.motion,
-            &self.servo,
-            &self.excursions,
-            self.settings.jerk,
-            want_dir,
-        ) {
+        // Most machines set no jerk limit: the trapezoid, without a call.
+        let room = if self.settings.jerk > 0.0 {
+            excursion::room_ahead(
+                &self.motion,
+                &self.servo,
+                &self.excursions,
+                self.settings.jerk,
+                want_dir,
+            )
+        } else {
+            None
+        };
+        match room {
             Some(room) => {
                 let limits = jerk::JerkLimits {
                     accel,
