@@ -192,30 +192,32 @@ pub enum OpenError {
     Write(#[from] WriteError),
 }
 
+/// A two-axis machine without soft limits, for the tests of the model and of its file.
+#[cfg(test)]
+fn xy_machine() -> MachineConfig {
+    MachineConfig {
+        axes: vec![Axis::X, Axis::Y],
+        step_mm: vec![0.001, 0.0005],
+        max_feed_mm_per_min: 1000.0,
+        max_normal_accel_mm_per_s2: 1000.0,
+        max_tangential_accel_mm_per_s2: 1000.0,
+        max_jog_feed_mm_per_min: 600.0,
+        max_jerk_mm_per_s3: 0.0,
+        travel: vec![None, None],
+        safe_z_mm: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn config() -> MachineConfig {
-        MachineConfig {
-            axes: vec![Axis::X, Axis::Y],
-            step_mm: vec![0.001, 0.001],
-            max_feed_mm_per_min: 1000.0,
-            max_normal_accel_mm_per_s2: 1000.0,
-            max_tangential_accel_mm_per_s2: 1000.0,
-            max_jog_feed_mm_per_min: 600.0,
-            max_jerk_mm_per_s3: 0.0,
-            travel: vec![None, None],
-            safe_z_mm: None,
-        }
-    }
 
     #[test]
     fn the_write_ahead_path_distrusts_a_state_left_moving() {
         let dir = std::env::temp_dir().join(format!("edmd-machine-model-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("state.json");
-        let (mut m, found) = Machine::open(Some(&path), &config()).unwrap();
+        let (mut m, found) = Machine::open(Some(&path), &xy_machine()).unwrap();
         assert_eq!(found, Found::Nothing);
         m.state.set_homed(0);
         m.state.set_homed(1);
@@ -223,7 +225,7 @@ mod tests {
         let mut moved = m.state.position;
         moved[0] = 5_000;
         // Killed while moving: the next open believes the last position, distrusted.
-        let (m2, found) = Machine::open(Some(&path), &config()).unwrap();
+        let (m2, found) = Machine::open(Some(&path), &xy_machine()).unwrap();
         assert_eq!(found, Found::Moving);
         assert!(!m2.state.position_trusted);
         assert_eq!(
@@ -241,18 +243,18 @@ mod tests {
             })
         );
         // The distrust was written back: a second open still distrusts.
-        let (mut m3, found) = Machine::open(Some(&path), &config()).unwrap();
+        let (mut m3, found) = Machine::open(Some(&path), &xy_machine()).unwrap();
         assert_eq!(found, Found::Standstill);
         assert!(!m3.state.position_trusted);
         m3.stopped(&moved, None).unwrap();
-        let (m4, _) = Machine::open(Some(&path), &config()).unwrap();
+        let (m4, _) = Machine::open(Some(&path), &xy_machine()).unwrap();
         assert_eq!(m4.state.position[0], 5_000);
         std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
     fn a_trip_refuses_motion_but_a_jog_away_from_the_switch() {
-        let (mut m, _) = Machine::open(None, &config()).unwrap();
+        let (mut m, _) = Machine::open(None, &xy_machine()).unwrap();
         assert_eq!(m.admit(Admission::Motion { jog: None }), Ok(()));
         m.state.trip = Some(Trip::EStop);
         assert_eq!(

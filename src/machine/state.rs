@@ -355,26 +355,12 @@ pub fn default_path(checkpoint: &Path) -> PathBuf {
 mod tests {
     use super::*;
 
-    fn machine() -> MachineConfig {
-        MachineConfig {
-            axes: vec![Axis::X, Axis::Y],
-            step_mm: vec![0.001, 0.0005],
-            max_feed_mm_per_min: 1000.0,
-            max_normal_accel_mm_per_s2: 1000.0,
-            max_tangential_accel_mm_per_s2: 1000.0,
-            max_jog_feed_mm_per_min: 600.0,
-            max_jerk_mm_per_s3: 0.0,
-            travel: vec![None, None],
-            safe_z_mm: None,
-        }
-    }
-
     #[test]
     fn a_state_survives_the_file_and_a_moving_one_is_marked() {
         let dir = std::env::temp_dir().join(format!("edmd-machine-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("state.json");
-        let m = machine();
+        let m = super::super::xy_machine();
         assert_eq!(MachineState::load(&path, &m).unwrap(), None);
         let mut state = MachineState::new(&m);
         state.position[0] = 12_345;
