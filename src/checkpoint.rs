@@ -135,7 +135,7 @@ pub struct Checkpoint {
     pub start: Option<StartRecord>,
     /// The job ran from a line: a resume replays the same approach (and never cuts it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub from_line: Option<crate::runtime::FromLine>,
+    pub from_line: Option<crate::path::FromLine>,
     /// The job ran in passes: a resume replays the same ones, whatever the table says now.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<crate::config::WirePass>,

@@ -24,14 +24,17 @@ pub mod words;
 pub mod geometry;
 // Floor 2: programs.
 pub mod gcode;
-// Floor 3: the producer's algorithm (segmentation, feed planning).
+// Floor 3: the path, every rewrite of the program's blocks (wire offset, taper, orbit, passes,
+// tabs, run from a line).
+pub mod path;
+// Floor 4: the producer's algorithm (segmentation, feed planning).
 pub mod preprocess;
-// Floor 4: the loop buffer.
+// Floor 5: the loop buffer.
 pub mod buffer;
-// Floor 5: the tick core and its servo.
+// Floor 6: the tick core and its servo.
 pub mod fine;
 pub mod servo;
-// Floor 6: the machine's two sides (pulse outputs, gap and machine inputs), their devices and
+// Floor 7: the machine's two sides (pulse outputs, gap and machine inputs), their devices and
 // wrappers.
 pub mod gap;
 pub mod inputs;
@@ -40,9 +43,9 @@ pub mod parport;
 pub mod record;
 pub mod sim;
 pub mod trace;
-// Floor 7: configuration, read at the edge and handed down as plain values.
+// Floor 8: configuration, read at the edge and handed down as plain values.
 pub mod config;
-// Floor 8: reports, checkpoints, the machine state, the setup cycles and the job runner.
+// Floor 9: reports, checkpoints, the machine state, the setup cycles and the job runner.
 pub mod check;
 pub mod checkpoint;
 pub mod machine;
@@ -50,7 +53,7 @@ pub mod plan;
 pub mod report;
 pub mod runtime;
 pub mod touch;
-// Floor 9: the daemon.
+// Floor 10: the daemon.
 pub mod daemon;
-// Floor 10: the command line.
+// Floor 11: the command line.
 pub mod cli;

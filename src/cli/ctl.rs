@@ -46,7 +46,7 @@ pub(super) enum CtlCommand {
         /// off (a wire machine), or direct: up to machine.safe_z_mm, across, down (a sinker)
         /// [default: direct where machine.safe_z_mm is set, path otherwise]
         #[arg(long, value_parser = parse_approach, requires = "from_line")]
-        approach: Option<crate::runtime::Approach>,
+        approach: Option<crate::path::Approach>,
         /// Cut the program once per pass of the technology table ([wire] pass): the first N,
         /// each at its offset and condition
         #[arg(long, value_name = "N")]
@@ -273,8 +273,8 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
 }
 
 /// `--approach path|direct`.
-pub(super) fn parse_approach(text: &str) -> Result<crate::runtime::Approach, String> {
-    crate::runtime::Approach::parse(text)
+pub(super) fn parse_approach(text: &str) -> Result<crate::path::Approach, String> {
+    crate::path::Approach::parse(text)
         .ok_or_else(|| format!("{text:?}: the approach is path or direct"))
 }
 

@@ -225,7 +225,7 @@ struct RunArgs {
     /// direct (up to machine.safe_z_mm, across, down) [default: direct where
     /// machine.safe_z_mm is set, path otherwise]
     #[arg(long, value_parser = ctl::parse_approach, requires = "from_line")]
-    approach: Option<runtime::Approach>,
+    approach: Option<crate::path::Approach>,
     /// Cut the program once per pass of the technology table ([wire] pass): the first N
     #[arg(long, value_name = "N", conflicts_with = "from_line")]
     passes: Option<usize>,
@@ -233,14 +233,14 @@ struct RunArgs {
 
 impl RunArgs {
     /// What the job cuts: from `--from-line`, in `--passes` of the table.
-    fn cut_plan(&self, cfg: &Config) -> Result<runtime::CutPlan, ExitCode> {
+    fn cut_plan(&self, cfg: &Config) -> Result<crate::path::CutPlan, ExitCode> {
         let passes = match self.passes {
             None => Vec::new(),
             Some(0) => {
                 eprintln!("edmd: error: --passes counts from 1 (the first pass of [wire] pass)");
                 return Err(ExitCode::from(EXIT_BAD_INPUT));
             }
-            Some(n) => runtime::passes::first(&cfg.wire.passes, n).map_err(|e| {
+            Some(n) => crate::path::passes::first(&cfg.wire.passes, n).map_err(|e| {
                 eprintln!("edmd: error: {e}");
                 ExitCode::from(EXIT_BAD_INPUT)
             })?,
@@ -250,7 +250,7 @@ impl RunArgs {
         } else {
             cfg.wire.tab_mm
         };
-        Ok(runtime::CutPlan {
+        Ok(crate::path::CutPlan {
             from_line: self.cut_from(cfg),
             passes,
             tab_mm,
@@ -258,12 +258,12 @@ impl RunArgs {
     }
 
     /// `--from-line` with its approach (the machine's usual one unless `--approach`).
-    fn cut_from(&self, cfg: &Config) -> Option<runtime::FromLine> {
-        self.from_line.map(|line| runtime::FromLine {
+    fn cut_from(&self, cfg: &Config) -> Option<crate::path::FromLine> {
+        self.from_line.map(|line| crate::path::FromLine {
             line,
             approach: self
                 .approach
-                .unwrap_or(runtime::Approach::default_for(cfg.machine.safe_z_mm)),
+                .unwrap_or(crate::path::Approach::default_for(cfg.machine.safe_z_mm)),
         })
     }
 }
@@ -433,7 +433,8 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     let name = args.program.display().to_string();
     let options = gcode::ProgramOptions::from_config(&cfg);
     let mut reader = match gcode::open_program_as(&args.program, &name, axes, options, |f| f) {
-        Ok(r) => r,
+        // What the program's moves cut: the wire offset, the taper and the orbits applied.
+        Ok(r) => crate::path::Pipeline::new(r),
         Err(e) => {
             eprintln!("edmd: error: {e}");
             return ExitCode::from(EXIT_BAD_INPUT);
@@ -461,7 +462,7 @@ fn run_check(args: &CheckArgs) -> ExitCode {
             }
         }
     }
-    for w in reader.take_warnings() {
+    for w in reader.reader().take_warnings() {
         if w.line == 0 {
             eprintln!("{name}: warning: {}", w.message);
         } else {
@@ -476,7 +477,7 @@ fn run_check(args: &CheckArgs) -> ExitCode {
         "{}",
         check::describe_totals(&totals, axes, cfg.machine.max_feed_mm_per_min)
     );
-    if let Some(line) = reader.program_end_line() {
+    if let Some(line) = reader.reader().program_end_line() {
         outln!("program end: line {line}");
     }
     ExitCode::SUCCESS

@@ -9,8 +9,9 @@
 use super::Config;
 use super::ServoLaw;
 use crate::fine::FineSettings;
-use crate::gcode::ProgramOptions;
+use crate::gcode::{ProgramOptions, WorkStart};
 use crate::parport::{PinMap, StepTiming};
+use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
 use crate::preprocess::corners::CornerRule;
 use crate::servo::{Feeds, Law};
@@ -183,6 +184,21 @@ impl ProgramOptions {
             guides: config.wire.guides,
             thickness_mm: config.wire.thickness_mm,
             orbit: config.sinker.orbit.clone(),
+        }
+    }
+}
+
+impl PathSpec {
+    /// A job's path under `config`: the program read with its options from `work`, cut as
+    /// `cut` says, approaches at the rethread feed and the machine's safe height.
+    pub fn from_config(config: &Config, work: &WorkStart, cut: &CutPlan) -> PathSpec {
+        PathSpec {
+            axes: config.machine.axes.clone(),
+            program: ProgramOptions::from_config(config),
+            work: work.clone(),
+            cut: cut.clone(),
+            approach_feed_mm_per_min: config.servo.rethread_feed_mm_per_min,
+            safe_z_mm: config.machine.safe_z_mm,
         }
     }
 }

@@ -42,17 +42,7 @@ pub struct TouchConfig {
     pub center_rounds: u32,
 }
 
-/// One pass: the wire offset (every `D` of the program reads it), the condition (every `E` of
-/// the program reads it), a feed ceiling, and the direction.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WirePass {
-    pub offset_mm: f64,
-    pub condition: u32,
-    pub feed_mm_per_min: Option<f64>,
-    /// Cut this pass the other way round.
-    pub reverse: bool,
-}
+pub use crate::path::WirePass;
 
 impl RawWire {
     pub(super) fn validate(

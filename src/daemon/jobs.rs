@@ -273,7 +273,7 @@ impl Core {
         let launch = Launch {
             start,
             kind: JobKind::Program,
-            cut: runtime::CutPlan {
+            cut: crate::path::CutPlan {
                 from_line: cp.from_line,
                 passes: cp.passes.clone(),
                 tab_mm: cp.tab_mm,

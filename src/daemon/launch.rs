@@ -53,7 +53,7 @@ pub(super) struct Launch {
     pub start: WorkStart,
     pub kind: JobKind,
     /// A program run from a line or in passes (a checkpoint of one resumes it as one).
-    pub cut: runtime::CutPlan,
+    pub cut: crate::path::CutPlan,
 }
 
 impl Launch {
@@ -62,9 +62,9 @@ impl Launch {
     /// at its own feed, not the machine's rapid.
     pub fn spec(&self, config: &Config) -> runtime::JobSpec {
         let mut spec = runtime::JobSpec::from_config(config, true);
-        spec.work = self.start.clone();
+        spec.path.work = self.start.clone();
         spec.fine.dry_run = self.kind == JobKind::DryRun;
-        spec.cut = self.cut.clone();
+        spec.path.cut = self.cut.clone();
         if let JobKind::Jog { feed_mm_per_min }
         | JobKind::Home {
             feed_mm_per_min, ..
@@ -107,7 +107,7 @@ pub(super) fn copy_and_check(
     dir: &Path,
     config: &Config,
     start: &WorkStart,
-    cut: &runtime::CutPlan,
+    cut: &crate::path::CutPlan,
     expect: Option<&str>,
     progress: &Progress,
 ) -> Result<Checked, CheckRefusal> {

@@ -138,7 +138,7 @@ struct Job {
     kind: launch::JobKind,
     /// Run from a line, in passes (the checkpoint records them, so a resume replays the same
     /// approach and passes).
-    cut: runtime::CutPlan,
+    cut: crate::path::CutPlan,
 }
 
 /// The daemon's state, owned by the control loop.

@@ -27,7 +27,11 @@ fn draw_programmed(recording: &JobRecording, program: &JobProgram, spec: &runtim
         program.path.clone(),
         program.name.clone(),
     );
-    let (axes, options, start) = (spec.axes.clone(), spec.program.clone(), spec.work.clone());
+    let (axes, options, start) = (
+        spec.axes.clone(),
+        spec.path.program.clone(),
+        spec.path.work.clone(),
+    );
     let spawned = std::thread::Builder::new()
         .name("edmd-report-path".into())
         .stack_size(crate::gcode::PARSER_STACK_BYTES)
@@ -95,7 +99,7 @@ impl Core {
         requested: &str,
         dry_run: bool,
         from_line: Option<u64>,
-        approach: Option<runtime::Approach>,
+        approach: Option<crate::path::Approach>,
         passes: Option<usize>,
         force: bool,
     ) -> Result<String, Refusal> {
@@ -122,7 +126,7 @@ impl Core {
                     "a run in passes starts at the program's start, not from a line".into(),
                 ));
             }
-            Some(n) => runtime::passes::first(&self.config.wire.passes, n)
+            Some(n) => crate::path::passes::first(&self.config.wire.passes, n)
                 .map_err(|e| Refusal::BadArgument(e.to_string()))?,
         };
         let tab_mm = if passes.is_empty() {
@@ -130,7 +134,7 @@ impl Core {
         } else {
             self.config.wire.tab_mm
         };
-        let cut = runtime::CutPlan {
+        let cut = crate::path::CutPlan {
             from_line,
             passes,
             tab_mm,
@@ -164,8 +168,8 @@ impl Core {
         &self,
         dry_run: bool,
         line: Option<u64>,
-        approach: Option<runtime::Approach>,
-    ) -> Result<Option<runtime::FromLine>, Refusal> {
+        approach: Option<crate::path::Approach>,
+    ) -> Result<Option<crate::path::FromLine>, Refusal> {
         let Some(line) = line else {
             return match approach {
                 Some(_) => Err(Refusal::BadArgument(
@@ -184,10 +188,10 @@ impl Core {
                 "a dry run proves the whole program: it does not start from a line".into(),
             ));
         }
-        let approach = approach.unwrap_or(runtime::Approach::default_for(
+        let approach = approach.unwrap_or(crate::path::Approach::default_for(
             self.config.machine.safe_z_mm,
         ));
-        Ok(Some(runtime::FromLine { line, approach }))
+        Ok(Some(crate::path::FromLine { line, approach }))
     }
 
     /// The job about to start, as the core keeps it.

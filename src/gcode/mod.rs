@@ -283,6 +283,18 @@ pub struct Block {
     pub taper: f64,
     /// The orbit this sinking move was turned into (its stage: shape, radius, depths).
     pub orbit: Option<OrbitStage>,
+    /// The wire offset in force (`G41`/`G42` with its `D`): the path's wire-offset stage
+    /// offsets the move by it. `None` with the offset off, and on the exit move (the first
+    /// after `G40`), which the stage ends the offset path with.
+    pub wire_offset: Option<WireOffset>,
+}
+
+/// A wire offset as the program sets it: the side (`G41` left of travel, `G42` right) and
+/// the distance, mm (the `D` register's value, never 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WireOffset {
+    pub left: bool,
+    pub d_mm: f64,
 }
 
 /// An orbit: its shape and radius (the undersize it finishes to), mm.
@@ -356,6 +368,7 @@ impl Block {
             spark_off: None,
             taper: 0.0,
             orbit: None,
+            wire_offset: None,
         }
     }
 

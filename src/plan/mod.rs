@@ -15,8 +15,9 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::config::Config;
-use crate::gcode::{Block, BlockKind, BlockReader, GcodeError};
+use crate::gcode::{Block, BlockKind, BlockReader, WorkStart};
 use crate::geometry::running_max;
+use crate::path::{CutPlan, JobPath, PathError, PathItem, PathSpec};
 use crate::plot::Decimated;
 use crate::preprocess::{PlanSettings, PreprocessStats, Preprocessor, Segment, bound};
 use crate::vocab::{Axis, Predictor, Segmentation};
@@ -32,7 +33,7 @@ const PLOT_POINTS: usize = 20_000;
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
     #[error("{0}")]
-    Program(#[from] GcodeError),
+    Program(#[from] PathError),
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: io::Error },
     /// `--out` names something that is not a directory: bad input, like a bad program.
@@ -107,7 +108,7 @@ pub struct PlanSummary {
     /// A die-sinker's orbital sinking moves, in program order (at most [`MAX_STAGES`]): the
     /// stages of a rough-to-finish sequence.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub stages: Vec<crate::runtime::StageRow>,
+    pub stages: Vec<crate::path::StageRow>,
 }
 
 impl PlanSummary {
@@ -463,8 +464,14 @@ pub fn plan_program(
     );
     let name = program.display().to_string();
     let axes = &config.machine.axes;
-    let options = crate::gcode::ProgramOptions::from_config(config);
-    let mut blocks = BlockReader::with_options(reader, &name, axes, options);
+    // The job's path as a whole run of the program cuts it (one run: the file is read once).
+    let spec = PathSpec::from_config(config, &WorkStart::default(), &CutPlan::default());
+    let mut file = Some(reader);
+    let open = |options| {
+        let reader = file.take().expect("a whole run reads the program once");
+        Ok(BlockReader::with_options(reader, &name, axes, options))
+    };
+    let mut path = JobPath::new(&spec, &name, open, None);
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let trace_path = out_dir.join("trace.csv");
     let trace = File::create(&trace_path).map_err(io_err(&trace_path))?;
@@ -479,10 +486,13 @@ pub fn plan_program(
     let mut bar = Progress::new(progress && io::stderr().is_terminal(), total);
     let mut first = true;
     let mut stages = Vec::new();
-    for item in blocks.by_ref() {
-        let block = Arc::new(item?);
-        if stages.len() < crate::runtime::MAX_STAGES
-            && let Some(stage) = crate::runtime::StageRow::of(&block)
+    while let Some(item) = path.next_item()? {
+        let PathItem::Block(block) = item else {
+            continue;
+        };
+        let block = Arc::new(block);
+        if stages.len() < crate::path::MAX_STAGES
+            && let Some(stage) = crate::path::StageRow::of(&block)
         {
             stages.push(stage);
         }
@@ -496,7 +506,7 @@ pub fn plan_program(
     }
     pre.finish(|seg| c.add(&seg));
     bar.finish();
-    for w in blocks.take_warnings() {
+    for w in path.take_warnings() {
         tracing::warn!("{name}:{}:{}: {}", w.line, w.col, w.message);
     }
     if let Some(e) = c.error.take() {

@@ -24,7 +24,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde::Serialize;
 
-use crate::gcode::GcodeErrorKind;
 use crate::vocab::Axis;
 
 /// Points of a drawn path at most.
@@ -43,7 +42,7 @@ pub enum DrawError {
         source: std::io::Error,
     },
     #[error(transparent)]
-    Program(crate::gcode::GcodeError),
+    Program(crate::path::PathError),
 }
 
 #[derive(Debug, Serialize)]
@@ -202,13 +201,15 @@ pub fn programmed_path(
     if let Some(start) = start {
         reader.start_at(start);
     }
+    // The program's own path: what its moves cut (wire offset, taper, orbit).
+    let reader = crate::path::Pipeline::new(reader);
     let mut drawing = Drawing::new();
     let mut blocks = 0;
     let mut partial = false;
     for item in reader {
         let block = match item {
             Ok(block) => block,
-            Err(e) if matches!(e.kind, GcodeErrorKind::Cancelled) => {
+            Err(e) if e.cancelled() => {
                 partial = true;
                 break;
             }

@@ -32,13 +32,13 @@ use std::time::Duration;
 
 use crate::config::Config;
 use crate::gcode::{WorkOffsets, WorkStart, WorkSystem};
+use crate::path::CutPlan;
 use crate::record::Recording;
 use crate::trace::{TraceEvent, TraceRecord, Tracer};
 
 use job::{devices, error, precheck, spec, summary};
 pub use job::{fine_thread, producer};
-use shaping::stages;
-pub use shaping::{from_line, passes, program, progress, tabs};
+pub use shaping::{program, progress};
 pub use tick::{consumer, controls, latency, probe};
 use tick::{histogram, realtime};
 
@@ -48,7 +48,6 @@ pub use devices::{
 };
 pub use error::JobError;
 pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
-pub use from_line::{Approach, FromLine, FromLineError};
 pub use histogram::{LatencyHistogram, LatencySummary};
 pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
@@ -56,8 +55,7 @@ pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
 pub use realtime::{RealtimeGuard, apply_realtime};
 pub use run::{JobRun, run};
-pub use spec::{CutPlan, JobSpec, StepCondition, fine_speed_cap, start_steps};
-pub use stages::{MAX_STAGES, StageRow};
+pub use spec::{JobSpec, StepCondition, fine_speed_cap, start_steps};
 pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// Logs one trace record (from the main thread).
@@ -134,8 +132,8 @@ pub fn run_file_from(
     let tracer = (config.output.trace || config.gap.trace)
         .then(|| Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current())));
     let mut spec = JobSpec::from_config(config, false);
-    spec.work = start.clone();
-    spec.cut = cut.clone();
+    spec.path.work = start.clone();
+    spec.path.cut = cut.clone();
     let (output, gap, inputs) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
         output,

@@ -3,6 +3,7 @@
 
 use std::io::Cursor;
 
+use crate::common;
 use edmd::gcode::{BlockReader, GcodeError};
 use edmd::vocab::Axis;
 use proptest::prelude::*;
@@ -12,7 +13,7 @@ const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
 
 /// Runs the program to its first error.
 fn first_error(program: &[u8], axes: &[Axis]) -> Option<GcodeError> {
-    BlockReader::new(Cursor::new(program), "t.nc", axes).find_map(Result::err)
+    common::program_path(BlockReader::new(Cursor::new(program), "t.nc", axes)).find_map(Result::err)
 }
 
 struct Case {
@@ -726,7 +727,8 @@ fn a_ten_megabyte_line_is_an_error_not_a_memory_spike() {
 #[test]
 fn nothing_is_emitted_after_an_error() {
     let program = "G0 X1\nG1 X2 F10\nG7\nG1 X3\n";
-    let items: Vec<_> = BlockReader::new(Cursor::new(program), "t.nc", XY).collect();
+    let items: Vec<_> =
+        common::program_path(BlockReader::new(Cursor::new(program), "t.nc", XY)).collect();
     assert_eq!(items.len(), 3);
     assert!(items[0].is_ok() && items[1].is_ok() && items[2].is_err());
 }
@@ -741,7 +743,7 @@ proptest! {
 
     #[test]
     fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
-        for item in BlockReader::new(Cursor::new(&bytes), "fuzz.nc", XYZ) {
+        for item in common::program_path(BlockReader::new(Cursor::new(&bytes), "fuzz.nc", XYZ)) {
             if let Err(e) = item {
                 let _ = e.to_string();
             }
@@ -763,7 +765,7 @@ proptest! {
         )
     ) {
         let program = tokens.join(" ");
-        for item in BlockReader::new(Cursor::new(program.as_bytes()), "fuzz.nc", XYZ) {
+        for item in common::program_path(BlockReader::new(Cursor::new(program.as_bytes()), "fuzz.nc", XYZ)) {
             match item {
                 Ok(block) => {
                     // Whatever parses is a finite, evaluable curve.

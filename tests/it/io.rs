@@ -151,7 +151,7 @@ fn job_steered(
         &program,
         config,
         &Default::default(),
-        &runtime::CutPlan::default(),
+        &edmd::path::CutPlan::default(),
         &runtime::Progress::new(),
     )
     .unwrap();
@@ -626,7 +626,7 @@ fn fault_then_resume(
         &program,
         config,
         &Default::default(),
-        &runtime::CutPlan::default(),
+        &edmd::path::CutPlan::default(),
         &runtime::Progress::new(),
     )
     .unwrap();
@@ -741,7 +741,7 @@ fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
                 &runtime::JobProgram::in_place(&repo().join(PROGRAM)).unwrap(),
                 &config,
                 &Default::default(),
-                &runtime::CutPlan::default(),
+                &edmd::path::CutPlan::default(),
                 &runtime::Progress::new(),
             )
             .unwrap();

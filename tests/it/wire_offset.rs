@@ -8,6 +8,7 @@
 use std::f64::consts::PI;
 use std::io::Cursor;
 
+use crate::common;
 use edmd::gcode::{Block, BlockReader, GcodeError, ProgramOptions};
 use edmd::geometry::{NurbsCurve, clamped_uniform_knots, point};
 use edmd::vocab::Axis;
@@ -21,8 +22,13 @@ fn read(program: &str, d: f64) -> Result<Vec<Block>, GcodeError> {
         offset_tolerance_mm: TOL,
         ..ProgramOptions::default()
     };
-    BlockReader::with_options(Cursor::new(program.as_bytes()), "w.ngc", XY, options)
-        .collect::<Result<Vec<_>, _>>()
+    common::program_path(BlockReader::with_options(
+        Cursor::new(program.as_bytes()),
+        "w.ngc",
+        XY,
+        options,
+    ))
+    .collect::<Result<Vec<_>, _>>()
 }
 
 type V = (f64, f64);
@@ -360,12 +366,12 @@ fn moves_the_offset_cannot_take_are_errors_naming_the_line() {
         d_mm: vec![0.0, 0.2],
         ..ProgramOptions::default()
     };
-    let e = BlockReader::with_options(
+    let e = common::program_path(BlockReader::with_options(
         Cursor::new(&b"G0 X0 Y0\nG41 D1 G1 X1 F10\nG1 X2 Z1\nM2\n"[..]),
         "w.ngc",
         &[Axis::X, Axis::Y, Axis::Z],
         three,
-    )
+    ))
     .find_map(Result::err)
     .unwrap()
     .to_string();

@@ -563,7 +563,7 @@ struct RunBody {
     #[serde(default)]
     from_line: Option<u64>,
     #[serde(default)]
-    approach: Option<crate::runtime::Approach>,
+    approach: Option<crate::path::Approach>,
     #[serde(default)]
     passes: Option<usize>,
     #[serde(default)]

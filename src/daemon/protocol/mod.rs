@@ -43,7 +43,7 @@ pub enum Request {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         from_line: Option<u64>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        approach: Option<crate::runtime::Approach>,
+        approach: Option<crate::path::Approach>,
         /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         passes: Option<usize>,
@@ -495,7 +495,7 @@ pub struct JobStatus {
     pub dry_run: bool,
     /// Run from a line: where the cut starts and how the machine approached it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub from_line: Option<crate::runtime::FromLine>,
+    pub from_line: Option<crate::path::FromLine>,
     /// Passes of the technology table the job cuts (0: the program as written).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub passes: usize,
@@ -589,7 +589,7 @@ mod tests {
                 program: "a.nc".into(),
                 dry_run: false,
                 from_line: Some(12),
-                approach: Some(crate::runtime::Approach::Direct),
+                approach: Some(crate::path::Approach::Direct),
                 passes: None,
                 force: false,
             }

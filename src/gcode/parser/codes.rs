@@ -288,14 +288,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 GCode::Offset(o) => later.offset = Some((o, w)),
                 GCode::MachineCoords => later.machine = Some(w),
                 GCode::WorkSystem(system) => self.select_system(system, w)?,
-                GCode::CompOff => self.out.comp.cancel(),
+                GCode::CompOff => self.state.modal.wire_offset.cancel(),
                 GCode::Comp { left } => {
                     let d = self.wire_offset(w, kept.get('D'))?;
                     *kept = kept.without(&['D']);
                     let plane = self.state.modal.plane;
-                    self.out
-                        .comp
-                        .start(left, d, plane)
+                    let has_xy = self.axes.contains(&Axis::X) && self.axes.contains(&Axis::Y);
+                    self.state
+                        .modal
+                        .wire_offset
+                        .start(left, d, plane, has_xy)
                         .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
                 }
                 GCode::TaperOff => self.state.modal.taper = 0.0,

@@ -9,18 +9,14 @@
 
 mod arc;
 mod codes;
-mod comp;
 mod control;
 mod modal;
 mod nurbs;
 mod offsets;
-mod orbit;
 mod state;
 mod structure;
 mod system;
-mod taper;
 
-use std::collections::VecDeque;
 use std::io::{BufRead, Seek};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -31,7 +27,6 @@ use super::lines::{Line, LineSource, MAX_LINE_BYTES};
 use super::{Block, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
-use comp::Compensator;
 use state::{Diagnostics, InterpState, LineScratch, Output, ProgramFlow};
 use system::ReaderEnv;
 
@@ -117,16 +112,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         axes: &[Axis],
         options: ProgramOptions,
     ) -> Self {
-        let index = |a: Axis| axes.iter().position(|&x| x == a);
-        let plane = index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]);
-        let comp = Compensator::new(plane, options.offset_tolerance_mm);
-        let taper = taper::Taper::new(
-            axes,
-            options.guides,
-            options.thickness_mm,
-            options.offset_tolerance_mm,
-        );
-        let orbit = orbit::Orbiting::new(axes, options.orbit.clone(), options.offset_tolerance_mm);
         Self {
             options,
             source_name: source_name.into(),
@@ -134,15 +119,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             state: InterpState::new(),
             program: ProgramFlow::new(LineSource::new(reader)),
             scratch: LineScratch::default(),
-            out: Output {
-                comp,
-                queue: VecDeque::new(),
-                taper,
-                tapered: VecDeque::new(),
-                orbit,
-                orbited: VecDeque::new(),
-                pending: None,
-            },
+            out: Output { pending: None },
             diag: Diagnostics::default(),
         }
     }
@@ -164,16 +141,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.state.position
     }
 
-    /// The source line of the latest wire-offset entry move read so far (the first move
-    /// after a `G41`/`G42`): a job run from a line must not start inside one.
-    pub fn comp_entry_line(&self) -> Option<u64> {
-        self.out.comp.entry_line()
+    /// The options the program is read with.
+    pub fn options(&self) -> &ProgramOptions {
+        &self.options
     }
 
-    /// The source line of the latest wire-offset exit move read so far (the first move after
-    /// a `G40`): where a wire contour's tab ends.
-    pub fn comp_exit_line(&self) -> Option<u64> {
-        self.out.comp.exit_line()
+    /// The machine's axes, in the order every point is in.
+    pub fn axes(&self) -> &[Axis] {
+        &self.axes
     }
 
     /// The line of the M2/M30 that ended the program, if one did.
@@ -203,29 +178,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
-            if let Some(block) = self.out.orbited.pop_front() {
-                return Ok(Some(block));
-            }
-            if let Some(block) = self.out.tapered.pop_front() {
-                if let Err(e) = self.out.orbit.push(block, &mut self.out.orbited) {
-                    return Err(self.located_error(e.line, GcodeErrorKind::Orbit(e.message)));
-                }
-                continue;
-            }
-            if let Some(block) = self.out.queue.pop_front() {
-                if let Err(e) = self.out.taper.push(block, &mut self.out.tapered) {
-                    return Err(self.located_error(e.line, GcodeErrorKind::Taper(e.message)));
-                }
-                continue;
-            }
             if self.program.done {
-                // The taper's held line ends at its own tilt with nothing after it.
-                if let Err(e) = self.out.taper.flush(&mut self.out.tapered) {
-                    return Err(self.located_error(e.line, GcodeErrorKind::Taper(e.message)));
-                }
-                if !self.out.tapered.is_empty() {
-                    continue;
-                }
                 return Ok(None);
             }
             if let Err(fail) = self.program.cancelled() {
@@ -302,9 +255,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             match result {
                 Ok(Some(mut block)) => {
                     block.taper = self.state.modal.taper;
-                    if let Err(e) = self.out.comp.push(block, &mut self.out.queue) {
-                        return Err(self.comp_error(e));
-                    }
+                    block.wire_offset = self.state.modal.wire_offset.stamp_move();
+                    return Ok(Some(block));
                 }
                 Ok(None) if self.program.done => self.finish()?,
                 Ok(None) => {}
@@ -313,12 +265,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
     }
 
-    fn comp_error(&self, e: comp::CompError) -> GcodeError {
-        self.located_error(e.line, GcodeErrorKind::WireOffset(e.message))
-    }
-
-    /// An error about a move made earlier, at `line` column 1.
-    fn located_error(&self, line: u64, kind: GcodeErrorKind) -> GcodeError {
+    /// An error about a move read earlier, at `line` column 1, with the calls the reader is
+    /// in now (the path's stages find what is wrong with a move a few moves later).
+    pub fn error_at_line(&self, line: u64, kind: GcodeErrorKind) -> GcodeError {
         let fail = Fail {
             col: 1,
             kind,
@@ -329,15 +278,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn finish(&mut self) -> Result<(), GcodeError> {
         self.program.done = true;
-        if self.out.comp.engaged() {
+        if self.state.modal.wire_offset.engaged() {
             self.diag.warnings.push(Warning {
                 line: self.scratch.line_no,
                 col: 1,
                 message: "the program ends with the wire offset on (no G40 exit move)".into(),
             });
-        }
-        if let Err(e) = self.out.comp.finish(&mut self.out.queue) {
-            return Err(self.comp_error(e));
         }
         if let Err(fail) = self.scan_to_the_end() {
             return Err(self.error(0, "", fail));
@@ -622,12 +568,7 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.program.done
-            && self.out.queue.is_empty()
-            && self.out.tapered.is_empty()
-            && self.out.orbited.is_empty()
-            && !self.out.taper.holds()
-        {
+        if self.program.done {
             return None;
         }
         match self.next_block() {

@@ -26,6 +26,8 @@ pub(super) struct Modal {
     /// The wire's tilt (`G51`/`G52`): the tangent of its angle from vertical, + to the left
     /// of the direction of travel; 0: vertical (`G50`).
     pub(super) taper: f64,
+    /// `G41`/`G42`/`G40`.
+    pub(super) wire_offset: super::state::WireOffsetMode,
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
@@ -512,7 +514,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let code = probe.g_code();
         self.check_letters(letters, true, "", "with a probing move")?;
         let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
-        if self.out.comp.engaged() {
+        if self.state.modal.wire_offset.engaged() {
             return Err(fail(format!(
                 "{code} under a wire offset: cancel G41/G42 with G40 before probing"
             )));

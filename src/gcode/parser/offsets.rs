@@ -107,7 +107,7 @@ impl<R> BlockReader<R> {
     /// the program's coordinates of where it stands change). Selecting the active one again
     /// does nothing, as in LinuxCNC (a table parameter assigned since is not reloaded).
     pub(super) fn select_system(&mut self, system: WorkSystem, w: &Word) -> Step<()> {
-        if self.out.comp.engaged() {
+        if self.state.modal.wire_offset.engaged() {
             return Err((
                 w.col,
                 GcodeErrorKind::WorkOffset(format!(
@@ -245,7 +245,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 return Err(fail(r.col, "R is not allowed with G10 L20".into()));
             }
         }
-        if self.out.comp.engaged() && system == self.state.system {
+        if self.state.modal.wire_offset.engaged() && system == self.state.system {
             return Err(fail(
                 w.col,
                 "G10: the active work system cannot change with the wire offset on (G40 first)"
@@ -280,7 +280,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             "G53 needs G0 or G1 (one straight move in machine coordinates)"
         } else if self.state.modal.incremental {
             "G53 cannot be incremental: program it in G90"
-        } else if self.out.comp.engaged() {
+        } else if self.state.modal.wire_offset.engaged() {
             "G53 cannot be used with the wire offset on (G40 first)"
         } else {
             return Ok(());

@@ -1,9 +1,6 @@
 //! Why a job could not start.
 
-use super::super::shaping::from_line::FromLineError;
-use super::super::shaping::passes;
 use super::super::shaping::program;
-use super::super::shaping::tabs;
 use super::producer::ProducerError;
 use crate::gap::ScriptError;
 use crate::gcode::GcodeError;
@@ -37,9 +34,11 @@ pub enum JobError {
     #[error("{program}: the check was cancelled")]
     Cancelled { program: String },
     #[error(transparent)]
-    FromLine(#[from] FromLineError),
-    #[error(transparent)]
-    Passes(#[from] passes::PassError),
-    #[error(transparent)]
-    Tabs(#[from] tabs::TabError),
+    Path(#[from] crate::path::PathError),
+}
+
+impl From<crate::path::PassError> for JobError {
+    fn from(e: crate::path::PassError) -> JobError {
+        JobError::Path(e.into())
+    }
 }

@@ -2,17 +2,13 @@
 //! to prove it fits a step counter, before anything moves. A CNC control must not start
 //! cutting a program whose line 10,000 is bad.
 
-use super::super::shaping::from_line::Gate;
-use super::super::shaping::passes;
 use super::super::shaping::program::{CountingReader, JobProgram, Phase, Progress};
-use super::super::shaping::tabs::{self, PassProgram};
 use super::error::JobError;
 use super::producer::{ProducerError, to_steps};
-use super::spec::CutPlan;
 use super::spec::start_steps;
-use crate::config::WirePass;
 use crate::config::{Config, GapKind};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
+use crate::path::{CutPlan, JobPath, PathItem, PathSpec, passes};
 use crate::vocab::Steps;
 
 /// What the check before the job found.
@@ -88,7 +84,9 @@ impl Tally<'_> {
         // same to the last digit whatever reads them (lines and arcs in closed form).
         let length = block.curve.length();
         let path_mm = self.path_mm;
-        if self.measure && block.kind != gcode::BlockKind::Rapid {
+        // A spark-off move (an approach, a tabbed run's travel) cuts nothing.
+        let cutting = block.kind != gcode::BlockKind::Rapid && block.spark_off.is_none();
+        if self.measure && cutting {
             match self.cutting_spans.last_mut() {
                 Some((_, to)) if *to == path_mm => *to += length,
                 _ => self.cutting_spans.push((path_mm, path_mm + length)),
@@ -117,7 +115,8 @@ impl Tally<'_> {
 
 /// Parses the whole program and checks every end point fits a step counter (and, for a job
 /// run from a line, that it can start there; in passes, every pass with its offset, and that
-/// the program ends where it starts). Reports the bytes read to `progress` and gives up with
+/// the program ends where it starts). Reads the job's path as the producer will
+/// ([`JobPath`]). Reports the bytes read to `progress` and gives up with
 /// [`JobError::Cancelled`] when it is cancelled.
 pub fn precheck(
     program: &JobProgram,
@@ -127,12 +126,7 @@ pub fn precheck(
     progress: &Progress,
 ) -> Result<Precheck, JobError> {
     progress.start(Phase::Checking, program.bytes);
-    let base = gcode::ProgramOptions::from_config(config);
-    let runs: Vec<Option<&WirePass>> = if cut.passes.is_empty() {
-        vec![None]
-    } else {
-        cut.passes.iter().map(Some).collect()
-    };
+    let spec = PathSpec::from_config(config, start, cut);
     let start_at = start_steps(start, &config.machine.step_mm);
     let mut tally = Tally {
         config,
@@ -147,79 +141,52 @@ pub fn precheck(
     let cancelled = || JobError::Cancelled {
         program: program.name.clone(),
     };
-    let mut left = None;
-    let mut tabbed = Vec::new();
-    for (k, pass) in runs.into_iter().enumerate() {
-        let mut reader = gcode::open_program_as(
+    let open = |options| {
+        gcode::open_program_as(
             &program.path,
             &program.name,
             &config.machine.axes,
-            passes::options(&base, pass),
+            options,
             |f| CountingReader::new(f, progress),
-        )?;
-        reader.cancel_on(progress.cancel_flag());
-        reader.start_at(start);
-        if let (true, Some(pass)) = (cut.tabbed(), pass) {
-            // Planned once every pass is read.
-            tabbed.push(match PassProgram::read(&mut reader, pass, &program.name) {
-                Err(tabs::TabError::Program(e))
-                    if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
-                {
+        )
+    };
+    let mut path = JobPath::new(&spec, &program.name, open, Some(progress.cancel_flag()));
+    loop {
+        let item = match path.next_item() {
+            Ok(Some(item)) => item,
+            Ok(None) => break,
+            Err(e) if e.cancelled() => return Err(cancelled()),
+            Err(e) => return Err(e.into()),
+        };
+        match item {
+            // A run in passes ends where it started (the start hole) before the next.
+            PathItem::PassStart {
+                pass,
+                at_start_hole,
+            } if pass > 1 && at_start_hole => tally.ends_at(&start_at)?,
+            PathItem::PassStart { .. } => {}
+            PathItem::Skipped { mm } => tally.path_mm += mm,
+            PathItem::Block(block) => {
+                // The reader looks at the flag on every line; a block's own work (the
+                // length of a curve of 100,000 points) is looked at here.
+                if progress.cancelled() {
                     return Err(cancelled());
                 }
-                read => read?,
-            });
-            if k == 0 {
-                log_warnings(reader.take_warnings(), &program.name);
+                tally.take(&block)?;
             }
-            left = Some((reader.work_offsets(), reader.work_system(), reader.modes()));
-            continue;
         }
-        let mut gate = cut.from_line.map(|f| Gate::new(f, &program.name));
-        while let Some(item) = reader.next() {
-            let block = match item {
-                Ok(block) => block,
-                Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
-                    return Err(cancelled());
-                }
-                Err(e) => return Err(e.into()),
-            };
-            if let Some(gate) = &mut gate {
-                gate.admit(&block, reader.comp_entry_line())?;
-            }
-            let block = passes::block(block, pass, &program.name)?;
-            // The reader looks at the flag on every line; a block's own work (the length of
-            // a curve of 100,000 points) is looked at here.
-            if progress.cancelled() {
-                return Err(cancelled());
-            }
-            tally.take(&block)?;
-        }
-        if let Some(gate) = &gate {
-            gate.finish()?;
-        }
-        if pass.is_some() {
-            tally.ends_at(&start_at)?;
-        }
-        if k == 0 {
-            log_warnings(reader.take_warnings(), &program.name);
-        }
-        left = Some((reader.work_offsets(), reader.work_system(), reader.modes()));
     }
-    if !tabbed.is_empty() {
-        let blocks = tabs::plan(
-            tabbed,
-            &cut.passes,
-            cut.tab_mm,
-            config.servo.rethread_feed_mm_per_min,
-            &program.name,
-        )?;
-        for b in &blocks {
-            tally.take(&b.block)?;
-        }
+    if !cut.passes.is_empty() {
         tally.ends_at(&start_at)?;
     }
-    let (work_offsets, work_system, modes) = left.expect("one run at least");
+    for w in path.take_warnings() {
+        if w.line == 0 {
+            tracing::warn!("{}: {}", program.name, w.message);
+        } else {
+            tracing::warn!("{}:{}:{}: {}", program.name, w.line, w.col, w.message);
+        }
+    }
+    let (work_offsets, work_system, modes) = path.left().cloned().expect("one run at least");
     Ok(Precheck {
         work_offsets,
         work_system,
@@ -230,15 +197,4 @@ pub fn precheck(
         path_mm: tally.path_mm,
         rapid_spans: tally.rapid_spans,
     })
-}
-
-/// The program's warnings, once (from its first run).
-fn log_warnings(warnings: Vec<gcode::Warning>, program: &str) {
-    for w in warnings {
-        if w.line == 0 {
-            tracing::warn!("{program}: {}", w.message);
-        } else {
-            tracing::warn!("{program}:{}:{}: {}", w.line, w.col, w.message);
-        }
-    }
 }

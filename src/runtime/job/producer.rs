@@ -1,6 +1,7 @@
 //! The producer thread: program text to loop-buffer blocks.
 //!
-//! It streams the program through the parser and the [`Preprocessor`], turns every planned
+//! It streams the job's path ([`JobPath`]: the program through the reader and every stage)
+//! through the [`Preprocessor`], turns every planned
 //! segment into a [`StepBlock`] and pushes it into the loop buffer, sleeping whenever the
 //! buffer is full. Step positions are rounded once per segment end point, absolutely, from mm
 //! (never accumulated), so a block's start is bit-for-bit the previous block's end.
@@ -10,16 +11,13 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use super::super::shaping::from_line::{self, Approach, Gate, Route};
-use super::super::shaping::passes;
 use super::super::shaping::program::JobProgram;
-use super::super::shaping::tabs::{self, PassProgram};
 use super::super::tick::probe::ProbeLink;
 use super::spec::{JobSpec, StepCondition};
 use crate::buffer::{LoopBuffer, StepBlock};
-use crate::config::WirePass;
-use crate::gcode::{self, BlockKind, GcodeError};
+use crate::gcode::{self, BlockKind};
 use crate::geometry::Point;
+use crate::path::{JobPath, MAX_STAGES, PathError, PathItem, StageRow};
 use crate::preprocess::{PreprocessStats, Preprocessor, Segment};
 use crate::vocab::{MAX_AXES, Steps};
 
@@ -30,7 +28,7 @@ const MAX_STEPS: f64 = 9.0e15;
 #[derive(Debug, thiserror::Error)]
 pub enum ProducerError {
     #[error(transparent)]
-    Program(#[from] GcodeError),
+    Path(#[from] PathError),
     #[error(
         "{program}:{line}: position {mm} mm on axis {axis} is {steps:e} steps from zero, beyond \
          what a step counter holds"
@@ -44,12 +42,6 @@ pub enum ProducerError {
     },
     #[error("cannot start the producer thread: {0}")]
     Thread(std::io::Error),
-    #[error(transparent)]
-    FromLine(#[from] super::super::shaping::from_line::FromLineError),
-    #[error(transparent)]
-    Passes(#[from] passes::PassError),
-    #[error(transparent)]
-    Tabs(#[from] super::super::shaping::tabs::TabError),
 }
 
 /// What the producer did.
@@ -64,7 +56,7 @@ pub struct ProducerReport {
     /// (ns): what the producer's real-time margin is measured against.
     pub busy_ns: u64,
     /// The orbital sinking moves read, in order (the stages the summary lists).
-    pub stages: Vec<super::super::shaping::stages::StageRow>,
+    pub stages: Vec<StageRow>,
 }
 
 /// Rounds a point in mm to absolute step positions.
@@ -323,51 +315,70 @@ fn produce_inner(
         failed: None,
         waited: Duration::ZERO,
     };
-    let runs: Vec<Option<&WirePass>> = if spec.cut.passes.is_empty() {
-        vec![None]
-    } else {
-        spec.cut.passes.iter().map(Some).collect()
-    };
+    let open =
+        |options| gcode::open_program_as(&program.path, &program.name, &spec.axes, options, |f| f);
+    // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
+    let mut path = JobPath::new(&spec.path, &program.name, open, Some(cancel));
+    let buffer = out.buffer;
     let mut probes = 0;
-    let runs = if spec.cut.tabbed() {
-        tabbed(program, spec, &cancel, &mut pre, &mut out)?;
-        Vec::new()
-    } else {
-        runs
-    };
-    for (k, pass) in runs.into_iter().enumerate() {
-        if pass.is_some() {
-            // Segments leave the preprocessor up to a look-ahead later: the pass's first
-            // block is marked when the last pass is out, so plan its end as a standstill.
-            if k > 0 {
-                pre.finish(|s| out.push(s));
+    loop {
+        let item = match path.next_item() {
+            Ok(Some(item)) => item,
+            Ok(None) => break,
+            Err(e) if e.cancelled() => {
+                out.report.aborted = true;
+                break;
             }
-            out.maker
-                .start_pass(u8::try_from(k + 1).unwrap_or(u8::MAX), true);
-        }
-        let mut reader = gcode::open_program_as(
-            &program.path,
-            &program.name,
-            &spec.axes,
-            passes::options(&spec.program, pass),
-            |f| f,
-        )?;
-        // The job's end (a stop, an alarm) reaches a reader busy in a loop that moves nothing.
-        reader.cancel_on(cancel.clone());
-        reader.start_at(&spec.work);
-        if pass.is_some_and(|p| p.reverse) {
-            reversed_pass(reader, pass, &program.name, &mut pre, &mut out)?;
-        } else {
-            stream(
-                reader,
-                spec,
-                program,
+            Err(e) => return Err(e.into()),
+        };
+        let block = match item {
+            PathItem::PassStart {
                 pass,
-                probe,
-                &mut probes,
-                &mut pre,
-                &mut out,
-            )?;
+                at_start_hole,
+            } => {
+                // Segments leave the preprocessor up to a look-ahead later: the pass's
+                // first block is marked when the last pass is out, so plan its end as a
+                // standstill.
+                if pass > 1 {
+                    pre.finish(|s| out.push(s));
+                }
+                out.maker.start_pass(pass, at_start_hole);
+                continue;
+            }
+            PathItem::Skipped { mm } => {
+                out.maker.set_path_mm(out.maker.path_mm() + mm);
+                continue;
+            }
+            PathItem::Block(block) => block,
+        };
+        if out.report.stages.len() < MAX_STAGES
+            && let Some(stage) = StageRow::of(&block)
+        {
+            out.report.stages.push(stage);
+        }
+        // A probing move, and a drilling move watched for breakthrough, end where the
+        // consumer says.
+        let probing = matches!(block.kind, BlockKind::Probe(_)) || out.maker.drills(&block);
+        pre.push_block(Arc::new(block), |s| out.push(s));
+        if probing && !out.report.aborted && out.failed.is_none() {
+            // The rest of the program starts where the move stops: plan to a standstill at
+            // its end, hand everything over, and wait for the consumer to say where.
+            pre.finish(|s| out.push(s));
+            probes += 1;
+            let waiting = Instant::now();
+            let result = probe.wait(probes, || buffer.aborted());
+            out.waited += waiting.elapsed();
+            match result {
+                Some(result) => {
+                    let step_mm = &spec.step_mm;
+                    let mm = Point::from_fn(|i, _| {
+                        step_mm.get(i).map_or(0.0, |s| result.steps[i] as f64 * s)
+                    });
+                    path.probed(&mm, result.contact);
+                    out.maker.probed(&result.steps);
+                }
+                None => out.report.aborted = true,
+            }
         }
         if out.report.aborted {
             break;
@@ -383,201 +394,6 @@ fn produce_inner(
     report.stats = pre.stats();
     report.busy_ns = started.elapsed().saturating_sub(out.waited).as_nanos() as u64;
     Ok(report)
-}
-
-/// Passes with a tab ([`tabs`]): every pass read whole, the chain planned, then pushed with
-/// each pass's start marked (only the first starts at the start hole).
-fn tabbed(
-    program: &JobProgram,
-    spec: &JobSpec,
-    cancel: &Arc<AtomicBool>,
-    pre: &mut Preprocessor,
-    out: &mut Pusher<'_>,
-) -> Result<(), ProducerError> {
-    let mut read = Vec::new();
-    for pass in &spec.cut.passes {
-        let mut reader = gcode::open_program_as(
-            &program.path,
-            &program.name,
-            &spec.axes,
-            passes::options(&spec.program, Some(pass)),
-            |f| f,
-        )?;
-        reader.cancel_on(cancel.clone());
-        reader.start_at(&spec.work);
-        match PassProgram::read(&mut reader, pass, &program.name) {
-            Ok(p) => read.push(p),
-            Err(tabs::TabError::Program(e))
-                if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) =>
-            {
-                out.report.aborted = true;
-                return Ok(());
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
-    let blocks = tabs::plan(
-        read,
-        &spec.cut.passes,
-        spec.cut.tab_mm,
-        spec.approach_feed_mm_per_min,
-        &program.name,
-    )?;
-    for b in blocks {
-        if b.starts_pass {
-            // Plan the last pass's end as a standstill: its blocks are all out.
-            pre.finish(|s| out.push(s));
-            out.maker.start_pass(b.pass, b.pass == 1);
-        }
-        pre.push_block(Arc::new(b.block), |s| out.push(s));
-        if out.report.aborted {
-            break;
-        }
-    }
-    Ok(())
-}
-
-/// A reversed pass: its blocks read whole, then pushed last first, each run backwards.
-fn reversed_pass<R: std::io::BufRead + std::io::Seek>(
-    reader: gcode::BlockReader<R>,
-    pass: Option<&WirePass>,
-    name: &str,
-    pre: &mut Preprocessor,
-    out: &mut Pusher<'_>,
-) -> Result<(), ProducerError> {
-    let mut blocks = Vec::new();
-    for item in reader {
-        match item {
-            Ok(block) => blocks.push(passes::block(block, pass, name)?),
-            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
-                out.report.aborted = true;
-                return Ok(());
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
-    for block in blocks.iter().rev() {
-        pre.push_block(Arc::new(block.reversed()), |s| out.push(s));
-        if out.report.aborted {
-            break;
-        }
-    }
-    Ok(())
-}
-
-/// One run of the program through the preprocessor, as it reads: a run from a line's
-/// approach, and probing moves (planned to a standstill, then read on from where they stop).
-#[allow(clippy::too_many_arguments)]
-fn stream<R: std::io::BufRead + std::io::Seek>(
-    mut reader: gcode::BlockReader<R>,
-    spec: &JobSpec,
-    program: &JobProgram,
-    pass: Option<&WirePass>,
-    probe: &ProbeLink,
-    probes: &mut u64,
-    pre: &mut Preprocessor,
-    out: &mut Pusher<'_>,
-) -> Result<(), ProducerError> {
-    let buffer = out.buffer;
-    let mut gate = spec.cut.from_line.map(|f| Gate::new(f, &program.name));
-    while let Some(item) = reader.next() {
-        let block = match item {
-            Ok(block) => block,
-            Err(e) if matches!(e.kind, gcode::GcodeErrorKind::Cancelled) => {
-                out.report.aborted = true;
-                break;
-            }
-            Err(e) => return Err(e.into()),
-        };
-        let block = passes::block(block, pass, &program.name)?;
-        let block = match &mut gate {
-            None => block,
-            Some(gate) => match approach(gate, block, reader.comp_entry_line(), spec, out, pre)? {
-                Some(block) => block,
-                None => continue,
-            },
-        };
-        if out.report.stages.len() < super::super::shaping::stages::MAX_STAGES
-            && let Some(stage) = super::super::shaping::stages::StageRow::of(&block)
-        {
-            out.report.stages.push(stage);
-        }
-        // A probing move, and a drilling move watched for breakthrough, end where the
-        // consumer says.
-        let probing = matches!(block.kind, BlockKind::Probe(_)) || out.maker.drills(&block);
-        pre.push_block(Arc::new(block), |s| out.push(s));
-        if probing && !out.report.aborted && out.failed.is_none() {
-            // The rest of the program starts where the move stops: plan to a standstill at
-            // its end, hand everything over, and wait for the consumer to say where.
-            pre.finish(|s| out.push(s));
-            *probes += 1;
-            let waiting = Instant::now();
-            let result = probe.wait(*probes, || buffer.aborted());
-            out.waited += waiting.elapsed();
-            match result {
-                Some(result) => {
-                    let step_mm = &spec.step_mm;
-                    let mm = Point::from_fn(|i, _| {
-                        step_mm.get(i).map_or(0.0, |s| result.steps[i] as f64 * s)
-                    });
-                    reader.probed(&mm, result.contact);
-                    out.maker.probed(&result.steps);
-                }
-                None => out.report.aborted = true,
-            }
-        }
-        if out.report.aborted {
-            break;
-        }
-    }
-    if !out.report.aborted
-        && let Some(gate) = &gate
-    {
-        gate.finish()?;
-    }
-    Ok(())
-}
-
-/// A block of a job run from a line, routed: the block to push, or `None` where the approach
-/// drops it. The direct approach's moves are pushed before the first block of the cut.
-fn approach(
-    gate: &mut Gate,
-    block: gcode::Block,
-    comp_entry: Option<u64>,
-    spec: &JobSpec,
-    out: &mut Pusher<'_>,
-    pre: &mut Preprocessor,
-) -> Result<Option<gcode::Block>, ProducerError> {
-    let direct = gate.from().approach == Approach::Direct;
-    Ok(match gate.admit(&block, comp_entry)? {
-        Route::Cut => Some(block),
-        Route::Before if direct => {
-            out.maker
-                .set_path_mm(out.maker.path_mm() + block.curve.length());
-            None
-        }
-        Route::Before => Some(from_line::path_approach(
-            block,
-            spec.approach_feed_mm_per_min,
-        )),
-        Route::First if direct => {
-            let origin = Point::from_fn(|i, _| spec.work.position_mm[i]);
-            let moves = from_line::direct_approach(
-                &origin,
-                &block,
-                &spec.axes,
-                spec.safe_z_mm,
-                spec.approach_feed_mm_per_min,
-            );
-            let length: f64 = moves.iter().map(|b| b.curve.length()).sum();
-            out.maker.set_path_mm(out.maker.path_mm() - length);
-            for m in moves {
-                pre.push_block(Arc::new(m), |s| out.push(s));
-            }
-            Some(block)
-        }
-        Route::First => Some(block),
-    })
 }
 
 /// Turns segments into step blocks and pushes them, timing only the waits.

@@ -2,13 +2,13 @@
 //! settings ([`JobSpec`]), so that no thread of a job (producer, fine thread, supervisor)
 //! sees the `Config` or builds a setting again.
 
-use crate::config::{Config, WirePass};
+use crate::config::Config;
 use crate::fine::FineSettings;
-use crate::gcode::{ProgramOptions, WorkStart};
+use crate::gcode::WorkStart;
+use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
 use crate::vocab::{Axis, Steps, TickPeriod};
 
-use super::super::shaping::from_line::FromLine;
 use super::super::tick::consumer::LoopSettings;
 
 /// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
@@ -22,30 +22,13 @@ pub struct StepCondition {
     pub jump: [f32; 3],
 }
 
-/// What a job cuts of its program: all of it once (the default), from a line, or once per
-/// pass of the technology table.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct CutPlan {
-    pub from_line: Option<FromLine>,
-    pub passes: Vec<WirePass>,
-    /// In passes: the tab left (mm; 0: none), see [`super::super::shaping::tabs`].
-    pub tab_mm: f64,
-}
-
-impl CutPlan {
-    /// Passes that leave a tab.
-    pub fn tabbed(&self) -> bool {
-        self.tab_mm > 0.0 && !self.passes.is_empty()
-    }
-}
-
 /// Everything a job's threads need.
 #[derive(Debug, Clone)]
 pub struct JobSpec {
     pub axes: Vec<Axis>,
     pub step_mm: Vec<f64>,
-    /// How the producer reads the program.
-    pub program: ProgramOptions,
+    /// The job's path: how the program reads, where the job starts, what of it is cut.
+    pub path: PathSpec,
     /// How the producer segments and plans it (and the rapid feed the ETA counts).
     pub plan: PlanSettings,
     /// The tick core's settings.
@@ -62,15 +45,6 @@ pub struct JobSpec {
     /// The fastest path speed the outputs can take (one step per axis per tick), mm/s.
     pub speed_cap: f64,
     pub max_feed_mm_per_min: f64,
-    /// Where the job starts: the machine position, the work offsets and the active system
-    /// (the machine origin in `G54` with no offsets unless the caller says otherwise).
-    pub work: WorkStart,
-    /// What of the program is cut: from a line, in passes.
-    pub cut: CutPlan,
-    /// The approach's feed (`servo.rethread_feed_mm_per_min`), mm/min.
-    pub approach_feed_mm_per_min: f64,
-    /// `machine.safe_z_mm`: the height a direct approach crosses at.
-    pub safe_z_mm: Option<f64>,
 }
 
 impl JobSpec {
@@ -83,7 +57,9 @@ impl JobSpec {
         JobSpec {
             axes: config.machine.axes.clone(),
             step_mm: config.machine.step_mm.clone(),
-            program: ProgramOptions::from_config(config),
+            // The machine origin in `G54` with no offsets, the whole program, unless the
+            // caller says otherwise.
+            path: PathSpec::from_config(config, &WorkStart::default(), &CutPlan::default()),
             plan: PlanSettings::from_config(config),
             fine: FineSettings::from_config(config),
             run_loop,
@@ -112,16 +88,12 @@ impl JobSpec {
                 .collect(),
             speed_cap: fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
-            work: WorkStart::default(),
-            cut: CutPlan::default(),
-            approach_feed_mm_per_min: config.servo.rethread_feed_mm_per_min,
-            safe_z_mm: config.machine.safe_z_mm,
         }
     }
 
     /// The machine position the job starts from, in steps.
     pub fn start_steps(&self) -> Steps {
-        start_steps(&self.work, &self.step_mm)
+        start_steps(&self.path.work, &self.step_mm)
     }
 
     /// The axis names (`X`, `Y`, …).

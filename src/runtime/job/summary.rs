@@ -194,9 +194,9 @@ pub struct JobSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stopped_at: Option<StopPoint>,
     /// A die-sinker's orbital sinking moves, in program order (at most
-    /// [`super::super::shaping::stages::MAX_STAGES`]).
+    /// [`crate::path::MAX_STAGES`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub stages: Vec<super::super::shaping::stages::StageRow>,
+    pub stages: Vec<crate::path::StageRow>,
 }
 
 /// What a finished job leaves behind, for its summary.

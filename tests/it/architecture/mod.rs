@@ -19,6 +19,7 @@ const FLOORS: &[&[&str]] = &[
     &["decimal", "plot", "rng", "sys", "term", "vocab", "words"],
     &["geometry"],
     &["gcode"],
+    &["path"],
     &["preprocess"],
     &["buffer"],
     &["fine", "servo"],

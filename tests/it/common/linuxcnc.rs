@@ -100,7 +100,7 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
 pub fn end_points<R: std::io::BufRead + std::io::Seek>(
     reader: edmd::gcode::BlockReader<R>,
 ) -> Result<Vec<[f64; 3]>, String> {
-    reader
+    super::program_path(reader)
         .map(|b| {
             b.map(|b| {
                 let e = b.end();

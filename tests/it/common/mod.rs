@@ -7,6 +7,19 @@ pub mod wire;
 
 use std::path::PathBuf;
 
+/// The blocks a program's own path makes (wire offset, taper, orbit) from what `reader`
+/// reads, its errors as the reader's: the path a job of the whole program cuts.
+pub fn program_path<R: std::io::BufRead + std::io::Seek>(
+    reader: edmd::gcode::BlockReader<R>,
+) -> impl Iterator<Item = Result<edmd::gcode::Block, edmd::gcode::GcodeError>> {
+    edmd::path::Pipeline::new(reader).map(|item| {
+        item.map_err(|e| match e {
+            edmd::path::PathError::Program(e) => e,
+            other => panic!("a program's own path fails only as a program: {other}"),
+        })
+    })
+}
+
 /// The repository root (where `edmd` runs in the tests).
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

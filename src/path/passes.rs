@@ -3,17 +3,32 @@
 //! every `E`, its feed as a ceiling, and, where the pass says `reverse`, the whole pass run the
 //! other way round.
 //!
-//! A pass is a transformation of what the interpreter reads and of the blocks it makes, so
-//! the check and the producer apply the same one ([`options`], [`block`]) and a resume
-//! replays the same block sequence. A reversed pass is the pass's blocks in reverse order,
+//! A pass is a transformation of what the interpreter reads ([`options`]) and a stage over
+//! the blocks it makes ([`PassStage`], [`Reversal`]), in the one path the check and the
+//! producer both read, so a resume replays the same block sequence. A reversed pass is the pass's blocks in reverse order,
 //! each run backwards ([`crate::gcode::Block::reversed`]): the offset path is the same, walked
 //! from its end (for the usual program, in along the exit line and out along the entry).
 //! Those blocks are held in memory for the pass (the program's compensated path; a wire
 //! contour, not a million-line mould program). Each pass starts where the last ended, so the
 //! program must end where it starts (the start hole), and it may not probe.
 
-use crate::config::WirePass;
+use std::collections::VecDeque;
+
+use super::{Stage, StageError};
 use crate::gcode::{Block, BlockKind, ProgramOptions};
+
+/// One pass of the technology table (`[[wire.pass]]`): the wire offset (every `D` of the
+/// program reads it), the condition (every `E` of the program reads it), a feed ceiling, and
+/// the direction.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WirePass {
+    pub offset_mm: f64,
+    pub condition: u32,
+    pub feed_mm_per_min: Option<f64>,
+    /// Cut this pass the other way round.
+    pub reverse: bool,
+}
 
 /// `D` registers a pass fills (D1 and up).
 const REGISTERS: usize = 100;
@@ -64,9 +79,50 @@ pub fn options(base: &ProgramOptions, pass: Option<&WirePass>) -> ProgramOptions
     options
 }
 
+/// The pass stage: every block in the pass's condition, at most its feed.
+#[derive(Debug, Clone)]
+pub struct PassStage {
+    pass: WirePass,
+    program: String,
+}
+
+impl PassStage {
+    pub fn new(pass: WirePass, program: &str) -> PassStage {
+        PassStage {
+            pass,
+            program: program.to_string(),
+        }
+    }
+}
+
+impl Stage for PassStage {
+    fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        out.push_back(block_of(block, &self.pass, &self.program)?);
+        Ok(())
+    }
+}
+
+/// A reversed pass: its blocks held to the end, then handed out last first, each run
+/// backwards.
+#[derive(Debug, Clone, Default)]
+pub struct Reversal {
+    held: Vec<Block>,
+}
+
+impl Stage for Reversal {
+    fn push(&mut self, block: Block, _: &mut VecDeque<Block>) -> Result<(), StageError> {
+        self.held.push(block);
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        out.extend(self.held.drain(..).rev().map(|b| b.reversed()));
+        Ok(())
+    }
+}
+
 /// A block as `pass` cuts it: in its condition, at most its feed.
-pub fn block(mut block: Block, pass: Option<&WirePass>, program: &str) -> Result<Block, PassError> {
-    let Some(pass) = pass else { return Ok(block) };
+fn block_of(mut block: Block, pass: &WirePass, program: &str) -> Result<Block, PassError> {
     if matches!(block.kind, BlockKind::Probe(_)) {
         return Err(PassError::Probe {
             program: program.to_string(),
@@ -103,12 +159,7 @@ mod tests {
             &Point::from_fn(|i, _| f64::from(i == 0)),
         )
         .unwrap();
-        let b = block(
-            Block::new(4, BlockKind::Line, line, Some(60.0)),
-            Some(&PASS),
-            "p",
-        )
-        .unwrap();
+        let b = block_of(Block::new(4, BlockKind::Line, line, Some(60.0)), &PASS, "p").unwrap();
         assert_eq!((b.condition, b.feed_mm_per_min), (3, Some(5.0)));
         assert!(first(&[PASS], 2).is_err());
         assert_eq!(first(&[PASS, PASS], 1).unwrap().len(), 1);

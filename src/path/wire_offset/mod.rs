@@ -34,7 +34,8 @@ mod prim;
 use crate::vocab::Num;
 use std::collections::VecDeque;
 
-use crate::gcode::{Block, BlockKind, NurbsForm, Plane};
+use super::{Stage, StageError};
+use crate::gcode::{Block, BlockKind, GcodeErrorKind, NurbsForm, Plane, WireOffset};
 use crate::geometry::{NurbsCurve, Point, circular_arc};
 use prim::{
     MAX_DEPTH, Prim, SAME_MM, V2, add, cross, dot, join_prims, left, norm, scale, sub, unit,
@@ -63,202 +64,176 @@ impl Piece {
     }
 }
 
-/// What went wrong, at which source line.
-#[derive(Debug, Clone, PartialEq)]
-pub(super) struct CompError {
-    pub(super) line: u64,
-    pub(super) message: String,
-}
-
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Phase {
     Off,
-    /// G41/G42 given: the next move is the entry.
-    Entry,
     On,
-    /// G40 given while on: the next move is the exit.
-    Exit,
 }
 
-/// The wire-offset state of a reader.
+/// The wire-offset stage: the programmed contour in, the wire centre's path out.
 #[derive(Debug, Clone)]
-pub(super) struct Compensator {
+pub struct WireOffsetStage {
     phase: Phase,
     /// +1 left (G41), -1 right (G42).
     side: f64,
     d: f64,
     tolerance: f64,
-    /// Axis indices of X and Y.
+    /// Axis indices of X and Y (the reader refuses `G41`/`G42` without them).
     plane: Option<[usize; 2]>,
     /// The last offset move, held until the next one shows its corner.
     pending: Option<Piece>,
-    /// The source line of the latest entry move (the first move after `G41`/`G42`).
-    entry_line: Option<u64>,
-    /// The source line of the latest exit move (the first move after `G40`).
-    exit_line: Option<u64>,
 }
 
-impl Compensator {
-    pub(super) fn new(plane: Option<[usize; 2]>, tolerance: f64) -> Compensator {
-        Compensator {
+impl WireOffsetStage {
+    /// The stage for a machine with `axes`; `tolerance`: how far a curve's offset polyline
+    /// may stray from the true offset, mm.
+    pub fn new(axes: &[crate::vocab::Axis], tolerance: f64) -> WireOffsetStage {
+        use crate::vocab::Axis;
+        let index = |a: Axis| axes.iter().position(|&x| x == a);
+        WireOffsetStage {
             phase: Phase::Off,
             side: 1.0,
             d: 0.0,
             tolerance,
-            plane,
+            plane: index(Axis::X).zip(index(Axis::Y)).map(|(x, y)| [x, y]),
             pending: None,
-            entry_line: None,
-            exit_line: None,
         }
     }
 
-    /// The offset is on, or about to be (a move is transformed rather than passed on).
-    pub(super) fn engaged(&self) -> bool {
-        self.phase != Phase::Off
-    }
-
-    /// The source line of the latest entry move read so far.
-    pub(super) fn entry_line(&self) -> Option<u64> {
-        self.entry_line
-    }
-
-    /// The source line of the latest exit move read so far.
-    pub(super) fn exit_line(&self) -> Option<u64> {
-        self.exit_line
-    }
-
-    /// `G41` (`left`) or `G42` with offset `d` (mm). Errors are messages for the G word.
-    pub(super) fn start(&mut self, left: bool, d: f64, plane: Plane) -> Result<(), String> {
-        if plane != Plane::XY {
-            return Err("the wire offset works in the XY plane (G17) only".into());
+    /// The entry: the first move carrying an offset ([`Block::wire_offset`]).
+    fn entry(
+        &mut self,
+        offset: WireOffset,
+        block: Block,
+        (p0, p1): (V2, V2),
+        [ix, iy]: [usize; 2],
+    ) -> Result<(), String> {
+        self.side = if offset.left { 1.0 } else { -1.0 };
+        self.d = offset.d_mm;
+        if norm(sub(p1, p0)) <= self.d {
+            return Err(format!(
+                "the entry move (the first move after G41/G42) is {} mm long, not longer than \
+                 the wire offset {} mm",
+                Num(norm(sub(p1, p0))),
+                Num(self.d)
+            ));
         }
-        if self.plane.is_none() {
-            return Err("the wire offset needs axes X and Y on the machine".into());
-        }
-        match self.phase {
-            Phase::On | Phase::Exit => {
-                return Err("the wire offset is already on: cancel it with G40 first".into());
+        let (prim, entry_from) = match &block.kind {
+            BlockKind::Line | BlockKind::Rapid => {
+                let n = scale(left(unit(sub(p1, p0))), self.side * self.d);
+                let offset_line = Prim::Line {
+                    a: add(p0, n),
+                    b: add(p1, n),
+                };
+                (offset_line, Some(p0))
             }
-            Phase::Off | Phase::Entry => {}
-        }
-        self.side = if left { 1.0 } else { -1.0 };
-        self.d = d;
-        self.phase = if d == 0.0 { Phase::Off } else { Phase::Entry };
+            BlockKind::Arc { center, sweep, .. } => {
+                let arc = self.entry_arc(p0, p1, (center[ix], center[iy]), *sweep)?;
+                (arc, None)
+            }
+            _ => {
+                return Err(
+                    "the first move after G41/G42 (the entry) must be a line or an arc".into(),
+                );
+            }
+        };
+        self.pending = Some(Piece {
+            prims: vec![prim],
+            template: block,
+            entry_from,
+        });
+        self.phase = Phase::On;
         Ok(())
     }
 
-    /// `G40`.
-    pub(super) fn cancel(&mut self) {
-        self.phase = match self.phase {
-            Phase::Off | Phase::Entry => Phase::Off,
-            Phase::On | Phase::Exit => Phase::Exit,
-        };
-    }
-
-    /// Takes a programmed move; hands the offset moves that are final to `out`.
-    pub(super) fn push(
+    /// The exit: the first move without an offset after the offset path.
+    fn exit(
         &mut self,
         block: Block,
+        (p0, p1): (V2, V2),
         out: &mut VecDeque<Block>,
-    ) -> Result<(), CompError> {
+    ) -> Result<(), StageError> {
         let line = block.line;
-        let fail = |message: String| CompError { line, message };
-        if self.phase == Phase::Off {
+        if !matches!(block.kind, BlockKind::Line | BlockKind::Rapid) {
+            return Err(fail(
+                line,
+                "the first move after G40 (the exit) must be a straight move".into(),
+            ));
+        }
+        // The last offset move keeps its own offset end (no corner with the exit); the
+        // exit goes straight from there to the programmed point.
+        let from = match self.pending.take() {
+            Some(last) => {
+                let end = last.prims.last().map_or(p0, Prim::end);
+                let last_line = last.template.line;
+                self.emit(last, out).map_err(|m| fail(last_line, m))?;
+                end
+            }
+            None => p0,
+        };
+        self.emit(Piece::line(from, p1, block), out)
+            .map_err(|m| fail(line, m))?;
+        self.phase = Phase::Off;
+        Ok(())
+    }
+}
+
+/// A wire-offset error about the move at `line`.
+fn fail(line: u64, message: String) -> StageError {
+    StageError::Move {
+        line,
+        kind: GcodeErrorKind::WireOffset(message),
+    }
+}
+
+impl Stage for WireOffsetStage {
+    /// Takes a programmed move; hands the offset moves that are final to `out`.
+    fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        let line = block.line;
+        if self.phase == Phase::Off && block.wire_offset.is_none() {
             out.push_back(block);
             return Ok(());
         }
-        let [ix, iy] = self.plane.expect("checked by start");
+        let Some([ix, iy]) = self.plane else {
+            // The reader refuses G41/G42 on a machine without X and Y.
+            out.push_back(block);
+            return Ok(());
+        };
         let (s, e) = (block.start(), block.end());
         for i in 0..s.len() {
             if i != ix && i != iy && (e[i] - s[i]).abs() > SAME_MM {
                 return Err(fail(
+                    line,
                     "only X and Y may move while the wire offset is on (G41/G42)".into(),
                 ));
             }
         }
-        let p0 = (s[ix], s[iy]);
-        let p1 = (e[ix], e[iy]);
-        let straight = matches!(block.kind, BlockKind::Line | BlockKind::Rapid);
-        let sd = self.side * self.d;
-        match self.phase {
-            Phase::Entry => {
-                if norm(sub(p1, p0)) <= self.d {
-                    return Err(fail(format!(
-                        "the entry move (the first move after G41/G42) is {} mm long, not longer \
-                         than the wire offset {} mm",
-                        Num(norm(sub(p1, p0))),
-                        Num(self.d)
-                    )));
-                }
-                let (prim, entry_from) = if straight {
-                    let n = scale(left(unit(sub(p1, p0))), sd);
-                    let offset_line = Prim::Line {
-                        a: add(p0, n),
-                        b: add(p1, n),
-                    };
-                    (offset_line, Some(p0))
-                } else if let BlockKind::Arc { center, sweep, .. } = &block.kind {
-                    let arc = self
-                        .entry_arc(p0, p1, (center[ix], center[iy]), *sweep)
-                        .map_err(fail)?;
-                    (arc, None)
-                } else {
-                    return Err(fail(
-                        "the first move after G41/G42 (the entry) must be a line or an arc".into(),
-                    ));
-                };
-                self.pending = Some(Piece {
-                    prims: vec![prim],
-                    template: block,
-                    entry_from,
-                });
-                self.phase = Phase::On;
-                self.entry_line = Some(line);
+        let ends = ((s[ix], s[iy]), (e[ix], e[iy]));
+        match (self.phase, block.wire_offset) {
+            (Phase::Off, Some(offset)) => self
+                .entry(offset, block, ends, [ix, iy])
+                .map_err(|m| fail(line, m)),
+            (Phase::On, Some(_)) => {
+                let piece = self.offset(block).map_err(|m| fail(line, m))?;
+                self.join(piece, out)
             }
-            Phase::On => {
-                let piece = self.offset(block).map_err(fail)?;
-                self.join(piece, out)?;
-            }
-            Phase::Exit => {
-                if !straight {
-                    return Err(fail(
-                        "the first move after G40 (the exit) must be a straight move".into(),
-                    ));
-                }
-                // The last offset move keeps its own offset end (no corner with the exit);
-                // the exit goes straight from there to the programmed point.
-                let from = match self.pending.take() {
-                    Some(last) => {
-                        let end = last.prims.last().map_or(p0, Prim::end);
-                        let last_line = last.template.line;
-                        self.emit(last, out).map_err(|message| CompError {
-                            line: last_line,
-                            message,
-                        })?;
-                        end
-                    }
-                    None => p0,
-                };
-                self.emit(Piece::line(from, p1, block), out).map_err(fail)?;
-                self.phase = Phase::Off;
-                self.exit_line = Some(line);
-            }
-            Phase::Off => unreachable!("handled above"),
+            (Phase::On, None) => self.exit(block, ends, out),
+            (Phase::Off, None) => unreachable!("handled above"),
         }
-        Ok(())
     }
 
     /// At the end of the program: the held move goes out as it is.
-    pub(super) fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), CompError> {
+    fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), StageError> {
         if let Some(last) = self.pending.take() {
             let line = last.template.line;
-            self.emit(last, out)
-                .map_err(|message| CompError { line, message })?;
+            self.emit(last, out).map_err(|m| fail(line, m))?;
         }
         self.phase = Phase::Off;
         Ok(())
     }
+}
 
+impl WireOffsetStage {
     /// An arc as the entry move, as LinuxCNC's interpreter makes it: from the uncompensated
     /// start `p0` to the programmed end `p1` moved by the offset along the end's radius
     /// (towards the centre `c` where the wire is inside the arc), about the point of the line
@@ -299,7 +274,7 @@ impl Compensator {
 
     /// The offset of a programmed move (not the entry or exit).
     fn offset(&self, block: Block) -> Result<Piece, String> {
-        let [ix, iy] = self.plane.expect("checked by start");
+        let [ix, iy] = self.plane.expect("no offset without X and Y");
         let sd = self.side * self.d;
         let (s, e) = (block.start(), block.end());
         let (p0, p1) = ((s[ix], s[iy]), (e[ix], e[iy]));
@@ -348,7 +323,7 @@ impl Compensator {
     /// A NURBS curve's offset as chords within the tolerance, piece by piece between corner
     /// knots; the corners inside the curve are joined like corners between moves.
     fn offset_curve(&self, curve: &NurbsCurve) -> Result<Vec<Prim>, String> {
-        let [ix, iy] = self.plane.expect("checked by start");
+        let [ix, iy] = self.plane.expect("no offset without X and Y");
         let sd = self.side * self.d;
         let offset_at = |u: f64, from_left: bool| -> Result<V2, String> {
             let d = if from_left {
@@ -453,22 +428,18 @@ impl Compensator {
     }
 
     /// Joins the held move and `next` at their corner, sends the held one out, holds `next`.
-    fn join(&mut self, mut next: Piece, out: &mut VecDeque<Block>) -> Result<(), CompError> {
+    fn join(&mut self, mut next: Piece, out: &mut VecDeque<Block>) -> Result<(), StageError> {
         let Some(mut prev) = self.pending.take() else {
             self.pending = Some(next);
             return Ok(());
         };
-        let [ix, iy] = self.plane.expect("checked by start");
+        let [ix, iy] = self.plane.expect("no offset without X and Y");
         let corner = next.template.start();
         let corner = (corner[ix], corner[iy]);
         let extra = join_prims(&mut prev.prims, &mut next.prims, corner, self.side, self.d)
-            .map_err(|message| CompError {
-                line: next.template.line,
-                message,
-            })?;
+            .map_err(|m| fail(next.template.line, m))?;
         let line = prev.template.line;
-        self.emit(prev, out)
-            .map_err(|message| CompError { line, message })?;
+        self.emit(prev, out).map_err(|m| fail(line, m))?;
         if !extra.is_empty() {
             // The corner arc: a move of its own, on the next move's line, carrying its stops.
             let mut template = next.template.clone();
@@ -486,8 +457,7 @@ impl Compensator {
                 entry_from: None,
             };
             let line = corner.template.line;
-            self.emit(corner, out)
-                .map_err(|message| CompError { line, message })?;
+            self.emit(corner, out).map_err(|m| fail(line, m))?;
         }
         self.pending = Some(next);
         Ok(())
@@ -496,7 +466,7 @@ impl Compensator {
     /// Turns a piece into blocks: one per line or arc; a NURBS offset's chords as one
     /// polyline block.
     fn emit(&self, piece: Piece, out: &mut VecDeque<Block>) -> Result<(), String> {
-        let [ix, iy] = self.plane.expect("checked by start");
+        let [ix, iy] = self.plane.expect("no offset without X and Y");
         let t = &piece.template;
         let base = t.start();
         let dim = t.curve.dim();
@@ -517,6 +487,7 @@ impl Compensator {
             b.flushing = t.flushing;
             b.condition = t.condition;
             b.taper = t.taper;
+            b.wire_offset = t.wire_offset;
             if std::mem::take(&mut first) {
                 b.dwell_s = t.dwell_s;
                 b.pause = t.pause;

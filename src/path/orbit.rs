@@ -26,8 +26,9 @@
 
 use std::collections::VecDeque;
 
-use super::taper::TaperError as StageError;
-use crate::gcode::{Block, OrbitOptions, OrbitStage};
+use super::taper::TaperError;
+use super::{Stage, StageError};
+use crate::gcode::{Block, GcodeErrorKind, OrbitOptions, OrbitStage};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 use crate::vocab::OrbitShape;
@@ -37,15 +38,22 @@ use crate::vocab::OrbitShape;
 const MAX_TURNS: f64 = 10_000.0;
 
 #[derive(Debug)]
-pub(super) struct Orbiting {
+pub struct Orbiting {
     options: OrbitOptions,
     /// X, Y and Z's indices; `None`: the machine has no tool axis to orbit about.
     axes: Option<[usize; 3]>,
     tolerance: f64,
 }
 
+impl Stage for Orbiting {
+    fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        self.orbit(block, out)
+            .map_err(|e| e.at_move(GcodeErrorKind::Orbit))
+    }
+}
+
 impl Orbiting {
-    pub(super) fn new(axes: &[Axis], options: OrbitOptions, tolerance: f64) -> Orbiting {
+    pub fn new(axes: &[Axis], options: OrbitOptions, tolerance: f64) -> Orbiting {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let axes = (|| Some([index(Axis::X)?, index(Axis::Y)?, index(Axis::Z)?]))();
         Orbiting {
@@ -56,7 +64,7 @@ impl Orbiting {
     }
 
     /// `block`, or its orbital path when it is a sinking move with an orbit in force.
-    pub(super) fn push(&self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+    fn orbit(&self, block: Block, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
         let Some(axes) = self.axes else {
             out.push_back(block);
             return Ok(());
@@ -68,7 +76,7 @@ impl Orbiting {
             out.push_back(block);
             return Ok(());
         }
-        let fail = |message: String| StageError {
+        let fail = |message: String| TaperError {
             line: block.line,
             message,
         };
@@ -218,9 +226,14 @@ mod tests {
             orbit,
             ..ProgramOptions::default()
         };
-        BlockReader::with_options(Cursor::new(text.to_string()), "t.ngc", &axes, options)
-            .collect::<Result<Vec<_>, _>>()
-            .unwrap()
+        crate::path::Pipeline::new(BlockReader::with_options(
+            Cursor::new(text.to_string()),
+            "t.ngc",
+            &axes,
+            options,
+        ))
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap()
     }
 
     fn circle(expand: bool) -> OrbitOptions {
@@ -297,10 +310,18 @@ mod tests {
         };
         // 50 mm at 0.01 mm/min: 5000 min around a 0.2 mm circle at 60 mm/min.
         let text = "G21 G90\nG1 Z-50 F0.01\nM2\n";
-        let err = BlockReader::with_options(Cursor::new(text.to_string()), "t.ngc", &axes, options)
-            .collect::<Result<Vec<_>, _>>()
-            .unwrap_err();
-        assert_eq!(err.line, 2, "{err}");
+        let err = crate::path::Pipeline::new(BlockReader::with_options(
+            Cursor::new(text.to_string()),
+            "t.ngc",
+            &axes,
+            options,
+        ))
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap_err();
+        assert!(
+            matches!(&err, crate::path::PathError::Program(e) if e.line == 2),
+            "{err}"
+        );
         assert!(
             err.to_string()
                 .contains("turns on this 50.0000 mm sinking move"),

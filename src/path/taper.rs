@@ -43,7 +43,8 @@ use std::collections::VecDeque;
 
 use nalgebra::Vector2;
 
-use crate::gcode::{Block, BlockKind, Plane};
+use super::{Stage, StageError};
+use crate::gcode::{Block, BlockKind, GcodeErrorKind, Plane};
 use crate::geometry::{NurbsCurve, Point, circular_arc};
 use crate::vocab::{Axis, Guides};
 
@@ -56,8 +57,18 @@ pub(super) struct TaperError {
     pub(super) message: String,
 }
 
+impl TaperError {
+    /// The error as the path reports it: `kind` wraps the message.
+    pub(super) fn at_move(self, kind: fn(String) -> GcodeErrorKind) -> StageError {
+        StageError::Move {
+            line: self.line,
+            kind: kind(self.message),
+        }
+    }
+}
+
 #[derive(Debug)]
-pub(super) struct Taper {
+pub struct Taper {
     guides: Guides,
     /// X, Y, U and V's indices; `None`: the machine cannot tilt the wire (a `G51`/`G52` is
     /// refused before any block carries a tilt).
@@ -84,8 +95,21 @@ struct HeldLine {
     tan_end: f64,
 }
 
+impl Stage for Taper {
+    fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        self.tilt(block, out)
+            .map_err(|e| e.at_move(GcodeErrorKind::Taper))
+    }
+
+    /// The line held back ends at its own tilt, with nothing after it.
+    fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        self.end_held(out)
+            .map_err(|e| e.at_move(GcodeErrorKind::Taper))
+    }
+}
+
 impl Taper {
-    pub(super) fn new(axes: &[Axis], guides: Guides, thickness_mm: f64, tolerance: f64) -> Taper {
+    pub fn new(axes: &[Axis], guides: Guides, thickness_mm: f64, tolerance: f64) -> Taper {
         let index = |a: Axis| axes.iter().position(|&x| x == a);
         let axes = (|| {
             Some([
@@ -106,13 +130,8 @@ impl Taper {
         }
     }
 
-    /// A line is held back (the program is not over until it is out).
-    pub(super) fn holds(&self) -> bool {
-        self.held.is_some()
-    }
-
     /// The line held back, ended at its own tilt: at the end of the program.
-    pub(super) fn flush(&mut self, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
+    fn end_held(&mut self, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
         let Some(h) = self.held.take() else {
             return Ok(());
         };
@@ -124,11 +143,7 @@ impl Taper {
     }
 
     /// `block` as the guides cut it, after a corner move where the tilt turns.
-    pub(super) fn push(
-        &mut self,
-        block: Block,
-        out: &mut VecDeque<Block>,
-    ) -> Result<(), TaperError> {
+    fn tilt(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), TaperError> {
         let Some(axes) = self.axes else {
             out.push_back(block);
             return Ok(());
@@ -505,9 +520,13 @@ mod tests {
 
     fn read(text: &str) -> Vec<Block> {
         let axes = [Axis::X, Axis::Y, Axis::U, Axis::V];
-        BlockReader::new(Cursor::new(text.to_string()), "t.ngc", &axes)
-            .collect::<Result<Vec<_>, _>>()
-            .unwrap()
+        crate::path::Pipeline::new(BlockReader::new(
+            Cursor::new(text.to_string()),
+            "t.ngc",
+            &axes,
+        ))
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap()
     }
 
     /// The shipped guides: 10 mm below the plane, 50 mm apart.
@@ -567,10 +586,17 @@ mod tests {
         // An arc meeting such a corner: refused (the walls do not meet along a line).
         let axes = [Axis::X, Axis::Y, Axis::U, Axis::V];
         let text = "G21 G90\nG51 A3\nG1 X10 F100\nG3 X0 Y10 I-10 J0\nM2\n";
-        let err = BlockReader::new(Cursor::new(text.to_string()), "t.ngc", &axes)
-            .collect::<Result<Vec<_>, _>>()
-            .unwrap_err();
-        assert_eq!(err.line, 4, "{err}");
+        let err = crate::path::Pipeline::new(BlockReader::new(
+            Cursor::new(text.to_string()),
+            "t.ngc",
+            &axes,
+        ))
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap_err();
+        assert!(
+            matches!(&err, crate::path::PathError::Program(e) if e.line == 4),
+            "{err}"
+        );
         assert!(
             err.to_string().contains("where an arc or a curve meets it"),
             "{err}"

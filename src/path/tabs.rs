@@ -23,9 +23,8 @@
 //! blocks, so the check and the producer cut the same blocks and a resume replays them.
 
 use super::from_line::path_approach;
-use super::passes;
-use crate::config::WirePass;
-use crate::gcode::{Block, BlockKind, BlockReader, GcodeError, Pause};
+use super::passes::WirePass;
+use crate::gcode::{Block, BlockKind, Pause};
 use crate::geometry::{NurbsCurve, Point};
 
 /// Why a program cannot be cut with a tab.
@@ -64,17 +63,6 @@ pub enum TabError {
          but [wire] pass 1 says reverse = true"
     )]
     FirstReversed { program: String },
-    /// Reading a pass's program failed (or was cancelled).
-    #[error(transparent)]
-    Program(Box<GcodeError>),
-    #[error(transparent)]
-    Pass(#[from] passes::PassError),
-}
-
-impl From<GcodeError> for TabError {
-    fn from(e: GcodeError) -> TabError {
-        TabError::Program(Box::new(e))
-    }
 }
 
 /// One pass's program as read with the pass's offset: its blocks, and the lines of its
@@ -87,21 +75,24 @@ pub struct PassProgram {
 }
 
 impl PassProgram {
-    /// Reads the whole program as `pass` cuts it ([`passes::block`]).
-    pub fn read<R: std::io::BufRead + std::io::Seek>(
-        reader: &mut BlockReader<R>,
-        pass: &WirePass,
-        program: &str,
-    ) -> Result<PassProgram, TabError> {
-        let mut blocks = Vec::new();
-        for item in reader.by_ref() {
-            blocks.push(passes::block(item?, Some(pass), program)?);
+    /// A pass's program as its path made it; the entry and exit moves are where the wire
+    /// offset the blocks carry ([`Block::wire_offset`]) comes on and goes off (the latest
+    /// of each).
+    pub fn new(blocks: Vec<Block>) -> PassProgram {
+        let (mut entry_line, mut exit_line, mut on) = (None, None, false);
+        for b in &blocks {
+            match (on, b.wire_offset.is_some()) {
+                (false, true) => entry_line = Some(b.line),
+                (true, false) => exit_line = Some(b.line),
+                _ => {}
+            }
+            on = b.wire_offset.is_some();
         }
-        Ok(PassProgram {
+        PassProgram {
             blocks,
-            entry_line: reader.comp_entry_line(),
-            exit_line: reader.comp_exit_line(),
-        })
+            entry_line,
+            exit_line,
+        }
     }
 }
 

@@ -28,6 +28,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use std::collections::VecDeque;
+
+use super::{Stage, StageError};
 use crate::gcode::{Block, BlockKind, Travel};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
@@ -108,20 +111,40 @@ pub enum Route {
     Cut,
 }
 
-/// Sorts a program's blocks, in execution order, into before and after the line.
+/// What the approach needs besides the program: where the job starts (machine mm), the
+/// machine's axes, the safe height a direct approach crosses at, and the approach's feed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ApproachPlan {
+    pub origin: Point,
+    pub axes: Vec<Axis>,
+    pub safe_z_mm: Option<f64>,
+    pub feed_mm_per_min: f64,
+}
+
+/// The run-from-line stage: sorts a program's blocks, in execution order, into before and
+/// after the line, and moves (or drops) the ones before as the approach says.
 #[derive(Debug, Clone)]
 pub struct Gate {
     from: FromLine,
     program: String,
     reached: bool,
+    /// The block before carried a wire offset (the next one with one is no entry).
+    offset_on: bool,
+    approach: ApproachPlan,
+    /// Path the approach left out and not yet told (mm; the direct approach's own moves
+    /// count against it): progress and placed debris stay where a full run has them.
+    skipped_mm: f64,
 }
 
 impl Gate {
-    pub fn new(from: FromLine, program: &str) -> Gate {
+    pub fn new(from: FromLine, program: &str, approach: ApproachPlan) -> Gate {
         Gate {
             from,
             program: program.to_string(),
             reached: false,
+            offset_on: false,
+            approach,
+            skipped_mm: 0.0,
         }
     }
 
@@ -129,13 +152,15 @@ impl Gate {
         self.from
     }
 
-    /// Routes the next block. `comp_entry`: the line of the latest wire-offset entry move
-    /// the reader has read ([`crate::gcode::BlockReader::comp_entry_line`]).
-    pub fn admit(
-        &mut self,
-        block: &Block,
-        comp_entry: Option<u64>,
-    ) -> Result<Route, FromLineError> {
+    /// The path left out since last asked, mm (negative where the approach added more).
+    pub fn take_skipped_mm(&mut self) -> f64 {
+        std::mem::take(&mut self.skipped_mm)
+    }
+
+    /// Routes the next block, in execution order.
+    pub fn admit(&mut self, block: &Block) -> Result<Route, FromLineError> {
+        let entry = block.wire_offset.is_some() && !self.offset_on;
+        self.offset_on = block.wire_offset.is_some();
         if self.reached {
             return Ok(Route::Cut);
         }
@@ -149,7 +174,7 @@ impl Gate {
             }
             return Ok(Route::Before);
         }
-        if comp_entry == Some(block.line) {
+        if entry {
             return Err(FromLineError::CompEntry {
                 program: self.program.clone(),
                 line: block.line,
@@ -160,7 +185,7 @@ impl Gate {
     }
 
     /// At the program's end: the line was reached.
-    pub fn finish(&self) -> Result<(), FromLineError> {
+    pub fn finished(&self) -> Result<(), FromLineError> {
         if self.reached {
             Ok(())
         } else {
@@ -169,6 +194,30 @@ impl Gate {
                 line: self.from.line,
             })
         }
+    }
+}
+
+impl Stage for Gate {
+    fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
+        let direct = self.from.approach == Approach::Direct;
+        let feed = self.approach.feed_mm_per_min;
+        match (self.admit(&block)?, direct) {
+            (Route::Cut, _) | (Route::First, false) => out.push_back(block),
+            (Route::Before, true) => self.skipped_mm += block.curve.length(),
+            (Route::Before, false) => out.push_back(path_approach(block, feed)),
+            (Route::First, true) => {
+                let a = &self.approach;
+                let moves = direct_approach(&a.origin, &block, &a.axes, a.safe_z_mm, feed);
+                self.skipped_mm -= moves.iter().map(|b| b.curve.length()).sum::<f64>();
+                out.extend(moves);
+                out.push_back(block);
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _: &mut VecDeque<Block>) -> Result<(), StageError> {
+        Ok(self.finished()?)
     }
 }
 
@@ -252,6 +301,15 @@ mod tests {
         )
     }
 
+    fn plan() -> ApproachPlan {
+        ApproachPlan {
+            origin: Point::zeros(),
+            axes: vec![Axis::X, Axis::Y, Axis::Z],
+            safe_z_mm: None,
+            feed_mm_per_min: 60.0,
+        }
+    }
+
     #[test]
     fn the_gate_routes_by_line_and_refuses_a_probe_before_it() {
         let mut gate = Gate::new(
@@ -260,19 +318,20 @@ mod tests {
                 approach: Approach::Path,
             },
             "p.ngc",
+            plan(),
         );
         let b = line(3, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
-        assert_eq!(gate.admit(&b, None), Ok(Route::Before));
-        assert!(gate.finish().is_err());
+        assert_eq!(gate.admit(&b), Ok(Route::Before));
+        assert!(gate.finished().is_err());
         let b = line(7, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], BlockKind::Line);
-        assert_eq!(gate.admit(&b, None), Ok(Route::First));
+        assert_eq!(gate.admit(&b), Ok(Route::First));
         let b = line(2, [2.0, 0.0, 0.0], [3.0, 0.0, 0.0], BlockKind::Line);
         assert_eq!(
-            gate.admit(&b, None),
+            gate.admit(&b),
             Ok(Route::Cut),
             "after the line, lines may run back"
         );
-        assert!(gate.finish().is_ok());
+        assert!(gate.finished().is_ok());
 
         let mut gate = Gate::new(
             FromLine {
@@ -280,21 +339,27 @@ mod tests {
                 approach: Approach::Path,
             },
             "p.ngc",
+            plan(),
         );
         let probe = BlockKind::Probe(crate::gcode::Probe {
             away: false,
             must_touch: true,
         });
         let e = gate
-            .admit(&line(4, [0.0; 3], [0.0, 0.0, -1.0], probe), None)
+            .admit(&line(4, [0.0; 3], [0.0, 0.0, -1.0], probe))
             .unwrap_err();
         assert!(
             e.to_string()
                 .starts_with("p.ngc:4:1: the program probes here, before line 5"),
             "{e}"
         );
-        let b = line(5, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
-        let e = gate.admit(&b, Some(5)).unwrap_err();
+        // The first move carrying a wire offset is its entry.
+        let mut b = line(5, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
+        b.wire_offset = Some(crate::gcode::WireOffset {
+            left: true,
+            d_mm: 0.1,
+        });
+        let e = gate.admit(&b).unwrap_err();
         assert!(e.to_string().contains("entry move"), "{e}");
     }
 
