@@ -128,10 +128,11 @@ where
                 match run.next() {
                     Some(Ok(block)) => {
                         let mm = run.take_skipped_mm();
-                        if mm != 0.0 {
-                            self.items.push_back(PathItem::Skipped { mm });
+                        if mm == 0.0 {
+                            return Ok(Some(PathItem::Block(block)));
                         }
                         self.items.push_back(PathItem::Block(block));
+                        return Ok(Some(PathItem::Skipped { mm }));
                     }
                     Some(Err(e)) => return Err(e),
                     None => {

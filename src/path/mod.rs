@@ -53,6 +53,13 @@ pub trait Stage {
     fn finish(&mut self, _out: &mut VecDeque<Block>) -> Result<(), StageError> {
         Ok(())
     }
+
+    /// [`push`](Self::push) would hand `block` on unchanged, at once, and change nothing:
+    /// the path skips the stage (most blocks of most programs meet no offset, taper or
+    /// orbit, and a block is a few hundred bytes to move).
+    fn passes(&self, _block: &Block) -> bool {
+        false
+    }
 }
 
 /// Why a stage refused a block.

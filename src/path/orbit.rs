@@ -50,6 +50,15 @@ impl Stage for Orbiting {
         self.orbit(block, out)
             .map_err(|e| e.at_move(GcodeErrorKind::Orbit))
     }
+
+    /// Not a sinking move with an orbit in force: as `orbit` finds.
+    fn passes(&self, block: &Block) -> bool {
+        let Some([_, _, iz]) = self.axes else {
+            return true;
+        };
+        let orbit = self.options.for_condition(block.condition);
+        orbit.shape == OrbitShape::None || orbit.radius_mm <= 0.0 || !block.sinks(iz)
+    }
 }
 
 impl Orbiting {

@@ -115,12 +115,18 @@ impl<R: BufRead + Seek> Pipeline<R> {
             // after it have taken everything it made.
             if let Some(i) = (0..last).rev().find(|&i| !self.queues[i].is_empty()) {
                 let block = self.queues[i].pop_front().expect("not empty");
-                self.feed(i + 1, block)?;
+                if let Some(out) = self.feed(i + 1, block)? {
+                    return Ok(Some(out));
+                }
                 continue;
             }
             if !self.read_all {
                 match self.reader.next() {
-                    Some(Ok(block)) => self.feed(0, block)?,
+                    Some(Ok(block)) => {
+                        if let Some(out) = self.feed(0, block)? {
+                            return Ok(Some(out));
+                        }
+                    }
                     Some(Err(e)) => return Err(e.into()),
                     None => self.read_all = true,
                 }
@@ -138,15 +144,21 @@ impl<R: BufRead + Seek> Pipeline<R> {
         }
     }
 
-    fn feed(&mut self, i: usize, block: Block) -> Result<(), PathError> {
-        let pushed = match self.stages.get(i) {
-            Some(stage) => stage.push(block, &mut self.queues[i]),
-            None => {
-                self.queues[i].push_back(block);
-                Ok(())
+    /// Hands `block` to stage `i`, past the stages that would pass it on unchanged (every
+    /// queue after the one it came from is empty: nothing it would overtake). The block
+    /// itself when every stage passed it.
+    fn feed(&mut self, mut i: usize, block: Block) -> Result<Option<Block>, PathError> {
+        while i < STAGES {
+            match self.stages.get(i) {
+                Some(stage) if !stage.passes(&block) => {
+                    let pushed = stage.push(block, &mut self.queues[i]);
+                    pushed.map_err(|e| self.located(e))?;
+                    return Ok(None);
+                }
+                _ => i += 1,
             }
-        };
-        pushed.map_err(|e| self.located(e))
+        }
+        Ok(Some(block))
     }
 
     fn located(&self, e: StageError) -> PathError {

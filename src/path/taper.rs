@@ -101,6 +101,16 @@ impl Stage for Taper {
             .map_err(|e| e.at_move(GcodeErrorKind::Taper))
     }
 
+    /// Vertical and staying so, nothing held: as the first steps of `tilt` find.
+    fn passes(&self, block: &Block) -> bool {
+        let straight = matches!(block.kind, BlockKind::Line | BlockKind::Rapid);
+        self.axes.is_none()
+            || (self.held.is_none()
+                && self.tan == 0.0
+                && self.normal.is_none()
+                && !(straight && block.taper != 0.0))
+    }
+
     /// The line held back ends at its own tilt, with nothing after it.
     fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), StageError> {
         self.end_held(out)

@@ -222,6 +222,10 @@ impl Stage for WireOffsetStage {
         }
     }
 
+    fn passes(&self, block: &Block) -> bool {
+        self.phase == Phase::Off && block.wire_offset.is_none()
+    }
+
     /// At the end of the program: the held move goes out as it is.
     fn finish(&mut self, out: &mut VecDeque<Block>) -> Result<(), StageError> {
         if let Some(last) = self.pending.take() {
