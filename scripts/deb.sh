@@ -33,12 +33,16 @@ install -m 755 "$bin" "$stage/usr/bin/edmd"
 strip --strip-unneeded "$stage/usr/bin/edmd"
 install -m 644 config/edmd.toml "$stage/etc/edmd/edmd.toml"
 install -m 644 systemd/edmd.service "$stage/usr/lib/systemd/system/edmd.service"
+install -m 644 systemd/edmd-hal.service "$stage/usr/lib/systemd/system/edmd-hal.service"
 install -m 644 systemd/edmd-sysusers.conf "$stage/usr/lib/sysusers.d/edmd.conf"
 install -m 644 systemd/edmd-tmpfiles.conf "$stage/usr/lib/tmpfiles.d/edmd.conf"
 install -m 644 systemd/edmd-modules.conf "$stage/usr/lib/modules-load.d/edmd.conf"
 install -m 644 README.md "$stage/usr/share/doc/edmd/README.md"
 install -d "$stage/usr/share/doc/edmd/docs"
 install -m 644 docs/*.md docs/*.png "$stage/usr/share/doc/edmd/docs/"
+# HAL files: the simulated machine and the examples to adapt (docs/hal.md).
+install -d "$stage/usr/share/doc/edmd/hal"
+install -m 644 config/hal/*.hal config/hal/*.toml "$stage/usr/share/doc/edmd/hal/"
 {
   echo "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/"
   echo "Upstream-Name: edmd"
@@ -85,6 +89,7 @@ Architecture: $arch
 Maintainer: The edmd developers <edmd@invalid>
 Installed-Size: $size_kib
 Depends: $depends_line
+Suggests: linuxcnc-uspace
 Section: electronics
 Priority: optional
 Description: Real-time NURBS interpolation daemon for PC-based EDM controllers

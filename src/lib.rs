@@ -5,8 +5,8 @@
 //! own floor or below (`tests/it/architecture/` checks it).
 //!
 //! `unsafe` is denied everywhere except the kernel-facing modules that allow it by name:
-//! [`sys`]'s clock, real-time, group look-up and descriptor-limit wrappers and
-//! [`parport::ioctl`].
+//! [`sys`]'s clock, real-time, group look-up and descriptor-limit wrappers,
+//! [`parport::ioctl`] and the HAL library's calls (`hal::ffi`).
 
 #![deny(unsafe_code)]
 #![warn(clippy::undocumented_unsafe_blocks)]
@@ -37,6 +37,7 @@ pub mod servo;
 // Floor 7: the machine's two sides (pulse outputs, gap and machine inputs), their devices and
 // wrappers.
 pub mod gap;
+pub mod hal;
 pub mod inputs;
 pub mod output;
 pub mod parport;

@@ -51,7 +51,7 @@ fn homing(
     let required = match &raw.required {
         RawRequired::Flag(on) => *on,
         // A real machine's position is lost with its power; a simulated one's is not.
-        RawRequired::Word(w) if w == "auto" => output == OutputKind::Parport,
+        RawRequired::Word(w) if w == "auto" => output.hardware(),
         RawRequired::Word(w) => {
             return Err((
                 "homing.required",

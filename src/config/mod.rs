@@ -15,6 +15,8 @@
 
 mod corners;
 pub use corners::CornerControl;
+mod hal;
+pub use hal::HalConfig;
 mod homing;
 mod opcua;
 pub use opcua::OpcUaEndpoint;
@@ -68,6 +70,7 @@ pub enum OutputKind {
     Sim,
     File,
     Parport,
+    Hal,
     Null,
 }
 
@@ -78,8 +81,15 @@ impl OutputKind {
             OutputKind::Sim => "sim",
             OutputKind::File => "file",
             OutputKind::Parport => "parport",
+            OutputKind::Hal => "hal",
             OutputKind::Null => "null",
         }
+    }
+
+    /// Real hardware: claimed once by the daemon and lent to each job, never driven in
+    /// virtual time, homed before use (`homing.required = "auto"`).
+    pub fn hardware(self) -> bool {
+        matches!(self, OutputKind::Parport | OutputKind::Hal)
     }
 }
 
@@ -89,8 +99,16 @@ pub enum GapKind {
     Sim,
     Script,
     Parport,
+    Hal,
     Iio,
     None,
+}
+
+impl GapKind {
+    /// The gap is read from the output's own device (the port's status pins, HAL's pins).
+    pub fn from_output_device(self) -> bool {
+        matches!(self, GapKind::Parport | GapKind::Hal)
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -392,6 +410,7 @@ pub struct Config {
     pub output: OutputConfig,
     pub gap: GapConfig,
     pub parport: ParportConfig,
+    pub hal: HalConfig,
     pub servo: ServoConfig,
     pub sim: SimConfig,
     pub daemon: DaemonConfig,
@@ -468,8 +487,11 @@ impl Config {
     /// rethreads runs in flat memory.
     pub fn wire_can_break(&self) -> bool {
         self.servo.max_open_mm > 0.0
+            // HAL's wire-break-in pin is read whatever the gap input is.
+            || self.output.kind == OutputKind::Hal
             || match self.gap.kind {
                 GapKind::Parport => self.parport.wire_break_pin.is_some(),
+                GapKind::Hal => true,
                 GapKind::Sim => self.sim.wire_breaks_per_m > 0.0 || self.sim.events.is_some(),
                 GapKind::Script => true,
                 GapKind::Iio | GapKind::None => false,

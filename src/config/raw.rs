@@ -18,6 +18,7 @@ pub(super) struct RawConfig {
     pub(super) output: RawOutput,
     pub(super) gap: RawGap,
     pub(super) parport: RawParport,
+    pub(super) hal: super::hal::RawHal,
     pub(super) servo: RawServo,
     pub(super) sim: RawSim,
     pub(super) daemon: RawDaemon,

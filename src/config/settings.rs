@@ -10,6 +10,7 @@ use super::Config;
 use super::ServoLaw;
 use crate::fine::FineSettings;
 use crate::gcode::{ProgramOptions, WorkStart};
+use crate::hal::HalSettings;
 use crate::parport::{PinMap, StepTiming};
 use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
@@ -184,6 +185,21 @@ impl ProgramOptions {
             guides: config.wire.guides,
             thickness_mm: config.wire.thickness_mm,
             orbit: config.sinker.orbit.clone(),
+        }
+    }
+}
+
+impl HalSettings {
+    /// The HAL component of `config` (`[hal]`, the machine's axes, `[gap]`'s thresholds).
+    pub fn from_config(config: &Config) -> HalSettings {
+        HalSettings {
+            component: config.hal.component.clone(),
+            axes: config.machine.axes.clone(),
+            step_mm: config.machine.step_mm.clone(),
+            max_following_error_mm: config.hal.max_following_error_mm,
+            gap: config.hal.gap_input,
+            probe_input: config.hal.probe_input,
+            volts: config.gap.volts,
         }
     }
 }

@@ -110,11 +110,14 @@ impl RawConfig {
         let buffer = buffer(self.buffer)?;
         let fine = fine(self.fine)?;
         let output = output(self.output)?;
-        if output.kind == OutputKind::Parport && fine.virtual_time {
+        if output.kind.hardware() && fine.virtual_time {
             return Err((
                 "fine.virtual_time",
-                "must be false with output.kind = \"parport\": virtual time cannot drive real hardware"
-                    .to_string(),
+                format!(
+                    "must be false with output.kind = \"{}\": virtual time cannot drive real \
+                     hardware",
+                    output.kind.name()
+                ),
             ));
         }
         let gap = gap(self.gap)?;
@@ -126,10 +129,15 @@ impl RawConfig {
                     .to_string(),
             ));
         }
-        if self.servo.law == ServoLaw::Voltage && !matches!(gap.kind, GapKind::Iio | GapKind::Sim) {
+        let hal_volts = gap.kind == GapKind::Hal && self.hal.reads_voltage();
+        if self.servo.law == ServoLaw::Voltage
+            && !matches!(gap.kind, GapKind::Iio | GapKind::Sim)
+            && !hal_volts
+        {
             return Err((
                 "servo.law",
-                "\"voltage\" needs a gap voltage: gap.kind = \"iio\" (an ADC) or \"sim\""
+                "\"voltage\" needs a gap voltage: gap.kind = \"iio\" (an ADC), \"hal\" with \
+                 hal.gap_input = \"voltage\", or \"sim\""
                     .to_string(),
             ));
         }
@@ -142,6 +150,7 @@ impl RawConfig {
         }
 
         let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
+        let hal = self.hal.validate(output.kind, gap.kind)?;
 
         let servo = servo(self.servo)?;
         let homing = self.homing.validate(&machine, &parport, output.kind)?;
@@ -175,6 +184,7 @@ impl RawConfig {
             output,
             gap,
             parport,
+            hal,
             servo,
             sim,
             daemon,

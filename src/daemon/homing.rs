@@ -102,9 +102,9 @@ impl Core {
     /// switch, one after the other in `sequence` order.
     fn home_by_switch(&mut self, axes: &[String]) -> Result<String, Refusal> {
         let homing = &self.config.homing;
-        // The port's switch pins are read whatever the gap input; without the port only a
-        // simulated machine (the simulator, a script) has switches.
-        if self.config.output.kind != OutputKind::Parport
+        // The port's switch pins (HAL's home-sw pins) are read whatever the gap input;
+        // without them only a simulated machine (the simulator, a script) has switches.
+        if !self.config.output.kind.hardware()
             && matches!(self.config.gap.kind, GapKind::None | GapKind::Iio)
         {
             return Err(Refusal::BadArgument(format!(

@@ -15,7 +15,7 @@ use super::protocol;
 use super::refusal::Refusal;
 use super::{Core, Job};
 use crate::checkpoint::Reason;
-use crate::config::{Config, GapKind, OutputKind};
+use crate::config::Config;
 use crate::record::EventKind;
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{
@@ -105,7 +105,8 @@ impl JobControl {
         checkpoints.prune_copies(checkpoint, &jobs, self.check.is_some());
     }
 
-    /// A job that ended, or did not start after all, hands the claimed parallel port back.
+    /// A job that ended, or did not start after all, hands the claimed device (the parallel
+    /// port, the HAL component) back.
     pub(super) fn give_back_io(
         &mut self,
         config: &Config,
@@ -113,11 +114,11 @@ impl JobControl {
         gap: BoxedGap,
         inputs: BoxedInputs,
     ) {
-        if config.output.kind == OutputKind::Parport {
+        if config.output.kind.hardware() {
             self.port_output = Some(output);
             self.port_inputs = Some(inputs);
         }
-        if config.gap.kind == GapKind::Parport {
+        if config.gap.kind.from_output_device() {
             self.port_gap = Some(gap);
         }
     }
@@ -145,7 +146,7 @@ impl JobControl {
                 (opened.output, opened.port_gap, opened.inputs)
             }
         };
-        let port_gap = if config.gap.kind == GapKind::Parport {
+        let port_gap = if config.gap.kind.from_output_device() {
             self.port_gap.take().or(opened_gap)
         } else {
             None
@@ -153,7 +154,7 @@ impl JobControl {
         let gap = match runtime::open_gap(config, check, port_gap) {
             Ok(gap) => gap,
             Err(e) => {
-                if config.output.kind == OutputKind::Parport {
+                if config.output.kind.hardware() {
                     self.port_output = Some(output);
                     self.port_inputs = Some(inputs);
                 }
@@ -161,7 +162,7 @@ impl JobControl {
             }
         };
         // The claimed port is lent as it is: wrappers would stay on it after the job.
-        let (output, gap) = if config.output.kind == OutputKind::Parport {
+        let (output, gap) = if config.output.kind.hardware() {
             if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
                 tracing::warn!(
                     "output.trace, gap.trace and output.fault_at_tick are not applied to the \

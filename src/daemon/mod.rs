@@ -183,11 +183,14 @@ pub fn serve(
     let started = Instant::now();
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
     let machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
-    // The port first: if it cannot be claimed, nothing else should start.
-    let (port_output, port_gap, port_inputs) = if config.output.kind == OutputKind::Parport {
+    // The device first (the parallel port, the HAL component, whose readiness `loadusr -W`
+    // waits for): if it cannot be claimed, nothing else should start.
+    let (port_output, port_gap, port_inputs) = if config.output.kind.hardware() {
         let opened =
             runtime::open_output(&config, &[]).map_err(|e| DaemonError::Job(Box::new(e)))?;
-        tracing::info!("{}: parallel port claimed", config.output.path.display());
+        if config.output.kind == OutputKind::Parport {
+            tracing::info!("{}: parallel port claimed", config.output.path.display());
+        }
         (Some(opened.output), opened.port_gap, Some(opened.inputs))
     } else {
         (None, None, None)

@@ -46,6 +46,17 @@ pub enum OutputError {
         "injected fault at tick {tick} (output.fault_at_tick): the output refuses every write from here on"
     )]
     Injected { tick: u64 },
+    /// The drives' feedback is further from the command than allowed (HAL's `pos-fb`).
+    #[error(
+        "following error on {axis}: the feedback is {error_mm:.4} mm from the command, more \
+         than hal.max_following_error_mm = {max_mm} (a drive that stalled, lost steps or is \
+         not connected)"
+    )]
+    FollowingError {
+        axis: char,
+        error_mm: f64,
+        max_mm: f64,
+    },
 }
 
 impl OutputError {

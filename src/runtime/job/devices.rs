@@ -25,7 +25,8 @@ pub type BoxedInputs = Box<dyn MachineInputs + Send>;
 /// An opened output, with what comes with it.
 pub struct OpenedOutput {
     pub output: BoxedOutput,
-    /// The port's status pins as a gap input (used when `gap.kind = "parport"`).
+    /// The device's own gap input: the port's status pins (`gap.kind = "parport"`), the HAL
+    /// component's gap pins (`"hal"`).
     pub port_gap: Option<BoxedGap>,
     /// The machine inputs wired to the output's device: read whatever the gap input is.
     pub inputs: BoxedInputs,
@@ -78,6 +79,14 @@ pub fn open_output(config: &Config, start: &[i64]) -> Result<OpenedOutput, JobEr
                     Box::new(port.inputs),
                 )
             }
+            OutputKind::Hal => {
+                let hal = crate::hal::open(&crate::hal::HalSettings::from_config(config))?;
+                (
+                    Box::new(hal.output),
+                    Some(Box::new(hal.gap)),
+                    Box::new(hal.inputs),
+                )
+            }
         };
     Ok(OpenedOutput {
         output,
@@ -94,12 +103,12 @@ pub fn open_gap(
     port_gap: Option<BoxedGap>,
 ) -> Result<BoxedGap, JobError> {
     Ok(match (config.gap.kind, port_gap) {
-        (GapKind::Parport, Some(gap)) => gap,
+        (GapKind::Parport | GapKind::Hal, Some(gap)) => gap,
         // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
-        (GapKind::Parport, None) => {
+        (GapKind::Parport | GapKind::Hal, None) => {
             return Err(JobError::Config(
-                "gap.kind = \"parport\" reads the output port's status pins and needs \
-                 output.kind = \"parport\""
+                "gap.kind = \"parport\" or \"hal\" reads the output device's own inputs and \
+                 needs output.kind to name that device"
                     .to_string(),
             ));
         }

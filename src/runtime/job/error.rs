@@ -22,6 +22,8 @@ pub enum JobError {
     Output(#[from] OutputError),
     #[error(transparent)]
     Parport(#[from] ParportError),
+    #[error(transparent)]
+    Hal(#[from] crate::hal::HalError),
     #[error("cannot start the fine interpolation thread: {0}")]
     Thread(std::io::Error),
     /// A combination of settings that cannot run (the validated configuration refuses it).

@@ -71,6 +71,22 @@ pub fn base_sets(dir: &Path, pulses: &str) -> Vec<String> {
 pub static DAEMONS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 impl Daemon {
+    /// A daemon that `child` started (`halrun` loading `edmd serve`), reached at `socket`,
+    /// `child`'s output in `log`: waits for the socket.
+    pub fn adopt(child: Child, socket: PathBuf, log: PathBuf) -> Daemon {
+        let daemon = Daemon { child, socket, log };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while UnixStream::connect(&daemon.socket).is_err() {
+            assert!(
+                Instant::now() < deadline,
+                "no socket; log:\n{}",
+                daemon.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        daemon
+    }
+
     pub fn start(dir: &Path, sets: &[String], env: &[(&str, String)]) -> Daemon {
         Daemon::start_args(dir, &[], sets, env)
     }
@@ -100,21 +116,7 @@ impl Daemon {
             cmd.env(k, v);
         }
         let child = cmd.spawn().expect("edmd serve starts");
-        let daemon = Daemon {
-            child,
-            socket: dir.join("edmd.sock"),
-            log,
-        };
-        let deadline = Instant::now() + Duration::from_secs(20);
-        while UnixStream::connect(&daemon.socket).is_err() {
-            assert!(
-                Instant::now() < deadline,
-                "no socket; log:\n{}",
-                daemon.log()
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        daemon
+        Daemon::adopt(child, dir.join("edmd.sock"), log)
     }
 
     pub fn log(&self) -> String {

@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 
 pub mod daemon;
+pub mod hal;
 pub mod linuxcnc;
 pub mod web;
 pub mod wire;

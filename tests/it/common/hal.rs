@@ -1,0 +1,163 @@
+//! A HAL bench: LinuxCNC's real HAL (Debian's `linuxcnc-uspace`) started by `halrun` on the
+//! shipped `config/hal/sim.hal`, which loads `edmd serve` as a component beside two
+//! `stepgen`s. The tests read and drive pins with `halcmd`, and talk to edmd on its socket.
+//!
+//! HAL is one per machine: only one bench may be up at a time (the HAL tests are one test).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use super::daemon::Daemon;
+
+/// The uid `rtapi_app` falls back to when started as root (it refuses root itself).
+const RTAPI_UID: &str = "65534";
+
+/// Whether the HAL tests run: `EDMD_HAL_TESTS=1` (CI sets it, having installed
+/// linuxcnc-uspace), and `halrun` is there. A skip says why.
+pub fn enabled(test: &str) -> bool {
+    if std::env::var_os("EDMD_HAL_TESTS").is_none() {
+        eprintln!("{test}: skipped: EDMD_HAL_TESTS is not set (needs Debian's linuxcnc-uspace)");
+        return false;
+    }
+    let found = Command::new("halrun")
+        .arg("-h")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok();
+    assert!(
+        found,
+        "EDMD_HAL_TESTS is set but halrun is not installed (apt install linuxcnc-uspace)"
+    );
+    true
+}
+
+pub struct HalBench {
+    pub dir: PathBuf,
+    /// `edmd serve`, loaded by `halrun` (the child).
+    pub daemon: Option<Daemon>,
+    stdin: Option<ChildStdin>,
+}
+
+impl HalBench {
+    /// `halrun -I -f config/hal/sim.hal` in a scratch directory holding the shipped
+    /// `config/hal/sim.toml` with its paths moved there, `sets` appended as TOML, and
+    /// `programs` (name, text).
+    pub fn start(name: &str, extra_toml: &str, programs: &[(&str, &str)]) -> HalBench {
+        let dir = super::scratch("hal", name);
+        let home = dir.join("home");
+        std::fs::create_dir_all(dir.join("config/hal")).unwrap();
+        std::fs::create_dir_all(dir.join("programs")).unwrap();
+        std::fs::create_dir_all(&home).unwrap();
+        let _ = std::fs::remove_file(dir.join("checkpoint.json"));
+        let _ = std::fs::remove_file(dir.join("machine-state.json"));
+        // rtapi_app, running as RTAPI_UID, keeps its socket under $HOME.
+        let chowned = Command::new("chown")
+            .args([RTAPI_UID, home.to_str().unwrap()])
+            .status()
+            .unwrap();
+        assert!(chowned.success());
+        let shipped = std::fs::read_to_string(super::repo().join("config/hal/sim.toml")).unwrap();
+        let config = shipped.replace("/tmp/edmd-hal", dir.to_str().unwrap()) + extra_toml;
+        std::fs::write(dir.join("config/hal/sim.toml"), config).unwrap();
+        for (name, text) in programs {
+            std::fs::write(dir.join("programs").join(name), text).unwrap();
+        }
+        // Whatever a bench that died left behind.
+        let _ = hal_command("halrun", &["-U"], &home);
+        let log = dir.join("halrun.log");
+        let bin = PathBuf::from(env!("CARGO_BIN_EXE_edmd"));
+        let path = format!(
+            "{}:{}",
+            bin.parent().unwrap().display(),
+            std::env::var("PATH").unwrap_or_default()
+        );
+        let mut child: Child = Command::new("halrun")
+            .args(["-I", "-f"])
+            .arg(super::repo().join("config/hal/sim.hal"))
+            .current_dir(&dir)
+            .env("RTAPI_UID", RTAPI_UID)
+            .env("HOME", &home)
+            .env("PATH", path)
+            .env("RUST_LOG", "info")
+            .env_remove("NOTIFY_SOCKET")
+            .stdin(Stdio::piped())
+            .stdout(std::fs::File::create(&log).unwrap())
+            .stderr(std::fs::File::options().append(true).open(&log).unwrap())
+            .spawn()
+            .expect("halrun starts");
+        let stdin = child.stdin.take();
+        let daemon = Daemon::adopt(child, dir.join("edmd.sock"), log);
+        HalBench {
+            dir,
+            daemon: Some(daemon),
+            stdin,
+        }
+    }
+
+    pub fn daemon(&self) -> &Daemon {
+        self.daemon.as_ref().expect("up")
+    }
+
+    /// A pin's or parameter's value as `halcmd getp` prints it.
+    pub fn getp(&self, name: &str) -> String {
+        hal_command("halcmd", &["getp", name], &self.dir.join("home"))
+            .unwrap_or_else(|e| panic!("halcmd getp {name}: {e}"))
+    }
+
+    pub fn getp_f64(&self, name: &str) -> f64 {
+        let text = self.getp(name);
+        text.parse()
+            .unwrap_or_else(|_| panic!("{name} = {text:?} is not a number"))
+    }
+
+    pub fn setp(&self, name: &str, value: &str) {
+        hal_command("halcmd", &["setp", name, value], &self.dir.join("home"))
+            .unwrap_or_else(|e| panic!("halcmd setp {name} {value}: {e}"));
+    }
+
+    /// Any `halcmd` command (`unlinkp`, `net`, …).
+    pub fn halcmd(&self, args: &[&str]) {
+        hal_command("halcmd", args, &self.dir.join("home"))
+            .unwrap_or_else(|e| panic!("halcmd {args:?}: {e}"));
+    }
+
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.join("halrun.log")).unwrap_or_default()
+    }
+}
+
+/// Runs a HAL tool with the bench's environment; its standard output, trimmed.
+fn hal_command(tool: &str, args: &[&str], home: &Path) -> Result<String, String> {
+    let out = Command::new(tool)
+        .args(args)
+        .env("RTAPI_UID", RTAPI_UID)
+        .env("HOME", home)
+        .output()
+        .map_err(|e| e.to_string())?;
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+impl Drop for HalBench {
+    /// `exit` to halrun: it stops edmd (SIGTERM, a controlled stop) and unloads HAL.
+    fn drop(&mut self) {
+        if let Some(mut stdin) = self.stdin.take() {
+            let _ = stdin.write_all(b"exit\n");
+        }
+        if let Some(mut daemon) = self.daemon.take() {
+            let deadline = Instant::now() + Duration::from_secs(30);
+            while Instant::now() < deadline {
+                if let Ok(Some(_)) = daemon.child.try_wait() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+        let _ = hal_command("halrun", &["-U"], &self.dir.join("home"));
+    }
+}

@@ -1,0 +1,165 @@
+//! LinuxCNC's HAL as the hardware layer (issue [3/8]), against the real HAL of Debian's
+//! `linuxcnc-uspace`: `halrun` on the shipped `config/hal/sim.hal` loads `edmd serve` as a
+//! userspace component beside two `stepgen`s in position mode (uspace threads, no hardware).
+//! Through HAL's own tools (`halcmd getp`/`setp`/`unlinkp`):
+//!
+//! - a program cut through `stepgen` leaves its step counts on the program's end point, equal
+//!   to edmd's ledger (`pos-cmd`) at the standstill;
+//! - a short on `edmd.gap.short` turns back along the path and the job still ends exact;
+//! - `edmd.estop-ok-in` false stops the job and drops `enable-out`, nothing moves after it,
+//!   and `reset` takes the machine back once the input is released;
+//! - `pos-fb` unlinked mid-cut is a following error naming the axis.
+//!
+//! One test: HAL is one per machine. Skipped (said on stderr) unless `EDMD_HAL_TESTS` is set.
+
+use std::time::{Duration, Instant};
+
+use crate::common;
+use common::hal::HalBench;
+use serde_json::Value;
+
+const SQUARE: &str = "G21 G90\nG1 X2 Y0 F300\nG1 X2 Y1.5\nG1 X0.5 Y1.5\nM2\n";
+/// 8 mm at 2 mm/s: long enough to act on in the middle.
+const LONG: &str = "G21 G90\nG1 X8.5 Y1.5 F120\nM2\n";
+const BACK: &str = "G21 G90\nG1 X0 Y0 F120\nM2\n";
+
+fn ints(v: &Value) -> Vec<i64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|x| x.as_i64().unwrap())
+        .collect()
+}
+
+/// Runs `program` and waits until the daemon leaves `running`; the last job.
+fn run_to_end(bench: &HalBench, program: &str) -> Value {
+    bench.daemon().ok(&["run", program]);
+    bench.daemon().wait_for("the job's end", |s| {
+        !matches!(
+            s["state"].as_str(),
+            Some("checking" | "running" | "stopping")
+        ) && s["last_job"]["program"]
+            .as_str()
+            .is_some_and(|p| p.ends_with(program))
+    })["last_job"]
+        .clone()
+}
+
+/// Runs `program` and returns once it has moved 0.2 mm of its path.
+fn start_and_move(bench: &HalBench, program: &str) {
+    bench.daemon().ok(&["run", program]);
+    bench.daemon().wait_for("moving", |s| {
+        s["state"] == "running"
+            && s["job"]["pulses"]
+                .as_array()
+                .is_some_and(|p| p.iter().filter_map(Value::as_u64).sum::<u64>() > 200)
+    });
+}
+
+/// The step counts of both stepgens, once they have stood still for a few servo periods.
+fn counts_at_rest(bench: &HalBench) -> Vec<i64> {
+    let read = || {
+        vec![
+            bench.getp("stepgen.0.counts").parse::<i64>().unwrap(),
+            bench.getp("stepgen.1.counts").parse::<i64>().unwrap(),
+        ]
+    };
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let mut last = read();
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        let now = read();
+        if now == last || Instant::now() > deadline {
+            return now;
+        }
+        last = now;
+    }
+}
+
+#[test]
+fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
+    if !common::hal::enabled("hal") {
+        return;
+    }
+    let bench = HalBench::start(
+        "drive",
+        "",
+        &[
+            ("square.ngc", SQUARE),
+            ("long.ngc", LONG),
+            ("back.ngc", BACK),
+        ],
+    );
+    let log = || bench.log();
+
+    // A program through stepgen: its counts are the ledger, on the program's end point.
+    let job = run_to_end(&bench, "square.ngc");
+    assert_eq!(job["outcome"], "done", "{job}\n{}", log());
+    assert_eq!(ints(&job["end_steps"]), [500, 1500]);
+    assert_eq!(counts_at_rest(&bench), [500, 1500], "{}", log());
+    assert!((bench.getp_f64("edmd.axis.x.pos-cmd") - 0.5).abs() < 1e-9);
+    assert!((bench.getp_f64("edmd.axis.y.pos-cmd") - 1.5).abs() < 1e-9);
+    // The machine stays on: the drives hold (and finish reaching) the last command.
+    assert_eq!(bench.getp("edmd.enable-out"), "TRUE");
+    assert_eq!(bench.getp("edmd.spark-on"), "FALSE");
+
+    // A short on the generator's pin: the electrode turns back along the path, then cuts on.
+    start_and_move(&bench, "long.ngc");
+    bench.setp("edmd.gap.short", "true");
+    std::thread::sleep(Duration::from_millis(60));
+    bench.setp("edmd.gap.short", "false");
+    let job = bench
+        .daemon()
+        .wait_for("the long job's end", |s| s["state"] == "idle")["last_job"]
+        .clone();
+    assert_eq!(job["outcome"], "done", "{job}\n{}", log());
+    assert!(job["turn_backs"].as_u64().unwrap() >= 1, "{job}");
+    assert!(job["events_backward"].as_u64().unwrap() > 0, "{job}");
+    assert_eq!(ints(&job["end_steps"]), [8500, 1500]);
+    assert_eq!(counts_at_rest(&bench), [8500, 1500], "{}", log());
+
+    // The E-stop input: the job stops where it is, the drives go off, nothing moves after.
+    start_and_move(&bench, "back.ngc");
+    bench.setp("edmd.estop-ok-in", "false");
+    assert_eq!(
+        bench.getp("edmd.enable-out"),
+        "FALSE",
+        "enable-out drops at once"
+    );
+    let s = bench
+        .daemon()
+        .wait_for("the E-stop", |s| s["state"] == "estop");
+    let job = &s["last_job"];
+    assert_eq!(job["outcome"], "estop", "{job}");
+    let stopped = ints(&job["end_steps"]);
+    assert!(stopped[0] > 0 && stopped[0] < 8500, "{job}");
+    // The drives went off at once: a position-mode stepgen stops where it stood, up to its
+    // lag (speed × servo period and thread latency) short of the ledger; then nothing moves.
+    let frozen = counts_at_rest(&bench);
+    for (c, l) in frozen.iter().zip(&stopped) {
+        assert!(
+            (c - l).abs() <= 100,
+            "stepgen {frozen:?}, ledger {stopped:?}"
+        );
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(counts_at_rest(&bench), frozen, "nothing moves in an E-stop");
+    bench.daemon().refused(&["run", "back.ngc"], "");
+    bench.setp("edmd.estop-ok-in", "true");
+    bench.daemon().ok(&["reset"]);
+    bench.daemon().wait_for("reset", |s| s["state"] == "idle");
+
+    // The feedback unlinked mid-cut: it stays where it was, the command goes on, and the job
+    // stops on a following error naming X (sim.toml allows 0.5 mm).
+    start_and_move(&bench, "square.ngc");
+    bench.halcmd(&["unlinkp", "edmd.axis.x.pos-fb"]);
+    let job = bench
+        .daemon()
+        .wait_for("the following error", |s| s["state"] != "running")["last_job"]
+        .clone();
+    assert_eq!(job["outcome"], "output-error", "{job}\n{}", log());
+    let error = job["error"].as_str().unwrap_or_default();
+    assert!(error.contains("following error on X"), "{job}");
+    assert_eq!(bench.getp("edmd.enable-out"), "FALSE");
+    assert_eq!(bench.getp("edmd.state"), "2", "the state pin says alarm");
+}
