@@ -8,7 +8,8 @@
 //! - a short on `edmd.gap.short` turns back along the path and the job still ends exact;
 //! - `edmd.estop-ok-in` false stops the job and drops `enable-out`, nothing moves after it,
 //!   and `reset` takes the machine back once the input is released;
-//! - `pos-fb` unlinked mid-cut is a following error naming the axis.
+//! - `pos-fb` unlinked mid-cut is a following error naming the axis;
+//! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there.
 //!
 //! One test: HAL is one per machine. Skipped (said on stderr) unless `EDMD_HAL_TESTS` is set.
 
@@ -162,4 +163,26 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     assert!(error.contains("following error on X"), "{job}");
     assert_eq!(bench.getp("edmd.enable-out"), "FALSE");
     assert_eq!(bench.getp("edmd.state"), "2", "the state pin says alarm");
+
+    // Homing by a switch in HAL: `comp` closes edmd.axis.x.home-sw once the X drive's
+    // feedback passes 1 mm beyond where it stands (the default [[homing.axis]] for X:
+    // search +, latch, home position 200 mm, final move -5 mm).
+    bench.halcmd(&["linksp", "x-pos-fb", "edmd.axis.x.pos-fb"]);
+    let switch = bench.getp_f64("edmd.axis.x.pos-cmd") + 1.0;
+    bench.halcmd(&["loadrt", "comp", "names=xhome"]);
+    bench.halcmd(&["addf", "xhome", "servo-thread"]);
+    bench.setp("xhome.in0", &switch.to_string());
+    bench.halcmd(&["net", "x-pos-fb", "xhome.in1"]);
+    bench.halcmd(&["net", "x-home", "xhome.out", "edmd.axis.x.home-sw"]);
+    bench.daemon().ok(&["home", "X"]);
+    let s = bench.daemon().wait_for("X homed", |s| {
+        s["state"] == "idle" && s["machine"]["homed"][0] == true
+    });
+    let x = s["machine"]["position_machine_mm"][0].as_f64().unwrap();
+    assert!((x - 195.0).abs() < 1e-9, "{s}");
+    // The drive stands 5 mm back from where the switch closed (within a few steps of
+    // latching lag): pos-cmd is the motor position, homing moved only edmd's idea of it.
+    let motor = bench.getp_f64("edmd.axis.x.pos-cmd");
+    assert!((motor - (switch - 5.0)).abs() < 0.05, "pos-cmd {motor}");
+    assert_eq!(bench.getp("edmd.axis.x.home-sw"), "FALSE");
 }
