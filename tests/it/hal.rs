@@ -9,7 +9,9 @@
 //! - `edmd.estop-ok-in` false stops the job and drops `enable-out`, nothing moves after it,
 //!   and `reset` takes the machine back once the input is released;
 //! - `pos-fb` unlinked mid-cut is a following error naming the axis;
-//! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there.
+//! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there;
+//! - run as `systemd/edmd-hal.service` runs it, the unit's `ExecStop` gives edmd its
+//!   controlled stop and HAL unloads.
 //!
 //! One test: HAL is one per machine. Skipped (said on stderr) unless `EDMD_HAL_TESTS` is set.
 
@@ -185,4 +187,32 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     let motor = bench.getp_f64("edmd.axis.x.pos-cmd");
     assert!((motor - (switch - 5.0)).abs() < 0.05, "pos-cmd {motor}");
     assert_eq!(bench.getp("edmd.axis.x.home-sw"), "FALSE");
+    drop(bench);
+
+    // As the service runs it: `halrun -f` on the file ending in `waitusr edmd`, stopped by the
+    // unit's own ExecStop mid-cut: edmd's controlled stop (checkpoint), then HAL unloads and
+    // halrun exits 0.
+    let mut service = HalBench::start_service("service", &[("long.ngc", LONG)]);
+    start_and_move(&service, "long.ngc");
+    let unit = std::fs::read_to_string(common::repo().join("systemd/edmd-hal.service")).unwrap();
+    let stop = unit
+        .lines()
+        .find_map(|l| l.strip_prefix("ExecStop=/bin/sh -c '"))
+        .and_then(|l| l.strip_suffix('\''))
+        .expect("the unit's ExecStop");
+    // Narrowed to this bench's daemon: the suite runs others (by their full path, so the
+    // unit's pattern would miss them, but a readme sample might not).
+    let stop = stop.replace("^edmd serve", "^edmd serve --config config/hal/sim.toml");
+    assert!(stop.contains("pkill -TERM"), "{stop}");
+    let stopped = std::process::Command::new("sh")
+        .args(["-c", &stop])
+        .status()
+        .unwrap();
+    assert!(stopped.success());
+    let code = service.wait_halrun(Duration::from_secs(20));
+    let log = service.log();
+    assert_eq!(code, Some(0), "{log}");
+    assert!(log.contains("controlled stop"), "{log}");
+    let checkpoint = std::fs::read_to_string(service.dir.join("checkpoint.json")).unwrap();
+    assert!(checkpoint.contains("\"stop\""), "{checkpoint}");
 }

@@ -46,6 +46,21 @@ impl HalBench {
     /// `config/hal/sim.toml` with its paths moved there, `sets` appended as TOML, and
     /// `programs` (name, text).
     pub fn start(name: &str, extra_toml: &str, programs: &[(&str, &str)]) -> HalBench {
+        HalBench::start_as(name, extra_toml, programs, false)
+    }
+
+    /// As a service runs it (`systemd/edmd-hal.service`): `halrun -f` on `sim.hal` ending in
+    /// `waitusr edmd`, no prompt; HAL stays up while edmd runs.
+    pub fn start_service(name: &str, programs: &[(&str, &str)]) -> HalBench {
+        HalBench::start_as(name, "", programs, true)
+    }
+
+    fn start_as(
+        name: &str,
+        extra_toml: &str,
+        programs: &[(&str, &str)],
+        service: bool,
+    ) -> HalBench {
         let dir = super::scratch("hal", name);
         let home = dir.join("home");
         std::fs::create_dir_all(dir.join("config/hal")).unwrap();
@@ -74,16 +89,32 @@ impl HalBench {
             bin.parent().unwrap().display(),
             std::env::var("PATH").unwrap_or_default()
         );
+        let hal_file = if service {
+            let sim = std::fs::read_to_string(super::repo().join("config/hal/sim.hal")).unwrap();
+            let file = dir.join("machine.hal");
+            std::fs::write(&file, sim + "waitusr edmd\n").unwrap();
+            file
+        } else {
+            super::repo().join("config/hal/sim.hal")
+        };
         let mut child: Child = Command::new("halrun")
-            .args(["-I", "-f"])
-            .arg(super::repo().join("config/hal/sim.hal"))
+            .args(if service {
+                &["-f"][..]
+            } else {
+                &["-I", "-f"][..]
+            })
+            .arg(hal_file)
             .current_dir(&dir)
             .env("RTAPI_UID", RTAPI_UID)
             .env("HOME", &home)
             .env("PATH", path)
             .env("RUST_LOG", "info")
             .env_remove("NOTIFY_SOCKET")
-            .stdin(Stdio::piped())
+            .stdin(if service {
+                Stdio::null()
+            } else {
+                Stdio::piped()
+            })
             .stdout(std::fs::File::create(&log).unwrap())
             .stderr(std::fs::File::options().append(true).open(&log).unwrap())
             .spawn()
@@ -126,6 +157,19 @@ impl HalBench {
 
     pub fn log(&self) -> String {
         std::fs::read_to_string(self.dir.join("halrun.log")).unwrap_or_default()
+    }
+
+    /// Waits up to `limit` for `halrun` to exit; its exit code.
+    pub fn wait_halrun(&mut self, limit: Duration) -> Option<i32> {
+        let daemon = self.daemon.as_mut().expect("up");
+        let deadline = Instant::now() + limit;
+        while Instant::now() < deadline {
+            if let Ok(Some(status)) = daemon.child.try_wait() {
+                return status.code();
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
     }
 }
 
