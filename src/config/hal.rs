@@ -1,19 +1,8 @@
 //! `[hal]`: edmd as a LinuxCNC HAL component (`output.kind = "hal"`).
 
-use serde::Deserialize;
-
+use super::raw::RawHal;
 use super::validate::Invalid;
 use super::{GapKind, OutputKind};
-
-/// `[hal]` as written.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawHal {
-    component: String,
-    max_following_error_mm: f64,
-    gap_input: String,
-    probe_input: bool,
-}
 
 /// `[hal]`, validated.
 #[derive(Debug, Clone, PartialEq)]

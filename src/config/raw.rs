@@ -18,7 +18,7 @@ pub(super) struct RawConfig {
     pub(super) output: RawOutput,
     pub(super) gap: RawGap,
     pub(super) parport: RawParport,
-    pub(super) hal: super::hal::RawHal,
+    pub(super) hal: RawHal,
     pub(super) servo: RawServo,
     pub(super) sim: RawSim,
     pub(super) daemon: RawDaemon,
@@ -161,6 +161,16 @@ pub(super) struct RawFine {
     pub(super) rt_priority: i64,
     pub(super) lock_memory: bool,
     pub(super) cpu: i64,
+}
+
+/// `[hal]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawHal {
+    pub(super) component: String,
+    pub(super) max_following_error_mm: f64,
+    pub(super) gap_input: String,
+    pub(super) probe_input: bool,
 }
 
 #[derive(Debug, Deserialize)]

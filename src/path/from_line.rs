@@ -310,16 +310,18 @@ mod tests {
         }
     }
 
+    /// A run from line 5 of `p.ngc` by the path.
+    fn gate_at_5() -> Gate {
+        let from = FromLine {
+            line: 5,
+            approach: Approach::Path,
+        };
+        Gate::new(from, "p.ngc", plan())
+    }
+
     #[test]
     fn the_gate_routes_by_line_and_refuses_a_probe_before_it() {
-        let mut gate = Gate::new(
-            FromLine {
-                line: 5,
-                approach: Approach::Path,
-            },
-            "p.ngc",
-            plan(),
-        );
+        let mut gate = gate_at_5();
         let b = line(3, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
         assert_eq!(gate.admit(&b), Ok(Route::Before));
         assert!(gate.finished().is_err());
@@ -333,14 +335,7 @@ mod tests {
         );
         assert!(gate.finished().is_ok());
 
-        let mut gate = Gate::new(
-            FromLine {
-                line: 5,
-                approach: Approach::Path,
-            },
-            "p.ngc",
-            plan(),
-        );
+        let mut gate = gate_at_5();
         let probe = BlockKind::Probe(crate::gcode::Probe {
             away: false,
             must_touch: true,

@@ -10,7 +10,7 @@ use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe, WireOffset};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -27,7 +27,78 @@ pub(super) struct Modal {
     /// of the direction of travel; 0: vertical (`G50`).
     pub(super) taper: f64,
     /// `G41`/`G42`/`G40`.
-    pub(super) wire_offset: super::state::WireOffsetMode,
+    pub(super) wire_offset: WireOffsetMode,
+}
+
+/// The wire offset as the program set it (`G41`/`G42`, `G40`) and where its moves stand. The
+/// reader refuses what cannot happen under it (changing offsets, probing, a second `G41`);
+/// every move carries the offset it is cut with ([`crate::gcode::Block::wire_offset`]) and
+/// the path's wire-offset stage does the geometry.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(super) enum WireOffsetMode {
+    #[default]
+    Off,
+    /// `G41`/`G42` given: the next move is the entry.
+    Entry(WireOffset),
+    On(WireOffset),
+    /// `G40` given while on: the next move is the exit.
+    Exit,
+}
+
+impl WireOffsetMode {
+    /// The offset is on, or about to be, or its exit move is still to come.
+    pub(super) fn engaged(self) -> bool {
+        self != WireOffsetMode::Off
+    }
+
+    /// `G41` (`left`) or `G42` with offset `d_mm`, in `plane`, on a machine that has X and Y
+    /// (`has_xy`). Errors are messages for the G word.
+    pub(super) fn start(
+        &mut self,
+        left: bool,
+        d_mm: f64,
+        plane: Plane,
+        has_xy: bool,
+    ) -> Result<(), String> {
+        if plane != Plane::XY {
+            return Err("the wire offset works in the XY plane (G17) only".into());
+        }
+        if !has_xy {
+            return Err("the wire offset needs axes X and Y on the machine".into());
+        }
+        if matches!(self, WireOffsetMode::On(_) | WireOffsetMode::Exit) {
+            return Err("the wire offset is already on: cancel it with G40 first".into());
+        }
+        *self = if d_mm == 0.0 {
+            WireOffsetMode::Off
+        } else {
+            WireOffsetMode::Entry(WireOffset { left, d_mm })
+        };
+        Ok(())
+    }
+
+    /// `G40`.
+    pub(super) fn cancel(&mut self) {
+        *self = match *self {
+            WireOffsetMode::Off | WireOffsetMode::Entry(_) => WireOffsetMode::Off,
+            WireOffsetMode::On(_) | WireOffsetMode::Exit => WireOffsetMode::Exit,
+        };
+    }
+
+    /// A move was read: the offset it is cut with; the entry and the exit move the mode on.
+    pub(super) fn stamp_move(&mut self) -> Option<WireOffset> {
+        match *self {
+            WireOffsetMode::Off => None,
+            WireOffsetMode::Entry(w) | WireOffsetMode::On(w) => {
+                *self = WireOffsetMode::On(w);
+                Some(w)
+            }
+            WireOffsetMode::Exit => {
+                *self = WireOffsetMode::Off;
+                None
+            }
+        }
+    }
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {

@@ -26,7 +26,7 @@ use crate::gcode::expr::Params;
 use crate::gcode::lexer::{Assign, Word};
 use crate::gcode::lines::{LineSource, Pos};
 use crate::gcode::work::WorkSystem;
-use crate::gcode::{Pause, Plane, WireOffset};
+use crate::gcode::{Pause, Plane};
 use crate::geometry::Point;
 
 /// The interpreter's state: what one block leaves for the next.
@@ -74,7 +74,7 @@ impl InterpState {
                 motion: None,
                 feed: None,
                 taper: 0.0,
-                wire_offset: WireOffsetMode::Off,
+                wire_offset: super::modal::WireOffsetMode::Off,
             },
             position: Point::zeros(),
             system: WorkSystem::G54,
@@ -162,77 +162,6 @@ pub(super) struct LineScratch {
 pub(super) struct Output {
     /// A NURBS curve being collected over several lines.
     pub pending: Option<PendingCurve>,
-}
-
-/// The wire offset as the program set it (`G41`/`G42`, `G40`) and where its moves stand. The
-/// reader refuses what cannot happen under it (changing offsets, probing, a second `G41`);
-/// every move carries the offset it is cut with ([`crate::gcode::Block::wire_offset`]) and
-/// the path's wire-offset stage does the geometry.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub(super) enum WireOffsetMode {
-    #[default]
-    Off,
-    /// `G41`/`G42` given: the next move is the entry.
-    Entry(WireOffset),
-    On(WireOffset),
-    /// `G40` given while on: the next move is the exit.
-    Exit,
-}
-
-impl WireOffsetMode {
-    /// The offset is on, or about to be, or its exit move is still to come.
-    pub fn engaged(self) -> bool {
-        self != WireOffsetMode::Off
-    }
-
-    /// `G41` (`left`) or `G42` with offset `d_mm`, in `plane`, on a machine that has X and Y
-    /// (`has_xy`). Errors are messages for the G word.
-    pub fn start(
-        &mut self,
-        left: bool,
-        d_mm: f64,
-        plane: Plane,
-        has_xy: bool,
-    ) -> Result<(), String> {
-        if plane != Plane::XY {
-            return Err("the wire offset works in the XY plane (G17) only".into());
-        }
-        if !has_xy {
-            return Err("the wire offset needs axes X and Y on the machine".into());
-        }
-        if matches!(self, WireOffsetMode::On(_) | WireOffsetMode::Exit) {
-            return Err("the wire offset is already on: cancel it with G40 first".into());
-        }
-        *self = if d_mm == 0.0 {
-            WireOffsetMode::Off
-        } else {
-            WireOffsetMode::Entry(WireOffset { left, d_mm })
-        };
-        Ok(())
-    }
-
-    /// `G40`.
-    pub fn cancel(&mut self) {
-        *self = match *self {
-            WireOffsetMode::Off | WireOffsetMode::Entry(_) => WireOffsetMode::Off,
-            WireOffsetMode::On(_) | WireOffsetMode::Exit => WireOffsetMode::Exit,
-        };
-    }
-
-    /// A move was read: the offset it is cut with; the entry and the exit move the mode on.
-    pub fn stamp_move(&mut self) -> Option<WireOffset> {
-        match *self {
-            WireOffsetMode::Off => None,
-            WireOffsetMode::Entry(w) | WireOffsetMode::On(w) => {
-                *self = WireOffsetMode::On(w);
-                Some(w)
-            }
-            WireOffsetMode::Exit => {
-                *self = WireOffsetMode::Off;
-                None
-            }
-        }
-    }
 }
 
 /// Warnings, each kind given once per program.

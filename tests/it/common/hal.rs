@@ -43,21 +43,25 @@ pub struct HalBench {
 
 impl HalBench {
     /// `halrun -I -f config/hal/sim.hal` in a scratch directory holding the shipped
-    /// `config/hal/sim.toml` with its paths moved there, `sets` appended as TOML, and
-    /// `programs` (name, text).
-    pub fn start(name: &str, extra_toml: &str, programs: &[(&str, &str)]) -> HalBench {
-        HalBench::start_as(name, extra_toml, programs, false)
+    /// `config/hal/sim.toml` with its paths moved there and each `(text, replacement)` of
+    /// `edits` made, and `programs` (name, text).
+    pub fn start(name: &str, edits: &[(&str, &str)], programs: &[(&str, &str)]) -> HalBench {
+        HalBench::start_as(name, edits, programs, false)
     }
 
     /// As a service runs it (`systemd/edmd-hal.service`): `halrun -f` on `sim.hal` ending in
     /// `waitusr edmd`, no prompt; HAL stays up while edmd runs.
-    pub fn start_service(name: &str, programs: &[(&str, &str)]) -> HalBench {
-        HalBench::start_as(name, "", programs, true)
+    pub fn start_service(
+        name: &str,
+        edits: &[(&str, &str)],
+        programs: &[(&str, &str)],
+    ) -> HalBench {
+        HalBench::start_as(name, edits, programs, true)
     }
 
     fn start_as(
         name: &str,
-        extra_toml: &str,
+        edits: &[(&str, &str)],
         programs: &[(&str, &str)],
         service: bool,
     ) -> HalBench {
@@ -75,7 +79,11 @@ impl HalBench {
             .unwrap();
         assert!(chowned.success());
         let shipped = std::fs::read_to_string(super::repo().join("config/hal/sim.toml")).unwrap();
-        let config = shipped.replace("/tmp/edmd-hal", dir.to_str().unwrap()) + extra_toml;
+        let mut config = shipped.replace("/tmp/edmd-hal", dir.to_str().unwrap());
+        for (text, replacement) in edits {
+            assert!(config.contains(text), "sim.toml has no {text:?}");
+            config = config.replace(text, replacement);
+        }
         std::fs::write(dir.join("config/hal/sim.toml"), config).unwrap();
         for (name, text) in programs {
             std::fs::write(dir.join("programs").join(name), text).unwrap();
