@@ -13,6 +13,9 @@ pub struct HalConfig {
     pub max_following_error_mm: Option<f64>,
     pub gap_input: crate::hal::GapPins,
     pub probe_input: bool,
+    /// The HAL library to load: a name the dynamic loader finds, or a path (a run-in-place
+    /// LinuxCNC build).
+    pub library: String,
 }
 
 impl RawHal {
@@ -62,7 +65,14 @@ impl RawHal {
                     .to_string(),
             ));
         }
+        if self.library.trim().is_empty() {
+            return Err((
+                "hal.library",
+                "must name the HAL library (Debian's is \"liblinuxcnchal.so.0\")".to_string(),
+            ));
+        }
         Ok(HalConfig {
+            library: self.library,
             component: self.component,
             max_following_error_mm: (e > 0.0).then_some(e),
             gap_input,

@@ -171,6 +171,7 @@ pub(super) struct RawHal {
     pub(super) max_following_error_mm: f64,
     pub(super) gap_input: String,
     pub(super) probe_input: bool,
+    pub(super) library: String,
 }
 
 #[derive(Debug, Deserialize)]

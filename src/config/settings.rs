@@ -200,6 +200,7 @@ impl HalSettings {
             gap: config.hal.gap_input,
             probe_input: config.hal.probe_input,
             volts: config.gap.volts,
+            library: config.hal.library.clone(),
         }
     }
 }

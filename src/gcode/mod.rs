@@ -17,6 +17,10 @@
 //!
 //! Anything edmd cannot do exactly is an error with `file:line:col`, never a silent skip. Words
 //! that mean nothing on an EDM (`S`, `T`, `M3`–`M9`) are accepted with a [`Warning`].
+//!
+//! The reader says what the program means and rewrites nothing: each block carries the modes
+//! it is cut in (the wire offset, the taper, the condition), and [`crate::path`] makes the
+//! wire offset, taper and orbit of them.
 
 mod error;
 mod expr;
@@ -278,7 +282,7 @@ pub struct Block {
     /// passes (set by the job, never by the program); `None`: as the program says.
     pub spark_off: Option<Travel>,
     /// The wire's tilt in force (`G51`/`G52`): the tangent of its angle from vertical, + to
-    /// the left of the direction of travel. The reader's taper stage turns it into the guides'
+    /// the left of the direction of travel. The path's taper stage turns it into the guides'
     /// X/Y and U/V; a block handed out carries the tilt it was cut with.
     pub taper: f64,
     /// The orbit this sinking move was turned into (its stage: shape, radius, depths).

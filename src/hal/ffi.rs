@@ -1,5 +1,5 @@
-//! LinuxCNC's HAL library (`liblinuxcnchal.so.0`), loaded when a component is made, never
-//! linked: edmd builds and runs without LinuxCNC, and only `output.kind = "hal"` needs it.
+//! LinuxCNC's HAL library (`liblinuxcnchal.so.0`, or `hal.library`), loaded when a component
+//! is made, never linked: edmd builds and runs without LinuxCNC, and only `output.kind = "hal"` needs it.
 //!
 //! Seven calls of HAL's C API are used, as `hal.h` declares them: `hal_init` (a userspace
 //! component, joining the HAL that `halrun` or `linuxcnc` started), `hal_malloc` (a word in
@@ -17,9 +17,6 @@ use std::ptr;
 use std::sync::Arc;
 
 use super::HalError;
-
-/// The library's name as Debian's `linuxcnc-uspace` installs it.
-pub const LIBRARY: &str = "liblinuxcnchal.so.0";
 
 /// `hal_pin_dir_t`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,16 +50,15 @@ struct Api {
 }
 
 impl Api {
-    fn load() -> Result<Api, HalError> {
+    fn load(library: &str) -> Result<Api, HalError> {
         let missing = |e: libloading::Error| HalError::Library {
-            library: LIBRARY,
             reason: e.to_string(),
         };
         // SAFETY: loading runs the library's initialisers; LinuxCNC's HAL library has none
         // beyond the C runtime's, and the symbols below are looked up with the types `hal.h`
         // gives them.
         unsafe {
-            let lib = libloading::Library::new(LIBRARY).map_err(missing)?;
+            let lib = libloading::Library::new(library).map_err(missing)?;
             let api = Api {
                 init: *lib.get::<InitFn>(b"hal_init\0").map_err(missing)?,
                 ready: *lib.get::<IdFn>(b"hal_ready\0").map_err(missing)?,
@@ -88,9 +84,9 @@ pub struct Component {
 }
 
 impl Component {
-    /// Joins the running HAL as component `name`.
-    pub fn new(name: &str) -> Result<Arc<Component>, HalError> {
-        let api = Api::load()?;
+    /// Joins the running HAL as component `name`, through the HAL library `library`.
+    pub fn new(library: &str, name: &str) -> Result<Arc<Component>, HalError> {
+        let api = Api::load(library)?;
         let c_name = CString::new(name).map_err(|_| HalError::Name(name.to_string()))?;
         // SAFETY: `c_name` is a valid C string for the duration of the call.
         let id = unsafe { (api.init)(c_name.as_ptr()) };

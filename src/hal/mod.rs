@@ -70,19 +70,18 @@ pub struct HalSettings {
     pub probe_input: bool,
     /// The voltage thresholds of `gap.kind = "hal"` with [`GapPins::Voltage`].
     pub volts: GapVolts,
+    /// The HAL library: a name the dynamic loader finds, or a path.
+    pub library: String,
 }
 
 /// Why the component could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum HalError {
     #[error(
-        "output.kind = \"hal\" needs LinuxCNC's HAL library ({library}: {reason}); install \
-         Debian's linuxcnc-uspace (apt install linuxcnc-uspace)"
+        "output.kind = \"hal\" needs LinuxCNC's HAL library ({reason}); install Debian's \
+         linuxcnc-uspace (apt install linuxcnc-uspace), or point hal.library at the library"
     )]
-    Library {
-        library: &'static str,
-        reason: String,
-    },
+    Library { reason: String },
     #[error(
         "cannot join HAL as component {component:?} (hal_init returned {code}): is HAL running \
          (halrun, or linuxcnc) and is the name free? Start edmd from the HAL file with \
@@ -159,7 +158,7 @@ pub struct Opened {
 
 /// Joins the running HAL as `settings.component`, makes every pin and says it is ready.
 pub fn open(settings: &HalSettings) -> Result<Opened, HalError> {
-    let c = Component::new(&settings.component)?;
+    let c = Component::new(&settings.library, &settings.component)?;
     let name = |pin: &str| format!("{}.{pin}", settings.component);
     let mut axes = Vec::new();
     for a in &settings.axes {

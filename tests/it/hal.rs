@@ -225,3 +225,27 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     let checkpoint = std::fs::read_to_string(service.dir.join("checkpoint.json")).unwrap();
     assert!(checkpoint.contains("\"stop\""), "{checkpoint}");
 }
+
+/// Without LinuxCNC's HAL library (here: a path with nothing at it), `edmd serve` with
+/// `output.kind = "hal"` refuses to start and says what to install. Needs no HAL.
+#[test]
+fn without_the_hal_library_the_daemon_refuses_to_start_and_names_the_package() {
+    let dir = common::scratch("hal", "no-library");
+    let mut sets = common::daemon::base_sets(&dir, "p.csv");
+    sets.extend([
+        "output.kind=\"hal\"".to_string(),
+        "homing.required=false".to_string(),
+        format!("hal.library=\"{}\"", dir.join("nothing.so.0").display()),
+    ]);
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"));
+    cmd.arg("serve").current_dir(&dir);
+    for s in &sets {
+        cmd.args(["--set", s]);
+    }
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("needs LinuxCNC's HAL library"), "{err}");
+    assert!(err.contains("apt install linuxcnc-uspace"), "{err}");
+    assert!(!dir.join("edmd.sock").exists(), "nothing listens");
+}
