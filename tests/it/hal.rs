@@ -8,6 +8,7 @@
 //! - a short on `edmd.gap.short` turns back along the path and the job still ends exact;
 //! - `edmd.estop-ok-in` false stops the job and drops `enable-out`, nothing moves after it,
 //!   and `reset` takes the machine back once the input is released;
+//! - a limit switch pin stops the job; only the jog away moves, and leaving it clears the trip;
 //! - `pos-fb` unlinked mid-cut is a following error naming the axis;
 //! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there;
 //! - run as `systemd/edmd-hal.service` runs it, the unit's `ExecStop` gives edmd its
@@ -25,6 +26,8 @@ const SQUARE: &str = "G21 G90\nG1 X2 Y0 F300\nG1 X2 Y1.5\nG1 X0.5 Y1.5\nM2\n";
 /// 8 mm at 2 mm/s: long enough to act on in the middle.
 const LONG: &str = "G21 G90\nG1 X8.5 Y1.5 F120\nM2\n";
 const BACK: &str = "G21 G90\nG1 X0 Y0 F120\nM2\n";
+/// 3 mm further in +X, from wherever the machine stands.
+const PLUS: &str = "G21 G91\nG1 X3 F120\nM2\n";
 const FERROR_OFF: (&str, &str) = (
     "max_following_error_mm = 0.5",
     "max_following_error_mm = 0.0",
@@ -98,6 +101,7 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
             ("square.ngc", SQUARE),
             ("long.ngc", LONG),
             ("back.ngc", BACK),
+            ("plus.ngc", PLUS),
         ],
     );
     let log = || bench.log();
@@ -158,6 +162,29 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     bench.setp("edmd.estop-ok-in", "true");
     bench.daemon().ok(&["reset"]);
     bench.daemon().wait_for("reset", |s| s["state"] == "idle");
+
+    // A limit switch on its pin: the job stops; with the switch still closed only the jog
+    // away moves, and the jog that leaves it (the pin open again) clears the trip.
+    start_and_move(&bench, "plus.ngc");
+    bench.setp("edmd.axis.x.pos-lim-sw", "true");
+    let s = bench
+        .daemon()
+        .wait_for("the limit", |s| s["state"] == "limit");
+    assert_eq!(s["last_job"]["outcome"], "limit", "{s}");
+    assert_eq!(s["last_job"]["limit_switch"], "X+");
+    bench
+        .daemon()
+        .refused(&["jog", "X", "0.2"], "limit switch X+");
+    let before = bench.getp_f64("edmd.axis.x.pos-cmd");
+    bench.daemon().ok(&["jog", "X", "-0.5"]);
+    let away = bench.daemon().wait_for("the jog's end", |s| {
+        s["state"] != "jogging" && s["last_job"]["outcome"] == "done"
+    });
+    assert_eq!(away["state"], "limit", "still closed: still tripped");
+    assert!((bench.getp_f64("edmd.axis.x.pos-cmd") - (before - 0.5)).abs() < 1e-9);
+    bench.setp("edmd.axis.x.pos-lim-sw", "false");
+    bench.daemon().ok(&["jog", "X", "-0.5"]);
+    bench.daemon().wait_for("cleared", |s| s["state"] == "idle");
 
     // Homing by a switch in HAL: `comp` closes edmd.axis.x.home-sw once the X drive's
     // feedback passes 1 mm beyond where it stands (the default [[homing.axis]] for X:
