@@ -11,8 +11,9 @@
 //! and the inputs are the machine's, not the spark generator's. So here: a machine whose
 //! port carries an E-stop is read for it with a simulated gap, a script or an ADC as the gap
 //! input just as with the port's own status pins. The sources are [`NoInputs`] (a machine
-//! without wired inputs: the simulated drives, a pulse log) and the parallel port's status
-//! pins ([`crate::parport::ParportInputs`]). A simulated gap or a gap script still raises
+//! without wired inputs: the simulated drives, a pulse log), the parallel port's status
+//! pins ([`crate::parport::ParportInputs`]) and the HAL component's input pins
+//! ([`crate::hal::HalInputs`]). A simulated gap or a gap script still raises
 //! the inputs of the machine it simulates through [`crate::gap::GapSensor::safety`]; the loop
 //! merges both.
 

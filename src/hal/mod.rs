@@ -31,7 +31,7 @@
 //! machine: net it, or `setp` it true on a bench). Dropping the component first sets
 //! `enable-out`, `spark-on` and `flush-on` false, then leaves HAL, which removes its pins.
 //!
-//! The library is loaded at run time ([`ffi`]); without LinuxCNC's HAL the component is
+//! The library is loaded at run time (`hal/ffi.rs`); without LinuxCNC's HAL the component is
 //! refused at startup with the package to install.
 
 mod devices;

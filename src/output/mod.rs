@@ -3,8 +3,9 @@
 //! A [`PulseOutput`] receives every tick's signed steps (at most one per axis) with the gap
 //! state of that tick, from the consumer's thread loop. Outputs: [`PulseLog`]
 //! (`output.kind = "file"`, the CSV pulse log of `design.md`), [`NullOutput`] (`"null"`, and
-//! `"sim"`: the simulated drives take every step, so the pulse ledger is their position) and
-//! the parallel port ([`crate::parport::ParportOutput`]).
+//! `"sim"`: the simulated drives take every step, so the pulse ledger is their position), the
+//! parallel port ([`crate::parport::ParportOutput`]) and LinuxCNC's HAL
+//! ([`crate::hal::HalOutput`]).
 //!
 //! Wrappers that work around any output: [`FaultInjector`] (`output.fault_at_tick`, a device
 //! that dies mid-job) and the tracer ([`crate::trace::TracedOutput`]).

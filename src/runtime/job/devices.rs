@@ -1,8 +1,9 @@
 //! The machine's two sides, opened from the configuration: the pulse output
-//! (`output.kind`: simulated drives, pulse log, parallel port, null) with the machine inputs
-//! that come with it (the port's status pins; none otherwise), and the gap source
-//! (`gap.kind`: simulator, script, the port's status pins, none), each wrapped in the fault
-//! injector and the tracer when configured.
+//! (`output.kind`: simulated drives, pulse log, parallel port, LinuxCNC's HAL, null) with the
+//! machine inputs that come with it (the port's status pins, the HAL component's input pins;
+//! none otherwise), and the gap source (`gap.kind`: simulator, script, the port's status
+//! pins, the HAL component's gap pins, an ADC, none), each wrapped in the fault injector and
+//! the tracer when configured.
 //!
 //! Everything that can fail at startup fails here, before anything moves. This is the only
 //! place that knows which device a kind names; the job runner takes boxed traits.
