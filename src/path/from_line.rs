@@ -148,10 +148,6 @@ impl Gate {
         }
     }
 
-    pub fn from(&self) -> FromLine {
-        self.from
-    }
-
     /// The path left out since last asked, mm (negative where the approach added more).
     pub fn take_skipped_mm(&mut self) -> f64 {
         std::mem::take(&mut self.skipped_mm)

@@ -71,12 +71,6 @@ pub enum StageError {
     Job(PathError),
 }
 
-impl From<PathError> for StageError {
-    fn from(e: PathError) -> StageError {
-        StageError::Job(e)
-    }
-}
-
 impl From<FromLineError> for StageError {
     fn from(e: FromLineError) -> StageError {
         StageError::Job(e.into())
