@@ -38,11 +38,13 @@ fn settings(feed: f64) -> FineSettings {
     FineSettings {
         dt: 50e-6,
         accel: 2400.0,
+        reverse_accel: 2400.0,
         feeds: Feeds {
             normal: feed,
             open: feed,
             retract: feed,
         },
+        shorts: edmd::servo::ShortRules::IMMEDIATE,
         step_mm: [0.001; MAX_AXES],
         max_short_ticks: 0,
         law: edmd::servo::Law::ThreeState,
@@ -72,6 +74,11 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 v_exit: 1e3,
                 v_cruise: 1e3,
                 v_limit: 1e3,
+                path: edmd::preprocess::PathLimits {
+                    cruise: 1e3,
+                    entry: 1e3,
+                    exit: 1e3,
+                },
                 line: 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,

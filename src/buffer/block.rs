@@ -1,6 +1,7 @@
 //! The loop buffer's unit: a step block, its flags, and what the machine is doing while it
 //! runs one (`Activity`).
 
+use crate::preprocess::PathLimits;
 use crate::vocab::{MAX_AXES, Steps};
 
 /// One block of the loop buffer (seed 000 Fig. 4): a straight move between two lattice points.
@@ -23,6 +24,9 @@ pub struct StepBlock {
     /// The highest cruise a feed override above 100 % may reach (mm/s): the block's limits
     /// without its programmed feed; at least `v_cruise`.
     pub v_limit: f64,
+    /// What the path allows whatever the feed (cruise, and the junctions at both ends): the
+    /// limits of a turn-back at the retract feed and of the re-advance after it.
+    pub path: PathLimits,
     /// Source line of the G-code block the move belongs to.
     pub line: u64,
     /// Curve parameter at the move's end, in the program's knot units (NURBS blocks; NaN for
@@ -142,6 +146,7 @@ impl StepBlock {
         v_exit: 0.0,
         v_cruise: 0.0,
         v_limit: 0.0,
+        path: PathLimits::ZERO,
         line: 0,
         u_end: f64::NAN,
         flags: BlockFlags::NONE,

@@ -23,6 +23,7 @@ pub use opcua::OpcUaEndpoint;
 mod overrides;
 mod parport;
 mod raw;
+mod servo;
 mod settings;
 pub use settings::max_feed_warning;
 mod sim;
@@ -266,6 +267,13 @@ pub struct ServoConfig {
     pub normal_feed_mm_per_min: f64,
     pub open_feed_mm_per_min: f64,
     pub retract_feed_mm_per_min: f64,
+    /// Braking into a turn-back, the reversal, the turn-back and the re-advance (mm/s²; the
+    /// machine's largest acceleration where the file says 0).
+    pub reverse_accel_mm_per_s2: f64,
+    /// A short is believed after this many ticks in a row.
+    pub short_confirm_ticks: u32,
+    /// The least a turn-back backs off, mm.
+    pub min_retract_mm: f64,
     /// 0: off.
     pub max_short_s: f64,
     pub law: ServoLaw,

@@ -91,10 +91,15 @@ impl FineSettings {
         FineSettings {
             dt: config.fine.tick.secs(),
             accel: config.machine.max_tangential_accel_mm_per_s2,
+            reverse_accel: servo.reverse_accel_mm_per_s2,
             feeds: Feeds {
                 normal: servo.normal_feed_mm_per_min / 60.0,
                 open: servo.open_feed_mm_per_min / 60.0,
                 retract: servo.retract_feed_mm_per_min / 60.0,
+            },
+            shorts: crate::servo::ShortRules {
+                confirm_ticks: servo.short_confirm_ticks,
+                min_retract_mm: servo.min_retract_mm,
             },
             step_mm: step_mm(config),
             dry_run: false,

@@ -44,7 +44,12 @@ fn sim(m: RawSim, machine: &MachineConfig, homing: &HomingConfig) -> Result<SimC
             1e6,
             "mm/min",
         )? / 60.0,
-        debris_shorts: in_range("sim.debris_shorts", m.debris_shorts, 0, 100_000)? as u32,
+        debris_per_mm: at_most(
+            "sim.debris_shorts_per_mm",
+            m.debris_shorts_per_mm,
+            100.0,
+            "per mm",
+        )?,
         debris_shorts_per_s: non_negative("sim.debris_shorts_per_s", m.debris_shorts_per_s)?,
         debris_clear_mm: positive("sim.debris_clear_um", m.debris_clear_um, 1e6, "µm")? / 1000.0,
         wire_breaks_per_m: at_most("sim.wire_breaks_per_m", m.wire_breaks_per_m, 1e6, "per m")?,

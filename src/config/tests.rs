@@ -370,3 +370,28 @@ fn a_max_feed_above_one_step_per_tick_is_accepted_with_the_real_limit() {
     let c = load("", &["machine.step_mm=[0.001, 0.0005]"]).unwrap();
     assert!(max_feed_warning(&c).unwrap().contains("600 mm/min on Y"));
 }
+
+#[test]
+fn the_turn_back_settings_default_and_refuse_with_their_keys() {
+    let c = load("", &[]).unwrap();
+    // 0: the machine's largest acceleration (the normal one in the shipped file).
+    assert_eq!(c.servo.reverse_accel_mm_per_s2, 4900.0);
+    assert_eq!(c.servo.short_confirm_ticks, 1);
+    assert!((c.servo.min_retract_mm - 0.005).abs() < 1e-12);
+    let c = load("[servo]\nreverse_accel_mm_per_s2 = 800.0\n", &[]).unwrap();
+    assert_eq!(c.servo.reverse_accel_mm_per_s2, 800.0);
+    let err = load("[servo]\nshort_confirm_ticks = 0\n", &[]).unwrap_err();
+    assert!(
+        err.contains("edmd.toml:2:") && err.contains("servo.short_confirm_ticks"),
+        "{err}"
+    );
+    let err = load("", &["servo.min_retract_um=-1"]).unwrap_err();
+    assert!(err.contains("servo.min_retract_um"), "{err}");
+    // The sim's old per-job count is refused, the keys listed with what replaced it.
+    let err = load("[sim]\ndebris_shorts = 5\n", &[]).unwrap_err();
+    assert!(
+        err.contains("edmd.toml:2:1: unknown key `debris_shorts`")
+            && err.contains("debris_shorts_per_mm"),
+        "{err}"
+    );
+}

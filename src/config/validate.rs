@@ -6,17 +6,15 @@ use std::path::{Path, PathBuf};
 
 use super::raw::{
     RawBuffer, RawCompensation, RawConfig, RawDaemon, RawFine, RawGap, RawGenerator,
-    RawInterpolation, RawMachine, RawOutput, RawServo,
+    RawInterpolation, RawMachine, RawOutput,
 };
 use super::*;
 use crate::vocab::MAX_AXES;
 
 pub(super) type Invalid = (&'static str, String);
 
-/// A physical quantity: greater than 0 and at most `max` (a bound no machine reaches, so a
-/// typo such as `1e300` is caught here with its unit rather than misbehaving later).
 /// A fraction in (0, 1].
-fn fraction(key: &'static str, v: f64) -> Result<f64, Invalid> {
+pub(super) fn fraction(key: &'static str, v: f64) -> Result<f64, Invalid> {
     if v.is_finite() && v > 0.0 && v <= 1.0 {
         Ok(v)
     } else {
@@ -27,6 +25,8 @@ fn fraction(key: &'static str, v: f64) -> Result<f64, Invalid> {
     }
 }
 
+/// A physical quantity: greater than 0 and at most `max` (a bound no machine reaches, so a
+/// typo such as `1e300` is caught here with its unit rather than misbehaving later).
 pub(super) fn positive(
     key: &'static str,
     value: f64,
@@ -152,7 +152,7 @@ impl RawConfig {
         let parport = self.parport.validate(&machine, &fine, &output, &gap)?;
         let hal = self.hal.validate(output.kind, gap.kind)?;
 
-        let servo = servo(self.servo)?;
+        let servo = self.servo.validate(&machine)?;
         let homing = self.homing.validate(&machine, &parport, output.kind)?;
         let sim = self.sim.validate(&machine, &homing)?;
         let daemon = daemon(self.daemon)?;
@@ -476,75 +476,6 @@ fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
         volts,
         iio,
     })
-}
-
-fn servo(s: RawServo) -> Result<ServoConfig, Invalid> {
-    let servo = ServoConfig {
-        normal_feed_mm_per_min: feed(
-            "servo.normal_feed_mm_per_min",
-            s.normal_feed_mm_per_min,
-            1e6,
-        )?,
-        open_feed_mm_per_min: feed("servo.open_feed_mm_per_min", s.open_feed_mm_per_min, 1e6)?,
-        retract_feed_mm_per_min: feed(
-            "servo.retract_feed_mm_per_min",
-            s.retract_feed_mm_per_min,
-            1e6,
-        )?,
-        max_short_s: if s.max_short_s.is_finite() && (0.0..=86_400.0).contains(&s.max_short_s) {
-            s.max_short_s
-        } else {
-            return Err((
-                "servo.max_short_s",
-                format!("must be 0 (off) to 86400 s, got {}", s.max_short_s),
-            ));
-        },
-        law: s.law,
-        v_ref: positive("servo.v_ref", s.v_ref, 1e4, "V")?,
-        voltage_gain_mm_per_min_per_v: positive(
-            "servo.voltage_gain_mm_per_min_per_v",
-            s.voltage_gain_mm_per_min_per_v,
-            1e6,
-            "mm/min per V",
-        )?,
-        voltage_filter_ms: if s.voltage_filter_ms.is_finite()
-            && (0.0..=10_000.0).contains(&s.voltage_filter_ms)
-        {
-            s.voltage_filter_ms
-        } else {
-            return Err((
-                "servo.voltage_filter_ms",
-                format!("must be 0 to 10000 ms, got {}", s.voltage_filter_ms),
-            ));
-        },
-        ratio_ref: fraction("servo.ratio_ref", s.ratio_ref)?,
-        ratio_gain_mm_per_min: positive(
-            "servo.ratio_gain_mm_per_min",
-            s.ratio_gain_mm_per_min,
-            1e6,
-            "mm/min",
-        )?,
-        ratio_short_limit: fraction("servo.ratio_short_limit", s.ratio_short_limit)?,
-        ratio_open_limit: fraction("servo.ratio_open_limit", s.ratio_open_limit)?,
-        jumps: Jumps {
-            interval_s: at_most("servo.jump_interval_s", s.jump_interval_s, 86_400.0, "s")?,
-            height_mm: at_most("servo.jump_height_mm", s.jump_height_mm, 1000.0, "mm")?,
-            feed_mm_per_min: feed("servo.jump_feed_mm_per_min", s.jump_feed_mm_per_min, 1e6)?,
-        },
-        max_open_mm: at_most("servo.max_open_mm", s.max_open_mm, 1e6, "mm")?,
-        rethread_feed_mm_per_min: feed(
-            "servo.rethread_feed_mm_per_min",
-            s.rethread_feed_mm_per_min,
-            1e6,
-        )?,
-    };
-    if servo.jumps.interval_s > 0.0 && servo.jumps.height_mm <= 0.0 {
-        return Err((
-            "servo.jump_height_mm",
-            "must be above 0 when servo.jump_interval_s turns jumps on".to_string(),
-        ));
-    }
-    Ok(servo)
 }
 
 fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {

@@ -21,8 +21,11 @@
 //!    The operator's override `k` scales the cruise aimed for on a forward move
 //!    (`min(servo feed, planned limit, k · v_cruise)`), up to the block's limits without its
 //!    programmed feed (`v_limit`); it never touches the braking, so a lower override brakes
-//!    under `a_T` and a turn-back goes as the servo asks. Reversing first brakes to zero. A block's speed is capped at one
-//!    event per tick: the pulse outputs take at most one step per axis per tick.
+//!    under `a_T`. The servo's own motion (a turn-back, the re-advance, braking for a short)
+//!    goes by the path's limits instead of the feed's plan (`StepBlock::path`: a retract
+//!    feed above F is honoured) under the reversal's acceleration; a re-advance brakes to
+//!    meet the plan at the point of the short. Reversing first brakes to zero. A block's
+//!    speed is capped at one event per tick: the pulse outputs take one step per axis a tick.
 //! 3. **DDA**: a phase accumulator adds `v · dt / ds` per tick (`ds`: the lattice distance of
 //!    one event); on reaching one it fires one Bresenham event ([`bresenham`]) forward or
 //!    backward, moving every axis by at most one step.
@@ -55,13 +58,13 @@ mod stops;
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::servo::{
-    Excursion, Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent,
-    ServoState,
+    Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
+    ShortRules,
 };
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
 use excursion::ExcursionState;
-use motion::Motion;
+use motion::{Motion, Pace};
 use stops::Stops;
 
 pub use bresenham::Bresenham;
@@ -75,7 +78,12 @@ pub struct FineSettings {
     pub dt: f64,
     /// Tangential acceleration limit (mm/s²).
     pub accel: f64,
+    /// The servo's own acceleration (mm/s²): braking into a turn-back, the reversal, and the
+    /// turn-back and re-advance themselves (`servo.reverse_accel_mm_per_s2`).
+    pub reverse_accel: f64,
     pub feeds: Feeds,
+    /// When a short is believed and how far a turn-back goes at least.
+    pub shorts: ShortRules,
     /// Step size per axis (mm); unused axes 0.
     pub step_mm: [f64; MAX_AXES],
     /// A short lasting this many ticks raises the alarm (0: only the reserved history does).
@@ -148,6 +156,7 @@ impl Interpolator {
                 settings.law,
                 settings.max_short_ticks,
                 settings.dt,
+                settings.shorts,
             ),
             motion: Motion::new(start),
             stops: Stops::default(),
@@ -460,18 +469,30 @@ impl Interpolator {
         if !self.motion.has_block {
             return;
         }
-        let (accel, dt) = (self.settings.accel, self.settings.dt);
-        // The operator's override scales a forward move's cruise; a turn-back goes as the
-        // servo asks, a retreat and a return at their own feed up to the path's limits.
-        let cruise = match self.servo.state() {
-            ServoState::Forward if self.motion.dir > 0 => self.motion.aim,
-            ServoState::Retreat | ServoState::Return => self.motion.block.v_limit,
-            _ => self.motion.block.v_cruise,
+        let dt = self.settings.dt;
+        let pace = if self.servo_way(want_dir) {
+            let readvance = self.servo.state() == ServoState::ReAdvance && self.motion.dir > 0;
+            Pace::Servo {
+                accel: self.settings.reverse_accel,
+                plan_accel: self.settings.accel,
+                to_mark: readvance.then_some(self.excursions.behind_mm),
+            }
+        } else {
+            Pace::Plan {
+                accel: self.settings.accel,
+                // The operator's override scales a forward move's cruise; a retreat and a
+                // return go at their own feed up to the path's limits.
+                cruise: match self.servo.state() {
+                    ServoState::Forward if self.motion.dir > 0 => self.motion.aim,
+                    ServoState::Retreat | ServoState::Return => self.motion.block.v_limit,
+                    _ => self.motion.block.v_cruise,
+                },
+                // Single block: the end of a program block is a standstill.
+                stop_at_end: self.stops.single_block
+                    && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK),
+            }
         };
-        // Single block: the end of a program block is a standstill.
-        let stop_at_end =
-            self.stops.single_block && self.motion.block.flags.contains(BlockFlags::LAST_OF_BLOCK);
-        let limit = self.motion.planned_limit(accel, dt, stop_at_end);
+        let (accel, cruise, limit) = self.motion.bounds(pace, dt);
         // The plan's cruise, scaled: lowering it lowers the speed aimed for, which brakes
         // down under a_T (the limit is the plan's braking, not the cruise).
         let target = if want_dir != self.motion.dir || self.stops.hold {
@@ -513,9 +534,30 @@ impl Interpolator {
             self.apply(tick);
             self.counters.events_backward += 1;
             self.excursions.behind_mm += self.motion.event_mm;
+            self.servo.on_backward(self.motion.event_mm);
             if self.servo.state() == ServoState::Retreat {
                 self.retreated(tick);
             }
+        }
+    }
+
+    /// The servo's own motion is under way: a turn-back, the re-advance after it, braking
+    /// for a short not yet confirmed, or a law backing off while cutting. It goes by the
+    /// path's limits and the reversal's acceleration, not by the feed's plan.
+    #[inline(always)]
+    fn servo_way(&self, want_dir: i8) -> bool {
+        match self.servo.state() {
+            ServoState::TurnBack | ServoState::ReAdvance => true,
+            ServoState::Forward => {
+                !self.settings.dry_run
+                    && !self
+                        .motion
+                        .block
+                        .flags
+                        .intersects(BlockFlags::RAPID | BlockFlags::PROBE)
+                    && (want_dir < 0 || self.motion.dir < 0 || self.servo.confirming())
+            }
+            _ => false,
         }
     }
 
@@ -606,47 +648,6 @@ impl Interpolator {
         }
         if event.is_some() {
             tick.event = event;
-        }
-    }
-
-    /// Turning back at the start of the block in hand (or with none in hand): takes the
-    /// previous block from the reserved area, passing over blocks of zero steps. `false` when
-    /// the reserved area is exhausted, which (turn-back only happens while shorted) is the alarm.
-    fn retreat<S: BlockSource + ?Sized>(&mut self, tick: &mut Tick, source: &mut S) -> bool {
-        // The way back to the start hole walks on past the reserved area, along the trail.
-        let rethread = self.servo.state() == ServoState::Retreat
-            && self.servo.excursion() == Excursion::Rethread;
-        loop {
-            if rethread && self.motion.holds(BlockFlags::START_HOLE) {
-                // A pass that starts at the start hole: the way back ends where it began.
-                self.retreat_blocked(tick, false);
-                return false;
-            }
-            let back = if rethread {
-                source.previous_on_trail(&mut self.motion.block)
-            } else {
-                source.previous(&mut self.motion.block)
-            };
-            if !back {
-                self.retreat_blocked(tick, true);
-                return false;
-            }
-            if self.is_barrier() {
-                // Back out of it: the block this retreat came from is handed out again, and
-                // the electrode stands at its start, where it was.
-                if source.next(&mut self.motion.block) == Fetch::Block {
-                    self.enter_block(false);
-                } else {
-                    self.motion.has_block = false;
-                }
-                self.retreat_blocked(tick, false);
-                return false;
-            }
-            self.servo.on_block_back();
-            self.enter_block(true);
-            if self.motion.walk.events() > 0 {
-                return true;
-            }
         }
     }
 

@@ -57,6 +57,26 @@ impl Default for Overrides {
     }
 }
 
+/// Whose limits a tick's speed goes by.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Pace {
+    /// The feed's plan: braking under `accel` (`a_T`, what the plan was made with) to its
+    /// junction speeds, towards `cruise`; `stop_at_end` ends the block at a standstill.
+    Plan {
+        accel: f64,
+        cruise: f64,
+        stop_at_end: bool,
+    },
+    /// The servo's own motion (a turn-back, a re-advance, a law backing off): the path's
+    /// limits under the reversal's `accel`; re-advancing, `to_mark` is the way left to the
+    /// point of the short, reached no faster than the plan (made under `plan_accel`) goes on.
+    Servo {
+        accel: f64,
+        plan_accel: f64,
+        to_mark: Option<f64>,
+    },
+}
+
 impl Motion {
     /// Standing at `start` (steps) with no block in hand.
     pub fn new(start: Steps) -> Motion {
@@ -143,24 +163,65 @@ impl Motion {
     /// (single block).
     #[inline]
     pub fn planned_limit(&self, accel: f64, dt: f64, stop_at_end: bool) -> f64 {
+        let b = &self.block;
+        let v_exit = if stop_at_end { 0.0 } else { b.v_exit };
+        self.limit_between(b.v_entry, v_exit, b.v_limit.max(b.v_cruise), accel, dt)
+    }
+
+    /// The acceleration, the cruise aimed for and the speed limit of this tick, by `pace`.
+    #[inline]
+    pub fn bounds(&self, pace: Pace, dt: f64) -> (f64, f64, f64) {
+        match pace {
+            Pace::Plan {
+                accel,
+                cruise,
+                stop_at_end,
+            } => (accel, cruise, self.planned_limit(accel, dt, stop_at_end)),
+            Pace::Servo {
+                accel,
+                plan_accel,
+                to_mark,
+            } => {
+                let mut limit = self.path_limit(accel, dt);
+                if let Some(way) = to_mark {
+                    let plan = self.planned_limit(plan_accel, dt, false).min(self.aim);
+                    limit = limit.min((plan * plan + 2.0 * accel * way).sqrt());
+                }
+                (accel, self.block.path.cruise, limit)
+            }
+        }
+    }
+
+    /// The path's own limit at the current point, in the current direction, for the servo's
+    /// own motion (a turn-back at the retract feed, the re-advance): its corners braked for at
+    /// `accel` (the reversal's), its cruise whatever the programmed feed, never below the
+    /// creep speed, capped at one event per tick.
+    #[inline]
+    pub fn path_limit(&self, accel: f64, dt: f64) -> f64 {
+        let p = &self.block.path;
+        self.limit_between(p.entry, p.exit, p.cruise, accel, dt)
+    }
+
+    /// The braking curves to `v_start` at the block's start and `v_end` at its end, under
+    /// `top`, from the current point in the current direction.
+    #[inline]
+    fn limit_between(&self, v_start: f64, v_end: f64, top: f64, accel: f64, dt: f64) -> f64 {
         if !self.has_block || self.walk.events() == 0 {
             return 0.0;
         }
-        let b = &self.block;
         let a2 = 2.0 * accel;
         let done = (self.walk.event() as f64 + self.phase.min(1.0) * self.dir as f64)
             / self.walk.events() as f64;
         let s = (done.clamp(0.0, 1.0)) * self.lattice_mm;
-        let v_exit = if stop_at_end { 0.0 } else { b.v_exit };
         let (v_behind, v_ahead, to_go, gone) = if self.dir > 0 {
-            (b.v_entry, v_exit, self.lattice_mm - s, s)
+            (v_start, v_end, self.lattice_mm - s, s)
         } else {
-            (b.v_exit, b.v_entry, s, self.lattice_mm - s)
+            (v_end, v_start, s, self.lattice_mm - s)
         };
         let v2 = (v_ahead * v_ahead + a2 * to_go).min(v_behind * v_behind + a2 * gone);
         let creep = (accel * self.event_mm).sqrt();
         let cap = self.event_mm / dt;
-        v2.sqrt().max(creep).min(b.v_limit.max(b.v_cruise)).min(cap)
+        v2.sqrt().max(creep).min(top).min(cap)
     }
 
     /// The lattice distance to the end of the block in hand in the current direction (mm).

@@ -44,7 +44,7 @@ use crate::geometry::{Point, running_min};
 use crate::vocab::{Predictor, Segmentation};
 
 pub use period::PeriodStepper;
-pub use planner::{PlannedSegment, Planner, Profile};
+pub use planner::{PathLimits, PlannedSegment, Planner, Profile};
 pub use segmenter::{Segmenter, SegmenterStats};
 
 /// Everything the preprocessor needs from the configuration, in SI-ish units (mm, s).
@@ -144,6 +144,9 @@ pub struct Segment {
     /// the programmed feed ([`GeoSegment::speed_limit`]); `v_peak` where there is no such
     /// freedom (period mode).
     pub speed_limit: f64,
+    /// The path's own limits, without the programmed feed: what the servo's own motion (a
+    /// turn-back, a re-advance) may go at.
+    pub path: PathLimits,
     /// Planned time over the segment (s).
     pub duration: f64,
     /// Radius of curvature at the end (mm; infinite on straight stretches).
@@ -336,6 +339,7 @@ fn chord_segment(p: PlannedSegment) -> Segment {
         v_exit: p.profile.v_exit,
         v_peak: p.profile.v_peak,
         speed_limit: g.speed_limit,
+        path: p.path,
         duration: p.profile.duration(),
         rho_end: g.rho_end,
         evals: g.evals,

@@ -24,7 +24,7 @@
 
 use super::certify::certify;
 use super::chord::{Sample, chord_error, chord_error_estimate};
-use super::planner::PlannedSegment;
+use super::planner::{PathLimits, PlannedSegment};
 use super::predictor::{History, hamming_increments, taylor_increment};
 use super::{PlanSettings, Segment};
 use crate::gcode::Block;
@@ -66,6 +66,8 @@ pub struct PeriodStepper {
     history: History,
     /// Speed of the last step (mm/s).
     prev_speed: f64,
+    /// The path's corner not yet given to a step (infinite: none owed).
+    corner_carry: f64,
     evals: u64,
     chord_checks: u64,
     certified_pieces: u64,
@@ -83,6 +85,7 @@ impl PeriodStepper {
             s_grid: 0.0,
             history: History::default(),
             prev_speed: 0.0,
+            corner_carry: f64::INFINITY,
             evals: 0,
             chord_checks: 0,
             certified_pieces: 0,
@@ -105,10 +108,24 @@ impl PeriodStepper {
     /// Takes one planned grid segment and emits the period steps that end inside it.
     pub fn push(&mut self, planned: &PlannedSegment, sink: &mut dyn FnMut(Segment)) {
         let geo = &planned.geo;
-        // Corner control's stop goes with the first period step of the segment.
+        // Corner control's stop goes with the first period step of the segment, and so does
+        // the path's corner; the steps inside a C1 piece meet without one, and the piece's
+        // closing steps take the corner it ends in.
         let mut dwell = geo.corner_dwell_s;
+        // A segment shorter than a period step leaves its corner to the next step.
+        let mut corner = self.corner_carry.min(planned.path.entry);
+        let exit = if geo.last_of_piece {
+            planned.path.exit
+        } else {
+            f64::INFINITY
+        };
         let emit = &mut |mut s: Segment| {
             s.corner_dwell_s = std::mem::take(&mut dwell);
+            s.path = PathLimits {
+                cruise: planned.path.cruise,
+                entry: std::mem::replace(&mut corner, f64::INFINITY),
+                exit: f64::INFINITY,
+            };
             sink(s)
         };
         let curve = &geo.block.curve;
@@ -145,8 +162,12 @@ impl PeriodStepper {
         self.clock = end_time;
         self.s_grid += geo.arc;
         if geo.last_of_piece {
-            self.close_piece(&geo.block, geo.u_end, geo.last_of_block, emit);
+            self.close_piece(&geo.block, geo.u_end, geo.last_of_block, &mut |mut s| {
+                s.path.exit = exit;
+                emit(s)
+            });
         }
+        self.corner_carry = corner;
     }
 
     /// One period step to the profile distance `target`, ending at time `t`.
@@ -384,6 +405,8 @@ impl PeriodStepper {
             v_exit: v,
             v_peak: v,
             speed_limit: v,
+            // Set by the caller ([`PeriodStepper::push`]).
+            path: PathLimits::ZERO,
             duration,
             rho_end,
             evals,

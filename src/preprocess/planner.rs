@@ -114,6 +114,30 @@ impl Profile {
 pub struct PlannedSegment<'a> {
     pub geo: &'a GeoSegment,
     pub profile: Profile,
+    /// What the path allows whatever the programmed feed: what a turn-back along it may go at.
+    pub path: PathLimits,
+}
+
+/// A segment's speed limits from the path alone, without the programmed feed (mm/s): its
+/// cruise ([`GeoSegment::speed_limit`]) and its two junctions (the corner's speed and both
+/// neighbours' cruise; 0 where the path starts or stops). The servo's own motion (a turn-back
+/// at the retract feed, the re-advance after it) goes by these, not by the feed's plan. Unlike
+/// the plan's entry and exit speeds they are not braked over a window: going backwards the
+/// interpolator only sees the block in hand, which at a retract feed is ample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathLimits {
+    pub cruise: f64,
+    pub entry: f64,
+    pub exit: f64,
+}
+
+impl PathLimits {
+    /// No freedom at all (a placeholder block).
+    pub const ZERO: PathLimits = PathLimits {
+        cruise: 0.0,
+        entry: 0.0,
+        exit: 0.0,
+    };
 }
 
 #[derive(Debug)]
@@ -125,6 +149,8 @@ struct Entry {
     before: f64,
     /// Entry junction limit (mm/s): corner speed and both neighbours' cruise limits.
     junction: f64,
+    /// The same without the programmed feed ([`PathLimits::entry`]).
+    corner: f64,
 }
 
 /// A junction that caps the entry speed of segment `seq`, as a key of the suffix minimum:
@@ -165,6 +191,8 @@ pub struct Planner {
     /// Entry speed of the window's first segment (fixed when its predecessor left).
     v_start: f64,
     prev_cruise: f64,
+    /// The previous segment's cruise without the programmed feed (0 at rest).
+    prev_speed_limit: f64,
     /// Arc length from the origin to the end of the window (mm).
     travelled: f64,
     next_seq: u64,
@@ -180,6 +208,7 @@ impl Planner {
             caps: VecDeque::with_capacity(lookahead + 1),
             v_start: 0.0,
             prev_cruise: 0.0,
+            prev_speed_limit: 0.0,
             travelled: 0.0,
             next_seq: 0,
         }
@@ -196,6 +225,11 @@ impl Planner {
             running_min(geo.feed_limit, geo.entry_limit),
         );
         self.prev_cruise = geo.feed_limit;
+        let corner = running_min(
+            self.prev_speed_limit,
+            running_min(geo.speed_limit, geo.entry_limit),
+        );
+        self.prev_speed_limit = geo.speed_limit;
         let seq = self.next_seq;
         self.next_seq += 1;
         let before = self.travelled;
@@ -212,6 +246,7 @@ impl Planner {
             seq,
             before,
             junction,
+            corner,
         });
         while self.window.len() > self.lookahead {
             self.release(&mut emit);
@@ -224,6 +259,7 @@ impl Planner {
             self.release(&mut emit);
         }
         self.prev_cruise = 0.0;
+        self.prev_speed_limit = 0.0;
         self.travelled = 0.0;
     }
 
@@ -262,11 +298,16 @@ impl Planner {
         }
         let v0 = running_min(v_back, self.v_start);
         let next_max = self.v_back_at(1);
+        let path = PathLimits {
+            cruise: self.window[0].geo.speed_limit,
+            entry: self.window[0].corner,
+            exit: self.window.get(1).map_or(0.0, |e| e.corner),
+        };
         let geo = &self.window[0].geo;
         let v1 = running_min(next_max, (v0 * v0 + 2.0 * self.accel * geo.arc).sqrt());
         let profile = Profile::new(geo.arc, v0, v1, geo.feed_limit, self.accel);
         self.v_start = v1;
-        emit(PlannedSegment { geo, profile });
+        emit(PlannedSegment { geo, profile, path });
         self.window.pop_front();
     }
 

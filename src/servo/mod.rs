@@ -43,6 +43,7 @@ mod state;
 pub use law::{GapReading, Law, LawInput};
 pub use state::{
     Excursion, Feeds, PathPoint, PauseKind, Rethread, ServoCounters, ServoEvent, ServoState,
+    ShortRules,
 };
 
 use crate::vocab::GapState;
@@ -64,18 +65,32 @@ pub struct Servo {
     depth: u64,
     /// What the current retreat or return is for.
     excursion: Excursion,
+    rules: ShortRules,
+    /// Consecutive ticks of a short not yet confirmed (`rules.confirm_ticks`).
+    short_seen: u32,
+    /// The gap read short in the last tick the servo was told of.
+    shorted: bool,
+    /// How far the current turn-back has backed off along the path (mm).
+    backed_mm: f64,
     pub counters: ServoCounters,
 }
 
 impl Servo {
-    /// A servo with the three-state law and no short timeout.
+    /// A servo with the three-state law, no short timeout and every short believed at once.
     pub fn new(feeds: Feeds) -> Servo {
-        Servo::with_law(feeds, Law::ThreeState, 0, 1.0)
+        Servo::with_law(feeds, Law::ThreeState, 0, 1.0, ShortRules::IMMEDIATE)
     }
 
     /// A servo reading the gap through `law` in ticks of `dt` seconds; a short that lasts
-    /// `max_short_ticks` while turning back raises the alarm (0: never).
-    pub fn with_law(feeds: Feeds, law: Law, max_short_ticks: u64, dt: f64) -> Servo {
+    /// `max_short_ticks` while turning back raises the alarm (0: never); `rules` say when a
+    /// short is believed and how far a turn-back goes at least.
+    pub fn with_law(
+        feeds: Feeds,
+        law: Law,
+        max_short_ticks: u64,
+        dt: f64,
+        rules: ShortRules,
+    ) -> Servo {
         Servo {
             state: ServoState::Hold,
             feeds,
@@ -85,6 +100,10 @@ impl Servo {
             mark: PathPoint::default(),
             depth: 0,
             excursion: Excursion::Jump,
+            rules,
+            short_seen: 0,
+            shorted: false,
+            backed_mm: 0.0,
             counters: ServoCounters::default(),
         }
     }
@@ -150,29 +169,68 @@ impl Servo {
     }
 
     /// The gap state of this tick at `here`. Returns an event when the state changed.
+    ///
+    /// A short is believed after `rules.confirm_ticks` ticks in a row (one that clears
+    /// sooner is counted as brief); a turn-back ends when the gap has cleared and it has
+    /// backed off at least `rules.min_retract_mm`.
     pub fn on_gap(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
+        self.shorted = gap == GapState::Short;
         match (self.state, gap) {
-            (ServoState::Forward | ServoState::Hold, GapState::Short) => {
-                self.mark = here;
-                self.start_turn_back(here)
-            }
-            (ServoState::ReAdvance | ServoState::Return, GapState::Short) => {
+            (
+                ServoState::Forward | ServoState::Hold | ServoState::ReAdvance | ServoState::Return,
+                GapState::Short,
+            ) => {
+                self.short_seen += 1;
+                if self.short_seen < self.rules.confirm_ticks {
+                    return None;
+                }
+                self.short_seen = 0;
+                if matches!(self.state, ServoState::Forward | ServoState::Hold) {
+                    self.mark = here;
+                }
                 self.start_turn_back(here)
             }
             (ServoState::TurnBack, GapState::Normal | GapState::Open) => {
-                self.state = ServoState::ReAdvance;
-                Some(ServoEvent::Cleared { depth: self.depth })
+                (self.backed_mm >= self.rules.min_retract_mm).then(|| self.end_turn_back())
+            }
+            (_, GapState::Normal | GapState::Open) => {
+                if self.short_seen > 0 {
+                    self.short_seen = 0;
+                    self.counters.brief_shorts += 1;
+                }
+                None
             }
             _ => None,
         }
     }
 
+    /// A short is being confirmed: the gap reads short but the servo does not believe it
+    /// yet, so motion only brakes.
+    #[inline]
+    pub fn confirming(&self) -> bool {
+        self.short_seen > 0
+    }
+
     fn start_turn_back(&mut self, here: PathPoint) -> Option<ServoEvent> {
         self.state = ServoState::TurnBack;
         self.depth = 0;
+        self.backed_mm = 0.0;
         self.counters.shorts += 1;
         self.counters.turn_backs += 1;
         Some(ServoEvent::Short { at: here })
+    }
+
+    fn end_turn_back(&mut self) -> ServoEvent {
+        self.state = ServoState::ReAdvance;
+        ServoEvent::Cleared { depth: self.depth }
+    }
+
+    /// The interpolator stepped `mm` backwards along the path.
+    #[inline]
+    pub fn on_backward(&mut self, mm: f64) {
+        if self.state == ServoState::TurnBack {
+            self.backed_mm += mm;
+        }
     }
 
     /// The interpolator moved forward to `here` (after an event or a block change).
@@ -204,8 +262,12 @@ impl Servo {
         c.deepest_turn_back_blocks = c.deepest_turn_back_blocks.max(self.depth);
     }
 
-    /// The turn-back reached the start of the reserved area with the gap still shorted.
+    /// The turn-back reached the start of the reserved area: the alarm with the gap still
+    /// shorted; with the gap clear (backing off its least retraction) the re-advance.
     pub fn on_reserved_exhausted(&mut self, here: PathPoint) -> Option<ServoEvent> {
+        if self.state == ServoState::TurnBack && !self.shorted {
+            return Some(self.end_turn_back());
+        }
         self.alarm(here, false)
     }
 
@@ -233,6 +295,7 @@ impl Servo {
             self.state = ServoState::ReAdvance;
             self.depth = 0;
             self.short_ticks = 0;
+            self.short_seen = 0;
         }
     }
 
@@ -379,6 +442,8 @@ impl Servo {
             _ => self.feeds.normal,
         };
         match self.state {
+            // A short not yet believed: no further in, no reversal yet.
+            ServoState::Forward | ServoState::ReAdvance if gap == GapState::Short => (1, 0.0),
             ServoState::Forward | ServoState::ReAdvance => (1, gap_feed),
             ServoState::TurnBack => (-1, self.feeds.retract),
             // The interpolator sets the feed of an excursion.
@@ -456,6 +521,71 @@ mod tests {
         assert_eq!(servo.on_gap(GapState::Normal, at(0, 0)), None);
         assert_eq!(servo.state(), ServoState::Alarm);
         assert_eq!(servo.on_end(), None);
+    }
+
+    #[test]
+    fn a_short_is_believed_after_its_confirmation_and_a_brief_one_is_counted() {
+        let rules = ShortRules {
+            confirm_ticks: 3,
+            min_retract_mm: 0.0,
+        };
+        let mut servo = Servo::with_law(FEEDS, Law::ThreeState, 0, 1.0, rules);
+        servo.on_block();
+        assert_eq!(servo.on_gap(GapState::Short, at(0, 5)), None);
+        assert!(servo.confirming());
+        assert_eq!(
+            servo.motion(GapState::Short),
+            (1, 0.0),
+            "brakes, no reversal"
+        );
+        assert_eq!(servo.on_gap(GapState::Short, at(0, 5)), None);
+        assert_eq!(servo.on_gap(GapState::Normal, at(0, 5)), None);
+        assert_eq!(servo.counters.brief_shorts, 1);
+        assert_eq!(servo.state(), ServoState::Forward);
+        for _ in 0..2 {
+            assert_eq!(servo.on_gap(GapState::Short, at(0, 6)), None);
+        }
+        assert_eq!(
+            servo.on_gap(GapState::Short, at(0, 6)),
+            Some(ServoEvent::Short { at: at(0, 6) })
+        );
+        assert_eq!(servo.counters.shorts, 1);
+        assert_eq!(servo.counters.brief_shorts, 1);
+    }
+
+    #[test]
+    fn a_turn_back_backs_off_its_least_retraction_after_the_gap_clears() {
+        let rules = ShortRules {
+            confirm_ticks: 1,
+            min_retract_mm: 0.005,
+        };
+        let mut servo = Servo::with_law(FEEDS, Law::ThreeState, 0, 1.0, rules);
+        servo.on_block();
+        servo.on_gap(GapState::Short, at(0, 10));
+        servo.on_backward(0.001);
+        assert_eq!(servo.on_gap(GapState::Normal, at(0, 9)), None);
+        assert_eq!(servo.motion(GapState::Normal), (-1, 2.0));
+        for _ in 0..4 {
+            servo.on_backward(0.001);
+        }
+        assert_eq!(
+            servo.on_gap(GapState::Normal, at(0, 5)),
+            Some(ServoEvent::Cleared { depth: 0 })
+        );
+        // The reserved area ends before the least retraction, the gap clear: no alarm.
+        servo.on_gap(GapState::Short, at(0, 6));
+        servo.on_gap(GapState::Normal, at(0, 6));
+        assert_eq!(
+            servo.on_reserved_exhausted(at(0, 0)),
+            Some(ServoEvent::Cleared { depth: 0 })
+        );
+        assert_eq!(servo.state(), ServoState::ReAdvance);
+        // Still shorted there: the alarm.
+        servo.on_gap(GapState::Short, at(0, 3));
+        assert!(matches!(
+            servo.on_reserved_exhausted(at(0, 0)),
+            Some(ServoEvent::Alarm { .. })
+        ));
     }
 
     #[test]

@@ -163,6 +163,25 @@ pub struct Feeds {
     pub retract: f64,
 }
 
+/// How the servo takes a short (`[servo]`): a short is believed once the gap has read short
+/// for `confirm_ticks` ticks in a row (until then the electrode only brakes: a single noisy
+/// reading is no reason to reverse), and a turn-back, once begun, backs off at least
+/// `min_retract_mm` along the path even if the gap clears sooner (a retraction of a step or
+/// two does not break a bridge of debris; it only starts a chatter at the short's edge).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShortRules {
+    pub confirm_ticks: u32,
+    pub min_retract_mm: f64,
+}
+
+impl ShortRules {
+    /// Every short believed at once, a turn-back as long as the short: the seeds' servo.
+    pub const IMMEDIATE: ShortRules = ShortRules {
+        confirm_ticks: 1,
+        min_retract_mm: 0.0,
+    };
+}
+
 /// Something the servo did that the outside world wants to hear about (logged by a normal
 /// thread, never by the tick core).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -305,13 +324,16 @@ pub struct ServoCounters {
     /// Probing moves finished (with or without contact).
     #[serde(default)]
     pub probes: u64,
+    /// Shorts that cleared before `servo.short_confirm_ticks`: braked for, not turned back.
+    #[serde(default)]
+    pub brief_shorts: u64,
 }
 }
 
 impl ServoCounters {
     /// The counts (everything but the deepest turn-back) with their names and what they
     /// count, for the metrics: `edmd_<name>_total`.
-    pub fn counts(&self) -> [(&'static str, &'static str, u64); 8] {
+    pub fn counts(&self) -> [(&'static str, &'static str, u64); 9] {
         [
             ("shorts", "Short circuits.", self.shorts),
             (
@@ -333,6 +355,11 @@ impl ServoCounters {
             ("jumps", "Sinker jumps.", self.jumps),
             ("wire_breaks", "Wire breaks.", self.wire_breaks),
             ("probes", "Probing moves finished.", self.probes),
+            (
+                "brief_shorts",
+                "Shorts that cleared before confirmation (no turn-back).",
+                self.brief_shorts,
+            ),
         ]
     }
 
@@ -350,6 +377,7 @@ impl ServoCounters {
             jumps: self.jumps + other.jumps,
             wire_breaks: self.wire_breaks + other.wire_breaks,
             probes: self.probes + other.probes,
+            brief_shorts: self.brief_shorts + other.brief_shorts,
         }
     }
 }

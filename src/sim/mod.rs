@@ -20,12 +20,15 @@
 //! - **Proximity**: the electrode closes the gap faster than sparking erodes the front (a
 //!   servo feed above the erosion rate, or harder material from a scripted `erosion` event).
 //!   Turning back opens the gap again after a few µm.
-//! - **Placed debris** (`sim.debris_shorts`): bridges at seeded random points, one in each
-//!   of that many equal stretches of the program's cutting moves (rapids are positioning in
-//!   the open), so a demonstration of any length shows a handful of turn-backs. A bridge holds the gap shorted until the electrode has
-//!   turned back `debris_clear_um` from where it formed (flushing clears it).
+//! - **Placed debris** (`sim.debris_shorts_per_mm`): bridges at seeded random points, so many
+//!   per mm of the program's cutting moves (rapids are positioning in the open), one in each
+//!   of that many equal stretches. A bridge holds the gap shorted until the electrode has
+//!   turned back `debris_clear_um` from where it formed (flushing clears it); none forms in
+//!   the first `debris_clear_um` of cutting, where no turn-back could go that far, so a short
+//!   move (an MDI line) cuts clean.
 //! - **Random debris** (`sim.debris_shorts_per_s`): the same bridges as a Poisson process in
-//!   time while sparking, from a seeded splitmix64: a stationary process for long runs.
+//!   time while sparking (past the first `debris_clear_um` too), from a seeded splitmix64: a
+//!   stationary process for long runs.
 //! - **Scripted** (`sim.events`, [`events`]): debris at a tick, erosion-rate changes, and
 //!   holds (the gap reads short or open for so many ticks whatever the electrode does: a
 //!   welded short that only an alarm ends, a dielectric failure).
@@ -65,8 +68,8 @@ pub struct SimConfig {
     pub short_gap_mm: f64,
     pub open_gap_mm: f64,
     pub erosion_mm_per_s: f64,
-    /// Debris shorts placed along the program's path.
-    pub debris_shorts: u32,
+    /// Debris shorts placed along the program's cutting, per mm of it.
+    pub debris_per_mm: f64,
     pub debris_shorts_per_s: f64,
     pub debris_clear_mm: f64,
     /// Wire breaks per metre of cutting travel (a seeded Poisson process; 0: none).
@@ -190,17 +193,20 @@ impl SimGap {
         let dt = settings.tick.secs();
         let params = settings.params.clone();
         let mut rng = SplitMix64::new(params.seed);
-        // One bridge in each of n equal stretches of cutting, away from the stretch ends, so
-        // that they spread over the cut and never form in the first micrometres of approach.
+        // One bridge in each of n equal stretches of the cutting past its first
+        // `debris_clear` (a bridge there could not be backed away from), away from the
+        // stretch ends.
         let cutting: f64 = cutting_spans.iter().map(|(a, b)| b - a).sum();
+        let clear = params.debris_clear_mm;
+        let room = (cutting - clear).max(0.0);
+        let n = (params.debris_per_mm * room).round() as usize;
         // The bridges' cutting distances increase with k, so one walk over the spans places
         // them all.
-        let n = params.debris_shorts as usize;
         let mut spans = cutting_spans.iter().peekable();
         let mut before = 0.0; // cutting length of the spans walked past
         let debris_at = (0..n)
             .map(|k| {
-                let into = cutting * (k as f64 + rng.uniform(0.1, 0.9)) / n as f64;
+                let into = clear + room * (k as f64 + rng.uniform(0.1, 0.9)) / n as f64;
                 while let Some(&&(from, to)) = spans.peek() {
                     if into - before <= to - from {
                         return from + (into - before);
@@ -313,7 +319,10 @@ impl SimGap {
             self.next_debris += 1;
             return Some(self.params.debris_clear_mm);
         }
-        if self.debris_per_tick > 0.0 && self.rng.next_f64() < self.debris_per_tick {
+        if self.debris_per_tick > 0.0
+            && self.cut_mm >= self.params.debris_clear_mm
+            && self.rng.next_f64() < self.debris_per_tick
+        {
             return Some(self.params.debris_clear_mm);
         }
         None

@@ -12,7 +12,7 @@ pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
         short_gap_mm: 1.0 / 1000.0,
         open_gap_mm: 10.0 / 1000.0,
         erosion_mm_per_s: 75.0 / 60.0,
-        debris_shorts: 5,
+        debris_per_mm: 0.1,
         debris_shorts_per_s: 0.0,
         debris_clear_mm: 300.0 / 1000.0,
         wire_breaks_per_m: 0.0,
@@ -27,7 +27,7 @@ pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
         match key {
             "sim.seed" => params.seed = v as u64,
             "sim.initial_gap_um" => params.initial_gap_mm = v / 1000.0,
-            "sim.debris_shorts" => params.debris_shorts = v as u32,
+            "sim.debris_shorts_per_mm" => params.debris_per_mm = v,
             "sim.debris_shorts_per_s" => params.debris_shorts_per_s = v,
             "sim.debris_clear_um" => params.debris_clear_mm = v / 1000.0,
             "sim.wire_breaks_per_m" => params.wire_breaks_per_m = v,
@@ -60,7 +60,7 @@ const BACK: [i8; MAX_AXES] = [-1, 0, 0, 0, 0, 0];
 
 #[test]
 fn the_gap_closes_as_the_electrode_advances_and_erodes_while_sparking() {
-    let mut g = gap(&["sim.debris_shorts=0"]);
+    let mut g = gap(&["sim.debris_shorts_per_mm=0"]);
     assert_eq!(sample(&mut g, 0), GapState::Open);
     for _ in 0..12 {
         g.observe(&X, 1); // 12 µm: 8 µm left
@@ -84,12 +84,14 @@ fn the_gap_closes_as_the_electrode_advances_and_erodes_while_sparking() {
 fn random_debris_is_seeded_and_clears_after_turning_back() {
     let run = |seed: u64| {
         let mut g = gap(&[
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             // The gap opens after ~80 ticks of sparking without advancing: make them count.
             "sim.debris_shorts_per_s=2000",
             &format!("sim.seed={seed}"),
-            "sim.initial_gap_um=5",
+            "sim.initial_gap_um=6",
+            "sim.debris_clear_um=1",
         ]);
+        g.observe(&X, 1); // past the first debris_clear of cutting
         (0..2000u64)
             .filter(|&t| sample(&mut g, t) == GapState::Short)
             .collect::<Vec<_>>()
@@ -99,11 +101,17 @@ fn random_debris_is_seeded_and_clears_after_turning_back() {
     assert_eq!(a, run(7), "same seed, same shorts");
     assert_ne!(a, run(8));
     let mut g = gap(&[
-        "sim.debris_shorts=0",
+        "sim.debris_shorts_per_mm=0",
         "sim.debris_shorts_per_s=1e9",
-        "sim.initial_gap_um=5",
+        "sim.initial_gap_um=20",
         "sim.debris_clear_um=15",
     ]);
+    // Nothing forms in the first debris_clear of cutting, whatever the rate.
+    for _ in 0..14 {
+        g.observe(&X, 1);
+        assert_ne!(sample(&mut g, 0), GapState::Short);
+    }
+    g.observe(&X, 1);
     assert_eq!(sample(&mut g, 0), GapState::Short);
     g.debris_per_tick = 0.0;
     for _ in 0..14 {
@@ -117,23 +125,32 @@ fn random_debris_is_seeded_and_clears_after_turning_back() {
 
 #[test]
 fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
-    let g = gap(&["sim.debris_shorts=5", "sim.seed=3"]);
+    // 0.5 per mm over the 9.7 mm of a 10 mm cut past its first 0.3 mm (debris_clear_um).
+    let g = gap(&["sim.debris_shorts_per_mm=0.5", "sim.seed=3"]);
     let at = g.debris_positions().to_vec();
     assert_eq!(at.len(), 5);
     for (k, p) in at.iter().enumerate() {
-        let stretch = 10.0 / 5.0;
+        let stretch = 9.7 / 5.0;
         assert!(
-            *p >= stretch * (k as f64 + 0.1) && *p <= stretch * (k as f64 + 0.9),
+            *p >= 0.3 + stretch * (k as f64 + 0.1) && *p <= 0.3 + stretch * (k as f64 + 0.9),
             "{at:?}"
         );
     }
     assert_ne!(
         at,
-        gap(&["sim.debris_shorts=5", "sim.seed=4"]).debris_positions()
+        gap(&["sim.debris_shorts_per_mm=0.5", "sim.seed=4"]).debris_positions()
     );
+    // The number goes with the cutting: none on a move of a few mm at the default rate.
+    let short = SimGap::new(&settings(&[]), &[(0.0, 4.0)], Vec::new());
+    assert!(short.debris_positions().is_empty());
+    assert_eq!(gap(&[]).debris_positions().len(), 1, "0.1 per mm of 9.7 mm");
     // Only on cutting moves: a 10 mm rapid, 2 mm cut, 5 mm rapid, 2 mm cut.
     let spans = [(10.0, 12.0), (17.0, 19.0)];
-    let g = SimGap::new(&settings(&["sim.debris_shorts=40"]), &spans, Vec::new());
+    let g = SimGap::new(
+        &settings(&["sim.debris_shorts_per_mm=10", "sim.debris_clear_um=0.001"]),
+        &spans,
+        Vec::new(),
+    );
     for p in g.debris_positions() {
         assert!(spans.iter().any(|(a, b)| p >= a && p <= b), "{p}");
     }
@@ -142,7 +159,11 @@ fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
         20
     );
     // Walk the electrode along, keeping the gap sparking: a short exactly past each one.
-    let mut g = gap(&["sim.debris_shorts=5", "sim.seed=3", "sim.initial_gap_um=5"]);
+    let mut g = gap(&[
+        "sim.debris_shorts_per_mm=0.5",
+        "sim.seed=3",
+        "sim.initial_gap_um=5",
+    ]);
     let mut formed = Vec::new();
     for tick in 0..12_000u64 {
         if sample(&mut g, tick) == GapState::Short {
@@ -169,7 +190,7 @@ fn scripted_events_hold_erode_and_bridge() {
     )
     .unwrap();
     let mut g = SimGap::new(
-        &settings(&["sim.debris_shorts=0", "sim.initial_gap_um=5"]),
+        &settings(&["sim.debris_shorts_per_mm=0", "sim.initial_gap_um=5"]),
         &[(0.0, 10.0)],
         events,
     );

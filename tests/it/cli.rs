@@ -576,7 +576,7 @@ fn rapids_run_at_rapid_speed_and_a_short_in_one_is_a_collision() {
         let (stdout, stderr) = text(&out);
         (out.status.code(), stdout, stderr)
     };
-    let (code, stdout, stderr) = run(&["--set", "sim.debris_shorts=0"]);
+    let (code, stdout, stderr) = run(&["--set", "sim.debris_shorts_per_mm=0"]);
     assert_eq!(code, Some(0), "{stdout}{stderr}");
     let end: f64 = stderr
         .lines()

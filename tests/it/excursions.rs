@@ -40,7 +40,7 @@ fn run(dir: &Path, program: &str, sets: &[&str]) -> Job {
         .arg(&summary)
         .args([
             "--set",
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             "--set",
             "output.kind=\"file\"",
         ])
@@ -157,7 +157,7 @@ fn a_plunge_with_jumps_ends_exactly_and_every_jump_is_in_the_pulse_log() {
         .arg(dir.join("p.ngc"))
         .args([
             "--set",
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             "--set",
             "servo.jump_interval_s=0.2",
             "--report",
@@ -324,7 +324,7 @@ fn a_wire_break_stops_edmd_run_with_a_checkpoint() {
         .arg(&checkpoint)
         .args([
             "--set",
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             "--set",
             "sim.wire_breaks_per_m=300",
         ])

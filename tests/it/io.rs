@@ -535,16 +535,18 @@ fn without_timing(mut summary: serde_json::Value) -> serde_json::Value {
 }
 
 #[test]
-fn the_default_sim_shows_a_handful_of_shorts_on_both_papers_curves_deterministically() {
+fn the_default_sim_places_debris_by_the_mm_on_both_papers_curves_deterministically() {
     let dir = scratch("sim");
-    for program in [
-        "programs/huang-table1-g38.nc",
-        "programs/jin-table1-g06_2.nc",
+    // sim.debris_shorts_per_mm = 0.1 over the cutting past its first 0.3 mm: Huang's curve
+    // is 49.0 mm, Jin's 1151.3 mm.
+    for (program, shorts) in [
+        ("programs/huang-table1-g38.nc", 5),
+        ("programs/jin-table1-g06_2.nc", 115),
     ] {
         let (out, a) = edmd_run(program, &dir, &[]);
         assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
-        assert_eq!(a["shorts"], 5, "{program}");
-        assert_eq!(a["turn_backs"], 5, "{program}");
+        assert_eq!(a["shorts"], shorts, "{program}");
+        assert_eq!(a["turn_backs"], shorts, "{program}");
         assert_eq!(a["end_steps"], a["program_end_steps"], "{program}");
         let (_, b) = edmd_run(program, &dir, &[]);
         assert_eq!(
@@ -564,7 +566,10 @@ fn a_servo_feed_above_the_erosion_rate_gives_proximity_shorts_and_still_ends_exa
     let (out, s) = edmd_run(
         "programs/huang-table1-g38.nc",
         &dir,
-        &["sim.debris_shorts=0", "servo.normal_feed_mm_per_min=90"],
+        &[
+            "sim.debris_shorts_per_mm=0",
+            "servo.normal_feed_mm_per_min=90",
+        ],
     );
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(s["shorts"].as_u64().unwrap() > 10, "{s}");
@@ -572,7 +577,7 @@ fn a_servo_feed_above_the_erosion_rate_gives_proximity_shorts_and_still_ends_exa
     let (_, none) = edmd_run(
         "programs/huang-table1-g38.nc",
         &dir,
-        &["sim.debris_shorts=0"],
+        &["sim.debris_shorts_per_mm=0"],
     );
     assert_eq!(none["shorts"], 0, "erosion outpaces the default feed");
 }
@@ -587,7 +592,7 @@ fn scripted_sim_events_reach_the_job_and_bad_ones_are_located() {
         "programs/huang-table1-g38.nc",
         &dir,
         &[
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             &format!("sim.events={}", events.display()),
             "buffer.reserved=64",
         ],

@@ -49,7 +49,7 @@ fn run(dir: &Path, program: &str, sets: &[&str]) -> Job {
         .arg(&summary)
         .args([
             "--set",
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             "--set",
             "output.kind=\"file\"",
         ])

@@ -39,6 +39,7 @@ mod taper;
 mod terminal;
 mod touch;
 mod trust;
+mod turn_back;
 mod wire_offset;
 mod wire_offset_linuxcnc;
 mod work_offsets;

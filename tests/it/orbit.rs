@@ -147,7 +147,7 @@ fn with_shorts_the_turn_backs_retrace_the_orbit_and_the_job_ends_on_its_end_poin
     let sets = machine(&[
         "sinker.orbit.shape=\"circle\"",
         "gap.kind=\"sim\"",
-        "sim.debris_shorts=6",
+        "sim.debris_shorts_per_mm=0.6",
     ]);
     let (s, pulses) = plunge_with_summary(&dir, &sets);
     assert!(s["shorts"].as_u64().unwrap() >= 3, "{s}");

@@ -30,6 +30,11 @@ fn straight_cut() -> Vec<StepBlock> {
                 v_exit: if i == 199 { 0.0 } else { 20.0 },
                 v_cruise: 20.0,
                 v_limit: 20.0,
+                path: edmd::preprocess::PathLimits {
+                    cruise: 20.0,
+                    entry: if i == 0 { 0.0 } else { 20.0 },
+                    exit: if i == 199 { 0.0 } else { 20.0 },
+                },
                 line: 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,
@@ -60,7 +65,7 @@ fn run(law: &str) -> Run {
         None,
         &[
             format!("servo.law=\"{law}\""),
-            "sim.debris_shorts=0".into(),
+            "sim.debris_shorts_per_mm=0".into(),
             "sim.erosion_mm_per_min=40.0".into(),
         ],
     )

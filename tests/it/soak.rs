@@ -73,7 +73,7 @@ fn soak(dir: &Path, blocks: u64) -> Soak {
             "--set",
             "gap.kind=\"sim\"",
             "--set",
-            "sim.debris_shorts=0",
+            "sim.debris_shorts_per_mm=0",
             "--set",
             "sim.debris_shorts_per_s=2.0",
             "--set",

@@ -371,7 +371,7 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
             "--set",
             "gap.kind=\"sim\"",
             "--set",
-            "sim.debris_shorts=8",
+            "sim.debris_shorts_per_mm=0.1",
             "--summary",
             dir.join("summary.json").to_str().unwrap(),
             "--report",

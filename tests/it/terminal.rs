@@ -57,7 +57,7 @@ fn the_progress_bar_and_the_log_never_share_a_line() {
     let _ = std::fs::remove_file(&marker);
     // Real time, so the bar is drawn while the simulator's debris shorts are logged.
     let command = format!(
-        "cd '{}' && '{}' run '{}' --set fine.virtual_time=false --set sim.debris_shorts=6; \
+        "cd '{}' && '{}' run '{}' --set fine.virtual_time=false --set sim.debris_shorts_per_mm=1.6; \
          echo $? > '{}'; sleep 120",
         common::repo().display(),
         env!("CARGO_BIN_EXE_edmd"),

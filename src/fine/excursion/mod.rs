@@ -27,7 +27,7 @@
 use super::jerk::{JerkLimits, Room};
 use super::motion::Motion;
 use super::{Interpolator, Tick};
-use crate::buffer::{BlockFlags, StepBlock};
+use crate::buffer::{BlockFlags, BlockSource, Fetch, StepBlock};
 
 use crate::servo::{Excursion, Rethread, Servo, ServoEvent, ServoState};
 use crate::vocab::GapState;
@@ -203,6 +203,52 @@ impl Interpolator {
         }
     }
 
+    /// Turning back at the start of the block in hand (or with none in hand): takes the
+    /// previous block from the reserved area, passing over blocks of zero steps. `false` when
+    /// the reserved area is exhausted: the alarm while shorted (a turn-back backing off its
+    /// least retraction after the gap cleared re-advances instead).
+    pub(super) fn retreat<S: BlockSource + ?Sized>(
+        &mut self,
+        tick: &mut Tick,
+        source: &mut S,
+    ) -> bool {
+        // The way back to the start hole walks on past the reserved area, along the trail.
+        let rethread = self.servo.state() == ServoState::Retreat
+            && self.servo.excursion() == Excursion::Rethread;
+        loop {
+            if rethread && self.motion.holds(BlockFlags::START_HOLE) {
+                // A pass that starts at the start hole: the way back ends where it began.
+                self.retreat_blocked(tick, false);
+                return false;
+            }
+            let back = if rethread {
+                source.previous_on_trail(&mut self.motion.block)
+            } else {
+                source.previous(&mut self.motion.block)
+            };
+            if !back {
+                self.retreat_blocked(tick, true);
+                return false;
+            }
+            if self.is_barrier() {
+                // Back out of it: the block this retreat came from is handed out again, and
+                // the electrode stands at its start, where it was.
+                if source.next(&mut self.motion.block) == Fetch::Block {
+                    self.enter_block(false);
+                } else {
+                    self.motion.has_block = false;
+                }
+                self.retreat_blocked(tick, false);
+                return false;
+            }
+            self.servo.on_block_back();
+            self.enter_block(true);
+            if self.motion.walk.events() > 0 {
+                return true;
+            }
+        }
+    }
+
     /// One backward event of a retreat: a jump ends at its height.
     pub(super) fn retreated(&mut self, tick: &mut Tick) {
         self.excursions.retreat_mm += self.motion.event_mm;
@@ -338,6 +384,10 @@ impl Interpolator {
                 if let Some(event) = self.servo.on_gap(gap, here) {
                     tick.event = Some(event);
                     return Some(self.servo.motion(gap));
+                }
+                if gap == GapState::Short {
+                    // Not believed yet: no further in.
+                    return Some((1, 0.0));
                 }
                 // Brake so as to arrive at the mark slowly: the gap is there.
                 let accel = self.settings.accel;
@@ -524,8 +574,8 @@ impl Interpolator {
 }
 
 /// Whether this tick's speed is jerk-limited, and the way to the stop it must make: `None`
-/// for the trapezoid (no jerk limit, or a cut, a turn-back, a probing move); `Some(None)` for
-/// a jerk-limited move with no stop ahead in its direction (braking to reverse). A function of
+/// for the trapezoid (no jerk limit, or a cut, a probing move); `Some(None)` for a
+/// jerk-limited move with no stop ahead in its direction (braking to reverse, a turn-back). A function of
 /// the block in hand, the servo's state and the excursion's distances, with `jerk` the limit.
 pub(super) fn room_ahead(
     motion: &Motion,
@@ -555,6 +605,14 @@ pub(super) fn room_ahead(
             }
         }),
         ServoState::Return => Some(stop(excursions.behind_mm)),
+        // The servo's own motion: a turn-back goes on while the short lasts; a re-advance
+        // reaches the point of the short at the plan's cruise, where cutting goes on.
+        ServoState::TurnBack => Some(None),
+        ServoState::ReAdvance => Some(toward.then_some(Room {
+            mm: excursions.behind_mm,
+            v_end: motion.aim,
+        })),
+        ServoState::Forward if servo.confirming() => Some(None),
         _ => None,
     }
 }

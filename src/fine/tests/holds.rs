@@ -312,3 +312,56 @@ fn the_rapid_override_scales_rapids_and_not_cuts() {
     }
     assert!((fine.speed() - 2.0).abs() < 1e-9, "{}", fine.speed());
 }
+
+/// A turn-back at a retract feed 40 times the programmed one (F3 against 120 mm/min) goes at
+/// the retract feed, slows for the path's stop corner behind it to the creep speed, and the
+/// re-advance retraces the same points back to the end.
+#[test]
+fn a_turn_back_goes_at_the_retract_feed_and_slows_for_the_path_s_corners() {
+    let mut blocks = super::chain(&[p2(0, 0), p2(100, 0), p2(100, 200)], 0.05);
+    blocks[0].path.exit = 0.0;
+    blocks[1].path.entry = 0.0;
+    let mut source = VecSource::new(blocks, 4);
+    let mut fine = Interpolator::new(SETTINGS, [0; MAX_AXES]);
+    let creep = (SETTINGS.reverse_accel * 0.001).sqrt();
+    let (mut fastest_back, mut at_corner) = (0.0f64, None);
+    let mut seq = 0;
+    let mut path = vec![([0; MAX_AXES], false)];
+    let mut short_from = None;
+    for t in 0..20_000_000u64 {
+        // Short from 150 steps in (block 1, 50 µm past the corner) for 60 ms: about 120 µm
+        // back at 2 mm/s, over the corner.
+        if fine.position()[1] >= 50 && short_from.is_none() {
+            short_from = Some(t);
+        }
+        let gap = match short_from {
+            Some(from) if t < from + 1_200 => GapState::Short,
+            _ => GapState::Normal,
+        };
+        let tick = fine.tick(gap, &mut source);
+        if tick.dir < 0 {
+            fastest_back = fastest_back.max(fine.speed());
+        }
+        if tick.moved() {
+            path.push((fine.position(), tick.dir < 0));
+        }
+        if fine.here().seq != seq {
+            if fine.state() == ServoState::TurnBack {
+                at_corner = Some(fine.speed());
+            }
+            seq = fine.here().seq;
+        }
+        if fine.state().is_final() {
+            break;
+        }
+    }
+    assert_eq!(fine.state(), ServoState::Done);
+    assert_eq!(fine.position(), p2(100, 200));
+    assert!((fastest_back - 2.0).abs() < 1e-9, "{fastest_back}");
+    let corner = at_corner.expect("turned back over the corner");
+    assert!(
+        corner <= creep + SETTINGS.reverse_accel * SETTINGS.dt,
+        "{corner} mm/s at a stop corner"
+    );
+    assert!(super::assert_retraces(&path) > 100);
+}

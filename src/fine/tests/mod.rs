@@ -8,11 +8,13 @@ use crate::vocab::Steps;
 pub(crate) const SETTINGS: FineSettings = FineSettings {
     dt: 50e-6,
     accel: 2400.0,
+    reverse_accel: 2400.0,
     feeds: Feeds {
         normal: 1.0,
         open: 5.0,
         retract: 2.0,
     },
+    shorts: ShortRules::IMMEDIATE,
     step_mm: [0.001; MAX_AXES],
     max_short_ticks: 0,
     law: crate::servo::Law::ThreeState,
@@ -23,7 +25,11 @@ pub(crate) const SETTINGS: FineSettings = FineSettings {
     lift_axis: Some(2),
 };
 
-/// Blocks through lattice points (steps), planned as one long cruise at `v`.
+/// The path's own cruise in [`chain`] (mm/s): above every feed the tests program.
+pub(crate) const PATH_CRUISE: f64 = 100.0;
+
+/// Blocks through lattice points (steps), planned as one long cruise at `v`, on a path that
+/// allows [`PATH_CRUISE`] through every junction (at rest at both ends).
 pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
     let n = points.len() - 1;
     points
@@ -45,6 +51,11 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 v_exit: if i + 1 == n { 0.0 } else { v },
                 v_cruise: v,
                 v_limit: v,
+                path: crate::preprocess::PathLimits {
+                    cruise: PATH_CRUISE,
+                    entry: if i == 0 { 0.0 } else { PATH_CRUISE },
+                    exit: if i + 1 == n { 0.0 } else { PATH_CRUISE },
+                },
                 line: i as u64 + 1,
                 u_end: f64::NAN,
                 flags: BlockFlags::NONE,

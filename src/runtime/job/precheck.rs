@@ -136,7 +136,7 @@ pub fn precheck(
         path_mm: 0.0,
         cutting_spans: Vec::new(),
         rapid_spans: Vec::new(),
-        measure: config.gap.kind == GapKind::Sim && config.sim.debris_shorts > 0,
+        measure: config.gap.kind == GapKind::Sim && config.sim.debris_per_mm > 0.0,
     };
     let cancelled = || JobError::Cancelled {
         program: program.name.clone(),

@@ -249,6 +249,7 @@ impl BlockMaker {
             v_exit: segment.v_exit,
             v_cruise: segment.v_peak,
             v_limit: segment.speed_limit.max(segment.v_peak),
+            path: segment.path,
             line: segment.block.line,
             u_end: match segment.block.kind {
                 BlockKind::Nurbs { .. } => segment.u_end,

@@ -119,6 +119,11 @@ impl BlockSource for SquarePath {
             v_exit: self.feed,
             v_cruise: self.feed,
             v_limit: self.feed,
+            path: crate::preprocess::PathLimits {
+                cruise: self.feed,
+                entry: self.feed,
+                exit: self.feed,
+            },
             line: 0,
             u_end: f64::NAN,
             flags: BlockFlags::NONE,

@@ -203,6 +203,7 @@ mod tests {
                     jumps: r(),
                     wire_breaks: r(),
                     probes: r(),
+                    brief_shorts: r(),
                 },
                 pulses: std::array::from_fn(|_| r()),
                 path_mm: -(r() as f64),
