@@ -59,24 +59,39 @@ pub enum GcodeErrorKind {
     BadFeed,
     #[error("work offset: {0}")]
     WorkOffset(String),
+    #[error("polar coordinates: {0}")]
+    Polar(String),
+    /// A canned cycle or `G28`/`G30` that cannot run as written.
+    #[error("{0}")]
+    Cycle(String),
     #[error("missing coordinate: {what}")]
     MissingCoordinate { what: String },
     #[error("arc with both R and I/J/K: give the radius or the centre, not both")]
     ArcRAndCentre,
     #[error("arc needs its centre (I/J/K) or its radius (R)")]
     ArcMissingCentre,
-    #[error(
-        "arc radius inconsistent with its centre: {start:.6} mm to the start, {end:.6} mm to the end"
-    )]
-    ArcRadiusMismatch { start: f64, end: f64 },
     #[error("arc radius {} mm is less than half the chord ({} mm)", Num(*.radius), Num(*.half_chord))]
     ArcRadiusTooSmall { radius: f64, half_chord: f64 },
     #[error("arc centre coincides with its start point (zero radius)")]
     ArcZeroRadius,
     #[error("a full circle cannot be given with R: use I/J/K for the centre")]
     ArcFullCircleWithR,
-    #[error("helical arc: axis {axis} moves during a circular arc, which edmd does not support")]
-    HelicalArc { axis: char },
+    #[error("helical arc: axis {axis} moves during a circular arc {why}")]
+    HelicalArc { axis: char, why: &'static str },
+    #[error("arc radius to the end differs from the radius to the start: {start:.4} mm and {end:.4} mm (accepted up to {limit} mm apart{under})", limit = Num(*.limit))]
+    ArcSpiralTooFar {
+        start: f64,
+        end: f64,
+        limit: f64,
+        /// `" under the wire offset"`, where the limit is the offset's, or empty.
+        under: &'static str,
+    },
+    #[error(
+        "{letter} word missing in an absolute-centre arc (G90.1 needs both centre coordinates)"
+    )]
+    ArcCentreWordMissing { letter: char },
+    #[error("arc P{text}: the number of turns is a whole number, 1 or more")]
+    ArcTurns { text: String },
     #[error("{plane} arc needs axes {a} and {b} on the machine (machine.axes = [{axes}])")]
     ArcPlaneNotOnMachine {
         plane: &'static str,

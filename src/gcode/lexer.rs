@@ -236,7 +236,8 @@ pub(crate) fn lex(
                 let value = expr::value(&mut sc, env)?;
                 assigns.push(Assign { target, value });
             }
-            c if c.is_ascii_alphabetic() => {
+            // `@` and `^`: LinuxCNC's polar radius and angle.
+            c if c.is_ascii_alphabetic() || c == '@' || c == '^' => {
                 if let Some(pc) = info.percent {
                     return Err((pc, GcodeErrorKind::MisplacedPercent));
                 }

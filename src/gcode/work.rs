@@ -125,6 +125,10 @@ pub struct WorkStart {
     /// The modes the program starts in: `G20` (else `G21`), `G91` (else `G90`). A program
     /// file starts in G21 G90; MDI lines go on in the modes the previous ones left.
     pub modes: StartModes,
+    /// An axis is not homed: machine coordinates mean nothing yet, so `G28`/`G30` (to a
+    /// stored machine position) are refused. A program read without a machine (`check`,
+    /// `plan`) reads as on a homed one.
+    pub unhomed: bool,
 }
 
 /// Units and distance mode at a program's start.

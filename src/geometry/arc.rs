@@ -61,6 +61,108 @@ pub fn circular_arc(
     NurbsCurve::new(2, dim, &points, &weights, knots)
 }
 
+/// How far a [`spiral_arc`] may stray from the true spiral or helix, mm: a hundredth of a
+/// micron, well inside any step.
+pub const SPIRAL_FIT_TOLERANCE_MM: f64 = 1e-5;
+
+/// An arc whose radius changes from `start`'s to `end`'s linearly with the angle (LinuxCNC's
+/// spiral, for centre arcs whose end radius differs from the start's), whose axes outside
+/// the plane move linearly with it (a helix: a circular move with Z), or both; `sweep` may
+/// be more than a turn. Neither is a rational quadratic, so the curve is a C1 cubic that
+/// interpolates the true one's points and tangents at equal angles, with as many pieces as
+/// keep it within [`SPIRAL_FIT_TOLERANCE_MM`] of it (checked at the quarter points of every
+/// piece). It starts at `start` and ends at `end` exactly. A plain arc (equal radii, no move
+/// outside the plane) is [`circular_arc`]'s exact curve.
+pub fn spiral_arc(
+    dim: usize,
+    plane: [usize; 2],
+    center: &Point,
+    start: &Point,
+    end: &Point,
+    sweep: f64,
+) -> Result<NurbsCurve, NurbsError> {
+    let [a, b] = plane;
+    let r0 = (start[a] - center[a]).hypot(start[b] - center[b]);
+    let r1 = (end[a] - center[a]).hypot(end[b] - center[b]);
+    let leaves_plane = (0..dim).any(|i| i != a && i != b && start[i] != end[i]);
+    if (r1 - r0).abs() <= 1e-9 && !leaves_plane {
+        return circular_arc(dim, plane, center, start, end, sweep);
+    }
+    let angle0 = (start[b] - center[b]).atan2(start[a] - center[a]);
+    // The true curve and its derivative by t in [0, 1].
+    let at = |t: f64| -> (Point, Point) {
+        let (angle, r) = (angle0 + t * sweep, r0 + t * (r1 - r0));
+        let (sin, cos) = angle.sin_cos();
+        let mut p = *start;
+        let mut d = Point::zeros();
+        for i in 0..dim {
+            p[i] = start[i] + t * (end[i] - start[i]);
+            d[i] = end[i] - start[i];
+        }
+        p[a] = center[a] + r * cos;
+        p[b] = center[b] + r * sin;
+        d[a] = (r1 - r0) * cos - r * sweep * sin;
+        d[b] = (r1 - r0) * sin + r * sweep * cos;
+        (p, d)
+    };
+    let hermite = |(p0, d0): (Point, Point), (p1, d1): (Point, Point), h: f64, s: f64| {
+        let (s2, s3) = (s * s, s * s * s);
+        let (h00, h10) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s);
+        let (h01, h11) = (-2.0 * s3 + 3.0 * s2, s3 - s2);
+        p0 * h00 + d0 * (h10 * h) + p1 * h01 + d1 * (h11 * h)
+    };
+    let mut pieces = ((sweep.abs() / (std::f64::consts::PI / 8.0)).ceil() as usize).max(2);
+    loop {
+        let h = 1.0 / pieces as f64;
+        let fits = (0..pieces).all(|k| {
+            let (t0, t1) = (k as f64 * h, (k + 1) as f64 * h);
+            let (e0, e1) = (at(t0), at(t1));
+            [0.25, 0.5, 0.75].iter().all(|&s| {
+                let error = (hermite(e0, e1, h, s) - at(t0 + s * h).0)
+                    .iter()
+                    .take(dim)
+                    .fold(0.0f64, |m, x| m.hypot(*x));
+                error <= SPIRAL_FIT_TOLERANCE_MM
+            })
+        });
+        if fits || pieces >= 1 << 16 {
+            break;
+        }
+        pieces *= 2;
+    }
+    // Piecewise Bézier with double interior knots: the junction point is the middle of
+    // the two inner points beside it, so only those are stored.
+    let h = 1.0 / pieces as f64;
+    let mut points = Vec::with_capacity(2 * pieces + 2);
+    let mut knots = vec![0.0; 4];
+    for k in 0..=pieces {
+        let t = k as f64 * h;
+        let (p, d) = at(t);
+        let p = if k == 0 {
+            *start
+        } else if k == pieces {
+            *end
+        } else {
+            p
+        };
+        if k > 0 {
+            points.push(p - d * (h / 3.0));
+        }
+        if k == 0 || k == pieces {
+            points.push(p);
+        }
+        if k < pieces {
+            points.push(p + d * (h / 3.0));
+        }
+        if k > 0 && k < pieces {
+            knots.extend([t, t]);
+        }
+    }
+    knots.extend([1.0; 4]);
+    let weights = vec![1.0; points.len()];
+    NurbsCurve::new(3, dim, &points, &weights, knots)
+}
+
 /// The test curves' semicircle: radius 10 about the origin in X/Y, counter-clockwise from
 /// (10, 0) to (−10, 0).
 #[cfg(test)]
@@ -75,4 +177,61 @@ pub fn semicircle() -> NurbsCurve {
         std::f64::consts::PI,
     )
     .unwrap()
+}
+
+#[cfg(test)]
+mod spiral_tests {
+    use super::*;
+    use crate::geometry::point;
+
+    /// The true spiral/helix point at `t` (radius and the third axis linear in the angle).
+    fn truth(c: &Point, s: &Point, e: &Point, sweep: f64, t: f64) -> Point {
+        let (r0, r1) = ((s - c).xy_norm(), (e - c).xy_norm());
+        let a0 = (s[1] - c[1]).atan2(s[0] - c[0]);
+        let (r, a) = (r0 + t * (r1 - r0), a0 + t * sweep);
+        point(&[
+            c[0] + r * a.cos(),
+            c[1] + r * a.sin(),
+            s[2] + t * (e[2] - s[2]),
+        ])
+    }
+
+    trait XyNorm {
+        fn xy_norm(&self) -> f64;
+    }
+    impl XyNorm for Point {
+        fn xy_norm(&self) -> f64 {
+            self[0].hypot(self[1])
+        }
+    }
+
+    #[test]
+    fn a_spiral_helix_of_two_turns_stays_within_the_fit_tolerance_and_ends_exactly() {
+        let c = point(&[0.0, 0.0, 0.0]);
+        let s = point(&[10.0, 0.0, 0.0]);
+        let e = point(&[0.0, 10.003, -4.0]);
+        let sweep = std::f64::consts::FRAC_PI_2 + std::f64::consts::TAU;
+        let curve = spiral_arc(3, [0, 1], &c, &s, &e, sweep).unwrap();
+        assert_eq!(curve.start_point(), s);
+        assert_eq!(curve.end_point(), e);
+        assert_eq!(curve.corner_knots().count(), 0, "C1: no corners inside");
+        let mut worst: f64 = 0.0;
+        for k in 0..=4000 {
+            let t = k as f64 / 4000.0;
+            let d = (curve.point(t) - truth(&c, &s, &e, sweep, t)).norm();
+            worst = worst.max(d);
+        }
+        assert!(worst <= SPIRAL_FIT_TOLERANCE_MM * 1.01, "{worst}");
+    }
+
+    #[test]
+    fn equal_radii_in_the_plane_are_the_exact_circular_arc() {
+        let c = point(&[0.0, 0.0]);
+        let (s, e) = (point(&[10.0, 0.0]), point(&[0.0, 10.0]));
+        let sweep = std::f64::consts::FRAC_PI_2;
+        assert_eq!(
+            spiral_arc(2, [0, 1], &c, &s, &e, sweep).unwrap(),
+            circular_arc(2, [0, 1], &c, &s, &e, sweep).unwrap()
+        );
+    }
 }

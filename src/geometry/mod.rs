@@ -17,9 +17,9 @@ pub mod lanes;
 mod length;
 mod nurbs;
 
-pub use arc::circular_arc;
 #[cfg(test)]
 pub use arc::semicircle;
+pub use arc::{SPIRAL_FIT_TOLERANCE_MM, circular_arc, spiral_arc};
 pub use basis::MAX_ORDER;
 pub use bezier::Bezier;
 pub use length::ESTIMATE_TOLERANCE;

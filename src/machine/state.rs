@@ -130,6 +130,7 @@ impl MachineState {
             offsets: self.offsets.clone(),
             system: self.system,
             modes: Default::default(),
+            unhomed: !self.all_homed(),
         }
     }
 

@@ -10,6 +10,7 @@ use proptest::prelude::*;
 
 const XY: &[Axis] = &[Axis::X, Axis::Y];
 const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
+const XYZUV: &[Axis] = &[Axis::X, Axis::Y, Axis::Z, Axis::U, Axis::V];
 
 /// Runs the program to its first error.
 fn first_error(program: &[u8], axes: &[Axis]) -> Option<GcodeError> {
@@ -39,20 +40,6 @@ const fn case(
         line,
         col,
         gist,
-    }
-}
-
-/// A case for a three-axis machine.
-const fn case3(
-    name: &'static str,
-    program: &'static str,
-    line: u64,
-    col: usize,
-    gist: &'static str,
-) -> Case {
-    Case {
-        axes: XYZ,
-        ..case(name, program, line, col, gist)
     }
 }
 
@@ -319,11 +306,11 @@ fn cases() -> Vec<Case> {
             "needs its centre",
         ),
         case(
-            "arc radius inconsistent with its centre",
+            "spiral too far from an arc",
             "G0 X0 Y0\nG2 X10 Y0 I4 J0 F10\n",
             2,
             11,
-            "arc radius inconsistent with its centre: 4.000000 mm to the start, 6.000000 mm",
+            "arc radius to the end differs from the radius to the start: 4.0000 mm and 6.0000 mm",
         ),
         case(
             "arc radius too small",
@@ -353,13 +340,16 @@ fn cases() -> Vec<Case> {
             12,
             "word K is not used in G17 (XY) arcs",
         ),
-        case3(
-            "helical arc",
-            "G0 X0 Y0 Z0\nG2 X10 Y0 Z3 I5 F10\n",
-            2,
-            11,
-            "helical arc: axis Z moves",
-        ),
+        Case {
+            axes: XYZUV,
+            ..case(
+                "helical arc under a taper",
+                "G0 X0 Y0 Z0\nG51 A2\nG2 X10 Y0 Z3 I5 F10\n",
+                3,
+                11,
+                "helical arc: axis Z moves during a circular arc under a taper",
+            )
+        },
         case(
             "arc plane not on machine",
             "G18 G2 X1 I1 F10\n",
@@ -368,11 +358,18 @@ fn cases() -> Vec<Case> {
             "G18 arc needs axes Z and X on the machine",
         ),
         case(
-            "multi-turn arc",
-            "G0 X0 Y0\nG2 X10 Y0 I5 P2 F10\n",
+            "arc turns not whole",
+            "G0 X0 Y0\nG2 X10 Y0 I5 P2.5 F10\n",
             2,
             14,
-            "multi-turn arcs are not supported",
+            "arc P2.5: the number of turns is a whole number, 1 or more",
+        ),
+        case(
+            "absolute centre missing J",
+            "G90.1 G0 X10 Y0\nG2 X0 Y10 I0 F10\n",
+            2,
+            11,
+            "J word missing in an absolute-centre arc",
         ),
         // ---- NURBS: G38
         case(

@@ -15,6 +15,7 @@ mod excursions;
 mod from_line;
 mod fuzz_regressions;
 mod gcode_errors;
+mod gcode_linuxcnc;
 mod hal;
 mod hardening;
 mod homing;

@@ -156,6 +156,7 @@ fn a_program_starts_where_the_machine_stands_in_the_active_system() {
         offsets,
         system: WorkSystem::G54,
         modes: Default::default(),
+        unhomed: false,
     };
     let mut r = reader(
         "G91 G1 X1 F10\n\

@@ -1,23 +1,55 @@
 //! Circular arcs (`G2`/`G3`) in the active plane, by centre offsets (`I J K`, absolute with
-//! `G90.1`) or radius (`R`), full circles included: each becomes an exact rational quadratic
-//! ([`circular_arc`]) whose last control point is the programmed end point. A helix is
-//! refused (it is no rational quadratic), as are start and end radii further apart than
-//! [`ARC_RADIUS_TOLERANCE_MM`] plus `1e-5` of the radius.
+//! `G90.1`) or radius (`R`), full circles and `P` turns included, read as LinuxCNC's
+//! interpreter reads them (`interp_arc.cc`):
+//!
+//! - an `I J K` arc whose end radius differs from its start radius is a spiral (the radius
+//!   changes linearly with the angle), refused only when the two differ by more than 100×
+//!   [`spiral_tolerance_mm`], or by more than that tolerance and [`SPIRAL_RELATIVE`] of the
+//!   radius;
+//! - an `R` arc is refused when half its chord exceeds the radius by more than
+//!   [`ARC_RADIUS_TOLERANCE_MM`];
+//! - an axis outside the plane that moves makes a helix (a sinker's helical plunge), refused
+//!   under the wire offset and the taper, whose stages work in the plane.
+//!
+//! A plain arc is an exact rational quadratic ([`circular_arc`]); a spiral or a helix a C1
+//! cubic within [`crate::geometry::SPIRAL_FIT_TOLERANCE_MM`] of it ([`spiral_arc`]).
+//!
+//! The wire offset's stage offsets circles: under `G41`/`G42` a centre arc's radii may
+//! differ by [`OFFSET_ARC_RADIUS_TOLERANCE_MM`] (plus 1e-5 of the radius) only, which CAM
+//! output rounded to 3 decimals in mm or 4 in inch keeps to.
 
 use std::io::{BufRead, Seek};
 
-use super::{BlockReader, Fail, Letters, Step};
+use super::{BlockReader, Fail, Letters, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind};
 use crate::geometry::Point;
-use crate::geometry::circular_arc;
+use crate::geometry::spiral_arc;
 use crate::vocab::Axis;
 
-/// How far apart the start and end radii of an `I J K` arc may be, mm (plus [`ARC_RADIUS_REL`]
-/// of the radius): CAM output rounded to 3 decimals in mm or 4 in inch stays inside.
-pub const ARC_RADIUS_TOLERANCE_MM: f64 = 0.002;
-const ARC_RADIUS_REL: f64 = 1e-5;
+/// How far half an `R` arc's chord may exceed its radius, and the least radius of an arc, mm
+/// (LinuxCNC's `RADIUS_TOLERANCE_MM`, 0.00005 inch).
+pub const ARC_RADIUS_TOLERANCE_MM: f64 = 0.000_05 * MM_PER_INCH;
+/// The start and end radii of a centre arc may differ by this share of the larger one
+/// (LinuxCNC's `SPIRAL_RELATIVE_TOLERANCE`)…
+const SPIRAL_RELATIVE: f64 = 0.001;
+
+/// Under the wire offset, how far apart a centre arc's radii may be, mm (plus
+/// [`OFFSET_ARC_RADIUS_REL`] of the radius).
+pub const OFFSET_ARC_RADIUS_TOLERANCE_MM: f64 = 0.002;
+const OFFSET_ARC_RADIUS_REL: f64 = 1e-5;
+
+/// …or by this much, mm, and never by 100 times it (LinuxCNC's
+/// `CENTER_ARC_RADIUS_TOLERANCE_MM` and `_INCH`, by the program's units).
+pub fn spiral_tolerance_mm(inch: bool) -> f64 {
+    if inch {
+        2.0 * 0.001 * std::f64::consts::SQRT_2 * MM_PER_INCH
+    } else {
+        2.0 * 0.01 * std::f64::consts::SQRT_2
+    }
+}
+
 impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn arc_block(
         &mut self,
@@ -32,16 +64,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.check_letters_with(letters, true, &|c| [oa, ob, 'R', 'P'].contains(&c), &|| {
             format!("in {} ({}) arcs", plane.g_code(), plane.name())
         })?;
-        if let Some(p) = letters.get('P') {
-            return Err((
-                p.col,
-                GcodeErrorKind::UnexpectedWord {
-                    letter: 'P',
-                    context: "in arcs (multi-turn arcs are not supported)".into(),
-                },
-            )
-                .into());
-        }
+        let turns = match letters.get('P') {
+            Some(p) => arc_turns(p)?,
+            None => 1,
+        };
         let index = |letter: char| {
             Axis::from_letter(letter).and_then(|a| self.axes.iter().position(|&m| m == a))
         };
@@ -60,18 +86,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let feed = self.feed_limit(col);
         let (end, _) = self.target(&self.state.position, letters, "")?;
         let start = self.state.position;
-        for (i, axis) in self.axes.iter().enumerate() {
-            if i != ia && i != ib && end[i] != start[i] {
-                let w = letters.get(axis.letter()).map_or(col, |w| w.col);
-                return Err((
-                    w,
-                    GcodeErrorKind::HelicalArc {
-                        axis: axis.letter(),
-                    },
-                )
-                    .into());
-            }
-        }
+        self.check_helix(letters, [ia, ib], &start, &end, col)?;
         let radius_word = letters.get('R');
         let (off_a, off_b) = (letters.get(oa), letters.get(ob));
         if let (Some(r), Some(o)) = (radius_word, off_a.or(off_b)) {
@@ -102,8 +117,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         let a0 = (start[ib] - center[ib]).atan2(start[ia] - center[ia]);
         let a1 = (end[ib] - center[ib]).atan2(end[ia] - center[ia]);
+        let extra_turns = std::f64::consts::TAU * f64::from(turns - 1);
         let sweep = sweep_of(a0, a1, ccw, full_circle);
-        let curve = circular_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
+        let sweep = sweep + extra_turns.copysign(sweep);
+        let curve = spiral_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
             .map_err(|e| Fail::from((col, e.into())))?;
         let radius = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
         self.state.position = end;
@@ -120,9 +137,42 @@ impl<R: BufRead + Seek> BlockReader<R> {
         )))
     }
 
+    /// An axis outside the arc's plane `[ia, ib]` that moves makes a helix: refused where a
+    /// stage works in the plane (the wire offset, the taper).
+    fn check_helix(
+        &self,
+        letters: &Letters,
+        [ia, ib]: [usize; 2],
+        start: &Point,
+        end: &Point,
+        col: usize,
+    ) -> Step<()> {
+        let why = if self.state.modal.wire_offset.engaged() {
+            "under the wire offset (G41/G42 offset the path in the plane: cut the helix after G40)"
+        } else if self.state.modal.taper != 0.0 {
+            "under a taper (G51/G52 tilt the wire along a path in the plane: G50 first)"
+        } else {
+            return Ok(());
+        };
+        for (i, axis) in self.axes.iter().enumerate() {
+            if i != ia && i != ib && end[i] != start[i] {
+                let w = letters.get(axis.letter()).map_or(col, |w| w.col);
+                return Err((
+                    w,
+                    GcodeErrorKind::HelicalArc {
+                        axis: axis.letter(),
+                        why,
+                    },
+                )
+                    .into());
+            }
+        }
+        Ok(())
+    }
+
     /// The centre of an `I J K` arc in the plane of axes `[ia, ib]` (the offsets relative to
-    /// the start, or absolute under `G90.1`), its radius the same at both ends within the
-    /// tolerance.
+    /// the start, or absolute under `G90.1`, where both are needed), its start and end radii
+    /// within LinuxCNC's spiral tolerance.
     fn centre_of_offsets(
         &self,
         off_a: Option<&Word>,
@@ -133,38 +183,79 @@ impl<R: BufRead + Seek> BlockReader<R> {
         col: usize,
     ) -> Step<Point> {
         let mut center = *start;
-        if off_a.is_none() && off_b.is_none() {
-            return Err((col, GcodeErrorKind::ArcMissingCentre).into());
-        }
+        let (va, vb) = match (off_a, off_b) {
+            (None, None) => return Err((col, GcodeErrorKind::ArcMissingCentre).into()),
+            (a, b) if self.state.modal.arc_centre_absolute && (a.is_none() || b.is_none()) => {
+                let [la, lb] = self.state.modal.plane.offset_letters();
+                let letter = if a.is_none() { la } else { lb };
+                let at = a.or(b).map_or(col, |w| w.col);
+                return Err((at, GcodeErrorKind::ArcCentreWordMissing { letter }).into());
+            }
+            (a, b) => (a, b),
+        };
         let s = self.state.scale();
-        let va = off_a.map(|w| w.value * s);
-        let vb = off_b.map(|w| w.value * s);
+        let va = va.map_or(0.0, |w| w.value * s);
+        let vb = vb.map_or(0.0, |w| w.value * s);
         if self.state.modal.arc_centre_absolute {
             let offset = self.state.offset();
-            center[ia] = va.map_or(start[ia], |v| v + offset[ia]);
-            center[ib] = vb.map_or(start[ib], |v| v + offset[ib]);
+            center[ia] = va + offset[ia];
+            center[ib] = vb + offset[ib];
         } else {
-            center[ia] = start[ia] + va.unwrap_or(0.0);
-            center[ib] = start[ib] + vb.unwrap_or(0.0);
+            center[ia] = start[ia] + va;
+            center[ib] = start[ib] + vb;
         }
         let r_start = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
         let r_end = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
         let offset_col = off_a.or(off_b).map_or(col, |w| w.col);
-        if r_start < 1e-9 {
+        if r_start < ARC_RADIUS_TOLERANCE_MM || r_end < ARC_RADIUS_TOLERANCE_MM {
             return Err((offset_col, GcodeErrorKind::ArcZeroRadius).into());
         }
-        if (r_start - r_end).abs() > ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * r_start {
+        let tolerance = spiral_tolerance_mm(self.state.modal.inch);
+        let apart = (r_start - r_end).abs();
+        let relative = apart / r_start.max(r_end);
+        let offset_limit = OFFSET_ARC_RADIUS_TOLERANCE_MM + OFFSET_ARC_RADIUS_REL * r_start;
+        let under_offset = self.state.modal.wire_offset.engaged();
+        if apart > 100.0 * tolerance
+            || (relative > SPIRAL_RELATIVE && apart > tolerance)
+            || (under_offset && apart > offset_limit)
+        {
+            let limit = if under_offset {
+                offset_limit
+            } else {
+                (100.0 * tolerance).min(tolerance.max(SPIRAL_RELATIVE * r_start.max(r_end)))
+            };
             return Err((
                 offset_col,
-                GcodeErrorKind::ArcRadiusMismatch {
+                GcodeErrorKind::ArcSpiralTooFar {
                     start: r_start,
                     end: r_end,
+                    limit,
+                    under: if under_offset {
+                        " under the wire offset"
+                    } else {
+                        ""
+                    },
                 },
             )
                 .into());
         }
         Ok(center)
     }
+}
+
+/// An arc's `P`: how many times it goes round (1: as far as its end point, as without `P`).
+fn arc_turns(p: &Word) -> Step<u32> {
+    let turns = p.value.round();
+    if (turns - p.value).abs() > 0.001 || !(1.0..=1e6).contains(&turns) {
+        return Err((
+            p.col,
+            GcodeErrorKind::ArcTurns {
+                text: p.text.to_string(),
+            },
+        )
+            .into());
+    }
+    Ok(turns as u32)
 }
 
 /// The centre of an `R` arc (`radius` in mm, negative for the major arc) from `start` along
@@ -179,9 +270,8 @@ fn centre_of_radius(
     chord: f64,
 ) -> Result<[f64; 2], Fail> {
     let half = chord / 2.0;
-    let tol = ARC_RADIUS_TOLERANCE_MM + ARC_RADIUS_REL * radius.abs();
     let h_sq = radius * radius - half * half;
-    if h_sq < 0.0 && half - radius.abs() > tol {
+    if h_sq < 0.0 && half - radius.abs() > ARC_RADIUS_TOLERANCE_MM {
         return Err((
             col,
             GcodeErrorKind::ArcRadiusTooSmall {

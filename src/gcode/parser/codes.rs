@@ -24,6 +24,34 @@ pub(super) enum Motion {
     Ccw,
     /// `G38.2`…`G38.5`, `G31`: a straight move that stops at contact.
     Probe(Probing),
+    /// `G5.1`: a quadratic B-spline through the block's end, its control point at `I J`.
+    QuadSpline,
+    /// `G81`, `G82`, `G83`, `G73`: a canned cycle in the XY plane.
+    Cycle(Cycle),
+}
+
+/// The canned cycles edmd has: a plunge along Z under the servo at each hole.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Cycle {
+    /// `G81`: down at the feed, out at the rapid.
+    Drill,
+    /// `G82`: `G81` with a dwell `P` at the bottom.
+    DwellAtBottom,
+    /// `G83`: pecks of `Q`, out to the R plane after each.
+    Peck,
+    /// `G73`: pecks of `Q`, backing off a little after each.
+    ChipBreak,
+}
+
+impl Cycle {
+    pub(super) fn g_code(self) -> &'static str {
+        match self {
+            Cycle::Drill => "G81",
+            Cycle::DwellAtBottom => "G82",
+            Cycle::Peck => "G83",
+            Cycle::ChipBreak => "G73",
+        }
+    }
 }
 
 /// What a probing move looks for.
@@ -82,6 +110,15 @@ pub(super) enum GCode {
     WorkSystem(WorkSystem),
     /// G53 (group 0): this block's move is in machine coordinates.
     MachineCoords,
+    /// G28/G30 (group 0): to a stored machine position; G28.1/G30.1 store it.
+    Reference {
+        g30: bool,
+        store: bool,
+    },
+    /// G98 (back to the initial level) / G99 (to the R plane) after a cycle (group 10).
+    Retract {
+        initial_level: bool,
+    },
 }
 
 /// The G92 family and G10.
@@ -111,7 +148,8 @@ impl GCode {
             GCode::Accepted(g) => g,
             GCode::Ignored { group, .. } => group,
             GCode::SpindleMode => 14,
-            GCode::Dwell | GCode::Offset(_) | GCode::MachineCoords => 0,
+            GCode::Dwell | GCode::Offset(_) | GCode::MachineCoords | GCode::Reference { .. } => 0,
+            GCode::Retract { .. } => 10,
             GCode::WorkSystem(_) => 12,
             GCode::CompOff | GCode::Comp { .. } => 7,
             GCode::TaperOff | GCode::Taper { .. } => 16,
@@ -211,15 +249,23 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
         921 => GCode::Offset(OffsetCode::Clear),
         922 => GCode::Offset(OffsetCode::Suspend),
         923 => GCode::Offset(OffsetCode::Restore),
-        50 | 51 => return unsupported("LinuxCNC splines; use the G5.2/G5.3 NURBS form"),
+        51 => GCode::Motion(Motion::QuadSpline),
+        50 => return unsupported("cubic splines (G5); use G5.1 or the G5.2/G5.3 NURBS form"),
         60 | 61 => return unsupported("this is a G06.x code edmd does not have; use G06.2"),
         70 | 80 => return unsupported("lathe modes"),
         500 => GCode::TaperOff,
         510 => GCode::Taper { left: true },
         520 => GCode::Taper { left: false },
-        280 | 281 | 300 | 301 => {
-            return unsupported("homing and reference points (G28/G30) need a homed machine");
-        }
+        280 | 281 | 300 | 301 => GCode::Reference {
+            g30: tenths >= 300,
+            store: tenths % 10 == 1,
+        },
+        980 => GCode::Retract {
+            initial_level: true,
+        },
+        990 => GCode::Retract {
+            initial_level: false,
+        },
         330 | 331 | 760 => return unsupported("threading"),
         382..=385 => GCode::Motion(Motion::Probe(Probing {
             probe: crate::gcode::Probe {
@@ -235,7 +281,17 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
             },
             one_shot: true,
         })),
-        730 | 740 | 810..=890 => return unsupported("canned cycles"),
+        810 => GCode::Motion(Motion::Cycle(Cycle::Drill)),
+        820 => GCode::Motion(Motion::Cycle(Cycle::DwellAtBottom)),
+        830 => GCode::Motion(Motion::Cycle(Cycle::Peck)),
+        730 => GCode::Motion(Motion::Cycle(Cycle::ChipBreak)),
+        740 | 840 => return unsupported("tapping cycles (they reverse a spindle an EDM has not)"),
+        850..=890 => {
+            return unsupported(
+                "boring cycles (spindle stops and orientation); G81, G82, G83 and G73 are \
+                 the cycles edmd has",
+            );
+        }
         960 | 970 => GCode::SpindleMode,
         _ => {
             return Err((
@@ -287,6 +343,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 }
                 GCode::Offset(o) => later.offset = Some((o, w)),
                 GCode::MachineCoords => later.machine = Some(w),
+                GCode::Reference { g30, store } => later.reference = Some((g30, store, w)),
+                GCode::Retract { initial_level } => {
+                    self.state.cycle.retract_to_initial = initial_level;
+                }
                 GCode::WorkSystem(system) => self.select_system(system, w)?,
                 GCode::CompOff => self.state.modal.wire_offset.cancel(),
                 GCode::Comp { left } => {
@@ -412,6 +472,8 @@ pub(super) struct LaterCodes<'w> {
     pub(super) motion: Option<(GCode, &'w Word)>,
     pub(super) offset: Option<(OffsetCode, &'w Word)>,
     pub(super) machine: Option<&'w Word>,
+    /// `G28`/`G30` (`g30`), or their `.1` (`store`).
+    pub(super) reference: Option<(bool, bool, &'w Word)>,
 }
 
 /// The G codes of a block, one per modal group.

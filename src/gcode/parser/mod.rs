@@ -10,9 +10,11 @@
 mod arc;
 mod codes;
 mod control;
+mod cycles;
 mod modal;
 mod nurbs;
 mod offsets;
+mod polar;
 mod state;
 mod structure;
 mod system;
@@ -61,23 +63,32 @@ impl From<(usize, GcodeErrorKind)> for Fail {
 
 pub(super) type Step<T> = Result<T, Fail>;
 
-/// The words of one block, looked up by letter.
+/// The words of one block, looked up by letter (`A`…`Z`, then the polar `@` and `^`).
 #[derive(Clone, Copy)]
 pub(super) struct Letters<'w> {
-    by_letter: [Option<&'w Word>; 26],
+    by_letter: [Option<&'w Word>; 28],
+}
+
+/// The slot of a word letter in [`Letters`].
+fn letter_slot(letter: char) -> usize {
+    match letter {
+        '@' => 26,
+        '^' => 27,
+        _ => (letter as u8 - b'A') as usize,
+    }
 }
 
 impl<'w> Letters<'w> {
     /// The same words but `drop`: words a code consumed (G64's `P`/`Q`, G43's `H`).
     pub(super) fn without(mut self, drop: &[char]) -> Letters<'w> {
         for &letter in drop {
-            self.by_letter[(letter as u8 - b'A') as usize] = None;
+            self.by_letter[letter_slot(letter)] = None;
         }
         self
     }
 
     pub(super) fn get(&self, letter: char) -> Option<&'w Word> {
-        self.by_letter[(letter as u8 - b'A') as usize]
+        self.by_letter[letter_slot(letter)]
     }
 
     pub(super) fn present(&self) -> impl Iterator<Item = &'w Word> + '_ {
@@ -112,16 +123,22 @@ impl<R: BufRead + Seek> BlockReader<R> {
         axes: &[Axis],
         options: ProgramOptions,
     ) -> Self {
-        Self {
+        let mut reader = Self {
             options,
             source_name: source_name.into(),
             axes: axes.to_vec(),
             state: InterpState::new(),
             program: ProgramFlow::new(LineSource::new(reader)),
             scratch: LineScratch::default(),
-            out: Output { pending: None },
+            out: Output {
+                pending: None,
+                queued: Default::default(),
+            },
             diag: Diagnostics::default(),
-        }
+        };
+        // G54 is active from the start, and `#5220` says so (LinuxCNC: 1).
+        reader.load_system(crate::gcode::work::WorkSystem::G54);
+        reader
     }
 
     /// Makes the reader give up, with [`GcodeErrorKind::Cancelled`], at the first line it
@@ -178,6 +195,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
         loop {
+            if let Some(mut block) = self.out.queued.pop_front() {
+                // Never under the wire offset: the block's codes refuse it.
+                block.taper = self.state.modal.taper;
+                return Ok(Some(block));
+            }
             if self.program.done {
                 return Ok(None);
             }
@@ -535,12 +557,12 @@ pub(super) fn first_col(words: &[Word]) -> usize {
 
 /// Indexes the block's words by letter; G and M may repeat (checked later), others may not.
 pub(super) fn collect_letters(words: &[Word]) -> Step<Letters<'_>> {
-    let mut by_letter: [Option<&Word>; 26] = [None; 26];
+    let mut by_letter: [Option<&Word>; 28] = [None; 28];
     for w in words {
         if matches!(w.letter, 'G' | 'M') {
             continue;
         }
-        let slot = &mut by_letter[(w.letter as u8 - b'A') as usize];
+        let slot = &mut by_letter[letter_slot(w.letter)];
         if slot.is_some() {
             return Err((w.col, GcodeErrorKind::RepeatedWord { letter: w.letter }).into());
         }
@@ -568,7 +590,7 @@ impl<R: BufRead + Seek> Iterator for BlockReader<R> {
     type Item = Result<Block, GcodeError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        if self.program.done {
+        if self.program.done && self.out.queued.is_empty() {
             return None;
         }
         match self.next_block() {

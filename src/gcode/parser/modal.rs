@@ -125,6 +125,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         let later = self.apply_g_codes(&codes, &mut kept)?;
         let motion_word = later.motion;
+        if let (Some((_, _, r)), Some((_, m))) = (later.reference, motion_word) {
+            return Err((
+                m.col,
+                GcodeErrorKind::ConflictingG {
+                    a: r.text.to_string(),
+                    b: m.text.to_string(),
+                },
+            )
+                .into());
+        }
         if let Some((code, w)) = later.offset {
             if let Some((_, m)) = motion_word {
                 return Err((
@@ -178,7 +188,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
         } = self.m_codes(line_no, words)?;
         self.condition_and_feed(line_no, letters)?;
 
-        let block = self.motion_of(motion_word, line_no, text, letters, words);
+        let block = match later.reference {
+            Some((g30, store, w)) => self.reference_point(g30, store, w, line_no, letters),
+            None => self.motion_of(motion_word, line_no, text, letters, words),
+        };
         self.scratch.machine_move = false;
         let block = block?;
         if program_end {
@@ -223,6 +236,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 ),
                 98 => {}
                 99 => m99 = Some(w.col),
+                70..=73 => self.modal_state_code(code, w.col)?,
                 _ => {
                     return Err((
                         w.col,
@@ -298,6 +312,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         letters: &Letters,
         words: &[Word],
     ) -> Step<Option<Block>> {
+        let previous = self.state.modal.motion;
         Ok(match motion_word {
             Some((GCode::Curve(form), w)) => {
                 self.check_letters(
@@ -313,6 +328,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             Some((GCode::MotionCancel, _)) => {
                 self.state.modal.motion = None;
+                self.state.cycle.initial_level = None;
                 self.check_letters(letters, false, "", "with G80")?;
                 None
             }
@@ -321,7 +337,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     self.state.modal.motion = Some(m);
                 }
                 if self.moves(m, letters)? {
-                    self.motion_block(m, line_no, letters, w.col)?
+                    self.motion_block(m, previous == Some(m), line_no, letters, w.col)?
                 } else {
                     self.check_letters(letters, false, "", "without axis words")?;
                     None
@@ -329,7 +345,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             _ => match self.state.modal.motion {
                 Some(m) if self.moves(m, letters)? => {
-                    self.motion_block(m, line_no, letters, first_col(words))?
+                    self.motion_block(m, true, line_no, letters, first_col(words))?
                 }
                 Some(_) => {
                     self.check_letters(letters, false, "", "without axis words")?;
@@ -420,7 +436,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub(super) fn first_axis_word<'w>(&self, letters: &Letters<'w>) -> Step<Option<&'w Word>> {
         let mut first: Option<&Word> = None;
         for w in letters.present() {
-            if self.machine_axis(w)?.is_some() && first.is_none_or(|f| w.col < f.col) {
+            let polar = matches!(w.letter, '@' | '^');
+            if (polar || self.machine_axis(w)?.is_some()) && first.is_none_or(|f| w.col < f.col) {
                 first = Some(w);
             }
         }
@@ -455,7 +472,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             if extra(w.letter) || "GMNFSTE".contains(w.letter) {
                 continue; // a form's own word (G38's C) wins over an axis letter
             }
-            if self.machine_axis(w)?.is_some() && allow_axes {
+            if allow_axes && (matches!(w.letter, '@' | '^') || self.machine_axis(w)?.is_some()) {
                 continue;
             }
             return Err((
@@ -512,6 +529,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 any = true;
             }
         }
+        if let Some(([ix, iy], [x, y])) = self.polar_end(base, letters)? {
+            p[ix] = x;
+            p[iy] = y;
+            any = true;
+        }
         Ok((p, any))
     }
 
@@ -530,13 +552,20 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.state.modal.feed
     }
 
+    /// The block's motion in mode `motion`; `continuing`: the mode was already in force (a
+    /// canned cycle's words hold).
     pub(super) fn motion_block(
         &mut self,
         motion: Motion,
+        continuing: bool,
         line_no: u64,
         letters: &Letters,
         col: usize,
     ) -> Step<Option<Block>> {
+        if !matches!(motion, Motion::Cycle(_)) {
+            // Any other motion ends a series of cycles (LinuxCNC's `cycle_il_flag`).
+            self.state.cycle.initial_level = None;
+        }
         match motion {
             Motion::Rapid | Motion::Linear => {
                 self.check_letters(
@@ -571,6 +600,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.arc_block(motion == Motion::Ccw, line_no, letters, col)
             }
             Motion::Probe(p) => self.probe_block(p.probe, line_no, letters, col).map(Some),
+            Motion::QuadSpline => self.quad_spline(line_no, letters, col).map(Some),
+            Motion::Cycle(c) => self.cycle_block(c, continuing, line_no, letters, col),
         }
     }
 

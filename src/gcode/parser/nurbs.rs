@@ -552,3 +552,58 @@ pub(super) fn curve_letters(form: NurbsForm, first: bool) -> &'static str {
         (NurbsForm::LinuxCnc, false) => "P",
     }
 }
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// `G5.1 X Y I J`: LinuxCNC's quadratic B-spline from here to the end point, its middle
+    /// control point at `I J` from the start (both needed), in the XY plane and never under
+    /// the wire offset (LinuxCNC refuses both). Exact as a degree-2 curve.
+    pub(super) fn quad_spline(
+        &mut self,
+        line_no: u64,
+        letters: &Letters,
+        col: usize,
+    ) -> Step<Block> {
+        let fail = |col, what: &str| Fail::from((col, GcodeErrorKind::Control(what.to_string())));
+        self.check_letters(letters, true, "IJ", "with G5.1")?;
+        if self.state.modal.plane != crate::gcode::Plane::XY {
+            return Err(fail(col, "G5.1 works in the XY plane (G17) only"));
+        }
+        if self.state.modal.wire_offset.engaged() {
+            return Err(fail(
+                col,
+                "G5.1 cannot be used with the wire offset on (G40 first)",
+            ));
+        }
+        let (Some(i), Some(j)) = (letters.get('I'), letters.get('J')) else {
+            return Err(fail(
+                col,
+                "G5.1 needs both I and J (its control point from the start)",
+            ));
+        };
+        let index = |axis| self.axes.iter().position(|&a| a == axis);
+        let (Some(ix), Some(iy)) = (index(crate::vocab::Axis::X), index(crate::vocab::Axis::Y))
+        else {
+            return Err(fail(col, "G5.1 needs the axes X and Y"));
+        };
+        let feed = self.feed_limit(col);
+        let start = self.state.position;
+        let (end, _) = self.target(&start, letters, "")?;
+        let mut control = start;
+        control[ix] += i.value * self.state.scale();
+        control[iy] += j.value * self.state.scale();
+        let curve = NurbsCurve::new(
+            2,
+            self.axes.len(),
+            &[start, control, end],
+            &[1.0; 3],
+            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        )
+        .map_err(|e| Fail::from((col, e.into())))?;
+        self.state.position = end;
+        // Of LinuxCNC's G5.x family: reported with its NURBS form.
+        let kind = BlockKind::Nurbs {
+            form: NurbsForm::LinuxCnc,
+        };
+        Ok(self.block(line_no, kind, curve, feed))
+    }
+}

@@ -53,6 +53,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
         }
         self.load_system(start.system);
+        self.state.unhomed = start.unhomed;
         self.state.modal.inch = start.modes.inch;
         self.state.modal.incremental = start.modes.incremental;
     }
@@ -94,7 +95,7 @@ impl<R> BlockReader<R> {
     }
 
     /// Makes `system` active, loading its offset from the table.
-    fn load_system(&mut self, system: WorkSystem) {
+    pub(super) fn load_system(&mut self, system: WorkSystem) {
         self.state.system = system;
         self.state.g5x = self.table_entry(system);
         self.state.params.set(
@@ -123,6 +124,39 @@ impl<R> BlockReader<R> {
         Ok(())
     }
 
+    /// `M72` (and a return from a call that gave `M73`): the modes `saved` back, the work
+    /// system selected as by its G word (`col`: where to point an error).
+    pub(super) fn restore_modes(
+        &mut self,
+        saved: super::state::SavedModes,
+        col: usize,
+    ) -> Step<()> {
+        if saved.system != self.state.system {
+            if self.state.modal.wire_offset.engaged() {
+                return Err((
+                    col,
+                    GcodeErrorKind::WorkOffset(
+                        "the restored modes change the work system, which cannot change with \
+                         the wire offset on (G40 first)"
+                            .into(),
+                    ),
+                )
+                    .into());
+            }
+            self.load_system(saved.system);
+        }
+        let modal = &mut self.state.modal;
+        modal.inch = saved.inch;
+        modal.incremental = saved.incremental;
+        modal.arc_centre_absolute = saved.arc_centre_absolute;
+        modal.plane = saved.plane;
+        modal.feed = saved.feed;
+        self.state.flushing = saved.flushing;
+        self.state.condition = saved.condition;
+        self.state.cycle.retract_to_initial = saved.retract_to_initial;
+        Ok(())
+    }
+
     /// A program end (`M2`/`M30`) returns to `G54`, as LinuxCNC's does.
     pub(super) fn end_in_g54(&mut self) {
         if self.state.system != WorkSystem::G54 {
@@ -145,6 +179,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
         w: &Word,
         letters: &Letters,
     ) -> Step<()> {
+        if code != OffsetCode::Table && self.state.modal.wire_offset.engaged() {
+            // LinuxCNC: "Cannot change axis offsets with cutter radius comp" for G92. It takes
+            // G92.1, G92.2 and G92.3 but never tells motion (no SET_G92_OFFSET), so its cut
+            // goes on with the old offset: edmd refuses the whole family.
+            return Err((
+                w.col,
+                GcodeErrorKind::WorkOffset(format!(
+                    "G{}: the G92 offset cannot change with the wire offset on (G40 first)",
+                    w.text
+                )),
+            )
+                .into());
+        }
         match code {
             OffsetCode::Table => return self.set_table(w, letters),
             OffsetCode::Set => {

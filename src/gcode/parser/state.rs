@@ -16,6 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::control::Flow;
+use super::cycles::CycleState;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
 use super::structure::Structure;
@@ -26,7 +27,7 @@ use crate::gcode::expr::Params;
 use crate::gcode::lexer::{Assign, Word};
 use crate::gcode::lines::{LineSource, Pos};
 use crate::gcode::work::WorkSystem;
-use crate::gcode::{Pause, Plane};
+use crate::gcode::{Block, Pause, Plane};
 use crate::geometry::Point;
 
 /// The interpreter's state: what one block leaves for the next.
@@ -50,6 +51,28 @@ pub(super) struct InterpState {
     /// G4 dwell (s) and M0/M1 pause waiting for the next motion.
     pub pending_dwell: f64,
     pub pending_pause: Option<(u64, Pause)>,
+    /// The canned cycles' held words and levels.
+    pub cycle: CycleState,
+    /// The modes `M70`/`M73` saved, for `M72`.
+    pub saved_modes: Option<SavedModes>,
+    /// Some axis is not homed ([`crate::gcode::WorkStart::unhomed`]).
+    pub unhomed: bool,
+}
+
+/// The modal state `M70` saves and `M72` restores (LinuxCNC's list, as far as edmd has the
+/// modes): units, distance modes, plane, feed, flushing, the condition, the retract mode,
+/// the work system.
+#[derive(Debug, Clone)]
+pub(super) struct SavedModes {
+    pub inch: bool,
+    pub incremental: bool,
+    pub arc_centre_absolute: bool,
+    pub plane: Plane,
+    pub feed: Option<f64>,
+    pub flushing: bool,
+    pub condition: u32,
+    pub retract_to_initial: bool,
+    pub system: crate::gcode::work::WorkSystem,
 }
 
 impl InterpState {
@@ -86,6 +109,9 @@ impl InterpState {
             condition: 0,
             pending_dwell: 0.0,
             pending_pause: None,
+            cycle: CycleState::default(),
+            saved_modes: None,
+            unhomed: false,
         }
     }
 }
@@ -162,6 +188,9 @@ pub(super) struct LineScratch {
 pub(super) struct Output {
     /// A NURBS curve being collected over several lines.
     pub pending: Option<PendingCurve>,
+    /// The moves after the first of a block that makes several (a canned cycle, `G28`),
+    /// handed out before the next line is read.
+    pub queued: std::collections::VecDeque<Block>,
 }
 
 /// Warnings, each kind given once per program.
@@ -191,6 +220,23 @@ impl Diagnostics {
                 col: w.col,
                 message: format!("{}{}: {message}", w.letter, w.text),
             });
+        }
+    }
+}
+
+impl InterpState {
+    /// The modes `M70` saves.
+    pub fn saved_modes(&self) -> SavedModes {
+        SavedModes {
+            inch: self.modal.inch,
+            incremental: self.modal.incremental,
+            arc_centre_absolute: self.modal.arc_centre_absolute,
+            plane: self.modal.plane,
+            feed: self.modal.feed,
+            flushing: self.flushing,
+            condition: self.condition,
+            retract_to_initial: self.cycle.retract_to_initial,
+            system: self.system,
         }
     }
 }

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 /// rs274 prints four decimals; three rounded figures add up to at most 1.5e-4 mm.
 pub const TOLERANCE_MM: f64 = 2e-4;
@@ -25,7 +25,62 @@ pub fn rs274() -> Option<PathBuf> {
         );
         eprintln!("rs274 not found: the comparison with LinuxCNC is skipped");
     }
-    found
+    static MM: OnceLock<PathBuf> = OnceLock::new();
+    found.map(|p| MM.get_or_init(|| mm_machine(&p)).clone())
+}
+
+/// A copy of `rs274` that reads programs as a mm machine does.
+///
+/// Debian's standalone `rs274` (2.9.0~pre1) answers `GET_EXTERNAL_LENGTH_UNITS` with inches,
+/// so the interpreter keeps its parameters and tool data in inches: `#5221` reads 0.3937
+/// after `G10 L2 P1 X10` in a mm program, and `G0 X[#5221]` goes 0.3937 mm. Newer LinuxCNC
+/// reads `[TRAJ] LINEAR_UNITS` for that; this build does not, so the copy's function returns
+/// 1.0 (mm) instead: `movabs rax, 1.0; movq xmm0, rax; ret`, 16 bytes, patched only where the
+/// function is the known 9-byte constant load, in a private copy under the test target dir.
+fn mm_machine(rs274: &Path) -> PathBuf {
+    const SYMBOL: &[u8] = b"_Z25GET_EXTERNAL_LENGTH_UNITSv";
+    let mut image = std::fs::read(rs274).expect("rs274 reads");
+    let at = elf_symbol_offset(&image, SYMBOL).expect("rs274 exports GET_EXTERNAL_LENGTH_UNITS");
+    let code = &image[at..at + 16];
+    // `movsd xmm0, [rip + …]; ret`, then padding up to the next 16-byte function.
+    assert!(
+        code.starts_with(&[0xf2, 0x0f, 0x10, 0x05]) && code[8] == 0xc3 && at.is_multiple_of(16),
+        "rs274's GET_EXTERNAL_LENGTH_UNITS is not the constant load this patch knows: {code:02x?}"
+    );
+    let mut patch = vec![0x48, 0xb8];
+    patch.extend_from_slice(&1.0f64.to_le_bytes());
+    patch.extend_from_slice(&[0x66, 0x48, 0x0f, 0x6e, 0xc0, 0xc3]);
+    image[at..at + 16].copy_from_slice(&patch);
+    let dir =
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("rs274-mm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let out = dir.join("rs274");
+    std::fs::write(&out, &image).expect("patched rs274 writes");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    out
+}
+
+/// The file offset of the dynamic symbol `name` in the ELF64 little-endian `image`.
+fn elf_symbol_offset(image: &[u8], name: &[u8]) -> Option<usize> {
+    let u16_at = |o: usize| u16::from_le_bytes(image[o..o + 2].try_into().unwrap()) as usize;
+    let u32_at = |o: usize| u32::from_le_bytes(image[o..o + 4].try_into().unwrap()) as usize;
+    let u64_at = |o: usize| u64::from_le_bytes(image[o..o + 8].try_into().unwrap()) as usize;
+    let (shoff, shentsize, shnum) = (u64_at(0x28), u16_at(0x3a), u16_at(0x3c));
+    let section = |i: usize| shoff + i * shentsize;
+    let dynsym = (0..shnum).map(section).find(|&s| u32_at(s + 4) == 11)?;
+    let strtab = u64_at(section(u32_at(dynsym + 0x28)) + 0x18);
+    let (symoff, symsize) = (u64_at(dynsym + 0x18), u64_at(dynsym + 0x20));
+    let vaddr = (0..symsize / 24).map(|k| symoff + 24 * k).find_map(|sym| {
+        let start = strtab + u32_at(sym);
+        let end = start + image[start..].iter().position(|&b| b == 0)?;
+        (&image[start..end] == name).then(|| u64_at(sym + 8))
+    })?;
+    let (phoff, phentsize, phnum) = (u64_at(0x20), u16_at(0x36), u16_at(0x38));
+    (0..phnum).map(|i| phoff + i * phentsize).find_map(|ph| {
+        let (offset, va, size) = (u64_at(ph + 8), u64_at(ph + 0x10), u64_at(ph + 0x20));
+        (u32_at(ph) == 1 && (va..va + size).contains(&vaddr)).then(|| vaddr - va + offset)
+    })
 }
 
 /// The numbers inside `NAME(…)` on an rs274 output line.
@@ -59,6 +114,9 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
     let mut g5x = [0.0; 3];
     let mut g92 = [0.0; 3];
     let mut moves: Vec<[f64; 3]> = Vec::new();
+    let mut plane = 0;
+    // A full circle ends where it starts and still moves.
+    let mut arcs = std::collections::HashSet::new();
     for line in text.lines() {
         if line.contains("USE_LENGTH_UNITS(CANON_UNITS_INCHES)") {
             scale = 25.4;
@@ -72,10 +130,24 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
             call_args(line, "STRAIGHT_FEED").or_else(|| call_args(line, "STRAIGHT_TRAVERSE"))
         {
             moves.push(std::array::from_fn(|i| a[i] * scale + g5x[i] + g92[i]));
+        } else if line.contains("SELECT_PLANE(CANON_PLANE_") {
+            plane = ["XY", "XZ", "YZ"]
+                .iter()
+                .position(|p| line.contains(&format!("CANON_PLANE_{p})")))
+                .unwrap_or(0);
         } else if let Some(a) = call_args(line, "ARC_FEED") {
-            // XY plane: first end, second end, centre, centre, turn, Z end.
-            let p = [a[0], a[1], a[5]];
+            // First end, second end, centre, centre, turns, third axis end: the plane's
+            // axes in its own order (XY: X Y Z; XZ: Z X Y; YZ: Y Z X).
+            let p = match plane {
+                0 => [a[0], a[1], a[5]],
+                1 => [a[1], a[5], a[0]],
+                _ => [a[5], a[0], a[1]],
+            };
             moves.push(std::array::from_fn(|i| p[i] * scale + g5x[i] + g92[i]));
+            arcs.insert(moves.len() - 1);
+        } else if line.contains("NURBS_FEED(") {
+            // rs274 prints no end point for a spline: compared as unknown.
+            moves.push([f64::NAN; 3]);
         } else if !line.trim().is_empty()
             && !line.contains("N.....")
             && !line.starts_with("executing")
@@ -85,7 +157,15 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
     }
     // edmd makes no block of a move that goes nowhere.
     let mut from = [0.0; 3];
+    let mut index = 0;
     moves.retain(|p| {
+        index += 1;
+        if p[0].is_nan() || arcs.contains(&(index - 1)) {
+            if !p[0].is_nan() {
+                from = *p;
+            }
+            return true;
+        }
         let moved = p
             .iter()
             .zip(&from)

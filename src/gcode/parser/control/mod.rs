@@ -60,6 +60,8 @@ pub(super) struct Frame {
     pub(super) call_line: u64,
     loops: usize,
     ifs: usize,
+    /// The modes `M73` saved in this call, restored on its return.
+    pub(super) restore: Option<crate::gcode::parser::state::SavedModes>,
 }
 
 /// Why lines are being skipped, and what ends the skip.
@@ -211,6 +213,7 @@ impl Flow {
             call_line,
             loops: self.loops.len(),
             ifs: self.ifs.len(),
+            restore: None,
         };
         self.frames.push(frame);
     }
@@ -425,6 +428,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         self.program.flow.loops.truncate(frame.loops);
         self.program.flow.ifs.truncate(frame.ifs);
+        if let Some(saved) = frame.restore {
+            self.restore_modes(saved, 1)?;
+        }
         self.program.seek(frame.return_to)
     }
 
@@ -463,6 +469,41 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.scratch.line_no,
         );
         self.program.seek(body)
+    }
+
+    /// `M70` save the modal state, `M71` forget it, `M72` restore it, `M73` save it to be
+    /// restored when the subroutine it is given in returns (LinuxCNC's four).
+    pub(super) fn modal_state_code(&mut self, code: u32, col: usize) -> Step<()> {
+        match code {
+            70 => self.state.saved_modes = Some(self.state.saved_modes()),
+            71 => self.state.saved_modes = None,
+            72 => {
+                let Some(saved) = self.state.saved_modes.clone() else {
+                    return Err((
+                        col,
+                        control("M72: no modal state to restore (M70 saves one)".into()),
+                    )
+                        .into());
+                };
+                self.restore_modes(saved, col)?;
+            }
+            _ => {
+                let saved = self.state.saved_modes();
+                let Some(frame) = self.program.flow.frames.last_mut() else {
+                    return Err((
+                        col,
+                        control(
+                            "M73 outside a subroutine: it restores the modes when one returns \
+                             (M70 saves them anywhere)"
+                                .into(),
+                        ),
+                    )
+                        .into());
+                };
+                frame.restore = Some(saved);
+            }
+        }
+        Ok(())
     }
 
     /// `M99`: the end of a Fanuc subprogram.

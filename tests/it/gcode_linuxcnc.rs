@@ -1,0 +1,421 @@
+//! G-code as LinuxCNC reads it, item by item: every program here is read by edmd and by
+//! `rs274 -g` (Debian's `linuxcnc-uspace`, made a mm machine: see `common::linuxcnc`), and
+//! every move must end at the same machine point within 1 µm, or both must refuse the
+//! program. The start state (`#5220`), the `G92` family under the wire offset, absolute arc
+//! centres, arc turns (`P`), spirals, helices in the three planes, `M70`–`M73`, polar
+//! coordinates, `G5.1`, `G28`/`G30` and the canned cycles. Without `rs274` the comparison is
+//! skipped, unless `EDMD_LCNC_TESTS=1` (CI).
+
+use crate::common;
+
+use std::io::Cursor;
+use std::path::Path;
+
+use common::linuxcnc::{end_points, linuxcnc_moves, rs274};
+use edmd::gcode::{BlockReader, ProgramOptions};
+use edmd::vocab::Axis;
+
+const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
+/// rs274 prints 0.1 µm; edmd's spirals and helices are fitted within 0.01 µm…
+const AGREE_MM: f64 = 1e-3;
+/// …and in an inch program four decimals of an inch, ±1.27 µm.
+const AGREE_INCH_MM: f64 = 0.000_05 * 25.4 + 1e-6;
+
+/// edmd's reading of `text` (`D1` = 1 mm), end points or the error.
+fn edmd(text: &str) -> Result<Vec<[f64; 3]>, String> {
+    let options = ProgramOptions {
+        d_mm: vec![0.0, 1.0],
+        ..ProgramOptions::default()
+    };
+    end_points(BlockReader::with_options(
+        Cursor::new(text.as_bytes()),
+        "p.ngc",
+        XYZ,
+        options,
+    ))
+}
+
+/// rs274's reading of `text` (`G41 D1` written `G41.1 D2`, its offset by diameter).
+fn linuxcnc(rs274: &Path, name: &str, text: &str) -> Result<Vec<[f64; 3]>, String> {
+    let theirs = text
+        .replace("G41 D1", "G41.1 D2")
+        .replace("G42 D1", "G42.1 D2");
+    let dir = std::env::temp_dir().join(format!("edmd-gcode-lcnc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, theirs).unwrap();
+    linuxcnc_moves(rs274, &path)
+}
+
+/// Both read `text` and agree move for move (a spline's end, which rs274 does not print,
+/// is checked by the move after it).
+fn agree(rs274: &Path, name: &str, text: &str) -> usize {
+    let theirs =
+        linuxcnc(rs274, name, text).unwrap_or_else(|e| panic!("rs274 refuses {name}: {e}\n{text}"));
+    let ours = edmd(text).unwrap_or_else(|e| panic!("edmd refuses {name}: {e}\n{text}"));
+    let worst = ours
+        .iter()
+        .zip(&theirs)
+        .filter(|(_, b)| !b[0].is_nan())
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    let bound = if text.contains("G20") {
+        AGREE_INCH_MM
+    } else {
+        AGREE_MM
+    };
+    assert!(
+        ours.len() == theirs.len() && worst <= bound,
+        "{name}: edmd makes {} moves, LinuxCNC {} (worst difference {worst:.6} mm)\n\
+         edmd:  {ours:?}\nrs274: {theirs:?}\nprogram:\n{text}",
+        ours.len(),
+        theirs.len()
+    );
+    ours.len()
+}
+
+/// Both refuse `text`; edmd's message says `gist`.
+fn both_refuse(rs274: &Path, name: &str, text: &str, gist: &str) {
+    let theirs = linuxcnc(rs274, name, text);
+    assert!(
+        theirs.is_err(),
+        "{name}: rs274 accepts it: {theirs:?}\n{text}"
+    );
+    let ours = edmd(text);
+    match ours {
+        Err(e) => assert!(e.contains(gist), "{name}: edmd says {e:?}, not {gist:?}"),
+        Ok(m) => panic!(
+            "{name}: edmd accepts what rs274 refuses ({}): {m:?}\n{text}",
+            theirs.unwrap_err()
+        ),
+    }
+}
+
+#[test]
+fn the_start_state_reads_g54_as_active() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "p5220.ngc",
+        "G21\nG0 X[#5220] Y1\nG10 L2 P1 X10\nG0 X[#5221] Y[#5220]\nM2\n",
+    );
+}
+
+#[test]
+fn the_g92_family_is_refused_under_the_wire_offset() {
+    let Some(rs274) = rs274() else { return };
+    let program = |code: &str| {
+        format!(
+            "G21 G0 X-5 Y0\nG92 X-4\nG41 D1\nG1 X0 Y0 F100\nX10\n{code}\nX20\nG40\nG0 X30 Y-5\nM2\n"
+        )
+    };
+    let gist = "the G92 offset cannot change with the wire offset on";
+    both_refuse(&rs274, "g92comp.ngc", &program("G92 X0 Y0"), gist);
+    // LinuxCNC takes these but never hands motion the new offset (a deliberate difference).
+    for code in ["G92.1", "G92.2", "G92.3"] {
+        let err = edmd(&program(code)).expect_err(code);
+        assert!(err.contains(gist), "{err}");
+        let theirs = linuxcnc(&rs274, "g92x.ngc", &program(code)).expect("rs274 takes it");
+        assert!(
+            (theirs[3][0] - 19.0).abs() < 1e-3,
+            "{code}: rs274 cut on with the old offset, X20 at machine 19: {theirs:?}"
+        );
+    }
+}
+
+#[test]
+fn an_absolute_centre_arc_needs_both_centre_words() {
+    let Some(rs274) = rs274() else { return };
+    both_refuse(
+        &rs274,
+        "g901.ngc",
+        "G21 G90.1 G0 X10 Y0\nG2 X0 Y10 I0 F100\nM2\n",
+        "J word missing in an absolute-centre arc",
+    );
+    both_refuse(
+        &rs274,
+        "g901k.ngc",
+        "G21 G90.1 G18 G0 X10 Z0\nG2 X0 Z10 K0 F100\nM2\n",
+        "I word missing in an absolute-centre arc",
+    );
+    agree(
+        &rs274,
+        "g901ok.ngc",
+        "G21 G90.1 G0 X10 Y0\nG3 X0 Y10 I0 J0 F100\nM2\n",
+    );
+}
+
+#[test]
+fn arcs_turn_p_times() {
+    let Some(rs274) = rs274() else { return };
+    for (name, arc) in [
+        ("p2full.ngc", "G3 X10 Y0 I-10 J0 P2"),
+        ("p3part.ngc", "G2 X0 Y-10 I-10 J0 P3"),
+        ("p2r.ngc", "G3 X0 Y10 R10 P2"),
+        ("p2helix.ngc", "G3 X10 Y0 Z-3 I-10 J0 P2"),
+    ] {
+        agree(
+            &rs274,
+            name,
+            &format!("G21 G0 X10 Y0 Z0\n{arc} F100\nG1 X12\nM2\n"),
+        );
+    }
+    // Ends where one turn would: the move after checks the curve's end, the length its turns.
+    let blocks = edmd::gcode::BlockReader::new(
+        Cursor::new("G21 G0 X10 Y0\nG3 X10 Y0 I-10 J0 P2 F100\nM2\n".as_bytes()),
+        "p.ngc",
+        XYZ,
+    );
+    let arc: Vec<_> = blocks.filter_map(Result::ok).collect();
+    let length = arc[1].curve.length();
+    assert!(
+        (length - 2.0 * std::f64::consts::TAU * 10.0).abs() < 1e-4,
+        "{length}"
+    );
+}
+
+#[test]
+fn centre_arcs_whose_radii_differ_are_spirals_within_linuxcncs_tolerance() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "spiral3um.ngc",
+        "G21 G0 X10 Y0\nG3 X0 Y10.003 I-10 J0 F100\nM2\n",
+    );
+    agree(
+        &rs274,
+        "spiral25um.ngc",
+        "G21 G0 X10 Y0\nG3 X0 Y10.025 I-10 J0 F100\nM2\n",
+    );
+    // 0.1 % of a 100 mm radius is more than 28 µm: 90 µm passes there.
+    agree(
+        &rs274,
+        "spiral90um.ngc",
+        "G21 G0 X100 Y0\nG3 X0 Y100.09 I-100 J0 F100\nM2\n",
+    );
+    agree(
+        &rs274,
+        "spiralinch.ngc",
+        "G20 G0 X1 Y0\nG3 X0 Y1.0005 I-1 J0 F10\nG1 X-1\nM2\n",
+    );
+    both_refuse(
+        &rs274,
+        "spiral40um.ngc",
+        "G21 G0 X10 Y0\nG3 X0 Y10.04 I-10 J0 F100\nM2\n",
+        "arc radius to the end differs from the radius to the start",
+    );
+    both_refuse(
+        &rs274,
+        "spiral3mm.ngc",
+        "G21 G0 X5000 Y0\nG3 X0 Y5003 I-5000 J0 F100\nM2\n",
+        "arc radius to the end differs from the radius to the start",
+    );
+    // The curve really is the spiral: its middle is halfway between the radii.
+    let blocks: Vec<_> = BlockReader::new(
+        Cursor::new("G21 G0 X10 Y0\nG3 X-10.02 Y0 I-10 J0 F100\nM2\n".as_bytes()),
+        "p.ngc",
+        XYZ,
+    )
+    .filter_map(Result::ok)
+    .collect();
+    let mid = blocks[1].curve.point(0.5);
+    assert!((mid[0].hypot(mid[1]) - 10.01).abs() < 1e-4, "{mid:?}");
+}
+
+#[test]
+fn helical_arcs_in_the_three_planes() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "helixes.ngc",
+        "G21 G0 X10 Y0 Z0\nG17 G2 X-10 Y0 Z-2 I-10 J0 F100\nG3 X10 Y0 Z-4 R10\n\
+         G18 G2 X0 Z6 Y5 I-10 K0\nG19 G3 Y15 Z16 X-5 J10 K0\nG17 G3 X-5 Y15 Z0 I0 J10 P3\nM2\n",
+    );
+}
+
+#[test]
+fn m70_to_m73_save_and_restore_the_modes() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "m70.ngc",
+        "G21 G90 G0 X1 Y1\nG1 X2 F100\nM70\nG20 G91 G1 X1 F10\nM72\nG1 X5 Y5\nM71\nM2\n",
+    );
+    agree(
+        &rs274,
+        "m73.ngc",
+        "o100 sub\nM73\nG20 G91\nG1 X0.1 F10\no100 endsub\nG21 G90 G1 X1 Y1 F100\no100 call\nG1 X5 Y5\nM2\n",
+    );
+    agree(
+        &rs274,
+        "m70g55.ngc",
+        "G21 G10 L2 P2 X100\nG0 X1 Y1\nM70\nG55\nG0 X1 Y1\nM72\nG0 X2 Y2\nM2\n",
+    );
+    both_refuse(&rs274, "m72.ngc", "G21 G0 X1\nM72\nM2\n", "M72");
+}
+
+#[test]
+fn polar_coordinates() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "polar.ngc",
+        "G21 G10 L2 P1 X5 Y-3\nG0 @10 ^30\nG1 ^75 F100\nG1 @4\nG91 G1 ^15\nG1 @2\n\
+         G90 G2 @6 ^0 R20\nG20 G0 @1 ^45\nM2\n",
+    );
+    both_refuse(
+        &rs274,
+        "polarxy.ngc",
+        "G21 G0 @10 ^30 X1\nM2\n",
+        "X or Y cannot be given",
+    );
+}
+
+#[test]
+fn g5_1_quadratic_splines() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "g51.ngc",
+        "G21 G0 X0 Y0\nG5.1 X10 Y0 I5 J5 F100\nG5.1 X20 Y5 I3 J-4\nG1 X25\nM2\n",
+    );
+    both_refuse(
+        &rs274,
+        "g51j.ngc",
+        "G21 G0 X0 Y0\nG5.1 X10 Y0 I5 F100\nM2\n",
+        "needs both I and J",
+    );
+    // Its middle is the control points' (1,0), (6,5), (10,0) weighted 1/4, 1/2, 1/4.
+    let blocks: Vec<_> = BlockReader::new(
+        Cursor::new("G21 G0 X1 Y0\nG5.1 X10 Y0 I5 J5 F100\nM2\n".as_bytes()),
+        "p.ngc",
+        XYZ,
+    )
+    .collect::<Result<_, _>>()
+    .expect("reads");
+    let mid = blocks[1].curve.point(0.5);
+    assert!(
+        (mid[0] - 5.75).abs() < 1e-12 && (mid[1] - 2.5).abs() < 1e-12,
+        "{mid:?}"
+    );
+}
+
+#[test]
+fn g28_and_g30_go_to_their_stored_positions() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "g28.ngc",
+        "G21 G0 X10 Y20 Z5\nG28.1\nG0 X50 Y50 Z10\nG28\nG0 X1 Y2 Z3\nG28 Z8\n\
+         #5181 = 7\n#5182 = -3\nG30 X4 Y4\nG10 L2 P1 X100\nG30\nM2\n",
+    );
+    both_refuse(
+        &rs274,
+        "g28comp.ngc",
+        "G21 G0 X-5 Y0\nG41 D1\nG1 X0 Y0 F100\nG28\nM2\n",
+        "G28 cannot be used with the wire offset on",
+    );
+}
+
+#[test]
+fn g28_is_refused_on_an_unhomed_machine() {
+    let mut reader = BlockReader::new(Cursor::new("G28\nM2\n".as_bytes()), "p.ngc", XYZ);
+    reader.start_at(&edmd::gcode::WorkStart {
+        unhomed: true,
+        ..Default::default()
+    });
+    let err = reader.find_map(Result::err).expect("refused");
+    assert!(
+        err.to_string().contains("the machine is not homed"),
+        "{err}"
+    );
+}
+
+#[test]
+fn canned_cycles_move_as_linuxcncs() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "g81.ngc",
+        "G21 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nX10\nY10 Z-3\nG98 X15 R4\nG80\nG0 Z20\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g82.ngc",
+        "G21 G0 X0 Y0 Z10\nG99 G82 X5 Y5 Z-2 R2 P0.5 F100\nX10 P1\nG80\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g83.ngc",
+        "G21 G0 X0 Y0 Z10\nG83 X20 Y0 Z-3.5 R1 Q1 F100\nG98 X25 Q1.5\nG80\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g73.ngc",
+        "G21 G0 X0 Y0 Z10\nG73 X20 Y0 Z-3.5 R1 Q1 F100\nX30 Z-1.2\nG80\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g91l.ngc",
+        "G21 G0 X0 Y0 Z10\nG91 G81 X5 Y2 Z-4 R-7 L4 F100\nG90 G80\nG0 X0 Y0\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g81below.ngc",
+        "G21 G0 X0 Y0 Z0\nG98 G81 X5 Y5 Z-2 R2 F100\nX10\nG80\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g81offset.ngc",
+        "G21 G10 L2 P1 Z-50 X10\nG0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG80\nM2\n",
+    );
+    agree(
+        &rs274,
+        "g81inch.ngc",
+        "G20 G0 X0 Y0 Z1\nG81 X0.5 Y0.5 Z-0.1 R0.1 F10\nX1\nG80\nM2\n",
+    );
+    both_refuse(
+        &rs274,
+        "g81comp.ngc",
+        "G21 G0 X-5 Y0\nG41 D1\nG1 X0 Y0 F100\nG81 X5 Y5 Z-2 R2\nM2\n",
+        "G81 cannot run with the wire offset on",
+    );
+    both_refuse(
+        &rs274,
+        "g83q.ngc",
+        "G21 G0 X0 Y0 Z10\nG83 X5 Y5 Z-2 R2 F100\nM2\n",
+        "G83 needs Q",
+    );
+}
+
+#[test]
+fn a_dwell_cycle_dwells_at_the_bottom_of_each_hole() {
+    let blocks: Vec<_> = BlockReader::new(
+        Cursor::new("G21 G0 X0 Y0 Z10\nG82 X5 Y5 Z-2 R2 P0.5 F100\nX10\nG80\nM2\n".as_bytes()),
+        "p.ngc",
+        XYZ,
+    )
+    .collect::<Result<_, _>>()
+    .expect("reads");
+    // Over the hole, down to R, plunge, out (after the dwell): twice.
+    let dwells: Vec<f64> = blocks.iter().map(|b| b.dwell_s).collect();
+    assert_eq!(
+        dwells,
+        vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.5],
+        "{dwells:?}"
+    );
+    let plunges = blocks.iter().filter(|b| b.sinks(2)).count();
+    assert_eq!(plunges, 2);
+}
+
+#[test]
+fn d_sets_a_pecks_clearance() {
+    let ends = edmd("G21 G0 X0 Y0 Z10\nG73 X20 Y0 Z-2.5 R1 Q1 D0.5 F100\nG80\nM2\n").unwrap();
+    let z: Vec<f64> = ends.iter().map(|p| p[2]).collect();
+    // Down to R, pecks to 0, -1 and -2 backing off 0.5 after each, the bottom, out to R.
+    assert_eq!(
+        z,
+        vec![10.0, 10.0, 1.0, 0.0, 0.5, -1.0, -0.5, -2.0, -1.5, -2.5, 1.0],
+        "{z:?}"
+    );
+}
