@@ -78,14 +78,8 @@ pub enum GcodeErrorKind {
     ArcFullCircleWithR,
     #[error("helical arc: axis {axis} moves during a circular arc {why}")]
     HelicalArc { axis: char, why: &'static str },
-    #[error("arc radius to the end differs from the radius to the start: {start:.4} mm and {end:.4} mm (accepted up to {limit} mm apart{under})", limit = Num(*.limit))]
-    ArcSpiralTooFar {
-        start: f64,
-        end: f64,
-        limit: f64,
-        /// `" under the wire offset"`, where the limit is the offset's, or empty.
-        under: &'static str,
-    },
+    #[error("arc radius to the end differs from the radius to the start: {start:.4} mm and {end:.4} mm (a spiral is accepted up to {limit} mm apart)", limit = Num(*.limit))]
+    ArcSpiralTooFar { start: f64, end: f64, limit: f64 },
     #[error(
         "{letter} word missing in an absolute-centre arc (G90.1 needs both centre coordinates)"
     )]

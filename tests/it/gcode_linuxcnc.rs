@@ -419,3 +419,78 @@ fn d_sets_a_pecks_clearance() {
         "{z:?}"
     );
 }
+
+#[test]
+fn wire_offset_corners_within_the_band_of_a_reversal_go_round_the_tip() {
+    let Some(rs274) = rs274() else { return };
+    let mut accepted = 0;
+    for (name, back) in [
+        ("tipup.ngc", "X10 Y0.001"),
+        ("tipexact.ngc", "X10 Y0"),
+        ("tipdown.ngc", "X10 Y-0.001"),
+        ("tip2deg.ngc", "X10 Y0.3"),
+        ("tip4deg.ngc", "X10 Y0.6"),
+        ("tip4degdown.ngc", "X10 Y-0.6"),
+    ] {
+        let text = format!(
+            "G21 G0 X0 Y-5\nG41 D1\nG1 X10 Y0 F100\nX20\n{back}\nX5 Y3\nG40\nG0 X0 Y-5\nM2\n"
+        );
+        accepted += usize::from(same_verdict(&rs274, name, &text));
+    }
+    // A line into an arc turning back within the band, the offset inside and outside it.
+    for (name, arc) in [
+        ("tiparc_in.ngc", "G3 X10 Y0.7 I0 J5"),
+        ("tiparc_out.ngc", "G2 X10 Y-0.7 I0 J-5"),
+        ("tiparc_177.ngc", "G2 X10.1 Y0.74 I0.05 J5.3"),
+        ("tiparc_177in.ngc", "G3 X10.1 Y0.74 I0.05 J5.3"),
+    ] {
+        let text = format!(
+            "G21 G0 X0 Y-5\nG41 D1\nG1 X10 Y0 F100\nX20\n{arc}\nG1 X5 Y8\nG40\nG0 X0 Y10\nM2\n"
+        );
+        accepted += usize::from(same_verdict(&rs274, name, &text));
+    }
+    assert!(accepted >= 5, "{accepted} of 10 accepted by both");
+}
+
+/// Both accept `text` and agree, or both refuse it; `true` if accepted.
+fn same_verdict(rs274: &Path, name: &str, text: &str) -> bool {
+    match linuxcnc(rs274, name, text) {
+        Ok(_) => {
+            agree(rs274, name, text);
+            true
+        }
+        Err(e) => {
+            let ours = edmd(text);
+            assert!(
+                ours.is_err(),
+                "{name}: rs274 refuses ({e}), edmd accepts: {ours:?}\n{text}"
+            );
+            false
+        }
+    }
+}
+
+#[test]
+fn offset_arcs_whose_radii_differ_run_from_the_last_point_to_the_end_radius() {
+    let Some(rs274) = rs274() else { return };
+    // Arcs whose end radius is 3 to 20 µm off the start's, met tangentially, at convex and
+    // concave corners, from lines and from arcs, the offset inside and outside.
+    let contours = [
+        "G1 X10 Y0\nG3 X20 Y10.012 I0 J10\nG3 X10 Y20 I-10.005 J0\nG1 X0\nG1 Y0",
+        "G1 X10 Y0\nG2 X20 Y-10.008 I0 J-10\nG1 X25\nG3 X30 Y-4.997 I0 J5\nG1 Y5\nG1 X0\nG1 Y0",
+        "G1 X10 Y0\nG3 X16 Y6.02 I0 J6\nG2 X22 Y12 I6.003 J0\nG3 X16 Y18 I-6 J0.004\nG1 X0\nG1 Y0",
+        "G1 X10 Y0\nG3 X18 Y0.015 I4 J0\nG1 X25 Y0\nG1 Y12\nG1 X0\nG1 Y0",
+    ];
+    let mut moves = 0;
+    for (k, contour) in contours.iter().enumerate() {
+        for side in ["G41", "G42"] {
+            let text = format!(
+                "G21 G0 X-5 Y-5\n{side} D1\nG1 X0 Y0 F100\n{contour}\nG40\nG0 X-5 Y-5\nM2\n"
+            );
+            if same_verdict(&rs274, &format!("spiraloffset{k}{side}.ngc"), &text) {
+                moves += edmd(&text).unwrap().len();
+            }
+        }
+    }
+    assert!(moves >= 40, "{moves} moves compared");
+}

@@ -12,11 +12,8 @@
 //!   under the wire offset and the taper, whose stages work in the plane.
 //!
 //! A plain arc is an exact rational quadratic ([`circular_arc`]); a spiral or a helix a C1
-//! cubic within [`crate::geometry::SPIRAL_FIT_TOLERANCE_MM`] of it ([`spiral_arc`]).
-//!
-//! The wire offset's stage offsets circles: under `G41`/`G42` a centre arc's radii may
-//! differ by [`OFFSET_ARC_RADIUS_TOLERANCE_MM`] (plus 1e-5 of the radius) only, which CAM
-//! output rounded to 3 decimals in mm or 4 in inch keeps to.
+//! cubic within [`crate::geometry::SPIRAL_FIT_TOLERANCE_MM`] of it ([`spiral_arc`]). The
+//! block's radius is the end radius, which LinuxCNC offsets an arc by.
 
 use std::io::{BufRead, Seek};
 
@@ -34,11 +31,6 @@ pub const ARC_RADIUS_TOLERANCE_MM: f64 = 0.000_05 * MM_PER_INCH;
 /// The start and end radii of a centre arc may differ by this share of the larger one
 /// (LinuxCNC's `SPIRAL_RELATIVE_TOLERANCE`)…
 const SPIRAL_RELATIVE: f64 = 0.001;
-
-/// Under the wire offset, how far apart a centre arc's radii may be, mm (plus
-/// [`OFFSET_ARC_RADIUS_REL`] of the radius).
-pub const OFFSET_ARC_RADIUS_TOLERANCE_MM: f64 = 0.002;
-const OFFSET_ARC_RADIUS_REL: f64 = 1e-5;
 
 /// …or by this much, mm, and never by 100 times it (LinuxCNC's
 /// `CENTER_ARC_RADIUS_TOLERANCE_MM` and `_INCH`, by the program's units).
@@ -122,7 +114,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let sweep = sweep + extra_turns.copysign(sweep);
         let curve = spiral_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
             .map_err(|e| Fail::from((col, e.into())))?;
-        let radius = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
+        // The end radius: what LinuxCNC offsets an arc by (`convert_arc_comp2`).
+        let radius = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
         self.state.position = end;
         Ok(Some(self.block(
             line_no,
@@ -213,28 +206,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let tolerance = spiral_tolerance_mm(self.state.modal.inch);
         let apart = (r_start - r_end).abs();
         let relative = apart / r_start.max(r_end);
-        let offset_limit = OFFSET_ARC_RADIUS_TOLERANCE_MM + OFFSET_ARC_RADIUS_REL * r_start;
-        let under_offset = self.state.modal.wire_offset.engaged();
-        if apart > 100.0 * tolerance
-            || (relative > SPIRAL_RELATIVE && apart > tolerance)
-            || (under_offset && apart > offset_limit)
-        {
-            let limit = if under_offset {
-                offset_limit
-            } else {
-                (100.0 * tolerance).min(tolerance.max(SPIRAL_RELATIVE * r_start.max(r_end)))
-            };
+        if apart > 100.0 * tolerance || (relative > SPIRAL_RELATIVE && apart > tolerance) {
+            let limit =
+                (100.0 * tolerance).min(tolerance.max(SPIRAL_RELATIVE * r_start.max(r_end)));
             return Err((
                 offset_col,
                 GcodeErrorKind::ArcSpiralTooFar {
                     start: r_start,
                     end: r_end,
                     limit,
-                    under: if under_offset {
-                        " under the wire offset"
-                    } else {
-                        ""
-                    },
                 },
             )
                 .into());

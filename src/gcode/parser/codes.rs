@@ -44,6 +44,16 @@ pub(super) enum Cycle {
 }
 
 impl Cycle {
+    /// The cycle of `G81`, `G82`, `G83` or `G73` (times ten).
+    fn of_tenths(tenths: u32) -> Cycle {
+        match tenths {
+            810 => Cycle::Drill,
+            820 => Cycle::DwellAtBottom,
+            830 => Cycle::Peck,
+            _ => Cycle::ChipBreak,
+        }
+    }
+
     pub(super) fn g_code(self) -> &'static str {
         match self {
             Cycle::Drill => "G81",
@@ -281,17 +291,9 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
             },
             one_shot: true,
         })),
-        810 => GCode::Motion(Motion::Cycle(Cycle::Drill)),
-        820 => GCode::Motion(Motion::Cycle(Cycle::DwellAtBottom)),
-        830 => GCode::Motion(Motion::Cycle(Cycle::Peck)),
-        730 => GCode::Motion(Motion::Cycle(Cycle::ChipBreak)),
+        810 | 820 | 830 | 730 => GCode::Motion(Motion::Cycle(Cycle::of_tenths(tenths))),
         740 | 840 => return unsupported("tapping cycles (they reverse a spindle an EDM has not)"),
-        850..=890 => {
-            return unsupported(
-                "boring cycles (spindle stops and orientation); G81, G82, G83 and G73 are \
-                 the cycles edmd has",
-            );
-        }
+        850..=890 => return unsupported("boring cycles; edmd has G81, G82, G83 and G73"),
         960 | 970 => GCode::SpindleMode,
         _ => {
             return Err((

@@ -529,7 +529,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 any = true;
             }
         }
-        if let Some(([ix, iy], [x, y])) = self.polar_end(base, letters)? {
+        let machine_move = self.scratch.machine_move;
+        let polar = super::polar::polar_end(&self.state, &self.axes, machine_move, base, letters)?;
+        if let Some(([ix, iy], [x, y])) = polar {
             p[ix] = x;
             p[iy] = y;
             any = true;

@@ -7,11 +7,17 @@
 //! keeps it and where a program reads it: `#5220` the active system, `#5221 + 20·(n − 1) + k`
 //! the offset of system `n` on axis `k` (`X Y Z A B C U V W`), `#5210`… the `G92` offset, all
 //! in millimetres (the machine's units, LinuxCNC's "user units").
+//!
+//! Also the parameters that hold machine points: `G28`/`G30` go to the positions stored in
+//! `#5161`… and `#5181`… (machine coordinates, on a homed machine only), `G28.1`/`G30.1` store
+//! them, and a probing move leaves its point in `#5061`… (program coordinates).
 
 use std::io::{BufRead, Seek};
 
 use super::codes::OffsetCode;
+use super::cycles::MoveList;
 use super::{BlockReader, Fail, Letters, Step, whole_as};
+use crate::gcode::Block;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
@@ -24,6 +30,12 @@ pub(super) const PARAM_AXES: [char; 9] = ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V'
 
 /// `#5210`: the `G92` offset is on; `#5211`… its value per axis.
 const G92_ENABLED: usize = 5210;
+/// LinuxCNC's probe result: `#5061`… per axis (`X Y Z A B C U V W`), `#5070` success.
+const PROBE_PARAMS: usize = 5061;
+/// `#5161`: `G28`'s stored position on the first parameter axis (`#5181` for `G30`).
+const G28_PARAMS: usize = 5161;
+const G30_PARAMS: usize = 5181;
+
 /// `#5220`: the active work system (1 = `G54`).
 const ACTIVE_SYSTEM: usize = 5220;
 
@@ -333,5 +345,85 @@ impl<R: BufRead + Seek> BlockReader<R> {
             return Ok(());
         };
         Err((g53.col, GcodeErrorKind::WorkOffset(why.into())).into())
+    }
+}
+
+impl<R: BufRead + Seek> BlockReader<R> {
+    /// The probing move just read ended at `at` (mm, machine axes; with `contact`, or at its
+    /// end point without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C
+    /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
+    pub fn probed(&mut self, at: &Point, contact: bool) {
+        self.state.position = *at;
+        let scale = self.state.scale();
+        let program = self.program_point(at);
+        for (i, axis) in self.axes.iter().enumerate() {
+            if let Some(k) = PARAM_AXES.iter().position(|&l| l == axis.letter()) {
+                let v = program[i] / scale;
+                self.state
+                    .params
+                    .set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
+            }
+        }
+        self.state.params.set(
+            &ParamRef::Numbered(PROBE_PARAMS + 9),
+            if contact { 1.0 } else { 0.0 },
+        );
+    }
+
+    /// `G28`/`G30` (`g30`), or `G28.1`/`G30.1` (`store`), at `w`.
+    pub(super) fn reference_point(
+        &mut self,
+        g30: bool,
+        store: bool,
+        w: &Word,
+        line_no: u64,
+        letters: &Letters,
+    ) -> Step<Option<Block>> {
+        let code = format!("G{}", w.text);
+        let fail = |what: String| Fail::from((w.col, GcodeErrorKind::Cycle(what)));
+        if self.state.modal.wire_offset.engaged() {
+            return Err(fail(format!(
+                "{code} cannot be used with the wire offset on (G40 first)"
+            )));
+        }
+        if self.state.unhomed {
+            return Err(fail(format!(
+                "{code} goes to a stored machine position: the machine is not homed, so machine \
+                 coordinates mean nothing yet (home it first)"
+            )));
+        }
+        let base = if g30 { G30_PARAMS } else { G28_PARAMS };
+        let param = |axis: Axis| ParamRef::Numbered(base + param_slot(axis));
+        if store {
+            self.check_letters(letters, false, "", &format!("with {code}"))?;
+            for (i, &axis) in self.axes.iter().enumerate() {
+                self.state.params.set(&param(axis), self.state.position[i]);
+            }
+            return Ok(None);
+        }
+        self.check_letters(letters, true, "", &format!("with {code}"))?;
+        let (via, named) = self.target(&self.state.position, letters, "")?;
+        let mut moves = MoveList::new(self.state.position, line_no, self.axes.len());
+        // With axis words only the named axes go on to the stored point (LinuxCNC 2.9).
+        let axes: Vec<usize> = (0..self.axes.len())
+            .filter(|&i| !named || letters.get(self.axes[i].letter()).is_some())
+            .collect();
+        moves.to(
+            w.col,
+            &axes.iter().map(|&i| (i, via[i])).collect::<Vec<_>>(),
+        )?;
+        let stored: Vec<(usize, f64)> = axes
+            .iter()
+            .map(|&i| {
+                (
+                    i,
+                    self.state.params.numbered(base + param_slot(self.axes[i])),
+                )
+            })
+            .collect();
+        moves.to(w.col, &stored)?;
+        self.state.position = moves.at();
+        self.state.cycle.initial_level = None;
+        self.emit_all(moves.into_blocks())
     }
 }

@@ -3,63 +3,63 @@
 //! One given alone keeps the other from where the machine stands; in `G91` each adds to
 //! it (still about the origin, not the current point). Never with `X` or `Y`, nor `G53`.
 
-use std::io::{BufRead, Seek};
-
-use super::{BlockReader, Fail, Letters, Step};
+use super::state::InterpState;
+use super::{Fail, Letters, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::geometry::Point;
 use crate::vocab::Axis;
 
-impl<R: BufRead + Seek> BlockReader<R> {
-    /// The block's polar end point in the XY plane as machine X and Y (mm, with the
-    /// indices of X and Y), or `None` without `@` or `^`.
-    pub(super) fn polar_end(
-        &self,
-        base: &Point,
-        letters: &Letters,
-    ) -> Step<Option<([usize; 2], [f64; 2])>> {
-        let (radius, angle) = (letters.get('@'), letters.get('^'));
-        let Some(first) = radius.or(angle) else {
-            return Ok(None);
-        };
-        let fail = |what: &str| Fail::from((first.col, GcodeErrorKind::Polar(what.to_string())));
-        if self.scratch.machine_move {
-            return Err(fail("polar coordinates cannot be used with G53"));
-        }
-        if letters.get('X').is_some() || letters.get('Y').is_some() {
-            return Err(fail("X or Y cannot be given with polar coordinates (@ ^)"));
-        }
-        let index = |axis| self.axes.iter().position(|&a| a == axis);
-        let (Some(ix), Some(iy)) = (index(Axis::X), index(Axis::Y)) else {
-            return Err(fail("polar coordinates need the axes X and Y"));
-        };
-        let here = self.program_point(base);
-        let (x, y) = (here[ix] / self.state.scale(), here[iy] / self.state.scale());
-        let (mut r, mut theta) = (x.hypot(y), y.atan2(x));
-        let at_origin = x == 0.0 && y == 0.0;
-        if self.state.modal.incremental {
-            if at_origin {
-                return Err(fail(
-                    "incremental polar motion is indeterminate at the origin (G90 first)",
-                ));
-            }
-            r += radius.map_or(0.0, |w| w.value);
-            theta += angle.map_or(0.0, |w| w.value.to_radians());
-        } else {
-            if angle.is_none() && at_origin {
-                return Err(fail("a polar move from the origin needs its angle ^"));
-            }
-            r = radius.map_or(r, |w| w.value);
-            theta = angle.map_or(theta, |w| w.value.to_radians());
-        }
-        let offset = self.state.offset();
-        let s = self.state.scale();
-        Ok(Some((
-            [ix, iy],
-            [
-                r * theta.cos() * s + offset[ix],
-                r * theta.sin() * s + offset[iy],
-            ],
-        )))
+/// The block's polar end point in the XY plane as machine X and Y (mm, with the indices of X
+/// and Y in `axes`), from `base` (machine, mm) in `state`'s modes, or `None` without `@` or
+/// `^`. `machine_move`: the block has `G53`.
+pub(super) fn polar_end(
+    state: &InterpState,
+    axes: &[Axis],
+    machine_move: bool,
+    base: &Point,
+    letters: &Letters,
+) -> Step<Option<([usize; 2], [f64; 2])>> {
+    let (radius, angle) = (letters.get('@'), letters.get('^'));
+    let Some(first) = radius.or(angle) else {
+        return Ok(None);
+    };
+    let fail = |what: &str| Fail::from((first.col, GcodeErrorKind::Polar(what.to_string())));
+    if machine_move {
+        return Err(fail("polar coordinates cannot be used with G53"));
     }
+    if letters.get('X').is_some() || letters.get('Y').is_some() {
+        return Err(fail("X or Y cannot be given with polar coordinates (@ ^)"));
+    }
+    let index = |axis| axes.iter().position(|&a| a == axis);
+    let (Some(ix), Some(iy)) = (index(Axis::X), index(Axis::Y)) else {
+        return Err(fail("polar coordinates need the axes X and Y"));
+    };
+    let here = base - state.offset();
+    let (x, y) = (here[ix] / state.scale(), here[iy] / state.scale());
+    let (mut r, mut theta) = (x.hypot(y), y.atan2(x));
+    let at_origin = x == 0.0 && y == 0.0;
+    if state.modal.incremental {
+        if at_origin {
+            return Err(fail(
+                "incremental polar motion is indeterminate at the origin (G90 first)",
+            ));
+        }
+        r += radius.map_or(0.0, |w| w.value);
+        theta += angle.map_or(0.0, |w| w.value.to_radians());
+    } else {
+        if angle.is_none() && at_origin {
+            return Err(fail("a polar move from the origin needs its angle ^"));
+        }
+        r = radius.map_or(r, |w| w.value);
+        theta = angle.map_or(theta, |w| w.value.to_radians());
+    }
+    let offset = state.offset();
+    let s = state.scale();
+    Ok(Some((
+        [ix, iy],
+        [
+            r * theta.cos() * s + offset[ix],
+            r * theta.sin() * s + offset[iy],
+        ],
+    )))
 }

@@ -1,39 +1,9 @@
 //! The interpreter's own parameters, as LinuxCNC names them: what expressions read besides
 //! the program's store (the position as `#<_x>`…`#<_w>` and `#5420`…`#5428`, the modes as
-//! `#<_metric>`…, the feed, the line), the parameters a program may not assign, and the
-//! probe's results (`#5061`…`#5070`), which a probing move writes.
-
-use std::io::{BufRead, Seek};
+//! `#<_metric>`…, the feed, the line) and the parameters a program may not assign.
 
 use super::{BlockReader, MM_PER_INCH};
 use crate::gcode::expr::{Env, ParamRef};
-use crate::geometry::Point;
-
-/// LinuxCNC's probe result: `#5061`… per axis (`X Y Z A B C U V W`), `#5070` success.
-const PROBE_PARAMS: usize = 5061;
-
-impl<R: BufRead + Seek> BlockReader<R> {
-    /// The probing move just read ended at `at` (mm, machine axes; with `contact`, or at its
-    /// end point without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C
-    /// U V W`, program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
-    pub fn probed(&mut self, at: &Point, contact: bool) {
-        self.state.position = *at;
-        let scale = self.state.scale();
-        let program = self.program_point(at);
-        for (i, axis) in self.axes.iter().enumerate() {
-            if let Some(k) = SYSTEM_AXES.iter().position(|&l| l == axis.letter()) {
-                let v = program[i] / scale;
-                self.state
-                    .params
-                    .set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
-            }
-        }
-        self.state.params.set(
-            &ParamRef::Numbered(PROBE_PARAMS + 9),
-            if contact { 1.0 } else { 0.0 },
-        );
-    }
-}
 
 /// Parameters as expressions see them: the store, plus read-only system values as LinuxCNC
 /// names them (`#<_x>`…`#<_w>` and `#5420`…`#5428` the position in program units and

@@ -36,7 +36,7 @@ use std::collections::VecDeque;
 
 use super::{Stage, StageError};
 use crate::gcode::{Block, BlockKind, GcodeErrorKind, NurbsForm, Plane, WireOffset};
-use crate::geometry::{NurbsCurve, Point, circular_arc};
+use crate::geometry::{NurbsCurve, Point, spiral_arc};
 use prim::{
     MAX_DEPTH, Prim, SAME_MM, V2, add, cross, dot, join_prims, left, norm, scale, sub, unit,
 };
@@ -49,7 +49,10 @@ struct Piece {
     /// A straight entry move: where the wire really starts (the uncompensated point). Its
     /// prims are then the programmed move's offset line, which its corner with the next move
     /// is worked out on (as LinuxCNC does: the corner point moves along the offset line, not
-    /// along the slanted entry); the move emitted runs from here to that line's end.
+    /// along the slanted entry); the move emitted runs from here to that line's end. And for
+    /// an arc after a corner: where the last move (or the corner's arc) ended, which the arc
+    /// runs from to its own end (LinuxCNC's arc from the last compensated point: a spiral
+    /// where the programmed arc's radii differ).
     entry_from: Option<V2>,
 }
 
@@ -442,6 +445,10 @@ impl WireOffsetStage {
         let corner = (corner[ix], corner[iy]);
         let extra = join_prims(&mut prev.prims, &mut next.prims, corner, self.side, self.d)
             .map_err(|m| fail(next.template.line, m))?;
+        let joined_at = extra.last().or(prev.prims.last()).map(Prim::end);
+        if let (Some(Prim::Arc { .. }), Some(end)) = (next.prims.first(), joined_at) {
+            next.entry_from = Some(end);
+        }
         let line = prev.template.line;
         self.emit(prev, out).map_err(|m| fail(line, m))?;
         if !extra.is_empty() {
@@ -481,8 +488,11 @@ impl WireOffsetStage {
             p
         };
         let mut prims: Vec<Prim> = piece.prims.clone();
-        if let (Some(from), Some(Prim::Line { a, .. })) = (piece.entry_from, prims.first_mut()) {
-            *a = from;
+        let mut arc_from = None;
+        match (piece.entry_from, prims.first_mut()) {
+            (Some(from), Some(Prim::Line { a, .. })) => *a = from,
+            (Some(from), Some(Prim::Arc { .. })) => arc_from = Some(from),
+            _ => {}
         }
         prims.retain(|p| p.length() > SAME_MM);
         let mut first = true;
@@ -530,11 +540,12 @@ impl WireOffsetStage {
                 }
                 Prim::Arc { c, r, sweep, .. } => {
                     let center = point(c);
-                    let curve = circular_arc(
+                    let start = arc_from.take().unwrap_or(prim.start());
+                    let curve = spiral_arc(
                         dim,
                         [ix, iy],
                         &center,
-                        &point(prim.start()),
+                        &point(start),
                         &point(prim.end()),
                         sweep,
                     )

@@ -3,6 +3,24 @@
 
 /// Two closer than this (mm) are the same point.
 pub(super) const SAME_MM: f64 = 1e-9;
+/// Whether a corner from `prev` into `next` is concave (the offsets cross) rather than convex
+/// (the wire goes round it), `toward` the signed turn towards the offset's side (radians,
+/// the slight turns already taken out), `reverse` an exact reversal. LinuxCNC's rule
+/// (`convert_straight_comp2`, `convert_arc_comp2`): a turn within [`SLIGHT_TURN`] of a
+/// reversal is convex, either way, unless the offset is on the outside of the arc it turns
+/// from (into a line) or into (an arc): the top of an "h" or an "m".
+fn concave(prev: &Prim, next: &Prim, toward: f64, reverse: bool, side: f64) -> bool {
+    let outside = |p: &Prim| matches!(p, Prim::Arc { sweep, .. } if side * sweep < 0.0);
+    let near_reversal = reverse || std::f64::consts::PI - toward.abs() <= SLIGHT_TURN;
+    if near_reversal {
+        return match next {
+            Prim::Line { .. } => outside(prev),
+            Prim::Arc { .. } => outside(next),
+        };
+    }
+    toward > 0.0
+}
+
 /// How many primitives on each side of a concave corner are searched for the intersection.
 const TRIM_SEARCH: usize = 64;
 /// A turn between two moves up to this (radians) is no corner: LinuxCNC's
@@ -217,36 +235,37 @@ pub(super) fn join_prims(
     let reverse = dot(ta, tb) < 0.0 && turn.abs() < 1e-9;
     if !reverse && turn.atan2(dot(ta, tb)).abs() <= SLIGHT_TURN {
         // As LinuxCNC: a corner this slight, convex or concave, gets neither an arc nor a
-        // trim; the next move starts where the last one ended (a line from there, an arc
-        // joined by a connecting line if its start is apart).
-        return Ok(match &mut b[0] {
-            Prim::Line { a: start, .. } => {
-                *start = ea;
-                Vec::new()
-            }
+        // trim; the next move starts where the last one ended (a line from there; an arc
+        // from there to its own end, which the emitted move spirals to where the distance
+        // from its centre differs).
+        match &mut b[0] {
+            Prim::Line { a: start, .. } => *start = ea,
             Prim::Arc { c, a0, sweep, .. } => {
-                // The arc starts at the angle of the last end about its centre, its end kept
-                // (the two are apart along the arc, not across it, to the second order).
+                // The arc starts at the angle of the last end about its centre, its end kept.
                 let start = (ea.1 - c.1).atan2(ea.0 - c.0);
                 let moved = (start - *a0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                     - std::f64::consts::PI;
                 *a0 += moved;
                 *sweep -= moved;
-                let sb = b[0].start();
-                if norm(sub(ea, sb)) > 1e-6 {
-                    vec![Prim::Line { a: ea, b: sb }]
-                } else {
-                    Vec::new()
-                }
             }
-        });
+        }
+        return Ok(Vec::new());
     }
-    if side * turn < 0.0 || reverse {
-        // Convex: around the corner at distance d.
+    if !concave(
+        &a[a.len() - 1],
+        &b[0],
+        side * turn.atan2(dot(ta, tb)),
+        reverse,
+        side,
+    ) {
+        // Convex: around the corner at distance d, turning away from the offset's side (the
+        // long way round a tip within the band of a reversal).
         let (v1, v2) = (sub(ea, corner), sub(sb, corner));
         let mut sweep = cross(v1, v2).atan2(dot(v1, v2));
         if reverse || (sweep.abs() - std::f64::consts::PI).abs() < 1e-9 {
             sweep = -side * std::f64::consts::PI;
+        } else if side * sweep > 0.0 {
+            sweep -= side * std::f64::consts::TAU;
         }
         return Ok(vec![Prim::Arc {
             c: corner,
