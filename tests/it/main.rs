@@ -14,6 +14,7 @@ mod daemon;
 mod excursions;
 mod from_line;
 mod fuzz_regressions;
+mod gcode_campaign;
 mod gcode_errors;
 mod gcode_linuxcnc;
 mod hal;

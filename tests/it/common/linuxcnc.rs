@@ -158,12 +158,16 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
     // edmd makes no block of a move that goes nowhere.
     let mut from = [0.0; 3];
     let mut index = 0;
+    // After a spline, whose end is unknown, the next move is kept whatever its end.
+    let mut after_unknown = false;
     moves.retain(|p| {
         index += 1;
-        if p[0].is_nan() || arcs.contains(&(index - 1)) {
-            if !p[0].is_nan() {
-                from = *p;
-            }
+        if p[0].is_nan() {
+            after_unknown = true;
+            return true;
+        }
+        if std::mem::take(&mut after_unknown) || arcs.contains(&(index - 1)) {
+            from = *p;
             return true;
         }
         let moved = p
@@ -187,6 +191,24 @@ pub fn end_points<R: std::io::BufRead + std::io::Seek>(
                 [e[0], e[1], e[2]]
             })
             .map_err(|e| e.to_string())
+        })
+        .collect()
+}
+
+/// `ends` without the moves shorter than `bound` on every axis (but longer than nothing):
+/// rs274 prints four decimals, so a move of less than that prints as no move and is left out
+/// of its reading; edmd's 0.76 µm move of `G53 G1 Z-0.0394` (inch) after `Z-1` (mm) is real.
+/// A move that ends exactly where it starts (a full circle) is kept.
+pub fn without_moves_under(ends: Vec<[f64; 3]>, bound: f64) -> Vec<[f64; 3]> {
+    let mut from = [0.0; 3];
+    ends.into_iter()
+        .filter(|p| {
+            let d = (0..3).map(|i| (p[i] - from[i]).abs()).fold(0.0, f64::max);
+            let keep = d == 0.0 || d > bound;
+            if keep {
+                from = *p;
+            }
+            keep
         })
         .collect()
 }
