@@ -379,6 +379,7 @@ pub fn motion_hash(config: &Config) -> String {
         block_delete: false,
         optional_stop: false,
         max_loop_iterations: 1_000_000,
+        mcodes: Vec::new(),
     };
     if config.program != default_program {
         text.push_str(&format!("\n{:?}", config.program));

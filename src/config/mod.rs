@@ -18,6 +18,7 @@ pub use corners::CornerControl;
 mod hal;
 pub use hal::HalConfig;
 mod homing;
+mod mcode;
 mod opcua;
 pub use opcua::OpcUaEndpoint;
 mod overrides;
@@ -397,6 +398,8 @@ pub struct ProgramConfig {
     pub block_delete: bool,
     pub optional_stop: bool,
     pub max_loop_iterations: u64,
+    /// `[[program.mcode]]`: the machine builder's M-codes.
+    pub mcodes: Vec<crate::gcode::VendorM>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -115,6 +115,20 @@ pub(super) struct RawProgram {
     pub(super) block_delete: bool,
     pub(super) optional_stop: bool,
     pub(super) max_loop_iterations: i64,
+    #[serde(default)]
+    pub(super) mcode: Vec<RawMcode>,
+}
+
+/// `[[program.mcode]]`: a machine builder's M-code and its action.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMcode {
+    pub(super) number: i64,
+    pub(super) action: String,
+    #[serde(default)]
+    pub(super) message: Option<String>,
+    #[serde(default)]
+    pub(super) condition: Option<i64>,
 }
 
 #[derive(Debug, Deserialize)]

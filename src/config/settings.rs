@@ -190,6 +190,7 @@ impl ProgramOptions {
             guides: config.wire.guides,
             thickness_mm: config.wire.thickness_mm,
             orbit: config.sinker.orbit.clone(),
+            mcodes: p.mcodes.clone(),
         }
     }
 }

@@ -395,3 +395,62 @@ fn the_turn_back_settings_default_and_refuse_with_their_keys() {
         "{err}"
     );
 }
+
+#[test]
+fn machine_builders_m_codes_are_checked_with_their_line() {
+    let c = load(
+        "[[program.mcode]]\nnumber = 60\naction = \"pause\"\nmessage = \"thread the wire\"\n\
+         [[program.mcode]]\nnumber = 50\naction = \"ignore\"\nmessage = \"no cutter\"\n\
+         [[program.mcode]]\nnumber = 82\naction = \"condition\"\ncondition = 2\n\
+         [[program.mcode]]\nnumber = 84\naction = \"flush_on\"\n",
+        &[],
+    )
+    .unwrap();
+    use crate::gcode::VendorAction;
+    let actions: Vec<(u32, VendorAction)> = c
+        .program
+        .mcodes
+        .iter()
+        .map(|m| (m.number, m.action.clone()))
+        .collect();
+    assert_eq!(
+        actions,
+        vec![
+            (60, VendorAction::Pause("thread the wire".into())),
+            (50, VendorAction::Ignore("no cutter".into())),
+            (82, VendorAction::Condition(2)),
+            (84, VendorAction::Flush(true)),
+        ]
+    );
+    assert!(Config::default().program.mcodes.is_empty());
+    for (text, gist) in [
+        (
+            "number = 8\naction = \"flush_on\"",
+            "M8 is one of edmd's own M-codes",
+        ),
+        ("number = 60\naction = \"pause\"", "needs a message"),
+        ("number = 60\naction = \"spin\"", "is not one of flush_on"),
+        (
+            "number = 60\naction = \"condition\"\ncondition = 7",
+            "E7 is not a",
+        ),
+        (
+            "number = 60\naction = \"flush_on\"\ncondition = 2",
+            "condition is for action",
+        ),
+        (
+            "number = 60\naction = \"ignore\"\nmessage = \"x\"\ncolour = 1",
+            "colour",
+        ),
+    ] {
+        let e = load(&format!("[[program.mcode]]\n{text}\n"), &[]).unwrap_err();
+        assert!(e.contains(gist), "{text}: {e}");
+        assert!(e.starts_with("edmd.toml:"), "{e}");
+    }
+    let twice = "[[program.mcode]]\nnumber = 60\naction = \"flush_on\"\n".repeat(2);
+    assert!(
+        load(&twice, &[])
+            .unwrap_err()
+            .contains("M60 is defined twice")
+    );
+}

@@ -171,10 +171,12 @@ impl RawConfig {
         let conditions = conditions(self.generator)?;
         let wire = self.wire.validate(&compensation, &conditions)?;
         let sinker = self.sinker.validate(&conditions)?;
+        let mcodes = super::mcode::vendor_codes(p.mcode, &conditions)?;
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,
             max_loop_iterations: p.max_loop_iterations as u64,
+            mcodes,
         };
         Ok(Config {
             machine,

@@ -40,7 +40,9 @@ pub enum GcodeErrorKind {
     UnknownG { code: String },
     #[error("G{code} is not supported: {why}")]
     UnsupportedG { code: String, why: &'static str },
-    #[error("unknown M word M{code}")]
+    #[error(
+        "unknown M word M{code} (a machine builder's M-code is given its action in [[program.mcode]])"
+    )]
     UnknownM { code: String },
     #[error("word {letter} is not used {context}")]
     UnexpectedWord { letter: char, context: String },

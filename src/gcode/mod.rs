@@ -223,6 +223,30 @@ pub struct ProgramOptions {
     pub thickness_mm: f64,
     /// How sinking moves orbit (`[sinker.orbit]`; none by default).
     pub orbit: OrbitOptions,
+    /// The machine builder's M-codes (`[[program.mcode]]`): what a vendor's `M50` means here.
+    pub mcodes: Vec<VendorM>,
+}
+
+/// An M-code of the machine builder's (a wire CAM post's `M50`, `M60`…) and what edmd does
+/// for it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VendorM {
+    pub number: u32,
+    pub action: VendorAction,
+}
+
+/// What a [`VendorM`] does, of what edmd has.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VendorAction {
+    /// Flushing on (as `M8`) or off (as `M9`).
+    Flush(bool),
+    /// Select the machining condition (as `E<n>`).
+    Condition(u32),
+    /// Pause as `M0` does, the message shown to the operator (wire thread or cut by hand,
+    /// check the slug).
+    Pause(String),
+    /// Nothing to do on this machine, with the reason (said once per program).
+    Ignore(String),
 }
 
 impl Default for ProgramOptions {
@@ -242,6 +266,7 @@ impl Default for ProgramOptions {
             },
             thickness_mm: 20.0,
             orbit: OrbitOptions::default(),
+            mcodes: Vec::new(),
         }
     }
 }

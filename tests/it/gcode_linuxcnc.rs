@@ -494,3 +494,61 @@ fn offset_arcs_whose_radii_differ_run_from_the_last_point_to_the_end_radius() {
     }
     assert!(moves >= 40, "{moves} moves compared");
 }
+
+#[test]
+fn a_machine_builders_m_codes_do_what_the_table_says() {
+    use edmd::gcode::{Pause, VendorAction, VendorM};
+    let options = ProgramOptions {
+        conditions: vec![1, 2],
+        mcodes: vec![
+            VendorM {
+                number: 60,
+                action: VendorAction::Pause("thread the wire".into()),
+            },
+            VendorM {
+                number: 50,
+                action: VendorAction::Ignore("no wire cutter".into()),
+            },
+            VendorM {
+                number: 84,
+                action: VendorAction::Flush(true),
+            },
+            VendorM {
+                number: 85,
+                action: VendorAction::Flush(false),
+            },
+            VendorM {
+                number: 82,
+                action: VendorAction::Condition(2),
+            },
+        ],
+        ..ProgramOptions::default()
+    };
+    let text = "G21 G0 X1\nM50\nM60\nG1 X2 F10\nM84 M82\nG1 X3\nM85\nM50\nG1 X4\nM2\n";
+    let mut reader =
+        BlockReader::with_options(Cursor::new(text.as_bytes()), "p.ngc", XYZ, options.clone());
+    let blocks: Vec<_> = reader.by_ref().collect::<Result<_, _>>().expect("reads");
+    assert_eq!(blocks[1].pause, Some((3, Pause::Program)));
+    assert_eq!((blocks[2].flushing, blocks[2].condition), (true, 2));
+    assert_eq!((blocks[3].flushing, blocks[3].condition), (false, 2));
+    let warnings: Vec<String> = reader
+        .take_warnings()
+        .into_iter()
+        .map(|w| w.message)
+        .collect();
+    assert!(
+        warnings.contains(&"message: M60: thread the wire".to_string()),
+        "{warnings:?}"
+    );
+    let ignored = warnings
+        .iter()
+        .filter(|w| w.starts_with("M50 does nothing here"))
+        .count();
+    assert_eq!(ignored, 1, "said once: {warnings:?}");
+    // Without the table, M60 is an error that says where a machine builder maps it.
+    let err = edmd("G21\nM60\nM2\n").unwrap_err();
+    assert!(
+        err.contains("unknown M word M60") && err.contains("[[program.mcode]]"),
+        "{err}"
+    );
+}

@@ -10,7 +10,7 @@ use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe, WireOffset};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe, VendorAction, WireOffset};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -237,6 +237,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 98 => {}
                 99 => m99 = Some(w.col),
                 70..=73 => self.modal_state_code(code, w.col)?,
+                _ if self.options.mcodes.iter().any(|m| m.number == code) => {
+                    if let Some(p) = self.vendor_m(code, w)? {
+                        pause = Some(p);
+                    }
+                }
                 _ => {
                     return Err((
                         w.col,
@@ -253,6 +258,41 @@ impl<R: BufRead + Seek> BlockReader<R> {
             pause,
             m99,
         })
+    }
+
+    /// A machine builder's M-code (`[[program.mcode]]`): its action; a pause to wait for.
+    fn vendor_m(&mut self, code: u32, w: &Word) -> Step<Option<Pause>> {
+        let action = self
+            .options
+            .mcodes
+            .iter()
+            .find(|m| m.number == code)
+            .map(|m| m.action.clone());
+        let line = self.scratch.line_no;
+        match action {
+            Some(VendorAction::Flush(on)) => self.state.flushing = on,
+            Some(VendorAction::Condition(n)) => self.state.condition = n,
+            Some(VendorAction::Pause(message)) => {
+                self.diag.warnings.push(Warning {
+                    line,
+                    col: w.col,
+                    message: format!("message: M{code}: {message}"),
+                });
+                return Ok(Some(Pause::Program));
+            }
+            Some(VendorAction::Ignore(why)) => {
+                if !self.diag.warned_vendor.contains(&code) {
+                    self.diag.warned_vendor.push(code);
+                    self.diag.warnings.push(Warning {
+                        line,
+                        col: w.col,
+                        message: format!("M{code} does nothing here: {why}"),
+                    });
+                }
+            }
+            None => {}
+        }
+        Ok(None)
     }
 
     /// The words that set state beside motion: `S`/`T` (ignored, with a warning), the
@@ -601,7 +641,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Motion::Cw | Motion::Ccw => {
                 self.arc_block(motion == Motion::Ccw, line_no, letters, col)
             }
-            Motion::Probe(p) => self.probe_block(p.probe, line_no, letters, col).map(Some),
+            Motion::Probe(p) => self.probe_block(p.probe, line_no, letters, col),
             Motion::QuadSpline => self.quad_spline(line_no, letters, col).map(Some),
             Motion::Cycle(c) => self.cycle_block(c, continuing, line_no, letters, col),
         }
@@ -614,7 +654,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         line_no: u64,
         letters: &Letters,
         col: usize,
-    ) -> Step<Block> {
+    ) -> Step<Option<Block>> {
         let code = probe.g_code();
         self.check_letters(letters, true, "", "with a probing move")?;
         let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
@@ -628,6 +668,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         let (target, _) = self.target(&self.state.position, letters, "")?;
         if target == self.state.position {
+            if !probe.must_touch {
+                // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it
+                // stands moves nothing and is no error; it ends without contact.
+                self.probed(&target, false);
+                return Ok(None);
+            }
             return Err(fail(format!(
                 "{code} needs an end point away from where it starts"
             )));
@@ -643,8 +689,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                  machine goes on from where contact happens"
             ),
         );
-        self.state.position = target;
-        Ok(self.block(line_no, BlockKind::Probe(probe), curve, Some(feed)))
+        // Until the machine says where contact happened (`probed`), the program reads on
+        // as LinuxCNC's reader alone does: at the end point, no contact (`#5070` 0).
+        self.probed(&target, false);
+        Ok(Some(self.block(
+            line_no,
+            BlockKind::Probe(probe),
+            curve,
+            Some(feed),
+        )))
     }
 }
 

@@ -200,6 +200,8 @@ pub(super) struct Diagnostics {
     pub warned_letters: Vec<char>,
     /// Warnings given once per program, by what they are about.
     pub warned_about: Vec<&'static str>,
+    /// The machine builder's M-codes already said to do nothing.
+    pub warned_vendor: Vec<u32>,
 }
 
 impl Diagnostics {
