@@ -280,17 +280,15 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 });
                 return Ok(Some(Pause::Program));
             }
-            Some(VendorAction::Ignore(why)) => {
-                if !self.diag.warned_vendor.contains(&code) {
-                    self.diag.warned_vendor.push(code);
-                    self.diag.warnings.push(Warning {
-                        line,
-                        col: w.col,
-                        message: format!("M{code} does nothing here: {why}"),
-                    });
-                }
+            Some(VendorAction::Ignore(why)) if !self.diag.warned_vendor.contains(&code) => {
+                self.diag.warned_vendor.push(code);
+                self.diag.warnings.push(Warning {
+                    line,
+                    col: w.col,
+                    message: format!("M{code} does nothing here: {why}"),
+                });
             }
-            None => {}
+            Some(VendorAction::Ignore(_)) | None => {}
         }
         Ok(None)
     }
