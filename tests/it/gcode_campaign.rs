@@ -344,7 +344,11 @@ fn edmd_reading(text: &str) -> Result<Vec<[f64; 3]>, String> {
 #[test]
 fn generated_programs_read_as_linuxcnc_reads_them() {
     let Some(rs274) = rs274() else { return };
-    let dir = std::env::temp_dir().join(format!("edmd-campaign-{}", std::process::id()));
+    let dir = std::env::var_os("EDMD_CAMPAIGN_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::env::temp_dir().join(format!("edmd-campaign-{}", std::process::id()))
+        });
     std::fs::create_dir_all(&dir).unwrap();
     let (mut agreed, mut moves, mut both_refused, mut deliberate) = (0, 0, 0, 0);
     // The largest difference seen in programs without and with G20, mm.
@@ -359,6 +363,8 @@ fn generated_programs_read_as_linuxcnc_reads_them() {
         let p = generate(seed);
         let path = dir.join(format!("c{seed}.ngc"));
         std::fs::write(&path, &p.theirs).unwrap();
+        // edmd's dialect beside it, for `edmd check` by hand (BENCHMARKS.md).
+        std::fs::write(dir.join(format!("c{seed}.edmd.ngc")), &p.ours).unwrap();
         let theirs = linuxcnc_moves(&rs274, &path);
         let ours = edmd_reading(&p.ours);
         if shown == Some(seed) {

@@ -179,10 +179,10 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "probing to where it is",
-            "G1 X1 F10\nG38.3 X1\n",
+            "G1 X1 F10\nG38.2 X1\n",
             2,
             1,
-            "G38.3 needs an end point away from where it starts",
+            "G38.2 needs an end point away from where it starts",
         ),
         case(
             "undefined named parameter",

@@ -10,7 +10,7 @@ use super::nurbs::curve_letters;
 use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, Probe, VendorAction, WireOffset};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, VendorAction, WireOffset};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
@@ -643,59 +643,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Motion::QuadSpline => self.quad_spline(line_no, letters, col).map(Some),
             Motion::Cycle(c) => self.cycle_block(c, continuing, line_no, letters, col),
         }
-    }
-
-    /// A probing move: straight, at the programmed feed, never under a wire offset.
-    fn probe_block(
-        &mut self,
-        probe: Probe,
-        line_no: u64,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<Option<Block>> {
-        let code = probe.g_code();
-        self.check_letters(letters, true, "", "with a probing move")?;
-        let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
-        if self.state.modal.wire_offset.engaged() {
-            return Err(fail(format!(
-                "{code} under a wire offset: cancel G41/G42 with G40 before probing"
-            )));
-        }
-        let Some(feed) = self.state.modal.feed else {
-            return Err(fail(format!("{code} needs a feed F (the probing speed)")));
-        };
-        let (target, _) = self.target(&self.state.position, letters, "")?;
-        if target == self.state.position {
-            if !probe.must_touch {
-                // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it
-                // stands moves nothing and is no error; it ends without contact.
-                self.probed(&target, false);
-                return Ok(None);
-            }
-            return Err(fail(format!(
-                "{code} needs an end point away from where it starts"
-            )));
-        }
-        let curve = NurbsCurve::line(self.axes.len(), &self.state.position, &target)
-            .map_err(|e| Fail::from((col, e.into())))?;
-        self.diag.once_about(
-            self.scratch.line_no,
-            "probing",
-            col,
-            format!(
-                "{code}: the check and the plan take the probing move to its end point; the \
-                 machine goes on from where contact happens"
-            ),
-        );
-        // Until the machine says where contact happened (`probed`), the program reads on
-        // as LinuxCNC's reader alone does: at the end point, no contact (`#5070` 0).
-        self.probed(&target, false);
-        Ok(Some(self.block(
-            line_no,
-            BlockKind::Probe(probe),
-            curve,
-            Some(feed),
-        )))
     }
 }
 

@@ -8,21 +8,22 @@
 //! the offset of system `n` on axis `k` (`X Y Z A B C U V W`), `#5210`… the `G92` offset, all
 //! in millimetres (the machine's units, LinuxCNC's "user units").
 //!
-//! Also the parameters that hold machine points: `G28`/`G30` go to the positions stored in
-//! `#5161`… and `#5181`… (machine coordinates, on a homed machine only), `G28.1`/`G30.1` store
-//! them, and a probing move leaves its point in `#5061`… (program coordinates).
+//! Also the moves to and from points the parameters hold: `G28`/`G30` go to the positions
+//! stored in `#5161`… and `#5181`… (machine coordinates, on a homed machine only),
+//! `G28.1`/`G30.1` store them, and a probing move (`G38.x`, `G31`) leaves its point in
+//! `#5061`… (program coordinates).
 
 use std::io::{BufRead, Seek};
 
 use super::codes::OffsetCode;
 use super::cycles::MoveList;
 use super::{BlockReader, Fail, Letters, Step, whole_as};
-use crate::gcode::Block;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::ParamRef;
 use crate::gcode::lexer::Word;
 use crate::gcode::work::{StartModes, WorkOffsets, WorkStart, WorkSystem};
-use crate::geometry::Point;
+use crate::gcode::{Block, BlockKind, Probe};
+use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
 
 /// LinuxCNC's axis order in its parameter blocks (`#5061`…, `#5211`…, `#5221`…).
@@ -425,5 +426,58 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.state.position = moves.at();
         self.state.cycle.initial_level = None;
         self.emit_all(moves.into_blocks())
+    }
+
+    /// A probing move: straight, at the programmed feed, never under a wire offset.
+    pub(super) fn probe_block(
+        &mut self,
+        probe: Probe,
+        line_no: u64,
+        letters: &Letters,
+        col: usize,
+    ) -> Step<Option<Block>> {
+        let code = probe.g_code();
+        self.check_letters(letters, true, "", "with a probing move")?;
+        let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
+        if self.state.modal.wire_offset.engaged() {
+            return Err(fail(format!(
+                "{code} under a wire offset: cancel G41/G42 with G40 before probing"
+            )));
+        }
+        let Some(feed) = self.state.modal.feed else {
+            return Err(fail(format!("{code} needs a feed F (the probing speed)")));
+        };
+        let (target, _) = self.target(&self.state.position, letters, "")?;
+        if target == self.state.position {
+            if !probe.must_touch {
+                // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it
+                // stands moves nothing and is no error; it ends without contact.
+                self.probed(&target, false);
+                return Ok(None);
+            }
+            return Err(fail(format!(
+                "{code} needs an end point away from where it starts"
+            )));
+        }
+        let curve = NurbsCurve::line(self.axes.len(), &self.state.position, &target)
+            .map_err(|e| Fail::from((col, e.into())))?;
+        self.diag.once_about(
+            self.scratch.line_no,
+            "probing",
+            col,
+            format!(
+                "{code}: the check and the plan take the probing move to its end point; the \
+                 machine goes on from where contact happens"
+            ),
+        );
+        // Until the machine says where contact happened (`probed`), the program reads on
+        // as LinuxCNC's reader alone does: at the end point, no contact (`#5070` 0).
+        self.probed(&target, false);
+        Ok(Some(self.block(
+            line_no,
+            BlockKind::Probe(probe),
+            curve,
+            Some(feed),
+        )))
     }
 }
