@@ -18,14 +18,10 @@
 use crate::common;
 
 use std::fmt::Write as _;
-use std::io::Cursor;
 
-use common::linuxcnc::{end_points, linuxcnc_moves, rs274, without_moves_under};
-use edmd::gcode::{BlockReader, ProgramOptions};
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, without_moves_under};
 use edmd::rng::SplitMix64;
-use edmd::vocab::Axis;
 
-const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
 /// The seeds CI runs: the campaign is the same programs every time.
 const SEEDS: std::ops::Range<u64> = 0..600;
 /// Within 1 µm in mm. In G20 rs274 prints four decimals of an inch, for the point and for
@@ -329,16 +325,7 @@ fn contour(p: &mut Program, rng: &mut SplitMix64) {
 }
 
 fn edmd_reading(text: &str) -> Result<Vec<[f64; 3]>, String> {
-    let options = ProgramOptions {
-        d_mm: vec![0.0, 1.0],
-        ..ProgramOptions::default()
-    };
-    end_points(BlockReader::with_options(
-        Cursor::new(text.as_bytes()),
-        "p.ngc",
-        XYZ,
-        options,
-    ))
+    edmd_ends(text, 1.0)
 }
 
 #[test]

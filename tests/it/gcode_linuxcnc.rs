@@ -11,7 +11,7 @@ use crate::common;
 use std::io::Cursor;
 use std::path::Path;
 
-use common::linuxcnc::{end_points, linuxcnc_moves, rs274};
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274};
 use edmd::gcode::{BlockReader, ProgramOptions};
 use edmd::vocab::Axis;
 
@@ -23,16 +23,7 @@ const AGREE_INCH_MM: f64 = 0.000_05 * 25.4 + 1e-6;
 
 /// edmd's reading of `text` (`D1` = 1 mm), end points or the error.
 fn edmd(text: &str) -> Result<Vec<[f64; 3]>, String> {
-    let options = ProgramOptions {
-        d_mm: vec![0.0, 1.0],
-        ..ProgramOptions::default()
-    };
-    end_points(BlockReader::with_options(
-        Cursor::new(text.as_bytes()),
-        "p.ngc",
-        XYZ,
-        options,
-    ))
+    edmd_ends(text, 1.0)
 }
 
 /// rs274's reading of `text` (`G41 D1` written `G41.1 D2`, its offset by diameter).

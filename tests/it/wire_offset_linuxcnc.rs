@@ -14,14 +14,10 @@
 use crate::common;
 
 use std::fmt::Write as _;
-use std::io::Cursor;
 use std::path::Path;
 
-use common::linuxcnc::{end_points, linuxcnc_moves, rs274};
-use edmd::gcode::{BlockReader, ProgramOptions};
-use edmd::vocab::Axis;
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274};
 
-const XYZ: &[Axis] = &[Axis::X, Axis::Y, Axis::Z];
 /// Every compensated end point within 1 µm of LinuxCNC's (rs274 prints 0.1 µm in mm)…
 const AGREE_MM: f64 = 1e-3;
 /// …or, in an inch program, within what it prints: four decimals of an inch, ±1.27 µm.
@@ -75,16 +71,7 @@ fn dialects(text: &str, diameter: f64) -> (String, String) {
 
 /// edmd's end points (mm, machine order X Y Z) of the program, `D1` = `radius_mm`.
 fn edmd_moves(text: &str, radius_mm: f64) -> Result<Vec<[f64; 3]>, String> {
-    let options = ProgramOptions {
-        d_mm: vec![0.0, radius_mm],
-        ..ProgramOptions::default()
-    };
-    end_points(BlockReader::with_options(
-        Cursor::new(text.as_bytes()),
-        "p.ngc",
-        XYZ,
-        options,
-    ))
+    edmd_ends(text, radius_mm)
 }
 
 /// Both readings of `text` (offset by `diameter` in the program's units, `radius_mm` in mm)

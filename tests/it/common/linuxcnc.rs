@@ -212,3 +212,23 @@ pub fn without_moves_under(ends: Vec<[f64; 3]>, bound: f64) -> Vec<[f64; 3]> {
         })
         .collect()
 }
+
+/// edmd's reading of `text` on an X/Y/Z machine with `D1` = `d1_mm`: the end points of its
+/// blocks, or the first error's message.
+pub fn edmd_ends(text: &str, d1_mm: f64) -> Result<Vec<[f64; 3]>, String> {
+    let options = edmd::gcode::ProgramOptions {
+        d_mm: vec![0.0, d1_mm],
+        ..edmd::gcode::ProgramOptions::default()
+    };
+    let axes = [
+        edmd::vocab::Axis::X,
+        edmd::vocab::Axis::Y,
+        edmd::vocab::Axis::Z,
+    ];
+    end_points(edmd::gcode::BlockReader::with_options(
+        std::io::Cursor::new(text.as_bytes()),
+        "p.ngc",
+        &axes,
+        options,
+    ))
+}
