@@ -171,7 +171,11 @@ impl RawConfig {
         let conditions = conditions(self.generator)?;
         let wire = self.wire.validate(&compensation, &conditions)?;
         let sinker = self.sinker.validate(&conditions)?;
-        let mcodes = super::mcode::vendor_codes(p.mcode, &conditions)?;
+        let mut mcodes = Vec::new();
+        for m in p.mcode {
+            let code = m.validate(&mcodes, &conditions)?;
+            mcodes.push(code);
+        }
         let program = ProgramConfig {
             block_delete: p.block_delete,
             optional_stop: p.optional_stop,

@@ -567,8 +567,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 any = true;
             }
         }
-        let machine_move = self.scratch.machine_move;
-        let polar = super::polar::polar_end(&self.state, &self.axes, machine_move, base, letters)?;
+        let frame = super::polar::PolarFrame {
+            axes: &self.axes,
+            offset: self.state.offset(),
+            scale: self.state.scale(),
+            incremental: self.state.modal.incremental,
+            machine_move: self.scratch.machine_move,
+        };
+        let polar = super::polar::polar_end(&frame, base, letters)?;
         if let Some(([ix, iy], [x, y])) = polar {
             p[ix] = x;
             p[iy] = y;

@@ -141,7 +141,7 @@ impl<R> BlockReader<R> {
     /// system selected as by its G word (`col`: where to point an error).
     pub(super) fn restore_modes(
         &mut self,
-        saved: super::state::SavedModes,
+        saved: super::control::SavedModes,
         col: usize,
     ) -> Step<()> {
         if saved.system != self.state.system {

@@ -15,7 +15,7 @@ use std::io::{BufRead, Seek};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::control::Flow;
+use super::control::{Flow, SavedModes};
 use super::cycles::CycleState;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
@@ -57,22 +57,6 @@ pub(super) struct InterpState {
     pub saved_modes: Option<SavedModes>,
     /// Some axis is not homed ([`crate::gcode::WorkStart::unhomed`]).
     pub unhomed: bool,
-}
-
-/// The modal state `M70` saves and `M72` restores (LinuxCNC's list, as far as edmd has the
-/// modes): units, distance modes, plane, feed, flushing, the condition, the retract mode,
-/// the work system.
-#[derive(Debug, Clone)]
-pub(super) struct SavedModes {
-    pub inch: bool,
-    pub incremental: bool,
-    pub arc_centre_absolute: bool,
-    pub plane: Plane,
-    pub feed: Option<f64>,
-    pub flushing: bool,
-    pub condition: u32,
-    pub retract_to_initial: bool,
-    pub system: crate::gcode::work::WorkSystem,
 }
 
 impl InterpState {

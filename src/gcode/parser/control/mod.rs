@@ -53,6 +53,22 @@ pub(super) enum CallKind {
     Fanuc { remaining: u64, body: Pos },
 }
 
+/// The modal state `M70` saves and `M72` restores (LinuxCNC's list, as far as edmd has the
+/// modes): units, distance modes, plane, feed, flushing, the condition, the retract mode,
+/// the work system.
+#[derive(Debug, Clone)]
+pub(super) struct SavedModes {
+    pub(super) inch: bool,
+    pub(super) incremental: bool,
+    pub(super) arc_centre_absolute: bool,
+    pub(super) plane: crate::gcode::Plane,
+    pub(super) feed: Option<f64>,
+    pub(super) flushing: bool,
+    pub(super) condition: u32,
+    pub(super) retract_to_initial: bool,
+    pub(super) system: crate::gcode::work::WorkSystem,
+}
+
 #[derive(Debug, Clone)]
 pub(super) struct Frame {
     kind: CallKind,
@@ -61,7 +77,7 @@ pub(super) struct Frame {
     loops: usize,
     ifs: usize,
     /// The modes `M73` saved in this call, restored on its return.
-    pub(super) restore: Option<crate::gcode::parser::state::SavedModes>,
+    pub(super) restore: Option<SavedModes>,
 }
 
 /// Why lines are being skipped, and what ends the skip.
