@@ -34,7 +34,7 @@ const SPIRAL_RELATIVE: f64 = 0.001;
 
 /// …or by this much, mm, and never by 100 times it (LinuxCNC's
 /// `CENTER_ARC_RADIUS_TOLERANCE_MM` and `_INCH`, by the program's units).
-pub fn spiral_tolerance_mm(inch: bool) -> f64 {
+fn spiral_tolerance_mm(inch: bool) -> f64 {
     if inch {
         2.0 * 0.001 * std::f64::consts::SQRT_2 * MM_PER_INCH
     } else {
