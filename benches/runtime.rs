@@ -91,6 +91,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
                 pass: 0,
+                wire_offset_mm: 0.0,
             };
             at = end;
             b

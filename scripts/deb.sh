@@ -54,8 +54,11 @@ install -m 644 config/hal/*.hal config/hal/*.toml "$stage/usr/share/doc/edmd/hal
 chmod 644 "$stage/usr/share/doc/edmd/copyright"
 
 "$bin" man --out "$stage/usr/share/man/man1" 2>/dev/null
-gzip -9n "$stage"/usr/share/man/man1/*.1
-chmod 644 "$stage"/usr/share/man/man1/*.1.gz
+# edmd.toml(5), the configuration's page, goes to section 5.
+install -d "$stage/usr/share/man/man5"
+mv "$stage/usr/share/man/man1/edmd.toml.5" "$stage/usr/share/man/man5/"
+gzip -9n "$stage"/usr/share/man/man1/*.1 "$stage"/usr/share/man/man5/*.5
+chmod 644 "$stage"/usr/share/man/man1/*.1.gz "$stage"/usr/share/man/man5/*.5.gz
 "$bin" completions bash >"$stage/usr/share/bash-completion/completions/edmd"
 "$bin" completions zsh >"$stage/usr/share/zsh/vendor-completions/_edmd"
 "$bin" completions fish >"$stage/usr/share/fish/vendor_completions.d/edmd.fish"

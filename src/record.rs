@@ -227,6 +227,8 @@ pub struct Recording {
     /// Inside a turn-back or its re-advance (from a short to the resume).
     turning_back: bool,
     turn_back_points: usize,
+    /// Where the job started (steps): the position of events before the first sample.
+    origin: Vec<i64>,
 }
 
 impl Recording {
@@ -249,7 +251,15 @@ impl Recording {
             feed_from: None,
             turning_back: false,
             turn_back_points: 0,
+            origin: Vec::new(),
         }
+    }
+
+    /// The job starts at `steps` (machine axis order): where events before the first sample
+    /// happened.
+    pub fn starting_at(mut self, steps: &[i64]) -> Recording {
+        self.origin = steps.to_vec();
+        self
     }
 
     /// Also records the upper guide of a four-axis wire machine, whose U and V (the upper
@@ -350,7 +360,15 @@ impl Recording {
     /// The position (mm, machine axis order) of the last sample so far.
     pub fn last_position_mm(&self) -> Vec<f64> {
         self.last.map_or_else(
-            || vec![0.0; self.step_mm.len()],
+            || {
+                (0..self.step_mm.len())
+                    .map(|a| {
+                        self.origin
+                            .get(a)
+                            .map_or(0.0, |&s| s as f64 * self.step_mm[a])
+                    })
+                    .collect()
+            },
             |s| {
                 (0..self.step_mm.len())
                     .map(|a| self.mm(&s.position, a))

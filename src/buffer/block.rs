@@ -57,6 +57,9 @@ pub struct StepBlock {
     /// The pass of the technology table this move belongs to (1-based; 0: the job does not
     /// run in passes), so a report marks where each pass starts, also after a resume.
     pub pass: u8,
+    /// The wire offset this move was offset by (mm; + left of travel, `G41`; − right, `G42`;
+    /// 0 without one): what the console shows in force.
+    pub wire_offset_mm: f32,
 }
 
 /// What a move is besides its geometry: a small set of flags, two bytes in the ring.
@@ -95,6 +98,9 @@ impl BlockFlags {
     /// A move of an orbit (`[sinker.orbit]`): a jump lifts off it along the tool axis rather
     /// than back along the spiral it came.
     pub const ORBIT: BlockFlags = BlockFlags(4096);
+    /// A move the job made, not the program: the approach of a run from a line (with
+    /// `RAPID`). Single block does not stop before it.
+    pub const APPROACH: BlockFlags = BlockFlags(8192);
 
     /// Every flag of `other` is set.
     pub const fn contains(self, other: BlockFlags) -> bool {
@@ -159,6 +165,7 @@ impl StepBlock {
         condition_v_ref: 0.0,
         condition_jump: [f32::NAN; 3],
         pass: 0,
+        wire_offset_mm: 0.0,
     };
 
     /// Signed step count of each axis.

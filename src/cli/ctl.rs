@@ -117,6 +117,13 @@ pub(super) enum CtlCommand {
     },
     /// Print the work offset table (G54 … G59.3; the active system marked *)
     Offsets,
+    /// Print the job history, newest first: program, start, outcome, machine time, each
+    /// pass's time, shorts and wire breaks (kept across restarts in daemon.job_history)
+    Jobs {
+        /// How many jobs
+        #[arg(long, default_value_t = 20, value_name = "N")]
+        count: usize,
+    },
     /// Print a one-time link that logs a browser in to the web page (one use, 10 minutes)
     #[command(name = "web-link")]
     WebLink,
@@ -150,13 +157,17 @@ pub(super) enum CtlCommand {
         no_wait: bool,
     },
     /// Home axes by their switches ([[homing.axis]]; all that have one when none is named),
-    /// in sequence order. `--here`: no switch: where the axes stand is their home position
+    /// in sequence order. `--here`: where the axes stand is their home position (the axes
+    /// named, or all without a switch; an axis with a switch only with --force)
     Home {
         /// Axis letters
         axes: Vec<String>,
         /// Declare the current position to be home (home_position_mm, or machine zero)
         #[arg(long)]
         here: bool,
+        /// With --here: also on an axis that has a home switch (the correction is reported)
+        #[arg(long, requires = "here")]
+        force: bool,
     },
     /// A status line every interval (one JSON status per line with --json), until N lines
     /// or until the daemon goes away
@@ -307,6 +318,12 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
+        CtlCommand::Jobs { count } => (
+            Request::Jobs {
+                count: Some(*count),
+            },
+            false,
+        ),
         CtlCommand::WebLink => (Request::WebLink {}, false),
         CtlCommand::Reset => (Request::Reset {}, false),
         CtlCommand::SingleBlock { state } => (
@@ -364,10 +381,11 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             },
             !no_wait,
         ),
-        CtlCommand::Home { axes, here } => (
+        CtlCommand::Home { axes, here, force } => (
             Request::Home {
                 axes: axes.clone(),
                 here: *here,
+                force: *force,
             },
             false,
         ),

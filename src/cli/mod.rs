@@ -117,6 +117,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 }
 
 mod ctl;
+mod cut;
 mod docs;
 mod journal;
 mod latency;
@@ -193,6 +194,10 @@ struct PlanArgs {
     /// Print only the summary: no progress bar, even on a terminal
     #[arg(short, long)]
     quiet: bool,
+    /// Plan the program once per pass of the technology table ([wire] pass), as a job run
+    /// with --passes N cuts it: each pass at its offset, condition and feed
+    #[arg(long, value_name = "N")]
+    passes: Option<usize>,
 }
 
 #[derive(Args, Debug)]
@@ -231,43 +236,6 @@ struct RunArgs {
     passes: Option<usize>,
 }
 
-impl RunArgs {
-    /// What the job cuts: from `--from-line`, in `--passes` of the table.
-    fn cut_plan(&self, cfg: &Config) -> Result<crate::path::CutPlan, ExitCode> {
-        let passes = match self.passes {
-            None => Vec::new(),
-            Some(0) => {
-                eprintln!("edmd: error: --passes counts from 1 (the first pass of [wire] pass)");
-                return Err(ExitCode::from(EXIT_BAD_INPUT));
-            }
-            Some(n) => crate::path::passes::first(&cfg.wire.passes, n).map_err(|e| {
-                eprintln!("edmd: error: {e}");
-                ExitCode::from(EXIT_BAD_INPUT)
-            })?,
-        };
-        let tab_mm = if passes.is_empty() {
-            0.0
-        } else {
-            cfg.wire.tab_mm
-        };
-        Ok(crate::path::CutPlan {
-            from_line: self.cut_from(cfg),
-            passes,
-            tab_mm,
-        })
-    }
-
-    /// `--from-line` with its approach (the machine's usual one unless `--approach`).
-    fn cut_from(&self, cfg: &Config) -> Option<crate::path::FromLine> {
-        self.from_line.map(|line| crate::path::FromLine {
-            line,
-            approach: self
-                .approach
-                .unwrap_or(crate::path::Approach::default_for(cfg.machine.safe_z_mm)),
-        })
-    }
-}
-
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -292,11 +260,17 @@ fn on_parser_stack(name: &str, work: impl FnOnce() -> ExitCode + Send) -> ExitCo
 }
 
 /// Sets up logging as configured; returns the way to change the level later (SIGHUP).
-/// Logging for a command that plans or moves, with the configuration's warnings said once.
-fn init_logging_for(cfg: &Config) -> crate::daemon::SetLogLevel {
+/// Logging for a command that plans or moves. The daemon says the configuration's warnings
+/// once when it starts, in its journal; a one-shot command (`run`, `plan`) only at the debug
+/// level: its summary reports the feeds it reached, and a warning on every command is noise.
+fn init_logging_for(cfg: &Config, daemon: bool) -> crate::daemon::SetLogLevel {
     let set_level = init_logging(&cfg.log);
     if let Some(warning) = config::max_feed_warning(cfg) {
-        tracing::warn!("{warning}");
+        if daemon {
+            tracing::warn!("{warning}");
+        } else {
+            tracing::debug!("{warning}");
+        }
     }
     set_level
 }
@@ -488,8 +462,12 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    let _ = init_logging_for(&cfg);
-    match plan::plan_program(&args.program, &cfg, &args.out, !args.quiet) {
+    let _ = init_logging_for(&cfg, false);
+    let cut = match cut::passes_plan(&cfg, args.passes) {
+        Ok(cut) => cut,
+        Err(code) => return code,
+    };
+    match plan::plan_program(&args.program, &cfg, &cut, &args.out, !args.quiet) {
         Ok(summary) => {
             out!("{}", summary.text());
             outln!("written to {}", args.out.display());
@@ -532,7 +510,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Ok(c) => c,
         Err(code) => return code,
     };
-    let _ = init_logging_for(&cfg);
+    let _ = init_logging_for(&cfg, false);
     tracing::info!("{}", args.config.describe());
     let stop = stop_on_signals();
     let terminal = std::io::stderr().is_terminal();
@@ -645,7 +623,7 @@ fn run_serve(args: &ServeArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let set_level = init_logging_for(&cfg);
+    let set_level = init_logging_for(&cfg, true);
     tracing::info!("{}", args.config.describe());
     let source = crate::daemon::ConfigSource {
         path,

@@ -322,6 +322,12 @@ pub struct DaemonConfig {
     /// Group owning the socket (`None`: the daemon's own).
     pub socket_group: Option<String>,
     pub program_dir: PathBuf,
+    /// Where the daemon keeps its files unless one is given its own path: the checkpoint,
+    /// the machine state, the job history and hour counters, reports, the HTTP token, the
+    /// OPC UA users and certificates.
+    pub state_dir: PathBuf,
+    /// The job history (one JSON line a job); the hour counters are `counters.json` beside it.
+    pub job_history: PathBuf,
     pub checkpoint: PathBuf,
     /// The machine state (position, homed axes, work offsets); by default beside the
     /// checkpoint, `machine-state.json`.
@@ -491,7 +497,44 @@ impl Default for Config {
     }
 }
 
+/// The nominal cutting feed of each condition: the feed a cut advances at when the gap
+/// behaves (the condition's sparking feed where it sets one, else
+/// `servo.normal_feed_mm_per_min`). The plan's estimate and a job's ETA time cuts by it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SparkingFeeds {
+    /// Without a condition of its own (mm/s).
+    normal: f64,
+    /// `(number, mm/s)`.
+    conditions: Vec<(u32, f64)>,
+}
+
+impl SparkingFeeds {
+    pub fn new(config: &Config) -> SparkingFeeds {
+        SparkingFeeds {
+            normal: config.servo.normal_feed_mm_per_min / 60.0,
+            conditions: config
+                .conditions
+                .iter()
+                .map(|c| (c.number, c.feed_mm_per_min / 60.0))
+                .collect(),
+        }
+    }
+
+    /// A cut's nominal feed in condition `n` (mm/s; 0: none in force).
+    pub fn mm_per_s(&self, n: u32) -> f64 {
+        self.conditions
+            .iter()
+            .find(|(c, _)| *c == n)
+            .map_or(self.normal, |(_, f)| *f)
+    }
+}
+
 impl Config {
+    /// The E numbers `[generator] condition` defines.
+    pub fn condition_numbers(&self) -> Vec<u32> {
+        self.conditions.iter().map(|c| c.number).collect()
+    }
+
     /// A wire break can be told on this machine (an open-gap limit, a wire-break input, the
     /// simulator's breaks, or a gap script, which may script one): only then does a job keep
     /// the trail a rethread walks back along (`buffer.trail_blocks`), so a machine that never

@@ -287,6 +287,8 @@ pub(super) struct RawDaemon {
     pub(super) socket_mode: String,
     pub(super) socket_group: String,
     pub(super) program_dir: String,
+    pub(super) state_dir: String,
+    pub(super) job_history: String,
     pub(super) checkpoint: String,
     pub(super) state_file: String,
     pub(super) checkpoint_interval_s: f64,

@@ -2,7 +2,7 @@
 //! the offending key and what is wrong; [`Config::parse`](super::Config) attaches where the
 //! value came from.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use super::raw::{
     RawBuffer, RawCompensation, RawConfig, RawDaemon, RawFine, RawGap, RawGenerator,
@@ -169,7 +169,7 @@ impl RawConfig {
         }
         let compensation = compensation(self.compensation)?;
         let conditions = conditions(self.generator)?;
-        let wire = self.wire.validate(&compensation, &conditions)?;
+        let wire = self.wire.validate(&compensation)?;
         let sinker = self.sinker.validate(&conditions)?;
         let mut mcodes = Vec::new();
         for m in p.mcode {
@@ -485,6 +485,13 @@ fn gap(g: RawGap) -> Result<GapConfig, Invalid> {
 }
 
 fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
+    let state_dir = non_empty("daemon.state_dir", d.state_dir)?;
+    // "" puts a file under the state directory, by its usual name.
+    let under = |value: &str, name: &str| match value.trim() {
+        "" => state_dir.join(name),
+        path => PathBuf::from(path),
+    };
+    let checkpoint = under(&d.checkpoint, "checkpoint.json");
     Ok(DaemonConfig {
         socket: non_empty("daemon.socket", d.socket)?,
         socket_mode: u32::from_str_radix(d.socket_mode.trim_start_matches("0o"), 8)
@@ -499,14 +506,9 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
             ))?,
         socket_group: (!d.socket_group.trim().is_empty()).then_some(d.socket_group),
         program_dir: non_empty("daemon.program_dir", d.program_dir)?,
-        state_file: match d.state_file.trim() {
-            "" => Path::new(&d.checkpoint)
-                .parent()
-                .unwrap_or(Path::new("."))
-                .join("machine-state.json"),
-            path => PathBuf::from(path),
-        },
-        checkpoint: non_empty("daemon.checkpoint", d.checkpoint)?,
+        state_file: under(&d.state_file, "machine-state.json"),
+        job_history: under(&d.job_history, "jobs.jsonl"),
+        checkpoint,
         checkpoint_interval_s: (non_negative(
             "daemon.checkpoint_interval_s",
             d.checkpoint_interval_s,
@@ -515,7 +517,10 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
         status_interval_s: (non_negative("daemon.status_interval_s", d.status_interval_s)? > 0.0)
             .then_some(d.status_interval_s),
         max_clients: in_range("daemon.max_clients", d.max_clients, 1, 1024)? as usize,
-        report_dir: (!d.report_dir.trim().is_empty()).then(|| PathBuf::from(d.report_dir)),
+        report_dir: match d.report_dir.trim() {
+            "off" => None,
+            _ => Some(under(&d.report_dir, "reports")),
+        },
         http: match d.http.trim() {
             "" => None,
             addr => Some(addr.parse().map_err(|_| {
@@ -528,7 +533,7 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
                 )
             })?),
         },
-        http_token_file: non_empty("daemon.http_token_file", d.http_token_file)?,
+        http_token_file: under(&d.http_token_file, "http-token"),
         http_allowed_hosts: d
             .http_allowed_hosts
             .iter()
@@ -551,8 +556,9 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
             65_536,
         )? as usize,
         opcua: super::opcua::endpoint(&d.opcua).map_err(|e| ("daemon.opcua", e))?,
-        opcua_users_file: non_empty("daemon.opcua_users_file", d.opcua_users_file)?,
-        opcua_pki_dir: non_empty("daemon.opcua_pki_dir", d.opcua_pki_dir)?,
+        opcua_users_file: under(&d.opcua_users_file, "opcua-users"),
+        opcua_pki_dir: under(&d.opcua_pki_dir, "opcua-pki"),
+        state_dir,
     })
 }
 

@@ -1,9 +1,10 @@
 //! `[wire]`: the technology table of a wire machine's passes (`[[wire.pass]]`), checked
-//! against the offset registers and the conditions it names.
+//! against the offset registers (the conditions it names are checked when passes are cut:
+//! `path::passes::first`).
 
+use super::CompensationConfig;
 use super::raw::RawWire;
 use super::validate::{Invalid, in_range, positive};
-use super::{CompensationConfig, Condition};
 pub use crate::vocab::Guides;
 
 /// `[wire]`: the passes a `--passes N` run cuts, first to last.
@@ -45,11 +46,7 @@ pub struct TouchConfig {
 pub use crate::path::WirePass;
 
 impl RawWire {
-    pub(super) fn validate(
-        self,
-        compensation: &CompensationConfig,
-        conditions: &[Condition],
-    ) -> Result<WireConfig, Invalid> {
+    pub(super) fn validate(self, compensation: &CompensationConfig) -> Result<WireConfig, Invalid> {
         const KEY: &str = "wire.pass";
         let mut passes = Vec::new();
         for (i, p) in self.pass.into_iter().enumerate() {
@@ -79,18 +76,15 @@ impl RawWire {
                     ));
                 }
             };
-            let condition = u32::try_from(p.condition)
-                .ok()
-                .filter(|c| conditions.iter().any(|x| x.number == *c))
-                .ok_or_else(|| {
-                    (
-                        KEY,
-                        format!(
-                            "pass {n}: condition = {} is not one of [generator] condition",
-                            p.condition
-                        ),
-                    )
-                })?;
+            // Whether [generator] defines it is asked when the passes are cut (as for
+            // wire.touch_condition): a machine builder's own conditions need not come with
+            // the example pass table replaced, until passes are run.
+            let condition = u32::try_from(p.condition).map_err(|_| {
+                (
+                    KEY,
+                    format!("pass {n}: condition = {} is not an E number", p.condition),
+                )
+            })?;
             let feed_mm_per_min = p
                 .feed_mm_per_min
                 .map(|f| positive(KEY, f, 1e6, "mm/min (feed_mm_per_min)"))

@@ -44,11 +44,16 @@ pub(super) fn homing_program(h: &HomingAxis) -> String {
 
 impl Core {
     /// `home [AXIS…] [--here]`.
-    pub(super) fn home(&mut self, axes: &[String], here: bool) -> Result<String, Refusal> {
+    pub(super) fn home(
+        &mut self,
+        axes: &[String],
+        here: bool,
+        force: bool,
+    ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
         if here {
-            self.home_here(axes)
+            self.home_here(axes, force)
         } else {
             self.home_by_switch(axes)
         }
@@ -69,10 +74,45 @@ impl Core {
         axes.iter().map(|a| self.machine_axis(a)).collect()
     }
 
-    /// `home --here [AXIS…]`: the axes are declared homed where they stand: at their
-    /// `home_position_mm` when they have a `[[homing.axis]]`, else at machine zero.
-    fn home_here(&mut self, axes: &[String]) -> Result<String, Refusal> {
-        let picked = self.picked_axes(axes)?;
+    /// `home --here [AXIS…] [--force]`: the axes are declared homed where they stand: at
+    /// their `home_position_mm` when they have a `[[homing.axis]]`, else at machine zero.
+    /// Without axes named, the axes without a switch. An axis with a switch is its switch's
+    /// to home: declared only with `force`, and the shift of its coordinates is reported
+    /// (soft limits and work offsets move with it).
+    fn home_here(&mut self, axes: &[String], force: bool) -> Result<String, Refusal> {
+        let homing = &self.config.homing;
+        let picked: Vec<(usize, Axis)> = if axes.is_empty() && !force {
+            let free: Vec<_> = self
+                .picked_axes(axes)?
+                .into_iter()
+                .filter(|(i, _)| homing.axis(*i).is_none())
+                .collect();
+            if free.is_empty() {
+                return Err(Refusal::BadArgument(
+                    "every axis has a home switch: `home` homes them by it; `home --here AXIS \
+                     --force` declares one homed where it stands"
+                        .into(),
+                ));
+            }
+            free
+        } else {
+            self.picked_axes(axes)?
+        };
+        let switched: Vec<String> = picked
+            .iter()
+            .filter(|(i, _)| homing.axis(*i).is_some())
+            .map(|(_, a)| a.to_string())
+            .collect();
+        if !force && !switched.is_empty() {
+            return Err(Refusal::BadArgument(format!(
+                "{} {} a home switch: `home {}` homes by it; `home --here {} --force` declares \
+                 where it stands to be home_position_mm (moving its soft limits and offsets)",
+                switched.join(" "),
+                if switched.len() == 1 { "has" } else { "have" },
+                switched.join(" "),
+                switched.join(" ")
+            )));
+        }
         let before = self.machine.state.clone();
         let mut said = Vec::new();
         for &(i, axis) in &picked {
@@ -82,9 +122,20 @@ impl Core {
                 .axis(i)
                 .map_or(0.0, |h| h.home_position_mm);
             let step = self.config.machine.step_mm[i];
-            self.machine.state.position[i] = (home_mm / step).round() as i64;
+            let was = self.machine.state.position[i];
+            let now = (home_mm / step).round() as i64;
+            self.machine.state.position[i] = now;
+            let correction = if before.homed.get(i).copied().unwrap_or(false) && was != now {
+                format!(
+                    " (was {:.4}: shifted {:+.4} mm)",
+                    was as f64 * step,
+                    (now - was) as f64 * step
+                )
+            } else {
+                String::new()
+            };
             self.machine.state.set_homed(i);
-            said.push(format!("{axis}{home_mm:.4}"));
+            said.push(format!("{axis}{home_mm:.4}{correction}"));
         }
         if let Err(e) = self.machine.save(false).map_err(super::machine::unwritten) {
             self.machine.state = before;

@@ -408,10 +408,8 @@ impl Core {
         let Some(job) = self.jobs.job.take() else {
             return;
         };
-        self.jobs.finished = self.jobs.finished.plus(&super::status::job_counters(
-            &job.published,
-            &job.published.snapshot(),
-        ));
+        let counted = super::status::job_counters(&job.published, &job.published.snapshot());
+        self.jobs.finished = self.jobs.finished.plus(&counted);
         self.jobs
             .give_back_io(&job.config, end.output, end.gap, end.inputs);
         if job.kind != JobKind::Program {
@@ -478,6 +476,28 @@ impl Core {
                 Err(e) => tracing::error!("{e}"),
             }
         }
+        // Sparking: the gap read normal or short (index 0 and 2 of the gap's tallies).
+        let tick = job.config.fine.tick;
+        let spark_s = tick.ticks_to_secs(counted.gap_ticks[0] + counted.gap_ticks[2]);
+        let record = matches!(job.kind, JobKind::Program | JobKind::DryRun).then(|| {
+            let conditions: Vec<u32> = job.cut.passes.iter().map(|p| p.condition).collect();
+            let mut record = super::history::record_of(
+                &summary,
+                &job.recording.lock(),
+                job.started_at.clone(),
+                job.kind == JobKind::DryRun,
+                job.cut.from_line.map(|f| f.line),
+                &conditions,
+                job.report.as_deref(),
+            );
+            // The program as the operator names it: below the program directory.
+            if let Ok(name) = job.program.strip_prefix(&self.config.daemon.program_dir) {
+                record.program = name.display().to_string();
+            }
+            record
+        });
+        self.history
+            .add(record.as_ref(), summary.virtual_time_s, spark_s);
         self.jobs.last = Some(summary);
         self.notify_status();
     }

@@ -88,6 +88,12 @@ pub(super) fn machine_status(
         position_machine_mm: state.position_mm().as_slice()[..n].to_vec(),
         position_work_mm: state.position_work_mm().as_slice()[..n].to_vec(),
         work_system: state.system.name().to_string(),
+        work_offsets: crate::gcode::WorkSystem::all()
+            .map(|s| super::protocol::WorkOffsetRow {
+                system: s.name().to_string(),
+                offset_mm: state.offsets.get(s).as_slice()[..n].to_vec(),
+            })
+            .collect(),
         homed: state.homed.clone(),
         travel_mm: config
             .machine

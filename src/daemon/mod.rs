@@ -32,6 +32,7 @@
 
 mod checkpoints;
 pub mod error;
+pub mod history;
 mod homing;
 pub mod http;
 mod jobs;
@@ -110,6 +111,8 @@ struct Job {
     /// Why the stop was asked for: abort or a signal.
     stop_reason: Option<Reason>,
     started: Instant,
+    /// When it started, local time (the job history's).
+    started_at: String,
     resumed: bool,
     /// A checkpoint has been written for the current hold.
     hold_checkpointed: bool,
@@ -160,6 +163,8 @@ struct Core {
     shutting_down: bool,
     /// A SIGHUP's reads in progress on the reload worker.
     reloading: Option<upkeep::Reloading>,
+    /// The job history and the hour counters.
+    history: history::History,
 }
 
 /// Who talks to the core: the senders handed to clients, the cap on socket clients, the web
@@ -181,7 +186,18 @@ pub fn serve(
     set_log_level: SetLogLevel,
 ) -> Result<(), DaemonError> {
     let started = Instant::now();
+    // Every file the daemon keeps is under it unless given a path of its own.
+    if let Err(e) = std::fs::create_dir_all(&config.daemon.state_dir) {
+        tracing::warn!(
+            "daemon.state_dir {}: cannot make it ({e}); files kept there will fail to write",
+            config.daemon.state_dir.display()
+        );
+    }
     let checkpoints = CheckpointKeeper::open(&config.daemon.checkpoint);
+    let history = history::History::open(
+        &config.daemon.job_history,
+        &config.daemon.job_history.with_file_name("counters.json"),
+    );
     let machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
     // The device first (the parallel port, the HAL component, whose readiness `loadusr -W`
     // waits for): if it cannot be claimed, nothing else should start.
@@ -267,6 +283,7 @@ pub fn serve(
         started,
         shutting_down: false,
         reloading: None,
+        history,
     };
 
     core.jobs
@@ -413,6 +430,14 @@ impl Core {
 
     fn handle(&mut self, request: Request) -> Reply {
         let result = match request {
+            Request::Jobs { count } => {
+                let (jobs, bad) = self
+                    .history
+                    .last(count.unwrap_or(20).clamp(1, history::MAX_LISTED));
+                let mut reply = Reply::ok(history::table(&jobs, bad), self.status());
+                reply.jobs = Some(jobs);
+                return reply;
+            }
             Request::Status {} => Ok("status".to_string()),
             Request::Run {
                 program,
@@ -440,7 +465,7 @@ impl Core {
                 value,
                 system,
             } => self.touch_off(&axis, value, system.as_deref()),
-            Request::Home { axes, here } => self.home(&axes, here),
+            Request::Home { axes, here, force } => self.home(&axes, here, force),
             Request::Find { target, system } => self.find(&target, system.as_deref()),
             Request::Jog {
                 axis,

@@ -45,8 +45,16 @@ fn draw_programmed(recording: &JobRecording, program: &JobProgram, spec: &runtim
 }
 
 /// The folder of a job's report, when the configuration asks for one. The folder is made
-/// first: a job must not learn at its end that its report has nowhere to go.
-fn job_report(config: &Config, program_name: &str) -> Result<Option<PathBuf>, Refusal> {
+/// first: a job must not learn at its end that its report has nowhere to go. Jogs, MDI lines,
+/// homing and touch cycles are the machine's, not jobs: no report.
+fn job_report(
+    config: &Config,
+    program_name: &str,
+    kind: JobKind,
+) -> Result<Option<PathBuf>, Refusal> {
+    if !matches!(kind, JobKind::Program | JobKind::DryRun) {
+        return Ok(None);
+    }
     Ok(match &config.daemon.report_dir {
         Some(dir) => {
             let stem = Path::new(program_name)
@@ -126,8 +134,12 @@ impl Core {
                     "a run in passes starts at the program's start, not from a line".into(),
                 ));
             }
-            Some(n) => crate::path::passes::first(&self.config.wire.passes, n)
-                .map_err(|e| Refusal::BadArgument(e.to_string()))?,
+            Some(n) => crate::path::passes::first(
+                &self.config.wire.passes,
+                n,
+                &self.config.condition_numbers(),
+            )
+            .map_err(|e| Refusal::BadArgument(e.to_string()))?,
         };
         let tab_mm = if passes.is_empty() {
             0.0
@@ -211,6 +223,7 @@ impl Core {
             stop: Arc::new(AtomicBool::new(false)),
             stop_reason: None,
             started: Instant::now(),
+            started_at: super::history::local_time(),
             resumed,
             hold_checkpointed: false,
             last_checkpoint: Instant::now(),
@@ -235,15 +248,20 @@ impl Core {
     }
 
     /// A new job's recording, also the page's executed path from now on.
-    fn record(&mut self, program: &str) -> JobRecording {
+    fn record(&mut self, program: &str, start: &[i64], kind: JobKind) -> JobRecording {
         let recording: JobRecording = Arc::new(parking_lot::Mutex::new(
             Recording::new(&self.config.machine.step_mm, self.config.fine.tick)
-                .with_upper_guide(self.config.machine.upper_guide_axes()),
+                .with_upper_guide(self.config.machine.upper_guide_axes())
+                .starting_at(start),
         ));
-        *self.jobs.executed.lock() = Some(super::http::executed::Executed {
-            program: program.to_string(),
-            recording: recording.clone(),
-        });
+        // The page's executed path is what was cut: a homing search, a jog or a touch cycle
+        // moves the machine but cuts nothing, and the last cut stays on the page.
+        if matches!(kind, JobKind::Program | JobKind::DryRun | JobKind::Mdi) {
+            *self.jobs.executed.lock() = Some(super::http::executed::Executed {
+                program: program.to_string(),
+                recording: recording.clone(),
+            });
+        }
         recording
     }
 
@@ -379,22 +397,22 @@ impl Core {
             .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());
         // A report of what this job runs, when the configuration asks for one. Its folder is
         // made first: a job must not learn at its end that its report has nowhere to go.
-        let report = job_report(&config, &program.name)?;
+        let report = job_report(&config, &program.name, kind)?;
         let mut io = self.jobs.job_io(&config, &check, &ledger)?;
         // A homing job's probing moves read its switch, a touch cycle's the part; any other
         // job's the probe (the claimed port's gap input is lent to every job).
         let reads = launch.probe_reads(&spec.start_steps());
         io.gap.probe_reads(reads);
         io.inputs.probe_reads(reads);
-        let recording = self.record(&program.name);
+        let recording = self.record(&program.name, &ledger, kind);
         if report.is_some() {
             draw_programmed(&recording, &program, &spec);
         }
         io.recording = Some(recording.clone());
         let resumed = resume.is_some();
-        let progress = runtime::ProgressTracker::with_rapids(
+        let progress = runtime::ProgressTracker::new(
             check.path_mm,
-            check.rapid_spans.clone(),
+            check.pace.clone(),
             spec.plan.rapid_feed_mm_per_s,
         );
         let job = self.new_job(

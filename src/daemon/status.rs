@@ -65,59 +65,7 @@ impl Core {
             .job
             .as_ref()
             .zip(snapshot.as_ref())
-            .map(|(job, &snap)| {
-                let p = &job.published;
-                let axes = job.config.machine.axes.len();
-                let samples = p.latency_samples.load(Ordering::Relaxed);
-                JobStatus {
-                    program: job.program.display().to_string(),
-                    line: snap.line,
-                    segment: snap.here.seq,
-                    step: snap.here.event,
-                    parameter: snap.u_end.is_finite().then_some(snap.u_end),
-                    servo: snap.state,
-                    gap: p.gap(),
-                    position_steps: snap.position[..axes].to_vec(),
-                    position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
-                    feed_mm_per_min: snap.speed * 60.0,
-                    buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
-                    buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
-                    buffer_capacity: job.config.buffer.capacity as u64,
-                    servo_counters: snap.servo,
-                    last_probe: crate::runtime::LastProbe::new(
-                        p.probe.last().as_ref(),
-                        &job.config.machine.step_mm[..axes],
-                    ),
-                    overruns: p.overruns.load(Ordering::Relaxed),
-                    pulses: snap.pulses[..axes].to_vec(),
-                    ticks: snap.tick,
-                    machine_time_s: job.config.fine.tick.ticks_to_secs(snap.tick),
-                    elapsed_s: job.started.elapsed().as_secs_f64(),
-                    latency_mean_us: (samples > 0).then(|| {
-                        p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0
-                    }),
-                    latency_max_us: (samples > 0)
-                        .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
-                    resumed: job.resumed,
-                    progress: job.progress.fraction(),
-                    path_done_mm: job.progress.done_mm(),
-                    path_total_mm: job.progress.total_mm(),
-                    eta_s: job.progress.eta_s(),
-                    recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
-                    dry_run: job.kind == super::launch::JobKind::DryRun,
-                    from_line: job.cut.from_line,
-                    passes: job.cut.passes.len(),
-                    paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
-                        0 => None,
-                        line => Some(line),
-                    },
-                    pause: match p.paused_line.load(Ordering::Relaxed) {
-                        0 => None,
-                        _ => PauseKind::from_code(p.paused_kind.load(Ordering::Relaxed))
-                            .map(|k| k.name().to_string()),
-                    },
-                }
-            });
+            .map(|(job, snap)| job_status(job, snap));
         let live = snapshot.as_ref().map(|s| s.position);
         Status {
             machine: super::machine::machine_status(
@@ -163,6 +111,8 @@ impl Core {
                 None => self.jobs.last_check.clone(),
             },
             rt_refused: self.jobs.fine.rt_refused().to_vec(),
+            hours: self.history.counters,
+            history_write_error: self.history.write_error.clone(),
             counters: {
                 let mut counters = match self.jobs.job.as_ref().zip(snapshot.as_ref()) {
                     Some((job, snap)) => {
@@ -185,6 +135,64 @@ impl Core {
         if self.notifier.active() {
             self.notifier.status(&self.status_line());
         }
+    }
+}
+
+/// The running job as the status shows it, from its snapshot `snap`.
+fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
+    let p = &job.published;
+    let axes = job.config.machine.axes.len();
+    let samples = p.latency_samples.load(Ordering::Relaxed);
+    JobStatus {
+        program: job.program.display().to_string(),
+        line: snap.line,
+        segment: snap.here.seq,
+        step: snap.here.event,
+        parameter: snap.u_end.is_finite().then_some(snap.u_end),
+        servo: snap.state,
+        gap: p.gap(),
+        position_steps: snap.position[..axes].to_vec(),
+        position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
+        feed_mm_per_min: snap.speed * 60.0,
+        buffer_unprocessed: p.buffer_unprocessed.load(Ordering::Relaxed),
+        buffer_reserved: p.buffer_reserved.load(Ordering::Relaxed),
+        buffer_capacity: job.config.buffer.capacity as u64,
+        servo_counters: snap.servo,
+        last_probe: crate::runtime::LastProbe::new(
+            p.probe.last().as_ref(),
+            &job.config.machine.step_mm[..axes],
+        ),
+        overruns: p.overruns.load(Ordering::Relaxed),
+        pulses: snap.pulses[..axes].to_vec(),
+        ticks: snap.tick,
+        machine_time_s: job.config.fine.tick.ticks_to_secs(snap.tick),
+        elapsed_s: job.started.elapsed().as_secs_f64(),
+        latency_mean_us: (samples > 0)
+            .then(|| p.latency_sum_ns.load(Ordering::Relaxed) as f64 / samples as f64 / 1000.0),
+        latency_max_us: (samples > 0)
+            .then(|| p.latency_max_ns.load(Ordering::Relaxed) as f64 / 1000.0),
+        resumed: job.resumed,
+        progress: job.progress.fraction(),
+        path_done_mm: job.progress.done_mm(),
+        path_total_mm: job.progress.total_mm(),
+        eta_s: job.progress.eta_s(),
+        recent_feed_mm_per_min: job.progress.recent_feed().map(|f| f * 60.0),
+        dry_run: job.kind == super::launch::JobKind::DryRun,
+        from_line: job.cut.from_line,
+        passes: job.cut.passes.len(),
+        pass: (snap.pass > 0).then_some(snap.pass),
+        inch: job.modes.inch,
+        condition: (snap.condition > 0).then_some(snap.condition),
+        wire_offset: super::protocol::WireOffsetStatus::of(snap.wire_offset_mm),
+        paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
+            0 => None,
+            line => Some(line),
+        },
+        pause: match p.paused_line.load(Ordering::Relaxed) {
+            0 => None,
+            _ => PauseKind::from_code(p.paused_kind.load(Ordering::Relaxed))
+                .map(|k| k.name().to_string()),
+        },
     }
 }
 

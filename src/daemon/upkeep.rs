@@ -225,7 +225,11 @@ impl Core {
                 let _ = self.checkpoints.write(&job, &snap, Reason::Periodic, false);
                 job.last_checkpoint = now;
             }
-            job.progress.track(snap.path_mm, now);
+            job.progress.track(
+                snap.path_mm,
+                now,
+                job.published.hold.load(Ordering::Relaxed),
+            );
             let overruns = job.published.overruns.load(Ordering::Relaxed);
             if overruns > job.overruns_seen
                 && now.duration_since(job.last_overrun_report) >= OVERRUN_REPORT

@@ -17,7 +17,8 @@ pub(super) struct Stops {
     /// A pause was met while fetching: reported by the tick that met it.
     pub paused: Option<PauseKind>,
     /// Single block: the operator's switch (from the thread loop); a pause before every
-    /// program block while it is on.
+    /// program block while it is on (not before the moves of a run-from-line approach,
+    /// which the job made: the first stop is before the line's block).
     pub single_block: bool,
     /// The last block entered ended a program block: the next one starts a new one.
     pub after_block_end: bool,
@@ -45,7 +46,7 @@ impl Stops {
             } else {
                 PauseKind::Program
             });
-        } else if self.single_block && starts_block {
+        } else if self.single_block && starts_block && !block.flags.contains(BlockFlags::APPROACH) {
             self.hold = true;
             self.paused = Some(PauseKind::SingleBlock);
         }

@@ -20,7 +20,10 @@
 //! (a line that moves nothing starts at the next move; a NURBS curve is one block, so a line
 //! inside one starts at the next block). Refused, at check time, with the line: a probing
 //! move before N (where it stops decides everything after it), the wire offset's entry move
-//! as the first block (its start is not on the offset path), and no move at or after N.
+//! as the first block after moves skipped (its start is not on the offset path; the refusal
+//! names the first line after it that can be run from), and no move at or after N. An entry
+//! that is the program's first move starts the program itself: CAM posts write `G41 D1` on
+//! the first move, and a line at or before it runs the whole program.
 //!
 //! Both approaches are a pure function of the program, the line and the job's start, so a
 //! checkpoint that records the line and the approach resumes into the very same block
@@ -92,10 +95,16 @@ pub enum FromLineError {
     },
     #[error(
         "{program}:{line}:1: this is the wire offset's entry move (the first move after \
-         G41/G42): its start is not on the offset path; run from a line before the G41/G42 \
-         or after the entry"
+         G41/G42): its start is not on the offset path; run from {} or later, or from a \
+         line before the G41/G42",
+        next.map_or("the line after it".to_string(), |n| format!("line {n}"))
     )]
-    CompEntry { program: String, line: u64 },
+    CompEntry {
+        program: String,
+        line: u64,
+        /// The line of the first move after the entry: the first that can be run from.
+        next: Option<u64>,
+    },
     #[error("{program}:{line}:1: no move at or after line {line} to start from")]
     NoMove { program: String, line: u64 },
 }
@@ -130,6 +139,10 @@ pub struct Gate {
     reached: bool,
     /// The block before carried a wire offset (the next one with one is no entry).
     offset_on: bool,
+    /// Some block went before the line (an approach exists).
+    skipped_any: bool,
+    /// The line asked for fell on an entry move: refused, naming the next block's line.
+    entry_refused: Option<u64>,
     approach: ApproachPlan,
     /// Path the approach left out and not yet told (mm; the direct approach's own moves
     /// count against it): progress and placed debris stay where a full run has them.
@@ -143,6 +156,8 @@ impl Gate {
             program: program.to_string(),
             reached: false,
             offset_on: false,
+            skipped_any: false,
+            entry_refused: None,
             approach,
             skipped_mm: 0.0,
         }
@@ -157,6 +172,13 @@ impl Gate {
     pub fn admit(&mut self, block: &Block) -> Result<Route, FromLineError> {
         let entry = block.wire_offset.is_some() && !self.offset_on;
         self.offset_on = block.wire_offset.is_some();
+        if let Some(line) = self.entry_refused {
+            return Err(FromLineError::CompEntry {
+                program: self.program.clone(),
+                line,
+                next: Some(block.line),
+            });
+        }
         if self.reached {
             return Ok(Route::Cut);
         }
@@ -168,13 +190,14 @@ impl Gate {
                     line: self.from.line,
                 });
             }
+            self.skipped_any = true;
             return Ok(Route::Before);
         }
-        if entry {
-            return Err(FromLineError::CompEntry {
-                program: self.program.clone(),
-                line: block.line,
-            });
+        // The program's first move starts the program: from line 1, whatever the entry.
+        if entry && self.skipped_any {
+            // Refused once the next block names the first line that can be run from.
+            self.entry_refused = Some(block.line);
+            return Ok(Route::Before);
         }
         self.reached = true;
         Ok(Route::First)
@@ -182,6 +205,13 @@ impl Gate {
 
     /// At the program's end: the line was reached.
     pub fn finished(&self) -> Result<(), FromLineError> {
+        if let Some(line) = self.entry_refused {
+            return Err(FromLineError::CompEntry {
+                program: self.program.clone(),
+                line,
+                next: None,
+            });
+        }
         if self.reached {
             Ok(())
         } else {
@@ -344,14 +374,33 @@ mod tests {
                 .starts_with("p.ngc:4:1: the program probes here, before line 5"),
             "{e}"
         );
-        // The first move carrying a wire offset is its entry.
-        let mut b = line(5, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
-        b.wire_offset = Some(crate::gcode::WireOffset {
-            left: true,
-            d_mm: 0.1,
-        });
-        let e = gate.admit(&b).unwrap_err();
-        assert!(e.to_string().contains("entry move"), "{e}");
+        // The first move carrying a wire offset is its entry: after moves the approach
+        // skips, refused, naming the next move's line as the first that can be run from.
+        let entry = |n: u64| {
+            let mut b = line(n, [0.0; 3], [1.0, 0.0, 0.0], BlockKind::Line);
+            b.wire_offset = Some(crate::gcode::WireOffset {
+                left: true,
+                d_mm: 0.1,
+            });
+            b
+        };
+        let mut gate = gate_at_5();
+        assert_eq!(
+            gate.admit(&line(3, [0.0; 3], [0.0, 1.0, 0.0], BlockKind::Line)),
+            Ok(Route::Before)
+        );
+        assert_eq!(gate.admit(&entry(5)), Ok(Route::Before));
+        let e = gate.admit(&entry(7)).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("p.ngc:5:1: this is the wire offset's entry move")
+                && e.to_string().contains("run from line 7 or later"),
+            "{e}"
+        );
+        // As the program's first move, it starts the program.
+        let mut gate = gate_at_5();
+        assert_eq!(gate.admit(&entry(5)), Ok(Route::First));
+        assert!(gate.finished().is_ok());
     }
 
     #[test]

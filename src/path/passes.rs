@@ -52,17 +52,59 @@ pub enum PassError {
     },
     #[error("--passes {asked}: [wire] pass has {have} passes")]
     TooMany { asked: usize, have: usize },
+    #[error(
+        "--passes: wire.pass: pass {pass}: condition = {condition} is not one of [generator] \
+         condition: give the pass one that is, or define E{condition}"
+    )]
+    Undefined { pass: usize, condition: u32 },
 }
 
-/// The first `n` passes of the table (`n` = 0: none, the program as written).
-pub fn first(table: &[WirePass], n: usize) -> Result<Vec<WirePass>, PassError> {
+/// The first `n` passes of the table (`n` = 0: none, the program as written), each in a
+/// condition `defined` has.
+pub fn first(table: &[WirePass], n: usize, defined: &[u32]) -> Result<Vec<WirePass>, PassError> {
     if n > table.len() {
         return Err(PassError::TooMany {
             asked: n,
             have: table.len(),
         });
     }
+    if let Some((i, p)) = table[..n]
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !defined.contains(&p.condition))
+    {
+        return Err(PassError::Undefined {
+            pass: i + 1,
+            condition: p.condition,
+        });
+    }
     Ok(table[..n].to_vec())
+}
+
+#[cfg(test)]
+#[test]
+fn a_pass_in_a_condition_the_generator_lacks_is_refused_when_passes_are_cut() {
+    let pass = |condition| WirePass {
+        offset_mm: 0.1,
+        condition,
+        feed_mm_per_min: None,
+        reverse: false,
+    };
+    let table = [pass(4), pass(7)];
+    assert_eq!(first(&table, 1, &[4]), Ok(vec![pass(4)]));
+    let e = first(&table, 2, &[1, 4]).unwrap_err();
+    assert_eq!(
+        e,
+        PassError::Undefined {
+            pass: 2,
+            condition: 7
+        }
+    );
+    assert!(
+        e.to_string()
+            .contains("pass 2: condition = 7 is not one of"),
+        "{e}"
+    );
 }
 
 /// The reader's options for `pass`: its offset in every `D` register from D1.
@@ -161,7 +203,7 @@ mod tests {
         .unwrap();
         let b = block_of(Block::new(4, BlockKind::Line, line, Some(60.0)), &PASS, "p").unwrap();
         assert_eq!((b.condition, b.feed_mm_per_min), (3, Some(5.0)));
-        assert!(first(&[PASS], 2).is_err());
-        assert_eq!(first(&[PASS, PASS], 1).unwrap().len(), 1);
+        assert!(first(&[PASS], 2, &[3]).is_err());
+        assert_eq!(first(&[PASS, PASS], 1, &[3]).unwrap().len(), 1);
     }
 }

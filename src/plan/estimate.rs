@@ -6,7 +6,7 @@
 //! stretches faster, shorts and turn-backs slower) makes the real time differ: docs/commands.md,
 //! "What `plan`'s times mean".
 
-use crate::config::Config;
+use crate::config::{Config, SparkingFeeds};
 use crate::gcode::BlockKind;
 use crate::geometry::running_max;
 use crate::preprocess::Segment;
@@ -14,10 +14,7 @@ use crate::preprocess::Segment;
 /// Sums the estimate segment by segment.
 #[derive(Debug, Clone, Default)]
 pub(super) struct CutTime {
-    /// The nominal feed of cutting without a condition of its own (mm/s).
-    normal: f64,
-    /// Conditions' sparking feeds (number, mm/s).
-    conditions: Vec<(u32, f64)>,
+    feeds: SparkingFeeds,
     /// The last condition looked up and its feed: a block's segments, forty-odd on an arc,
     /// and most programs' blocks, share one.
     last: Option<(u32, f64)>,
@@ -28,12 +25,7 @@ pub(super) struct CutTime {
 impl CutTime {
     pub fn new(config: &Config) -> CutTime {
         CutTime {
-            normal: config.servo.normal_feed_mm_per_min / 60.0,
-            conditions: config
-                .conditions
-                .iter()
-                .map(|c| (c.number, c.feed_mm_per_min / 60.0))
-                .collect(),
+            feeds: SparkingFeeds::new(config),
             last: None,
             seconds: 0.0,
         }
@@ -46,11 +38,7 @@ impl CutTime {
         {
             return feed;
         }
-        let feed = self
-            .conditions
-            .iter()
-            .find(|(n, _)| *n == condition)
-            .map_or(self.normal, |(_, f)| *f);
+        let feed = self.feeds.mm_per_s(condition);
         self.last = Some((condition, feed));
         feed
     }
@@ -75,18 +63,19 @@ mod tests {
 
     #[test]
     fn a_conditions_feed_is_its_own_whatever_came_before() {
-        let mut cut = CutTime {
-            normal: 1.0,
-            conditions: vec![(2, 0.5), (4, 0.25)],
-            ..CutTime::default()
-        };
-        let feed = |condition| match condition {
-            2 => 0.5,
-            4 => 0.25,
-            _ => 1.0,
-        };
-        for condition in [0, 2, 2, 4, 2, 9, 9, 4, 4, 0, 2] {
-            assert_eq!(cut.nominal(condition), feed(condition), "E{condition}");
+        let config = Config::load(None, &[]).unwrap();
+        let feeds = SparkingFeeds::new(&config);
+        let mut cut = CutTime::new(&config);
+        for condition in [0, 2, 2, 4, 2, 9, 9, 4, 4, 0, 2, 77] {
+            assert_eq!(
+                cut.nominal(condition),
+                feeds.mm_per_s(condition),
+                "E{condition}"
+            );
         }
+        assert_eq!(
+            feeds.mm_per_s(77),
+            config.servo.normal_feed_mm_per_min / 60.0
+        );
     }
 }

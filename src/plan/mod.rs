@@ -6,7 +6,7 @@
 //! series, whatever the program's length.
 
 use std::fs::File;
-use std::io::{self, BufReader, IsTerminal, Read};
+use std::io::{self, IsTerminal, Read};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::config::Config;
-use crate::gcode::{Block, BlockKind, BlockReader, WorkStart};
+use crate::gcode::{Block, BlockKind, WorkStart};
 use crate::geometry::running_max;
 use crate::path::{CutPlan, JobPath, PathError, PathItem, PathSpec};
 use crate::plot::Decimated;
@@ -208,6 +208,8 @@ pub fn peak_rss_kib() -> Option<u64> {
 struct Counting<R> {
     inner: R,
     count: Arc<AtomicU64>,
+    /// Bytes the runs before this one read (a job in passes reads the file once a pass).
+    base: u64,
 }
 
 impl<R: Read> Read for Counting<R> {
@@ -222,7 +224,7 @@ impl<R: Read> Read for Counting<R> {
 impl<R: io::Seek> io::Seek for Counting<R> {
     fn seek(&mut self, pos: io::SeekFrom) -> io::Result<u64> {
         let at = self.inner.seek(pos)?;
-        self.count.store(at, Ordering::Relaxed);
+        self.count.store(self.base + at, Ordering::Relaxed);
         Ok(at)
     }
 }
@@ -443,6 +445,7 @@ impl Collector {
 pub fn plan_program(
     program: &Path,
     config: &Config,
+    cut: &CutPlan,
     out_dir: &Path,
     progress: bool,
 ) -> Result<PlanSummary, PlanError> {
@@ -453,23 +456,25 @@ pub fn plan_program(
         });
     }
     let file = File::open(program).map_err(io_err(program))?;
-    let total = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let runs = cut.passes.len().max(1) as u64;
+    let total = file.metadata().map(|m| m.len()).unwrap_or(0) * runs;
+    drop(file);
     let count = Arc::new(AtomicU64::new(0));
-    let reader = BufReader::with_capacity(
-        64 * 1024,
-        Counting {
-            inner: file,
-            count: Arc::clone(&count),
-        },
-    );
     let name = program.display().to_string();
     let axes = &config.machine.axes;
-    // The job's path as a whole run of the program cuts it (one run: the file is read once).
-    let spec = PathSpec::from_config(config, &WorkStart::default(), &CutPlan::default());
-    let mut file = Some(reader);
+    // The job's path as the job cuts it: one run of the program, or one per pass (each pass
+    // reads the file again, as a job does).
+    let spec = PathSpec::from_config(config, &WorkStart::default(), cut);
     let open = |options| {
-        let reader = file.take().expect("a whole run reads the program once");
-        Ok(BlockReader::with_options(reader, &name, axes, options))
+        let done = count.load(Ordering::Relaxed);
+        crate::gcode::open_program_as(program, &name, axes, options, |inner| {
+            // A pass's run counts on from where the last one ended.
+            Counting {
+                inner,
+                count: Arc::clone(&count),
+                base: done,
+            }
+        })
     };
     let mut path = JobPath::new(&spec, &name, open, None);
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;

@@ -79,9 +79,9 @@ pub fn run(
         tracer: tracer.as_deref(),
         recording: recording.as_ref().zip(recorder.as_ref()),
         progress,
-        tracker: ProgressTracker::with_rapids(
+        tracker: ProgressTracker::new(
             job.check.path_mm,
-            job.check.rapid_spans.clone(),
+            job.check.pace.clone(),
             spec.plan.rapid_feed_mm_per_s,
         ),
         last_progress: Instant::now(),
@@ -248,7 +248,11 @@ impl Supervisor<'_> {
         {
             self.last_progress = Instant::now();
             let snap = self.published.snapshot();
-            self.tracker.track(snap.path_mm, self.last_progress);
+            let held = self
+                .published
+                .hold
+                .load(std::sync::atomic::Ordering::Relaxed);
+            self.tracker.track(snap.path_mm, self.last_progress, held);
             report(&self.tracker, &snap);
         }
     }

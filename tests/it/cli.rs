@@ -776,6 +776,32 @@ fn completions_and_man_pages_cover_every_command() {
     // A page's synopsis names the command as typed.
     let hold = std::fs::read_to_string(dir.join("edmd-ctl-hold.1")).unwrap();
     assert!(hold.contains("edmd ctl hold"), "{hold}");
+    // The main pages say which files the daemon keeps, and show it used.
+    for page in ["edmd", "edmd-serve", "edmd-ctl"] {
+        let roff = std::fs::read_to_string(dir.join(format!("{page}.1"))).unwrap();
+        assert!(
+            roff.contains(".SH FILES") && roff.contains("jobs.jsonl"),
+            "{page}"
+        );
+        assert!(
+            roff.contains(".SH EXAMPLES") && roff.contains("edmd ctl jobs"),
+            "{page}"
+        );
+    }
+    // edmd.toml(5), from the shipped configuration: every section, keys with defaults.
+    let toml = std::fs::read_to_string(dir.join("edmd.toml.5")).unwrap();
+    assert!(toml.starts_with(".TH edmd.toml 5"), "{toml}");
+    for needle in [
+        ".SH [DAEMON]",
+        "\\fBstate_dir\\fR = \"/var/lib/edmd\"",
+        "\\fBjob_history\\fR = \"\"",
+        ".SH [WIRE]",
+        "\\fBpass\\fR = [ … ]",
+    ] {
+        assert!(toml.contains(needle), "{needle} missing from edmd.toml(5)");
+    }
+    // A key's comment reads as text, not as roff requests.
+    assert!(!toml.lines().any(|l| l.starts_with(".#")));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

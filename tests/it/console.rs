@@ -219,3 +219,30 @@ fn single_block_stops_at_each_block_end_and_resume_runs_the_next() {
     );
     daemon.ok(&["single-block", "off"]);
 }
+
+/// Single block and run from a line: the approach is the job's, not the program's, so the
+/// first stop is before the line asked for, not before every block of the approach.
+#[test]
+fn single_block_from_a_line_stops_first_before_that_line() {
+    let dir = scratch("single-block-from-line");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(
+        dir.join("programs/square.nc"),
+        "G21 G90\nG1 X0.5 F300\nG1 Y0.5\nG1 X0 Y0.5\nG1 X0 Y0\nM2\n",
+    )
+    .unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["single-block", "on"]);
+    daemon.ok(&["run", "square.nc", "--from-line", "4"]);
+    let s = daemon.wait_for("the single-block stop", |s| s["state"] == "paused");
+    assert_eq!(s["job"]["paused_before_line"], 4, "{s}");
+    assert_eq!(common::daemon::position(&s), [500, 500], "{s}");
+    daemon.ok(&["resume"]);
+    let s = daemon.wait_for("the next stop", |s| s["state"] == "paused");
+    assert_eq!(s["job"]["paused_before_line"], 5, "{s}");
+    daemon.ok(&["single-block", "off"]);
+    daemon.ok(&["resume"]);
+    daemon.wait_for("the job's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+}

@@ -126,6 +126,54 @@ fn the_direct_approach_rises_to_the_safe_z_crosses_and_plunges_then_cuts_the_tai
     assert_eq!(tail_from(&from, &start), tail_from(&walk(&full), &start));
 }
 
+/// As CAM posts write a wire program: `G41 D1` on the first move. Every line up to the entry
+/// runs the whole program (there is nothing to approach along); the contour's lines run
+/// from their start.
+#[test]
+fn a_program_whose_first_move_is_the_entry_runs_from_any_line_up_to_it_and_after_it() {
+    let dir = common::scratch("from_line", "entry_first");
+    let program = dir.join("g41-first.ngc");
+    std::fs::write(
+        &program,
+        "G21 G90 G17\nG41 D1 G1 X0 Y1 F300\nG1 X10 Y1\nG1 X10 Y11\nG1 X0 Y11\nG1 X0 Y1\n\
+         G40 G1 X-5 Y1\nM2\n",
+    )
+    .unwrap();
+    let full = dir.join("full.csv");
+    assert_eq!(run(&program, &full, &[]).0, 0);
+    let full = walk(&full);
+    for line in ["1", "2"] {
+        let p = dir.join(format!("from{line}.csv"));
+        let (code, err) = run(&program, &p, &["--from-line", line]);
+        assert_eq!(code, 0, "from line {line}: {err}");
+        let from = walk(&p);
+        let points =
+            |w: &[(Vec<i64>, PulseLogRow)]| w.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
+        assert_eq!(
+            points(&from),
+            points(&full),
+            "from line {line}: the whole program"
+        );
+        assert!(
+            from.iter().take(5).all(|(_, r)| r.spark),
+            "from line {line} cuts from the start"
+        );
+    }
+    // From the second contour line: dark along the first, cutting from (10, 11) less the
+    // offset, exactly the full run's tail.
+    let p = dir.join("from4.csv");
+    let (code, err) = run(&program, &p, &["--from-line", "4"]);
+    assert_eq!(code, 0, "{err}");
+    let from = walk(&p);
+    let start = vec![9850, 1150];
+    let i = from.iter().position(|(p, _)| *p == start).unwrap();
+    assert!(
+        from[..i].iter().all(|(_, r)| !r.spark),
+        "a spark during the approach"
+    );
+    assert_eq!(tail_from(&from, &start), tail_from(&full, &start));
+}
+
 #[test]
 fn lines_a_run_cannot_start_from_are_refused_at_their_line_before_anything_moves() {
     let dir = common::scratch("from_line", "refused");
@@ -138,6 +186,8 @@ fn lines_a_run_cannot_start_from_are_refused_at_their_line_before_anything_moves
             err.contains("die-from-line.ngc:8:1: this is the wire offset's entry move"),
             "{err}"
         );
+        // It names the first line that can be run from: the next move's.
+        assert!(err.contains("run from line 9 or later"), "{err}");
     }
     let (code, err) = run(&data(DIE), &pulses, &["--from-line", "18"]);
     assert_eq!(code, 2);

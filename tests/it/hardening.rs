@@ -514,6 +514,7 @@ fn a_fifo_in_place_of_a_device_or_token_file_blocks_nothing() {
             "--set",
             &format!("daemon.checkpoint=\"{}\"", dir.join("t.json").display()),
         ])
+        .args(["--set", &format!("daemon.state_dir=\"{}\"", dir.display())])
         .args(["--set", "daemon.http=\"127.0.0.1:0\""])
         .args([
             "--set",
@@ -614,6 +615,7 @@ fn the_shipped_unit_lets_http_work_and_a_stricter_one_is_named() {
                 "--set",
                 &format!("daemon.checkpoint=\"{}\"", dir.join("u.json").display()),
             ])
+            .args(["--set", &format!("daemon.state_dir=\"{}\"", dir.display())])
             .args(["--set", "daemon.http=\"127.0.0.1:0\""])
             .args([
                 "--set",

@@ -78,8 +78,27 @@ fn switches_home_the_axes_in_sequence_and_the_latch_point_becomes_home() {
     assert_eq!(state["homed"], serde_json::json!([true, true]));
     assert_eq!(state["position_steps"], serde_json::json!([9000, -4500]));
 
-    // `--here` declares the axis at its home position.
-    daemon.ok(&["home", "--here", "Y"]);
+    // `--here` on an axis with a switch, or on none named while every axis has one, is
+    // refused: it would shift the machine's coordinates (soft limits, offsets) silently.
+    daemon.refused(
+        &["home", "--here", "Y"],
+        "Y has a home switch: `home Y` homes by it; `home --here Y --force`",
+    );
+    daemon.refused(&["home", "--here"], "every axis has a home switch");
+    assert_eq!(
+        floats(&daemon.status()["machine"]["position_machine_mm"]),
+        [9.0, -4.5]
+    );
+    // With --force it declares the named axis (only) at its home position, and says by
+    // how much that shifted it.
+    let reply = daemon.ok(&["home", "--here", "Y", "--force"]);
+    assert!(
+        reply["message"]
+            .as_str()
+            .unwrap()
+            .contains("Y-5.0000 (was -4.5000: shifted -0.5000 mm)"),
+        "{reply}"
+    );
     let m = daemon.status()["machine"].clone();
     assert_eq!(floats(&m["position_machine_mm"]), [9.0, -5.0]);
 }

@@ -9,34 +9,14 @@
 
 use crate::common;
 
-use common::web::{Daemon, start};
+use common::web::{Browser, Daemon, base64_decode, start, tool};
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
-
-/// Whether the web tools are required here (CI), or may be missing.
-fn required() -> bool {
-    std::env::var_os("EDMD_WEB_TESTS").is_some_and(|v| v == "1")
-}
-
-fn tool(name: &str) -> Option<PathBuf> {
-    let found = std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
-        .map(|d| d.join(name))
-        .find(|p| p.is_file());
-    if found.is_none() {
-        assert!(
-            !required(),
-            "{name} is not installed (EDMD_WEB_TESTS=1 needs it)"
-        );
-        eprintln!("{name} is not installed: that part of the test is skipped");
-    }
-    found
-}
 
 #[test]
 fn the_api_answers_as_the_socket_does_and_control_needs_the_token() {
@@ -217,7 +197,20 @@ fn home_touch_off_and_mdi_over_http() {
         std::fs::read_to_string(_dir.join("programs/up.nc")).unwrap(),
         "G21 G90\nG0 X2\nM2\n"
     );
+    // A program of that name is not written over unless asked to be.
     let (code, reply) = d.post("/api/programs?name=up.nc", "G21 G90\nG0 X3\nM2\n");
+    assert_eq!(code, 409, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("upload it with replace"),
+        "{reply}"
+    );
+    let (code, reply) = d.post(
+        "/api/programs?name=up.nc&replace=true",
+        "G21 G90\nG0 X3\nM2\n",
+    );
     assert_eq!(code, 200, "{reply}");
     assert!(
         reply["message"].as_str().unwrap().contains("replacing"),
@@ -472,85 +465,6 @@ fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
     );
 }
 
-/// A WebDriver session on a ChromeDriver of our own.
-struct Browser {
-    driver: Child,
-    url: String,
-    session: String,
-}
-
-impl Browser {
-    fn start(chromedriver: &Path) -> Browser {
-        let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = listen.local_addr().unwrap().port();
-        drop(listen);
-        let driver = Command::new(chromedriver)
-            .arg(format!("--port={port}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let url = format!("http://127.0.0.1:{port}");
-        let caps = json!({"capabilities": {"alwaysMatch": {"goog:chromeOptions": {
-            "binary": "/usr/bin/chromium",
-            "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                     "--no-first-run", "--disable-background-networking",
-                     "--disable-component-update", "--disable-sync", "--window-size=1280,800"]
-        }}}});
-        let deadline = Instant::now() + Duration::from_secs(30);
-        let session = loop {
-            if let Ok(r) = ureq::post(&format!("{url}/session"))
-                .set("Content-Type", "application/json")
-                .send_string(&caps.to_string())
-            {
-                let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
-                break v["value"]["sessionId"].as_str().unwrap().to_string();
-            }
-            assert!(
-                Instant::now() < deadline,
-                "ChromeDriver did not start a session"
-            );
-            std::thread::sleep(Duration::from_millis(100));
-        };
-        Browser {
-            driver,
-            url,
-            session,
-        }
-    }
-
-    fn command(&self, method: &str, path: &str, body: Option<Value>) -> Value {
-        let url = format!("{}/session/{}{path}", self.url, self.session);
-        let req = ureq::request(method, &url);
-        let r = match body {
-            Some(b) => req
-                .set("Content-Type", "application/json")
-                .send_string(&b.to_string()),
-            None => req.call(),
-        }
-        .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
-        let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
-        v["value"].clone()
-    }
-
-    fn eval(&self, script: &str) -> Value {
-        self.command(
-            "POST",
-            "/execute/sync",
-            Some(json!({"script": script, "args": []})),
-        )
-    }
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        let url = format!("{}/session/{}", self.url, self.session);
-        let _ = ureq::request("DELETE", &url).call();
-        let _ = self.driver.kill();
-        let _ = self.driver.wait();
-    }
-}
-
 /// The page in a real browser: live state over SSE, the program list, the backplot with
 /// the programmed path under the executed one, and the controls through the API with the
 /// token the page keeps.
@@ -570,17 +484,7 @@ fn the_page_in_headless_chromium() {
     std::fs::write(dir.join("programs/far.nc"), "G21 G90\nG1 X900 F100\n").unwrap();
     let browser = Browser::start(&chromedriver);
     browser.command("POST", "/url", Some(json!({"url": format!("{}/", d.base)})));
-    let wait = |what: &str, script: &str| -> Value {
-        let deadline = Instant::now() + Duration::from_secs(30);
-        loop {
-            let v = browser.eval(script);
-            if v != Value::Null && v != Value::Bool(false) {
-                return v;
-            }
-            assert!(Instant::now() < deadline, "the page never showed {what}");
-            std::thread::sleep(Duration::from_millis(100));
-        }
-    };
+    let wait = |what: &str, script: &str| browser.wait(what, script);
     wait(
         "the idle state",
         "return document.getElementById('state').textContent === 'idle'",
@@ -769,17 +673,17 @@ fn the_page_in_headless_chromium() {
         "document.getElementById('from-line').value = ''; const a = document.getElementById('abort'); a.click(); a.click(); return true",
     );
     d.wait_for("its abort", |s| s["state"] == "idle");
-    // Passes from the run dialog reach the daemon (this one has no technology table).
+    // Passes from the run dialog reach the daemon (the table has three).
     wait(
         "Run enabled",
         "return !document.getElementById('run').disabled",
     );
     browser.eval(
-        "document.getElementById('passes').value = '2'; document.getElementById('run').click(); return true",
+        "document.getElementById('passes').value = '5'; document.getElementById('run').click(); return true",
     );
     wait(
         "the passes refused",
-        "const m = document.getElementById('message'); return m.className === 'error' && m.textContent.includes('[wire] pass has 0 passes')",
+        "const m = document.getElementById('message'); return m.className === 'error' && m.textContent.includes('--passes 5: [wire] pass has 3 passes')",
     );
     browser.eval("document.getElementById('passes').value = ''; return true");
     // Jog from the page: one step of 0.1 mm, then held for a while (a continuous jog the
@@ -901,30 +805,4 @@ fn the_page_in_headless_chromium() {
             "the page refers outside: {outside}"
         );
     }
-}
-
-fn base64_decode(text: &str) -> Vec<u8> {
-    let value = |c: u8| -> u32 {
-        match c {
-            b'A'..=b'Z' => (c - b'A') as u32,
-            b'a'..=b'z' => (c - b'a' + 26) as u32,
-            b'0'..=b'9' => (c - b'0' + 52) as u32,
-            b'+' => 62,
-            _ => 63,
-        }
-    };
-    let clean: Vec<u8> = text
-        .bytes()
-        .filter(|&c| c != b'=' && !c.is_ascii_whitespace())
-        .collect();
-    let mut out = Vec::with_capacity(clean.len() * 3 / 4);
-    for chunk in clean.chunks(4) {
-        let mut n = 0u32;
-        for (i, &c) in chunk.iter().enumerate() {
-            n |= value(c) << (18 - 6 * i);
-        }
-        let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
-        out.extend_from_slice(&bytes[..chunk.len() - 1]);
-    }
-    out
 }

@@ -439,6 +439,7 @@ fn the_token_is_long_and_a_reload_puts_token_and_directory_in_force() {
             "--set",
             &format!("daemon.checkpoint=\"{}\"", dir.join("cp.json").display()),
         ])
+        .args(["--set", &format!("daemon.state_dir=\"{}\"", dir.display())])
         .stdin(Stdio::null())
         .output()
         .unwrap();

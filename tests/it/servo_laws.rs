@@ -47,6 +47,7 @@ fn straight_cut() -> Vec<StepBlock> {
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
                 pass: 0,
+                wire_offset_mm: 0.0,
             }
         })
         .collect()

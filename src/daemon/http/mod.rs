@@ -39,6 +39,7 @@
 
 pub mod executed;
 mod guard;
+mod jobs;
 pub mod links;
 mod metrics;
 mod path;
@@ -196,6 +197,7 @@ fn router(app: Arc<App>) -> Router {
     Router::new()
         .route("/", get(page))
         .route("/api/status", get(status))
+        .route("/api/jobs", get(jobs::list))
         .route("/api/events", get(events))
         .route(
             "/api/programs",

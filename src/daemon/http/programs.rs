@@ -35,6 +35,13 @@ const MAX_NAME_BYTES: usize = 255;
 #[serde(deny_unknown_fields)]
 pub(super) struct UploadQuery {
     name: String,
+    /// A program of that name exists: write over it (else refused, 409).
+    #[serde(default)]
+    replace: bool,
+    /// Read the whole program first (as `edmd check` reads it) and save it only if it reads:
+    /// the page's editor.
+    #[serde(default)]
+    check: bool,
 }
 
 pub(super) async fn upload(
@@ -61,7 +68,12 @@ pub(super) async fn upload(
     if declared.is_some_and(|n| n > MAX_UPLOAD_BYTES as u64) {
         return too_large();
     }
-    let Ok(Query(UploadQuery { name })) = query else {
+    let Ok(Query(UploadQuery {
+        name,
+        replace,
+        check,
+    })) = query
+    else {
         return error(
             StatusCode::BAD_REQUEST,
             "name the program: POST /api/programs?name=part.nc",
@@ -77,6 +89,26 @@ pub(super) async fn upload(
     };
     let dir = app.live.read().program_dir.clone();
     let target = dir.join(&name);
+    if !replace && target.exists() {
+        return error(
+            StatusCode::CONFLICT,
+            format!("{name} exists: upload it with replace to write over it"),
+        );
+    }
+    let mut blocks = None;
+    if check {
+        let (axes, options, text) = (app.axes.clone(), app.options.clone(), bytes.clone());
+        let named = name.clone();
+        let read =
+            tokio::task::spawn_blocking(move || check_text(&text, &named, &axes, options)).await;
+        match read {
+            Ok(Ok(n)) => blocks = Some(n),
+            Ok(Err(e)) => {
+                return error(StatusCode::UNPROCESSABLE_ENTITY, format!("not saved: {e}"));
+            }
+            Err(e) => return error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+        }
+    }
     let written = tokio::task::spawn_blocking(move || write_atomically(&dir, &target, &bytes))
         .await
         .map_err(std::io::Error::other)
@@ -93,7 +125,13 @@ pub(super) async fn upload(
                 }
             );
             let message = format!(
-                "{name} uploaded{}",
+                "{name} {}{}{}",
+                if check {
+                    "checked and saved"
+                } else {
+                    "uploaded"
+                },
+                blocks.map(|n| format!(" ({n} moves)")).unwrap_or_default(),
                 if replaced {
                     ", replacing the old one"
                 } else {
@@ -166,6 +204,25 @@ fn read_lines(path: &Path) -> std::io::Result<(Vec<String>, bool)> {
 }
 
 /// A name an upload may have: one plain file name.
+/// Reads a program's text through the reader and the path's stages, as a job's check
+/// does (without a machine: no travel limits): the number of moves, or the first error
+/// with its `name:line:col`.
+fn check_text(
+    bytes: &[u8],
+    name: &str,
+    axes: &[crate::vocab::Axis],
+    options: crate::gcode::ProgramOptions,
+) -> Result<u64, String> {
+    let reader =
+        crate::gcode::BlockReader::with_options(std::io::Cursor::new(bytes), name, axes, options);
+    let mut moves = 0;
+    for item in crate::path::Pipeline::new(reader) {
+        item.map_err(|e| e.to_string())?;
+        moves += 1;
+    }
+    Ok(moves)
+}
+
 fn plain_name(name: &str) -> Result<(), &'static str> {
     if name.is_empty() || name.len() > MAX_NAME_BYTES {
         return Err("a program name has 1 to 255 bytes");

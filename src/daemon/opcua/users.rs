@@ -155,6 +155,11 @@ fn create(path: &Path) -> Result<Users, UsersError> {
         "# OPC UA users allowed to call Hold and Abort: one `name:password` per line.\n\
          operator:{password}\n"
     );
+    // Its directory too (a state directory not made yet): a missing one is not a reason for
+    // the server not to start.
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(fail)?;
+    }
     crate::sys::create_private(path, &text).map_err(fail)?;
     tracing::info!(
         "{}: OPC UA user `operator` made with a random password (mode 0600)",
@@ -172,8 +177,8 @@ mod tests {
     fn a_missing_file_is_made_private_with_one_operator() {
         let dir = std::env::temp_dir().join(format!("edmd-opcua-users-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("users");
+        // Its directory is made as well.
+        let path = dir.join("state/users");
         let made = load_or_create(&path).unwrap();
         assert_eq!(made.len(), 1);
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;

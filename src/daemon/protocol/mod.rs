@@ -11,9 +11,11 @@
 //! JSON, names an unknown command or field, or lacks a field is answered with an error that
 //! locates it (`request:LINE:COL: what`) and the connection stays usable.
 
+mod console;
 mod json;
 mod text;
 
+pub use console::{WireOffsetStatus, WorkOffsetRow};
 pub use json::from_json;
 pub use text::duration_text;
 
@@ -72,6 +74,11 @@ pub enum Request {
     },
     /// The work offset table.
     Offsets {},
+    /// The job history, newest first: the last `count` jobs (20 by default).
+    Jobs {
+        #[serde(default)]
+        count: Option<usize>,
+    },
     /// A one-time login link to the web page (valid 10 minutes, for one use).
     #[serde(rename = "web-link")]
     WebLink {},
@@ -130,12 +137,14 @@ pub enum Request {
         system: Option<String>,
     },
     /// Home `axes` by their switches (all with one when empty); `here`: where they stand is
-    /// their home position.
+    /// their home position (axes without a switch; `force`: those with one too).
     Home {
         #[serde(default)]
         axes: Vec<String>,
         #[serde(default)]
         here: bool,
+        #[serde(default)]
+        force: bool,
     },
 }
 
@@ -178,6 +187,9 @@ pub struct Reply {
     pub error: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub status: Option<Status>,
+    /// The job history (`jobs`), newest first.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jobs: Option<Vec<crate::daemon::history::JobRecord>>,
 }
 
 impl Reply {
@@ -187,6 +199,7 @@ impl Reply {
             message: Some(message.into()),
             error: None,
             status: Some(status),
+            jobs: None,
         }
     }
 
@@ -196,6 +209,7 @@ impl Reply {
             message: None,
             error: Some(error.into()),
             status,
+            jobs: None,
         }
     }
 
@@ -338,6 +352,13 @@ pub struct Status {
     /// Counts over the daemon's life: the jobs that ended plus the running one.
     #[serde(default)]
     pub counters: Counters,
+    /// The machine's hour counters over its life (kept across restarts, with the job
+    /// history): jobs ended before the running one.
+    #[serde(default)]
+    pub hours: crate::daemon::history::HourCounters,
+    /// The job history's last write failed: why.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub history_write_error: Option<String>,
     /// Where the machine stands, in machine and work coordinates, homed axes, soft limits.
     pub machine: MachineStatus,
     /// The feed and rapid overrides in force.
@@ -367,6 +388,8 @@ impl Status {
             check: None,
             rt_refused: Vec::new(),
             counters: Counters::default(),
+            hours: Default::default(),
+            history_write_error: None,
         }
     }
 }
@@ -380,6 +403,10 @@ pub struct MachineStatus {
     pub position_work_mm: Vec<f64>,
     /// `G54` … `G59.3`.
     pub work_system: String,
+    /// The work offset table: every system's zero in machine coordinates (mm, per axis),
+    /// `G54` first.
+    #[serde(default)]
+    pub work_offsets: Vec<WorkOffsetRow>,
     pub homed: Vec<bool>,
     /// Soft limits `[lowest, highest]` per axis (`null`: none).
     pub travel_mm: Vec<Option<[f64; 2]>>,
@@ -499,6 +526,18 @@ pub struct JobStatus {
     /// Passes of the technology table the job cuts (0: the program as written).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub passes: usize,
+    /// The pass being cut (1 to `passes`; none outside passes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pass: Option<u64>,
+    /// The machining condition in force (`E`; none before any).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub condition: Option<u64>,
+    /// The program reads in inches (`G20`): the page shows its positions so as well.
+    #[serde(default)]
+    pub inch: bool,
+    /// The wire offset in force: `"G41"`/`"G42"` and its distance, mm (none without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wire_offset: Option<WireOffsetStatus>,
     /// Source line of the segment in hand.
     pub line: u64,
     pub segment: u64,

@@ -26,8 +26,12 @@ impl Status {
             }
             Some(j) => {
                 let position = axis_list(&j.position_mm, &self.axes, |x| format!("{x:.4}"));
+                let cutting = j.condition.map(|e| format!(" E{e}")).unwrap_or_default()
+                    + &j.pass
+                        .map(|p| format!(" pass {p}/{}", j.passes))
+                        .unwrap_or_default();
                 format!(
-                    "{} {}:{} ({}), {position} mm, {:.2} mm/min, {:.1} %{}, buffer {}/{}, \
+                    "{} {}:{} ({}){cutting}, {position} mm, {:.2} mm/min, {:.1} %{}, buffer {}/{}, \
                      {} shorts, {} starvations, {} overruns",
                     self.state.name(),
                     j.program,
@@ -108,6 +112,19 @@ impl Status {
                 }
             );
         }
+        let h = &self.hours;
+        if h.jobs > 0 || h.machine_s > 0.0 {
+            let _ = writeln!(
+                t,
+                "hours:        machine {:.2} h, sparking {:.2} h, {} jobs (over the machine's life)",
+                h.machine_s / 3600.0,
+                h.spark_s / 3600.0,
+                h.jobs
+            );
+        }
+        if let Some(e) = &self.history_write_error {
+            let _ = writeln!(t, "warning:      the job history was not written: {e}");
+        }
         for r in &self.rt_refused {
             let _ = writeln!(t, "warning:      {r}");
         }
@@ -169,6 +186,19 @@ impl Status {
             j.step,
             if j.resumed { ", resumed" } else { "" }
         );
+        let mut cutting = Vec::new();
+        if let Some(e) = j.condition {
+            cutting.push(format!("E{e}"));
+        }
+        if let Some(p) = j.pass {
+            cutting.push(format!("pass {p} of {}", j.passes));
+        }
+        if let Some(w) = &j.wire_offset {
+            cutting.push(format!("offset {} {:.4} mm", w.side, w.mm));
+        }
+        if !cutting.is_empty() {
+            let _ = writeln!(t, "cutting:      {}", cutting.join(", "));
+        }
         if let Some(line) = j.paused_before_line {
             let why = j.pause.as_deref().unwrap_or("program stop (M0/M1)");
             let _ = writeln!(

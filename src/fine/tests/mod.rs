@@ -68,6 +68,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                 condition_v_ref: 0.0,
                 condition_jump: [f32::NAN; 3],
                 pass: 0,
+                wire_offset_mm: 0.0,
             }
         })
         .collect()

@@ -3,10 +3,11 @@
 //! cutting a program whose line 10,000 is bad.
 
 use super::super::shaping::program::{CountingReader, JobProgram, Phase, Progress};
+use super::super::shaping::progress::PathPace;
 use super::error::JobError;
 use super::producer::{ProducerError, to_steps};
 use super::spec::start_steps;
-use crate::config::{Config, GapKind};
+use crate::config::{Config, GapKind, SparkingFeeds};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
 use crate::path::{CutPlan, JobPath, PathItem, PathSpec, passes};
 use crate::vocab::Steps;
@@ -29,9 +30,10 @@ pub struct Precheck {
     pub cutting_spans: Vec<(f64, f64)>,
     /// Path length of the whole program (mm): the denominator of a job's progress.
     pub path_mm: f64,
-    /// Where the rapids lie along the path (`(from, to)`, mm; consecutive rapids merged): the
-    /// ETA counts them at rapid speed, not at the cutting feed.
-    pub rapid_spans: Vec<(f64, f64)>,
+    /// The plan's time along the path: every move at the feed the job will use (a cut at
+    /// its pass's feed capped by its condition's sparking feed, a rapid at rapid speed): what
+    /// the ETA counts the path left by.
+    pub pace: PathPace,
 }
 
 /// What the check adds up block by block, over every pass.
@@ -42,7 +44,11 @@ struct Tally<'a> {
     end_steps: Steps,
     path_mm: f64,
     cutting_spans: Vec<(f64, f64)>,
-    rapid_spans: Vec<(f64, f64)>,
+    pace: PathPace,
+    feeds: SparkingFeeds,
+    /// Rapid speed and the highest feed, mm/s.
+    rapid_feed: f64,
+    max_feed: f64,
     /// Where the cutting moves lie is measured for the simulated gap's placed debris only.
     measure: bool,
 }
@@ -92,12 +98,15 @@ impl Tally<'_> {
                 _ => self.cutting_spans.push((path_mm, path_mm + length)),
             }
         }
-        if block.kind == gcode::BlockKind::Rapid {
-            match self.rapid_spans.last_mut() {
-                Some((_, to)) if *to == path_mm => *to += length,
-                _ => self.rapid_spans.push((path_mm, path_mm + length)),
-            }
-        }
+        let feed = block
+            .feed_mm_per_min
+            .map_or(self.max_feed, |f| (f / 60.0).min(self.max_feed));
+        let pace = match block.kind {
+            gcode::BlockKind::Rapid => self.rapid_feed,
+            _ if cutting => feed.min(self.feeds.mm_per_s(block.condition)),
+            _ => feed,
+        };
+        self.pace.push(path_mm, length, pace);
         self.path_mm += length;
         self.end_steps =
             to_steps(&block.end(), &machine.step_mm).map_err(|(axis, mm, steps)| {
@@ -127,6 +136,7 @@ pub fn precheck(
 ) -> Result<Precheck, JobError> {
     progress.start(Phase::Checking, program.bytes);
     let spec = PathSpec::from_config(config, start, cut);
+    let plan = crate::preprocess::PlanSettings::from_config(config);
     let start_at = start_steps(start, &config.machine.step_mm);
     let mut tally = Tally {
         config,
@@ -135,7 +145,10 @@ pub fn precheck(
         end_steps: start_at,
         path_mm: 0.0,
         cutting_spans: Vec::new(),
-        rapid_spans: Vec::new(),
+        pace: PathPace::default(),
+        feeds: SparkingFeeds::new(config),
+        rapid_feed: plan.rapid_feed_mm_per_s,
+        max_feed: plan.max_feed_mm_per_s,
         measure: config.gap.kind == GapKind::Sim && config.sim.debris_per_mm > 0.0,
     };
     let cancelled = || JobError::Cancelled {
@@ -195,6 +208,6 @@ pub fn precheck(
         end_steps: tally.end_steps,
         cutting_spans: tally.cutting_spans,
         path_mm: tally.path_mm,
-        rapid_spans: tally.rapid_spans,
+        pace: tally.pace,
     })
 }

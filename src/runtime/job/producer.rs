@@ -212,6 +212,9 @@ impl BlockMaker {
         if segment.block.kind == BlockKind::Rapid || segment.block.spark_off.is_some() {
             flags |= BlockFlags::RAPID;
         }
+        if segment.block.spark_off.is_some() {
+            flags |= BlockFlags::APPROACH;
+        }
         if segment.block.flushing {
             flags |= BlockFlags::FLUSH;
         }
@@ -265,6 +268,13 @@ impl BlockMaker {
             condition_v_ref: 0.0,
             condition_jump: [f32::NAN; 3],
             pass: self.pass,
+            wire_offset_mm: segment.block.wire_offset.map_or(0.0, |w| {
+                if w.left {
+                    w.d_mm as f32
+                } else {
+                    -w.d_mm as f32
+                }
+            }),
         };
         let mut block = block;
         if let Some(c) = self

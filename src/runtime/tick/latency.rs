@@ -136,6 +136,7 @@ impl BlockSource for SquarePath {
             condition_v_ref: 0.0,
             condition_jump: [f32::NAN; 3],
             pass: 0,
+            wire_offset_mm: 0.0,
         };
         self.at = end;
         self.next_seq += 1;

@@ -41,6 +41,11 @@ pub struct Snapshot {
     pub excursion: Option<Excursion>,
     /// Ticks of a `G4` dwell still to wait here (a checkpoint keeps them).
     pub dwell_left: u64,
+    /// The segment in hand's condition (`E`; 0 none), pass of the technology table (0: not
+    /// in passes) and wire offset (mm, + left, − right, 0 none).
+    pub condition: u64,
+    pub pass: u64,
+    pub wire_offset_mm: f64,
 }
 }
 
@@ -62,6 +67,9 @@ impl Default for Snapshot {
             path_mm: 0.0,
             excursion: None,
             dwell_left: 0,
+            condition: 0,
+            pass: 0,
+            wire_offset_mm: 0.0,
         }
     }
 }
@@ -101,6 +109,9 @@ impl Snapshot {
             excursion: matches!(fine.state(), ServoState::Retreat | ServoState::Return)
                 .then(|| fine.excursion()),
             dwell_left: fine.dwell_left(),
+            condition: fine.block().map_or(0, |b| u64::from(b.condition)),
+            pass: fine.block().map_or(0, |b| u64::from(b.pass)),
+            wire_offset_mm: fine.block().map_or(0.0, |b| f64::from(b.wire_offset_mm)),
         }
     }
 
@@ -209,6 +220,9 @@ mod tests {
                 path_mm: -(r() as f64),
                 excursion: [None, Some(Excursion::Jump), Some(Excursion::Rethread)][i as usize % 3],
                 dwell_left: r(),
+                condition: r(),
+                pass: r(),
+                wire_offset_mm: (r() % 1000) as f64 / -3.0,
             };
             lock.write(&snap.encode());
             assert_eq!(Snapshot::decode(&lock.read()), snap);

@@ -550,7 +550,7 @@ const INNER_FLOORS: &[(&str, &[&[&str]])] = &[
     (
         "daemon",
         &[
-            &["noise", "notify", "refusal"],
+            &["history", "noise", "notify", "refusal"],
             &["launch", "link", "names", "protocol"],
             &["http"],
             &["opcua"],

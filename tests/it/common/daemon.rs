@@ -55,6 +55,8 @@ pub fn base_sets(dir: &Path, pulses: &str) -> Vec<String> {
             "daemon.checkpoint=\"{}\"",
             dir.join("checkpoint.json").display()
         ),
+        // The job history, the hour counters and the reports.
+        format!("daemon.state_dir=\"{}\"", dir.display()),
         "daemon.status_interval_s=0.5".to_string(),
         "daemon.checkpoint_interval_s=0.5".to_string(),
         "fine.virtual_time=false".to_string(),

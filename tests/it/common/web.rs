@@ -3,11 +3,11 @@
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use serde_json::Value;
+use serde_json::{Value, json};
 
 /// A running `edmd serve` with HTTP on; killed on drop.
 pub struct Daemon {
@@ -59,6 +59,7 @@ pub fn start_with(
         format!("daemon.socket=\"{}\"", dir.join("edmd.sock").display()),
         format!("daemon.program_dir=\"{}\"", programs.display()),
         format!("daemon.checkpoint=\"{}\"", dir.join("cp.json").display()),
+        format!("daemon.state_dir=\"{}\"", dir.display()),
         "daemon.http=\"127.0.0.1:0\"".to_string(),
         format!("daemon.http_token_file=\"{}\"", token_file.display()),
         "fine.virtual_time=false".to_string(),
@@ -174,4 +175,142 @@ impl Daemon {
     pub fn port(&self) -> u16 {
         self.base.rsplit(':').next().unwrap().parse().unwrap()
     }
+}
+
+/// Whether the web tools are required here (CI), or may be missing.
+pub fn required() -> bool {
+    std::env::var_os("EDMD_WEB_TESTS").is_some_and(|v| v == "1")
+}
+
+pub fn tool(name: &str) -> Option<PathBuf> {
+    let found = std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
+        .map(|d| d.join(name))
+        .find(|p| p.is_file());
+    if found.is_none() {
+        assert!(
+            !required(),
+            "{name} is not installed (EDMD_WEB_TESTS=1 needs it)"
+        );
+        eprintln!("{name} is not installed: that part of the test is skipped");
+    }
+    found
+}
+
+/// A WebDriver session on a ChromeDriver of our own.
+pub struct Browser {
+    driver: Child,
+    url: String,
+    session: String,
+}
+
+impl Browser {
+    pub fn start(chromedriver: &Path) -> Browser {
+        let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listen.local_addr().unwrap().port();
+        drop(listen);
+        let driver = Command::new(chromedriver)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let url = format!("http://127.0.0.1:{port}");
+        let caps = json!({"capabilities": {"alwaysMatch": {"goog:chromeOptions": {
+            "binary": "/usr/bin/chromium",
+            "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync", "--window-size=1280,800"]
+        }}}});
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let session = loop {
+            if let Ok(r) = ureq::post(&format!("{url}/session"))
+                .set("Content-Type", "application/json")
+                .send_string(&caps.to_string())
+            {
+                let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
+                break v["value"]["sessionId"].as_str().unwrap().to_string();
+            }
+            assert!(
+                Instant::now() < deadline,
+                "ChromeDriver did not start a session"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        Browser {
+            driver,
+            url,
+            session,
+        }
+    }
+
+    pub fn command(&self, method: &str, path: &str, body: Option<Value>) -> Value {
+        let url = format!("{}/session/{}{path}", self.url, self.session);
+        let req = ureq::request(method, &url);
+        let r = match body {
+            Some(b) => req
+                .set("Content-Type", "application/json")
+                .send_string(&b.to_string()),
+            None => req.call(),
+        }
+        .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
+        let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
+        v["value"].clone()
+    }
+
+    /// Polls `script` until it returns something other than null or false (at most 60 s).
+    pub fn wait(&self, what: &str, script: &str) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let v = self.eval(script);
+            if v != Value::Null && v != Value::Bool(false) {
+                return v;
+            }
+            assert!(Instant::now() < deadline, "the page never showed {what}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    pub fn eval(&self, script: &str) -> Value {
+        self.command(
+            "POST",
+            "/execute/sync",
+            Some(json!({"script": script, "args": []})),
+        )
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let url = format!("{}/session/{}", self.url, self.session);
+        let _ = ureq::request("DELETE", &url).call();
+        let _ = self.driver.kill();
+        let _ = self.driver.wait();
+    }
+}
+
+/// A WebDriver screenshot's base64 as bytes.
+pub fn base64_decode(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => (c - b'A') as u32,
+            b'a'..=b'z' => (c - b'a' + 26) as u32,
+            b'0'..=b'9' => (c - b'0' + 52) as u32,
+            b'+' => 62,
+            _ => 63,
+        }
+    };
+    let clean: Vec<u8> = text
+        .bytes()
+        .filter(|&c| c != b'=' && !c.is_ascii_whitespace())
+        .collect();
+    let mut out = Vec::with_capacity(clean.len() * 3 / 4);
+    for chunk in clean.chunks(4) {
+        let mut n = 0u32;
+        for (i, &c) in chunk.iter().enumerate() {
+            n |= value(c) << (18 - 6 * i);
+        }
+        let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
+        out.extend_from_slice(&bytes[..chunk.len() - 1]);
+    }
+    out
 }

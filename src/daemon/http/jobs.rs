@@ -1,0 +1,29 @@
+//! `GET /api/jobs`: the job history as the page's table reads it.
+
+use std::sync::Arc;
+
+use axum::extract::{Query, State};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+
+use super::{App, ask};
+use crate::daemon::protocol::Request;
+
+/// The job history, newest first (`?count=N`, 20 by default): what `edmd ctl jobs` lists.
+pub(super) async fn list(State(app): State<Arc<App>>, Query(q): Query<JobsQuery>) -> Response {
+    match ask(&app, Request::Jobs { count: q.count }).await {
+        Ok(reply) => axum::Json(serde_json::json!({
+            "ok": reply.ok,
+            "jobs": reply.jobs.unwrap_or_default(),
+        }))
+        .into_response(),
+        Err(e) => e,
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct JobsQuery {
+    #[serde(default)]
+    count: Option<usize>,
+}

@@ -1,0 +1,274 @@
+//! The operator's console on the page, in headless Chromium through ChromeDriver: a
+//! G41-first die run from its third contour line, the condition, pass n of N and wire
+//! offset while passes run, the job in the history with each pass's time, a refused program
+//! with its line marked and no drawing left, editing a program (checked before it is
+//! saved), the work offset table, and Reset after a scripted E-stop with a red badge.
+//! Skipped without Chromium unless `EDMD_WEB_TESTS=1` (CI), as `http.rs`'s page test.
+
+use crate::common;
+use crate::operator::{DIE, FAST_CONDITIONS, PASSES};
+
+use std::path::Path;
+
+use common::web::{Browser, Daemon, base64_decode, start, tool};
+use serde_json::{Value, json};
+
+fn wait(browser: &Browser, what: &str, script: &str) -> Value {
+    browser.wait(what, script)
+}
+
+fn click(browser: &Browser, id: &str) {
+    browser.eval(&format!(
+        "document.getElementById('{id}').click(); return true"
+    ));
+}
+
+fn shot(browser: &Browser, path: &Path) {
+    let png = browser.command("GET", "/screenshot", None);
+    std::fs::write(path, base64_decode(png.as_str().unwrap())).unwrap();
+}
+
+/// Opens the page and logs in with the daemon's token.
+fn open(d: &Daemon, chromedriver: &Path) -> Browser {
+    let browser = Browser::start(chromedriver);
+    browser.command("POST", "/url", Some(json!({"url": format!("{}/", d.base)})));
+    wait(
+        &browser,
+        "the idle state",
+        "return document.getElementById('state').textContent === 'idle'",
+    );
+    browser.eval(&format!(
+        "document.getElementById('token').value = '{}'; document.getElementById('login-save').click(); return true",
+        d.token
+    ));
+    wait(
+        &browser,
+        "the login",
+        "return localStorage.getItem('edmd-token') !== null",
+    );
+    browser
+}
+
+fn pick(browser: &Browser, program: &str) {
+    browser.eval(&format!(
+        "const s = document.getElementById('program-list'); s.value = '{program}'; \
+         s.dispatchEvent(new Event('change')); return s.value === '{program}'"
+    ));
+}
+
+#[test]
+fn the_operators_console_in_headless_chromium() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start("console", &[PASSES, FAST_CONDITIONS]);
+    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
+    std::fs::write(dir.join("programs/far.nc"), "G21 G90\nG1 X900 F100\nM2\n").unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "the program list",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'die.ngc')",
+    );
+    // The G41-first die from its third contour line (line 6): accepted, run to its end.
+    pick(&browser, "die.ngc");
+    browser.eval("document.getElementById('from-line').value = '6'; return true");
+    click(&browser, "run");
+    let s = d.wait_for("the run from line 6", |s| {
+        s["job"]["from_line"]["line"] == 6
+    });
+    assert_eq!(s["job"]["from_line"]["approach"], "path");
+    d.wait_for("its end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    browser.eval("document.getElementById('from-line').value = ''; return true");
+    // In three passes: the header shows the condition, the pass and the offset as they go.
+    wait(
+        &browser,
+        "Run enabled",
+        "return !document.getElementById('run').disabled",
+    );
+    browser.eval("document.getElementById('passes').value = '3'; return true");
+    click(&browser, "run");
+    let cutting = wait(
+        &browser,
+        "pass 2 of 3 in E3 at 0.135 mm",
+        "const t = document.getElementById('cutting').textContent; \
+         return t.includes('E3') && t.includes('pass 2 of 3') && t.includes('0.1350 mm') ? t : false",
+    );
+    eprintln!("cutting: {cutting}");
+    shot(&browser, &dir.join("page-passes.png"));
+    d.wait_for("the passes' end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    browser.eval("document.getElementById('passes').value = ''; return true");
+    // The job history: the run in passes on top with each pass's time, the run from a line
+    // under it; the hour counters.
+    let row = wait(
+        &browser,
+        "the job in the history",
+        "const t = document.getElementById('jobs-table'); \
+         if (Number(t.dataset.count) < 2) return false; \
+         const r = t.rows[1].textContent; \
+         return r.includes('die.ngc') && r.includes('1 E4: ') && r.includes('2 E3: ') && r.includes('3 E1: ') ? r : false",
+    );
+    eprintln!("history: {row}");
+    assert!(
+        browser
+            .eval("return document.getElementById('jobs-table').rows[2].textContent")
+            .as_str()
+            .unwrap()
+            .contains("die.ngc from line 6")
+    );
+    wait(
+        &browser,
+        "the hour counters",
+        "return document.getElementById('hours-jobs').textContent === 'jobs 2'",
+    );
+    // A refused program: its drawing goes, its line is marked in the listing.
+    pick(&browser, "die.ngc");
+    wait(
+        &browser,
+        "the die's preview",
+        "return Number(document.getElementById('backplot').dataset.plannedPoints) > 5",
+    );
+    pick(&browser, "far.nc");
+    click(&browser, "run");
+    let refused = wait(
+        &browser,
+        "the refusal marked",
+        "const ol = document.getElementById('listing'); const m = document.getElementById('message'); \
+         const e = ol.querySelector('li.error'); \
+         return m.className === 'error' && ol.dataset.errorLine === '2' && e && e.textContent.includes('X900') \
+           && document.getElementById('backplot').dataset.plannedPoints === '0' ? m.textContent : false",
+    );
+    eprintln!("refused: {refused}");
+    shot(&browser, &dir.join("page-refused.png"));
+    // Editing: a bad line is not saved (the file keeps its text) and is selected in the
+    // editor; the mended text is checked and saved.
+    pick(&browser, "short.nc");
+    wait(
+        &browser,
+        "short.nc listed",
+        "return document.getElementById('listing-name').textContent.startsWith('short.nc')",
+    );
+    click(&browser, "edit");
+    wait(
+        &browser,
+        "the editor",
+        "return document.getElementById('editor').className === 'on' && document.getElementById('editor').value.includes('X0.2')",
+    );
+    browser.eval(
+        "document.getElementById('editor').value = 'G21 G90\\nG1 X0.3 F60\\nG1 Q2\\nM2\\n'; \
+         document.getElementById('save').click(); return true",
+    );
+    let bad = wait(
+        &browser,
+        "the edit refused",
+        "const m = document.getElementById('message'); \
+         return m.className === 'error' && m.textContent.includes('short.nc:3:') && \
+           document.getElementById('editor').dataset.errorLine === '3' ? m.textContent : false",
+    );
+    eprintln!("edit refused: {bad}");
+    let on_disk = || std::fs::read_to_string(dir.join("programs/short.nc")).unwrap();
+    assert_eq!(on_disk(), "G21 G90\nG1 X0.2 F60\nM2\n");
+    browser.eval(
+        "document.getElementById('editor').value = 'G21 G90\\nG1 X0.3 F60\\nG1 Y0.1\\nM2\\n'; \
+         document.getElementById('save').click(); return true",
+    );
+    wait(
+        &browser,
+        "the edit saved",
+        "const m = document.getElementById('message'); \
+         return m.className !== 'error' && m.textContent.includes('short.nc checked and saved') \
+           && document.getElementById('editor').className === ''",
+    );
+    assert_eq!(on_disk(), "G21 G90\nG1 X0.3 F60\nG1 Y0.1\nM2\n");
+    wait(
+        &browser,
+        "the saved text listed",
+        "return document.getElementById('listing').textContent.includes('Y0.1')",
+    );
+    // An upload over an existing program is refused unless replace is ticked.
+    let (code, reply) = d.call(
+        "POST",
+        "/api/programs?name=short.nc",
+        Some(&d.token),
+        Some("G1 X9\n"),
+    );
+    assert_eq!(code, 409, "{reply}");
+    assert_eq!(on_disk(), "G21 G90\nG1 X0.3 F60\nG1 Y0.1\nM2\n");
+    // The work offset table: touch off into G55, select it.
+    browser.eval(
+        "document.getElementById('touch-value').value = '1'; document.getElementById('touch-system').value = 'G55'; \
+         document.getElementById('touch-off').click(); return true",
+    );
+    d.wait_for("the G55 offset", |s| {
+        s["machine"]["work_offsets"][1]["system"] == "G55"
+            && s["machine"]["work_offsets"][1]["offset_mm"][0] != 0.0
+    });
+    browser.eval(
+        "document.querySelector('#offsets-table tr[data-system=\"G55\"] button').click(); return true",
+    );
+    d.wait_for("G55 active", |s| s["machine"]["work_system"] == "G55");
+    wait(
+        &browser,
+        "G55 marked active",
+        "return document.querySelector('#offsets-table tr.active').dataset.system === 'G55'",
+    );
+    shot(&browser, &dir.join("page-console.png"));
+}
+
+/// An E-stop on the page: a red badge (not idle's grey), and a Reset button that brings the
+/// machine back once the E-stop is released.
+#[test]
+fn reset_after_an_estop_on_the_page() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    // The E-stop comes from the gap script at tick 4001 of the job.
+    let dir = common::scratch("http", "console-estop");
+    std::fs::write(dir.join("gap.txt"), "0 normal\n4001 estop\n").unwrap();
+    let script = format!("gap.script=\"{}\"", dir.join("gap.txt").display());
+    let (d, dir) = start("console-estop", &["gap.kind=\"script\"", &script]);
+    std::fs::write(
+        dir.join("programs/line.nc"),
+        "G21 G90\nG1 X3 F600\nG1 Y1\nM2\n",
+    )
+    .unwrap();
+    let browser = open(&d, &chromedriver);
+    let grey =
+        browser.eval("return getComputedStyle(document.getElementById('state')).backgroundColor");
+    wait(
+        &browser,
+        "line.nc listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'line.nc')",
+    );
+    assert!(
+        browser
+            .eval("return document.getElementById('reset').disabled")
+            .as_bool()
+            .unwrap(),
+        "Reset is for a tripped machine only"
+    );
+    pick(&browser, "line.nc");
+    click(&browser, "run");
+    d.wait_for("the E-stop", |s| s["state"] == "estop");
+    let red = wait(
+        &browser,
+        "the E-stop badge",
+        "const s = document.getElementById('state'); \
+         return s.dataset.state === 'estop' && !document.getElementById('reset').disabled \
+           ? getComputedStyle(s).backgroundColor : false",
+    );
+    assert_ne!(red, grey, "the E-stop badge is not idle's colour");
+    assert_eq!(red, json!("rgb(209, 36, 47)"), "the short's red");
+    shot(&browser, &dir.join("page-estop.png"));
+    click(&browser, "reset");
+    d.wait_for("idle again", |s| s["state"] == "idle");
+    wait(
+        &browser,
+        "idle on the page",
+        "return document.getElementById('state').dataset.state === 'idle' && document.getElementById('reset').disabled",
+    );
+}
