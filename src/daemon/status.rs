@@ -151,6 +151,7 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
         parameter: snap.u_end.is_finite().then_some(snap.u_end),
         servo: snap.state,
         gap: p.gap(),
+        gap_volts: p.gap_volts(),
         position_steps: snap.position[..axes].to_vec(),
         position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
         feed_mm_per_min: snap.speed * 60.0,

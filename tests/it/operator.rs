@@ -189,3 +189,36 @@ fn a_three_pass_estimate_is_within_ten_percent_of_the_simulated_run() {
     assert!(estimate > 150.0, "{estimate}");
     assert!((estimate - ran).abs() / ran < 0.10, "{estimate} vs {ran}");
 }
+
+/// The gap voltage the input measures is in the status (the page draws it live): the
+/// simulator's, within its open-circuit 80 V.
+#[test]
+fn the_status_carries_the_measured_gap_voltage() {
+    let dir = scratch("gap-volts");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(dir.join("programs/line.nc"), "G21 G90\nG1 X20 F60\nM2\n").unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.retain(|s| !s.starts_with("gap.kind"));
+    sets.push("gap.kind=\"sim\"".to_string());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", "line.nc"]);
+    let s = daemon.wait_for("a measured gap voltage", |s| {
+        s["job"]["gap_volts"].is_number()
+    });
+    let volts = s["job"]["gap_volts"].as_f64().unwrap();
+    assert!((0.0..=80.0).contains(&volts), "{volts} V");
+    daemon.ok(&["abort"]);
+    // An input that reads states only measures no voltage: none is shown.
+    let dir = scratch("gap-no-volts");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(dir.join("programs/line.nc"), "G21 G90\nG1 X20 F60\nM2\n").unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", "line.nc"]);
+    let s = daemon.wait_for("cutting", |s| {
+        s["job"]["feed_mm_per_min"]
+            .as_f64()
+            .is_some_and(|f| f > 0.0)
+    });
+    assert!(s["job"].get("gap_volts").is_none(), "{}", s["job"]);
+    daemon.ok(&["abort"]);
+}

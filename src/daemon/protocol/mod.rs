@@ -548,6 +548,10 @@ pub struct JobStatus {
     /// The gap state read in the last tick (none before the first).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap: Option<crate::vocab::GapState>,
+    /// The gap voltage the input measured in the last tick, V (none for an input that reads
+    /// states only: a parallel port's pins, a script).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap_volts: Option<f64>,
     pub position_steps: Vec<i64>,
     pub position_mm: Vec<f64>,
     pub feed_mm_per_min: f64,

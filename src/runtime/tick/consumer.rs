@@ -321,6 +321,10 @@ where
     published
         .gap
         .store(gap.index() as u8 + 1, Ordering::Relaxed);
+    published.gap_volts.store(
+        sensor.volts().unwrap_or(f64::NAN).to_bits(),
+        Ordering::Relaxed,
+    );
     Ok((machine, gap))
 }
 

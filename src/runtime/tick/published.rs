@@ -47,6 +47,9 @@ pub struct Published {
     pub gap_ticks: [AtomicU64; 3],
     /// The gap state read in the last tick: 1 + its [`GapState::index`], 0 before the first.
     pub gap: AtomicU8,
+    /// The gap voltage the input measured in the last tick (f64 bits; NaN: the input
+    /// measures none), for the console's live trace.
+    pub gap_volts: AtomicU64,
     /// Times the job was held: by the operator, a programmed stop, a collision, an alarm
     /// or a wire break.
     pub holds: AtomicU64,
@@ -105,6 +108,7 @@ impl Published {
             latency_buckets: std::array::from_fn(|_| AtomicU64::new(0)),
             gap_ticks: std::array::from_fn(|_| AtomicU64::new(0)),
             gap: AtomicU8::new(0),
+            gap_volts: AtomicU64::new(f64::NAN.to_bits()),
             holds: AtomicU64::new(0),
             snapshot: SeqLock::default(),
             buffer_unprocessed: AtomicU64::new(0),
@@ -129,6 +133,11 @@ impl Published {
     }
 
     /// The gap state read in the last tick (none before the first).
+    /// The gap voltage of the last tick, where the input measures one.
+    pub fn gap_volts(&self) -> Option<f64> {
+        Some(f64::from_bits(self.gap_volts.load(Ordering::Relaxed))).filter(|v| v.is_finite())
+    }
+
     pub fn gap(&self) -> Option<GapState> {
         match self.gap.load(Ordering::Relaxed) {
             0 => None,
