@@ -100,7 +100,7 @@ Description: Real-time NURBS interpolation daemon for PC-based EDM controllers
  direction pulses for an EDM machine: a producer thread segments the path within a chord
  tolerance and plans the feed; a fixed-period real-time thread interpolates, runs the gap
  servo and turns back along the executed path on a short. It runs as a systemd service
- (Type=notify, watchdog) controlled with `edmd ctl` and an optional web page.
+ (Type=notify, watchdog) controlled with edmd ctl and an optional web page.
 EOF
 (cd "$stage" && find . -path ./DEBIAN -prune -o -type f -printf '%P\0' | sort -z |
   xargs -0 md5sum >DEBIAN/md5sums)

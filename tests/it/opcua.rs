@@ -38,7 +38,7 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
     // About 20 s at the servo's 300 mm/min: the client reads it moving, then holds it.
     std::fs::write(
         dir.join("programs/long.ngc"),
-        "G21 G90\nG1 X80 Y60 F300\nM2\n",
+        "G21 G90\nE3 G1 X80 Y60 F300\nM2\n",
     )
     .unwrap();
     let pki = dir.join("pki");
@@ -96,6 +96,11 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
         "Monitoring/Channel/Feed",
         "Monitoring/Channel/FeedOverride",
         "Monitoring/EDMGenerator/GapState",
+        "Monitoring/EDMGenerator/Condition",
+        "Monitoring/EDMGenerator/WireOffset",
+        "Monitoring/EDMGenerator/GapVoltage",
+        "Production/ActiveProgram/Pass",
+        "Production/ActiveProgram/Passes",
         "Monitoring/Axes/X/ActualPosition",
         "Monitoring/Axes/Y/ActualPosition",
         "Production/ActiveProgram/Name",
@@ -114,6 +119,10 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
     assert!(seen["program"].as_str().unwrap().ends_with("long.ngc"));
     assert_eq!(seen["gap"], "normal", "gap.kind = none reads normal");
     assert_eq!(seen["line"], 2);
+    // What is cutting: E3, no wire offset, not in passes.
+    assert_eq!(seen["condition"], 3);
+    assert_eq!(seen["wire_offset"], 0.0);
+    assert_eq!(seen["pass"], 0);
     let xs: Vec<f64> = seen["x_while_running"]
         .as_array()
         .unwrap()

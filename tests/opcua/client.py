@@ -108,6 +108,16 @@ async def anonymous():
             await asyncio.sleep(0.3)
         seen["x_while_running"] = xs
         seen["line"] = await line.read_value()
+        generator = [f"{ns}:Monitoring", f"{ns}:EDMGenerator"]
+        seen["condition"] = await (
+            await machine.get_child(generator + [f"{ns}:Condition"])
+        ).read_value()
+        seen["wire_offset"] = await (
+            await machine.get_child(generator + [f"{ns}:WireOffset"])
+        ).read_value()
+        seen["pass"] = await (
+            await machine.get_child([f"{ns}:Production", f"{ns}:ActiveProgram", f"{ns}:Pass"])
+        ).read_value()
 
         changes = Changes()
         sub = await client.create_subscription(50, changes)

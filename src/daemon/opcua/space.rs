@@ -126,6 +126,34 @@ const WHOLE: &[(&str, &str, DataTypeId, ReadWhole)] = &[
             })
         },
     ),
+    // What is cutting now: the move in hand's condition (0: none), wire offset (mm, + G41,
+    // − G42, 0: none) and the gap voltage the input measures (empty where it measures none).
+    (
+        "Monitoring/EDMGenerator",
+        "Condition",
+        DataTypeId::UInt64,
+        |s| Variant::from(s.job.as_ref().and_then(|j| j.condition).unwrap_or(0)),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "WireOffset",
+        DataTypeId::Double,
+        |s| {
+            let offset = s.job.as_ref().and_then(|j| j.wire_offset.as_ref());
+            Variant::from(offset.map_or(0.0, |w| if w.side == "G42" { -w.mm } else { w.mm }))
+        },
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "GapVoltage",
+        DataTypeId::Double,
+        |s| {
+            s.job
+                .as_ref()
+                .and_then(|j| j.gap_volts)
+                .map_or(Variant::Empty, Variant::from)
+        },
+    ),
     (
         "Monitoring/EDMGenerator",
         "Shorts",
@@ -155,6 +183,19 @@ const WHOLE: &[(&str, &str, DataTypeId, ReadWhole)] = &[
         "Line",
         DataTypeId::UInt64,
         |s| Variant::from(s.job.as_ref().map_or(0, |j| j.line)),
+    ),
+    // The pass of the technology table being cut, and how many (0: not in passes).
+    (
+        "Production/ActiveProgram",
+        "Pass",
+        DataTypeId::UInt64,
+        |s| Variant::from(s.job.as_ref().and_then(|j| j.pass).unwrap_or(0)),
+    ),
+    (
+        "Production/ActiveProgram",
+        "Passes",
+        DataTypeId::UInt64,
+        |s| Variant::from(s.job.as_ref().map_or(0, |j| j.passes as u64)),
     ),
     (
         "Production/ActiveProgram",
