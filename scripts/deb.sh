@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the Debian package from a staged tree with dpkg-deb: the binary (stripped), its man
 # pages and shell completions (made by the binary from its own command-line definition), the
-# unit, the sysusers, tmpfiles and modules-load snippets, /etc/edmd/edmd.toml as a conffile,
+# unit, the sysusers, tmpfiles and modules-load snippets, /etc/edmd/edmd.toml and the example
+# technology tables (/etc/edmd/technology/) as conffiles,
 # and the maintainer scripts in systemd/deb/. Prints the package's path.
 #
 #   scripts/deb.sh                 # builds the release binary (fat LTO) and packs it
@@ -32,6 +33,9 @@ mkdir -p "$stage/DEBIAN" "$stage/usr/bin" "$stage/etc/edmd" "$stage/usr/share/do
 install -m 755 "$bin" "$stage/usr/bin/edmd"
 strip --strip-unneeded "$stage/usr/bin/edmd"
 install -m 644 config/edmd.toml "$stage/etc/edmd/edmd.toml"
+# The example technology tables (example = true): the machine builder replaces them.
+install -d "$stage/etc/edmd/technology"
+install -m 644 config/technology/*.toml "$stage/etc/edmd/technology/"
 install -m 644 systemd/edmd.service "$stage/usr/lib/systemd/system/edmd.service"
 install -m 644 systemd/edmd-hal.service "$stage/usr/lib/systemd/system/edmd-hal.service"
 install -m 644 systemd/edmd-sysusers.conf "$stage/usr/lib/sysusers.d/edmd.conf"
@@ -83,7 +87,10 @@ depends_line="$(printf '%s\n' "${depends[@]}" | sort -u | paste -sd, | sed 's/,/
 for script in postinst prerm postrm; do
   install -m 755 "systemd/deb/$script" "$stage/DEBIAN/$script"
 done
-echo /etc/edmd/edmd.toml >"$stage/DEBIAN/conffiles"
+{
+  echo /etc/edmd/edmd.toml
+  for table in config/technology/*.toml; do echo "/etc/edmd/technology/${table##*/}"; done
+} >"$stage/DEBIAN/conffiles"
 size_kib="$(du -sk --exclude=DEBIAN "$stage" | cut -f1)"
 cat >"$stage/DEBIAN/control" <<EOF
 Package: edmd

@@ -142,6 +142,10 @@ pub struct Checkpoint {
     /// The tab those passes left (mm; 0: none).
     #[serde(default, skip_serializing_if = "no_tab")]
     pub tab_mm: f64,
+    /// The technology it was cut with (the request, `material=steel height=32 wire=0.25`):
+    /// a resume selects it again, and is refused if the table no longer gives its passes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub technology: Option<String>,
 }
 
 fn no_tab(tab_mm: &f64) -> bool {
@@ -417,6 +421,7 @@ mod tests {
             from_line: None,
             passes: Vec::new(),
             tab_mm: 0.0,
+            technology: None,
         }
     }
 

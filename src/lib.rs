@@ -53,6 +53,7 @@ pub mod machine;
 pub mod plan;
 pub mod report;
 pub mod runtime;
+pub mod technology;
 pub mod touch;
 // Floor 10: the daemon.
 pub mod daemon;

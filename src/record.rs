@@ -108,6 +108,10 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
     fn sync(&mut self) -> Result<(), OutputError> {
         self.inner.sync()
     }
+
+    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
+        self.inner.conditions(table)
+    }
 }
 
 /// What a report's event says happened: the servo's events, and the daemon operator's.

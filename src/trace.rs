@@ -167,6 +167,10 @@ impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
     fn moving_in(&mut self, now: crate::output::Activity) {
         self.inner.moving_in(now)
     }
+
+    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
+        self.inner.conditions(table)
+    }
 }
 
 /// Traces a gap input: every change of state.

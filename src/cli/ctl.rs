@@ -47,10 +47,16 @@ pub(super) enum CtlCommand {
         /// [default: direct where machine.safe_z_mm is set, path otherwise]
         #[arg(long, value_parser = parse_approach, requires = "from_line")]
         approach: Option<crate::path::Approach>,
-        /// Cut the program once per pass of the technology table ([wire] pass): the first N,
-        /// each at its offset and condition
+        /// Cut the program once per pass of the technology table ([wire] pass, or the one
+        /// --technology selects): the first N, each at its offset and condition
         #[arg(long, value_name = "N")]
         passes: Option<usize>,
+        /// Cut with a technology table (technology.dir): material=steel,height=32,wire=0.25
+        /// for a wire cut (all its passes unless --passes), or
+        /// electrode=copper,material=steel,area=4 for a sinker [default: the program's
+        /// (TECH …) header comment, if it has one]
+        #[arg(long, value_name = "KEY=VALUE,…")]
+        technology: Option<String>,
         /// A run from a line while the position is not trusted (edmd stopped while the
         /// machine moved, or an axis is unhomed): the operator has checked where it stands
         #[arg(long, requires = "from_line")]
@@ -123,6 +129,12 @@ pub(super) enum CtlCommand {
         /// How many jobs
         #[arg(long, default_value_t = 20, value_name = "N")]
         count: usize,
+    },
+    /// Print the daemon's technology tables, or explain what a request selects from them
+    /// (the table, the rows and why, the passes and the conditions' set points)
+    Tech {
+        /// material=steel,height=32,wire=0.25 or electrode=copper,material=steel,area=4
+        request: Option<String>,
     },
     /// Print a one-time link that logs a browser in to the web page (one use, 10 minutes)
     #[command(name = "web-link")]
@@ -300,6 +312,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             from_line,
             approach,
             passes,
+            technology,
             force,
         } => (
             Request::Run {
@@ -308,6 +321,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
                 from_line: *from_line,
                 approach: *approach,
                 passes: *passes,
+                technology: technology.clone(),
                 force: *force,
             },
             !no_wait,
@@ -325,6 +339,12 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             false,
         ),
         CtlCommand::WebLink => (Request::WebLink {}, false),
+        CtlCommand::Tech { request } => (
+            Request::Technology {
+                request: request.clone(),
+            },
+            false,
+        ),
         CtlCommand::Reset => (Request::Reset {}, false),
         CtlCommand::SingleBlock { state } => (
             Request::SingleBlock {

@@ -52,6 +52,8 @@ enum Command {
     /// discarded, gap always normal) and print its wake-up latency histogram in cyclictest's
     /// format. See scripts/latency-vs-cyclictest.sh.
     Latency(latency::LatencyArgs),
+    /// The technology tables: list them, or explain what a request selects and why.
+    Tech(tech::TechArgs),
     /// Print the shell completion script for bash, zsh or fish.
     Completions(docs::CompletionsArgs),
     /// Write the man pages (edmd(1), one per subcommand) into a directory.
@@ -122,6 +124,7 @@ mod docs;
 mod journal;
 mod latency;
 mod run_state;
+mod tech;
 mod touch;
 
 use ctl::{CtlArgs, run_ctl};
@@ -198,6 +201,10 @@ struct PlanArgs {
     /// with --passes N cuts it: each pass at its offset, condition and feed
     #[arg(long, value_name = "N")]
     passes: Option<usize>,
+    /// Cut with a technology table (technology.dir): material=steel,height=32,wire=0.25 or
+    /// electrode=copper,material=steel,area=4 [default: the program's (TECH …) header]
+    #[arg(long, value_name = "KEY=VALUE,…")]
+    technology: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -234,6 +241,10 @@ struct RunArgs {
     /// Cut the program once per pass of the technology table ([wire] pass): the first N
     #[arg(long, value_name = "N", conflicts_with = "from_line")]
     passes: Option<usize>,
+    /// Cut with a technology table (technology.dir): material=steel,height=32,wire=0.25 or
+    /// electrode=copper,material=steel,area=4 [default: the program's (TECH …) header]
+    #[arg(long, value_name = "KEY=VALUE,…")]
+    technology: Option<String>,
 }
 
 /// Entry point of the binary.
@@ -247,6 +258,7 @@ pub fn main() -> ExitCode {
         Command::Serve(args) => run_serve(&args),
         Command::Ctl(args) => run_ctl(&args),
         Command::Latency(args) => latency::run_latency(args),
+        Command::Tech(args) => tech::run_tech(&args),
         Command::Completions(args) => docs::completions(&args, Cli::command()),
         Command::Man(args) => docs::man(&args, Cli::command()),
     }
@@ -463,11 +475,12 @@ fn run_plan(args: &PlanArgs) -> ExitCode {
         Err(code) => return code,
     };
     let _ = init_logging_for(&cfg, false);
-    let cut = match cut::passes_plan(&cfg, args.passes) {
-        Ok(cut) => cut,
+    let job = cut::CliJob::new(cfg, &args.program, args.technology.as_deref(), args.passes);
+    let job = match job {
+        Ok(job) => job,
         Err(code) => return code,
     };
-    match plan::plan_program(&args.program, &cfg, &cut, &args.out, !args.quiet) {
+    match plan::plan_program(&args.program, &job.cfg, &job.cut, &args.out, !args.quiet) {
         Ok(summary) => {
             out!("{}", summary.text());
             outln!("written to {}", args.out.display());
@@ -512,6 +525,11 @@ fn run_job(args: &RunArgs) -> ExitCode {
     };
     let _ = init_logging_for(&cfg, false);
     tracing::info!("{}", args.config.describe());
+    let job = match args.job(cfg) {
+        Ok(job) => job,
+        Err(code) => return code,
+    };
+    let cfg = &job.cfg;
     let stop = stop_on_signals();
     let terminal = std::io::stderr().is_terminal();
     let progress = job_progress(terminal, cfg.fine.tick);
@@ -526,22 +544,12 @@ fn run_job(args: &RunArgs) -> ExitCode {
         recording: recording.clone(),
     };
     let from_line = args.from_line.is_some();
-    let mut machine = match RunState::open(args.state.as_deref(), &cfg, from_line) {
+    let mut machine = match RunState::open(args.state.as_deref(), cfg, from_line) {
         Ok(m) => m,
         Err(code) => return code,
     };
     let start = machine.work_start();
-    let result = runtime::run_file_from(
-        &args.program,
-        &cfg,
-        &start,
-        &match args.cut_plan(&cfg) {
-            Ok(cut) => cut,
-            Err(code) => return code,
-        },
-        &stop,
-        observers,
-    );
+    let result = runtime::run_file_from(&args.program, cfg, &start, &job.cut, &stop, observers);
     crate::term::finish();
     let summary = match result {
         Ok((summary, left)) => {
@@ -570,12 +578,13 @@ fn run_job(args: &RunArgs) -> ExitCode {
                 &args.program,
                 &args.program.display().to_string(),
                 &cfg.machine.axes,
-                crate::gcode::ProgramOptions::from_config(&cfg),
+                crate::gcode::ProgramOptions::from_config(cfg),
                 &start,
             );
             let mut recording = recording.lock();
             recording.programmed = programmed;
-            crate::report::write_report(dir, &mut recording, &summary)
+            let passes = job.pass_times(&recording, summary.ticks);
+            crate::report::write_report(dir, &mut recording, &summary, &passes)
         }
     {
         eprintln!("edmd: error: {e}");
@@ -592,7 +601,7 @@ fn run_job(args: &RunArgs) -> ExitCode {
         }
     }
     if let (Some(path), Some(at)) = (&args.checkpoint, &summary.stopped_at) {
-        match run_state::write_run_checkpoint(path, args, &cfg, &summary, at, &start) {
+        match run_state::write_run_checkpoint(path, args, &job, &summary, at, &start) {
             Ok(()) => eprintln!("edmd: checkpoint written to {}", path.display()),
             Err(e) => {
                 eprintln!(

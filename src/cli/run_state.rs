@@ -88,12 +88,13 @@ impl RunState {
 pub(super) fn write_run_checkpoint(
     path: &Path,
     args: &super::RunArgs,
-    cfg: &Config,
+    job: &super::cut::CliJob,
     summary: &JobSummary,
     at: &crate::runtime::StopPoint,
     start: &crate::gcode::WorkStart,
 ) -> std::io::Result<()> {
     use crate::checkpoint::{self, Checkpoint, Reason};
+    let cfg = &job.cfg;
     let keys = Config::load_with_keys(args.config.source().0.as_deref(), &args.config.set)
         .map(|(_, keys)| keys)
         .unwrap_or_default();
@@ -125,9 +126,10 @@ pub(super) fn write_run_checkpoint(
             &cfg.machine.axes,
             &cfg.machine.step_mm,
         )),
-        from_line: args.cut_from(cfg),
-        passes: args.cut_plan(cfg).map(|c| c.passes).unwrap_or_default(),
-        tab_mm: args.cut_plan(cfg).map_or(0.0, |c| c.tab_mm),
+        from_line: job.cut.from_line,
+        passes: job.cut.passes.clone(),
+        tab_mm: job.cut.tab_mm,
+        technology: job.technology.as_ref().map(|t| t.request.text()),
     };
     cp.write_atomic(path)
 }

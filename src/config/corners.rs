@@ -22,23 +22,42 @@ impl RawCondition {
     /// The condition's corner control: none without `corner_angle_deg`; with it, the factor
     /// and the distance are needed too.
     pub(super) fn corner_control(&self) -> Result<Option<CornerControl>, Invalid> {
-        corner_control(self)
+        CornerControl::from_keys(
+            self.number,
+            [
+                self.corner_angle_deg,
+                self.corner_feed_factor,
+                self.corner_distance_mm,
+                self.corner_dwell_ms,
+            ],
+        )
     }
 }
 
-fn corner_control(c: &RawCondition) -> Result<Option<CornerControl>, Invalid> {
+impl CornerControl {
+    /// Corner control from its four keys (`corner_angle_deg`, `corner_feed_factor`,
+    /// `corner_distance_mm`, `corner_dwell_ms`) as condition `number` (or a technology
+    /// table's pass in it) gives them: none without the angle; with it, the factor and the
+    /// distance are needed too.
+    pub fn from_keys(
+        number: i64,
+        keys: [Option<f64>; 4],
+    ) -> Result<Option<CornerControl>, Invalid> {
+        corner_control(number, keys)
+    }
+}
+
+fn corner_control(number: i64, keys: [Option<f64>; 4]) -> Result<Option<CornerControl>, Invalid> {
     const KEY: &str = "generator.condition";
-    let Some(angle) = c.corner_angle_deg else {
-        if c.corner_feed_factor.is_some()
-            || c.corner_distance_mm.is_some()
-            || c.corner_dwell_ms.is_some()
-        {
+    let [angle, factor, distance, dwell] = keys;
+    let Some(angle) = angle else {
+        if factor.is_some() || distance.is_some() || dwell.is_some() {
             return Err((
                 KEY,
                 format!(
                     "E{}: corner_feed_factor, corner_distance_mm and corner_dwell_ms need \
                      corner_angle_deg (which corners count)",
-                    c.number
+                    number
                 ),
             ));
         }
@@ -50,17 +69,17 @@ fn corner_control(c: &RawCondition) -> Result<Option<CornerControl>, Invalid> {
             format!(
                 "E{}: corner_angle_deg = {angle}: an included angle between 0 and 180 degrees \
                  (corners sharper than it slow down; 180 is a straight continuation)",
-                c.number
+                number
             ),
         ));
     }
-    let (Some(factor), Some(distance)) = (c.corner_feed_factor, c.corner_distance_mm) else {
+    let (Some(factor), Some(distance)) = (factor, distance) else {
         return Err((
             KEY,
             format!(
                 "E{}: corner_angle_deg needs corner_feed_factor (how slow, 0 to 1) and \
                  corner_distance_mm (how far before and after the corner)",
-                c.number
+                number
             ),
         ));
     };
@@ -69,15 +88,15 @@ fn corner_control(c: &RawCondition) -> Result<Option<CornerControl>, Invalid> {
             KEY,
             format!(
                 "E{}: corner_feed_factor = {factor}: above 0, at most 1",
-                c.number
+                number
             ),
         ));
     }
-    let dwell_ms = c.corner_dwell_ms.unwrap_or(0.0);
+    let dwell_ms = dwell.unwrap_or(0.0);
     if !(0.0..=60_000.0).contains(&dwell_ms) {
         return Err((
             KEY,
-            format!("E{}: corner_dwell_ms = {dwell_ms}: 0 to 60000 ms", c.number),
+            format!("E{}: corner_dwell_ms = {dwell_ms}: 0 to 60000 ms", number),
         ));
     }
     Ok(Some(CornerControl {

@@ -13,6 +13,8 @@
 //! and any key the default does not have is rejected with its line. Every error names where the
 //! offending value came from: `file:line:col` for the file, the `--set` argument for an override.
 
+mod condition;
+pub use condition::{ConditionSpec, FeedRule};
 mod corners;
 pub use corners::CornerControl;
 mod hal;
@@ -360,11 +362,9 @@ pub struct DaemonConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Condition {
     pub number: u32,
-    pub on_us: f64,
-    pub off_us: f64,
-    pub current_a: f64,
-    /// The voltage law's reference while this condition runs, V.
-    pub v_ref: f64,
+    /// What it sets the generator to; `servo_ref_v` is the voltage law's reference while
+    /// it runs.
+    pub generator: crate::vocab::GeneratorSetPoints,
     /// The advance feed while sparking (three-state law), mm/min.
     pub feed_mm_per_min: f64,
     /// Jumps while this condition runs: each `None` keeps the `[servo]` setting.
@@ -441,6 +441,15 @@ pub struct Config {
     pub wire: WireConfig,
     /// `[sinker]`: orbiting.
     pub sinker: SinkerConfig,
+    /// `[technology]`: where the technology tables are.
+    pub technology: TechnologyConfig,
+}
+
+/// `[technology]`: the technology tables (`crate::technology`), one TOML file each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TechnologyConfig {
+    /// The folder of the tables (every `*.toml` in it).
+    pub dir: PathBuf,
 }
 
 /// `[homing]`: when the machine position must be known.
@@ -573,7 +582,17 @@ impl Config {
                     path: path.to_path_buf(),
                     source,
                 })?;
-                Config::parse(&text, &path.display().to_string(), overrides)
+                let (mut config, keys) =
+                    Config::parse(&text, &path.display().to_string(), overrides)?;
+                // The tables beside the file that names them (unless `--set` named them).
+                let set = overrides
+                    .iter()
+                    .any(|o| o.trim_start().starts_with("technology.dir"));
+                if config.technology.dir.is_relative() && !set {
+                    let base = path.parent().unwrap_or(Path::new(""));
+                    config.technology.dir = base.join(&config.technology.dir);
+                }
+                Ok((config, keys))
             }
         }
     }

@@ -29,6 +29,13 @@ pub(super) struct RawConfig {
     pub(super) homing: RawHoming,
     pub(super) wire: RawWire,
     pub(super) sinker: RawSinker,
+    pub(super) technology: RawTechnology,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawTechnology {
+    pub(super) dir: String,
 }
 
 #[derive(Debug, Deserialize)]
@@ -76,13 +83,26 @@ pub(super) struct RawGenerator {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(super) struct RawCondition {
+pub struct RawCondition {
     pub(super) number: i64,
+    #[serde(alias = "on_time_us")]
     pub(super) on_us: f64,
+    #[serde(alias = "off_time_us")]
     pub(super) off_us: f64,
+    #[serde(alias = "peak_current_a")]
     pub(super) current_a: f64,
+    #[serde(alias = "servo_ref_v")]
     pub(super) v_ref: f64,
-    pub(super) feed_mm_per_min: f64,
+    #[serde(default)]
+    pub(super) feed_mm_per_min: Option<f64>,
+    #[serde(default)]
+    pub(super) open_voltage_v: Option<f64>,
+    #[serde(default)]
+    pub(super) wire_tension_n: Option<f64>,
+    #[serde(default)]
+    pub(super) wire_speed_m_per_min: Option<f64>,
+    #[serde(default)]
+    pub(super) flushing_bar: Option<f64>,
     #[serde(default)]
     pub(super) jump_interval_s: Option<f64>,
     #[serde(default)]

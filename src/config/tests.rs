@@ -245,7 +245,13 @@ fn generator_conditions_as_tables_replace_the_shipped_list() {
     )
     .unwrap();
     assert_eq!(c.conditions.len(), 1);
-    assert_eq!((c.conditions[0].number, c.conditions[0].v_ref), (7, 28.0));
+    assert_eq!(
+        (
+            c.conditions[0].number,
+            c.conditions[0].generator.servo_ref_v
+        ),
+        (7, 28.0)
+    );
     assert_eq!(
         Config::default().conditions.len(),
         6,

@@ -171,6 +171,9 @@ impl RawConfig {
         let conditions = conditions(self.generator)?;
         let wire = self.wire.validate(&compensation)?;
         let sinker = self.sinker.validate(&conditions)?;
+        let technology = TechnologyConfig {
+            dir: non_empty("technology.dir", self.technology.dir)?,
+        };
         let mut mcodes = Vec::new();
         for m in p.mcode {
             let code = m.validate(&mcodes, &conditions)?;
@@ -198,6 +201,7 @@ impl RawConfig {
             program,
             compensation,
             conditions,
+            technology,
             homing,
             wire,
             sinker,
@@ -591,35 +595,11 @@ fn conditions(generator: RawGenerator) -> Result<Vec<Condition>, Invalid> {
     let mut conditions: Vec<Condition> = Vec::new();
     for c in generator.condition {
         let key = "generator.condition";
-        let number = in_range(key, c.number, 1, 999)? as u32;
-        if conditions.iter().any(|x| x.number == number) {
-            return Err((key, format!("E{number} is defined twice")));
+        let condition = c.validate(key, super::FeedRule::Given)?;
+        if conditions.iter().any(|x| x.number == condition.number) {
+            return Err((key, format!("E{} is defined twice", condition.number)));
         }
-        let corner = c.corner_control()?;
-        let (orbit_shape, orbit_radius_mm) = c.orbit()?;
-        conditions.push(Condition {
-            number,
-            corner,
-            orbit_shape,
-            orbit_radius_mm,
-            on_us: positive(key, c.on_us, 1e6, "µs (on_us)")?,
-            off_us: positive(key, c.off_us, 1e6, "µs (off_us)")?,
-            current_a: positive(key, c.current_a, 1e4, "A (current_a)")?,
-            v_ref: positive(key, c.v_ref, 1e4, "V (v_ref)")?,
-            feed_mm_per_min: positive(key, c.feed_mm_per_min, 1e6, "mm/min (feed_mm_per_min)")?,
-            jump_interval_s: c
-                .jump_interval_s
-                .map(|v| at_most(key, v, 86_400.0, "s (jump_interval_s)"))
-                .transpose()?,
-            jump_height_mm: c
-                .jump_height_mm
-                .map(|v| at_most(key, v, 1000.0, "mm (jump_height_mm)"))
-                .transpose()?,
-            jump_feed_mm_per_min: c
-                .jump_feed_mm_per_min
-                .map(|v| positive(key, v, 1e6, "mm/min (jump_feed_mm_per_min)"))
-                .transpose()?,
-        });
+        conditions.push(condition);
     }
     Ok(conditions)
 }

@@ -173,6 +173,7 @@ impl CheckpointKeeper {
             from_line: job.cut.from_line,
             passes: job.cut.passes.clone(),
             tab_mm: job.cut.tab_mm,
+            technology: job.technology.as_ref().map(|t| t.request.text()),
         };
         let path = &job.config.daemon.checkpoint;
         match cp.write_atomic(path) {

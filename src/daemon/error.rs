@@ -38,6 +38,8 @@ pub enum DaemonError {
     OpcUa(#[from] opcua::OpcUaError),
     #[error("{0}")]
     MachineState(String),
+    #[error("technology.dir: {0}")]
+    Technology(#[from] crate::technology::TechError),
 }
 
 /// What to add to a listening error that a service manager's sandbox causes.

@@ -39,6 +39,9 @@ pub struct JobRecord {
     /// Each pass of the technology table: its number, condition and machine time.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<PassTime>,
+    /// The technology it was cut with (`material=steel height=32 wire=0.25 (…)`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub technology: Option<String>,
     pub shorts: u64,
     pub turn_backs: u64,
     pub wire_breaks: u64,
@@ -49,14 +52,7 @@ pub struct JobRecord {
     pub report: Option<String>,
 }
 
-/// One pass of a job in passes.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PassTime {
-    pub pass: u64,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub condition: Option<u32>,
-    pub time_s: f64,
-}
+pub use crate::report::PassTime;
 
 /// The machine's counters over its life: what the hour meters of a control show.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -171,13 +167,20 @@ pub fn table(jobs: &[JobRecord], unreadable: usize) -> String {
             let _ = write!(t, "  ({e})");
         }
         t.push('\n');
+        if let Some(tech) = &j.technology {
+            let _ = writeln!(t, "    technology {tech}");
+        }
         for p in &j.passes {
             let _ = writeln!(
                 t,
-                "    pass {}{}  {}",
+                "    pass {}{}  {}{}",
                 p.pass,
                 p.condition.map(|c| format!(" E{c}")).unwrap_or_default(),
-                duration(p.time_s)
+                duration(p.time_s),
+                p.row
+                    .as_ref()
+                    .map(|r| format!("  ({r})"))
+                    .unwrap_or_default()
             );
         }
         if let Some(at) = &j.breakthrough_mm {
@@ -227,31 +230,6 @@ pub fn local_time() -> String {
     }
 }
 
-/// What a job's recording says of its passes: each pass's machine time, from its start to
-/// the next one's (or the job's end at `end_tick`).
-pub fn pass_times(recording: &Recording, end_tick: u64, conditions: &[u32]) -> Vec<PassTime> {
-    let starts: Vec<(u64, u64)> = recording
-        .events
-        .iter()
-        .filter(|e| e.kind == EventKind::Pass)
-        .map(|e| (e.depth.unwrap_or(0), e.tick))
-        .collect();
-    starts
-        .iter()
-        .enumerate()
-        .map(|(i, &(pass, tick))| {
-            let until = starts.get(i + 1).map_or(end_tick, |&(_, t)| t);
-            PassTime {
-                pass,
-                condition: pass
-                    .checked_sub(1)
-                    .and_then(|k| conditions.get(k as usize).copied()),
-                time_s: recording.tick.ticks_to_secs(until.saturating_sub(tick)),
-            }
-        })
-        .collect()
-}
-
 /// The record of a program job that ended.
 pub fn record_of(
     summary: &JobSummary,
@@ -259,7 +237,7 @@ pub fn record_of(
     started: String,
     dry_run: bool,
     from_line: Option<u64>,
-    pass_conditions: &[u32],
+    (passes, technology): (Vec<PassTime>, Option<String>),
     report: Option<&Path>,
 ) -> JobRecord {
     JobRecord {
@@ -271,7 +249,8 @@ pub fn record_of(
         dry_run,
         from_line,
         machine_time_s: summary.virtual_time_s,
-        passes: pass_times(recording, summary.ticks, pass_conditions),
+        passes,
+        technology,
         shorts: summary.servo.shorts,
         turn_backs: summary.servo.turn_backs,
         wire_breaks: summary.servo.wire_breaks,
@@ -309,8 +288,10 @@ mod tests {
             passes: vec![PassTime {
                 pass: 1,
                 condition: Some(4),
+                row: Some("30 mm row".into()),
                 time_s: 60.0,
             }],
+            technology: Some("material=steel height=30 wire=0.25 (…)".into()),
             shorts: 2,
             turn_backs: 2,
             wire_breaks: 0,

@@ -246,6 +246,7 @@ impl Core {
             at_steps: (switch_mm / step).round() as i64 - state.position[i],
         };
         let launch = Launch {
+            technology: Default::default(),
             start: state.work_start(),
             kind: JobKind::Home {
                 switch,

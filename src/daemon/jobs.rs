@@ -37,8 +37,6 @@ pub(super) struct Check {
     pub(super) name: String,
     pub(super) progress: Arc<Progress>,
     pub(super) resume: Option<Resume>,
-    /// Where the job starts (checked from there) and what it is.
-    pub(super) launch: Launch,
 }
 
 impl Job {
@@ -272,6 +270,19 @@ impl Core {
             sha256: cp.program_sha256.clone(),
         };
         let launch = Launch {
+            // The checkpoint's technology selected again (never the program's header: a
+            // job cut without one resumes without one).
+            technology: super::launch::JobTechnology::Ask(super::launch::TechAsk {
+                asked: cp
+                    .technology
+                    .as_deref()
+                    .map(|t| crate::technology::Request::parse(t, "checkpoint technology", 1, 1))
+                    .transpose()
+                    .map_err(|e| Refusal::BadArgument(e.to_string()))?,
+                passes: None,
+                resume: true,
+                tables: self.technology.clone(),
+            }),
             start,
             kind: JobKind::Program,
             cut: crate::path::CutPlan {
@@ -470,8 +481,17 @@ impl Core {
             JobKind::Touch { .. } => self.find_moved(&summary),
             _ => {}
         }
+        let passes = {
+            let conditions: Vec<u32> = job.cut.passes.iter().map(|p| p.condition).collect();
+            let rows = job
+                .technology
+                .as_ref()
+                .map(|t| t.pass_rows())
+                .unwrap_or_default();
+            crate::report::pass_times(&job.recording.lock(), summary.ticks, &conditions, &rows)
+        };
         if let Some(dir) = &job.report {
-            match crate::report::write_report(dir, &mut job.recording.lock(), &summary) {
+            match crate::report::write_report(dir, &mut job.recording.lock(), &summary, &passes) {
                 Ok(()) => tracing::info!("job report: {}", dir.display()),
                 Err(e) => tracing::error!("{e}"),
             }
@@ -480,14 +500,13 @@ impl Core {
         let tick = job.config.fine.tick;
         let spark_s = tick.ticks_to_secs(counted.gap_ticks[0] + counted.gap_ticks[2]);
         let record = matches!(job.kind, JobKind::Program | JobKind::DryRun).then(|| {
-            let conditions: Vec<u32> = job.cut.passes.iter().map(|p| p.condition).collect();
             let mut record = super::history::record_of(
                 &summary,
                 &job.recording.lock(),
                 job.started_at.clone(),
                 job.kind == JobKind::DryRun,
                 job.cut.from_line.map(|f| f.line),
-                &conditions,
+                (passes, job.technology.as_ref().map(|t| t.summary())),
                 job.report.as_deref(),
             );
             // The program as the operator names it: below the program directory.

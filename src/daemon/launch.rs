@@ -3,6 +3,7 @@
 //! kind of job it is; and the check worker that copies and prechecks on its own thread.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::refusal::CheckRefusal;
 use crate::checkpoint;
@@ -11,8 +12,26 @@ use crate::gcode::WorkStart;
 use crate::runtime;
 use crate::runtime::program::{self, JobProgram, Progress};
 
-/// A program copied and checked: ready to run.
-pub(super) type Checked = (JobProgram, runtime::Precheck);
+/// A program copied and checked: ready to run, as its launch says (with the technology
+/// the check selected).
+pub struct Checked {
+    pub(super) program: JobProgram,
+    pub(super) precheck: runtime::Precheck,
+    pub(super) launch: Launch,
+}
+
+/// The technology a program job asks for: with the request, or else in the program's header
+/// (`(TECH …)`), which the check reads from the private copy it made.
+#[derive(Debug, Clone)]
+pub(super) struct TechAsk {
+    /// Given with the request (`--technology`); `None`: the header's, if it has one.
+    pub asked: Option<crate::technology::Request>,
+    /// `--passes N`: the first N of a wire table's passes (`None`: all of them).
+    pub passes: Option<usize>,
+    /// A resume: the passes are the checkpoint's, which the table must still give.
+    pub resume: bool,
+    pub tables: Arc<crate::technology::Tables>,
+}
 
 /// What a check reads.
 pub(super) enum Source {
@@ -54,9 +73,43 @@ pub(super) struct Launch {
     pub kind: JobKind,
     /// A program run from a line or in passes (a checkpoint of one resumes it as one).
     pub cut: crate::path::CutPlan,
+    /// The technology it cuts with: asked for, then selected by the check.
+    pub technology: JobTechnology,
+}
+
+/// A job's technology, before and after its check.
+#[derive(Debug, Clone, Default)]
+pub(super) enum JobTechnology {
+    /// None (a jog, MDI, homing, a touch cycle; a program without one).
+    #[default]
+    None,
+    /// To be selected by the check.
+    Ask(TechAsk),
+    /// What the check selected.
+    Selected(Arc<crate::technology::Selection>),
+}
+
+impl JobTechnology {
+    /// What was selected.
+    pub fn selected(&self) -> Option<&crate::technology::Selection> {
+        match self {
+            JobTechnology::Selected(s) => Some(s),
+            _ => None,
+        }
+    }
 }
 
 impl Launch {
+    /// The job's configuration: the daemon's, with the selected technology's conditions and
+    /// passes.
+    pub fn job_config(&self, config: &Config) -> Config {
+        let mut config = config.clone();
+        if let Some(selected) = self.technology.selected() {
+            selected.apply(&mut config);
+        }
+        config
+    }
+
     /// The job's settings: the daemon's jobs have an operator (programmed stops, collisions
     /// and alarms hold), start where the launch says, and a jog's or homing job's rapids go
     /// at its own feed, not the machine's rapid.
@@ -106,8 +159,7 @@ pub(super) fn copy_and_check(
     source: Source,
     dir: &Path,
     config: &Config,
-    start: &WorkStart,
-    cut: &crate::path::CutPlan,
+    mut launch: Launch,
     expect: Option<&str>,
     progress: &Progress,
 ) -> Result<Checked, CheckRefusal> {
@@ -137,6 +189,89 @@ pub(super) fn copy_and_check(
         }
         .into());
     }
-    let check = runtime::precheck(&program, config, start, cut, progress)?;
-    Ok((program, check))
+    let mut config = config.clone();
+    if let JobTechnology::Ask(ask) = std::mem::take(&mut launch.technology) {
+        select_technology(&program, &mut config, &mut launch, ask)?;
+    }
+    let check = runtime::precheck(&program, &config, &launch.start, &launch.cut, progress)?;
+    Ok(Checked {
+        program,
+        precheck: check,
+        launch,
+    })
+}
+
+/// The technology a program job cuts with, applied to its configuration and its cut: the
+/// one asked for, else its header's (a resume: the checkpoint's, never the header's); then
+/// the passes (`--passes N`: the first N; a wire table's: all by default) of the table in
+/// force, unless it runs from a line.
+fn select_technology(
+    program: &JobProgram,
+    config: &mut Config,
+    launch: &mut Launch,
+    ask: TechAsk,
+) -> Result<(), CheckRefusal> {
+    let asked = match (ask.asked, ask.resume) {
+        (Some(r), _) => Some(r),
+        (None, true) => None,
+        (None, false) => crate::technology::header(&program.path, &program.name)?,
+    };
+    let selection = asked.map(|r| ask.tables.select(&r)).transpose()?;
+    if let Some(s) = &selection {
+        s.apply(config);
+    }
+    let refused = |s: &crate::technology::Selection, why: &str| {
+        CheckRefusal::from(crate::technology::TechError::Refused {
+            message: format!("{}: {why} ({})", s.request.text(), s.table),
+        })
+    };
+    let wire = selection.as_ref().filter(|s| !s.passes.is_empty());
+    if ask.resume {
+        if let Some(s) = wire
+            && !same_passes(&s.wire_passes(), &launch.cut.passes)
+        {
+            return Err(refused(
+                s,
+                "the table's passes are no longer the checkpoint's (it changed since the job \
+                 stopped): the job cannot be resumed as it was cut",
+            ));
+        }
+    } else if launch.cut.from_line.is_none() {
+        let n = match (&selection, wire, ask.passes) {
+            (Some(s), None, Some(_)) => {
+                return Err(refused(
+                    s,
+                    "a sinker table has stages (the program's E words), not passes",
+                ));
+            }
+            (_, Some(s), n) => Some(n.unwrap_or(s.passes.len())),
+            (_, None, n) => n,
+        };
+        if let Some(n) = n {
+            launch.cut.passes =
+                crate::path::passes::first(&config.wire.passes, n, &config.condition_numbers())?;
+            launch.cut.tab_mm = config.wire.tab_mm;
+        }
+    }
+    let Some(selection) = selection else {
+        return Ok(());
+    };
+    launch.technology = JobTechnology::Selected(Arc::new(selection));
+    Ok(())
+}
+
+/// The checkpoint's passes are the first of the table's: to a nanometre (the checkpoint's
+/// JSON gives its numbers back to the last bit or one off).
+fn same_passes(table: &[crate::path::WirePass], checkpoint: &[crate::path::WirePass]) -> bool {
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9;
+    checkpoint.len() <= table.len()
+        && table.iter().zip(checkpoint).all(|(t, c)| {
+            t.condition == c.condition
+                && t.reverse == c.reverse
+                && close(t.offset_mm, c.offset_mm)
+                && match (t.feed_mm_per_min, c.feed_mm_per_min) {
+                    (Some(a), Some(b)) => close(a, b),
+                    (a, b) => a == b,
+                }
+        })
 }

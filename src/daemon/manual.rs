@@ -246,6 +246,7 @@ impl Core {
     fn start_jog(&mut self, axis: Axis, target: f64, feed: f64) -> u64 {
         let text = format!("G21 G90\nG53 G0 {}{target:.6}\n", axis.letter());
         let launch = Launch {
+            technology: Default::default(),
             start: self.machine.state.work_start(),
             kind: JobKind::Jog {
                 feed_mm_per_min: feed,
@@ -277,6 +278,7 @@ impl Core {
         let mut start = self.machine.state.work_start();
         start.modes = self.machine.mdi_modes;
         let launch = Launch {
+            technology: Default::default(),
             start,
             kind: JobKind::Mdi,
             cut: Default::default(),

@@ -142,6 +142,8 @@ struct Job {
     /// Run from a line, in passes (the checkpoint records them, so a resume replays the same
     /// approach and passes).
     cut: crate::path::CutPlan,
+    /// The technology it cuts with.
+    technology: Option<Arc<crate::technology::Selection>>,
 }
 
 /// The daemon's state, owned by the control loop.
@@ -165,6 +167,8 @@ struct Core {
     reloading: Option<upkeep::Reloading>,
     /// The job history and the hour counters.
     history: history::History,
+    /// The technology tables (`technology.dir`), read at start and on a reload.
+    technology: Arc<crate::technology::Tables>,
 }
 
 /// Who talks to the core: the senders handed to clients, the cap on socket clients, the web
@@ -199,6 +203,8 @@ pub fn serve(
         &config.daemon.job_history.with_file_name("counters.json"),
     );
     let machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
+    let technology = Arc::new(crate::technology::Tables::of(&config)?);
+    upkeep::technology_read(&technology);
     // The device first (the parallel port, the HAL component, whose readiness `loadusr -W`
     // waits for): if it cannot be claimed, nothing else should start.
     let (port_output, port_gap, port_inputs) = if config.output.kind.hardware() {
@@ -284,6 +290,7 @@ pub fn serve(
         shutting_down: false,
         reloading: None,
         history,
+        technology,
     };
 
     core.jobs
@@ -430,6 +437,15 @@ impl Core {
 
     fn handle(&mut self, request: Request) -> Reply {
         let result = match request {
+            Request::Technology { request } => {
+                let mut reply = match request.as_deref().map(|r| self.explain(r)) {
+                    None => Reply::ok(self.technology.list().join("\n"), self.status()),
+                    Some(Ok(text)) => Reply::ok(text, self.status()),
+                    Some(Err(e)) => Reply::error(e, Some(self.status())),
+                };
+                reply.technology = Some(self.technology.summaries());
+                return reply;
+            }
             Request::Jobs { count } => {
                 let (jobs, bad) = self
                     .history
@@ -445,8 +461,17 @@ impl Core {
                 from_line,
                 approach,
                 passes,
+                technology,
                 force,
-            } => self.run_program(&program, dry_run, from_line, approach, passes, force),
+            } => self.run_program(start::RunAsk {
+                program: &program,
+                dry_run,
+                from_line,
+                approach,
+                passes,
+                technology: technology.as_deref(),
+                force,
+            }),
             Request::Hold {} => self.hold(),
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),

@@ -49,6 +49,12 @@ pub enum CheckRefusal {
     Program(Box<JobError>),
     #[error("cannot start the check thread: {0}")]
     Thread(std::io::Error),
+    /// The technology asked for (or in the program's header) selects nothing.
+    #[error(transparent)]
+    Technology(#[from] crate::technology::TechError),
+    /// Its passes cannot be cut.
+    #[error(transparent)]
+    Passes(#[from] crate::path::PassError),
 }
 
 impl From<JobError> for CheckRefusal {

@@ -42,12 +42,17 @@ pub struct ReadBack {
     pub token: Option<Result<String, super::http::token::TokenError>>,
     /// The OPC UA users (when OPC UA is on), likewise.
     pub users: Option<Result<super::opcua::users::Users, super::opcua::users::UsersError>>,
+    /// The technology tables of the new configuration's `technology.dir` (the one in force
+    /// if it did not load).
+    pub technology: Result<crate::technology::Tables, crate::technology::TechError>,
 }
 
 /// The secrets' files in force: `None` for a side that is off.
 pub struct SecretPaths {
     pub token: Option<PathBuf>,
     pub users: Option<PathBuf>,
+    /// `technology.dir`.
+    pub technology: PathBuf,
 }
 
 /// Reads the configuration (then the secrets) on a thread of its own and sends the result
@@ -74,12 +79,17 @@ pub fn spawn_read(
                 ),
                 Err(_) => (in_force.token, in_force.users),
             };
+            let technology = crate::technology::Tables::load(match &config {
+                Ok((c, _)) => &c.technology.dir,
+                Err(_) => &in_force.technology,
+            });
             let token = token_path.map(|p| super::http::token::load_or_create(&p));
             let users = users_path.map(|p| super::opcua::users::load_or_create(&p));
             done(ReadBack {
                 config,
                 token,
                 users,
+                technology,
             });
         })
         .map(|_| ())

@@ -101,16 +101,37 @@ fn started(program: &str, blocks: u64, resumed: bool, kind: JobKind, message: &s
     }
 }
 
+/// A `run` request's arguments.
+pub(super) struct RunAsk<'a> {
+    pub program: &'a str,
+    pub dry_run: bool,
+    pub from_line: Option<u64>,
+    pub approach: Option<crate::path::Approach>,
+    pub passes: Option<usize>,
+    /// `material=steel,height=32,wire=0.25`.
+    pub technology: Option<&'a str>,
+    pub force: bool,
+}
+
 impl Core {
-    pub(super) fn run_program(
-        &mut self,
-        requested: &str,
-        dry_run: bool,
-        from_line: Option<u64>,
-        approach: Option<crate::path::Approach>,
-        passes: Option<usize>,
-        force: bool,
-    ) -> Result<String, Refusal> {
+    /// What `request` selects from the tables in force, explained.
+    pub(super) fn explain(&self, request: &str) -> Result<String, String> {
+        crate::technology::Request::parse(request, "technology", 1, 1)
+            .and_then(|r| self.technology.select(&r))
+            .map(|s| s.explain())
+            .map_err(|e| e.to_string())
+    }
+
+    pub(super) fn run_program(&mut self, ask: RunAsk) -> Result<String, Refusal> {
+        let RunAsk {
+            program: requested,
+            dry_run,
+            from_line,
+            approach,
+            passes,
+            technology,
+            force,
+        } = ask;
         self.refuse_if_busy()?;
         self.refuse_if_tripped(None)?;
         self.refuse_if_unhomed()?;
@@ -122,11 +143,16 @@ impl Core {
                 "--force is for a run from a line (a whole program starts where it says)".into(),
             ));
         }
+        let asked = technology
+            .map(|t| crate::technology::Request::parse(t, "technology", 1, 1))
+            .transpose()
+            .map_err(|e| Refusal::BadArgument(e.to_string()))?;
+        let passes_asked = passes;
         let passes = match passes {
             None => Vec::new(),
             Some(0) => {
                 return Err(Refusal::BadArgument(
-                    "passes counts from 1 (the first pass of [wire] pass)".into(),
+                    "passes counts from 1 (the first pass of the table)".into(),
                 ));
             }
             Some(_) if from_line.is_some() => {
@@ -134,12 +160,16 @@ impl Core {
                     "a run in passes starts at the program's start, not from a line".into(),
                 ));
             }
+            // A technology's passes are counted by the check, which selects it.
+            Some(_) if asked.is_some() => Vec::new(),
+            // The table's; what is wrong with them is said now unless the program's header
+            // names a technology, which the check reads.
             Some(n) => crate::path::passes::first(
                 &self.config.wire.passes,
                 n,
                 &self.config.condition_numbers(),
             )
-            .map_err(|e| Refusal::BadArgument(e.to_string()))?,
+            .unwrap_or_default(),
         };
         let tab_mm = if passes.is_empty() {
             0.0
@@ -152,7 +182,17 @@ impl Core {
             tab_mm,
         };
         let program = confine(&self.config.daemon.program_dir, requested)?;
+        let with = asked
+            .as_ref()
+            .map(|r| format!(" with the technology {}", r.text()))
+            .unwrap_or_default();
         let launch = Launch {
+            technology: super::launch::JobTechnology::Ask(super::launch::TechAsk {
+                asked,
+                passes: passes_asked,
+                resume: false,
+                tables: self.technology.clone(),
+            }),
             start: self.machine.state.work_start(),
             kind: if dry_run {
                 JobKind::DryRun
@@ -168,7 +208,8 @@ impl Core {
             (None, n) => format!(" in {n} passes"),
         };
         Ok(format!(
-            "accepted: checking {}{from} (check {id}); the job starts when the check passes",
+            "accepted: checking {}{from}{with} (check {id}); the job starts when the check \
+             passes",
             program.display()
         ))
     }
@@ -229,7 +270,7 @@ impl Core {
             last_checkpoint: Instant::now(),
             overruns_seen: 0,
             last_overrun_report: Instant::now(),
-            config: self.config.clone(),
+            config: launch.job_config(&self.config),
             report,
             recording,
             motion_settings: checkpoint::motion_settings(&self.keys),
@@ -243,6 +284,10 @@ impl Core {
             leaves: (check.work_offsets.clone(), check.work_system),
             modes: check.modes,
             kind: launch.kind,
+            technology: match launch.technology {
+                super::launch::JobTechnology::Selected(s) => Some(s),
+                _ => None,
+            },
             cut: launch.cut,
         }
     }
@@ -292,8 +337,7 @@ impl Core {
         }
         let expect = resume.as_ref().map(|r| r.sha256.clone());
         let worker_progress = progress.clone();
-        let worker_start = launch.start.clone();
-        let cut = launch.cut.clone();
+        let worker_launch = launch;
         let spawned = std::thread::Builder::new()
             .name("edmd-check".to_string())
             .stack_size(crate::gcode::PARSER_STACK_BYTES)
@@ -302,8 +346,7 @@ impl Core {
                     source,
                     &dir,
                     &config,
-                    &worker_start,
-                    &cut,
+                    worker_launch,
                     expect.as_deref(),
                     &worker_progress,
                 );
@@ -321,7 +364,6 @@ impl Core {
             name,
             progress,
             resume,
-            launch,
         });
         id
     }
@@ -334,12 +376,10 @@ impl Core {
         let outcome = if self.shutting_down {
             Err(Refusal::ShuttingDown)
         } else {
-            result
-                .map_err(Refusal::from)
-                .and_then(|(program, precheck)| {
-                    let resume = check.resume.as_ref().map(|r| r.point.clone());
-                    self.start_job(program, precheck, resume, check.launch.clone())
-                })
+            result.map_err(Refusal::from).and_then(|checked| {
+                let resume = check.resume.as_ref().map(|r| r.point.clone());
+                self.start_job(checked.program, checked.precheck, resume, checked.launch)
+            })
         };
         let (bytes_done, bytes_total) = {
             let (_, done, total) = check.progress.get();
@@ -386,7 +426,7 @@ impl Core {
         resume: Option<ResumePoint>,
         launch: Launch,
     ) -> Result<String, Refusal> {
-        let config = self.config.clone();
+        let config = launch.job_config(&self.config);
         let spec = launch.spec(&config);
         let switch = launch.home_switch();
         let kind = launch.kind;

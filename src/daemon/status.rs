@@ -184,6 +184,14 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
         pass: (snap.pass > 0).then_some(snap.pass),
         inch: job.modes.inch,
         condition: (snap.condition > 0).then_some(snap.condition),
+        generator: job
+            .config
+            .conditions
+            .iter()
+            .find(|c| u64::from(c.number) == snap.condition)
+            .map(|c| c.generator),
+        technology: job.technology.as_ref().map(|t| t.summary()),
+        technology_table: job.technology.as_ref().map(|t| t.table.clone()),
         wire_offset: super::protocol::WireOffsetStatus::of(snap.wire_offset_mm),
         paused_before_line: match p.paused_line.load(Ordering::Relaxed) {
             0 => None,

@@ -119,6 +119,7 @@ impl Core {
                     MoveKind::Position => "find-position".to_string(),
                 };
                 let launch = Launch {
+                    technology: Default::default(),
                     start: self.machine.state.work_start(),
                     kind: JobKind::Touch {
                         feed_mm_per_min: self.config.wire.touch.feed_mm_per_min,

@@ -79,6 +79,7 @@ impl Core {
                 .opcua
                 .as_ref()
                 .map(|_| d.opcua_users_file.clone()),
+            technology: self.config.technology.dir.clone(),
         };
         let to_core = self.clients.to_core.clone();
         match reload::spawn_read(self.source.clone(), in_force, move |read| {
@@ -124,6 +125,16 @@ impl Core {
             Err(e) => {
                 tracing::error!(target: TARGET, "reload refused, configuration unchanged: {e}")
             }
+        }
+        match read.technology {
+            Ok(tables) => {
+                technology_read(&tables);
+                self.technology = Arc::new(tables);
+            }
+            Err(e) => tracing::error!(
+                target: TARGET,
+                "reload: technology tables unchanged: {e}"
+            ),
         }
         if let (Some(server), Some(token)) = (&self.clients.http, read.token) {
             let d = &self.config.daemon;
@@ -277,5 +288,24 @@ impl Core {
                 gate.since_ping(now).as_secs_f64()
             ),
         }
+    }
+}
+
+/// Logs the technology tables read (and whether they are the shipped examples).
+pub(super) fn technology_read(tables: &crate::technology::Tables) {
+    let n = tables.tables().len();
+    tracing::info!(
+        target: TARGET,
+        "technology: {n} table{} in {}",
+        if n == 1 { "" } else { "s" },
+        tables.dir().display()
+    );
+    let examples = tables.examples();
+    if examples > 0 {
+        tracing::warn!(
+            target: TARGET,
+            "technology: {examples} of them are edmd's example tables (example = true): \
+             replace them with your generator maker's data"
+        );
     }
 }

@@ -9,7 +9,9 @@ use crate::buffer::Activity;
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{OutputError, PulseOutput};
-use crate::vocab::{Axis, GapVolts, HomeSwitch, LimitSet, LimitSwitch, MAX_AXES, ProbeReads};
+use crate::vocab::{
+    Axis, GapVolts, GeneratorSetPoints, HomeSwitch, LimitSet, LimitSwitch, MAX_AXES, ProbeReads,
+};
 
 /// The pulse output: the ledger as `pos-cmd`, checked against `pos-fb`.
 #[derive(Debug)]
@@ -20,6 +22,9 @@ pub struct HalOutput {
     step_mm: Vec<f64>,
     letters: Vec<char>,
     max_following_error_mm: Option<f64>,
+    /// The job's conditions' set points, and the condition whose are on the pins.
+    generator: Vec<(u32, GeneratorSetPoints)>,
+    set_points_of: Option<u16>,
 }
 
 impl HalOutput {
@@ -30,7 +35,26 @@ impl HalOutput {
             step_mm: settings.step_mm.clone(),
             letters: settings.axes.iter().map(|a| a.letter()).collect(),
             max_following_error_mm: settings.max_following_error_mm,
+            generator: Vec::new(),
+            set_points_of: None,
         }
+    }
+
+    /// The set points of `condition` on the `edmd.gen.*` pins (a lookup in the job's short
+    /// table, no allocation: called from the tick's thread).
+    fn write_set_points(&mut self, condition: u16) {
+        if self.set_points_of == Some(condition) {
+            return;
+        }
+        let set = self
+            .generator
+            .iter()
+            .find(|(n, _)| *n == u32::from(condition))
+            .map_or_else(GeneratorSetPoints::default, |(_, s)| *s);
+        for (pin, (_, value)) in self.pins.generator.iter().zip(set.named()) {
+            pin.set(value);
+        }
+        self.set_points_of = Some(condition);
     }
 
     /// The first axis whose feedback is further from the command than the limit.
@@ -77,6 +101,12 @@ impl PulseOutput for HalOutput {
             .flush_on
             .set(now.flags.contains(crate::buffer::BlockFlags::FLUSH));
         self.pins.condition.set(i32::from(now.condition));
+        self.write_set_points(now.condition);
+    }
+
+    fn conditions(&mut self, table: &[(u32, GeneratorSetPoints)]) {
+        self.generator = table.to_vec();
+        self.set_points_of = None;
     }
 
     /// The spark and flushing go off. The drives stay enabled (the machine is on, as in

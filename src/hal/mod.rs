@@ -10,7 +10,13 @@
 //!  edmd.estop-ok-in, …-lim-sw, home-sw, probe-in, wire-break-in ◄── input pins
 //!  edmd.gap.short / .open / .voltage ◄── the generator's gap detection
 //!  edmd.enable-out, spark-on, flush-on, condition, state ──► the drives and the generator
+//!  edmd.gen.on-time-us, off-time-us, peak-current-a, open-voltage-v, servo-ref-v,
+//!      wire-tension-n, wire-speed-m-min, flushing-bar ──► the generator's set points
 //! ```
+//!
+//! **Set points.** The `edmd.gen.*` float pins carry what the condition in force sets the
+//! generator to (`[generator] condition`, or the job's technology table), written when the
+//! condition changes; 0 where the condition gives no value (and under no condition).
 //!
 //! **Units and frames.** Pins are in machine units (mm). `pos-cmd` is the pulse ledger: every
 //! step edmd has given the axis since the component started, in mm, as LinuxCNC's
@@ -44,7 +50,7 @@ use std::sync::Arc;
 pub use devices::{HalGap, HalInputs, HalOutput};
 use ffi::{BitPin, Component, Dir, Pin};
 
-use crate::vocab::{Axis, GapVolts};
+use crate::vocab::{Axis, GapVolts, GeneratorSetPoints};
 
 /// How the generator tells the gap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -112,6 +118,8 @@ pub(crate) struct Pins {
     pub spark_on: BitPin,
     pub flush_on: BitPin,
     pub condition: Pin<i32>,
+    /// The condition's set points, in [`GeneratorSetPoints::named`]'s order.
+    pub generator: Vec<Pin<f64>>,
     pub state: Pin<i32>,
     pub estop_ok_in: BitPin,
     pub probe_in: BitPin,
@@ -177,6 +185,11 @@ pub fn open(settings: &HalSettings) -> Result<Opened, HalError> {
         spark_on: c.bit(&name("spark-on"), Dir::Out)?,
         flush_on: c.bit(&name("flush-on"), Dir::Out)?,
         condition: c.s32(&name("condition"), Dir::Out)?,
+        generator: GeneratorSetPoints::default()
+            .named()
+            .iter()
+            .map(|(pin, _)| c.float(&name(&format!("gen.{pin}")), Dir::Out))
+            .collect::<Result<_, _>>()?,
         state: c.s32(&name("state"), Dir::Out)?,
         estop_ok_in: c.bit(&name("estop-ok-in"), Dir::In)?,
         probe_in: c.bit(&name("probe-in"), Dir::In)?,
@@ -193,7 +206,7 @@ pub fn open(settings: &HalSettings) -> Result<Opened, HalError> {
     tracing::info!(
         "HAL: component {} ready ({} pins)",
         c.name(),
-        5 * pins.axes.len() + 11
+        5 * pins.axes.len() + 11 + pins.generator.len()
     );
     let pins = Arc::new(pins);
     Ok(Opened {

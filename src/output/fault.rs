@@ -47,6 +47,10 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
     fn moving_in(&mut self, now: super::Activity) {
         self.inner.moving_in(now)
     }
+
+    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
+        self.inner.conditions(table)
+    }
 }
 
 #[cfg(test)]

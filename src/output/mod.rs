@@ -99,6 +99,11 @@ pub trait PulseOutput {
     /// the machining condition); the steps written from now on belong to it. A pulse log
     /// writes it down, the port drives its flushing pin, a recorder notes rapids.
     fn moving_in(&mut self, _now: Activity) {}
+
+    /// The job's machining conditions, before its first tick: what each E number sets the
+    /// generator to. A device with set-point outputs (HAL's `edmd.gen.*`) keeps them and
+    /// writes the set points of the condition in force as it changes.
+    fn conditions(&mut self, _table: &[(u32, crate::vocab::GeneratorSetPoints)]) {}
 }
 
 pub use crate::buffer::Activity;
@@ -137,5 +142,9 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
 
     fn moving_in(&mut self, now: Activity) {
         (**self).moving_in(now)
+    }
+
+    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
+        (**self).conditions(table)
     }
 }

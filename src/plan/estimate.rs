@@ -20,6 +20,12 @@ pub(super) struct CutTime {
     last: Option<(u32, f64)>,
     /// Seconds so far.
     pub seconds: f64,
+    /// In passes: the index of each pass's first block, and each pass's seconds.
+    pass_starts: Vec<u64>,
+    pub pass_seconds: Vec<f64>,
+    /// Blocks seen so far, and the last one (its segments share it).
+    blocks: u64,
+    last_block: Option<std::sync::Arc<crate::gcode::Block>>,
 }
 
 impl CutTime {
@@ -28,7 +34,14 @@ impl CutTime {
             feeds: SparkingFeeds::new(config),
             last: None,
             seconds: 0.0,
+            ..CutTime::default()
         }
+    }
+
+    /// The next block the path hands on starts a pass.
+    pub fn pass_starts(&mut self, next_block: u64) {
+        self.pass_starts.push(next_block);
+        self.pass_seconds.push(0.0);
     }
 
     /// The nominal cutting feed of a move in `condition` (mm/s).
@@ -53,7 +66,21 @@ impl CutTime {
             0.0
         };
         // A running maximum from the duration, a number: `max`'s result, on every segment.
-        self.seconds += running_max(seg.duration, at_feed);
+        let seconds = running_max(seg.duration, at_feed);
+        self.seconds += seconds;
+        if !self
+            .last_block
+            .as_ref()
+            .is_some_and(|last| std::sync::Arc::ptr_eq(last, b))
+        {
+            self.last_block = Some(b.clone());
+            self.blocks += 1;
+        }
+        // The pass of the block: the last one started at or before it.
+        let block = self.blocks - 1;
+        if let Some(k) = self.pass_starts.iter().rposition(|&s| s <= block) {
+            self.pass_seconds[k] += seconds;
+        }
     }
 }
 

@@ -48,6 +48,15 @@ fn io_err(path: &Path) -> impl FnOnce(io::Error) -> PlanError + '_ {
     }
 }
 
+/// A pass of a plan in passes: its condition, offset, feed ceiling and estimated time.
+#[derive(Debug, Clone, Serialize)]
+pub struct PassEstimate {
+    pub condition: u32,
+    pub offset_mm: f64,
+    pub feed_mm_per_min: Option<f64>,
+    pub estimated_time_s: f64,
+}
+
 /// The numbers of a plan, as written to `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct PlanSummary {
@@ -69,6 +78,9 @@ pub struct PlanSummary {
     /// The estimated machining time (s): cuts at the servo's nominal feed where that is
     /// slower than the plan ([`estimate`]).
     pub estimated_time_s: f64,
+    /// A job in passes: each pass's estimate, first to last.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub passes: Vec<PassEstimate>,
     /// Dense forward/backward pass under the same limits; `None` when skipped (long programs).
     pub time_optimal_bound_s: Option<f64>,
     /// `planned / bound - 1`.
@@ -142,6 +154,17 @@ impl PlanSummary {
             "estimated time     {:.1} s (cuts at the servo's nominal feed)\n",
             self.estimated_time_s
         );
+        for (i, p) in self.passes.iter().enumerate() {
+            s += &format!(
+                "  pass {:<2} E{:<4}  {:.1} s (offset {:.4} mm{})\n",
+                i + 1,
+                p.condition,
+                p.estimated_time_s,
+                p.offset_mm,
+                p.feed_mm_per_min
+                    .map_or(String::new(), |f| format!(", at most {f} mm/min"))
+            );
+        }
         s += &format!(
             "time-optimal bound {}{}\n",
             opt(self.time_optimal_bound_s, " s", 1.0, 4),
@@ -491,11 +514,17 @@ pub fn plan_program(
     let mut bar = Progress::new(progress && io::stderr().is_terminal(), total);
     let mut first = true;
     let mut stages = Vec::new();
+    let mut blocks_read = 0u64;
     while let Some(item) = path.next_item()? {
-        let PathItem::Block(block) = item else {
-            continue;
+        let block = match item {
+            PathItem::Block(block) => Arc::new(block),
+            PathItem::PassStart { .. } => {
+                c.cut.pass_starts(blocks_read);
+                continue;
+            }
+            PathItem::Skipped { .. } => continue,
         };
-        let block = Arc::new(block);
+        blocks_read += 1;
         if stages.len() < crate::path::MAX_STAGES
             && let Some(stage) = crate::path::StageRow::of(&block)
         {
@@ -526,6 +555,14 @@ pub fn plan_program(
     let bound = bound.finish();
     let mut summary = summary_of(name, &settings, &c, &pre.stats(), bound, wall);
     summary.stages = stages;
+    summary.passes = (cut.passes.iter().zip(&c.cut.pass_seconds))
+        .map(|(p, s)| PassEstimate {
+            condition: p.condition,
+            offset_mm: p.offset_mm,
+            feed_mm_per_min: p.feed_mm_per_min,
+            estimated_time_s: *s,
+        })
+        .collect();
     // The tolerance as configured; on a four-axis wire machine the segmenter holds a tighter
     // one in machine space (`config::settings`), shown beside it.
     summary.chord_tolerance_mm = config.interpolation.chord_tolerance_mm;
@@ -609,6 +646,7 @@ fn summary_of(
         length_mm: c.length,
         planned_time_s: c.t,
         estimated_time_s: c.cut.seconds,
+        passes: Vec::new(),
         time_optimal_bound_s: bound,
         time_over_bound: bound.map(|b| c.t / b - 1.0),
         max_chord_error_mm: c.max_err,

@@ -9,7 +9,8 @@
 //!   its own under it;
 //! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, jump, wire
 //!   break, probe, end) with its machine time, source line and position;
-//! - `summary.json`: the job's summary, as `--summary` writes it.
+//! - `summary.json`: the job's summary, as `--summary` writes it;
+//! - `passes.csv` (a job in passes): each pass's technology row, condition and machine time.
 //!
 //! Every series is decimated to a fixed number of points, so a report's size does not grow
 //! with the job.
@@ -36,6 +37,7 @@ pub fn write_report(
     dir: &Path,
     recording: &mut Recording,
     summary: &JobSummary,
+    passes: &[PassTime],
 ) -> Result<(), ReportError> {
     let fail = |path: &Path| {
         let path = path.to_path_buf();
@@ -50,6 +52,9 @@ pub fn write_report(
     let json = serde_json::to_string_pretty(summary).expect("a summary serialises");
     write("summary.json", &(json + "\n"))?;
     write("events.csv", &events_csv(recording, &summary.axes))?;
+    if !passes.is_empty() {
+        write("passes.csv", &passes_csv(passes))?;
+    }
     let path = path_chart(recording, summary);
     write("path.svg", &path.render())?;
     let feed = Chart {
@@ -66,6 +71,67 @@ pub fn write_report(
         ..Chart::default()
     };
     write("feed.svg", &feed.render())
+}
+
+/// One pass of a job in passes: the technology row it came from, its condition and its
+/// machine time (from its start to the next pass's, holds within it included).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PassTime {
+    pub pass: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub condition: Option<u32>,
+    /// The technology table's row (`32 mm, between the 30 and 40 mm rows`); none for
+    /// `[wire] pass`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub row: Option<String>,
+    pub time_s: f64,
+}
+
+/// What a job's recording says of its passes: each pass's machine time, from its start to
+/// the next one's (or the job's end at `end_tick`), with the condition and the table row of
+/// each (`conditions[k]`, `rows[k]` for pass k + 1).
+pub fn pass_times(
+    recording: &Recording,
+    end_tick: u64,
+    conditions: &[u32],
+    rows: &[String],
+) -> Vec<PassTime> {
+    let starts: Vec<(u64, u64)> = recording
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::Pass)
+        .map(|e| (e.depth.unwrap_or(0), e.tick))
+        .collect();
+    starts
+        .iter()
+        .enumerate()
+        .map(|(i, &(pass, tick))| {
+            let k = pass.checked_sub(1).map(|k| k as usize);
+            let until = starts.get(i + 1).map_or(end_tick, |&(_, t)| t);
+            PassTime {
+                pass,
+                condition: k.and_then(|k| conditions.get(k).copied()),
+                row: k.and_then(|k| rows.get(k).cloned()),
+                time_s: recording.tick.ticks_to_secs(until.saturating_sub(tick)),
+            }
+        })
+        .collect()
+}
+
+/// `passes.csv`: a line per pass.
+fn passes_csv(passes: &[PassTime]) -> String {
+    let mut csv = String::from("pass,condition,row,time_s\n");
+    for p in passes {
+        let _ = writeln!(
+            csv,
+            "{},{},\"{}\",{:.3}",
+            p.pass,
+            p.condition.map_or(String::new(), |c| format!("E{c}")),
+            p.row.as_deref().unwrap_or_default().replace('"', "'"),
+            p.time_s
+        );
+    }
+    csv
 }
 
 /// The gap state against machine time, on its own band: where each state begins (the

@@ -69,7 +69,13 @@ pub fn run(
         recording,
         progress,
     } = io;
-    let (output, recorder) = recorded(output, recording.is_some(), &job);
+    let (mut output, recorder) = recorded(output, recording.is_some(), &job);
+    let generator: Vec<_> = spec
+        .conditions
+        .iter()
+        .map(|c| (c.number, c.generator))
+        .collect();
+    output.conditions(&generator);
     let mut supervisor = Supervisor {
         name: job.program.name.clone(),
         spec,

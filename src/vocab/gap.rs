@@ -68,3 +68,64 @@ impl GapState {
         }
     }
 }
+
+/// What a machining condition sets the generator to: one fact for the configuration's
+/// conditions, the technology tables, the status and the HAL component's `edmd.gen.*` pins.
+/// A set point a condition does not give is 0 (the generator keeps its own).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct GeneratorSetPoints {
+    /// Pulse on time, µs.
+    pub on_time_us: f64,
+    /// Pulse off (pause) time, µs.
+    pub off_time_us: f64,
+    /// Peak discharge current, A.
+    pub peak_current_a: f64,
+    /// Open-circuit voltage, V.
+    pub open_voltage_v: f64,
+    /// The servo's reference gap voltage (the voltage law's), V.
+    pub servo_ref_v: f64,
+    /// Wire tension, N (a wire machine's).
+    pub wire_tension_n: f64,
+    /// Wire speed, m/min (a wire machine's).
+    pub wire_speed_m_per_min: f64,
+    /// Flushing pressure, bar.
+    pub flushing_bar: f64,
+}
+
+impl GeneratorSetPoints {
+    /// Each set point with its name as a HAL pin says it (`on-time-us`, …), in one order.
+    pub fn named(&self) -> [(&'static str, f64); 8] {
+        [
+            ("on-time-us", self.on_time_us),
+            ("off-time-us", self.off_time_us),
+            ("peak-current-a", self.peak_current_a),
+            ("open-voltage-v", self.open_voltage_v),
+            ("servo-ref-v", self.servo_ref_v),
+            ("wire-tension-n", self.wire_tension_n),
+            ("wire-speed-m-min", self.wire_speed_m_per_min),
+            ("flushing-bar", self.flushing_bar),
+        ]
+    }
+
+    /// `on 8 µs, off 8 µs, peak 10 A, …`: the set points given, for an operator.
+    pub fn describe(&self) -> String {
+        let units = ["µs", "µs", "A", "V", "V", "N", "m/min", "bar"];
+        let names = [
+            "on",
+            "off",
+            "peak",
+            "open",
+            "servo ref",
+            "tension",
+            "wire",
+            "flushing",
+        ];
+        self.named()
+            .iter()
+            .zip(units.iter().zip(names))
+            .filter(|((_, v), _)| *v != 0.0)
+            .map(|((_, v), (unit, name))| format!("{name} {v} {unit}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}

@@ -272,3 +272,80 @@ fn reset_after_an_estop_on_the_page() {
         "return document.getElementById('state').dataset.state === 'idle' && document.getElementById('reset').disabled",
     );
 }
+
+/// The run dialog's technology: the daemon's tables offered, what a height selects
+/// explained (and a height outside the table refused with the nearest row), and a run with
+/// it carries the technology into the job.
+#[test]
+fn the_run_dialog_picks_a_technology_and_explains_it() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let tables = format!(
+        "technology.dir=\"{}\"",
+        common::repo().join("config/technology").display()
+    );
+    let (d, dir) = start("console-technology", &[&tables]);
+    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "the three example tables",
+        "return document.getElementById('tech-table').dataset.count === '3'",
+    );
+    let pick_steel = "const s = document.getElementById('tech-table'); \
+         const o = Array.from(s.options).find(o => o.textContent.startsWith('steel, 0.25 mm brass')); \
+         s.value = o.value; s.dispatchEvent(new Event('change')); return o.textContent";
+    let steel = browser.eval(pick_steel);
+    assert!(
+        steel.as_str().unwrap().contains("(10–60 mm) example"),
+        "{steel}"
+    );
+    browser.eval("document.getElementById('tech-size').value = '32'; return true");
+    click(&browser, "tech-explain");
+    let explained = wait(
+        &browser,
+        "the explanation of 32 mm",
+        "const e = document.getElementById('tech-explained'); \
+         return !e.hidden && e.textContent.includes('between the rows 30 mm') ? e.textContent : false",
+    );
+    assert!(
+        explained.as_str().unwrap().contains("E21        0.1786"),
+        "{explained}"
+    );
+    shot(&browser, &dir.join("page-technology.png"));
+    browser.eval("document.getElementById('tech-size').value = '75'; return true");
+    click(&browser, "tech-explain");
+    wait(
+        &browser,
+        "75 mm refused",
+        "const e = document.getElementById('tech-explained'); \
+         return e.className === 'error' && e.textContent.includes('the nearest row is 60 mm')",
+    );
+    // A dry run of the die with it: the job cuts the table's four passes with it.
+    browser.eval("document.getElementById('tech-size').value = '32'; return true");
+    wait(
+        &browser,
+        "die.ngc listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'die.ngc')",
+    );
+    pick(&browser, "die.ngc");
+    browser.eval("document.getElementById('dry-run').checked = true; return true");
+    click(&browser, "run");
+    let s = d.wait_for("the job with its technology", |s| {
+        s["job"]["technology"].is_string()
+    });
+    assert_eq!(
+        s["job"]["technology"],
+        "material=steel height=32 wire=0.25 type=brass (steel with 0.25 mm brass wire)"
+    );
+    assert_eq!(s["job"]["passes"], 4, "{s}");
+    wait(
+        &browser,
+        "the technology in the header",
+        "return document.getElementById('technology').textContent.includes('height=32')",
+    );
+    click(&browser, "abort");
+    click(&browser, "abort");
+    d.wait_for("the abort", |s| s["state"] == "idle");
+}

@@ -11,6 +11,8 @@
 //! - a limit switch pin stops the job; only the jog away moves, and leaving it clears the trip;
 //! - `pos-fb` unlinked mid-cut is a following error naming the axis;
 //! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there;
+//! - a technology's passes set the generator's `edmd.gen.*` set-point pins to each pass's
+//!   condition as it starts;
 //! - run as `systemd/edmd-hal.service` runs it, the unit's `ExecStop` gives edmd its
 //!   controlled stop and HAL unloads.
 //!
@@ -66,6 +68,41 @@ fn start_and_move(bench: &HalBench, program: &str) {
     });
 }
 
+/// A die cut in the passes of its header's technology (the fast test table), in incremental
+/// moves: it closes where the machine stands.
+const TECH_DIE: &str = "(TECH material=testium height=30 wire=0.25)\nG21 G91 G17\n\
+G41 D1 G1 X0 Y-2 F600\nG1 X2\nG1 Y4\nG1 X-4\nG1 Y-4\nG1 X2\nG40 G1 X0 Y2\nM2\n";
+
+/// Runs the technology die; the generator's (condition, on-time, servo reference) as the
+/// set-point pins showed them, in order, each read whole (the on-time read on both sides
+/// of the condition).
+fn set_points_while_cutting(bench: &HalBench) -> Vec<(i64, f64, f64)> {
+    bench.daemon().ok(&["run", "tech.ngc"]);
+    let mut seen: Vec<(i64, f64, f64)> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let on = bench.getp_f64("edmd.gen.on-time-us");
+        let condition: i64 = bench.getp("edmd.condition").parse().unwrap();
+        let servo = bench.getp_f64("edmd.gen.servo-ref-v");
+        if on == bench.getp_f64("edmd.gen.on-time-us")
+            && condition != 0
+            && seen.last() != Some(&(condition, on, servo))
+        {
+            seen.push((condition, on, servo));
+        }
+        let s = bench.daemon().status();
+        if s["state"] == "idle"
+            && s["last_job"]["program"]
+                .as_str()
+                .is_some_and(|p| p.ends_with("tech.ngc"))
+        {
+            assert_eq!(s["last_job"]["outcome"], "done", "{s}");
+            return seen;
+        }
+        assert!(Instant::now() < deadline, "the technology die: {s}");
+    }
+}
+
 /// The step counts of both stepgens, once they have stood still for a few servo periods.
 fn counts_at_rest(bench: &HalBench) -> Vec<i64> {
     let read = || {
@@ -94,6 +131,11 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     // Without the following-error check: uspace threads on a loaded machine (the rest of the
     // suite runs beside this test) can stall HAL's servo thread for long enough that a
     // position-mode stepgen overshoots and comes back; the check gets a bench of its own.
+    // The fast technology table beside the bench's configuration (technology.dir is
+    // "technology", the configuration file's folder's).
+    let tables = common::scratch("hal", "drive").join("config/hal/technology");
+    std::fs::create_dir_all(&tables).unwrap();
+    std::fs::write(tables.join("testium.toml"), crate::technology::FAST_TABLE).unwrap();
     let bench = HalBench::start(
         "drive",
         &[FERROR_OFF],
@@ -102,6 +144,7 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
             ("long.ngc", LONG),
             ("back.ngc", BACK),
             ("plus.ngc", PLUS),
+            ("tech.ngc", TECH_DIE),
         ],
     );
     let log = || bench.log();
@@ -116,6 +159,22 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     // The machine stays on: the drives hold (and finish reaching) the last command.
     assert_eq!(bench.getp("edmd.enable-out"), "TRUE");
     assert_eq!(bench.getp("edmd.spark-on"), "FALSE");
+
+    // A technology's three passes: the set-point pins follow each pass's condition (E51 on
+    // 8 µs at 22 V, E52 3 µs at 30 V, E53 1 µs at 38 V), and keep the last one's after.
+    let seen = set_points_while_cutting(&bench);
+    assert_eq!(
+        seen,
+        [(51, 8.0, 22.0), (52, 3.0, 30.0), (53, 1.0, 38.0)],
+        "{}",
+        log()
+    );
+    assert_eq!(bench.getp_f64("edmd.gen.peak-current-a"), 1.0);
+    assert_eq!(
+        counts_at_rest(&bench),
+        [500, 1500],
+        "the die closes where it started"
+    );
 
     // A short on the generator's pin: the electrode turns back along the path, then cuts on.
     start_and_move(&bench, "long.ngc");

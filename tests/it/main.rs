@@ -40,6 +40,7 @@ mod servo_laws;
 mod soak;
 mod tabs;
 mod taper;
+mod technology;
 mod terminal;
 mod touch;
 mod trust;

@@ -101,6 +101,9 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
         "Monitoring/EDMGenerator/GapVoltage",
         "Production/ActiveProgram/Pass",
         "Production/ActiveProgram/Passes",
+        "Production/ActiveProgram/Technology",
+        "Monitoring/EDMGenerator/OnTime",
+        "Monitoring/EDMGenerator/PeakCurrent",
         "Monitoring/Axes/X/ActualPosition",
         "Monitoring/Axes/Y/ActualPosition",
         "Production/ActiveProgram/Name",
@@ -121,6 +124,9 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
     assert_eq!(seen["line"], 2);
     // What is cutting: E3, no wire offset, not in passes.
     assert_eq!(seen["condition"], 3);
+    // E3's set points in the shipped [generator]: on 4 µs, the servo's reference 25 V.
+    assert_eq!(seen["on_time"], 4.0);
+    assert_eq!(seen["servo_ref"], 25.0);
     assert_eq!(seen["wire_offset"], 0.0);
     assert_eq!(seen["pass"], 0);
     let xs: Vec<f64> = seen["x_while_running"]

@@ -150,38 +150,8 @@ fn a_three_pass_estimate_is_within_ten_percent_of_the_simulated_run() {
     let program = dir.join("die.ngc");
     std::fs::write(&program, DIE).unwrap();
     // The shipped configuration: the simulated gap, its d_mm and three-pass table.
-    let plan = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["plan", "--quiet", "--passes", "3", "--config"])
-        .arg(common::repo().join("config/edmd.toml"))
-        .arg("--out")
-        .arg(dir.join("plan"))
-        .arg(&program)
-        .output()
-        .unwrap();
-    assert!(
-        plan.status.success(),
-        "{}",
-        String::from_utf8_lossy(&plan.stderr)
-    );
-    let plan: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("plan/summary.json")).unwrap())
-            .unwrap();
+    let (plan, run) = common::plan_and_run(&dir, &program, &["--passes", "3"]);
     let estimate = plan["estimated_time_s"].as_f64().unwrap();
-    let summary = dir.join("summary.json");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["run", "--passes", "3", "--config"])
-        .arg(common::repo().join("config/edmd.toml"))
-        .arg("--summary")
-        .arg(&summary)
-        .arg(&program)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let run: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     let ran = run["virtual_time_s"].as_f64().unwrap();
     eprintln!("3 passes: estimated {estimate:.1} s, the simulated run {ran:.1} s");
     // The finish pass at its 6 mm/min cap is most of it: a plan at the rough cut's feed

@@ -66,36 +66,12 @@ fn each_pass_cuts_at_its_offset_in_its_condition_and_direction_and_ends_at_the_s
         );
         assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![1, 2, 3]);
         for (condition, offset, direction) in PASSES {
-            let pts = &by[&condition];
-            // Along the contour (away from the entry and exit line at X0), every point is
-            // the pass's offset from the square, on the scrap side: to the step on the
-            // straight edges, within the chord tolerance (1 µm) and a step's rounding on the
-            // punch's corner arcs.
-            let along: Vec<i64> = pts
-                .iter()
-                .filter(|p| p.0.abs() > 300)
-                .map(distance)
-                .collect();
-            let want = (offset * 1000.0).round() as i64;
-            assert!(
-                along.len() > 1000,
-                "{part} E{condition}: {} points",
-                along.len()
-            );
-            assert!(
-                along.iter().all(|&d| (d - want).abs() <= 2),
-                "{part} E{condition}: {:?} µm from the contour, want {want}",
-                (along.iter().min(), along.iter().max())
-            );
-            // The direction from the shoelace area of its path.
-            let area: f64 = pts
-                .windows(2)
-                .map(|w| (w[0].0 * w[1].1 - w[1].0 * w[0].1) as f64)
-                .sum::<f64>()
-                / 2e6;
-            assert!(
-                area * direction > 10.0,
-                "{part} E{condition}: signed area {area} mm²"
+            common::wire::assert_pass(
+                &format!("{part} E{condition}"),
+                &by[&condition],
+                distance,
+                (offset * 1000.0).round() as i64,
+                direction,
             );
         }
     }

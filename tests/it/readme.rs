@@ -23,6 +23,18 @@ struct Sample {
 
 const SAMPLES: &[Sample] = &[
     Sample {
+        name: "tech-explain",
+        shown: "edmd tech explain material=steel,height=50,wire=0.25",
+        args: &["tech", "explain", "material=steel,height=50,wire=0.25"],
+        keep: None,
+    },
+    Sample {
+        name: "plan-technology",
+        shown: "edmd plan programs/die-aluminium-30.ngc --out /tmp/die",
+        args: &["plan", "programs/die-aluminium-30.ngc", "--out", "OUT"],
+        keep: Some(|l| l.starts_with("estimated time") || l.starts_with("  pass ")),
+    },
+    Sample {
         name: "check-bad",
         shown: "edmd check bad.nc",
         args: &["check", "bad.nc"],

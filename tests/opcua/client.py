@@ -112,6 +112,12 @@ async def anonymous():
         seen["condition"] = await (
             await machine.get_child(generator + [f"{ns}:Condition"])
         ).read_value()
+        seen["on_time"] = await (
+            await machine.get_child(generator + [f"{ns}:OnTime"])
+        ).read_value()
+        seen["servo_ref"] = await (
+            await machine.get_child(generator + [f"{ns}:ServoReferenceVoltage"])
+        ).read_value()
         seen["wire_offset"] = await (
             await machine.get_child(generator + [f"{ns}:WireOffset"])
         ).read_value()

@@ -198,6 +198,7 @@ fn router(app: Arc<App>) -> Router {
         .route("/", get(page))
         .route("/api/status", get(status))
         .route("/api/jobs", get(jobs::list))
+        .route("/api/technology", get(jobs::technology))
         .route("/api/events", get(events))
         .route(
             "/api/programs",
@@ -568,6 +569,7 @@ struct RunBody {
     approach: Option<crate::path::Approach>,
     #[serde(default)]
     passes: Option<usize>,
+    technology: Option<String>,
     #[serde(default)]
     force: bool,
 }
@@ -586,6 +588,7 @@ async fn run(
         from_line,
         approach,
         passes,
+        technology,
         force,
     } = match body(raw) {
         Ok(b) => b,
@@ -600,6 +603,7 @@ async fn run(
         from_line,
         approach,
         passes,
+        technology,
         force,
     };
     match ask(&app, run).await {

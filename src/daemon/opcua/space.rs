@@ -76,6 +76,12 @@ fn job_text(status: &Status, f: fn(&crate::daemon::protocol::JobStatus) -> Strin
     Variant::from(status.job.as_ref().map(f).unwrap_or_default())
 }
 
+/// A set point of the condition in force (0 without one).
+fn set_point(status: &Status, f: fn(&crate::vocab::GeneratorSetPoints) -> f64) -> Variant {
+    let set = status.job.as_ref().and_then(|j| j.generator.as_ref());
+    Variant::from(set.map_or(0.0, f))
+}
+
 /// How a machine-wide variable is read from the status.
 type ReadWhole = fn(&Status) -> Variant;
 /// How an axis's variable is read from the status, given the axis's index.
@@ -154,6 +160,31 @@ const WHOLE: &[(&str, &str, DataTypeId, ReadWhole)] = &[
                 .map_or(Variant::Empty, Variant::from)
         },
     ),
+    // The condition's set points (0: not given, or no condition in force).
+    (
+        "Monitoring/EDMGenerator",
+        "OnTime",
+        DataTypeId::Double,
+        |s| set_point(s, |g| g.on_time_us),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "OffTime",
+        DataTypeId::Double,
+        |s| set_point(s, |g| g.off_time_us),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "PeakCurrent",
+        DataTypeId::Double,
+        |s| set_point(s, |g| g.peak_current_a),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "ServoReferenceVoltage",
+        DataTypeId::Double,
+        |s| set_point(s, |g| g.servo_ref_v),
+    ),
     (
         "Monitoring/EDMGenerator",
         "Shorts",
@@ -196,6 +227,13 @@ const WHOLE: &[(&str, &str, DataTypeId, ReadWhole)] = &[
         "Passes",
         DataTypeId::UInt64,
         |s| Variant::from(s.job.as_ref().map_or(0, |j| j.passes as u64)),
+    ),
+    // The technology it cuts with (empty: none).
+    (
+        "Production/ActiveProgram",
+        "Technology",
+        DataTypeId::String,
+        |s| job_text(s, |j| j.technology.clone().unwrap_or_default()),
     ),
     (
         "Production/ActiveProgram",

@@ -15,7 +15,7 @@ mod console;
 mod json;
 mod text;
 
-pub use console::{WireOffsetStatus, WorkOffsetRow};
+pub use console::{JobStatus, WireOffsetStatus, WorkOffsetRow};
 pub use json::from_json;
 pub use text::duration_text;
 
@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::runtime::{JobSummary, axis_list};
 
-fn is_zero(n: &usize) -> bool {
+pub(super) fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
@@ -49,6 +49,9 @@ pub enum Request {
         /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         passes: Option<usize>,
+        /// Cut with a technology table: `material=steel,height=32,wire=0.25`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        technology: Option<String>,
         /// A run from a line on a position not trusted (after an unclean stop): the operator
         /// checked it.
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -78,6 +81,12 @@ pub enum Request {
     Jobs {
         #[serde(default)]
         count: Option<usize>,
+    },
+    /// The technology tables, and what `request` (`material=steel,height=32,wire=0.25`)
+    /// selects, explained.
+    Technology {
+        #[serde(default)]
+        request: Option<String>,
     },
     /// A one-time login link to the web page (valid 10 minutes, for one use).
     #[serde(rename = "web-link")]
@@ -190,6 +199,9 @@ pub struct Reply {
     /// The job history (`jobs`), newest first.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub jobs: Option<Vec<crate::daemon::history::JobRecord>>,
+    /// The technology tables (`technology`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub technology: Option<Vec<crate::technology::TableSummary>>,
 }
 
 impl Reply {
@@ -200,6 +212,7 @@ impl Reply {
             error: None,
             status: Some(status),
             jobs: None,
+            technology: None,
         }
     }
 
@@ -210,6 +223,7 @@ impl Reply {
             error: Some(error.into()),
             status,
             jobs: None,
+            technology: None,
         }
     }
 
@@ -513,87 +527,6 @@ impl CheckStatus {
     }
 }
 
-/// The running job.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JobStatus {
-    pub program: String,
-    /// A dry run: spark off, the servo out of the loop, no checkpoint.
-    #[serde(default)]
-    pub dry_run: bool,
-    /// Run from a line: where the cut starts and how the machine approached it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub from_line: Option<crate::path::FromLine>,
-    /// Passes of the technology table the job cuts (0: the program as written).
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub passes: usize,
-    /// The pass being cut (1 to `passes`; none outside passes).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pass: Option<u64>,
-    /// The machining condition in force (`E`; none before any).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub condition: Option<u64>,
-    /// The program reads in inches (`G20`): the page shows its positions so as well.
-    #[serde(default)]
-    pub inch: bool,
-    /// The wire offset in force: `"G41"`/`"G42"` and its distance, mm (none without one).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub wire_offset: Option<WireOffsetStatus>,
-    /// Source line of the segment in hand.
-    pub line: u64,
-    pub segment: u64,
-    pub step: i64,
-    pub parameter: Option<f64>,
-    /// The servo's state: forward, turn-back, re-advance, hold (starved), alarm, done.
-    pub servo: crate::servo::ServoState,
-    /// The gap state read in the last tick (none before the first).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gap: Option<crate::vocab::GapState>,
-    /// The gap voltage the input measured in the last tick, V (none for an input that reads
-    /// states only: a parallel port's pins, a script).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gap_volts: Option<f64>,
-    pub position_steps: Vec<i64>,
-    pub position_mm: Vec<f64>,
-    pub feed_mm_per_min: f64,
-    pub buffer_unprocessed: u64,
-    pub buffer_reserved: u64,
-    pub buffer_capacity: u64,
-    /// Shorts, turn-backs, alarms, jumps, … so far (flat in the JSON).
-    #[serde(flatten)]
-    pub servo_counters: crate::servo::ServoCounters,
-    /// The last probe (flat in the JSON).
-    #[serde(flatten)]
-    pub last_probe: crate::runtime::LastProbe,
-    pub overruns: u64,
-    pub pulses: Vec<u64>,
-    pub ticks: u64,
-    pub machine_time_s: f64,
-    pub elapsed_s: f64,
-    /// Real time only: wake-up latency so far.
-    pub latency_mean_us: Option<f64>,
-    pub latency_max_us: Option<f64>,
-    /// Started from a checkpoint.
-    pub resumed: bool,
-    /// Fraction of the program's path done (0 to 1): the farthest point reached, so a
-    /// turn-back does not move it back and the re-advance does not count twice.
-    pub progress: f64,
-    /// Path length done and in all (mm).
-    pub path_done_mm: f64,
-    pub path_total_mm: f64,
-    /// Seconds to the end at the recent average forward feed (none until a second of motion
-    /// is known, or while nothing advances).
-    pub eta_s: Option<f64>,
-    /// That recent average forward feed (mm/min).
-    pub recent_feed_mm_per_min: Option<f64>,
-    /// Held by a programmed stop (`M0`/`M1`), single block or a tab's slug before this
-    /// source line.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub paused_before_line: Option<u64>,
-    /// Why it is paused there: "program stop (M0/M1)", "single block", "secure the slug".
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pause: Option<String>,
-}
-
 /// The checkpoint on disk, in short.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CheckpointStatus {
@@ -622,18 +555,19 @@ mod tests {
                 from_line: None,
                 approach: None,
                 passes: None,
+                technology: None,
                 force: false,
             }
         );
         assert_eq!(
-            Request::parse(r#"{"cmd":"run","program":"a.nc","from_line":12,"approach":"direct"}"#)
-                .unwrap(),
+            Request::parse(r#"{"cmd":"run","program":"a.nc","from_line":12,"approach":"direct","technology":"material=x"}"#).unwrap(),
             Request::Run {
                 program: "a.nc".into(),
                 dry_run: false,
                 from_line: Some(12),
                 approach: Some(crate::path::Approach::Direct),
                 passes: None,
+                technology: Some("material=x".into()),
                 force: false,
             }
         );

@@ -199,6 +199,12 @@ impl Status {
         if !cutting.is_empty() {
             let _ = writeln!(t, "cutting:      {}", cutting.join(", "));
         }
+        if let Some(g) = &j.generator {
+            let _ = writeln!(t, "generator:    {}", g.describe());
+        }
+        if let Some(tech) = &j.technology {
+            let _ = writeln!(t, "technology:   {tech}");
+        }
         if let Some(line) = j.paused_before_line {
             let why = j.pause.as_deref().unwrap_or("program stop (M0/M1)");
             let _ = writeln!(

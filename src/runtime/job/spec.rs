@@ -13,13 +13,15 @@ use super::super::tick::consumer::LoopSettings;
 
 /// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
 /// and the voltage law's reference (V) it sets, and its jumps: interval (s), height (mm) and
-/// feed (mm/s), NaN where it keeps the `[servo]` setting.
+/// feed (mm/s), NaN where it keeps the `[servo]` setting; and the generator's set points.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepCondition {
     pub number: u32,
     pub feed: f32,
     pub v_ref: f32,
     pub jump: [f32; 3],
+    /// What it sets the generator to (the output's `edmd.gen.*` pins).
+    pub generator: crate::vocab::GeneratorSetPoints,
 }
 
 /// Everything a job's threads need.
@@ -77,13 +79,14 @@ impl JobSpec {
                 .map(|c| StepCondition {
                     number: c.number,
                     feed: (c.feed_mm_per_min / 60.0) as f32,
-                    v_ref: c.v_ref as f32,
+                    v_ref: c.generator.servo_ref_v as f32,
                     jump: [
                         c.jump_interval_s.map_or(f32::NAN, |v| v as f32),
                         c.jump_height_mm.map_or(f32::NAN, |v| v as f32),
                         c.jump_feed_mm_per_min
                             .map_or(f32::NAN, |v| (v / 60.0) as f32),
                     ],
+                    generator: c.generator,
                 })
                 .collect(),
             speed_cap: fine_speed_cap(config),

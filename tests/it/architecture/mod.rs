@@ -34,6 +34,7 @@ const FLOORS: &[&[&str]] = &[
         "plan",
         "report",
         "runtime",
+        "technology",
         "touch",
     ],
     &["daemon"],

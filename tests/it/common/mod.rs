@@ -54,3 +54,40 @@ pub fn scratch(suite: &str, name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// `edmd plan` then `edmd run` of `program` on the shipped configuration (simulated gap,
+/// virtual time), each with `args`: the plan's summary and the run's.
+pub fn plan_and_run(
+    dir: &std::path::Path,
+    program: &std::path::Path,
+    args: &[&str],
+) -> (serde_json::Value, serde_json::Value) {
+    let config = repo().join("config/edmd.toml");
+    let edmd = |command: &str, out: &[&std::ffi::OsStr]| {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .arg(command)
+            .arg("--config")
+            .arg(&config)
+            .args(args)
+            .args(out)
+            .arg(program)
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "edmd {command}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    };
+    let read = |path: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    };
+    let plan = dir.join("plan");
+    edmd(
+        "plan",
+        &["--quiet".as_ref(), "--out".as_ref(), plan.as_os_str()],
+    );
+    let summary = dir.join("summary.json");
+    edmd("run", &["--summary".as_ref(), summary.as_os_str()]);
+    (read(&plan.join("summary.json")), read(&summary))
+}

@@ -70,3 +70,33 @@ pub fn outside_punch(p: &(i64, i64)) -> i64 {
     );
     ((dx * dx + dy * dy) as f64).sqrt().round() as i64
 }
+
+/// One pass's walk lies `offset_um` from the part's contour (`distance`, on the scrap side)
+/// along the contour (away from the entry and exit line at X0): to the step on the straight
+/// edges, within the chord tolerance (1 µm) and a step's rounding on corner arcs; and it
+/// runs `direction` round (+1 counter-clockwise, from the shoelace area of its path).
+pub fn assert_pass(
+    label: &str,
+    pts: &Walk,
+    distance: &dyn Fn(&(i64, i64)) -> i64,
+    offset_um: i64,
+    direction: f64,
+) {
+    let along: Vec<i64> = pts
+        .iter()
+        .filter(|p| p.0.abs() > 300)
+        .map(distance)
+        .collect();
+    assert!(along.len() > 1000, "{label}: {} points", along.len());
+    assert!(
+        along.iter().all(|&d| (d - offset_um).abs() <= 2),
+        "{label}: {:?} µm from the contour, want {offset_um}",
+        (along.iter().min(), along.iter().max())
+    );
+    let area: f64 = pts
+        .windows(2)
+        .map(|w| (w[0].0 * w[1].1 - w[1].0 * w[0].1) as f64)
+        .sum::<f64>()
+        / 2e6;
+    assert!(area * direction > 10.0, "{label}: signed area {area} mm²");
+}
