@@ -36,6 +36,7 @@ pub use table::{SinkerTable, Stage, Table, WireTable, parse};
 use crate::config::{Condition, Config};
 use crate::gcode::Orbit;
 use crate::path::WirePass;
+use crate::vocab::OrbitShape;
 
 /// Where something is written: `file:line:col`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -317,10 +318,17 @@ impl Selection {
             orbits.by_condition.retain(|(n, _)| *n != c.number);
             if c.orbit_radius_mm.is_some() || c.orbit_shape.is_some() {
                 let default = orbits.default;
+                // A stage that gives a radius orbits: in the machine's shape, a circle where
+                // the machine's is none.
+                let shape = match (c.orbit_shape, default.shape) {
+                    (Some(shape), _) => shape,
+                    (None, OrbitShape::None) => OrbitShape::Circle,
+                    (None, shape) => shape,
+                };
                 orbits.by_condition.push((
                     c.number,
                     Orbit {
-                        shape: c.orbit_shape.unwrap_or(default.shape),
+                        shape,
                         radius_mm: c.orbit_radius_mm.unwrap_or(default.radius_mm),
                     },
                 ));

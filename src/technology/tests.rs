@@ -134,7 +134,10 @@ fn a_sinker_request_takes_the_row_of_its_area_and_sets_orbits_and_jumps() {
     assert_eq!(e43.feed_mm_per_min, 0.3);
     let mut config = Config::default();
     s.apply(&mut config);
-    assert_eq!(config.sinker.orbit.for_condition(43).radius_mm, 0.35);
+    let orbit = config.sinker.orbit.for_condition(43);
+    assert_eq!(orbit.radius_mm, 0.35);
+    // The shipped machine orbits in no shape: a stage with a radius orbits in a circle.
+    assert_eq!(orbit.shape, crate::vocab::OrbitShape::Circle);
     assert!(config.conditions.iter().any(|c| c.number == 41));
     // The wire's own passes stay: a sinker table has none.
     assert_eq!(config.wire.passes, Config::default().wire.passes);

@@ -2,8 +2,8 @@
 //! (a row, a height between rows, a request outside the table refused naming the nearest
 //! rows); a die whose header names a technology cut by the daemon in the table's passes, at
 //! the interpolated offsets (from the pulse log, as the pass tests read it), with the
-//! technology in the status, the history and the report; and the plan's estimate of a
-//! three-pass table against the simulated run.
+//! technology in the status, the history and the report; a resume of such a job; a sinker
+//! stage's orbit; and the plan's estimate of a three-pass table against the simulated run.
 
 use std::path::Path;
 use std::process::Command;
@@ -324,4 +324,58 @@ fn a_technology_job_stopped_in_its_second_pass_resumes_to_the_uninterrupted_puls
         String::from_utf8_lossy(&out.stderr)
     );
     common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
+}
+
+/// A sinker table's stage orbits its condition's sinking moves at the stage's radius: the
+/// program's `E43` on a 2 cm² copper electrode (the 1 to 4 cm² row: 0.25 mm) walks a circle of
+/// 0.25 mm about the programmed axis at the bottom of the plunge (from the pulse log).
+#[test]
+fn a_sinker_stage_orbits_its_condition_at_the_stages_radius() {
+    let dir = common::scratch("technology", "sinker");
+    let program = dir.join("cavity.ngc");
+    std::fs::write(
+        &program,
+        "(TECH electrode=copper material=steel area=2)\nG21 G90\nG0 X5 Y5\nG0 Z0\n\
+         E43 G1 Z-0.5 F10\nG0 Z1\nM2\n",
+    )
+    .unwrap();
+    let pulses = dir.join("cavity.csv");
+    let tables = format!(
+        "technology.dir=\"{}\"",
+        common::repo().join("config/technology").display()
+    );
+    let out = common::run_to_pulse_log(
+        &program,
+        &pulses,
+        &[
+            "--set",
+            "machine.axes=[\"X\",\"Y\",\"Z\"]",
+            "--set",
+            "machine.step_mm=[0.001,0.001,0.001]",
+            "--set",
+            &tables,
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (_, rows) = edmd::output::read_pulse_log(&pulses).unwrap();
+    let mut at = [0i64; 3];
+    let mut widest = 0.0f64;
+    for r in rows.iter().filter(|r| r.steps.iter().any(|&s| s != 0)) {
+        for (a, s) in at.iter_mut().zip(&r.steps) {
+            *a += i64::from(*s);
+        }
+        // Below 0.45 mm (the radius has grown to nine tenths of the stage's and more).
+        if at[2] < -450 {
+            let (dx, dy) = ((at[0] - 5000) as f64, (at[1] - 5000) as f64);
+            widest = widest.max((dx * dx + dy * dy).sqrt() / 1000.0);
+        }
+    }
+    assert!(
+        (widest - 0.25).abs() < 0.003,
+        "the orbit reaches {widest} mm"
+    );
 }
