@@ -39,7 +39,6 @@ impl CliJob {
                 let tables = Tables::of(&cfg).map_err(|e| fail(&format!("technology.dir: {e}")))?;
                 let selected = tables.select(&r).map_err(|e| fail(&e))?;
                 selected.apply(&mut cfg);
-                tracing::info!("technology: {}", selected.summary());
                 Some(selected)
             }
             None => None,
@@ -76,6 +75,16 @@ impl CliJob {
             .unwrap_or_default();
         crate::report::pass_times(recording, end_tick, &conditions, &rows)
     }
+}
+
+/// `check`: what the technology the program's header names selects, in a line (or why
+/// nothing: exit 2).
+pub(super) fn header_technology(cfg: &Config, program: &Path) -> Result<Option<String>, ExitCode> {
+    let job = CliJob::new(cfg.clone(), program, None, None)?;
+    Ok(job.technology.map(|t| match t.passes.len() {
+        0 => format!("{}: {} stages", t.summary(), t.stages.len()),
+        n => format!("{}: {n} passes", t.summary()),
+    }))
 }
 
 /// The first `n` passes of the technology table (`--passes N`), with the table's tab.

@@ -466,6 +466,11 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     if let Some(line) = reader.reader().program_end_line() {
         outln!("program end: line {line}");
     }
+    match cut::header_technology(&cfg, &args.program) {
+        Ok(Some(technology)) => outln!("technology: {technology}"),
+        Ok(None) => {}
+        Err(code) => return code,
+    }
     ExitCode::SUCCESS
 }
 
@@ -530,6 +535,9 @@ fn run_job(args: &RunArgs) -> ExitCode {
         Err(code) => return code,
     };
     let cfg = &job.cfg;
+    if let Some(t) = &job.technology {
+        tracing::info!("technology: {}", t.summary());
+    }
     let stop = stop_on_signals();
     let terminal = std::io::stderr().is_terminal();
     let progress = job_progress(terminal, cfg.fine.tick);

@@ -379,3 +379,30 @@ fn a_sinker_stage_orbits_its_condition_at_the_stages_radius() {
         "the orbit reaches {widest} mm"
     );
 }
+
+/// `edmd check` says what the header's technology selects, and refuses one outside its table
+/// (exit 2) as a run would.
+#[test]
+fn check_reads_the_header_technology() {
+    let dir = common::scratch("technology", "check");
+    let check = |text: &str| {
+        let program = dir.join("die.ngc");
+        std::fs::write(&program, text).unwrap();
+        Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["check", "--quiet", "--config"])
+            .arg(common::repo().join("config/edmd.toml"))
+            .arg(&program)
+            .output()
+            .unwrap()
+    };
+    let die =
+        std::fs::read_to_string(common::repo().join("programs/die-aluminium-30.ngc")).unwrap();
+    let out = check(&die);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains(
+        "technology: material=aluminium height=30 wire=0.25 (aluminium with 0.25 mm brass wire): 3 passes"
+    ));
+    let out = check(&die.replace("height=30", "height=99"));
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the nearest row is 50 mm"));
+}
