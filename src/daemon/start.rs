@@ -377,6 +377,7 @@ impl Core {
             Err(Refusal::ShuttingDown)
         } else {
             result.map_err(Refusal::from).and_then(|checked| {
+                self.refuse_if_tripped_since(checked.launch.kind)?;
                 let resume = check.resume.as_ref().map(|r| r.point.clone());
                 self.start_job(checked.program, checked.precheck, resume, checked.launch)
             })
@@ -416,6 +417,16 @@ impl Core {
         }
         self.jobs.last_check = Some(status);
         self.notify_status();
+    }
+
+    /// A trip that came while the check ran refuses the start, as it would have refused the
+    /// request: an E-stop anything, a limit switch anything but a jog (whose direction was
+    /// judged against the switch when it was asked for).
+    fn refuse_if_tripped_since(&self, kind: JobKind) -> Result<(), Refusal> {
+        match (kind, self.machine.state.trip) {
+            (JobKind::Jog { .. }, Some(crate::vocab::Trip::Limit(_))) => Ok(()),
+            _ => self.refuse_if_tripped(None),
+        }
     }
 
     /// Opens the I/O and starts the job thread on a checked program.

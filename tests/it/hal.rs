@@ -11,6 +11,7 @@
 //! - a limit switch pin stops the job; only the jog away moves, and leaving it clears the trip;
 //! - `pos-fb` unlinked mid-cut is a following error naming the axis;
 //! - homing by a switch that HAL's `comp` makes from the X drive's feedback latches there;
+//! - an E-stop while a program is being checked: the job does not start;
 //! - a technology's passes set the generator's `edmd.gen.*` set-point pins to each pass's
 //!   condition as it starts;
 //! - run as `systemd/edmd-hal.service` runs it, the unit's `ExecStop` gives edmd its
@@ -72,6 +73,15 @@ fn start_and_move(bench: &HalBench, program: &str) {
 /// moves: it closes where the machine stands.
 const TECH_DIE: &str = "(TECH material=testium height=30 wire=0.25)\nG21 G91 G17\n\
 G41 D1 G1 X0 Y-2 F600\nG1 X2\nG1 Y4\nG1 X-4\nG1 Y-4\nG1 X2\nG40 G1 X0 Y2\nM2\n";
+
+/// A program whose check takes a while (a million short moves, there and back).
+fn big() -> String {
+    let mut text = String::from("G21 G91\nG1 F100\n");
+    for _ in 0..500_000 {
+        text.push_str("X0.001\nX-0.001\n");
+    }
+    text + "M2\n"
+}
 
 /// Runs the technology die; the generator's (condition, on-time, servo reference) as the
 /// set-point pins showed them, in order, each read whole (the on-time read on both sides
@@ -145,6 +155,7 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
             ("back.ngc", BACK),
             ("plus.ngc", PLUS),
             ("tech.ngc", TECH_DIE),
+            ("big.ngc", &big()),
         ],
     );
     let log = || bench.log();
@@ -218,6 +229,26 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     std::thread::sleep(Duration::from_millis(100));
     assert_eq!(counts_at_rest(&bench), frozen, "nothing moves in an E-stop");
     bench.daemon().refused(&["run", "back.ngc"], "");
+    bench.setp("edmd.estop-ok-in", "true");
+    bench.daemon().ok(&["reset"]);
+    bench.daemon().wait_for("reset", |s| s["state"] == "idle");
+
+    // An E-stop while a program is being checked: the check's verdict does not start it.
+    let before = counts_at_rest(&bench);
+    bench.daemon().ok(&["run", "big.ngc", "--no-wait"]);
+    bench.setp("edmd.estop-ok-in", "false");
+    let s = bench.daemon().wait_for("the check's verdict", |s| {
+        s["check"]["program"]
+            .as_str()
+            .is_some_and(|p| p.ends_with("big.ngc"))
+            && matches!(s["check"]["phase"].as_str(), Some("refused" | "started"))
+    });
+    assert_eq!(s["check"]["phase"], "refused", "{s}");
+    assert!(
+        s["check"]["error"].as_str().unwrap().starts_with("E-stop"),
+        "{s}"
+    );
+    assert_eq!(counts_at_rest(&bench), before, "nothing moved");
     bench.setp("edmd.estop-ok-in", "true");
     bench.daemon().ok(&["reset"]);
     bench.daemon().wait_for("reset", |s| s["state"] == "idle");

@@ -129,11 +129,26 @@ impl HalBench {
             .expect("halrun starts");
         let stdin = child.stdin.take();
         let daemon = Daemon::adopt(child, dir.join("edmd.sock"), log);
-        HalBench {
+        let bench = HalBench {
             dir,
             daemon: Some(daemon),
             stdin,
+        };
+        // The HAL file sets edmd.estop-ok-in after edmd is up: until then the E-stop input
+        // reads false, and a daemon that read it so (an E-stop at power-up) waits for reset,
+        // as a machine would.
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while bench.getp("edmd.estop-ok-in") != "TRUE" {
+            assert!(
+                Instant::now() < deadline,
+                "the HAL file never set estop-ok-in"
+            );
+            std::thread::sleep(Duration::from_millis(20));
         }
+        if bench.daemon().status()["state"] == "estop" {
+            bench.daemon().ok(&["reset"]);
+        }
+        bench
     }
 
     pub fn daemon(&self) -> &Daemon {
