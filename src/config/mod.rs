@@ -21,7 +21,9 @@ mod hal;
 pub use hal::HalConfig;
 mod homing;
 mod mcode;
+mod mqtt;
 mod opcua;
+pub use mqtt::{Deadbands, MqttBroker, MqttConfig};
 pub use opcua::OpcUaEndpoint;
 mod overrides;
 mod parport;
@@ -356,6 +358,8 @@ pub struct DaemonConfig {
     pub opcua_users_file: PathBuf,
     /// The OPC UA server's certificate store: its own key pair, trusted and rejected clients.
     pub opcua_pki_dir: PathBuf,
+    /// The Sparkplug B edge node on the plant's broker; `None`: off.
+    pub mqtt: Option<MqttConfig>,
 }
 
 /// One machining condition of the generator (`[generator] condition`), selected by `E<number>`.

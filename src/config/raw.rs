@@ -322,6 +322,7 @@ pub(super) struct RawDaemon {
     pub(super) opcua: String,
     pub(super) opcua_users_file: String,
     pub(super) opcua_pki_dir: String,
+    pub(super) mqtt: super::mqtt::RawMqtt,
 }
 
 #[derive(Debug, Deserialize)]

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::{http, opcua};
+use super::{http, mqtt, opcua};
 use crate::runtime::JobError;
 
 /// Why the daemon could not start.
@@ -36,6 +36,8 @@ pub enum DaemonError {
     Token(#[from] http::token::TokenError),
     #[error(transparent)]
     OpcUa(#[from] opcua::OpcUaError),
+    #[error(transparent)]
+    Mqtt(#[from] mqtt::MqttError),
     #[error("{0}")]
     MachineState(String),
     #[error("technology.dir: {0}")]

@@ -40,6 +40,7 @@ mod launch;
 pub mod link;
 mod machine;
 mod manual;
+pub mod mqtt;
 pub mod names;
 pub mod noise;
 pub mod notify;
@@ -180,6 +181,8 @@ struct Clients {
     http: Option<http::HttpServer>,
     /// The OPC UA server, when `daemon.opcua` is on.
     opcua: Option<opcua::OpcUaServer>,
+    /// The Sparkplug B edge node, when `daemon.mqtt` is on.
+    mqtt: Option<mqtt::MqttNode>,
 }
 
 /// Runs the daemon until a signal stops it. `Ok` is exit 0.
@@ -229,16 +232,11 @@ pub fn serve(
     spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
     // Network clients are served: the soft descriptor limit goes up to the hard one, and
     // HTTP stays well below it (checkpoints and the socket keep their reserve).
-    let descriptors = match crate::sys::raise_descriptor_limit() {
-        Ok(n) => n,
-        Err(e) => {
-            tracing::warn!("cannot read the descriptor limit ({e}); assuming 1024");
-            1024
-        }
-    };
+    let descriptors = descriptor_limit();
     let executed = http::executed::ExecutedSlot::default();
     let http = start_http(&config, descriptors, &link, &executed)?;
     let opcua = start_opcua(&config, &link)?;
+    let mqtt = start_mqtt(&config, &link)?;
     let notifier = Notifier::from_env();
     let watchdog = notify::watchdog_period();
     let socket_path = config.daemon.socket.clone();
@@ -282,6 +280,7 @@ pub fn serve(
             max_clients,
             http,
             opcua,
+            mqtt,
         },
         notifier,
         watchdog: watchdog.map(|period| WatchdogGate::new(period, started.elapsed())),
@@ -299,9 +298,24 @@ pub fn serve(
     core.notify_status();
     core.run(&inbox);
     core.notifier.send("STOPPING=1");
+    // NDEATH before the socket goes: a host sees the machine leave, not time out.
+    if let Some(mqtt) = core.clients.mqtt.as_mut() {
+        mqtt.stop();
+    }
     socket::remove(&socket_path);
     tracing::info!("stopped");
     Ok(())
+}
+
+/// The descriptor limit, raised to the hard one (network clients are served).
+fn descriptor_limit() -> u64 {
+    match crate::sys::raise_descriptor_limit() {
+        Ok(n) => n,
+        Err(e) => {
+            tracing::warn!("cannot read the descriptor limit ({e}); assuming 1024");
+            1024
+        }
+    }
 }
 
 /// The web side, when `daemon.http` is on: the page, the API and the metrics, with its
@@ -362,6 +376,7 @@ fn start_opcua(
         users_file: config.daemon.opcua_users_file.clone(),
         pki_dir: config.daemon.opcua_pki_dir.clone(),
         axes: config.machine.axes.iter().map(|a| a.to_string()).collect(),
+        program_dir: config.daemon.program_dir.clone(),
     };
     let server = opcua::spawn(settings, to_core.clone())?;
     tracing::info!(
@@ -372,6 +387,27 @@ fn start_opcua(
         config.daemon.opcua_pki_dir.display()
     );
     Ok(Some(server))
+}
+
+/// The Sparkplug B edge node, when `daemon.mqtt` is on. The broker need not be there: the
+/// node connects when it can.
+fn start_mqtt(config: &Config, to_core: &CoreLink) -> Result<Option<mqtt::MqttNode>, DaemonError> {
+    let Some(settings) = &config.daemon.mqtt else {
+        return Ok(None);
+    };
+    let node = mqtt::spawn(settings, &config.machine.axis_names(), to_core.clone())?;
+    tracing::info!(
+        "mqtt: Sparkplug B edge node {}/{} on {} (NCMD hold and abort {})",
+        settings.group_id,
+        settings.node_id,
+        settings.broker,
+        if settings.commands {
+            "taken"
+        } else {
+            "refused: daemon.mqtt.commands is false"
+        }
+    );
+    Ok(Some(node))
 }
 
 /// The transports' link to the control loop: their requests onto its inbox.

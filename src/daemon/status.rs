@@ -4,10 +4,10 @@
 
 use std::sync::atomic::Ordering;
 
-use super::Core;
 use super::protocol::{
     CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, OverrideStatus, Status,
 };
+use super::{Core, mqtt};
 use crate::runtime::{Published, Snapshot};
 use crate::servo::{Excursion, PauseKind, ServoState};
 
@@ -79,6 +79,7 @@ impl Core {
                 rapid_pct: self.jobs.controls.rapid_pct,
             },
             single_block: self.jobs.controls.single_block,
+            mqtt: self.clients.mqtt.as_ref().map(mqtt::MqttNode::status),
             state: self.state(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             uptime_s: self.started.elapsed().as_secs_f64(),

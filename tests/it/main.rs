@@ -26,6 +26,7 @@ mod http_attacks;
 mod io;
 mod jerk;
 mod machine;
+mod mqtt;
 mod opcua;
 mod operator;
 mod orbit;

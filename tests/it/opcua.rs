@@ -187,3 +187,116 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
         "the library's chatter stays out at info"
     );
 }
+
+#[test]
+fn an_mes_stores_starts_pauses_and_aborts_job_orders_and_reads_their_results() {
+    if !have_asyncua() {
+        assert!(
+            std::env::var_os("EDMD_OPCUA_TESTS").is_none(),
+            "EDMD_OPCUA_TESTS is set but Python's asyncua is not installed"
+        );
+        eprintln!("skipped: no asyncua (pip install asyncua)");
+        return;
+    }
+    let dir = scratch("opcua-jobs");
+    // A short cut (about 4 s at 300 mm/min) and a long one (about 40 s).
+    std::fs::write(dir.join("programs/short.ngc"), "G21 G90\nG1 X20 F300\nM2\n").unwrap();
+    std::fs::write(
+        dir.join("programs/long.ngc"),
+        "G21 G90\nG1 X150 Y100 F300\nM2\n",
+    )
+    .unwrap();
+    let pki = dir.join("pki");
+    let users = dir.join("opcua-users");
+    let _ = std::fs::remove_dir_all(&pki);
+    let _ = std::fs::remove_file(&users);
+    let url = format!("opc.tcp://127.0.0.1:{}", free_port());
+    let mut sets = base_sets(&dir, "pulses.log");
+    sets.extend([
+        format!("daemon.opcua=\"{url}\""),
+        format!("daemon.opcua_users_file=\"{}\"", users.display()),
+        format!("daemon.opcua_pki_dir=\"{}\"", pki.display()),
+    ]);
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.wait_for_log("opcua: the machine on");
+    let text = std::fs::read_to_string(&users).unwrap();
+    let password = text
+        .lines()
+        .find_map(|l| l.strip_prefix("operator:"))
+        .expect("an operator line")
+        .to_string();
+    // G55 is 5 mm along X from G54: J1, stored with WorkSystem G55, ends at machine X 25.
+    daemon.ok(&["mdi", "G10 L2 P2 X5"]);
+    daemon.wait_for("the MDI line", |s| s["state"] == "idle");
+    let out = Command::new("python3")
+        .arg(common::repo().join("tests/opcua/jobs.py"))
+        .args([&url, &pki.display().to_string(), "operator", &password])
+        .arg(&dir)
+        .output()
+        .expect("python3 runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "jobs.py failed: {}\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let seen: Value =
+        serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    eprintln!("the MES saw: {seen:#}");
+    let code = |k: &str| seen[k][0].as_u64().unwrap_or_else(|| panic!("{k}: {seen}"));
+    // Only a signed-in user dispatches.
+    assert_eq!(seen["anonymous_store"]["status"], "BadUserAccessDenied");
+    // Store: once per id, programs of program_dir only.
+    assert_eq!(code("store"), 0);
+    assert_eq!(code("store_twice"), 2);
+    assert_eq!(code("store_missing"), 2);
+    assert_eq!(code("store_escape"), 2);
+    assert_eq!(seen["list_stored"]["J1"], "AllowedToStart");
+    // Start, Pause (a hold), Resume, to its end; one order at a time.
+    assert_eq!(code("start"), 0, "{}", seen["start"]);
+    assert_eq!(seen["running"], true);
+    assert_eq!(code("pause"), 0);
+    assert_eq!(seen["interrupted"], true);
+    assert_eq!(
+        code("start_while_running"),
+        3,
+        "{}",
+        seen["start_while_running"]
+    );
+    assert_eq!(code("resume"), 0);
+    assert_eq!(seen["ended"], true);
+    // Its result is its line of the job history.
+    let r = &seen["result_j1"];
+    assert_eq!(r[0], 0);
+    assert_eq!(r[1], "Ended");
+    assert_eq!(r[2], "done");
+    assert!(r[3].as_f64().unwrap() > 3.0, "machine time: {r}");
+    assert!(!r[4].as_str().unwrap().is_empty(), "started: {r}");
+    // StoreAndStart was refused while J1 ran, but J2 was stored: started and aborted now.
+    assert_eq!(code("start_j2"), 0, "{}", seen["start_j2"]);
+    assert_eq!(seen["j2_running"], true);
+    assert_eq!(code("abort_j2"), 0);
+    assert_eq!(seen["j2_aborted"], true);
+    assert_eq!(seen["result_j2"][1], "Aborted");
+    assert_eq!(seen["result_j2"][2], "stopped");
+    // A stored order aborted before it ran, then cleared from the list.
+    assert_eq!(code("store_j3"), 0);
+    assert_eq!(code("abort_j3"), 0);
+    assert_eq!(code("clear_j3"), 0);
+    assert_eq!(code("result_unknown"), 1);
+    assert_eq!(
+        seen["list_end"],
+        serde_json::json!({"J1": "Ended", "J2": "Aborted"})
+    );
+    // J1 selected its work system before it started: it ended at machine X 25 (its X20 in
+    // G55), where J2 (G54 again after J1's M2) began and was aborted on its way to X150.
+    let status = daemon.status();
+    let x = status["last_job"]["end_mm"][0].as_f64().unwrap();
+    assert!((25.0..30.0).contains(&x), "J2 stopped at X {x}: {status}");
+    let log = daemon.log();
+    assert!(
+        log.contains("opcua: Start: job order \"J1\" started"),
+        "{log}"
+    );
+}

@@ -69,8 +69,7 @@ impl LoginLinks {
 pub(super) fn link(addr: std::net::SocketAddr, links: &LoginLinks) -> std::io::Result<String> {
     let code = links.issue(Instant::now())?;
     let host = if addr.ip().is_unspecified() {
-        std::fs::read_to_string("/proc/sys/kernel/hostname")
-            .map_or_else(|_| "localhost".to_string(), |h| h.trim().to_string())
+        crate::sys::host_name()
     } else {
         match addr.ip() {
             std::net::IpAddr::V6(ip) => format!("[{ip}]"),

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use crate::daemon::protocol::{Counters, DaemonState, JobStatus, Status};
+use crate::daemon::protocol::{Counters, DaemonState, JobStatus, MqttStatus, Status};
 use crate::runtime::consumer::LATENCY_BUCKETS_US;
 
 struct Out(String);
@@ -93,7 +93,40 @@ pub fn render(status: &Status) -> String {
         job_metrics(&mut o, j, &status.axes);
     }
     counter_metrics(&mut o, &status.counters);
+    if let Some(m) = &status.mqtt {
+        mqtt_metrics(&mut o, m);
+    }
     o.0
+}
+
+/// The Sparkplug B edge node (when `daemon.mqtt` is on).
+fn mqtt_metrics(o: &mut Out, m: &MqttStatus) {
+    o.one(
+        "mqtt_connected",
+        "gauge",
+        "1 while the Sparkplug B edge node is connected to its broker.",
+        f64::from(u8::from(m.connected)),
+    );
+    for (name, help, value) in [
+        ("mqtt_births_total", "NBIRTHs published.", m.births),
+        (
+            "mqtt_published_total",
+            "Sparkplug messages handed to the broker's queue.",
+            m.published,
+        ),
+        (
+            "mqtt_dropped_total",
+            "Sparkplug messages dropped: the queue to the broker was full.",
+            m.dropped,
+        ),
+        (
+            "mqtt_commands_refused_total",
+            "NCMD holds and aborts refused (daemon.mqtt.commands is false).",
+            m.commands_refused,
+        ),
+    ] {
+        o.one(name, "counter", help, value as f64);
+    }
 }
 
 /// The job in hand: its program, progress, position, feed and buffer.

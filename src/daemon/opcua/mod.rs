@@ -26,7 +26,9 @@
 //! instances of its types (see [`space`]).
 
 mod auth;
+mod desk;
 mod events;
+mod jobs;
 mod space;
 pub mod users;
 
@@ -50,7 +52,7 @@ use crate::config::OpcUaEndpoint;
 /// sees.
 pub const POLL: Duration = Duration::from_millis(100);
 /// Longest wait for the control loop's reply.
-const CORE_TIMEOUT: Duration = Duration::from_secs(10);
+pub(super) const CORE_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// What the server is started with.
 pub struct OpcUaSettings {
@@ -59,6 +61,8 @@ pub struct OpcUaSettings {
     pub pki_dir: PathBuf,
     /// Axis names, in order: one Axes/<name> object each.
     pub axes: Vec<String>,
+    /// Where the programs a job order names are.
+    pub program_dir: PathBuf,
 }
 
 /// Why the OPC UA server did not start.
@@ -93,15 +97,6 @@ impl OpcUaServer {
     }
 }
 
-/// The host's name, for the server's URIs.
-fn host_name() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|s| s.trim().to_string())
-        .ok()
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| "localhost".to_string())
-}
-
 /// The certificate store's folders, private to the daemon's user (the private key is in it).
 fn make_pki_dir(dir: &std::path::Path) -> Result<(), OpcUaError> {
     use std::os::unix::fs::PermissionsExt;
@@ -127,7 +122,7 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
         std::net::TcpListener::bind((settings.endpoint.host.as_str(), settings.endpoint.port))
             .map_err(listen_error)?;
     listener.set_nonblocking(true).map_err(listen_error)?;
-    let host = host_name();
+    let host = crate::sys::host_name();
     let version = env!("CARGO_PKG_VERSION");
     let gatekeeper = Arc::new(auth::Gatekeeper::new(users));
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -196,16 +191,19 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
         &settings.axes,
         &identity,
     ));
-    gatekeeper.guard(vec![space.hold.clone(), space.abort.clone()]);
-    for (method, request, what) in [
-        (space.hold.clone(), Request::Hold {}, "Hold"),
-        (space.abort.clone(), Request::Abort {}, "Abort"),
-    ] {
-        let to_core = to_core.clone();
-        manager
-            .inner()
-            .add_method_callback(method, move |_| call(&to_core, request.clone(), what));
-    }
+    let job_nodes = Arc::new(jobs::JobNodes::build(
+        &mut manager.address_space().write(),
+        ns,
+    ));
+    let mut guarded = vec![space.hold.clone(), space.abort.clone()];
+    guarded.extend(job_nodes.guarded());
+    gatekeeper.guard(guarded);
+    let desk = desk::Desk {
+        orders: Arc::default(),
+        to_core: to_core.clone(),
+        program_dir: settings.program_dir.clone(),
+    };
+    add_methods(&manager, &space, &job_nodes, &desk);
     drop(entered);
     let subscriptions = handle.subscriptions().clone();
     // Event ids are unique for the server's life: its start time and a count.
@@ -214,7 +212,12 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
         .name("edmd-opcua".to_string())
         .spawn(move || {
             runtime.block_on(async move {
-                tokio::spawn(refresh(space, manager, subscriptions, to_core, epoch));
+                let views = Views {
+                    space,
+                    jobs: job_nodes,
+                    desk,
+                };
+                tokio::spawn(refresh(views, manager, subscriptions, to_core, epoch));
                 let listener = match tokio::net::TcpListener::from_std(listener) {
                     Ok(listener) => listener,
                     Err(e) => return tracing::error!("opcua: {e}"),
@@ -228,18 +231,62 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
     Ok(OpcUaServer { url, gatekeeper })
 }
 
+/// The methods' callbacks: Hold and Abort of the machine, and the job methods.
+fn add_methods(
+    manager: &SimpleNodeManager,
+    space: &space::Space,
+    nodes: &jobs::JobNodes,
+    desk: &desk::Desk,
+) {
+    for (method, request, what) in [
+        (space.hold.clone(), Request::Hold {}, "Hold"),
+        (space.abort.clone(), Request::Abort {}, "Abort"),
+    ] {
+        let to_core = desk.to_core.clone();
+        manager
+            .inner()
+            .add_method_callback(method, move |_| call(&to_core, request.clone(), what));
+    }
+    type Handler = fn(&desk::Desk, &[Variant]) -> Result<Vec<Variant>, StatusCode>;
+    let handlers: [(&NodeId, Handler); 8] = [
+        (&nodes.store, |d, a| d.store(a, false)),
+        (&nodes.store_and_start, |d, a| d.store(a, true)),
+        (&nodes.start, |d, a| d.start(a)),
+        (&nodes.pause, |d, a| d.machine(a, "Pause", Request::Hold {})),
+        (&nodes.resume, |d, a| {
+            d.machine(a, "Resume", Request::Resume { force: false })
+        }),
+        (&nodes.abort, |d, a| {
+            d.machine(a, "Abort", Request::Abort {})
+        }),
+        (&nodes.clear, |d, a| d.clear(a)),
+        (&nodes.result, |d, a| d.result(a)),
+    ];
+    for (method, handler) in handlers {
+        let desk = desk.clone();
+        manager
+            .inner()
+            .add_method_callback(method.clone(), move |args| handler(&desk, args));
+    }
+}
+
 /// Asks the control loop and waits for its reply, from a method call (which the server
 /// makes synchronously on one of its workers: the loop answers in microseconds).
-fn call(to_core: &CoreLink, request: Request, what: &str) -> Result<Vec<Variant>, StatusCode> {
+pub(super) fn ask_blocking(to_core: &CoreLink, request: Request) -> Result<Reply, StatusCode> {
     let (tx, rx) = tokio::sync::oneshot::channel();
     if !to_core.ask(request, tx) {
         return Err(StatusCode::BadShutdown);
     }
-    let reply: Reply = tokio::task::block_in_place(|| {
+    tokio::task::block_in_place(|| {
         tokio::runtime::Handle::current().block_on(tokio::time::timeout(CORE_TIMEOUT, rx))
     })
     .map_err(|_| StatusCode::BadTimeout)?
-    .map_err(|_| StatusCode::BadShutdown)?;
+    .map_err(|_| StatusCode::BadShutdown)
+}
+
+/// Hold or Abort of the machine: the loop's answer as the method's.
+fn call(to_core: &CoreLink, request: Request, what: &str) -> Result<Vec<Variant>, StatusCode> {
+    let reply = ask_blocking(to_core, request)?;
     if reply.ok {
         let message = reply.message.unwrap_or_default();
         tracing::info!("opcua: {what}: {message}");
@@ -263,9 +310,31 @@ async fn status(to_core: &CoreLink) -> Option<Status> {
     reply.status
 }
 
+/// What the refresh fills: the machine's nodes and the job list.
+struct Views {
+    space: Arc<space::Space>,
+    jobs: Arc<jobs::JobNodes>,
+    desk: desk::Desk,
+}
+
+/// The job orders follow the status; an order that ended gets its line of the job history.
+async fn follow_orders(views: &Views, to_core: &CoreLink, now: &Status) -> [(NodeId, Variant); 3] {
+    let ended = views.desk.orders.lock().observe(now);
+    if let Some(id) = ended {
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        if to_core.ask(Request::Jobs { count: Some(20) }, tx)
+            && let Ok(Ok(reply)) = tokio::time::timeout(CORE_TIMEOUT, rx).await
+        {
+            let records = reply.jobs.unwrap_or_default();
+            views.desk.orders.lock().attach_result(&id, &records);
+        }
+    }
+    views.jobs.values(&views.desk.orders.lock())
+}
+
 /// Every [`POLL`]: the variables from a fresh status, and the events since the last one.
 async fn refresh(
-    space: Arc<space::Space>,
+    views: Views,
     manager: Arc<SimpleNodeManager>,
     subscriptions: Arc<SubscriptionCache>,
     to_core: CoreLink,
@@ -283,7 +352,10 @@ async fn refresh(
             }
             continue;
         };
-        let values: Vec<(&NodeId, Variant)> = space.values(&now).collect();
+        let space = &views.space;
+        let lists = follow_orders(&views, &to_core, &now).await;
+        let mut values: Vec<(&NodeId, Variant)> = space.values(&now).collect();
+        values.extend(lists.iter().map(|(id, v)| (id, v.clone())));
         if let Err(e) = manager.set_values(
             &subscriptions,
             values
@@ -296,7 +368,7 @@ async fn refresh(
             for happened in events::between(before, &now) {
                 next_event += 1;
                 raise(
-                    &space,
+                    space,
                     &subscriptions,
                     &happened,
                     format!("{epoch}-{next_event}"),

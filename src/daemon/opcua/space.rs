@@ -283,7 +283,7 @@ pub fn node(ns: u16, path: &str) -> NodeId {
 }
 
 /// Adds the object `path` (its parent: everything before the last `/`) as a component.
-fn object(space: &mut AddressSpace, ns: u16, path: &str, notifier: bool) -> NodeId {
+pub(super) fn object(space: &mut AddressSpace, ns: u16, path: &str, notifier: bool) -> NodeId {
     let id = node(ns, path);
     let (parent, name) = path.rsplit_once('/').unwrap_or(("", path));
     let mut builder = ObjectBuilder::new(&id, QualifiedName::new(ns, name), name)
@@ -296,7 +296,13 @@ fn object(space: &mut AddressSpace, ns: u16, path: &str, notifier: bool) -> Node
     id
 }
 
-fn variable(space: &mut AddressSpace, id: &NodeId, name: &str, kind: DataTypeId, parent: &NodeId) {
+pub(super) fn variable(
+    space: &mut AddressSpace,
+    id: &NodeId,
+    name: &str,
+    kind: DataTypeId,
+    parent: &NodeId,
+) {
     VariableBuilder::new(id, QualifiedName::new(id.namespace, name), name)
         .data_type(kind)
         .value(Variant::Empty)

@@ -381,6 +381,26 @@ pub struct Status {
     /// Single block is on.
     #[serde(default)]
     pub single_block: bool,
+    /// The Sparkplug B edge node, when `daemon.mqtt` is on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mqtt: Option<MqttStatus>,
+}
+
+/// The Sparkplug B edge node: its broker, whether it is connected, what it sent and dropped.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MqttStatus {
+    pub broker: String,
+    /// `group/node`.
+    pub node: String,
+    pub connected: bool,
+    /// NBIRTHs published (the first, each reconnect, each rebirth).
+    pub births: u64,
+    /// Messages handed to the broker's queue.
+    pub published: u64,
+    /// Messages dropped because the queue was full (the broker slow or away).
+    pub dropped: u64,
+    /// NCMD holds and aborts refused because `daemon.mqtt.commands` is false.
+    pub commands_refused: u64,
 }
 
 #[cfg(test)]
@@ -391,6 +411,7 @@ impl Status {
             machine: Default::default(),
             overrides: Default::default(),
             single_block: false,
+            mqtt: None,
             state,
             version: "0".into(),
             uptime_s: 0.0,

@@ -554,7 +554,7 @@ const INNER_FLOORS: &[(&str, &[&[&str]])] = &[
             &["history", "noise", "notify", "refusal"],
             &["launch", "link", "names", "protocol"],
             &["http"],
-            &["opcua"],
+            &["mqtt", "opcua"],
             &["error", "reload", "socket"],
             // The control loop (`Core`, in mod.rs) and the rooms that extend it.
             &[
