@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | live | `log.level`, `daemon.program_dir`, `daemon.status_interval_s`, `daemon.checkpoint_interval_s`, `daemon.report_dir`, `daemon.max_clients`, `daemon.http_token_file`, `daemon.http_allowed_hosts`, `daemon.opcua_users_file` | applied | applied |
 //! | job | everything that shapes or times motion: `machine.*`, `interpolation.*`, `buffer.*`, `fine.tick_us`, `servo.*`, `gap.*`, `sim.*`, `output.path`, … | refused | applied (next job) |
-//! | restart | what was set up at startup: `daemon.socket*`, `daemon.http`, `daemon.http_max_connections`, `daemon.opcua`, `daemon.opcua_pki_dir`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
+//! | restart | what was set up at startup: `daemon.socket*`, `daemon.http`, `daemon.http_max_connections`, `daemon.opcua`, `daemon.opcua_pki_dir`, `[daemon.mqtt]`, `log.format`, `fine.virtual_time`, `fine.rt_priority`, `fine.lock_memory`, `fine.cpu`, `output.kind`, `parport.*`, and `output.path` when it names the port | refused | refused |
 //!
 //! A reload is all or nothing: if any change is refused, none is applied, and the log says
 //! which keys and why. What changed is logged as `key: old -> new`.
@@ -127,7 +127,7 @@ pub fn classify(key: &str) -> KeyClass {
         | "fine.lock_memory"
         | "fine.cpu"
         | "output.kind" => KeyClass::Restart,
-        k if k.starts_with("parport.") => KeyClass::Restart,
+        k if k.starts_with("parport.") || k == "daemon.mqtt" => KeyClass::Restart,
         _ => KeyClass::Job,
     }
 }
@@ -241,6 +241,9 @@ mod tests {
         let (c, k) = load(&["daemon.socket=\"/tmp/x.sock\"", "log.level=\"debug\""]);
         let e = decide(&keys, c, k, false).unwrap_err().to_string();
         assert_eq!(e, "daemon.socket needs a restart");
+        let (c, k) = load(&["daemon.mqtt.commands=true"]);
+        let e = decide(&keys, c, k, false).unwrap_err().to_string();
+        assert_eq!(e, "daemon.mqtt needs a restart");
 
         let (c, k) = load(&[]);
         assert!(decide(&keys, c, k, true).unwrap().is_none());

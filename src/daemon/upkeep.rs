@@ -152,6 +152,9 @@ impl Core {
                 }
             }
         }
+        if let Some(server) = &self.clients.opcua {
+            server.set_program_dir(self.config.daemon.program_dir.clone());
+        }
         if let (Some(server), Some(users)) = (&self.clients.opcua, read.users) {
             let path = &self.config.daemon.opcua_users_file;
             match users {

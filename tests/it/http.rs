@@ -13,6 +13,7 @@ use common::web::{Browser, Daemon, base64_decode, start, tool};
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -325,7 +326,8 @@ fn server_sent_events_carry_the_status() {
 
 #[test]
 fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
-    let (d, dir) = start("metrics", &[]);
+    // The edge node on, its broker absent (port 1 refuses): its metrics are there, at 0.
+    let (d, dir) = start("metrics", &["daemon.mqtt.broker=\"mqtt://127.0.0.1:1\""]);
     // While a job runs, its gauges are there too.
     assert_eq!(
         d.post("/api/run", r#"{"program":"runtime-path.nc"}"#).0,
@@ -401,12 +403,16 @@ fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
             .write_all(text.as_bytes())
             .unwrap();
         let out = check.wait_with_output().unwrap();
-        let config = common::repo().join("contrib/prometheus.yml");
-        let checked = Command::new(&promtool)
-            .args(["check", "config"])
-            .arg(config)
-            .output();
-        assert!(checked.unwrap().status.success(), "contrib/prometheus.yml");
+        for shipped in [
+            "contrib/prometheus.yml",
+            "contrib/prometheus-federation.yml",
+        ] {
+            let checked = Command::new(&promtool)
+                .args(["check", "config"])
+                .arg(common::repo().join(shipped))
+                .output();
+            assert!(checked.unwrap().status.success(), "{shipped}");
+        }
         assert!(
             out.status.success(),
             "promtool: {}{}",
@@ -414,55 +420,135 @@ fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
+    assert!(
+        text.contains("\nedmd_mqtt_connected 0\n"),
+        "the edge node's metrics: {text}"
+    );
     let Some(prometheus) = tool("prometheus") else {
         return;
     };
-    let config = dir.join("prometheus.yml");
-    std::fs::write(
-        &config,
-        format!(
+    // A hall's Prometheus scrapes the machine; the plant's federates the hall's with the
+    // shipped contrib/prometheus-federation.yml (its targets pointed at the hall's).
+    let hall = Prometheus::start(
+        &prometheus,
+        &dir.join("hall"),
+        &format!(
             "global:\n  scrape_interval: 1s\nscrape_configs:\n  - job_name: edmd\n    \
-             static_configs:\n      - targets: ['127.0.0.1:{}']\n",
+             static_configs:\n      - targets: ['127.0.0.1:{}']\n        labels:\n          \
+             floor: 'hall-a'\n",
             d.port()
         ),
-    )
-    .unwrap();
-    let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = listen.local_addr().unwrap().port();
-    drop(listen);
-    let mut server = Command::new(prometheus)
-        .arg(format!("--config.file={}", config.display()))
-        .arg(format!(
-            "--storage.tsdb.path={}",
-            dir.join("tsdb").display()
-        ))
-        .arg(format!("--web.listen-address=127.0.0.1:{port}"))
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(dir.join("prometheus.log")).unwrap())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(40);
-    let found = loop {
-        let url = format!("http://127.0.0.1:{port}/api/v1/query?query=edmd_jobs_total");
-        if let Ok(r) = ureq::get(&url).call() {
-            let v: Value = serde_json::from_str(&r.into_string().unwrap()).unwrap();
-            if let Some(sample) = v["data"]["result"].get(0) {
-                break sample["value"][1].as_str().map(str::to_string);
-            }
-        }
-        if Instant::now() > deadline {
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(250));
-    };
-    let _ = server.kill();
-    let _ = server.wait();
-    assert_eq!(
-        found.as_deref(),
-        Some("2"),
-        "Prometheus did not scrape edmd_jobs_total:\n{}",
-        std::fs::read_to_string(dir.join("prometheus.log")).unwrap_or_default()
     );
+    let hall_jobs = hall.first("edmd_jobs_total");
+    assert_eq!(
+        hall_jobs.as_ref().map(|s| s["value"][1].clone()),
+        Some(json!("2")),
+        "the hall's Prometheus did not scrape edmd_jobs_total:\n{}",
+        hall.log()
+    );
+    let federation =
+        std::fs::read_to_string(common::repo().join("contrib/prometheus-federation.yml"))
+            .unwrap()
+            .replace("scrape_interval: 15s", "scrape_interval: 1s");
+    let targets = federation
+        .lines()
+        .find(|l| l.trim_start().starts_with("- targets:"))
+        .expect("the federation file's targets");
+    let federation = federation.replace(
+        targets,
+        &format!("      - targets: ['127.0.0.1:{}']", hall.port),
+    );
+    let plant = Prometheus::start(&prometheus, &dir.join("plant"), &federation);
+    let federated = plant.first("edmd_jobs_total");
+    let sample = federated.unwrap_or_else(|| panic!("nothing federated:\n{}", plant.log()));
+    assert_eq!(sample["value"][1], "2");
+    // The machine's own labels came through: the dashboard's machine and floor filters work.
+    assert_eq!(
+        sample["metric"]["instance"],
+        format!("127.0.0.1:{}", d.port())
+    );
+    assert_eq!(sample["metric"]["floor"], "hall-a");
+    // Every query of the dashboard is PromQL the plant's Prometheus answers, for all machines.
+    let dashboard: Value = serde_json::from_str(&dashboard).unwrap();
+    for panel in dashboard["panels"].as_array().unwrap() {
+        for target in panel["targets"].as_array().unwrap() {
+            let expr = target["expr"].as_str().unwrap().replace("$instance", ".*");
+            let answer = plant.query(&expr);
+            assert_eq!(answer["status"], "success", "{expr}: {answer}");
+        }
+    }
+}
+
+/// A Prometheus server on a free loopback port with `config`, its data under `dir`; killed
+/// when dropped.
+struct Prometheus {
+    child: std::process::Child,
+    port: u16,
+    dir: PathBuf,
+}
+
+impl Prometheus {
+    fn start(binary: &Path, dir: &Path, config: &str) -> Prometheus {
+        std::fs::create_dir_all(dir).unwrap();
+        let file = dir.join("prometheus.yml");
+        std::fs::write(&file, config).unwrap();
+        let listen = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listen.local_addr().unwrap().port();
+        drop(listen);
+        let child = Command::new(binary)
+            .arg(format!("--config.file={}", file.display()))
+            .arg(format!(
+                "--storage.tsdb.path={}",
+                dir.join("tsdb").display()
+            ))
+            .arg(format!("--web.listen-address=127.0.0.1:{port}"))
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(dir.join("prometheus.log")).unwrap())
+            .spawn()
+            .unwrap();
+        Prometheus {
+            child,
+            port,
+            dir: dir.to_path_buf(),
+        }
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.join("prometheus.log")).unwrap_or_default()
+    }
+
+    /// The answer to an instant query (`null` while the server is not up).
+    fn query(&self, expr: &str) -> Value {
+        let url = format!("http://127.0.0.1:{}/api/v1/query", self.port);
+        match ureq::get(&url).query("query", expr).call() {
+            Ok(r) => serde_json::from_str(&r.into_string().unwrap()).unwrap(),
+            Err(ureq::Error::Status(_, r)) => {
+                serde_json::from_str(&r.into_string().unwrap()).unwrap_or(Value::Null)
+            }
+            Err(_) => Value::Null,
+        }
+    }
+
+    /// The first sample of `expr`, waited for 40 s at most.
+    fn first(&self, expr: &str) -> Option<Value> {
+        let deadline = Instant::now() + Duration::from_secs(40);
+        loop {
+            if let Some(sample) = self.query(expr)["data"]["result"].get(0) {
+                return Some(sample.clone());
+            }
+            if Instant::now() > deadline {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+}
+
+impl Drop for Prometheus {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
 
 /// The page in a real browser: live state over SSE, the program list, the backplot with

@@ -280,6 +280,19 @@ fn two_machines_are_born_publish_take_commands_as_configured_and_die() {
     assert_eq!(status["state"], "running", "edm-a keeps cutting");
     assert_eq!(status["mqtt"]["commands_refused"], 1, "{status}");
     assert_eq!(status["mqtt"]["connected"], true, "{status}");
+    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["ctl", "--socket"])
+        .arg(&a.socket)
+        .arg("status")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains(&format!(
+            "mqtt:         connected as plant/edm-a on mqtt://127.0.0.1:{port}: "
+        )),
+        "{text}"
+    );
     ncmd(port, "edm-b", "Node Control/Hold");
     b.wait_for("edm-b held by NCMD", |s| s["state"] == "held");
     host.wait_for("edm-b held", |m| {
@@ -303,6 +316,7 @@ fn two_machines_are_born_publish_take_commands_as_configured_and_die() {
     let _ = a.child.wait();
     let death = host.wait_for("edm-a's NDEATH", |m| is(m, "NDEATH", "edm-a"));
     let took = killed.elapsed();
+    eprintln!("NDEATH of the killed daemon {took:?} after SIGKILL");
     assert!(took < Duration::from_secs(5), "NDEATH after {took:?}");
     assert_eq!(death["metrics"]["bdSeq"], 0);
 
@@ -352,6 +366,7 @@ fn a_broker_frozen_then_gone_for_30_s_does_not_disturb_a_cut_which_is_born_again
         std::thread::sleep(Duration::from_millis(500));
     }
     assert!(broker.is_none());
+    eprintln!("the slowest status during the 30 s outage: {slowest:?}");
     assert!(
         slowest < Duration::from_millis(250),
         "a status took {slowest:?} while the broker was away"
@@ -387,10 +402,191 @@ fn a_broker_frozen_then_gone_for_30_s_does_not_disturb_a_cut_which_is_born_again
     // without real-time scheduling, broker or not: overruns are not counted here.)
     assert_eq!(status["counters"]["starvations"], 0, "{status}");
     let log = daemon.log();
-    assert!(log.contains("mqtt: the broker is not reachable"), "{log}");
+    assert!(log.contains("mqtt: no session with the broker"), "{log}");
     drop(daemon);
     // Exact: the pulses are those of the same program run with no broker at all.
     let pulses = moves(&dir.join("pulses.log"));
     assert_eq!(pulses.len(), reference.len());
     assert!(pulses == reference, "the pulse sequences differ");
+}
+
+/// `openssl` with `args` in `dir`; panics with its stderr when it fails.
+fn openssl(dir: &Path, args: &[&str]) {
+    let out = Command::new("openssl")
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("openssl runs");
+    assert!(
+        out.status.success(),
+        "openssl {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A test certificate authority and a certificate for 127.0.0.1 it signed, in `dir`:
+/// `ca.pem`, `server.pem`, `server.key`.
+fn certificates(dir: &Path) {
+    openssl(
+        dir,
+        &[
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=edmd test CA",
+        ],
+    );
+    openssl(
+        dir,
+        &[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "server.key",
+            "-out",
+            "server.csr",
+            "-subj",
+            "/CN=127.0.0.1",
+        ],
+    );
+    std::fs::write(dir.join("san.ext"), "subjectAltName=IP:127.0.0.1\n").unwrap();
+    openssl(
+        dir,
+        &[
+            "x509",
+            "-req",
+            "-in",
+            "server.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            "server.pem",
+            "-days",
+            "2",
+            "-extfile",
+            "san.ext",
+        ],
+    );
+}
+
+#[test]
+fn over_tls_with_a_password_the_node_connects_only_with_the_right_ca_and_password() {
+    if !have_parts() {
+        return;
+    }
+    let dir = scratch("mqtt-tls");
+    certificates(&dir);
+    let passwd = dir.join("passwd");
+    let _ = std::fs::remove_file(&passwd);
+    let made = Command::new("mosquitto_passwd")
+        .args(["-b", "-c"])
+        .arg(&passwd)
+        .args(["edm-7", "s3cret"])
+        .output()
+        .unwrap();
+    assert!(
+        made.status.success(),
+        "{}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+    // mosquitto started as root reads its files as the `mosquitto` user.
+    use std::os::unix::fs::PermissionsExt;
+    for file in [&passwd, &dir.join("server.key")] {
+        std::fs::set_permissions(file, std::fs::Permissions::from_mode(0o644)).unwrap();
+    }
+    let port = free_port();
+    let conf = dir.join("tls.conf");
+    std::fs::write(
+        &conf,
+        format!(
+            "listener {port} 127.0.0.1\nallow_anonymous false\npassword_file {}\n\
+             cafile {}\ncertfile {}\nkeyfile {}\n",
+            passwd.display(),
+            dir.join("ca.pem").display(),
+            dir.join("server.pem").display(),
+            dir.join("server.key").display()
+        ),
+    )
+    .unwrap();
+    let mut broker = Command::new("/usr/sbin/mosquitto")
+        .arg("-c")
+        .arg(&conf)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("mosquitto-tls.log")).unwrap())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(Instant::now() < deadline, "mosquitto does not listen");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let node = |name: &str, password: &str, ca: bool| {
+        let credentials = dir.join(format!("{name}.credentials"));
+        std::fs::write(&credentials, format!("edm-7:{password}\n")).unwrap();
+        let mut sets = mqtt_sets(&dir, port, name, false);
+        sets.retain(|s| !s.starts_with("daemon.mqtt.broker") && !s.starts_with("daemon.socket"));
+        sets.extend([
+            format!(
+                "daemon.socket=\"{}\"",
+                dir.join(format!("{name}.sock")).display()
+            ),
+            format!("daemon.mqtt.broker=\"mqtts://127.0.0.1:{port}\""),
+            format!("daemon.mqtt.credentials_file=\"{}\"", credentials.display()),
+        ]);
+        if ca {
+            sets.push(format!(
+                "daemon.mqtt.ca_file=\"{}\"",
+                dir.join("ca.pem").display()
+            ));
+        }
+        let n = DAEMONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let log = dir.join(format!("serve-{n}.log"));
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_edmd"));
+        cmd.arg("serve")
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .env_remove("NOTIFY_SOCKET")
+            .env_remove("RUST_LOG");
+        for s in &sets {
+            cmd.args(["--set", s]);
+        }
+        Daemon::adopt(cmd.spawn().unwrap(), dir.join(format!("{name}.sock")), log)
+    };
+    let trusted = node("right", "s3cret", true);
+    let wrong_password = node("wrong", "guess", true);
+    let unknown_ca = node("system-roots", "s3cret", false);
+    let status = trusted.wait_for("connected over TLS", |s| s["mqtt"]["births"] == 1);
+    assert_eq!(status["mqtt"]["connected"], true, "{status}");
+    assert_eq!(
+        status["mqtt"]["broker"],
+        format!("mqtts://127.0.0.1:{port}")
+    );
+    // Refused twice over, each said in the log; the machine is idle and answers regardless.
+    for (daemon, why) in [
+        (&wrong_password, "NotAuthorized"),
+        (&unknown_ca, "certificate verify failed"),
+    ] {
+        daemon.wait_for_log(why);
+        let status = daemon.status();
+        assert_eq!(status["mqtt"]["connected"], false, "{status}");
+        assert_eq!(status["mqtt"]["births"], 0, "{status}");
+        assert_eq!(status["state"], "idle");
+    }
+    let _ = broker.kill();
+    let _ = broker.wait();
 }

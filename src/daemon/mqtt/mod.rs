@@ -331,7 +331,10 @@ impl Session {
                     Some(Net::Lost(why)) => {
                         // Said once per outage, not at every retry.
                         if self.connected || !lost_before {
-                            tracing::warn!("mqtt: the broker is not reachable ({why}); retrying");
+                            tracing::warn!(
+                                "mqtt: no session with the broker ({why}); retrying every {} s",
+                                RETRY.as_secs()
+                            );
                         }
                         lost_before = true;
                         self.connected = false;

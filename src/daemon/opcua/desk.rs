@@ -26,7 +26,8 @@ const WORK_SYSTEMS: &[&str] = &[
 pub struct Desk {
     pub orders: Arc<Mutex<JobOrders>>,
     pub to_core: CoreLink,
-    pub program_dir: PathBuf,
+    /// `daemon.program_dir`, as the last reload left it.
+    pub program_dir: Arc<parking_lot::RwLock<PathBuf>>,
 }
 
 fn text(args: &[Variant], i: usize) -> Result<String, StatusCode> {
@@ -68,10 +69,11 @@ impl Desk {
                 format!("{name:?} is not a program name in daemon.program_dir"),
             ));
         }
-        if !self.program_dir.join(name).is_file() {
+        let dir = self.program_dir.read().clone();
+        if !dir.join(name).is_file() {
             return Err(Answer::refused(
                 jobs::INVALID,
-                format!("no program {name:?} in {}", self.program_dir.display()),
+                format!("no program {name:?} in {}", dir.display()),
             ));
         }
         Ok(())

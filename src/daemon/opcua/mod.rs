@@ -85,6 +85,8 @@ pub enum OpcUaError {
 pub struct OpcUaServer {
     pub url: String,
     gatekeeper: Arc<auth::Gatekeeper>,
+    /// Where job orders' programs are (SIGHUP may move it).
+    program_dir: Arc<parking_lot::RwLock<PathBuf>>,
 }
 
 impl OpcUaServer {
@@ -94,6 +96,11 @@ impl OpcUaServer {
         let n = users.len();
         self.gatekeeper.set_users(users);
         n
+    }
+
+    /// Job orders name programs of `dir` from now on (a reload's `daemon.program_dir`).
+    pub fn set_program_dir(&self, dir: PathBuf) {
+        *self.program_dir.write() = dir;
     }
 }
 
@@ -201,8 +208,9 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
     let desk = desk::Desk {
         orders: Arc::default(),
         to_core: to_core.clone(),
-        program_dir: settings.program_dir.clone(),
+        program_dir: Arc::new(parking_lot::RwLock::new(settings.program_dir.clone())),
     };
+    let program_dir = desk.program_dir.clone();
     add_methods(&manager, &space, &job_nodes, &desk);
     drop(entered);
     let subscriptions = handle.subscriptions().clone();
@@ -228,7 +236,11 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
             })
         })
         .map_err(listen_error)?;
-    Ok(OpcUaServer { url, gatekeeper })
+    Ok(OpcUaServer {
+        url,
+        gatekeeper,
+        program_dir,
+    })
 }
 
 /// The methods' callbacks: Hold and Abort of the machine, and the job methods.

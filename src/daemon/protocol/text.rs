@@ -122,6 +122,22 @@ impl Status {
                 h.jobs
             );
         }
+        if let Some(m) = &self.mqtt {
+            let _ = writeln!(
+                t,
+                "mqtt:         {} as {} on {}: {} births, {} messages, {} dropped",
+                if m.connected {
+                    "connected"
+                } else {
+                    "not connected"
+                },
+                m.node,
+                m.broker,
+                m.births,
+                m.published,
+                m.dropped
+            );
+        }
         if let Some(e) = &self.history_write_error {
             let _ = writeln!(t, "warning:      the job history was not written: {e}");
         }
