@@ -22,6 +22,7 @@ pub use hal::HalConfig;
 mod homing;
 mod mcode;
 mod mqtt;
+mod net;
 mod opcua;
 pub use mqtt::{Deadbands, MqttBroker, MqttConfig};
 pub use opcua::OpcUaEndpoint;

@@ -3,28 +3,8 @@
 
 use std::path::PathBuf;
 
-use serde::Deserialize;
-
+use super::raw::RawMqtt;
 use super::validate::{Invalid, in_range, positive};
-
-/// `[daemon.mqtt]` as written.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawMqtt {
-    broker: String,
-    group_id: String,
-    node_id: String,
-    credentials_file: String,
-    ca_file: String,
-    keep_alive_s: i64,
-    interval_s: f64,
-    deadband_mm: f64,
-    deadband_mm_per_min: f64,
-    deadband_fraction: f64,
-    deadband_s: f64,
-    queue: i64,
-    commands: bool,
-}
 
 /// Where the broker is: `mqtt://HOST:PORT`, or `mqtts://HOST:PORT` over TLS.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -119,28 +99,8 @@ fn broker(text: &str) -> Result<Option<MqttBroker>, Invalid> {
     } else {
         return Err(wrong("is not an mqtt or mqtts URL"));
     };
-    let (host, port) = match rest.strip_prefix('[') {
-        Some(v6) => v6.split_once("]:").ok_or_else(|| wrong("has no port"))?,
-        None => rest.rsplit_once(':').ok_or_else(|| wrong("has no port"))?,
-    };
-    let host_ok = !host.is_empty()
-        && (host.parse::<std::net::IpAddr>().is_ok()
-            || host
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.'));
-    if !host_ok {
-        return Err(wrong("does not name a host"));
-    }
-    let port: u16 = port
-        .parse()
-        .ok()
-        .filter(|p| *p > 0)
-        .ok_or_else(|| wrong("has no port number (1 to 65535)"))?;
-    Ok(Some(MqttBroker {
-        host: host.to_string(),
-        port,
-        tls,
-    }))
+    let (host, port) = super::net::host_and_port(rest).map_err(wrong)?;
+    Ok(Some(MqttBroker { host, port, tls }))
 }
 
 /// A deadband: 0 (every change) or more.
@@ -157,39 +117,41 @@ fn file(value: &str) -> Option<PathBuf> {
     (!value.is_empty()).then(|| PathBuf::from(value))
 }
 
-/// `[daemon.mqtt]` checked; `None` when `broker` is `""`. `host` is the default node id.
-pub(super) fn mqtt(m: RawMqtt, host: &str) -> Result<Option<MqttConfig>, Invalid> {
-    let Some(broker) = broker(&m.broker)? else {
-        return Ok(None);
-    };
-    let node_id = match m.node_id.trim() {
-        "" => host,
-        id => id,
-    };
-    let ca_file = file(&m.ca_file);
-    if ca_file.is_some() && !broker.tls {
-        return Err((
-            "daemon.mqtt.ca_file",
-            format!("is for a TLS broker; daemon.mqtt.broker {broker} is not one (mqtts://)"),
-        ));
+impl RawMqtt {
+    /// `[daemon.mqtt]` checked; `None` when `broker` is `""`. `host` is the default node id.
+    pub(super) fn validate(self, host: &str) -> Result<Option<MqttConfig>, Invalid> {
+        let Some(broker) = broker(&self.broker)? else {
+            return Ok(None);
+        };
+        let node_id = match self.node_id.trim() {
+            "" => host,
+            id => id,
+        };
+        let ca_file = file(&self.ca_file);
+        if ca_file.is_some() && !broker.tls {
+            return Err((
+                "daemon.mqtt.ca_file",
+                format!("is for a TLS broker; daemon.mqtt.broker {broker} is not one (mqtts://)"),
+            ));
+        }
+        Ok(Some(MqttConfig {
+            group_id: sparkplug_id("daemon.mqtt.group_id", self.group_id.trim())?,
+            node_id: sparkplug_id("daemon.mqtt.node_id", node_id)?,
+            broker,
+            credentials_file: file(&self.credentials_file),
+            ca_file,
+            keep_alive_s: in_range("daemon.mqtt.keep_alive_s", self.keep_alive_s, 5, 3600)? as u16,
+            interval_s: positive("daemon.mqtt.interval_s", self.interval_s, 3600.0, "s")?,
+            deadbands: Deadbands {
+                mm: deadband("daemon.mqtt.deadband_mm", self.deadband_mm)?,
+                mm_per_min: deadband("daemon.mqtt.deadband_mm_per_min", self.deadband_mm_per_min)?,
+                fraction: deadband("daemon.mqtt.deadband_fraction", self.deadband_fraction)?,
+                s: deadband("daemon.mqtt.deadband_s", self.deadband_s)?,
+            },
+            queue: in_range("daemon.mqtt.queue", self.queue, 4, 100_000)? as usize,
+            commands: self.commands,
+        }))
     }
-    Ok(Some(MqttConfig {
-        group_id: sparkplug_id("daemon.mqtt.group_id", m.group_id.trim())?,
-        node_id: sparkplug_id("daemon.mqtt.node_id", node_id)?,
-        broker,
-        credentials_file: file(&m.credentials_file),
-        ca_file,
-        keep_alive_s: in_range("daemon.mqtt.keep_alive_s", m.keep_alive_s, 5, 3600)? as u16,
-        interval_s: positive("daemon.mqtt.interval_s", m.interval_s, 3600.0, "s")?,
-        deadbands: Deadbands {
-            mm: deadband("daemon.mqtt.deadband_mm", m.deadband_mm)?,
-            mm_per_min: deadband("daemon.mqtt.deadband_mm_per_min", m.deadband_mm_per_min)?,
-            fraction: deadband("daemon.mqtt.deadband_fraction", m.deadband_fraction)?,
-            s: deadband("daemon.mqtt.deadband_s", m.deadband_s)?,
-        },
-        queue: in_range("daemon.mqtt.queue", m.queue, 4, 100_000)? as usize,
-        commands: m.commands,
-    }))
 }
 
 #[cfg(test)]

@@ -40,32 +40,8 @@ pub(super) fn endpoint(text: &str) -> Result<Option<OpcUaEndpoint>, String> {
             "has a path; edmd serves its one endpoint at the root",
         ));
     }
-    let (host, port) = match authority.strip_prefix('[') {
-        Some(v6) => {
-            let (host, port) = v6.split_once("]:").ok_or_else(|| wrong("has no port"))?;
-            (host, port)
-        }
-        None => authority
-            .rsplit_once(':')
-            .ok_or_else(|| wrong("has no port"))?,
-    };
-    let host_ok = !host.is_empty()
-        && (host.parse::<std::net::IpAddr>().is_ok()
-            || host
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.'));
-    if !host_ok {
-        return Err(wrong("does not name a host"));
-    }
-    let port: u16 = port
-        .parse()
-        .ok()
-        .filter(|p| *p > 0)
-        .ok_or_else(|| wrong("has no port from 1 to 65535"))?;
-    Ok(Some(OpcUaEndpoint {
-        host: host.to_string(),
-        port,
-    }))
+    let (host, port) = super::net::host_and_port(authority).map_err(wrong)?;
+    Ok(Some(OpcUaEndpoint { host, port }))
 }
 
 #[cfg(test)]

@@ -322,7 +322,26 @@ pub(super) struct RawDaemon {
     pub(super) opcua: String,
     pub(super) opcua_users_file: String,
     pub(super) opcua_pki_dir: String,
-    pub(super) mqtt: super::mqtt::RawMqtt,
+    pub(super) mqtt: RawMqtt,
+}
+
+/// `[daemon.mqtt]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMqtt {
+    pub(super) broker: String,
+    pub(super) group_id: String,
+    pub(super) node_id: String,
+    pub(super) credentials_file: String,
+    pub(super) ca_file: String,
+    pub(super) keep_alive_s: i64,
+    pub(super) interval_s: f64,
+    pub(super) deadband_mm: f64,
+    pub(super) deadband_mm_per_min: f64,
+    pub(super) deadband_fraction: f64,
+    pub(super) deadband_s: f64,
+    pub(super) queue: i64,
+    pub(super) commands: bool,
 }
 
 #[derive(Debug, Deserialize)]

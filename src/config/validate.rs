@@ -562,7 +562,7 @@ fn daemon(d: RawDaemon) -> Result<DaemonConfig, Invalid> {
         opcua: super::opcua::endpoint(&d.opcua).map_err(|e| ("daemon.opcua", e))?,
         opcua_users_file: under(&d.opcua_users_file, "opcua-users"),
         opcua_pki_dir: under(&d.opcua_pki_dir, "opcua-pki"),
-        mqtt: super::mqtt::mqtt(d.mqtt, &crate::sys::host_name())?,
+        mqtt: d.mqtt.validate(&crate::sys::host_name())?,
         state_dir,
     })
 }

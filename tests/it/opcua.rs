@@ -24,14 +24,49 @@ fn free_port() -> u16 {
     listener.local_addr().unwrap().port()
 }
 
+/// Whether the OPC UA tests can run: Python's asyncua is there (required under
+/// `EDMD_OPCUA_TESTS=1`).
+fn asyncua_or_skip() -> bool {
+    if have_asyncua() {
+        return true;
+    }
+    assert!(
+        std::env::var_os("EDMD_OPCUA_TESTS").is_none(),
+        "EDMD_OPCUA_TESTS is set but Python's asyncua is not installed"
+    );
+    eprintln!("skipped: no asyncua (pip install asyncua)");
+    false
+}
+
+/// A daemon of `dir` serving OPC UA on a free port, with a fresh certificate store and users
+/// file: the daemon, its URL, the store, and the `operator`'s password it made.
+fn opcua_daemon(dir: &std::path::Path) -> (Daemon, String, std::path::PathBuf, String) {
+    let pki = dir.join("pki");
+    let users = dir.join("opcua-users");
+    let _ = std::fs::remove_dir_all(&pki);
+    let _ = std::fs::remove_file(&users);
+    let url = format!("opc.tcp://127.0.0.1:{}", free_port());
+    let mut sets = base_sets(dir, "pulses.log");
+    sets.extend([
+        format!("daemon.opcua=\"{url}\""),
+        format!("daemon.opcua_users_file=\"{}\"", users.display()),
+        format!("daemon.opcua_pki_dir=\"{}\"", pki.display()),
+    ]);
+    let daemon = Daemon::start(dir, &sets, &[]);
+    daemon.wait_for_log("opcua: the machine on");
+    // The users file was made with one operator and a random password.
+    let text = std::fs::read_to_string(&users).unwrap();
+    let password = text
+        .lines()
+        .find_map(|l| l.strip_prefix("operator:"))
+        .expect("an operator line")
+        .to_string();
+    (daemon, url, pki, password)
+}
+
 #[test]
 fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
-    if !have_asyncua() {
-        assert!(
-            std::env::var_os("EDMD_OPCUA_TESTS").is_none(),
-            "EDMD_OPCUA_TESTS is set but Python's asyncua is not installed"
-        );
-        eprintln!("skipped: no asyncua (pip install asyncua)");
+    if !asyncua_or_skip() {
         return;
     }
     let dir = scratch("opcua");
@@ -41,26 +76,7 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
         "G21 G90\nE3 G1 X80 Y60 F300\nM2\n",
     )
     .unwrap();
-    let pki = dir.join("pki");
-    let users = dir.join("opcua-users");
-    let _ = std::fs::remove_dir_all(&pki);
-    let _ = std::fs::remove_file(&users);
-    let url = format!("opc.tcp://127.0.0.1:{}", free_port());
-    let mut sets = base_sets(&dir, "pulses.log");
-    sets.extend([
-        format!("daemon.opcua=\"{url}\""),
-        format!("daemon.opcua_users_file=\"{}\"", users.display()),
-        format!("daemon.opcua_pki_dir=\"{}\"", pki.display()),
-    ]);
-    let daemon = Daemon::start(&dir, &sets, &[]);
-    daemon.wait_for_log("opcua: the machine on");
-    // The users file was made with one operator and a random password.
-    let text = std::fs::read_to_string(&users).unwrap();
-    let password = text
-        .lines()
-        .find_map(|l| l.strip_prefix("operator:"))
-        .expect("an operator line")
-        .to_string();
+    let (daemon, url, pki, password) = opcua_daemon(&dir);
     daemon.ok(&["run", "long.ngc"]);
     daemon.wait_for("the job to move", is_moving);
 
@@ -190,12 +206,7 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
 
 #[test]
 fn an_mes_stores_starts_pauses_and_aborts_job_orders_and_reads_their_results() {
-    if !have_asyncua() {
-        assert!(
-            std::env::var_os("EDMD_OPCUA_TESTS").is_none(),
-            "EDMD_OPCUA_TESTS is set but Python's asyncua is not installed"
-        );
-        eprintln!("skipped: no asyncua (pip install asyncua)");
+    if !asyncua_or_skip() {
         return;
     }
     let dir = scratch("opcua-jobs");
@@ -206,25 +217,7 @@ fn an_mes_stores_starts_pauses_and_aborts_job_orders_and_reads_their_results() {
         "G21 G90\nG1 X150 Y100 F300\nM2\n",
     )
     .unwrap();
-    let pki = dir.join("pki");
-    let users = dir.join("opcua-users");
-    let _ = std::fs::remove_dir_all(&pki);
-    let _ = std::fs::remove_file(&users);
-    let url = format!("opc.tcp://127.0.0.1:{}", free_port());
-    let mut sets = base_sets(&dir, "pulses.log");
-    sets.extend([
-        format!("daemon.opcua=\"{url}\""),
-        format!("daemon.opcua_users_file=\"{}\"", users.display()),
-        format!("daemon.opcua_pki_dir=\"{}\"", pki.display()),
-    ]);
-    let daemon = Daemon::start(&dir, &sets, &[]);
-    daemon.wait_for_log("opcua: the machine on");
-    let text = std::fs::read_to_string(&users).unwrap();
-    let password = text
-        .lines()
-        .find_map(|l| l.strip_prefix("operator:"))
-        .expect("an operator line")
-        .to_string();
+    let (daemon, url, pki, password) = opcua_daemon(&dir);
     // G55 is 5 mm along X from G54: J1, stored with WorkSystem G55, ends at machine X 25.
     daemon.ok(&["mdi", "G10 L2 P2 X5"]);
     daemon.wait_for("the MDI line", |s| s["state"] == "idle");

@@ -11,15 +11,14 @@ object on stdout. It asserts nothing itself: tests/it/opcua.rs judges what it sa
 import asyncio
 import json
 import shutil
-import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 from asyncua import Client, ua
-from asyncua.crypto import cert_gen
-from cryptography.x509.oid import ExtendedKeyUsageOID
+
+import mes
 
 URL, PKI, USER, PASSWORD, EDMD, SOCKET, WORK = sys.argv[1:8]
 NS = "urn:edmd:machine-tool"
@@ -151,25 +150,11 @@ async def anonymous():
 
 
 async def client_certificate():
-    key, cert = Path(WORK) / "mes-key.pem", Path(WORK) / "mes-cert.der"
-    await cert_gen.setup_self_signed_certificate(
-        key,
-        cert,
-        APP_URI,
-        socket.gethostname(),
-        [ExtendedKeyUsageOID.CLIENT_AUTH],
-        {"commonName": "edmd-test-mes"},
-    )
-    return key, cert
+    return await mes.certificate(WORK, "mes", APP_URI)
 
 
 async def signed_in(key, cert, user, password):
-    client = Client(url=URL, timeout=10)
-    client.application_uri = APP_URI
-    client.set_user(user)
-    client.set_password(password)
-    await client.set_security_string(f"Basic256Sha256,SignAndEncrypt,{cert},{key}")
-    return client
+    return await mes.signed_in(URL, APP_URI, key, cert, user, password)
 
 
 async def secured():

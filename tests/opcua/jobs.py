@@ -11,14 +11,13 @@ asserts nothing itself: tests/it/opcua.rs judges.
 import asyncio
 import json
 import shutil
-import socket
 import sys
 import time
 from pathlib import Path
 
 from asyncua import Client, ua
-from asyncua.crypto import cert_gen
-from cryptography.x509.oid import ExtendedKeyUsageOID
+
+import mes
 
 URL, PKI, USER, PASSWORD, WORK = sys.argv[1:6]
 NS = "urn:edmd:machine-tool"
@@ -50,25 +49,11 @@ async def call(obj, name, *args):
 
 
 async def certificate():
-    key, cert = Path(WORK) / "mes-jobs-key.pem", Path(WORK) / "mes-jobs-cert.der"
-    await cert_gen.setup_self_signed_certificate(
-        key,
-        cert,
-        APP_URI,
-        socket.gethostname(),
-        [ExtendedKeyUsageOID.CLIENT_AUTH],
-        {"commonName": "edmd-test-mes-jobs"},
-    )
-    return key, cert
+    return await mes.certificate(WORK, "mes-jobs", APP_URI)
 
 
 async def signed_in(key, cert):
-    client = Client(url=URL, timeout=10)
-    client.application_uri = APP_URI
-    client.set_user(USER)
-    client.set_password(PASSWORD)
-    await client.set_security_string(f"Basic256Sha256,SignAndEncrypt,{cert},{key}")
-    return client
+    return await mes.signed_in(URL, APP_URI, key, cert, USER, PASSWORD)
 
 
 async def management(client):
@@ -100,7 +85,7 @@ async def anonymous():
         seen["anonymous_store"] = await call(control, "Store", *store_args("X", "short.ngc"))
 
 
-async def mes():
+async def dispatch():
     key, cert = await certificate()
     try:  # an unknown certificate lands in rejected/; the administrator trusts it
         async with await signed_in(key, cert):
@@ -150,5 +135,5 @@ async def mes():
 
 
 asyncio.run(anonymous())
-asyncio.run(mes())
+asyncio.run(dispatch())
 print(json.dumps(seen, default=str))

@@ -115,32 +115,15 @@ fn make_pki_dir(dir: &std::path::Path) -> Result<(), OpcUaError> {
     std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(fail)
 }
 
-/// Binds the endpoint (so a taken port is an error at startup) and serves on a thread of
-/// its own.
-pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, OpcUaError> {
-    let url = settings.endpoint.url();
-    let listen_error = |source| OpcUaError::Listen {
-        url: url.clone(),
-        source,
-    };
-    let users = users::load_or_create(&settings.users_file)?;
-    make_pki_dir(&settings.pki_dir)?;
-    let listener =
-        std::net::TcpListener::bind((settings.endpoint.host.as_str(), settings.endpoint.port))
-            .map_err(listen_error)?;
-    listener.set_nonblocking(true).map_err(listen_error)?;
-    let host = crate::sys::host_name();
+/// The server with its two endpoints, its certificate store and edmd's namespace.
+fn build_server(
+    settings: &OpcUaSettings,
+    url: &str,
+    host: &str,
+    gatekeeper: Arc<auth::Gatekeeper>,
+) -> Result<(opcua::server::Server, opcua::server::ServerHandle), OpcUaError> {
     let version = env!("CARGO_PKG_VERSION");
-    let gatekeeper = Arc::new(auth::Gatekeeper::new(users));
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .thread_name("edmd-opcua")
-        .enable_all()
-        .build()
-        .map_err(listen_error)?;
-    // The server starts tasks of its own as it is built: in this runtime.
-    let entered = runtime.enter();
-    let (server, handle) = ServerBuilder::new()
+    ServerBuilder::new()
         .application_name("edmd")
         .application_uri(format!("urn:edmd:{host}"))
         .product_uri("urn:edmd")
@@ -168,8 +151,8 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
                 &[ANONYMOUS_USER_TOKEN_ID.to_string()],
             ),
         )
-        .discovery_urls(vec![url.clone()])
-        .with_authenticator(gatekeeper.clone())
+        .discovery_urls(vec![url.to_string()])
+        .with_authenticator(gatekeeper)
         .with_node_manager(simple_node_manager(
             NamespaceMetadata {
                 namespace_uri: space::NAMESPACE.to_owned(),
@@ -178,7 +161,35 @@ pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, 
             "edmd",
         ))
         .build()
-        .map_err(OpcUaError::Setup)?;
+        .map_err(OpcUaError::Setup)
+}
+
+/// Binds the endpoint (so a taken port is an error at startup) and serves on a thread of
+/// its own.
+pub fn spawn(settings: OpcUaSettings, to_core: CoreLink) -> Result<OpcUaServer, OpcUaError> {
+    let url = settings.endpoint.url();
+    let listen_error = |source| OpcUaError::Listen {
+        url: url.clone(),
+        source,
+    };
+    let users = users::load_or_create(&settings.users_file)?;
+    make_pki_dir(&settings.pki_dir)?;
+    let listener =
+        std::net::TcpListener::bind((settings.endpoint.host.as_str(), settings.endpoint.port))
+            .map_err(listen_error)?;
+    listener.set_nonblocking(true).map_err(listen_error)?;
+    let host = crate::sys::host_name();
+    let version = env!("CARGO_PKG_VERSION");
+    let gatekeeper = Arc::new(auth::Gatekeeper::new(users));
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("edmd-opcua")
+        .enable_all()
+        .build()
+        .map_err(listen_error)?;
+    // The server starts tasks of its own as it is built: in this runtime.
+    let entered = runtime.enter();
+    let (server, handle) = build_server(&settings, &url, &host, gatekeeper.clone())?;
     let ns = handle
         .get_namespace_index(space::NAMESPACE)
         .ok_or_else(|| OpcUaError::Setup("edmd's namespace was not registered".into()))?;
