@@ -118,39 +118,60 @@ fn file(value: &str) -> Option<PathBuf> {
 }
 
 impl RawMqtt {
-    /// `[daemon.mqtt]` checked; `None` when `broker` is `""`. `host` is the default node id.
+    /// `[daemon.mqtt]` checked (every key, also while the node is off); `None` when `broker`
+    /// is `""`. `host` is the default node id.
     pub(super) fn validate(self, host: &str) -> Result<Option<MqttConfig>, Invalid> {
-        let Some(broker) = broker(&self.broker)? else {
-            return Ok(None);
-        };
-        let node_id = match self.node_id.trim() {
-            "" => host,
-            id => id,
+        let broker = broker(&self.broker)?;
+        // The host's name is the default id only where the node is on: a host name Sparkplug
+        // cannot take must not stop a daemon that does not publish.
+        let node_id = match (self.node_id.trim(), &broker) {
+            ("", Some(_)) => host,
+            ("", None) => "edmd",
+            (id, _) => id,
         };
         let ca_file = file(&self.ca_file);
-        if ca_file.is_some() && !broker.tls {
-            return Err((
-                "daemon.mqtt.ca_file",
-                format!("is for a TLS broker; daemon.mqtt.broker {broker} is not one (mqtts://)"),
-            ));
+        let config = |broker: MqttBroker| -> Result<MqttConfig, Invalid> {
+            if ca_file.is_some() && !broker.tls {
+                return Err((
+                    "daemon.mqtt.ca_file",
+                    format!(
+                        "is for a TLS broker; daemon.mqtt.broker {broker} is not one (mqtts://)"
+                    ),
+                ));
+            }
+            Ok(MqttConfig {
+                group_id: sparkplug_id("daemon.mqtt.group_id", self.group_id.trim())?,
+                node_id: sparkplug_id("daemon.mqtt.node_id", node_id)?,
+                broker,
+                credentials_file: file(&self.credentials_file),
+                ca_file: ca_file.clone(),
+                keep_alive_s: in_range("daemon.mqtt.keep_alive_s", self.keep_alive_s, 5, 3600)?
+                    as u16,
+                interval_s: positive("daemon.mqtt.interval_s", self.interval_s, 3600.0, "s")?,
+                deadbands: Deadbands {
+                    mm: deadband("daemon.mqtt.deadband_mm", self.deadband_mm)?,
+                    mm_per_min: deadband(
+                        "daemon.mqtt.deadband_mm_per_min",
+                        self.deadband_mm_per_min,
+                    )?,
+                    fraction: deadband("daemon.mqtt.deadband_fraction", self.deadband_fraction)?,
+                    s: deadband("daemon.mqtt.deadband_s", self.deadband_s)?,
+                },
+                queue: in_range("daemon.mqtt.queue", self.queue, 4, 100_000)? as usize,
+                commands: self.commands,
+            })
+        };
+        match broker {
+            Some(broker) => config(broker).map(Some),
+            // Off: the other keys are checked all the same, against a stand-in broker, so a
+            // mistake is found before the node is turned on.
+            None => config(MqttBroker {
+                host: "localhost".into(),
+                port: 8883,
+                tls: true,
+            })
+            .map(|_| None),
         }
-        Ok(Some(MqttConfig {
-            group_id: sparkplug_id("daemon.mqtt.group_id", self.group_id.trim())?,
-            node_id: sparkplug_id("daemon.mqtt.node_id", node_id)?,
-            broker,
-            credentials_file: file(&self.credentials_file),
-            ca_file,
-            keep_alive_s: in_range("daemon.mqtt.keep_alive_s", self.keep_alive_s, 5, 3600)? as u16,
-            interval_s: positive("daemon.mqtt.interval_s", self.interval_s, 3600.0, "s")?,
-            deadbands: Deadbands {
-                mm: deadband("daemon.mqtt.deadband_mm", self.deadband_mm)?,
-                mm_per_min: deadband("daemon.mqtt.deadband_mm_per_min", self.deadband_mm_per_min)?,
-                fraction: deadband("daemon.mqtt.deadband_fraction", self.deadband_fraction)?,
-                s: deadband("daemon.mqtt.deadband_s", self.deadband_s)?,
-            },
-            queue: in_range("daemon.mqtt.queue", self.queue, 4, 100_000)? as usize,
-            commands: self.commands,
-        }))
     }
 }
 

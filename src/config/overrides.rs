@@ -68,11 +68,18 @@ pub(super) fn parse_user_table(
             .file
             .insert(name.clone(), line_col(text, section.span().start));
         if let Some(table) = value.get_ref().as_table() {
-            for (key, _) in table {
-                origins.file.insert(
-                    format!("{name}.{}", key.get_ref()),
-                    line_col(text, key.span().start),
-                );
+            for (key, inner) in table {
+                let path = format!("{name}.{}", key.get_ref());
+                // A table inside the section (`[daemon.mqtt]`, `[sinker.orbit]`): its keys.
+                if let Some(inner) = inner.get_ref().as_table() {
+                    for (sub, _) in inner {
+                        origins.file.insert(
+                            format!("{path}.{}", sub.get_ref()),
+                            line_col(text, sub.span().start),
+                        );
+                    }
+                }
+                origins.file.insert(path, line_col(text, key.span().start));
             }
         }
     }

@@ -460,3 +460,46 @@ fn machine_builders_m_codes_are_checked_with_their_line() {
             .contains("M60 is defined twice")
     );
 }
+
+#[test]
+fn the_edge_nodes_keys_are_read_and_their_mistakes_located_on_their_line() {
+    let c = load(
+        "[daemon.mqtt]\nbroker = \"mqtts://broker.plant.lan:8883\"\ngroup_id = \"hall-a\"\n\
+         node_id = \"edm-7\"\ncommands = true\n",
+        &[],
+    )
+    .unwrap();
+    let m = c.daemon.mqtt.expect("on");
+    assert_eq!(m.broker.to_string(), "mqtts://broker.plant.lan:8883");
+    assert_eq!(
+        (m.group_id.as_str(), m.node_id.as_str()),
+        ("hall-a", "edm-7")
+    );
+    assert!(m.commands);
+    assert_eq!(m.keep_alive_s, 10, "the shipped default");
+    assert!(
+        load("", &[]).unwrap().daemon.mqtt.is_none(),
+        "off by default"
+    );
+    let e = load("[daemon.mqtt]\n\nbroker = \"tcp://x:1\"\n", &[]).unwrap_err();
+    assert!(e.starts_with("edmd.toml:3:1: daemon.mqtt.broker:"), "{e}");
+    let e = load(
+        "[daemon.mqtt]\nbroker = \"mqtt://x:1883\"\ngroup_id = \"a/b\"\n",
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.starts_with("edmd.toml:3:1: daemon.mqtt.group_id:"), "{e}");
+    let e = load("[daemon.mqtt]\nbrokr = \"mqtt://x:1883\"\n", &[]).unwrap_err();
+    assert!(e.starts_with("edmd.toml:2:1: unknown key `brokr`"), "{e}");
+    let e = load(
+        "[daemon.mqtt]\nbroker = \"mqtt://x:1883\"\nca_file = \"/etc/ca.pem\"\n",
+        &[],
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("daemon.mqtt.ca_file: is for a TLS broker"),
+        "{e}"
+    );
+    let e = load("", &["daemon.mqtt.keep_alive_s=1"]).unwrap_err();
+    assert!(e.contains("--set daemon.mqtt.keep_alive_s=1"), "{e}");
+}

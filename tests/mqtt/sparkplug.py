@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """A Sparkplug B host for edmd's tests, decoding with PyPI's pysparkplug (not edmd's code).
 
-    sparkplug.py listen --port P
-        Subscribes to spBv1.0/# and prints one JSON line per message, decoded:
+    sparkplug.py listen --port P [--rebirth GROUP/NODE]...
+        Subscribes to spBv1.0/#, asks the nodes named for their birth (NCMD Rebirth, as a
+        host that has just come up does), and prints one JSON line per message, decoded:
         {"type": "NBIRTH", "group": ..., "node": ..., "seq": ..., "metrics": {name: value},
          "at": unix time}. NDATA metrics come by alias and are named from the node's NBIRTH,
         as a Sparkplug host names them; a payload that does not decode prints
@@ -20,7 +21,13 @@ import time
 import pysparkplug as spb
 
 
-def listen(port: int) -> None:
+def rebirth(client, group: str, node: str) -> None:
+    """NCMD `Node Control/Rebirth = true` to `group/node`, as a host that has just come up
+    asks the nodes it manages for their birth."""
+    client.publish(ncmd_message(group, node, "Node Control/Rebirth"), include_dtypes=True)
+
+
+def listen(port: int, nodes: list) -> None:
     client = spb.Client(client_id=f"edmd-test-host-{time.time_ns()}")
     connected = threading.Event()
 
@@ -47,24 +54,35 @@ def listen(port: int) -> None:
         except Exception as e:  # a payload pysparkplug cannot decode is a test failure
             print(json.dumps({"type": "error", "why": repr(e)}), flush=True)
 
+    # When the broker goes away and comes back, paho reconnects on its own; a refused
+    # attempt on the way (the broker still starting) must not end the host, as pysparkplug's
+    # connect callback would by raising in paho's thread.
+    on_connect = client._on_connect
+
+    def tolerant(rc) -> None:
+        try:
+            on_connect(rc)
+        except Exception as e:
+            print(json.dumps({"type": "connect-refused", "why": repr(e)}), flush=True)
+
+    client._on_connect = tolerant
     client.subscribe(
         spb.Topic(group_id=spb.MULTI_LEVEL_WILDCARD), spb.QoS.AT_LEAST_ONCE, safe
     )
     client.connect("127.0.0.1", port=port, callback=lambda _c: connected.set())
     if not connected.wait(10):
         sys.exit("sparkplug.py: cannot connect to the broker")
+    for node in nodes:
+        group, edge = node.split("/")
+        rebirth(client, group, edge)
     print(json.dumps({"type": "ready"}), flush=True)
     while True:
         time.sleep(3600)
 
 
-def ncmd(port: int, group: str, node: str, metric: str) -> None:
-    client = spb.Client(client_id=f"edmd-test-cmd-{time.time_ns()}")
-    connected = threading.Event()
-    client.connect("127.0.0.1", port=port, callback=lambda _c: connected.set())
-    if not connected.wait(10):
-        sys.exit("sparkplug.py: cannot connect to the broker")
-    message = spb.Message(
+def ncmd_message(group: str, node: str, metric: str):
+    """An NCMD writing `metric` = true."""
+    return spb.Message(
         topic=spb.Topic(
             message_type=spb.MessageType.NCMD, group_id=group, edge_node_id=node
         ),
@@ -82,7 +100,15 @@ def ncmd(port: int, group: str, node: str, metric: str) -> None:
         qos=spb.QoS.AT_LEAST_ONCE,
         retain=False,
     )
-    client.publish(message, include_dtypes=True)
+
+
+def ncmd(port: int, group: str, node: str, metric: str) -> None:
+    client = spb.Client(client_id=f"edmd-test-cmd-{time.time_ns()}")
+    connected = threading.Event()
+    client.connect("127.0.0.1", port=port, callback=lambda _c: connected.set())
+    if not connected.wait(10):
+        sys.exit("sparkplug.py: cannot connect to the broker")
+    client.publish(ncmd_message(group, node, metric), include_dtypes=True)
     time.sleep(0.5)
     client.disconnect()
 
@@ -92,6 +118,7 @@ def main() -> None:
     sub = parser.add_subparsers(dest="what", required=True)
     p = sub.add_parser("listen")
     p.add_argument("--port", type=int, required=True)
+    p.add_argument("--rebirth", action="append", default=[], metavar="GROUP/NODE")
     p = sub.add_parser("ncmd")
     p.add_argument("--port", type=int, required=True)
     p.add_argument("group")
@@ -99,7 +126,7 @@ def main() -> None:
     p.add_argument("metric")
     args = parser.parse_args()
     if args.what == "listen":
-        listen(args.port)
+        listen(args.port, args.rebirth)
     else:
         ncmd(args.port, args.group, args.node, args.metric)
 

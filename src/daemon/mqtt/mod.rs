@@ -36,7 +36,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 use rumqttc::{AsyncClient, Event, EventLoop, LastWill, MqttOptions, Packet, QoS};
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::{mpsc, oneshot, watch};
 
 use super::link::CoreLink;
 use super::protocol::{MqttStatus, Reply, Request, Status};
@@ -84,7 +84,8 @@ pub struct MqttNode {
     broker: String,
     node: String,
     counters: Arc<MqttCounters>,
-    stop: Option<oneshot::Sender<()>>,
+    /// `true` once the node is to stop.
+    stop: Option<watch::Sender<bool>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
@@ -106,7 +107,7 @@ impl MqttNode {
     /// Publishes NDEATH (when connected) and disconnects; waits [`GOODBYE`] at most.
     pub fn stop(&mut self) {
         if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
+            let _ = stop.send(true);
         }
         if let Some(thread) = self.thread.take() {
             let deadline = std::time::Instant::now() + GOODBYE + Duration::from_millis(500);
@@ -188,7 +189,7 @@ pub fn spawn(
     let options = options(config, &topics)?;
     let (client, eventloop) = AsyncClient::new(options, config.queue);
     let counters = Arc::new(MqttCounters::default());
-    let (stop, stopped) = oneshot::channel();
+    let (stop, stopped) = watch::channel(false);
     let session = Session {
         node: EdgeNode::new(axes, config.deadbands),
         topics: topics.clone(),
@@ -199,6 +200,7 @@ pub fn spawn(
         answer: String::new(),
         connected: false,
         birth_due: false,
+        stop: stopped,
     };
     let interval = Duration::from_secs_f64(config.interval_s);
     let thread = std::thread::Builder::new()
@@ -215,7 +217,7 @@ pub fn spawn(
                 let (net_tx, net_rx) = mpsc::channel(16);
                 let stopping = Arc::new(AtomicBool::new(false));
                 let network = tokio::spawn(network(eventloop, topics, net_tx, stopping.clone()));
-                session.run(net_rx, stopped, interval, stopping).await;
+                session.run(net_rx, interval, stopping).await;
                 let _ = tokio::time::timeout(GOODBYE, network).await;
             })
         })
@@ -290,31 +292,38 @@ struct Session {
     connected: bool,
     /// The next sample is a whole NBIRTH (a rebirth was asked for, or a message was dropped).
     birth_due: bool,
+    /// `true` once the node is to stop.
+    stop: watch::Receiver<bool>,
 }
 
-/// Asks the control loop and waits for its reply.
-async fn ask(to_core: &CoreLink, request: Request) -> Option<Reply> {
+/// Asks the control loop and waits for its reply; `None` at once when the node is told to
+/// stop (the daemon's control loop no longer answers then).
+async fn ask(to_core: &CoreLink, request: Request, stop: &watch::Receiver<bool>) -> Option<Reply> {
     let (tx, rx) = oneshot::channel();
     if !to_core.ask(request, tx) {
         return None;
     }
-    tokio::time::timeout(CORE_TIMEOUT, rx).await.ok()?.ok()
+    let mut stop = stop.clone();
+    tokio::select! {
+        reply = tokio::time::timeout(CORE_TIMEOUT, rx) => reply.ok()?.ok(),
+        _ = stop.wait_for(|s| *s) => None,
+    }
 }
 
 impl Session {
     async fn run(
         mut self,
         mut from_network: mpsc::Receiver<Net>,
-        mut stop: oneshot::Receiver<()>,
         interval: Duration,
         stopping: Arc<AtomicBool>,
     ) {
+        let mut stop = self.stop.clone();
         let mut tick = tokio::time::interval(interval);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut lost_before = false;
         loop {
             tokio::select! {
-                _ = &mut stop => break,
+                _ = stop.wait_for(|s| *s) => break,
                 told = from_network.recv() => match told {
                     Some(Net::Connected { bd_seq }) => {
                         tracing::info!(
@@ -397,7 +406,7 @@ impl Session {
 
     /// A status sample: NBIRTH when `birth`, else NDATA with what moved.
     async fn sample(&mut self, birth: bool) {
-        let Some(status) = ask(&self.to_core, Request::Status {})
+        let Some(status) = ask(&self.to_core, Request::Status {}, &self.stop)
             .await
             .and_then(|r| r.status)
         else {
@@ -452,7 +461,7 @@ impl Session {
                 Command::Abort => Request::Abort {},
             };
             self.answer = if self.commands {
-                match ask(&self.to_core, request).await {
+                match ask(&self.to_core, request, &self.stop).await {
                     Some(r) if r.ok => {
                         format!("{}: {}", command.name(), r.message.unwrap_or_default())
                     }
@@ -503,6 +512,7 @@ mod tests {
             answer: String::new(),
             connected: true,
             birth_due: false,
+            stop: watch::channel(false).1,
         }
     }
 
