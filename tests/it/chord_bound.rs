@@ -251,25 +251,11 @@ fn check(curve: &NurbsCurve, tol: f64, segmentation: Segmentation) -> Check {
 /// segment and the count against the greedy segmentation on every curve where `greedy` says
 /// so. Returns the worst figures and the count ratios.
 fn sweep(seed: u64, cases: usize, greedy_every: usize, print: bool) -> (Check, Vec<(f64, usize)>) {
-    sweep_part(seed, 0..cases, greedy_every, print)
-}
-
-/// [`sweep`] over the cases `part` of the seed's sequence only (the curves before it are drawn
-/// and skipped), so one sweep can run as several tests side by side.
-fn sweep_part(
-    seed: u64,
-    part: std::ops::Range<usize>,
-    greedy_every: usize,
-    print: bool,
-) -> (Check, Vec<(f64, usize)>) {
     let mut rng = SplitMix64::new(seed);
     let mut worst = Check::default();
     let mut ratios = Vec::new();
-    for i in 0..part.end {
+    for i in 0..cases {
         let (name, curve, period_sized) = random_curve(&mut rng, i);
-        if i < part.start {
-            continue;
-        }
         for (t, &tol) in TOLERANCES.iter().enumerate() {
             // Period mode at one tolerance per curve it suits.
             let modes: &[Segmentation] = if period_sized && (i + t) % 3 == 0 {
@@ -339,27 +325,11 @@ fn sweep_part(
     (worst, ratios)
 }
 
-/// 48 random curves in three tests of 16, which the harness runs beside the others (the
-/// sweep is the suite's longest computation).
-fn random_curves_part(part: std::ops::Range<usize>) {
-    let (worst, ratios) = sweep_part(0x005e_ed18, part, 4, false);
-    assert!(worst.segments > 300, "{} segments checked", worst.segments);
+#[test]
+fn random_curves_stay_within_the_tolerance_and_their_certified_bounds() {
+    let (worst, ratios) = sweep(0x005e_ed18, 48, 4, false);
+    assert!(worst.segments > 1000, "{} segments checked", worst.segments);
     assert!(!ratios.is_empty());
-}
-
-#[test]
-fn random_curves_stay_within_the_tolerance_and_their_certified_bounds_1_of_3() {
-    random_curves_part(0..16);
-}
-
-#[test]
-fn random_curves_stay_within_the_tolerance_and_their_certified_bounds_2_of_3() {
-    random_curves_part(16..32);
-}
-
-#[test]
-fn random_curves_stay_within_the_tolerance_and_their_certified_bounds_3_of_3() {
-    random_curves_part(32..48);
 }
 
 /// With a length cap that binds (a twentieth of the curve), either predictor keeps every chord
