@@ -64,6 +64,21 @@ fn opcua_daemon(dir: &std::path::Path) -> (Daemon, String, std::path::PathBuf, S
     (daemon, url, pki, password)
 }
 
+/// The JSON object a test client (`script`) printed, once it exited 0.
+fn what_it_saw(script: &str, out: &std::process::Output) -> Value {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{script} failed: {}\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let seen: Value =
+        serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    eprintln!("{script} saw: {seen:#}");
+    seen
+}
+
 #[test]
 fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
     if !asyncua_or_skip() {
@@ -88,16 +103,7 @@ fn a_shop_floor_client_reads_subscribes_and_only_a_user_may_hold() {
         .arg(&dir)
         .output()
         .expect("python3 runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "client.py failed: {}\n{stdout}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let seen: Value =
-        serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
-    eprintln!("client saw: {seen:#}");
+    let seen = what_it_saw("client.py", &out);
 
     // Browsed: the machine after OPC 40501's layout, an axis object per configured axis.
     let tree: Vec<&str> = seen["tree"]
@@ -227,16 +233,7 @@ fn an_mes_stores_starts_pauses_and_aborts_job_orders_and_reads_their_results() {
         .arg(&dir)
         .output()
         .expect("python3 runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "jobs.py failed: {}\n{stdout}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let seen: Value =
-        serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
-    eprintln!("the MES saw: {seen:#}");
+    let seen = what_it_saw("jobs.py", &out);
     let code = |k: &str| seen[k][0].as_u64().unwrap_or_else(|| panic!("{k}: {seen}"));
     // Only a signed-in user dispatches.
     assert_eq!(seen["anonymous_store"]["status"], "BadUserAccessDenied");
