@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """A Sparkplug B host for edmd's tests, decoding with PyPI's pysparkplug (not edmd's code).
 
-    sparkplug.py listen --port P [--rebirth GROUP/NODE]...
-        Subscribes to spBv1.0/#, asks the nodes named for their birth (NCMD Rebirth, as a
-        host that has just come up does), and prints one JSON line per message, decoded:
+    sparkplug.py listen --port P
+        Subscribes to spBv1.0/# and prints one JSON line per message, decoded:
         {"type": "NBIRTH", "group": ..., "node": ..., "seq": ..., "metrics": {name: value},
          "at": unix time}. NDATA metrics come by alias and are named from the node's NBIRTH,
-        as a Sparkplug host names them; a payload that does not decode prints
+        as a Sparkplug host names them. Data from a node whose birth the host has not seen
+        prints {"type": "unborn", ...}, and the host asks that node for its birth (NCMD
+        Rebirth), as the specification asks of a host. A payload that does not decode prints
         {"type": "error", ...}.
     sparkplug.py ncmd --port P GROUP NODE METRIC
         Publishes an NCMD writing METRIC = true (e.g. "Node Control/Hold") and exits.
@@ -21,13 +22,32 @@ import time
 import pysparkplug as spb
 
 
+DATA = (spb.MessageType.NDATA, spb.MessageType.DDATA)
+
+
+class Unborn:
+    """Data from a node whose birth this host has not seen (it subscribed after the birth)."""
+
+    def __init__(self, topic) -> None:
+        self.topic = topic
+
+    def seen(self) -> dict:
+        return {
+            "type": "unborn",
+            "data": str(self.topic.message_type),
+            "group": self.topic.group_id,
+            "node": self.topic.edge_node_id,
+            "at": time.time(),
+        }
+
+
 def rebirth(client, group: str, node: str) -> None:
-    """NCMD `Node Control/Rebirth = true` to `group/node`, as a host that has just come up
-    asks the nodes it manages for their birth."""
+    """NCMD `Node Control/Rebirth = true` to `group/node`: a host that hears data from a
+    node it has not seen born asks for the birth."""
     client.publish(ncmd_message(group, node, "Node Control/Rebirth"), include_dtypes=True)
 
 
-def listen(port: int, nodes: list) -> None:
+def listen(port: int) -> None:
     client = spb.Client(client_id=f"edmd-test-host-{time.time_ns()}")
     connected = threading.Event()
 
@@ -49,10 +69,35 @@ def listen(port: int, nodes: list) -> None:
         print(json.dumps(out, default=str), flush=True)
 
     def safe(client, message) -> None:
+        if isinstance(message, Unborn):
+            # As the specification asks of a host: data from a node whose birth it has not
+            # seen is not decoded (its aliases mean nothing yet); the node is asked for it.
+            print(json.dumps(message.seen()), flush=True)
+            rebirth(client, message.topic.group_id, message.topic.edge_node_id)
+            return
         try:
+            if isinstance(message, Exception):
+                raise message
             on_message(client, message)
         except Exception as e:  # a payload pysparkplug cannot decode is a test failure
             print(json.dumps({"type": "error", "why": repr(e)}), flush=True)
+
+    # pysparkplug decodes in paho's network thread before our callback runs, and an
+    # exception there ends that thread: the host would go deaf without a word. Decoding is
+    # wrapped so that every message reaches `safe`, as a message, an Unborn or the error.
+    decode = client._handle_message
+
+    def decode_or_say_why(mqtt_message):
+        topic = spb.Topic.from_str(mqtt_message.topic)
+        key = (topic.group_id, topic.edge_node_id, topic.device_id)
+        if topic.message_type in DATA and key not in client._births:
+            return Unborn(topic)
+        try:
+            return decode(mqtt_message)
+        except Exception as e:
+            return e
+
+    client._handle_message = decode_or_say_why
 
     # When the broker goes away and comes back, paho reconnects on its own; a refused
     # attempt on the way (the broker still starting) must not end the host, as pysparkplug's
@@ -72,9 +117,6 @@ def listen(port: int, nodes: list) -> None:
     client.connect("127.0.0.1", port=port, callback=lambda _c: connected.set())
     if not connected.wait(10):
         sys.exit("sparkplug.py: cannot connect to the broker")
-    for node in nodes:
-        group, edge = node.split("/")
-        rebirth(client, group, edge)
     print(json.dumps({"type": "ready"}), flush=True)
     while True:
         time.sleep(3600)
@@ -118,7 +160,6 @@ def main() -> None:
     sub = parser.add_subparsers(dest="what", required=True)
     p = sub.add_parser("listen")
     p.add_argument("--port", type=int, required=True)
-    p.add_argument("--rebirth", action="append", default=[], metavar="GROUP/NODE")
     p = sub.add_parser("ncmd")
     p.add_argument("--port", type=int, required=True)
     p.add_argument("group")
@@ -126,7 +167,7 @@ def main() -> None:
     p.add_argument("metric")
     args = parser.parse_args()
     if args.what == "listen":
-        listen(args.port, args.rebirth)
+        listen(args.port)
     else:
         ncmd(args.port, args.group, args.node, args.metric)
 

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::{Mutex, OnceLock};
+use std::sync::OnceLock;
 
 /// rs274 prints four decimals; three rounded figures add up to at most 1.5e-4 mm.
 pub const TOLERANCE_MM: f64 = 2e-4;
@@ -99,9 +99,14 @@ pub fn call_args(line: &str, name: &str) -> Option<Vec<f64>> {
 /// error message.
 pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, String> {
     // Two rs274 processes at once disturb each other (seen: one prints nothing), so the
-    // tests take turns.
-    static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
-    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    // tests take turns: by a file lock, because a test runner may run each test in a process
+    // of its own (cargo nextest does), where a mutex would not be shared.
+    let turn = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(std::env::temp_dir().join("edmd-tests-rs274.lock"))
+        .expect("the rs274 lock file opens");
+    turn.lock().expect("rs274's turn");
     let out = Command::new(rs274)
         .arg("-g")
         .arg(program)
