@@ -18,9 +18,7 @@ fn wait(browser: &Browser, what: &str, script: &str) -> Value {
 }
 
 fn click(browser: &Browser, id: &str) {
-    browser.eval(&format!(
-        "document.getElementById('{id}').click(); return true"
-    ));
+    browser.press(id);
 }
 
 fn shot(browser: &Browser, path: &Path) {

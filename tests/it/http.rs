@@ -705,7 +705,7 @@ fn the_page_in_headless_chromium() {
             "Resume enabled",
             "return document.getElementById('state').textContent === 'paused: single block' && !document.getElementById('resume').disabled",
         );
-        browser.eval("document.getElementById('resume').click(); return true");
+        browser.press("resume");
         d.wait_for("the next block", |s| s["state"] != "paused");
     }
     assert!(stops[1] > stops[0], "stepped block by block: {stops:?}");
@@ -714,14 +714,14 @@ fn the_page_in_headless_chromium() {
     );
     d.wait_for("single block off", |s| s["single_block"] == false);
     // Hold from the page: the daemon holds (the socket says so too).
-    browser.eval("document.getElementById('hold').click(); return true");
+    browser.press("hold");
     d.wait_for("the hold", |s| s["state"] == "held");
     wait(
         "held on the page",
         "return document.getElementById('state').textContent === 'held'",
     );
     // Abort asks to be pressed twice: one press does nothing but arm it.
-    browser.eval("document.getElementById('abort').click(); return true");
+    browser.press("abort");
     wait(
         "the armed abort",
         "return document.getElementById('abort').textContent === 'Confirm abort'",
@@ -734,7 +734,7 @@ fn the_page_in_headless_chromium() {
         base64_decode(shot.as_str().unwrap()),
     )
     .unwrap();
-    browser.eval("document.getElementById('abort').click(); return true");
+    browser.press("abort");
     d.wait_for("the abort", |s| s["state"] == "idle");
     wait(
         "the last job's outcome",
@@ -755,9 +755,9 @@ fn the_page_in_headless_chromium() {
         s["job"]["from_line"]["line"] == 7
     });
     assert_eq!(s["job"]["from_line"]["approach"], "path");
-    browser.eval(
-        "document.getElementById('from-line').value = ''; const a = document.getElementById('abort'); a.click(); a.click(); return true",
-    );
+    browser.eval("document.getElementById('from-line').value = ''; return true");
+    browser.press("abort");
+    browser.press("abort");
     d.wait_for("its abort", |s| s["state"] == "idle");
     // Passes from the run dialog reach the daemon (the table has three).
     wait(
@@ -780,11 +780,7 @@ fn the_page_in_headless_chromium() {
             .unwrap()
     };
     let x0 = x(&d);
-    wait(
-        "the jog buttons",
-        "return !document.getElementById('jog-plus').disabled",
-    );
-    browser.eval("document.getElementById('jog-plus').click(); return true");
+    browser.press("jog-plus");
     d.wait_for("the jog", |s| {
         s["state"] == "idle"
             && (s["machine"]["position_machine_mm"][0].as_f64().unwrap() - x0 - 0.1).abs() < 1e-9
@@ -804,9 +800,8 @@ fn the_page_in_headless_chromium() {
     assert!(x2 > x1, "the held jog moved: {x1} -> {x2}");
     assert_eq!(x(&d), x2, "and stays stopped after the release");
     // An MDI line from the page.
-    browser.eval(
-        "document.getElementById('mdi-line').value = 'G0 Y0.05'; document.getElementById('mdi-send').click(); return true",
-    );
+    browser.eval("document.getElementById('mdi-line').value = 'G0 Y0.05'; return true");
+    browser.press("mdi-send");
     d.wait_for("the MDI move", |s| {
         s["state"] == "idle"
             && (s["machine"]["position_machine_mm"][1].as_f64().unwrap() - 0.05).abs() < 1e-9

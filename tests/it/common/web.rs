@@ -270,6 +270,19 @@ impl Browser {
         }
     }
 
+    /// Clicks the control `id` once the page has enabled it. The page enables a control from
+    /// its own last status, which can trail the daemon's by a poll on a busy machine, and a
+    /// click on a disabled button does nothing.
+    pub fn press(&self, id: &str) {
+        self.wait(
+            &format!("#{id} enabled"),
+            &format!("return !document.getElementById('{id}').disabled"),
+        );
+        self.eval(&format!(
+            "document.getElementById('{id}').click(); return true"
+        ));
+    }
+
     pub fn eval(&self, script: &str) -> Value {
         self.command(
             "POST",
