@@ -101,8 +101,16 @@ impl<O: PulseOutput> PulseOutput for RecordedOutput<O> {
         self.inner.moving_in(now);
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
-        self.inner.finish()
+    fn finish(&mut self, why: crate::output::StopReason) -> Result<(), OutputError> {
+        self.inner.finish(why)
+    }
+
+    fn idle(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        self.inner.idle(elapsed_ns)
+    }
+
+    fn prepare(&mut self) {
+        self.inner.prepare()
     }
 
     fn sync(&mut self) -> Result<(), OutputError> {

@@ -129,6 +129,9 @@ pub(super) enum CtlCommand {
         /// How many jobs
         #[arg(long, default_value_t = 20, value_name = "N")]
         count: usize,
+        /// Pass over the newest N first (the next page further back)
+        #[arg(long, default_value_t = 0, value_name = "N")]
+        skip: usize,
     },
     /// Print the daemon's technology tables, or explain what a request selects from them
     /// (the table, the rows and why, the passes and the conditions' set points)
@@ -332,9 +335,10 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
         CtlCommand::Rethread { here } => (Request::Rethread { here: *here }, false),
         CtlCommand::Status | CtlCommand::Monitor { .. } => (Request::Status {}, false),
         CtlCommand::Offsets => (Request::Offsets {}, false),
-        CtlCommand::Jobs { count } => (
+        CtlCommand::Jobs { count, skip } => (
             Request::Jobs {
                 count: Some(*count),
+                skip: Some(*skip),
             },
             false,
         ),

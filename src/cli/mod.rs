@@ -54,6 +54,10 @@ enum Command {
     Latency(latency::LatencyArgs),
     /// The technology tables: list them, or explain what a request selects and why.
     Tech(tech::TechArgs),
+    /// A HAL file's last line (not `waitusr edmd`): exit 1 if edmd ends uncleanly
+    HalWait(hal::HalWaitArgs),
+    /// Before `loadusr -W edmd serve`: removes the component a killed edmd left
+    HalReap(hal::HalReapArgs),
     /// Print the shell completion script for bash, zsh or fish.
     Completions(docs::CompletionsArgs),
     /// Write the man pages (edmd(1), one per subcommand) into a directory.
@@ -121,6 +125,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
 mod ctl;
 mod cut;
 mod docs;
+mod hal;
 mod journal;
 mod latency;
 mod run_state;
@@ -259,6 +264,8 @@ pub fn main() -> ExitCode {
         Command::Ctl(args) => run_ctl(&args),
         Command::Latency(args) => latency::run_latency(args),
         Command::Tech(args) => tech::run_tech(&args),
+        Command::HalWait(args) => hal::run_hal_wait(&args),
+        Command::HalReap(args) => hal::run_hal_reap(&args),
         Command::Completions(args) => docs::completions(&args, Cli::command()),
         Command::Man(args) => docs::man(&args, Cli::command()),
     }

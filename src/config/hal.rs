@@ -16,6 +16,11 @@ pub struct HalConfig {
     /// The HAL library to load: a name the dynamic loader finds, or a path (a run-in-place
     /// LinuxCNC build).
     pub library: String,
+    /// `edmd.watchdog` changes level this often (ms).
+    pub heartbeat_ms: f64,
+    /// `edmd.rt-beat-in` standing still this long is HAL's real-time side gone (ms); `None`:
+    /// not read.
+    pub rt_beat_timeout_ms: Option<f64>,
 }
 
 impl RawHal {
@@ -71,7 +76,26 @@ impl RawHal {
                 "must name the HAL library (Debian's is \"liblinuxcnchal.so.0\")".to_string(),
             ));
         }
+        let beat = self.heartbeat_ms;
+        if !(beat.is_finite() && (0.5..=1000.0).contains(&beat)) {
+            return Err((
+                "hal.heartbeat_ms",
+                format!(
+                    "must be 0.5 to 1000 ms (a level at least as long as the period of the HAL \
+                     thread that runs the watchdog), got {beat}"
+                ),
+            ));
+        }
+        let rt = self.rt_beat_timeout_ms;
+        if !(rt.is_finite() && (rt == 0.0 || (1.0..=60_000.0).contains(&rt))) {
+            return Err((
+                "hal.rt_beat_timeout_ms",
+                format!("must be 0 (off) or 1 to 60000 ms, got {rt}"),
+            ));
+        }
         Ok(HalConfig {
+            heartbeat_ms: beat,
+            rt_beat_timeout_ms: (rt > 0.0).then_some(rt),
             library: self.library,
             component: self.component,
             max_following_error_mm: (e > 0.0).then_some(e),

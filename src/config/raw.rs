@@ -206,6 +206,8 @@ pub(super) struct RawHal {
     pub(super) gap_input: String,
     pub(super) probe_input: bool,
     pub(super) library: String,
+    pub(super) heartbeat_ms: f64,
+    pub(super) rt_beat_timeout_ms: f64,
 }
 
 #[derive(Debug, Deserialize)]

@@ -207,6 +207,13 @@ impl HalSettings {
             probe_input: config.hal.probe_input,
             volts: config.gap.volts,
             library: config.hal.library.clone(),
+            tick_ns: config.fine.tick.ns(),
+            heartbeat_ns: (config.hal.heartbeat_ms * 1e6) as u64,
+            rt_beat_timeout_ns: config.hal.rt_beat_timeout_ms.map(|ms| (ms * 1e6) as u64),
+            owner_file: crate::hal::owner::record_path(
+                &config.daemon.state_dir,
+                &config.hal.component,
+            ),
         }
     }
 }

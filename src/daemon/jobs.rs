@@ -1,7 +1,7 @@
 //! The control loop's commands to a job: `hold`, `resume` (of a hold, or of the checkpoint,
 //! whose check `start.rs` runs), `rethread`, `abort`, and what happens when a job ends: the
-//! checkpoint written at a standstill, or removed when the job is done. A job's I/O is lent
-//! from here (the claimed parallel port).
+//! checkpoint written at a standstill, or removed when the job is done. A job's I/O is opened
+//! here, or lent by the fine thread (the claimed parallel port or HAL component).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -18,10 +18,7 @@ use crate::checkpoint::Reason;
 use crate::config::Config;
 use crate::record::EventKind;
 use crate::runtime::program::{self, JobProgram, Progress};
-use crate::runtime::{
-    self, BoxedGap, BoxedInputs, BoxedOutput, FineThread, JobEnd, JobError, JobIo, JobSummary,
-    Outcome, ResumePoint,
-};
+use crate::runtime::{self, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome, ResumePoint};
 use crate::servo::{Rethread, ServoState};
 
 /// A resume waiting for its check: where to resume, and the bytes it must be.
@@ -56,17 +53,11 @@ impl Check {
     }
 }
 
-/// The jobs: the fine thread that runs them and the port it lends them, the job running,
+/// The jobs: the fine thread that runs them (and keeps the claimed device), the job running,
 /// the check before the next one, and what the ended ones left (the last summary, the
 /// counts).
 pub(super) struct JobControl {
     pub fine: Arc<FineThread>,
-    /// The parallel port, claimed at startup and lent to each job.
-    pub port_output: Option<BoxedOutput>,
-    pub port_gap: Option<BoxedGap>,
-    /// The port's machine inputs: lent to each job, read between jobs (an E-stop's reset,
-    /// a limit switch that opened).
-    pub port_inputs: Option<BoxedInputs>,
     pub job: Option<Job>,
     /// The program being copied and checked before its job starts.
     pub check: Option<Check>,
@@ -103,25 +94,8 @@ impl JobControl {
         checkpoints.prune_copies(checkpoint, &jobs, self.check.is_some());
     }
 
-    /// A job that ended, or did not start after all, hands the claimed device (the parallel
-    /// port, the HAL component) back.
-    pub(super) fn give_back_io(
-        &mut self,
-        config: &Config,
-        output: BoxedOutput,
-        gap: BoxedGap,
-        inputs: BoxedInputs,
-    ) {
-        if config.output.kind.hardware() {
-            self.port_output = Some(output);
-            self.port_inputs = Some(inputs);
-        }
-        if config.gap.kind.from_output_device() {
-            self.port_gap = Some(gap);
-        }
-    }
-
-    /// The job's output and gap source: the claimed port when there is one, else opened now.
+    /// The job's output and gap source: the claimed device's (lent by the fine thread as
+    /// it is: wrappers would stay on it after the job), or opened now.
     pub(super) fn job_io(
         &mut self,
         config: &Config,
@@ -131,54 +105,33 @@ impl JobControl {
         let tracer = (config.output.trace || config.gap.trace).then(|| {
             crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
         });
-        let (output, opened_gap, inputs) = match self.port_output.take() {
-            Some(output) => {
-                let inputs = self
-                    .port_inputs
-                    .take()
-                    .unwrap_or_else(|| Box::new(crate::inputs::NoInputs));
-                (output, None, inputs)
-            }
-            None => {
-                let opened = runtime::open_output(config, start)?;
-                (opened.output, opened.port_gap, opened.inputs)
-            }
-        };
-        let port_gap = if config.gap.kind.from_output_device() {
-            self.port_gap.take().or(opened_gap)
-        } else {
-            None
-        };
-        let gap = match runtime::open_gap(config, check, port_gap) {
-            Ok(gap) => gap,
-            Err(e) => {
-                if config.output.kind.hardware() {
-                    self.port_output = Some(output);
-                    self.port_inputs = Some(inputs);
-                }
-                return Err(e);
-            }
-        };
-        // The claimed port is lent as it is: wrappers would stay on it after the job.
-        let (output, gap) = if config.output.kind.hardware() {
-            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
-                tracing::warn!(
-                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
-                     daemon's claimed parallel port"
-                );
-            }
-            (output, gap)
-        } else {
-            runtime::wrap_io(config, output, gap, tracer.as_ref())
-        };
-        Ok(JobIo {
+        let io = |output, gap, inputs, tracer| JobIo {
             output,
             gap,
             inputs,
+            probe_reads: Default::default(),
             tracer,
             recording: None,
             progress: None,
-        })
+        };
+        if self.fine.has_claim() {
+            if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
+                tracing::warn!(
+                    "output.trace, gap.trace and output.fault_at_tick are not applied to the \
+                     daemon's claimed device"
+                );
+            }
+            let gap = if config.gap.kind.from_output_device() {
+                None
+            } else {
+                Some(runtime::open_gap(config, check, None)?)
+            };
+            return Ok(io(None, gap, None, None));
+        }
+        let opened = runtime::open_output(config, start)?;
+        let gap = runtime::open_gap(config, check, opened.port_gap)?;
+        let (output, gap) = runtime::wrap_io(config, opened.output, gap, tracer.as_ref());
+        Ok(io(Some(output), Some(gap), Some(opened.inputs), tracer))
     }
 }
 
@@ -421,10 +374,15 @@ impl Core {
         };
         let counted = super::status::job_counters(&job.published, &job.published.snapshot());
         self.jobs.finished = self.jobs.finished.plus(&counted);
-        self.jobs
-            .give_back_io(&job.config, end.output, end.gap, end.inputs);
-        if job.kind != JobKind::Program {
-            self.jobs.continuous = None;
+        // A continuous jog that ended by itself (an E-stop, a limit switch, its end of
+        // travel, an alarm): the renewals of its client, still pressing, are refused until it
+        // lets go. One that `jog-stop` or the dead-man ended was taken already.
+        if let Some(c) = self.jobs.continuous.take() {
+            self.jobs.stopped_jog = Some(super::manual::StoppedJog {
+                axis: c.axis,
+                positive: c.positive,
+                last_ns: crate::sys::monotonic_ns(),
+            });
         }
         let summary = end.summary;
         let text = summary.text();
@@ -509,6 +467,7 @@ impl Core {
                 (passes, job.technology.as_ref().map(|t| t.summary())),
                 job.report.as_deref(),
             );
+            record.spark_s = Some(spark_s);
             // The program as the operator names it: below the program directory.
             if let Ok(name) = job.program.strip_prefix(&self.config.daemon.program_dir) {
                 record.program = name.display().to_string();

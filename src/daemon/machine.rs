@@ -65,6 +65,21 @@ pub(super) fn open_machine(
     Ok(machine)
 }
 
+/// edmd joins a HAL that kept running after an earlier edmd (`why`), and the drives may have
+/// moved while no edmd watched them. `pos-cmd` takes up where they stand (no jump); the
+/// machine position is kept as believed but distrusted, every axis unhomed, until homing (or
+/// `home --here`) confirms it.
+pub(super) fn distrust_moved_drives(machine: &mut Machine, why: &str) {
+    tracing::warn!(
+        "{why}: pos-cmd takes up where the drives stand, and the machine position is untrusted \
+         and every axis unhomed until homed (or confirmed with `edmd ctl home --here`)"
+    );
+    machine.state = machine.state.clone().distrusted();
+    if let Err(e) = machine.save(false) {
+        tracing::error!("{e}");
+    }
+}
+
 /// A failed write of the state file, as the operator is told (and the log says).
 pub(super) fn unwritten(e: WriteError) -> Refusal {
     tracing::error!("{e}");
@@ -95,6 +110,7 @@ pub(super) fn machine_status(
             })
             .collect(),
         homed: state.homed.clone(),
+        position_trusted: state.position_trusted,
         travel_mm: config
             .machine
             .travel
@@ -269,8 +285,11 @@ impl Core {
     }
 
     /// `reset` after an E-stop: refused while the E-stop input still reads pressed (on the
-    /// claimed parallel port, the only input the daemon reads between jobs).
+    /// claimed device, whose inputs the fine thread reads between jobs).
     pub(super) fn reset(&mut self) -> Result<String, Refusal> {
+        // Whatever the fine thread saw since the last look counts first: a reset must not
+        // clear an E-stop pressed (and released) a moment ago that no trip records yet.
+        self.watch_inputs();
         match self.machine.state.trip {
             None => return Err(Refusal::BadArgument("nothing to reset: no E-stop".into())),
             Some(Trip::Limit(switch)) => {
@@ -283,13 +302,17 @@ impl Core {
             }
             Some(Trip::EStop) => {}
         }
-        if let Some(inputs) = self.jobs.port_inputs.as_mut() {
-            let pressed = inputs.sample(0).map_or(true, |r| r.safety.estop);
-            if pressed {
-                return Err(Refusal::BadArgument(
-                    "the E-stop input still reads pressed: release it first".into(),
-                ));
-            }
+        if self.jobs.fine.has_claim()
+            && self
+                .jobs
+                .fine
+                .idle_watch()
+                .reading()
+                .is_none_or(|r| r.estop)
+        {
+            return Err(Refusal::BadArgument(
+                "the E-stop input still reads pressed: release it first".into(),
+            ));
         }
         self.set_trip(None);
         tracing::warn!(edmd_event = "reset", "reset: the E-stop is cleared");
@@ -334,32 +357,43 @@ impl Core {
         }
     }
 
-    /// Between jobs the claimed port's inputs are read too, as LinuxCNC reads them when
-    /// nothing moves: an E-stop pressed or a limit switch closed while idle trips the machine
-    /// at once; a limit switch's trip ends when the switch reads open (the axis moved off it
-    /// by hand, or the switch was freed). An E-stop's trip ends only with `reset`.
+    /// Between jobs the fine thread reads the claimed device's inputs every millisecond and
+    /// latches what it saw ([`crate::runtime::Claimed`]); here the control loop takes it, as
+    /// LinuxCNC reads its inputs when nothing moves: an E-stop pressed (even a pulse already
+    /// released) or a limit switch closed while idle trips the machine; a limit switch's trip
+    /// ends when the switch reads open (the axis moved off it by hand, or the switch was
+    /// freed). An E-stop's trip ends only with `reset`. A device that failed between jobs
+    /// (HAL's real-time side gone, a port that stopped answering) trips it as an E-stop.
+    /// Called every round of the loop and before any motion starts.
     pub(super) fn watch_inputs(&mut self) {
-        if self.jobs.job.is_some() {
+        if self.jobs.job.is_some() || !self.jobs.fine.has_claim() {
             return;
         }
-        let Some(inputs) = self.jobs.port_inputs.as_mut() else {
+        let seen = self.jobs.fine.idle_watch().take();
+        if let Some(fault) = seen.fault {
+            if self.machine.state.trip != Some(Trip::EStop) {
+                tracing::error!(
+                    edmd_event = "trip",
+                    "{fault}: the drives are off and the machine is held as in an E-stop"
+                );
+                self.set_trip(Some(Trip::EStop));
+            }
+            return;
+        }
+        let Some(now) = seen.now else {
             return;
         };
-        let reading = match inputs.sample(0) {
-            Ok(r) => r.safety,
-            Err(e) => {
-                // A port that stopped answering reads as pressed: nothing may move.
-                if self.machine.state.trip != Some(Trip::EStop) {
-                    tracing::error!("{e}: the machine is held as in an E-stop");
-                    self.set_trip(Some(Trip::EStop));
-                }
-                return;
-            }
+        // An E-stop is decided on what was seen (a pulse latched), a limit switch on what
+        // reads now (a switch bouncing while nothing moves stops nothing).
+        let latched = crate::vocab::SafetyInputs {
+            estop: seen.seen.estop || now.estop,
+            limits: now.limits,
         };
         match self.machine.state.trip {
             Some(Trip::EStop) => {}
-            Some(Trip::Limit(switch)) if reading.estop || !reading.limits.contains(switch) => {
-                let next = Trip::of(reading);
+            Some(Trip::Limit(_)) if latched.estop => self.trip_idle(Trip::EStop, now.estop),
+            Some(Trip::Limit(switch)) if !now.limits.contains(switch) => {
+                let next = Trip::of(now);
                 tracing::info!(
                     "limit switch {switch} reads open{}",
                     match next {
@@ -371,19 +405,37 @@ impl Core {
             }
             Some(Trip::Limit(_)) => {}
             None => {
-                if let Some(trip) = Trip::of(reading) {
-                    tracing::warn!(
-                        edmd_event = "trip",
-                        "{} while idle: nothing moves until it is cleared",
-                        match trip {
-                            Trip::EStop => "E-stop pressed".to_string(),
-                            Trip::Limit(s) => format!("limit switch {s} closed"),
-                        }
-                    );
-                    self.set_trip(Some(trip));
+                if let Some(trip) = Trip::of(latched) {
+                    let still = match trip {
+                        Trip::EStop => now.estop,
+                        Trip::Limit(s) => now.limits.contains(s),
+                    };
+                    self.trip_idle(trip, still);
                 }
             }
         }
+    }
+
+    /// An E-stop or a limit switch seen while idle; `still`: it reads so now (else it was a
+    /// pulse the fine thread latched).
+    fn trip_idle(&mut self, trip: Trip, still: bool) {
+        tracing::warn!(
+            edmd_event = "trip",
+            "{}{} while idle: nothing moves until it is cleared",
+            match trip {
+                Trip::EStop => "E-stop pressed".to_string(),
+                Trip::Limit(s) => format!("limit switch {s} closed"),
+            },
+            if still {
+                ""
+            } else {
+                " (a pulse, released since)"
+            }
+        );
+        // A continuous jog whose client keeps renewing through the trip must not start
+        // again by itself once it is cleared.
+        self.latch_stopped_jog();
+        self.set_trip(Some(trip));
     }
 
     /// Motion refused while an E-stop or a limit switch holds the machine; `jog` names the

@@ -93,7 +93,7 @@ impl Core {
             {
                 stopped.last_ns = now;
                 return Err(Refusal::BadArgument(format!(
-                    "jog {letter}{} was stopped (a hold or its dead-man): renewals are refused; \
+                    "jog {letter}{} was stopped (a hold, its dead-man, a trip or its end): renewals are refused; \
                      let go and start it again",
                     sign(positive)
                 )));
@@ -110,7 +110,7 @@ impl Core {
                 if stopped_in_job {
                     self.stop_continuous("held: a renewal does not move it again", true);
                     return Err(Refusal::BadArgument(format!(
-                        "jog {letter}{} was stopped (a hold or its dead-man): renewals are \
+                        "jog {letter}{} was stopped (a hold, its dead-man, a trip or its end): renewals are \
                          refused; let go and start it again",
                         sign(positive)
                     )));
@@ -178,6 +178,15 @@ impl Core {
             .is_some_and(|c| now >= c.deadline_ns || held_by_job)
         {
             self.stop_continuous("not renewed for 250 ms: stopping (dead-man)", true);
+        }
+    }
+
+    /// An E-stop or a limit switch ends the continuous jog (being checked or moving) for
+    /// good: its client's renewals are refused until it lets go, so a client that keeps
+    /// renewing through the trip does not start it again once the trip is cleared.
+    pub(super) fn latch_stopped_jog(&mut self) {
+        if self.jobs.continuous.is_some() {
+            self.stop_continuous("a trip ends the continuous jog", true);
         }
     }
 

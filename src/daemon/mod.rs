@@ -30,6 +30,7 @@
 //! second one stops at once, position kept). SIGHUP reloads the configuration (see
 //! [`reload`]). SIGUSR1 writes the status into the log.
 
+pub mod board;
 mod checkpoints;
 pub mod error;
 pub mod history;
@@ -79,6 +80,11 @@ pub use reload::ConfigSource;
 const PERIOD: Duration = Duration::from_millis(250);
 /// Overruns are reported at most this often (a loaded machine would flood the log).
 const OVERRUN_REPORT: Duration = Duration::from_secs(5);
+/// History pages read at once (`jobs`), each on a thread of its own.
+const MAX_HISTORY_READERS: usize = 4;
+
+/// Where a request's reply goes.
+type ReplyTo = tokio::sync::oneshot::Sender<Reply>;
 
 /// A message to the control loop.
 pub enum CoreMsg {
@@ -170,6 +176,15 @@ struct Core {
     history: history::History,
     /// The technology tables (`technology.dir`), read at start and on a reload.
     technology: Arc<crate::technology::Tables>,
+    /// Where the status is posted for the transports, and when it last was.
+    board: Arc<board::StatusBoard>,
+    /// History pages being read off the loop.
+    history_readers: Arc<AtomicUsize>,
+    posted_at: Instant,
+    /// Something other than a status request was handled since the last post.
+    post_due: bool,
+    /// Requests answered (the status reports it).
+    control_requests: u64,
 }
 
 /// Who talks to the core: the senders handed to clients, the cap on socket clients, the web
@@ -205,28 +220,19 @@ pub fn serve(
         &config.daemon.job_history,
         &config.daemon.job_history.with_file_name("counters.json"),
     );
-    let machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
+    let mut machine = machine::open_machine(&config, checkpoints.current.as_ref())?;
     let technology = Arc::new(crate::technology::Tables::of(&config)?);
     upkeep::technology_read(&technology);
-    // The device first (the parallel port, the HAL component, whose readiness `loadusr -W`
-    // waits for): if it cannot be claimed, nothing else should start.
-    let (port_output, port_gap, port_inputs) = if config.output.kind.hardware() {
-        let opened =
-            runtime::open_output(&config, &[]).map_err(|e| DaemonError::Job(Box::new(e)))?;
-        if config.output.kind == OutputKind::Parport {
-            tracing::info!("{}: parallel port claimed", config.output.path.display());
-        }
-        (Some(opened.output), opened.port_gap, Some(opened.inputs))
-    } else {
-        (None, None, None)
-    };
+    let (claimed, ready) = claim_device(&config, &mut machine)?;
     let fine = Arc::new(
-        FineThread::start(&LoopSettings::from_config(&config)).map_err(DaemonError::Thread)?,
+        FineThread::start(&LoopSettings::from_config(&config), claimed)
+            .map_err(DaemonError::Thread)?,
     );
     let listener = socket::bind(&config.daemon)?;
     let (to_core, inbox) = channel::unbounded();
     let max_clients = Arc::new(AtomicUsize::new(config.daemon.max_clients));
-    let link = core_link(&to_core);
+    let board = Arc::new(board::StatusBoard::default());
+    let link = core_link(&to_core, &board);
     socket::spawn_listener(listener, link.clone(), max_clients.clone())
         .map_err(DaemonError::Thread)?;
     spawn_signal_thread(to_core.clone()).map_err(DaemonError::Thread)?;
@@ -234,7 +240,7 @@ pub fn serve(
     // HTTP stays well below it (checkpoints and the socket keep their reserve).
     let descriptors = descriptor_limit();
     let executed = http::executed::ExecutedSlot::default();
-    let http = start_http(&config, descriptors, &link, &executed)?;
+    let http = start_http(&config, descriptors, &link, &executed, &history.file())?;
     let opcua = start_opcua(&config, &link)?;
     let mqtt = start_mqtt(&config, &link)?;
     let notifier = Notifier::from_env();
@@ -258,9 +264,6 @@ pub fn serve(
         set_log_level,
         jobs: JobControl {
             fine,
-            port_output,
-            port_gap,
-            port_inputs,
             job: None,
             check: None,
             last_check: None,
@@ -290,21 +293,53 @@ pub fn serve(
         reloading: None,
         history,
         technology,
+        board,
+        history_readers: Arc::new(AtomicUsize::new(0)),
+        posted_at: Instant::now(),
+        post_due: true,
+        control_requests: 0,
     };
 
     core.jobs
         .prune_copies(&core.checkpoints, &core.config.daemon.checkpoint, None);
+    core.post_status();
+    // HAL's `loadusr -W` returns now, so a `ctl` on the HAL file's next line finds the socket.
+    if let Some(ready) = ready {
+        ready
+            .send()
+            .map_err(|e| DaemonError::Job(Box::new(e.into())))?;
+    }
     core.notifier.send("READY=1");
     core.notify_status();
     core.run(&inbox);
-    core.notifier.send("STOPPING=1");
-    // NDEATH before the socket goes: a host sees the machine leave, not time out.
-    if let Some(mqtt) = core.clients.mqtt.as_mut() {
-        mqtt.stop();
-    }
-    socket::remove(&socket_path);
-    tracing::info!("stopped");
+    core.stopped(&socket_path);
     Ok(())
+}
+
+/// The device first (the parallel port, the HAL component): if it cannot be claimed, nothing
+/// else should start. The fine thread keeps it from here on, and watches it between jobs
+/// (heartbeat, E-stop) from before HAL's threads start; HAL is told it is ready once the
+/// daemon serves.
+fn claim_device(
+    config: &Config,
+    machine: &mut crate::machine::Machine,
+) -> Result<(Option<runtime::Claimed>, Option<crate::hal::ReadySignal>), DaemonError> {
+    if !config.output.kind.hardware() {
+        return Ok((None, None));
+    }
+    let opened = runtime::open_output(config, &[]).map_err(|e| DaemonError::Job(Box::new(e)))?;
+    if config.output.kind == OutputKind::Parport {
+        tracing::info!("{}: parallel port claimed", config.output.path.display());
+    }
+    if let Some(why) = &opened.distrust {
+        machine::distrust_moved_drives(machine, why);
+    }
+    let claimed = runtime::Claimed {
+        output: opened.output,
+        gap: opened.port_gap,
+        inputs: opened.inputs,
+    };
+    Ok((Some(claimed), opened.ready))
 }
 
 /// The descriptor limit, raised to the hard one (network clients are served).
@@ -325,6 +360,7 @@ fn start_http(
     descriptors: u64,
     to_core: &CoreLink,
     executed: &http::executed::ExecutedSlot,
+    history: &history::HistoryFile,
 ) -> Result<Option<http::HttpServer>, DaemonError> {
     match config.daemon.http {
         Some(addr) => {
@@ -349,6 +385,7 @@ fn start_http(
                 crate::gcode::ProgramOptions::from_config(config),
                 to_core.clone(),
                 executed.clone(),
+                history.clone(),
             )
             .map_err(|source| DaemonError::Http { addr, source })?;
             tracing::info!(
@@ -410,12 +447,13 @@ fn start_mqtt(config: &Config, to_core: &CoreLink) -> Result<Option<mqtt::MqttNo
     Ok(Some(node))
 }
 
-/// The transports' link to the control loop: their requests onto its inbox.
-fn core_link(to_core: &Sender<CoreMsg>) -> CoreLink {
+/// The transports' link to the control loop: their requests onto its inbox, and its board.
+fn core_link(to_core: &Sender<CoreMsg>, board: &Arc<board::StatusBoard>) -> CoreLink {
     let (submit, idle) = (to_core.clone(), to_core.clone());
     CoreLink::new(
         move |request, reply| submit.send(CoreMsg::Request(request, reply)).is_ok(),
         move || idle.is_empty(),
+        board.clone(),
     )
 }
 
@@ -443,14 +481,26 @@ fn unix_now() -> u64 {
 impl Core {
     fn run(&mut self, inbox: &Receiver<CoreMsg>) {
         loop {
-            // A continuous jog's dead-man is looked at when it falls due, not a period late.
-            let wait = self.jobs.continuous.as_ref().map_or(PERIOD, |c| {
+            // A continuous jog's dead-man is looked at when it falls due, not a period late;
+            // while something moves, the board is posted every POST_EVERY.
+            let period = self.post_period();
+            let wait = self.jobs.continuous.as_ref().map_or(period, |c| {
                 Duration::from_nanos(c.deadline_ns.saturating_sub(crate::sys::monotonic_ns()))
-                    .min(PERIOD)
+                    .min(period)
             });
-            match inbox.recv_timeout(wait) {
+            let message = inbox.recv_timeout(wait);
+            // Anything but a status request may change what the status says.
+            self.post_due |= !matches!(message, Ok(CoreMsg::Request(Request::Status {}, _)));
+            self.control_requests += u64::from(matches!(message, Ok(CoreMsg::Request(..))));
+            match message {
+                Ok(CoreMsg::Request(Request::Jobs { count, skip }, reply)) => {
+                    self.list_jobs(count, skip, reply)
+                }
                 Ok(CoreMsg::Request(request, reply)) => {
                     let answer = self.handle(request);
+                    // Posted before the reply: a client that reads the status after its
+                    // command's reply sees what the command did.
+                    self.post_status();
                     // A client that went away changes nothing: the command stands or was
                     // refused either way.
                     let _ = reply.send(answer);
@@ -463,6 +513,7 @@ impl Core {
                 Err(RecvTimeoutError::Disconnected) => return,
             }
             self.periodic();
+            self.post_status();
             if self.shutting_down && self.jobs.job.is_none() && self.jobs.check.is_none() {
                 return;
             }
@@ -472,6 +523,9 @@ impl Core {
     // ---- commands -------------------------------------------------------------------------
 
     fn handle(&mut self, request: Request) -> Reply {
+        // What the fine thread saw of the machine since the last round counts before any
+        // command: a run sent right after an E-stop pulse is refused.
+        self.watch_inputs();
         let result = match request {
             Request::Technology { request } => {
                 let mut reply = match request.as_deref().map(|r| self.explain(r)) {
@@ -482,14 +536,8 @@ impl Core {
                 reply.technology = Some(self.technology.summaries());
                 return reply;
             }
-            Request::Jobs { count } => {
-                let (jobs, bad) = self
-                    .history
-                    .last(count.unwrap_or(20).clamp(1, history::MAX_LISTED));
-                let mut reply = Reply::ok(history::table(&jobs, bad), self.status());
-                reply.jobs = Some(jobs);
-                return reply;
-            }
+            // Read off the loop (`list_jobs`); a request here is answered the same way.
+            Request::Jobs { .. } => Ok("jobs".to_string()),
             Request::Status {} => Ok("status".to_string()),
             Request::Run {
                 program,

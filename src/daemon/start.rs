@@ -47,6 +47,19 @@ fn draw_programmed(recording: &JobRecording, program: &JobProgram, spec: &runtim
 /// The folder of a job's report, when the configuration asks for one. The folder is made
 /// first: a job must not learn at its end that its report has nowhere to go. Jogs, MDI lines,
 /// homing and touch cycles are the machine's, not jobs: no report.
+/// The longest stem of a program's name a report folder carries: the date and time before it
+/// (20 bytes) and a suffix after it (`-99`) keep the folder's name within 255 bytes.
+const MAX_REPORT_STEM_BYTES: usize = 200;
+
+/// `text` cut to at most `max` bytes at a character boundary.
+fn cut_at(text: &str, max: usize) -> &str {
+    let mut end = text.len().min(max);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    &text[..end]
+}
+
 fn job_report(
     config: &Config,
     program_name: &str,
@@ -57,9 +70,12 @@ fn job_report(
     }
     Ok(match &config.daemon.report_dir {
         Some(dir) => {
+            // The folder's name is the date, the time and the program's stem, cut so that it
+            // stays a name the file system takes (255 bytes) whatever the program's name is.
             let stem = Path::new(program_name)
                 .file_stem()
                 .map_or_else(|| "job".to_string(), |s| s.to_string_lossy().into_owned());
+            let stem = cut_at(&stem, MAX_REPORT_STEM_BYTES);
             // Named by the local date and time it started; a second job in the same second
             // gets a suffix rather than the first one's folder.
             let stamp = crate::sys::local_stamp();
@@ -452,9 +468,7 @@ impl Core {
         let mut io = self.jobs.job_io(&config, &check, &ledger)?;
         // A homing job's probing moves read its switch, a touch cycle's the part; any other
         // job's the probe (the claimed port's gap input is lent to every job).
-        let reads = launch.probe_reads(&spec.start_steps());
-        io.gap.probe_reads(reads);
-        io.inputs.probe_reads(reads);
+        io.probe_reads = launch.probe_reads(&spec.start_steps());
         let recording = self.record(&program.name, &ledger, kind);
         if report.is_some() {
             draw_programmed(&recording, &program, &spec);
@@ -488,14 +502,8 @@ impl Core {
         let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
         self.homing_started(switch.as_ref());
-        if let Err(refusal) = self.machine.save(true).map_err(super::machine::unwritten) {
-            self.jobs
-                .give_back_io(&config, io.output, io.gap, io.inputs);
-            return Err(refusal);
-        }
+        self.machine.save(true).map_err(super::machine::unwritten)?;
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
-            self.jobs
-                .give_back_io(&config, io.output, io.gap, io.inputs);
             return Err(Refusal::WriteAhead {
                 error,
                 consequence: "the job does not start without its checkpoint",

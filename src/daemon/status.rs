@@ -1,13 +1,15 @@
 //! What the daemon reports: its state, the [`Status`] a client receives, the periodic
 //! status line of the log and systemd's `STATUS=`. Read-only views of the control loop's
-//! state and of the running job's seqlocked snapshot.
+//! state and of the running job's seqlocked snapshot; the status posted on the board
+//! ([`super::board`]) and the history's pages read for clients, both off the loop's time.
 
 use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 use super::protocol::{
-    CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, OverrideStatus, Status,
+    CheckStatus, CheckpointStatus, Counters, DaemonState, JobStatus, OverrideStatus, Reply, Status,
 };
-use super::{Core, mqtt};
+use super::{Core, MAX_HISTORY_READERS, PERIOD, ReplyTo, board, history, mqtt};
 use crate::runtime::{Published, Snapshot};
 use crate::servo::{Excursion, PauseKind, ServoState};
 
@@ -114,6 +116,7 @@ impl Core {
             rt_refused: self.jobs.fine.rt_refused().to_vec(),
             hours: self.history.counters,
             history_write_error: self.history.write_error.clone(),
+            control_requests: self.control_requests,
             counters: {
                 let mut counters = match self.jobs.job.as_ref().zip(snapshot.as_ref()) {
                     Some((job, snap)) => {
@@ -228,5 +231,71 @@ pub(super) fn job_counters(p: &Published, snap: &Snapshot) -> Counters {
         gap_ticks: std::array::from_fn(|i| load(&p.gap_ticks[i])),
         latency_buckets: p.latency_buckets.iter().map(load).collect(),
         latency_sum_us: load(&p.latency_sum_ns) as f64 / 1000.0,
+    }
+}
+
+/// The status posted for the transports, and the history read for them: both off the
+/// control loop's own time.
+impl Core {
+    /// `jobs`: a page of the history, read on a thread of its own (a long history costs the
+    /// reader, never the loop); at most [`MAX_HISTORY_READERS`] at once, more are refused.
+    pub(super) fn list_jobs(&mut self, count: Option<usize>, skip: Option<usize>, reply: ReplyTo) {
+        let status = self.status();
+        if self.history_readers.fetch_add(1, Ordering::AcqRel) >= MAX_HISTORY_READERS {
+            self.history_readers.fetch_sub(1, Ordering::AcqRel);
+            let _ = reply.send(Reply::error(
+                format!("{MAX_HISTORY_READERS} history reads are in progress: try again"),
+                Some(status),
+            ));
+            return;
+        }
+        let file = self.history.file();
+        let readers = self.history_readers.clone();
+        let count = count.unwrap_or(20).clamp(1, history::MAX_LISTED);
+        let skip = skip.unwrap_or(0);
+        let read = std::thread::Builder::new()
+            .name("edmd-history".to_string())
+            .spawn(move || {
+                let answer = match file.page(skip, count) {
+                    Ok(page) => {
+                        let mut r = Reply::ok(history::table(&page), status);
+                        r.jobs = Some(page.jobs);
+                        r
+                    }
+                    Err(e) => Reply::error(
+                        format!(
+                            "{}: cannot read the job history: {e}",
+                            file.path().display()
+                        ),
+                        Some(status),
+                    ),
+                };
+                let _ = reply.send(answer);
+                readers.fetch_sub(1, Ordering::AcqRel);
+            });
+        if let Err(e) = read {
+            self.history_readers.fetch_sub(1, Ordering::AcqRel);
+            tracing::error!("jobs: cannot start the history reader: {e}");
+        }
+    }
+
+    /// How long the loop may wait for a message: [`board::POST_EVERY`] while a job or a
+    /// check runs (the status a page draws moves on), [`PERIOD`] otherwise.
+    pub(super) fn post_period(&self) -> Duration {
+        if self.jobs.job.is_some() || self.jobs.check.is_some() {
+            board::POST_EVERY
+        } else {
+            PERIOD
+        }
+    }
+
+    /// Posts the status on the board when something was handled since the last post, or
+    /// when the last is a period old.
+    pub(super) fn post_status(&mut self) {
+        if self.post_due || self.posted_at.elapsed() >= self.post_period() {
+            self.board.post(self.status());
+            self.posted_at = Instant::now();
+            self.post_due = false;
+        }
     }
 }

@@ -19,6 +19,23 @@ pub(super) struct Reloading {
 }
 
 impl Core {
+    /// After the loop: NDEATH before the socket goes (a host sees the machine leave, not
+    /// time out), the socket removed, and for HAL the owner record (a clean stop: `edmd
+    /// hal-wait` ends with success).
+    pub(super) fn stopped(&mut self, socket_path: &std::path::Path) {
+        self.notifier.send("STOPPING=1");
+        if let Some(mqtt) = self.clients.mqtt.as_mut() {
+            mqtt.stop();
+        }
+        socket::remove(socket_path);
+        if self.config.output.kind == crate::config::OutputKind::Hal {
+            crate::hal::owner::remove_record(
+                &crate::hal::HalSettings::from_config(&self.config).owner_file,
+            );
+        }
+        tracing::info!("stopped");
+    }
+
     pub(super) fn on_signal(&mut self, signal: i32) {
         use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGUSR1};
         match signal {
@@ -199,6 +216,7 @@ impl Core {
         self.dead_man();
         self.watch_inputs();
         self.watch_reload();
+        self.history.retry();
         let now = Instant::now();
         if let Some(mut job) = self.jobs.job.take() {
             let snap = job.published.snapshot();

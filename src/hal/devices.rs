@@ -8,28 +8,47 @@ use super::{GapPins, HalSettings, Pins, State};
 use crate::buffer::Activity;
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::inputs::{InputError, InputReading, MachineInputs};
-use crate::output::{OutputError, PulseOutput};
+use crate::output::{OutputError, PulseOutput, StopReason};
 use crate::vocab::{
     Axis, GapVolts, GeneratorSetPoints, HomeSwitch, LimitSet, LimitSwitch, MAX_AXES, ProbeReads,
 };
 
-/// The pulse output: the ledger as `pos-cmd`, checked against `pos-fb`.
+/// The pulse output: the ledger as `pos-cmd`, checked against `pos-fb`, with the two
+/// heartbeats.
 #[derive(Debug)]
 pub struct HalOutput {
     pins: Arc<Pins>,
-    /// Steps given each axis since the component started: the drives' position.
+    /// Steps given each axis: the drives' position (from where their feedback stood when the
+    /// first job began).
     ledger: [i64; MAX_AXES],
+    /// The ledger was taken from the drives' feedback (at the first job: HAL nets the pins
+    /// after the component is made, so at that moment `pos-fb` may read nothing yet).
+    synced: bool,
+    /// The feedback did not read 0 when the component was made.
+    drives_moved: bool,
     step_mm: Vec<f64>,
     letters: Vec<char>,
     max_following_error_mm: Option<f64>,
     /// The job's conditions' set points, and the condition whose are on the pins.
     generator: Vec<(u32, GeneratorSetPoints)>,
     set_points_of: Option<u16>,
+    tick_ns: u64,
+    /// edmd's heartbeat on `edmd.watchdog`: its level's period and how long it has stood.
+    heartbeat_ns: u64,
+    beat_for_ns: u64,
+    /// HAL's heartbeat on `edmd.rt-beat-in`: the time allowed without a change, the last level
+    /// read and how long it has stood.
+    rt_beat_timeout_ns: Option<u64>,
+    rt_beat: bool,
+    rt_beat_for_ns: u64,
 }
 
 impl HalOutput {
     pub(super) fn new(pins: Arc<Pins>, settings: &HalSettings) -> HalOutput {
-        HalOutput {
+        let rt_beat = pins.rt_beat_in.get();
+        let mut output = HalOutput {
+            drives_moved: false,
+            synced: false,
             pins,
             ledger: [0; MAX_AXES],
             step_mm: settings.step_mm.clone(),
@@ -37,7 +56,36 @@ impl HalOutput {
             max_following_error_mm: settings.max_following_error_mm,
             generator: Vec::new(),
             set_points_of: None,
+            tick_ns: settings.tick_ns,
+            heartbeat_ns: settings.heartbeat_ns.max(1),
+            beat_for_ns: 0,
+            rt_beat_timeout_ns: settings.rt_beat_timeout_ns,
+            rt_beat,
+            rt_beat_for_ns: 0,
+        };
+        output.sync_to_feedback();
+        output.drives_moved = output.ledger.iter().any(|&l| l != 0);
+        output
+    }
+
+    /// The ledger and `pos-cmd` where the drives' feedback stands (rounded to a step), so the
+    /// next command is no jump.
+    fn sync_to_feedback(&mut self) {
+        for ((l, a), step) in self
+            .ledger
+            .iter_mut()
+            .zip(&self.pins.axes)
+            .zip(&self.step_mm)
+        {
+            let at = a.pos_fb.get() / step;
+            *l = if at.is_finite() { at.round() as i64 } else { 0 };
+            a.pos_cmd.set(*l as f64 * step);
         }
+    }
+
+    /// The drives' feedback did not read 0 when the component was made.
+    pub(super) fn drives_moved(&self) -> bool {
+        self.drives_moved
     }
 
     /// The set points of `condition` on the `edmd.gen.*` pins (a lookup in the job's short
@@ -57,13 +105,55 @@ impl HalOutput {
         self.set_points_of = Some(condition);
     }
 
-    /// The first axis whose feedback is further from the command than the limit.
+    /// The first axis whose feedback is further from the command than the limit, or not a
+    /// number at all (a NaN compares as nothing: it must not pass as "not further").
     fn following_error(&self) -> Option<(usize, f64)> {
         let max = self.max_following_error_mm?;
         self.pins.axes.iter().enumerate().find_map(|(i, a)| {
             let error = a.pos_cmd.get() - a.pos_fb.get();
-            (error.abs() > max).then_some((i, error))
+            let within = error.abs().partial_cmp(&max).is_some_and(|o| o.is_le());
+            (!within).then_some((i, error))
         })
+    }
+
+    /// `elapsed_ns` more of the fine thread's life: `edmd.watchdog` changes level when its
+    /// period is up; HAL's heartbeat must have changed within its time-out.
+    fn keep_time(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        self.beat_for_ns += elapsed_ns;
+        if self.beat_for_ns >= self.heartbeat_ns {
+            self.beat_for_ns = 0;
+            self.pins.watchdog.set(!self.pins.watchdog.get());
+        }
+        if let Some(timeout) = self.rt_beat_timeout_ns {
+            let level = self.pins.rt_beat_in.get();
+            if level != self.rt_beat {
+                self.rt_beat = level;
+                self.rt_beat_for_ns = 0;
+            } else {
+                self.rt_beat_for_ns += elapsed_ns;
+                if self.rt_beat_for_ns > timeout {
+                    self.pins.state.set(State::Alarm as i32);
+                    return Err(OutputError::HalStopped {
+                        still_ms: self.rt_beat_for_ns / 1_000_000,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn following_error_alarm(&self) -> Result<(), OutputError> {
+        match self.following_error() {
+            Some((axis, error_mm)) => {
+                self.pins.state.set(State::Alarm as i32);
+                Err(OutputError::FollowingError {
+                    axis: self.letters[axis],
+                    error_mm,
+                    max_mm: self.max_following_error_mm.unwrap_or_default(),
+                })
+            }
+            None => Ok(()),
+        }
     }
 }
 
@@ -74,15 +164,9 @@ impl PulseOutput for HalOutput {
         steps: &[i8; MAX_AXES],
         _gap: GapState,
     ) -> Result<(), OutputError> {
+        self.keep_time(self.tick_ns)?;
         // The drives have not reached the last command: this tick's step is not given.
-        if let Some((axis, error_mm)) = self.following_error() {
-            self.pins.state.set(State::Alarm as i32);
-            return Err(OutputError::FollowingError {
-                axis: self.letters[axis],
-                error_mm,
-                max_mm: self.max_following_error_mm.unwrap_or_default(),
-            });
-        }
+        self.following_error_alarm()?;
         self.pins.enable_out.set(true);
         for (i, a) in self.pins.axes.iter().enumerate() {
             if steps[i] != 0 {
@@ -104,23 +188,46 @@ impl PulseOutput for HalOutput {
         self.write_set_points(now.condition);
     }
 
+    /// The first job after the component was made takes up where the drives stand: HAL's
+    /// file nets `pos-fb` after `loadusr`, so only now does it read them (a HAL that kept
+    /// running after an earlier edmd: stepgen's counts, not 0). The drives are still disabled
+    /// here; from now on the ledger is theirs.
+    fn prepare(&mut self) {
+        if !self.synced {
+            self.sync_to_feedback();
+            self.synced = true;
+        }
+    }
+
     fn conditions(&mut self, table: &[(u32, GeneratorSetPoints)]) {
         self.generator = table.to_vec();
         self.set_points_of = None;
     }
 
-    /// The spark and flushing go off. The drives stay enabled (the machine is on, as in
-    /// LinuxCNC: a position-mode `stepgen` still reaching the last command finishes it) but
-    /// on an E-stop or an alarm, where they go off at once.
-    fn finish(&mut self) -> Result<(), OutputError> {
-        let alarm = self.pins.state.get() == State::Alarm as i32;
-        if alarm || !self.pins.estop_ok_in.get() {
+    /// The spark and the flushing go off. The drives stay enabled after a job that ended (the
+    /// machine is on, as in LinuxCNC: a position-mode `stepgen` still reaching the last
+    /// command finishes it), and go off at once on an E-stop or an alarm.
+    fn finish(&mut self, why: StopReason) -> Result<(), OutputError> {
+        if why.drives_off() {
             self.pins.enable_out.set(false);
         }
         self.pins.spark_on.set(false);
         self.pins.flush_on.set(false);
-        if !alarm {
-            self.pins.state.set(State::Idle as i32);
+        self.pins.state.set(match why {
+            StopReason::Alarm => State::Alarm,
+            // An alarm's state stays until the next job.
+            _ if self.pins.state.get() == State::Alarm as i32 => State::Alarm,
+            _ => State::Idle,
+        } as i32);
+        Ok(())
+    }
+
+    /// Between jobs: the heartbeats, and while the drives are enabled the following error
+    /// (a drive that faulted or was pushed at a standstill).
+    fn idle(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        self.keep_time(elapsed_ns)?;
+        if self.pins.enable_out.get() {
+            self.following_error_alarm()?;
         }
         Ok(())
     }

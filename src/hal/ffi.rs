@@ -1,18 +1,19 @@
 //! LinuxCNC's HAL library (`liblinuxcnchal.so.0`, or `hal.library`), loaded when a component
 //! is made, never linked: edmd builds and runs without LinuxCNC, and only `output.kind = "hal"` needs it.
 //!
-//! Seven calls of HAL's C API are used, as `hal.h` declares them: `hal_init` (a userspace
+//! The calls of HAL's C API used, as `hal.h` declares them: `hal_init` (a userspace
 //! component, joining the HAL that `halrun` or `linuxcnc` started), `hal_malloc` (a word in
 //! HAL's shared memory for each pin's data pointer), `hal_pin_{bit,float,s32}_new`,
-//! `hal_ready` and `hal_exit`. A pin is a pointer, kept in that shared word, to the value:
-//! HAL points it at the signal the pin is netted to, so it is read through both every time.
-//! Pins are plain machine words that HAL's own components read and write without locks; a
-//! bit is a C `bool` (read here as a byte), a float a `double`, an s32 an `int32_t`, all
-//! `volatile`.
+//! `hal_ready` and `hal_exit`; for a component left behind by a killed edmd,
+//! `hal_comp_name`, `hal_get_lock` and `rtapi_init` ([`Hal::remove_dead`]). A pin is a
+//! pointer, kept in that shared word, to the value: HAL points it at the signal the pin is
+//! netted to, so it is read through both every time. Pins are plain machine words that HAL's
+//! own components read and write without locks; a bit is a C `bool` (read here as a byte), a
+//! float a `double`, an s32 an `int32_t`, all `volatile`.
 //!
 //! This file is the only one of the module with `unsafe`.
 
-use std::ffi::{CString, c_char, c_int, c_long, c_void};
+use std::ffi::{CStr, CString, c_char, c_int, c_long, c_uchar, c_void};
 use std::ptr;
 use std::sync::Arc;
 
@@ -26,7 +27,8 @@ pub enum Dir {
     Out = 32,
 }
 
-// SAFETY: `hal_init(const char *name)`, as `hal.h` declares it; each call says why it is sound.
+// SAFETY: `hal_init(const char *name)`, as `hal.h` declares it (and `rtapi_init(const char
+// *modname)`, `rtapi.h`, of the same type); each call says why it is sound.
 type InitFn = unsafe extern "C" fn(*const c_char) -> c_int;
 // SAFETY: `hal_ready(int comp_id)` and `hal_exit(int comp_id)`.
 type IdFn = unsafe extern "C" fn(c_int) -> c_int;
@@ -35,6 +37,14 @@ type MallocFn = unsafe extern "C" fn(c_long) -> *mut c_void;
 // SAFETY: `hal_pin_{bit,float,s32}_new(const char *name, hal_pin_dir_t dir, T **data_ptr_addr,
 // int comp_id)`.
 type PinNewFn = unsafe extern "C" fn(*const c_char, c_int, *mut c_void, c_int) -> c_int;
+// SAFETY: `char *hal_comp_name(int comp_id)`.
+type NameFn = unsafe extern "C" fn(c_int) -> *const c_char;
+// SAFETY: `unsigned char hal_get_lock(void)`.
+type LockFn = unsafe extern "C" fn() -> c_uchar;
+
+/// What `hal_get_lock` answers (`-EINVAL` as an unsigned char) while this process has not
+/// mapped HAL's shared memory; a real lock is a mask of `HAL_LOCK_*` bits, never this.
+const LOCK_UNMAPPED: c_uchar = (-22i32) as c_uchar;
 
 /// The calls edmd makes, looked up once.
 struct Api {
@@ -45,6 +55,9 @@ struct Api {
     bit_new: PinNewFn,
     float_new: PinNewFn,
     s32_new: PinNewFn,
+    comp_name: NameFn,
+    get_lock: LockFn,
+    rtapi_init: InitFn,
     /// Kept open while any function pointer above may be called.
     _lib: libloading::Library,
 }
@@ -56,7 +69,7 @@ impl Api {
         };
         // SAFETY: loading runs the library's initialisers; LinuxCNC's HAL library has none
         // beyond the C runtime's, and the symbols below are looked up with the types `hal.h`
-        // gives them.
+        // and `rtapi.h` give them.
         unsafe {
             let lib = libloading::Library::new(library).map_err(missing)?;
             let api = Api {
@@ -69,6 +82,9 @@ impl Api {
                     .get::<PinNewFn>(b"hal_pin_float_new\0")
                     .map_err(missing)?,
                 s32_new: *lib.get::<PinNewFn>(b"hal_pin_s32_new\0").map_err(missing)?,
+                comp_name: *lib.get::<NameFn>(b"hal_comp_name\0").map_err(missing)?,
+                get_lock: *lib.get::<LockFn>(b"hal_get_lock\0").map_err(missing)?,
+                rtapi_init: *lib.get::<InitFn>(b"rtapi_init\0").map_err(missing)?,
                 _lib: lib,
             };
             Ok(api)
@@ -76,20 +92,23 @@ impl Api {
     }
 }
 
-/// A HAL userspace component: its id in the running HAL, removed (with its pins) on drop.
-pub struct Component {
-    api: Api,
-    id: c_int,
-    name: String,
+/// HAL's library, loaded: components are joined through it.
+pub struct Hal {
+    api: Arc<Api>,
 }
 
-impl Component {
-    /// Joins the running HAL as component `name`, through the HAL library `library`.
-    pub fn new(library: &str, name: &str) -> Result<Arc<Component>, HalError> {
-        let api = Api::load(library)?;
+impl Hal {
+    pub fn load(library: &str) -> Result<Hal, HalError> {
+        Ok(Hal {
+            api: Arc::new(Api::load(library)?),
+        })
+    }
+
+    /// Joins the running HAL as component `name`.
+    pub fn join(&self, name: &str) -> Result<Arc<Component>, HalError> {
         let c_name = CString::new(name).map_err(|_| HalError::Name(name.to_string()))?;
         // SAFETY: `c_name` is a valid C string for the duration of the call.
-        let id = unsafe { (api.init)(c_name.as_ptr()) };
+        let id = unsafe { (self.api.init)(c_name.as_ptr()) };
         if id < 0 {
             return Err(HalError::Init {
                 component: name.to_string(),
@@ -97,10 +116,84 @@ impl Component {
             });
         }
         Ok(Arc::new(Component {
-            api,
+            api: self.api.clone(),
             id,
             name: name.to_string(),
         }))
+    }
+
+    /// The name of component `id` in the running HAL (`None`: no such component, or HAL's
+    /// memory not mapped in this process).
+    pub fn name_of(&self, id: c_int) -> Option<String> {
+        if !self.mapped() {
+            return None;
+        }
+        // SAFETY: HAL's memory is mapped (checked above); `hal_comp_name` looks `id` up under
+        // HAL's mutex and returns the component's name in shared memory, or null.
+        unsafe {
+            let name = (self.api.comp_name)(id);
+            (!name.is_null()).then(|| CStr::from_ptr(name).to_string_lossy().into_owned())
+        }
+    }
+
+    /// HAL's shared memory is mapped in this process (a `hal_init` reached it).
+    fn mapped(&self) -> bool {
+        // SAFETY: `hal_get_lock` reads HAL's lock word if the memory is mapped and answers
+        // `-EINVAL` otherwise; it takes no argument and changes nothing.
+        unsafe { (self.api.get_lock)() != LOCK_UNMAPPED }
+    }
+
+    /// Removes component `id`, named `name`, which a process that died without leaving HAL
+    /// (a killed edmd) left behind with its pins: its name can be joined again. Call only
+    /// after [`join`](Self::join) was refused for that name, with no component of this
+    /// process's own in HAL yet.
+    ///
+    /// HAL's library counts, per process, the components it made and releases its mapping
+    /// when a `hal_exit` brings the count to zero, and each `hal_exit` also ends one RTAPI
+    /// module. Exiting another process's component here is one exit more than this process
+    /// made: after a refused `hal_init` the count is zero, so it goes below zero (no release:
+    /// the mapping stays, and the next `hal_init` brings it back to zero), and one more
+    /// `rtapi_init` first keeps RTAPI's module count from reaching zero (which would unmap
+    /// its memory under a later `rtapi_init`).
+    pub fn remove_dead(&self, id: c_int, name: &str) -> Result<(), HalError> {
+        match self.name_of(id) {
+            Some(found) if found == name => {}
+            // Gone already, or the id is another component's now: nothing of ours to remove.
+            _ => return Ok(()),
+        }
+        // SAFETY: a valid C string; `rtapi_init` only registers a module (see above).
+        let module = unsafe { (self.api.rtapi_init)(c"edmd-reap".as_ptr()) };
+        if module < 0 {
+            return Err(HalError::Call {
+                call: "rtapi_init (to remove a dead component)".to_string(),
+                code: module,
+            });
+        }
+        // SAFETY: `id` names a component of `name` whose process is dead (the caller
+        // checked); `hal_exit` unlinks its pins from their signals and frees them under HAL's
+        // mutex. The counts are kept as the doc comment explains.
+        let code = unsafe { (self.api.exit)(id) };
+        if code < 0 {
+            return Err(HalError::Call {
+                call: format!("hal_exit of the dead component {name} ({id})"),
+                code,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A HAL userspace component: its id in the running HAL, removed (with its pins) on drop.
+pub struct Component {
+    api: Arc<Api>,
+    id: c_int,
+    name: String,
+}
+
+impl Component {
+    /// The component's id in the running HAL.
+    pub fn id(&self) -> c_int {
+        self.id
     }
 
     pub fn name(&self) -> &str {

@@ -36,8 +36,16 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
         self.inner.write(tick, steps, gap)
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
-        self.inner.finish()
+    fn finish(&mut self, why: crate::output::StopReason) -> Result<(), OutputError> {
+        self.inner.finish(why)
+    }
+
+    fn idle(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        self.inner.idle(elapsed_ns)
+    }
+
+    fn prepare(&mut self) {
+        self.inner.prepare()
     }
 
     fn sync(&mut self) -> Result<(), OutputError> {
@@ -64,7 +72,7 @@ mod tests {
             self.0 += 1;
             Ok(())
         }
-        fn finish(&mut self) -> Result<(), OutputError> {
+        fn finish(&mut self, _why: crate::output::StopReason) -> Result<(), OutputError> {
             self.1 = true;
             Ok(())
         }
@@ -81,7 +89,7 @@ mod tests {
         assert!(!err.step_taken());
         assert!(err.to_string().contains("tick 3"), "{err}");
         assert!(out.write(4, &steps, GapState::Normal).is_err());
-        out.finish().unwrap();
+        out.finish(crate::output::StopReason::Ended).unwrap();
         let inner = out.into_inner();
         assert_eq!((inner.0, inner.1), (3, true));
     }

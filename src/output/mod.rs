@@ -58,6 +58,12 @@ pub enum OutputError {
         error_mm: f64,
         max_mm: f64,
     },
+    /// HAL's real-time heartbeat (`rt-beat-in`) stood still: its threads no longer run.
+    #[error(
+        "HAL's real-time side stopped: rt-beat-in has not changed for {still_ms} ms (more than \
+         hal.rt_beat_timeout_ms); its threads no longer run, nothing reaches the drives"
+    )]
+    HalStopped { still_ms: u64 },
 }
 
 impl OutputError {
@@ -84,8 +90,18 @@ pub trait PulseOutput {
         gap: GapState,
     ) -> Result<(), OutputError>;
 
-    /// The job is over: everything written reaches its destination, outputs go inactive.
-    fn finish(&mut self) -> Result<(), OutputError>;
+    /// The job is over, or the idle machine is made safe: everything written reaches its
+    /// destination, the spark and the flushing go off, and the drives too where `why` says
+    /// so ([`StopReason::drives_off`]).
+    fn finish(&mut self, why: StopReason) -> Result<(), OutputError>;
+
+    /// Between jobs, about every millisecond (the fine thread's idle watch), `elapsed_ns`
+    /// after the last call or the job's last tick: a device proves it is alive (HAL's
+    /// heartbeat pin) and checks what it stands on (HAL's real-time side). An error is an
+    /// alarm: the device is made safe and the machine held as in an E-stop.
+    fn idle(&mut self, _elapsed_ns: u64) -> Result<(), OutputError> {
+        Ok(())
+    }
 
     /// Everything written so far reaches its destination, durably where there is a disk (a
     /// pulse log): called at a standstill, before a checkpoint is written there, so after a
@@ -100,6 +116,11 @@ pub trait PulseOutput {
     /// writes it down, the port drives its flushing pin, a recorder notes rapids.
     fn moving_in(&mut self, _now: Activity) {}
 
+    /// A job is about to step the device (before its conditions and its first tick): a
+    /// device that takes up where its drives stand does so now (HAL's `pos-cmd` from
+    /// `pos-fb`, the first time after it was made, once HAL has netted its pins).
+    fn prepare(&mut self) {}
+
     /// The job's machining conditions, before its first tick: what each E number sets the
     /// generator to. A device with set-point outputs (HAL's `edmd.gen.*`) keeps them and
     /// writes the set points of the condition in force as it changes.
@@ -107,6 +128,26 @@ pub trait PulseOutput {
 }
 
 pub use crate::buffer::Activity;
+
+/// Why the outputs go quiet: what a device may keep on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    /// The job ended (done, stopped, a limit switch, a missed probe): the machine stays on,
+    /// as in LinuxCNC, and a position-mode drive finishes reaching its last command.
+    Ended,
+    /// The E-stop: the drives go off.
+    EStop,
+    /// An alarm (a following error, a device that failed, HAL's real-time side gone): the
+    /// drives go off.
+    Alarm,
+}
+
+impl StopReason {
+    /// The drives' enable goes off.
+    pub fn drives_off(self) -> bool {
+        self != StopReason::Ended
+    }
+}
 
 /// `output.kind = "null"`: discards everything.
 #[derive(Debug, Clone, Copy, Default)]
@@ -117,8 +158,45 @@ impl PulseOutput for NullOutput {
         Ok(())
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
+    fn finish(&mut self, _why: StopReason) -> Result<(), OutputError> {
         Ok(())
+    }
+}
+
+/// An output lent for one job (the fine thread's claimed device, wrapped in the job's
+/// recorder).
+impl<O: PulseOutput + ?Sized> PulseOutput for &mut O {
+    fn write(
+        &mut self,
+        tick: u64,
+        steps: &[i8; MAX_AXES],
+        gap: GapState,
+    ) -> Result<(), OutputError> {
+        (**self).write(tick, steps, gap)
+    }
+
+    fn finish(&mut self, why: StopReason) -> Result<(), OutputError> {
+        (**self).finish(why)
+    }
+
+    fn idle(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        (**self).idle(elapsed_ns)
+    }
+
+    fn sync(&mut self) -> Result<(), OutputError> {
+        (**self).sync()
+    }
+
+    fn moving_in(&mut self, now: Activity) {
+        (**self).moving_in(now)
+    }
+
+    fn prepare(&mut self) {
+        (**self).prepare()
+    }
+
+    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
+        (**self).conditions(table)
     }
 }
 
@@ -132,8 +210,12 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
         (**self).write(tick, steps, gap)
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
-        (**self).finish()
+    fn finish(&mut self, why: StopReason) -> Result<(), OutputError> {
+        (**self).finish(why)
+    }
+
+    fn idle(&mut self, elapsed_ns: u64) -> Result<(), OutputError> {
+        (**self).idle(elapsed_ns)
     }
 
     fn sync(&mut self) -> Result<(), OutputError> {
@@ -142,6 +224,10 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
 
     fn moving_in(&mut self, now: Activity) {
         (**self).moving_in(now)
+    }
+
+    fn prepare(&mut self) {
+        (**self).prepare()
     }
 
     fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {

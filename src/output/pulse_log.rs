@@ -124,7 +124,7 @@ impl PulseOutput for PulseLog {
         result.map_err(|e| self.io(e))
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
+    fn finish(&mut self, _why: super::StopReason) -> Result<(), OutputError> {
         self.sync()
     }
 
@@ -309,7 +309,7 @@ mod tests {
         });
         log.write(5, &s(0, 0), GapState::Short).unwrap();
         log.write(6, &s(0, 0), GapState::Normal).unwrap();
-        log.finish().unwrap();
+        log.finish(crate::output::StopReason::Ended).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(
             text,

@@ -271,7 +271,9 @@ impl<P: Port, C: Clock> PulseOutput for ParportOutput<P, C> {
         );
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
+    /// Every output inactive whatever the reason (the port's enable pin included: a port's
+    /// drives are enabled only while a job steps them).
+    fn finish(&mut self, _why: crate::output::StopReason) -> Result<(), OutputError> {
         let idle = self.encoder.map().idle();
         self.port
             .lock()

@@ -417,7 +417,7 @@ fn estop_and_limit_pins_and_the_port_they_leave() {
         "the drives were enabled while it moved"
     );
     bench.set_now(3 * TICK_NS);
-    out.finish().unwrap();
+    out.finish(crate::output::StopReason::Ended).unwrap();
     let last = bench.waveform(map.idle()).last().unwrap().1;
     assert!(!last.is_high(4), "spark off");
     assert_eq!(

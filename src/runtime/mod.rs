@@ -47,7 +47,7 @@ pub use devices::{
     BoxedGap, BoxedInputs, BoxedOutput, OpenedOutput, open_gap, open_io, open_output, wrap_io,
 };
 pub use error::JobError;
-pub use fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
+pub use fine_thread::{Claimed, FineDone, FineJob, FineThread, JobRecorder, ResumePoint};
 pub use histogram::{LatencyHistogram, LatencySummary};
 pub use precheck::{Precheck, precheck};
 pub use producer::{BlockMaker, ProducerError, ProducerReport, to_steps};
@@ -136,14 +136,15 @@ pub fn run_file_from(
     spec.path.cut = cut.clone();
     let (output, gap, inputs) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
-        output,
-        gap,
-        inputs,
+        output: Some(output),
+        gap: Some(gap),
+        inputs: Some(inputs),
+        probe_reads: Default::default(),
         tracer,
         recording: observers.recording,
         progress: observers.progress,
     };
-    let fine_thread = FineThread::start(&spec.run_loop).map_err(JobError::Thread)?;
+    let fine_thread = FineThread::start(&spec.run_loop, None).map_err(JobError::Thread)?;
     let job = JobRun {
         program: &copy.0,
         check: &check,
@@ -186,9 +187,14 @@ pub fn copy_and_check(
 
 /// What a job runs on besides the program.
 pub struct JobIo {
-    pub output: BoxedOutput,
-    pub gap: BoxedGap,
-    pub inputs: BoxedInputs,
+    /// The job's own devices; `None`: the fine thread's claimed device's
+    /// ([`FineThread::start`]).
+    pub output: Option<BoxedOutput>,
+    pub gap: Option<BoxedGap>,
+    pub inputs: Option<BoxedInputs>,
+    /// What the job's probing moves read as their contact (a homing job's switch, a touch
+    /// cycle's part; the probe otherwise), told to the gap and the inputs it runs on.
+    pub probe_reads: crate::vocab::ProbeReads,
     pub tracer: Option<Arc<Tracer>>,
     /// What actually ran, for a report (`edmd run --report`): the output is wrapped in a
     /// recorder and the supervisor fills the recording.
@@ -197,13 +203,13 @@ pub struct JobIo {
     pub progress: Option<ProgressFn>,
 }
 
-/// A finished job: the summary, where the electrode stands, and the output and gap source
-/// handed back (a daemon keeps its parallel port claimed across jobs).
+/// A finished job: the summary, where the electrode stands, and the job's own devices
+/// handed back (a claimed device stays with the fine thread).
 pub struct JobEnd {
     pub summary: JobSummary,
     /// The interpolator at the end: the checkpoint's point and ledger.
     pub stopped_at: Snapshot,
-    pub output: BoxedOutput,
-    pub gap: BoxedGap,
-    pub inputs: BoxedInputs,
+    pub output: Option<BoxedOutput>,
+    pub gap: Option<BoxedGap>,
+    pub inputs: Option<BoxedInputs>,
 }

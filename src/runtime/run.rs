@@ -15,9 +15,8 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{Receiver, TryRecvError};
 
-use super::job::devices::BoxedOutput;
 use super::job::events;
-use super::job::fine_thread::{FineDone, FineJob, FineThread, ResumePoint};
+use super::job::fine_thread::{FineDone, FineJob, FineThread, JobRecorder, ResumePoint};
 use super::job::precheck::Precheck;
 use super::job::producer::{self, ProducerError, ProducerReport};
 use super::job::spec::JobSpec;
@@ -27,7 +26,7 @@ use super::shaping::progress::ProgressTracker;
 use super::tick::consumer::{EventRecord, Published};
 use super::{JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
 use crate::buffer::LoopBuffer;
-use crate::record::{RecordedOutput, Recorder, Recording};
+use crate::record::{Recorder, Recording};
 use crate::trace::Tracer;
 
 /// A report's recorder samples the motion at most this often (and at every gap change).
@@ -65,17 +64,13 @@ pub fn run(
         output,
         gap,
         inputs,
+        probe_reads,
         tracer,
         recording,
         progress,
     } = io;
-    let (mut output, recorder) = recorded(output, recording.is_some(), &job);
-    let generator: Vec<_> = spec
-        .conditions
-        .iter()
-        .map(|c| (c.number, c.generator))
-        .collect();
-    output.conditions(&generator);
+    let recorder = recording.is_some().then(|| recorder(&job));
+    let queue = recorder.as_ref().map(|r| r.queue.clone());
     let mut supervisor = Supervisor {
         name: job.program.name.clone(),
         spec,
@@ -83,7 +78,7 @@ pub fn run(
         buffer: &buffer,
         stop,
         tracer: tracer.as_deref(),
-        recording: recording.as_ref().zip(recorder.as_ref()),
+        recording: recording.as_ref().zip(queue.as_ref()),
         progress,
         tracker: ProgressTracker::new(
             job.check.path_mm,
@@ -113,6 +108,13 @@ pub fn run(
             output,
             gap,
             inputs,
+            recorder,
+            probe_reads,
+            conditions: spec
+                .conditions
+                .iter()
+                .map(|c| (c.number, c.generator))
+                .collect(),
             settings: spec.fine,
             loop_settings: spec.run_loop,
             resume: job.resume.clone(),
@@ -151,30 +153,21 @@ fn announce(job: &JobRun<'_>) {
     );
 }
 
-/// The output, wrapped in a recorder when a report is wanted; the recorder's queue.
-fn recorded(
-    output: BoxedOutput,
-    wanted: bool,
-    job: &JobRun<'_>,
-) -> (BoxedOutput, Option<Arc<Recorder>>) {
-    if !wanted {
-        return (output, None);
-    }
-    let queue = Recorder::new(
-        1 << 16,
-        job.spec.run_loop.virtual_time,
-        Some(std::thread::current()),
-    );
+/// A recorder for the job's output (a report, the page's executed path), sampling from where
+/// the job starts.
+fn recorder(job: &JobRun<'_>) -> JobRecorder {
     let start = job.resume.as_ref().map_or(job.spec.start_steps(), |r| {
         std::array::from_fn(|i| r.position.get(i).copied().unwrap_or(0))
     });
-    let output: BoxedOutput = Box::new(RecordedOutput::new(
-        output,
-        queue.clone(),
-        RECORD_EVERY_TICKS,
+    JobRecorder {
+        queue: Recorder::new(
+            1 << 16,
+            job.spec.run_loop.virtual_time,
+            Some(std::thread::current()),
+        ),
+        every_ticks: RECORD_EVERY_TICKS,
         start,
-    ));
-    (output, Some(queue))
+    }
 }
 
 /// The calling thread while a job runs: it logs, steers and reports, never touching the

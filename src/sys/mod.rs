@@ -31,7 +31,9 @@ pub use files::{
 };
 pub use group::group_id;
 pub use limits::raise_descriptor_limit;
-pub use proc::{host_name, peak_rss_kib};
+pub use proc::{
+    ProcessStat, host_name, own_start_ticks, peak_rss_kib, process_running, process_stat,
+};
 pub use rt::{
     hold_zero_cpu_wakeup_latency, lock_all_memory, minimise_timer_slack, pin_to_cpu,
     set_fifo_priority,

@@ -90,7 +90,11 @@ impl Tables {
     /// saying so); a table that does not read is an error.
     pub fn load(dir: &Path) -> Result<Tables, TechError> {
         let tables = match table::read_dir(dir) {
-            Err(TechError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+            // The folder itself missing: no tables. A table file missing (a dangling link) is
+            // an error like any other.
+            Err(TechError::Io { path, source })
+                if source.kind() == std::io::ErrorKind::NotFound && path == dir =>
+            {
                 Vec::new()
             }
             other => other?,

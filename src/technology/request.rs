@@ -142,13 +142,34 @@ fn put<T>(slot: &mut Option<T>, value: T) -> Option<()> {
     }
 }
 
-/// How much of a program's start is read for its header.
-const HEADER_BYTES: u64 = 64 * 1024;
+/// The longest header read for a `(TECH …)` comment (bytes): a program whose comments run on
+/// past it before the first block is refused, not read as having no technology.
+pub const HEADER_BYTES: u64 = 1024 * 1024;
+
+/// What the header of a text says.
+enum Header {
+    Request(Request),
+    /// The first block came: no request.
+    Ended,
+    /// The text ended inside the header.
+    Open {
+        lines: usize,
+    },
+}
 
 /// The `(TECH …)` comment in the header of `text` (the lines before its first block:
 /// blank lines, `%`, comments), with its place; `source` names it in messages.
 pub fn header_of(text: &str, source: &str) -> Result<Option<Request>, TechError> {
+    Ok(match scan(text, source)? {
+        Header::Request(r) => Some(r),
+        Header::Ended | Header::Open { .. } => None,
+    })
+}
+
+fn scan(text: &str, source: &str) -> Result<Header, TechError> {
+    let mut lines = 0;
     for (i, line) in text.lines().enumerate() {
+        lines = i + 1;
         let trimmed = line.trim_start();
         if trimmed.is_empty() || trimmed.starts_with('%') || trimmed.starts_with(';') {
             continue;
@@ -157,7 +178,8 @@ pub fn header_of(text: &str, source: &str) -> Result<Option<Request>, TechError>
         let mut rest = trimmed;
         while let Some(open) = rest.strip_prefix('(') {
             let Some(close) = open.find(')') else {
-                return Ok(None);
+                // An unclosed comment: the reader refuses it; no request here.
+                return Ok(Header::Ended);
             };
             let comment = &open[..close];
             let word = comment
@@ -168,26 +190,52 @@ pub fn header_of(text: &str, source: &str) -> Result<Option<Request>, TechError>
                 let after = &comment[word.len()..];
                 let body = after.trim_start_matches([':', ' ', '\t', ',']);
                 let col = line.len() - rest.len() + 2 + word.len() + (after.len() - body.len());
-                return Request::parse(body, source, i + 1, col).map(Some);
+                return Request::parse(body, source, i + 1, col).map(Header::Request);
             }
             rest = open[close + 1..].trim_start();
         }
         if !rest.is_empty() {
             // The first block: the header is over.
-            return Ok(None);
+            return Ok(Header::Ended);
         }
     }
-    Ok(None)
+    Ok(Header::Open { lines })
 }
 
-/// The `(TECH …)` comment in the header of the program at `path` (its first 64 KiB).
+/// The `(TECH …)` comment in the header of the program at `path`, wherever it stands in the
+/// header; a header that runs past [`HEADER_BYTES`] is refused at the line where it passes.
 pub fn header(path: &Path, source: &str) -> Result<Option<Request>, TechError> {
     let mut text = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(HEADER_BYTES).read_to_end(&mut text))
+    crate::sys::open_regular(path)
+        .and_then(|f| f.take(HEADER_BYTES + 1).read_to_end(&mut text))
         .map_err(|source| TechError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-    header_of(&String::from_utf8_lossy(&text), source)
+    let past = text.len() as u64 > HEADER_BYTES;
+    if past {
+        // Only whole lines: a line cut at the bound is no line of the header.
+        let whole = text[..HEADER_BYTES as usize]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |nl| nl + 1);
+        text.truncate(whole);
+    }
+    match scan(&String::from_utf8_lossy(&text), source)? {
+        Header::Request(r) => Ok(Some(r)),
+        Header::Ended => Ok(None),
+        Header::Open { .. } if !past => Ok(None),
+        Header::Open { lines } => Err(TechError::Request {
+            at: Place {
+                file: source.to_string(),
+                line: lines.max(1),
+                col: 1,
+            },
+            message: format!(
+                "the program's header (its comments before the first block) runs past {} KiB: \
+                 a (TECH …) comment beyond it would not be read; put the request first",
+                HEADER_BYTES / 1024
+            ),
+        }),
+    }
 }

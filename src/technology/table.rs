@@ -522,19 +522,36 @@ fn sinker_row(
     })
 }
 
-/// Reads every `*.toml` of `dir`, in name order.
+/// Reads every `*.toml` of `dir` (any case), in name order. One that is not a readable
+/// regular file (a dangling link, a directory, a FIFO) is an error naming it, as one that
+/// does not parse is: a table is never skipped silently. Other files are passed over, said
+/// in the log.
 pub fn read_dir(dir: &Path) -> Result<Vec<Table>, TechError> {
     let io = |source| TechError::Io {
         path: dir.to_path_buf(),
         source,
     };
-    let mut files: Vec<_> = std::fs::read_dir(dir)
+    let (mut files, others): (Vec<_>, Vec<_>) = std::fs::read_dir(dir)
         .map_err(io)?
         .filter_map(Result::ok)
         .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml") && p.is_file())
-        .collect();
+        .partition(|p| {
+            p.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+        });
     files.sort();
+    let others: Vec<String> = others
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .filter(|n| !n.starts_with('.'))
+        .collect();
+    if !others.is_empty() {
+        tracing::info!(
+            "technology: {} not read (not *.toml): {}",
+            dir.display(),
+            others.join(", ")
+        );
+    }
     files
         .iter()
         .map(|path| {

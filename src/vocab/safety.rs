@@ -60,6 +60,15 @@ impl LimitSet {
         self.0 == 0
     }
 
+    /// The set as bits (two per axis, in [`Axis`] order: negative, positive), for an atomic.
+    pub fn bits(self) -> u16 {
+        self.0
+    }
+
+    pub fn from_bits(bits: u16) -> LimitSet {
+        LimitSet(bits)
+    }
+
     /// The switches of `self` that are not in `other`.
     #[inline]
     pub fn without(self, other: LimitSet) -> LimitSet {

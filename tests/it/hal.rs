@@ -17,7 +17,9 @@
 //! - run as `systemd/edmd-hal.service` runs it, the unit's `ExecStop` gives edmd its
 //!   controlled stop and HAL unloads.
 //!
-//! One test: HAL is one per machine. Skipped (said on stderr) unless `EDMD_HAL_TESTS` is set.
+//! HAL is one per machine: the benches take turns (`common::hal`). Skipped (said on stderr)
+//! unless `EDMD_HAL_TESTS` is set. What keeps the machine off when edmd is not there:
+//! `hal_safety.rs`.
 
 use std::time::{Duration, Instant};
 
@@ -315,9 +317,9 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     assert_eq!(bench.getp("edmd.state"), "2", "the state pin says alarm");
     drop(bench);
 
-    // As the service runs it: `halrun -f` on the file ending in `waitusr edmd`, stopped by the
-    // unit's own ExecStop mid-cut: edmd's controlled stop (checkpoint), then HAL unloads and
-    // halrun exits 0.
+    // As the service runs it: `halrun -f` on the file ending in `loadusr -w edmd hal-wait`,
+    // stopped by the unit's own ExecStop mid-cut: edmd's controlled stop (checkpoint), then
+    // hal-wait ends with success, HAL unloads and halrun exits 0.
     let mut service = HalBench::start_service("service", &[FERROR_OFF], &[("long.ngc", LONG)]);
     start_and_move(&service, "long.ngc");
     let unit = std::fs::read_to_string(common::repo().join("systemd/edmd-hal.service")).unwrap();

@@ -28,7 +28,12 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn config(overrides: &[&str]) -> Config {
-    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    // Jobs run in the test's own process: no SCHED_FIFO, no mlockall of the test harness.
+    let overrides: Vec<String> = ["fine.rt_priority=0", "fine.lock_memory=false"]
+        .iter()
+        .chain(overrides)
+        .map(|s| s.to_string())
+        .collect();
     Config::load(None, &overrides).unwrap()
 }
 
@@ -91,8 +96,8 @@ impl<O: PulseOutput> PulseOutput for AtTickTime<O> {
         self.inner.write(tick, steps, gap)
     }
 
-    fn finish(&mut self) -> Result<(), OutputError> {
-        self.inner.finish()
+    fn finish(&mut self, why: edmd::output::StopReason) -> Result<(), OutputError> {
+        self.inner.finish(why)
     }
 }
 
@@ -156,11 +161,12 @@ fn job_steered(
     )
     .unwrap();
     let spec = runtime::JobSpec::from_config(config, false);
-    let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
+    let fine = runtime::FineThread::start(&spec.run_loop, None).unwrap();
     let io = runtime::JobIo {
-        output: Box::new(output),
-        gap: Box::new(gap),
-        inputs: Box::new(inputs),
+        output: Some(Box::new(output)),
+        gap: Some(Box::new(gap)),
+        inputs: Some(Box::new(inputs)),
+        probe_reads: Default::default(),
         tracer: None,
         recording: None,
         progress: None,
@@ -636,13 +642,14 @@ fn fault_then_resume(
     )
     .unwrap();
     let spec = runtime::JobSpec::from_config(config, true);
-    let fine = runtime::FineThread::start(&spec.run_loop).unwrap();
+    let fine = runtime::FineThread::start(&spec.run_loop, None).unwrap();
     let never = std::sync::atomic::AtomicBool::new(false);
     let job = |output: runtime::BoxedOutput, resume| {
         let io = runtime::JobIo {
-            output,
-            gap: Box::new(edmd::gap::AlwaysNormal),
-            inputs: Box::new(edmd::inputs::NoInputs),
+            output: Some(output),
+            gap: Some(Box::new(edmd::gap::AlwaysNormal)),
+            inputs: Some(Box::new(edmd::inputs::NoInputs)),
+            probe_reads: Default::default(),
             tracer: None,
             recording: None,
             progress: None,

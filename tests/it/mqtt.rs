@@ -170,9 +170,16 @@ fn mqtt_sets(dir: &Path, port: u16, node: &str, commands: bool) -> Vec<String> {
 }
 
 fn ncmd(port: u16, node: &str, metric: &str) {
+    ncmd_with(port, node, metric, &[]);
+}
+
+/// An NCMD with the helper's options (`--retain`, `--name-bytes N`).
+fn ncmd_with(port: u16, node: &str, metric: &str, options: &[&str]) {
     let out = Command::new("python3")
         .arg(common::repo().join("tests/mqtt/sparkplug.py"))
-        .args(["ncmd", "--port", &port.to_string(), "plant", node, metric])
+        .args(["ncmd", "--port", &port.to_string()])
+        .args(options)
+        .args(["plant", node, metric])
         .output()
         .expect("python3 runs");
     assert!(
@@ -411,7 +418,9 @@ fn a_broker_frozen_then_gone_for_30_s_does_not_disturb_a_cut_which_is_born_again
     );
     assert_eq!(reborn["metrics"]["Machine/State"], "running");
     host.wait_from(at, "data after the rebirth", |m| is(m, "NDATA", "edm-c"));
-    daemon.wait_for("the cut's end", |s| {
+    // A real-time cut on a loaded machine without a real-time kernel runs late (its missed
+    // deadlines are skipped, not caught up): up to twice its 50 s when the suite runs beside.
+    daemon.wait_for_within("the cut's end", Duration::from_secs(180), |s| {
         s["job"].is_null() && s["state"] == "idle"
     });
     let status = daemon.status();
@@ -597,4 +606,100 @@ fn over_tls_with_a_password_the_node_connects_only_with_the_right_ca_and_passwor
     }
     let _ = broker.kill();
     let _ = broker.wait();
+}
+
+#[test]
+fn retained_and_outsized_commands_neither_hold_a_cut_nor_knock_the_node_off_the_broker() {
+    if !have_parts() {
+        return;
+    }
+    let dir = with_long_cut("mqtt-hardened", 60.0);
+    let port = free_port();
+    let _broker = Broker::start(&dir, port);
+    // A Hold retained on the broker before the node ever connects.
+    ncmd_with(port, "edm-h", "Node Control/Hold", &["--retain"]);
+    let host = Host::start(port);
+    let d = Daemon::start(&dir, &mqtt_sets(&dir, port, "edm-h", true), &[]);
+    host.wait_for("NBIRTH", |m| is(m, "NBIRTH", "edm-h"));
+    d.wait_for_log("a retained NCMD");
+    d.ok(&["run", "long.ngc"]);
+    std::thread::sleep(Duration::from_secs(2));
+    let s = d.status();
+    assert_eq!(
+        s["state"], "running",
+        "the retained Hold holds nothing: {s}"
+    );
+    assert_eq!(s["counters"]["holds"], 0, "{s}");
+
+    // A command with a 9 KB metric name, then a Rebirth: refused and answered in a few
+    // bytes; the node is born again, still on the broker.
+    ncmd_with(port, "edm-h", "Node Control/", &["--name-bytes", "9000"]);
+    let answered = host.wait_for("the refusal", |m| {
+        is(m, "NDATA", "edm-h")
+            && m["metrics"]["Node Control/Last Command"]
+                .as_str()
+                .is_some_and(|a| a.starts_with("refused"))
+    });
+    let answer = answered["metrics"]["Node Control/Last Command"]
+        .as_str()
+        .unwrap();
+    assert!(answer.len() <= 256, "{} bytes", answer.len());
+    let (births, _) = host.wait_from(0, "the first birth", |m| is(m, "NBIRTH", "edm-h"));
+    ncmd(port, "edm-h", "Node Control/Rebirth");
+    let (_, again) = host.wait_from(births + 1, "the rebirth", |m| is(m, "NBIRTH", "edm-h"));
+    assert_eq!(again["seq"], 0);
+    assert_eq!(again["metrics"]["bdSeq"], 0, "the same session: {again}");
+
+    // A retained command over the client's 64 KiB: one session lost, then the node is born
+    // again without taking commands, and goes on publishing.
+    let count = host.all().len();
+    ncmd_with(
+        port,
+        "edm-h",
+        "Node Control/",
+        &["--retain", "--name-bytes", "70000"],
+    );
+    d.wait_for_log("no longer subscribed to");
+    let (at, reborn) = host.wait_from(count, "a birth after the outsized command", |m| {
+        is(m, "NBIRTH", "edm-h")
+    });
+    assert!(
+        reborn["metrics"]["bdSeq"].as_u64().unwrap() >= 1,
+        "{reborn}"
+    );
+    host.wait_from(at + 1, "data after it", |m| is(m, "NDATA", "edm-h"));
+    std::thread::sleep(Duration::from_secs(2));
+    let s = d.status();
+    assert_eq!(s["mqtt"]["connected"], true, "{s}");
+    assert_eq!(s["state"], "running", "{s}");
+}
+
+#[test]
+fn two_nodes_with_one_id_say_why_they_flap() {
+    if !have_parts() {
+        return;
+    }
+    let dir_a = scratch("mqtt-twin-a");
+    let dir_b = scratch("mqtt-twin-b");
+    let port = free_port();
+    let _broker = Broker::start(&dir_a, port);
+    let a = Daemon::start(&dir_a, &mqtt_sets(&dir_a, port, "twin", false), &[]);
+    let b = Daemon::start(&dir_b, &mqtt_sets(&dir_b, port, "twin", false), &[]);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    // One client id (edmd-plant-twin): the broker ends the older session at every connection
+    // of the other, so each says its session ended within seconds and asks why; a publisher
+    // under another client id would be seen by its birth instead.
+    let said = |log: &str| {
+        log.contains("does another client use this node's id?")
+            || log.contains("another edge node publishes as spBv1.0/plant/NBIRTH/twin")
+    };
+    while !(said(&a.log()) || said(&b.log())) {
+        assert!(
+            Instant::now() < deadline,
+            "neither says why:\n{}\n{}",
+            a.log(),
+            b.log()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }

@@ -9,8 +9,10 @@
         prints {"type": "unborn", ...}, and the host asks that node for its birth (NCMD
         Rebirth), as the specification asks of a host. A payload that does not decode prints
         {"type": "error", ...}.
-    sparkplug.py ncmd --port P GROUP NODE METRIC
-        Publishes an NCMD writing METRIC = true (e.g. "Node Control/Hold") and exits.
+    sparkplug.py ncmd --port P [--retain] [--name-bytes N] GROUP NODE METRIC
+        Publishes an NCMD writing METRIC = true (e.g. "Node Control/Hold") and exits; with
+        --retain, retained by the broker; with --name-bytes, the metric's name is METRIC
+        padded with "x" to N bytes (an outsized command).
 """
 
 import argparse
@@ -122,7 +124,7 @@ def listen(port: int) -> None:
         time.sleep(3600)
 
 
-def ncmd_message(group: str, node: str, metric: str):
+def ncmd_message(group: str, node: str, metric: str, retain: bool = False):
     """An NCMD writing `metric` = true."""
     return spb.Message(
         topic=spb.Topic(
@@ -140,17 +142,19 @@ def ncmd_message(group: str, node: str, metric: str):
             ),
         ),
         qos=spb.QoS.AT_LEAST_ONCE,
-        retain=False,
+        retain=retain,
     )
 
 
-def ncmd(port: int, group: str, node: str, metric: str) -> None:
+def ncmd(port: int, group: str, node: str, metric: str, retain: bool, name_bytes: int) -> None:
     client = spb.Client(client_id=f"edmd-test-cmd-{time.time_ns()}")
     connected = threading.Event()
     client.connect("127.0.0.1", port=port, callback=lambda _c: connected.set())
     if not connected.wait(10):
         sys.exit("sparkplug.py: cannot connect to the broker")
-    client.publish(ncmd_message(group, node, metric), include_dtypes=True)
+    if name_bytes > len(metric):
+        metric = metric + "x" * (name_bytes - len(metric))
+    client.publish(ncmd_message(group, node, metric, retain), include_dtypes=True)
     time.sleep(0.5)
     client.disconnect()
 
@@ -162,6 +166,8 @@ def main() -> None:
     p.add_argument("--port", type=int, required=True)
     p = sub.add_parser("ncmd")
     p.add_argument("--port", type=int, required=True)
+    p.add_argument("--retain", action="store_true")
+    p.add_argument("--name-bytes", type=int, default=0)
     p.add_argument("group")
     p.add_argument("node")
     p.add_argument("metric")
@@ -169,7 +175,7 @@ def main() -> None:
     if args.what == "listen":
         listen(args.port)
     else:
-        ncmd(args.port, args.group, args.node, args.metric)
+        ncmd(args.port, args.group, args.node, args.metric, args.retain, args.name_bytes)
 
 
 if __name__ == "__main__":

@@ -57,6 +57,12 @@ pub fn render(status: &Status) -> String {
         "Seconds since the daemon started.",
         status.uptime_s,
     );
+    o.one(
+        "control_requests_total",
+        "counter",
+        "Requests the control loop answered (commands; status reads come from its board).",
+        status.control_requests as f64,
+    );
     o.family(
         "state",
         "gauge",

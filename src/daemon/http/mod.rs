@@ -2,22 +2,26 @@
 //!
 //! ```text
 //!  browser / curl / Prometheus ──► connections (server.rs: cap, timeouts, eviction)
-//!     ──► guard (Host allow-list, security headers) ──► axum router on 2 tokio threads
+//!     ──► guard (Host allow-list, security headers) ──► axum router on 1 tokio thread
 //!        GET  /              the page (one self-contained document: no outside URLs)
-//!        GET  /api/status    = `edmd ctl status --json`        ─┐
-//!        GET  /api/events    Server-Sent Events: the same reply   │ CoreMsg::Request, exactly
-//!                            on every change, at least every 1 s  │ as a socket client sends
-//!        POST /api/run|hold|resume|abort|rethread (bearer token) ─┘ (one control loop decides)
+//!        GET  /api/status    = `edmd ctl status --json`        ─┐ the status the loop posts
+//!        GET  /api/events    Server-Sent Events: the same reply   │ (board), never a message
+//!                            on every change, at least every 1 s  │ to it (status.rs)
+//!        GET  /metrics       Prometheus text format, `edmd_` ────┘
+//!        POST /api/run|hold|resume|abort|rethread (bearer token) ── CoreMsg::Request, exactly
+//!                            as a socket client sends (one control loop decides)
 //!        GET  /api/programs  the files under daemon.program_dir
+//!        GET  /api/jobs      the job history, a page read from its file (jobs.rs)
 //!        GET  /api/path      a program's path (X, Y), for the backplot (bounded work)
-//!        GET  /metrics       Prometheus text format, `edmd_` metrics
 //! ```
 //!
-//! **Why through the control loop.** Every request becomes the [`Request`] a socket client
-//! sends and waits for the control loop's [`Reply`], so the socket and HTTP can never
-//! disagree about what the daemon is doing or what it accepts. The loop answers in
-//! microseconds and never waits on a client; a handler awaits its reply on a oneshot channel,
-//! so status, hold, abort and metrics never wait for a thread. Nothing here touches the
+//! **Commands through the control loop, reading from its board.** Every command becomes the
+//! [`Request`] a socket client sends and waits for the control loop's [`Reply`], so the
+//! socket and HTTP can never disagree about what the daemon accepts; a handler awaits its
+//! reply on a oneshot channel, never holding a thread. What is only read (the status, its
+//! events, the metrics) is the status the loop posted on its board
+//! ([`crate::daemon::board`]), so fifty pages polling cost the loop nothing, and the history
+//! is read from its file: the loop stays free for the next hold. Nothing here touches the
 //! real-time thread, whose only link to any of it is the job's `Published` atomics.
 //!
 //! **Work that is not the machine's waits its turn.** Drawing a program's path
@@ -45,13 +49,14 @@ mod metrics;
 mod path;
 mod programs;
 mod server;
+mod status;
 pub mod token;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use axum::Router;
 use axum::body::Bytes;
@@ -59,7 +64,6 @@ use axum::extract::rejection::BytesRejection;
 use axum::extract::{DefaultBodyLimit, Query, Request as HttpRequest, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::middleware::Next;
-use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use parking_lot::RwLock;
@@ -124,6 +128,8 @@ struct App {
     executed: executed::ExecutedSlot,
     /// One-time login codes (`edmd ctl web-link`).
     links: links::LoginLinks,
+    /// The job history, read here page by page.
+    history: crate::daemon::history::HistoryFile,
 }
 
 /// The running HTTP server (it lives as long as the daemon's process).
@@ -151,6 +157,7 @@ pub fn spawn(
     options: crate::gcode::ProgramOptions,
     to_core: CoreLink,
     executed: executed::ExecutedSlot,
+    history: crate::daemon::history::HistoryFile,
 ) -> std::io::Result<HttpServer> {
     let listener = std::net::TcpListener::bind(settings.addr)?;
     listener.set_nonblocking(true)?;
@@ -168,9 +175,12 @@ pub fn spawn(
         csp,
         executed,
         links: links::LoginLinks::default(),
+        history,
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
+        // One: reading the posted status is an Arc clone, so one thread answers tens of
+        // thousands a second, and a second one only took CPU time the tick needed.
+        .worker_threads(1)
         // Room for every preview and listing at once, and then some.
         .max_blocking_threads(MAX_PREVIEWS + MAX_LISTINGS + 4)
         // The blocking threads parse programs.
@@ -196,10 +206,10 @@ pub fn spawn(
 fn router(app: Arc<App>) -> Router {
     Router::new()
         .route("/", get(page))
-        .route("/api/status", get(status))
+        .route("/api/status", get(status::status))
         .route("/api/jobs", get(jobs::list))
         .route("/api/technology", get(jobs::technology))
-        .route("/api/events", get(events))
+        .route("/api/events", get(status::events))
         .route(
             "/api/programs",
             get(programs)
@@ -209,7 +219,7 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/program", get(programs::listing))
         .route("/api/path", get(planned_path))
         .route("/api/executed", get(executed::serve))
-        .route("/metrics", get(metrics))
+        .route("/metrics", get(status::metrics))
         .route("/api/run", post(run))
         .route("/api/login", post(links::login))
         .route("/api/hold", post(|s, h, b| control(s, h, b, "hold")))
@@ -312,96 +322,6 @@ async fn page() -> Response {
         .into_response()
 }
 
-async fn status(State(app): State<Arc<App>>) -> Response {
-    match ask(&app, Request::Status {}).await {
-        Ok(reply) => axum::Json(reply).into_response(),
-        Err(e) => e,
-    }
-}
-
-async fn metrics(State(app): State<Arc<App>>) -> Response {
-    match ask(&app, Request::Status {}).await {
-        Ok(Reply {
-            status: Some(status),
-            ..
-        }) => (
-            [(
-                header::CONTENT_TYPE,
-                "text/plain; version=0.0.4; charset=utf-8",
-            )],
-            metrics::render(&status),
-        )
-            .into_response(),
-        Ok(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "no status in the reply"),
-        Err(e) => e,
-    }
-}
-
-/// The status reply on every change (position, state, counters: anything but the clocks)
-/// and at least every second.
-async fn events(State(app): State<Arc<App>>) -> Response {
-    if app.streams.fetch_add(1, Ordering::AcqRel) >= MAX_EVENT_STREAMS {
-        app.streams.fetch_sub(1, Ordering::AcqRel);
-        return error(
-            StatusCode::SERVICE_UNAVAILABLE,
-            format!("{MAX_EVENT_STREAMS} event streams are open already"),
-        );
-    }
-    let stream = EventStream {
-        app: app.clone(),
-        last: None,
-        sent_at: Instant::now(),
-    };
-    let events = futures_util::stream::unfold(stream, |mut s| async move {
-        let event = s.next().await?;
-        Some((Ok::<_, std::convert::Infallible>(event), s))
-    });
-    Sse::new(events)
-        .keep_alive(KeepAlive::default())
-        .into_response()
-}
-
-/// One client's stream; counts itself out when the client goes.
-struct EventStream {
-    app: Arc<App>,
-    /// The last reply sent, without its clocks.
-    last: Option<serde_json::Value>,
-    sent_at: Instant,
-}
-
-impl EventStream {
-    async fn next(&mut self) -> Option<Event> {
-        loop {
-            // At most one event per poll period, however fast the status changes.
-            if self.last.is_some() {
-                tokio::time::sleep(EVENT_POLL).await;
-            }
-            let reply = ask(&self.app, Request::Status {}).await.ok()?;
-            let mut json = serde_json::to_value(&reply).ok()?;
-            let mut key = json.clone();
-            if let Some(s) = key.get_mut("status").and_then(|s| s.as_object_mut()) {
-                s.remove("uptime_s");
-                if let Some(j) = s.get_mut("job").and_then(|j| j.as_object_mut()) {
-                    j.remove("elapsed_s");
-                }
-            }
-            let changed = self.last.as_ref() != Some(&key);
-            if changed || self.last.is_none() || self.sent_at.elapsed() >= EVENT_HEARTBEAT {
-                self.last = Some(key);
-                self.sent_at = Instant::now();
-                let data = std::mem::take(&mut json).to_string();
-                return Some(Event::default().event("status").data(data));
-            }
-        }
-    }
-}
-
-impl Drop for EventStream {
-    fn drop(&mut self) {
-        self.app.streams.fetch_sub(1, Ordering::AcqRel);
-    }
-}
-
 /// The files under the program directory (four levels deep at most, 2000 at most).
 async fn programs(State(app): State<Arc<App>>) -> Response {
     let Ok(_turn) = app.listings.try_acquire() else {
@@ -438,16 +358,9 @@ struct PathQuery {
 async fn planned_path(State(app): State<Arc<App>>, Query(q): Query<PathQuery>) -> Response {
     let name = match q.program {
         Some(name) => name,
-        None => match ask(&app, Request::Status {}).await {
-            Ok(Reply {
-                status: Some(status),
-                ..
-            }) => match status.job {
-                Some(job) => job.program,
-                None => return error(StatusCode::CONFLICT, "no job is running"),
-            },
-            Ok(_) => return error(StatusCode::INTERNAL_SERVER_ERROR, "no status"),
-            Err(e) => return e,
+        None => match app.to_core.status().status().and_then(|s| s.job.as_ref()) {
+            Some(job) => job.program.clone(),
+            None => return error(StatusCode::CONFLICT, "no job is running"),
         },
     };
     let file = match program_file(&app, &name) {

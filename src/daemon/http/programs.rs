@@ -3,8 +3,11 @@
 //! - `POST /api/programs?name=NAME`: a program uploaded into `daemon.program_dir`. The body is
 //!   the program's text (at most [`MAX_UPLOAD_BYTES`]); the name is one plain file name (no
 //!   directory, no leading dot, no control character, at most 255 bytes). The file is written
-//!   beside its place under a temporary name, synced and renamed over it, so a reader sees the
-//!   old program or the new one, never a part. Nothing is checked here: `run` checks it.
+//!   beside its place under a temporary name, synced and put in its place, so a reader sees
+//!   the old program or the new one, never a part: with `replace` renamed over it, without
+//!   linked to the name, which fails if the name exists at that moment (two uploads of one
+//!   new name at once: one is saved, the other gets 409, never a silent overwrite). Nothing is
+//!   checked here unless asked (`check`): `run` checks it.
 //! - `GET /api/program?name=NAME`: its text as lines, for the page's listing (the first
 //!   [`MAX_LISTING_LINES`] lines of at most [`MAX_LISTING_BYTES`], marked `truncated` past
 //!   that), confined to the program directory as `run` is.
@@ -109,10 +112,11 @@ pub(super) async fn upload(
             Err(e) => return error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
         }
     }
-    let written = tokio::task::spawn_blocking(move || write_atomically(&dir, &target, &bytes))
-        .await
-        .map_err(std::io::Error::other)
-        .and_then(|r| r);
+    let written =
+        tokio::task::spawn_blocking(move || write_atomically(&dir, &target, &bytes, replace))
+            .await
+            .map_err(std::io::Error::other)
+            .and_then(|r| r);
     match written {
         Ok(replaced) => {
             tracing::info!(
@@ -140,6 +144,10 @@ pub(super) async fn upload(
             );
             axum::Json(serde_json::json!({ "ok": true, "message": message })).into_response()
         }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => error(
+            StatusCode::CONFLICT,
+            format!("{name} exists (saved meanwhile): upload it with replace to write over it"),
+        ),
         Err(e) => {
             tracing::error!("upload of {name}: {e}");
             error(
@@ -187,7 +195,7 @@ pub(super) async fn listing(
 /// The first lines of a program (invalid UTF-8 replaced), and whether there were more.
 fn read_lines(path: &Path) -> std::io::Result<(Vec<String>, bool)> {
     use std::io::{BufRead, Read};
-    let file = std::fs::File::open(path)?;
+    let file = crate::sys::open_regular(path)?;
     let size = file.metadata()?.len();
     let mut reader = std::io::BufReader::new(file.take(MAX_LISTING_BYTES));
     let mut lines = Vec::new();
@@ -239,20 +247,36 @@ fn plain_name(name: &str) -> Result<(), &'static str> {
     Ok(())
 }
 
-/// Writes `bytes` to `target` in `dir` through a synced temporary file and a rename;
-/// `true` when it replaced a file.
-fn write_atomically(dir: &Path, target: &PathBuf, bytes: &[u8]) -> std::io::Result<bool> {
-    let replaced = target.exists();
+/// Writes `bytes` to `target` in `dir` through a synced temporary file, then renamed over
+/// it (`replace`) or linked to its name, which fails with `AlreadyExists` if the name exists
+/// by then (the check before the upload was read is only a courtesy: two uploads of one new
+/// name race past it). `true` when it replaced a file.
+fn write_atomically(
+    dir: &Path,
+    target: &PathBuf,
+    bytes: &[u8],
+    replace: bool,
+) -> std::io::Result<bool> {
+    let replaced = replace && target.exists();
     let tmp = dir.join(format!(
-        ".upload-{}-{}",
+        ".upload-{}-{}-{}",
         std::process::id(),
-        crate::sys::monotonic_ns()
+        crate::sys::monotonic_ns(),
+        crate::sys::random_hex(4)?
     ));
     let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)?;
         file.write_all(bytes)?;
         file.sync_all()?;
-        std::fs::rename(&tmp, target)?;
+        if replace {
+            std::fs::rename(&tmp, target)?;
+        } else {
+            std::fs::hard_link(&tmp, target)?;
+            std::fs::remove_file(&tmp)?;
+        }
         std::fs::File::open(dir)?.sync_all()
     })();
     if result.is_err() {
@@ -285,5 +309,37 @@ mod tests {
             assert!(plain_name(bad).is_err(), "{bad:?}");
         }
         assert!(plain_name(&"x".repeat(256)).is_err());
+    }
+
+    #[test]
+    fn of_two_writes_of_one_new_name_one_is_kept_and_the_other_refused() {
+        let dir = std::env::temp_dir().join(format!("edmd-upload-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let target = dir.join("part.nc");
+        let barrier = std::sync::Barrier::new(8);
+        let results: Vec<_> = std::thread::scope(|s| {
+            let writers: Vec<_> = (0..8)
+                .map(|i| {
+                    let (dir, target, barrier) = (&dir, &target, &barrier);
+                    s.spawn(move || {
+                        barrier.wait();
+                        write_atomically(dir, target, format!("G1 X{i}\n").as_bytes(), false)
+                    })
+                })
+                .collect();
+            writers.into_iter().map(|w| w.join().unwrap()).collect()
+        });
+        let kept = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(kept, 1, "{results:?}");
+        assert!(results.iter().all(|r| match r {
+            Ok(replaced) => !replaced,
+            Err(e) => e.kind() == std::io::ErrorKind::AlreadyExists,
+        }));
+        // Nothing left behind but the program.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        assert!(write_atomically(&dir, &target, b"G1 X9\n", true).unwrap());
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "G1 X9\n");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

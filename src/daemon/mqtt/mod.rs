@@ -1,7 +1,7 @@
 //! `[daemon.mqtt]`: a Sparkplug B edge node on the plant's MQTT broker.
 //!
 //! ```text
-//!  control loop ◄── Request::Status every interval_s ── session task ── NBIRTH/NDATA ──┐
+//!  status board ◄── read every interval_s ────────────── session task ── NBIRTH/NDATA ──┐
 //!               ◄── Request::Hold | Abort (commands) ──┘    ▲  (try_publish: a bounded │
 //!                                                           │   queue, drops counted)  ▼
 //!                          Net::Connected { bd_seq } | Net::Command │   network task: rumqttc's
@@ -41,7 +41,9 @@ use tokio::sync::{mpsc, oneshot, watch};
 use super::link::CoreLink;
 use super::protocol::{MqttStatus, Reply, Request, Status};
 use crate::config::MqttConfig;
-use sparkplug::{Command, EdgeNode, Sample, Topics, now_ms};
+use sparkplug::{
+    Command, EdgeNode, MAX_PACKET_BYTES, MAX_TEXT_BYTES, Sample, Topics, bounded, now_ms,
+};
 
 /// Longest wait for the control loop's reply.
 const CORE_TIMEOUT: Duration = Duration::from_secs(10);
@@ -127,16 +129,28 @@ impl Drop for MqttNode {
     }
 }
 
-/// `name:password` from the credentials file.
-fn credentials(path: &PathBuf) -> Result<(String, String), MqttError> {
-    let text = std::fs::read_to_string(path).map_err(|source| MqttError::Credentials {
-        path: path.clone(),
+/// `name:password` from the credentials file (a regular file: a FIFO or a device is refused
+/// at once, never waited on); one that others may read is used, with a warning.
+fn credentials(path: &std::path::Path) -> Result<(String, String), MqttError> {
+    let failed = |source| MqttError::Credentials {
+        path: path.to_path_buf(),
         source,
-    })?;
+    };
+    let read = crate::sys::read_private(path)
+        .map_err(failed)?
+        .ok_or_else(|| failed(std::io::ErrorKind::NotFound.into()))?;
+    if let Some(mode) = read.loose_mode {
+        tracing::warn!(
+            "{}: daemon.mqtt.credentials_file holds a password and is mode {mode:04o}: others \
+             on this computer may read it (chmod 600)",
+            path.display()
+        );
+    }
+    let text = read.text;
     let line = text.lines().next().unwrap_or("").trim_end();
     match line.split_once(':') {
         Some((name, password)) if !name.is_empty() => Ok((name.into(), password.into())),
-        _ => Err(MqttError::CredentialsForm { path: path.clone() }),
+        _ => Err(MqttError::CredentialsForm { path: path.to_path_buf() }),
     }
 }
 
@@ -148,6 +162,7 @@ fn options(config: &MqttConfig, topics: &Topics) -> Result<MqttOptions, MqttErro
     options
         .set_keep_alive(Duration::from_secs(u64::from(config.keep_alive_s)))
         .set_clean_session(true)
+        .set_max_packet_size(MAX_PACKET_BYTES, MAX_PACKET_BYTES)
         .set_last_will(will(topics, 0));
     if let Some(path) = &config.credentials_file {
         let (name, password) = credentials(path)?;
@@ -156,10 +171,12 @@ fn options(config: &MqttConfig, topics: &Topics) -> Result<MqttOptions, MqttErro
     if config.broker.tls {
         let tls = match &config.ca_file {
             Some(path) => rumqttc::TlsConfiguration::SimpleNative {
-                ca: std::fs::read(path).map_err(|source| MqttError::Ca {
-                    path: path.clone(),
-                    source,
-                })?,
+                ca: crate::sys::read_regular(path)
+                    .map(String::into_bytes)
+                    .map_err(|source| MqttError::Ca {
+                        path: path.clone(),
+                        source,
+                    })?,
                 client_auth: None,
             },
             None => rumqttc::TlsConfiguration::Native,
@@ -200,6 +217,9 @@ pub fn spawn(
         answer: String::new(),
         connected: false,
         birth_due: false,
+        last_birth: Vec::new(),
+        commands_off: false,
+        since: None,
         stop: stopped,
     };
     let interval = Duration::from_secs_f64(config.interval_s);
@@ -237,9 +257,15 @@ enum Net {
     Connected { bd_seq: u64 },
     /// An NCMD's payload.
     Command(Vec<u8>),
-    /// The connection was lost (or could not be made): why.
-    Lost(String),
+    /// An NBIRTH on the node's own topic (its own, echoed, or another node's).
+    Birth(Vec<u8>),
+    /// The connection was lost (or could not be made): why; `oversized`: a message larger
+    /// than the client takes came in (a retained one comes again at every subscription).
+    Lost { why: String, oversized: bool },
 }
+
+/// Retained commands and oversized ones are said at most this often.
+static IGNORED: crate::daemon::noise::Budget = crate::daemon::noise::Budget::new();
 
 /// Polls rumqttc's event loop, never cancelled: connections, NCMDs, and after a lost
 /// connection the next session's will and a retry.
@@ -253,8 +279,22 @@ async fn network(
     loop {
         let told = match eventloop.poll().await {
             Ok(Event::Incoming(Packet::ConnAck(_))) => Net::Connected { bd_seq },
+            // A retained command would act again at every reconnection (and on every node
+            // that ever subscribes): a command is for the moment it is sent, never kept.
+            Ok(Event::Incoming(Packet::Publish(p))) if p.topic == topics.ncmd && p.retain => {
+                IGNORED.log(format_args!(
+                    "mqtt: a retained NCMD ({} bytes) ignored: commands are taken only as they \
+                     are sent; clear it on the broker (an empty retained message on {})",
+                    p.payload.len(),
+                    topics.ncmd
+                ));
+                continue;
+            }
             Ok(Event::Incoming(Packet::Publish(p))) if p.topic == topics.ncmd => {
                 Net::Command(p.payload.to_vec())
+            }
+            Ok(Event::Incoming(Packet::Publish(p))) if p.topic == topics.nbirth => {
+                Net::Birth(p.payload.to_vec())
             }
             Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => return,
             Ok(_) => continue,
@@ -268,7 +308,17 @@ async fn network(
                 eventloop.pending.clear();
                 bd_seq = (bd_seq + 1) % 256;
                 eventloop.mqtt_options.set_last_will(will(&topics, bd_seq));
-                let _ = to_session.send(Net::Lost(e.to_string())).await;
+                let oversized = matches!(
+                    e,
+                    rumqttc::ConnectionError::MqttState(rumqttc::StateError::Deserialization(
+                        rumqttc::mqttbytes::Error::PayloadSizeLimitExceeded(_)
+                    ))
+                );
+                let lost = Net::Lost {
+                    why: e.to_string(),
+                    oversized,
+                };
+                let _ = to_session.send(lost).await;
                 tokio::time::sleep(RETRY).await;
                 continue;
             }
@@ -292,6 +342,13 @@ struct Session {
     connected: bool,
     /// The next sample is a whole NBIRTH (a rebirth was asked for, or a message was dropped).
     birth_due: bool,
+    /// The last NBIRTH this node sent: an NBIRTH on its topic that differs is another node's.
+    last_birth: Vec<u8>,
+    /// A message too large for the client knocked a session off: commands are no longer
+    /// subscribed to (the message, retained, would come again at every subscription).
+    commands_off: bool,
+    /// When the current session began.
+    since: Option<std::time::Instant>,
     /// `true` once the node is to stop.
     stop: watch::Receiver<bool>,
 }
@@ -331,18 +388,43 @@ impl Session {
                         );
                         lost_before = false;
                         self.connected = true;
+                        self.since = Some(std::time::Instant::now());
                         self.counters.connected.store(true, Ordering::Relaxed);
                         self.node.set_session(bd_seq);
                         self.subscribe();
                         self.sample(true).await;
                     }
                     Some(Net::Command(payload)) => self.command(&payload).await,
-                    Some(Net::Lost(why)) => {
+                    Some(Net::Birth(payload)) => self.birth_seen(&payload),
+                    Some(Net::Lost { why, oversized }) => {
+                        if oversized && !self.commands_off {
+                            self.commands_off = true;
+                            tracing::error!(
+                                "mqtt: a message larger than {} KiB came on {} ({why}): NCMD is \
+                                 no longer subscribed to, so the node stays on the broker; clear \
+                                 a retained one (an empty retained message on the topic) and \
+                                 restart edmd to take commands again",
+                                MAX_PACKET_BYTES / 1024,
+                                self.topics.ncmd
+                            );
+                        }
+                        // A session the broker ends soon after it began, again and again, is
+                        // what two clients with one id do to each other.
+                        let short = self
+                            .since
+                            .take()
+                            .is_some_and(|t| t.elapsed() < Duration::from_secs(10));
                         // Said once per outage, not at every retry.
                         if self.connected || !lost_before {
                             tracing::warn!(
-                                "mqtt: no session with the broker ({why}); retrying every {} s",
-                                RETRY.as_secs()
+                                "mqtt: no session with the broker ({why}); retrying every {} s{}",
+                                RETRY.as_secs(),
+                                if short {
+                                    " (it ended within seconds of starting: does another \
+                                     client use this node's id?)"
+                                } else {
+                                    ""
+                                }
                             );
                         }
                         lost_before = true;
@@ -371,12 +453,31 @@ impl Session {
         }
     }
 
+    /// NCMD (unless a message too large turned commands off), and the node's own NBIRTH
+    /// topic, where another node's birth tells a duplicate `node_id`.
     fn subscribe(&self) {
-        if let Err(e) = self
-            .client
-            .try_subscribe(&self.topics.ncmd, QoS::AtLeastOnce)
-        {
-            tracing::warn!("mqtt: cannot subscribe to {}: {e}", self.topics.ncmd);
+        let mut topics = vec![&self.topics.nbirth];
+        if !self.commands_off {
+            topics.push(&self.topics.ncmd);
+        }
+        for topic in topics {
+            if let Err(e) = self.client.try_subscribe(topic, QoS::AtLeastOnce) {
+                tracing::warn!("mqtt: cannot subscribe to {topic}: {e}");
+            }
+        }
+    }
+
+    /// An NBIRTH on the node's own topic that is not the one it sent last: another node
+    /// publishes as this one.
+    fn birth_seen(&mut self, payload: &[u8]) {
+        if payload != self.last_birth.as_slice() {
+            static DUPLICATE: crate::daemon::noise::Budget = crate::daemon::noise::Budget::new();
+            DUPLICATE.log(format_args!(
+                "mqtt: another edge node publishes as {}: two machines with one \
+                 daemon.mqtt.node_id (and client id) take each other's sessions; give each its \
+                 own",
+                self.topics.nbirth
+            ));
         }
     }
 
@@ -404,15 +505,14 @@ impl Session {
         }
     }
 
-    /// A status sample: NBIRTH when `birth`, else NDATA with what moved.
+    /// A status sample (the one the control loop last posted): NBIRTH when `birth`, else
+    /// NDATA with what moved.
     async fn sample(&mut self, birth: bool) {
-        let Some(status) = ask(&self.to_core, Request::Status {}, &self.stop)
-            .await
-            .and_then(|r| r.status)
-        else {
+        let posted = self.to_core.status();
+        let Some(status) = posted.status() else {
             return;
         };
-        self.publish_sample(&status, birth);
+        self.publish_sample(status, birth);
     }
 
     fn publish_sample(&mut self, status: &Status, birth: bool) {
@@ -428,6 +528,7 @@ impl Session {
         if birth {
             let payload = self.node.birth(&sample, now);
             self.birth_due = false;
+            self.last_birth = payload.clone();
             let topic = self.topics.nbirth.clone();
             if self.publish(&topic, payload) {
                 self.counters.births.fetch_add(1, Ordering::Relaxed);
@@ -444,7 +545,7 @@ impl Session {
             Ok(asked) => asked,
             Err(why) => {
                 tracing::warn!("mqtt: NCMD refused: {why}");
-                self.answer = format!("refused: {why}");
+                self.answer = bounded(&format!("refused: {why}"), MAX_TEXT_BYTES);
                 self.sample(false).await;
                 return;
             }
@@ -476,6 +577,7 @@ impl Session {
                 self.counters.refused.fetch_add(1, Ordering::Relaxed);
                 format!("{} refused: daemon.mqtt.commands is false", command.name())
             };
+            self.answer = bounded(&self.answer, MAX_TEXT_BYTES);
             tracing::info!("mqtt: NCMD {}", self.answer);
         }
         self.sample(rebirth).await;
@@ -506,12 +608,15 @@ mod tests {
             ),
             topics,
             client,
-            to_core: CoreLink::new(|_, _| false, || true),
+            to_core: CoreLink::new(|_, _| false, || true, Default::default()),
             counters: Arc::new(MqttCounters::default()),
             commands: false,
             answer: String::new(),
             connected: true,
             birth_due: false,
+            last_birth: Vec::new(),
+            commands_off: false,
+            since: None,
             stop: watch::channel(false).1,
         }
     }

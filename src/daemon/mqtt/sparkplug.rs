@@ -34,6 +34,28 @@ use crate::daemon::protocol::{DaemonState, JobStatus, Status};
 /// The Sparkplug namespace of every topic.
 pub const NAMESPACE: &str = "spBv1.0";
 
+/// The longest text a metric carries (bytes; longer is cut at a character and marked `…`):
+/// a program's path, an outcome, a command's answer. With 64-byte names and every metric
+/// bounded, a birth stays far below [`MAX_PACKET_BYTES`] whatever a host writes to the node.
+pub const MAX_TEXT_BYTES: usize = 256;
+/// How much of a metric's name an answer quotes.
+const MAX_QUOTED_NAME: usize = 64;
+/// The MQTT client's packet limit, both ways (rumqttc's default is 10 KiB, which a birth
+/// carrying long texts once passed): a birth of the node is at most a few KiB.
+pub const MAX_PACKET_BYTES: usize = 64 * 1024;
+
+/// `text` cut to at most `max` bytes at a character boundary, `…` marking a cut.
+pub fn bounded(text: &str, max: usize) -> String {
+    if text.len() <= max {
+        return text.to_string();
+    }
+    let mut end = max.saturating_sub('…'.len_utf8());
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}…", &text[..end])
+}
+
 /// The node's topics.
 #[derive(Debug, Clone)]
 pub struct Topics {
@@ -89,7 +111,7 @@ impl Value {
 
     fn wire(&self) -> metric::Value {
         match self {
-            Value::Text(s) => metric::Value::StringValue(s.clone()),
+            Value::Text(s) => metric::Value::StringValue(bounded(s, MAX_TEXT_BYTES)),
             Value::Count(n) => metric::Value::LongValue(*n),
             Value::Real(x) => metric::Value::DoubleValue(*x),
             Value::Flag(b) => metric::Value::BooleanValue(*b),
@@ -480,7 +502,7 @@ impl EdgeNode {
         let mut asked = Vec::new();
         for m in &payload.metrics {
             let name = match (&m.name, m.alias) {
-                (Some(name), _) => name.clone(),
+                (Some(name), _) => bounded(name, MAX_QUOTED_NAME),
                 (None, Some(alias)) => alias
                     .checked_sub(1)
                     .and_then(|i| self.defs.get(i as usize))

@@ -143,12 +143,22 @@ impl Desk {
         Ok(self.said("Start", answer))
     }
 
-    /// Selects the order's work system (an MDI line), then runs its program.
+    /// Selects the order's work system (an MDI line), then runs its program. An Abort that
+    /// comes meanwhile stops it before its run is asked for; once asked (under the orders'
+    /// lock, with the order marked running), an Abort goes to the machine.
     fn start_order(&self, id: &str) -> Answer {
-        let order = match self.orders.lock().may_start(id) {
-            Ok(order) => order.clone(),
+        let order = match self.orders.lock().begin_start(id) {
+            Ok(order) => order,
             Err(refused) => return refused,
         };
+        let answer = self.start_marked(id, &order);
+        if answer.code != jobs::OK {
+            self.orders.lock().start_failed(id);
+        }
+        answer
+    }
+
+    fn start_marked(&self, id: &str, order: &JobOrder) -> Answer {
         let status = match self.ask(Request::Status {}).map(|r| r.status) {
             Ok(Some(status)) => status,
             Ok(None) => return Answer::refused(jobs::NOT_NOW, "no status"),
@@ -172,9 +182,18 @@ impl Desk {
                 return refused;
             }
         }
+        // The run is asked for with the orders locked: an Abort sees the order either still
+        // starting (and it then never runs) or running (and the machine aborts it).
+        let mut orders = self.orders.lock();
+        if orders.aborted_while_starting(id) {
+            return Answer::refused(
+                jobs::NOT_NOW,
+                format!("job order {id:?} was aborted while it started: it did not run"),
+            );
+        }
         match self.ask(order.run_request()) {
             Ok(reply) if reply.ok => {
-                self.orders.lock().started_now(id, status.counters.jobs);
+                orders.started_now(id, status.counters.jobs);
                 Answer::ok(format!(
                     "job order {id:?} started: {}",
                     reply.message.unwrap_or_default()

@@ -111,6 +111,11 @@ pub struct JobOrder {
     pub result: Option<JobRecord>,
     /// Why it was aborted before it ran (a refused check).
     pub error: Option<String>,
+    /// A Start is on its way (its work system, then its run): another Start is refused, and
+    /// an Abort meanwhile cancels it before it runs ([`JobOrders::abort_stored`]).
+    starting: bool,
+    /// An Abort came while it was starting: the start does not run it.
+    abort_asked: bool,
 }
 
 impl JobOrder {
@@ -131,6 +136,8 @@ impl JobOrder {
             jobs_before: 0,
             result: None,
             error: None,
+            starting: false,
+            abort_asked: false,
         }
     }
 
@@ -164,11 +171,6 @@ impl JobOrders {
         self.orders.iter().find(|o| o.id == id)
     }
 
-    /// The order started and not ended, if any.
-    pub fn started(&self) -> Option<&JobOrder> {
-        self.orders.iter().find(|o| o.state.started())
-    }
-
     pub fn store(&mut self, order: JobOrder) -> Answer {
         if order.id.trim().is_empty() {
             return Answer::refused(INVALID, "a job order needs a JobOrderID");
@@ -181,30 +183,67 @@ impl JobOrders {
         Answer::ok(message)
     }
 
-    /// Whether `id` may start now: stored and not started, and no other order started.
-    pub fn may_start(&self, id: &str) -> Result<&JobOrder, Answer> {
+    /// Begins the start of `id`: stored, not started or starting, and no other order started
+    /// or starting. The order is marked starting (and a copy handed back) until
+    /// [`started_now`](Self::started_now) or [`start_failed`](Self::start_failed).
+    pub fn begin_start(&mut self, id: &str) -> Result<JobOrder, Answer> {
         let order = self
             .get(id)
             .ok_or_else(|| Answer::refused(UNKNOWN_ORDER, format!("no job order {id:?}")))?;
-        if order.state != OrderState::AllowedToStart {
+        if order.state != OrderState::AllowedToStart || order.starting {
             return Err(Answer::refused(
                 NOT_NOW,
-                format!("job order {id:?} is {}", order.state.name()),
+                format!(
+                    "job order {id:?} is {}",
+                    if order.starting {
+                        "starting"
+                    } else {
+                        order.state.name()
+                    }
+                ),
             ));
         }
-        if let Some(other) = self.started() {
+        if let Some(other) = self.orders.iter().find(|o| o.state.started() || o.starting) {
             return Err(Answer::refused(
                 NOT_NOW,
                 format!("job order {:?} is {}", other.id, other.state.name()),
             ));
         }
-        Ok(order)
+        let order = self.orders.iter_mut().find(|o| o.id == id).expect("found");
+        order.starting = true;
+        order.abort_asked = false;
+        Ok(order.clone())
+    }
+
+    /// An Abort came while `id` was starting: it is aborted now, and its start does not run
+    /// it (`true`), the start having not yet asked for the run.
+    pub fn aborted_while_starting(&mut self, id: &str) -> bool {
+        match self.orders.iter_mut().find(|o| o.id == id) {
+            Some(o) if o.starting && o.abort_asked => {
+                o.starting = false;
+                o.state = OrderState::Aborted;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The start of `id` did not run it (refused, or the machine busy): it may start again,
+    /// unless an Abort came meanwhile.
+    pub fn start_failed(&mut self, id: &str) {
+        if let Some(o) = self.orders.iter_mut().find(|o| o.id == id) {
+            o.starting = false;
+            if o.abort_asked {
+                o.state = OrderState::Aborted;
+            }
+        }
     }
 
     /// `id` was started with the daemon's job count at `jobs_before`.
     pub fn started_now(&mut self, id: &str, jobs_before: u64) {
         if let Some(o) = self.orders.iter_mut().find(|o| o.id == id) {
             o.state = OrderState::Running;
+            o.starting = false;
             o.jobs_before = jobs_before;
         }
     }
@@ -225,9 +264,18 @@ impl JobOrders {
     }
 
     /// Aborts an order that has not started (a started one is aborted through the machine).
+    /// One whose Start is on its way is aborted by that Start, which has not asked for its
+    /// run yet (the run is asked for under the same lock that marks it running): it never
+    /// runs.
     pub fn abort_stored(&mut self, id: &str) -> Answer {
         match self.orders.iter_mut().find(|o| o.id == id) {
             None => Answer::refused(UNKNOWN_ORDER, format!("no job order {id:?}")),
+            Some(o) if o.starting => {
+                o.abort_asked = true;
+                Answer::ok(format!(
+                    "job order {id:?} aborted while it was starting: it does not run"
+                ))
+            }
             Some(o) if o.state == OrderState::AllowedToStart => {
                 o.state = OrderState::Aborted;
                 Answer::ok(format!("job order {id:?} aborted before it started"))
@@ -497,16 +545,61 @@ mod tests {
         assert_eq!(orders.store(order("A")).code, INVALID);
         assert_eq!(orders.store(order(" ")).code, INVALID);
         assert_eq!(orders.store(order("B")).code, OK);
-        assert!(orders.may_start("A").is_ok());
-        assert_eq!(orders.may_start("Z").unwrap_err().code, UNKNOWN_ORDER);
+        assert!(orders.begin_start("A").is_ok());
+        assert_eq!(
+            orders.begin_start("A").unwrap_err().code,
+            NOT_NOW,
+            "starting"
+        );
+        assert_eq!(
+            orders.begin_start("B").unwrap_err().code,
+            NOT_NOW,
+            "A starts"
+        );
+        assert_eq!(orders.begin_start("Z").unwrap_err().code, UNKNOWN_ORDER);
         orders.started_now("A", 0);
-        assert_eq!(orders.may_start("B").unwrap_err().code, NOT_NOW);
-        assert_eq!(orders.may_start("A").unwrap_err().code, NOT_NOW);
+        assert_eq!(orders.begin_start("B").unwrap_err().code, NOT_NOW);
+        assert_eq!(orders.begin_start("A").unwrap_err().code, NOT_NOW);
         assert_eq!(orders.clear("A").code, NOT_NOW, "a running order stays");
         assert_eq!(orders.abort_stored("B").code, OK);
         assert_eq!(orders.get("B").unwrap().state, OrderState::Aborted);
         assert_eq!(orders.clear("B").code, OK);
         assert!(orders.get("B").is_none());
+    }
+
+    #[test]
+    fn an_abort_while_a_start_is_on_its_way_stops_it_before_its_run_and_says_so() {
+        let mut orders = JobOrders::default();
+        orders.store(order("A"));
+        orders.begin_start("A").unwrap();
+        // The Abort comes while the start selects the work system.
+        let said = orders.abort_stored("A");
+        assert_eq!(said.code, OK);
+        assert!(said.message.contains("does not run"), "{said:?}");
+        // The start, about to ask for the run, finds it aborted: nothing runs.
+        assert!(orders.aborted_while_starting("A"));
+        assert_eq!(orders.get("A").unwrap().state, OrderState::Aborted);
+        assert_eq!(orders.abort_stored("A").code, NOT_NOW, "aborted already");
+
+        // An Abort that comes once the run was asked for finds it running: the machine's.
+        orders.store(order("B"));
+        orders.begin_start("B").unwrap();
+        assert!(!orders.aborted_while_starting("B"));
+        orders.started_now("B", 0);
+        assert!(orders.running("B").is_ok(), "aborted through the machine");
+
+        // A start that failed after an Abort leaves the order aborted, not startable.
+        let mut fresh = JobOrders::default();
+        fresh.store(order("C"));
+        fresh.begin_start("C").unwrap();
+        fresh.abort_stored("C");
+        fresh.start_failed("C");
+        assert_eq!(fresh.get("C").unwrap().state, OrderState::Aborted);
+        fresh.store(order("D"));
+        fresh.begin_start("D").unwrap();
+        fresh.start_failed("D");
+        assert_eq!(fresh.get("D").unwrap().state, OrderState::AllowedToStart);
+        assert!(fresh.begin_start("D").is_ok(), "it may start again");
     }
 
     #[test]

@@ -323,14 +323,9 @@ fn call(to_core: &CoreLink, request: Request, what: &str) -> Result<Vec<Variant>
     }
 }
 
-/// Asks for the status, as `/metrics` does.
+/// The status the control loop last posted, as `/metrics` reads it.
 async fn status(to_core: &CoreLink) -> Option<Status> {
-    let (tx, rx) = tokio::sync::oneshot::channel();
-    if !to_core.ask(Request::Status {}, tx) {
-        return None;
-    }
-    let reply = tokio::time::timeout(CORE_TIMEOUT, rx).await.ok()?.ok()?;
-    reply.status
+    to_core.status().status().cloned()
 }
 
 /// What the refresh fills: the machine's nodes and the job list.
@@ -345,8 +340,13 @@ async fn follow_orders(views: &Views, to_core: &CoreLink, now: &Status) -> [(Nod
     let ended = views.desk.orders.lock().observe(now);
     if let Some(id) = ended {
         let (tx, rx) = tokio::sync::oneshot::channel();
-        if to_core.ask(Request::Jobs { count: Some(20) }, tx)
-            && let Ok(Ok(reply)) = tokio::time::timeout(CORE_TIMEOUT, rx).await
+        if to_core.ask(
+            Request::Jobs {
+                count: Some(20),
+                skip: None,
+            },
+            tx,
+        ) && let Ok(Ok(reply)) = tokio::time::timeout(CORE_TIMEOUT, rx).await
         {
             let records = reply.jobs.unwrap_or_default();
             views.desk.orders.lock().attach_result(&id, &records);

@@ -81,6 +81,9 @@ pub enum Request {
     Jobs {
         #[serde(default)]
         count: Option<usize>,
+        /// The newest jobs to pass over (a page further back).
+        #[serde(default)]
+        skip: Option<usize>,
     },
     /// The technology tables, and what `request` (`material=steel,height=32,wire=0.25`)
     /// selects, explained.
@@ -373,6 +376,11 @@ pub struct Status {
     /// The job history's last write failed: why.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub history_write_error: Option<String>,
+    /// Requests the control loop has answered since the daemon started (commands, and the
+    /// socket's status requests; the web side, OPC UA and Sparkplug read the posted status
+    /// without asking).
+    #[serde(default)]
+    pub control_requests: u64,
     /// Where the machine stands, in machine and work coordinates, homed axes, soft limits.
     pub machine: MachineStatus,
     /// The feed and rapid overrides in force.
@@ -425,8 +433,13 @@ impl Status {
             counters: Counters::default(),
             hours: Default::default(),
             history_write_error: None,
+            control_requests: 0,
         }
     }
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// The machine, always (idle, held, running).
@@ -443,6 +456,10 @@ pub struct MachineStatus {
     #[serde(default)]
     pub work_offsets: Vec<WorkOffsetRow>,
     pub homed: Vec<bool>,
+    /// The position is believed, not known (after an unclean stop, or drives found moved):
+    /// runs from a line and resumes need the operator's word until it is homed or confirmed.
+    #[serde(default = "yes")]
+    pub position_trusted: bool,
     /// Soft limits `[lowest, highest]` per axis (`null`: none).
     pub travel_mm: Vec<Option<[f64; 2]>>,
     /// Why the last write of the machine state failed.

@@ -31,6 +31,12 @@ pub struct OpenedOutput {
     pub port_gap: Option<BoxedGap>,
     /// The machine inputs wired to the output's device: read whatever the gap input is.
     pub inputs: BoxedInputs,
+    /// The device's host is to be told it is ready (HAL's `loadusr -W` waits for it): the
+    /// daemon sends it once it serves, `edmd run` at once.
+    pub ready: Option<crate::hal::ReadySignal>,
+    /// Why the machine position is not to be trusted (HAL kept running after an earlier
+    /// edmd): [`crate::hal::Opened::distrust`].
+    pub distrust: Option<String>,
 }
 
 /// Opens the output, the machine inputs and the gap source of `config`, with the fault
@@ -43,6 +49,9 @@ pub fn open_io(
     tracer: Option<&Arc<Tracer>>,
 ) -> Result<(BoxedOutput, BoxedGap, BoxedInputs), JobError> {
     let opened = open_output(config, start)?;
+    if let Some(ready) = opened.ready {
+        ready.send()?;
+    }
     let gap = open_gap(config, check, opened.port_gap)?;
     let (output, gap) = wrap_io(config, opened.output, gap, tracer);
     Ok((output, gap, opened.inputs))
@@ -53,6 +62,8 @@ pub fn open_io(
 /// job starts from (steps per axis; empty for zero), for the pulse log's header.
 pub fn open_output(config: &Config, start: &[i64]) -> Result<OpenedOutput, JobError> {
     let axes = config.machine.axes.len();
+    let mut ready = None;
+    let mut distrust = None;
     let (output, port_gap, inputs): (BoxedOutput, Option<BoxedGap>, BoxedInputs) =
         match config.output.kind {
             // The simulated drives take every step and report nothing: the ledger is their position.
@@ -82,6 +93,8 @@ pub fn open_output(config: &Config, start: &[i64]) -> Result<OpenedOutput, JobEr
             }
             OutputKind::Hal => {
                 let hal = crate::hal::open(&crate::hal::HalSettings::from_config(config))?;
+                ready = Some(hal.ready);
+                distrust = hal.distrust;
                 (
                     Box::new(hal.output),
                     Some(Box::new(hal.gap)),
@@ -93,6 +106,8 @@ pub fn open_output(config: &Config, start: &[i64]) -> Result<OpenedOutput, JobEr
         output,
         port_gap,
         inputs,
+        ready,
+        distrust,
     })
 }
 

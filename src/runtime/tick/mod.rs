@@ -5,6 +5,7 @@
 pub mod consumer;
 pub mod controls;
 pub mod histogram;
+pub mod idle;
 pub mod latency;
 pub mod probe;
 pub mod published;

@@ -552,7 +552,7 @@ const INNER_FLOORS: &[(&str, &[&[&str]])] = &[
         "daemon",
         &[
             &["history", "noise", "notify", "refusal"],
-            &["launch", "link", "names", "protocol"],
+            &["board", "launch", "link", "names", "protocol"],
             &["http"],
             &["mqtt", "opcua"],
             &["error", "reload", "socket"],

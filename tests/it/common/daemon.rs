@@ -60,6 +60,11 @@ pub fn base_sets(dir: &Path, pulses: &str) -> Vec<String> {
         "daemon.status_interval_s=0.5".to_string(),
         "daemon.checkpoint_interval_s=0.5".to_string(),
         "fine.virtual_time=false".to_string(),
+        // Many daemons run at once on the test machine: at the normal scheduler and with
+        // pageable memory. The shipped real-time settings are the load test's (load.rs) and
+        // the HAL benches'.
+        "fine.rt_priority=0".to_string(),
+        "fine.lock_memory=false".to_string(),
         "gap.kind=\"none\"".to_string(),
         "output.kind=\"file\"".to_string(),
         format!("output.path=\"{}\"", dir.join(pulses).display()),
@@ -209,9 +214,19 @@ impl Daemon {
         self.ok(&["status"])["status"].clone()
     }
 
-    /// Polls the status until `pred` holds.
+    /// Polls the status until `pred` holds (a minute at most).
     pub fn wait_for(&self, what: &str, pred: impl Fn(&Value) -> bool) -> Value {
-        let deadline = Instant::now() + Duration::from_secs(60);
+        self.wait_for_within(what, Duration::from_secs(60), pred)
+    }
+
+    /// Polls the status until `pred` holds, `limit` at most.
+    pub fn wait_for_within(
+        &self,
+        what: &str,
+        limit: Duration,
+        pred: impl Fn(&Value) -> bool,
+    ) -> Value {
+        let deadline = Instant::now() + limit;
         loop {
             let status = self.status();
             if pred(&status) {

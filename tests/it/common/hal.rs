@@ -2,7 +2,9 @@
 //! shipped `config/hal/sim.hal`, which loads `edmd serve` as a component beside two
 //! `stepgen`s. The tests read and drive pins with `halcmd`, and talk to edmd on its socket.
 //!
-//! HAL is one per machine: only one bench may be up at a time (the HAL tests are one test).
+//! HAL is one per machine: only one bench may be up at a time. The HAL tests take turns by a
+//! file lock ([`HalBench::start`] holds it for the bench's life), so a test runner may run
+//! them as threads or processes.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -39,6 +41,20 @@ pub struct HalBench {
     /// `edmd serve`, loaded by `halrun` (the child).
     pub daemon: Option<Daemon>,
     stdin: Option<ChildStdin>,
+    /// This bench's turn at HAL (dropped last).
+    _turn: std::fs::File,
+}
+
+/// A turn at HAL for the calling test: no other bench is up while it is held.
+fn turn() -> std::fs::File {
+    let turn = std::fs::File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(std::env::temp_dir().join("edmd-tests-hal.lock"))
+        .expect("the HAL lock file opens");
+    turn.lock().expect("HAL's turn");
+    turn
 }
 
 impl HalBench {
@@ -50,7 +66,9 @@ impl HalBench {
     }
 
     /// As a service runs it (`systemd/edmd-hal.service`): `halrun -f` on `sim.hal` ending in
-    /// `waitusr edmd`, no prompt; HAL stays up while edmd runs.
+    /// `loadusr -w edmd hal-wait`, no prompt; HAL stays up while edmd runs. Right after edmd's
+    /// `loadusr -W`, a `loadusr -w edmd ctl status` must find the control socket listening
+    /// (else `halcmd` stops the file there and the bench never comes up).
     pub fn start_service(
         name: &str,
         edits: &[(&str, &str)],
@@ -65,6 +83,7 @@ impl HalBench {
         programs: &[(&str, &str)],
         service: bool,
     ) -> HalBench {
+        let turn = turn();
         let dir = super::scratch("hal", name);
         let home = dir.join("home");
         std::fs::create_dir_all(dir.join("config/hal")).unwrap();
@@ -99,8 +118,22 @@ impl HalBench {
         );
         let hal_file = if service {
             let sim = std::fs::read_to_string(super::repo().join("config/hal/sim.hal")).unwrap();
+            let socket = dir.join("edmd.sock");
+            let load = "loadusr -Wn edmd edmd serve --config config/hal/sim.toml\n";
+            assert!(sim.contains(load), "sim.hal loads edmd as {load:?}");
+            let sim = sim.replace(
+                load,
+                &format!(
+                    "{load}loadusr -w edmd ctl --socket {} status\n",
+                    socket.display()
+                ),
+            );
             let file = dir.join("machine.hal");
-            std::fs::write(&file, sim + "waitusr edmd\n").unwrap();
+            std::fs::write(
+                &file,
+                sim + "loadusr -w edmd hal-wait --config config/hal/sim.toml\n",
+            )
+            .unwrap();
             file
         } else {
             super::repo().join("config/hal/sim.hal")
@@ -133,6 +166,7 @@ impl HalBench {
             dir,
             daemon: Some(daemon),
             stdin,
+            _turn: turn,
         };
         // The HAL file sets edmd.estop-ok-in after edmd is up: until then the E-stop input
         // reads false, and a daemon that read it so (an E-stop at power-up) waits for reset,
@@ -180,6 +214,102 @@ impl HalBench {
 
     pub fn log(&self) -> String {
         std::fs::read_to_string(self.dir.join("halrun.log")).unwrap_or_default()
+    }
+
+    /// What `halcmd ARGS` prints (standard output), or why it failed.
+    pub fn halcmd_output(&self, args: &[&str]) -> Result<String, String> {
+        hal_command("halcmd", args, &self.dir.join("home"))
+    }
+
+    /// The pid of the edmd holding the component, from its owner record.
+    pub fn edmd_pid(&self) -> u32 {
+        let record = self.dir.join("state/hal-edmd.json");
+        let text = std::fs::read_to_string(&record)
+            .unwrap_or_else(|e| panic!("{}: {e}", record.display()));
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["pid"].as_u64().unwrap() as u32
+    }
+
+    /// `edmd hal-reap`, then `loadusr -Wn edmd edmd serve --config config/hal/sim.toml` into
+    /// the running HAL, as its file does, edmd's log going to the bench's; returns once edmd is
+    /// ready.
+    pub fn load_edmd_again(&self) {
+        self.loadusr(&["-w", "edmd", "hal-reap"]);
+        self.loadusr(&["-Wn", "edmd", "edmd", "serve"]);
+    }
+
+    /// `edmd serve --config config/hal/sim.toml` started directly (not by `loadusr`), as an
+    /// operator might: its exit code and what it said, once it ended (10 s at most).
+    pub fn serve_directly(&self) -> (Option<i32>, String) {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["serve", "--config", "config/hal/sim.toml"])
+            .current_dir(&self.dir)
+            .env("RTAPI_UID", RTAPI_UID)
+            .env("HOME", self.dir.join("home"))
+            .env_remove("NOTIFY_SOCKET")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while child.try_wait().unwrap().is_none() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = child.kill();
+        let out = child.wait_with_output().unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+
+    /// `halcmd loadusr ARGS --config config/hal/sim.toml` from the bench's folder, with edmd
+    /// on the `PATH` and the program's output in the bench's log.
+    fn loadusr(&self, args: &[&str]) {
+        let bin = PathBuf::from(env!("CARGO_BIN_EXE_edmd"));
+        let log = std::fs::File::options()
+            .append(true)
+            .open(self.dir.join("halrun.log"))
+            .unwrap();
+        let status = Command::new("halcmd")
+            .arg("loadusr")
+            .args(args)
+            .args(["--config", "config/hal/sim.toml"])
+            .current_dir(&self.dir)
+            .env("RTAPI_UID", RTAPI_UID)
+            .env("HOME", self.dir.join("home"))
+            .env(
+                "PATH",
+                format!(
+                    "{}:{}",
+                    bin.parent().unwrap().display(),
+                    std::env::var("PATH").unwrap_or_default()
+                ),
+            )
+            .env("RUST_LOG", "info")
+            .env_remove("NOTIFY_SOCKET")
+            .stdout(log.try_clone().unwrap())
+            .stderr(log)
+            .status()
+            .expect("halcmd runs");
+        assert!(status.success(), "loadusr {args:?}:\n{}", self.log());
+    }
+
+    /// Waits until `pin` reads `value` (`halcmd getp`), up to `limit`; how long it took.
+    pub fn wait_pin(&self, pin: &str, value: &str, limit: Duration) -> Duration {
+        let started = Instant::now();
+        loop {
+            if self.getp(pin) == value {
+                return started.elapsed();
+            }
+            assert!(
+                started.elapsed() < limit,
+                "{pin} still reads {} after {limit:?}\n{}",
+                self.getp(pin),
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
 
     /// Waits up to `limit` for `halrun` to exit; its exit code.

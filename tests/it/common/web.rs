@@ -63,6 +63,9 @@ pub fn start_with(
         "daemon.http=\"127.0.0.1:0\"".to_string(),
         format!("daemon.http_token_file=\"{}\"", token_file.display()),
         "fine.virtual_time=false".to_string(),
+        // As common::daemon::base_sets: the load test asks for the shipped settings.
+        "fine.rt_priority=0".to_string(),
+        "fine.lock_memory=false".to_string(),
         "gap.kind=\"none\"".to_string(),
         "output.kind=\"file\"".to_string(),
         format!("output.path=\"{}\"", dir.join("pulses.csv").display()),

@@ -1,16 +1,28 @@
 //! The job history and the machine's hour counters, kept across restarts.
 //!
 //! Every program job that ends (done, stopped, alarm, …; a dry run too, marked so) appends
-//! one JSON line to the history file: program, start and end, outcome, machine time, the
-//! time of each pass of the technology table, shorts, turn-backs, wire breaks, where a
+//! one JSON line to the history file: program, start and end, outcome, machine and spark time,
+//! the time of each pass of the technology table, shorts, turn-backs, wire breaks, where a
 //! drilling move broke through, and its report folder. Jogs, MDI lines, homing and touch
 //! cycles are the machine's, not jobs: they add to the hour counters only. The counters
 //! (machine time moving, sparking time, jobs) are one small JSON file rewritten atomically
-//! at each job's end. A history line that cannot be written is logged and shown, never
-//! fatal: the job has ended either way.
+//! at each job's end.
+//!
+//! **Nothing lost.** A line that cannot be written (a full disk) is kept and written again
+//! ([`History::retry`], every round of the control loop that has one waiting, and before the
+//! next job's), in order; the status says so meanwhile. A line starts on a line of its own
+//! even after a torn write (a power cut mid-line): the reader skips the torn line, says where
+//! it is, and reads the next. A counters file that does not read (torn, a FIFO, something
+//! else) is kept aside as `counters.json.bad-<time>` and the counters are rebuilt from the
+//! history, never silently reset. The history is read off the control loop, a page at a time
+//! from its end ([`HistoryFile::page`]): a long history costs its reader, not the machine.
 
-use std::io::Write;
+mod file;
+
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+pub use file::{HistoryFile, Page};
 
 use serde::{Deserialize, Serialize};
 
@@ -36,6 +48,9 @@ pub struct JobRecord {
     pub from_line: Option<u64>,
     /// Machine time from start to end (s), holds and pauses included.
     pub machine_time_s: f64,
+    /// Time the gap sparked (s): kept so the hour counters can be rebuilt from the history.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spark_s: Option<f64>,
     /// Each pass of the technology table: its number, condition and machine time.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<PassTime>,
@@ -68,82 +83,155 @@ pub struct HourCounters {
 /// The history file and the counters file, as the daemon keeps them.
 #[derive(Debug)]
 pub struct History {
-    path: PathBuf,
+    file: HistoryFile,
     counters_path: PathBuf,
     pub counters: HourCounters,
+    /// Lines not yet written (a write failed), oldest first, each ending in a line break.
+    pending: Vec<String>,
     /// The last write that failed, for the status.
     pub write_error: Option<String>,
+    last_try: Option<Instant>,
 }
 
 /// How many jobs `edmd ctl jobs` and the page list at most.
 pub const MAX_LISTED: usize = 200;
+/// Lines kept while the history cannot be written; beyond, the oldest are dropped (said in
+/// the log), so a disk that stays full cannot grow the daemon without bound.
+const MAX_PENDING: usize = 10_000;
+/// A failed write is tried again this often at most.
+const RETRY_EVERY: Duration = Duration::from_secs(5);
 
 impl History {
-    /// The history at `path` and the counters at `counters_path` (read when present; a
-    /// counters file that cannot be read starts from zero, said in the log).
+    /// The history at `path` and the counters at `counters_path`. Counters that do not read
+    /// are kept aside and rebuilt from the history (said in the log).
     pub fn open(path: &Path, counters_path: &Path) -> History {
-        let counters = match std::fs::read_to_string(counters_path) {
-            Ok(text) => serde_json::from_str(&text).unwrap_or_else(|e| {
-                tracing::warn!(
-                    "{}: not the hour counters ({e}); they start from zero",
-                    counters_path.display()
-                );
-                HourCounters::default()
-            }),
-            Err(_) => HourCounters::default(),
+        let file = HistoryFile::new(path);
+        let counters = match crate::sys::read_regular(counters_path) {
+            Ok(text) => match serde_json::from_str(&text) {
+                Ok(c) => c,
+                Err(e) => rebuilt(
+                    &file,
+                    counters_path,
+                    &format!("not the hour counters ({e})"),
+                ),
+            },
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                if file.exists() {
+                    rebuilt(&file, counters_path, "missing beside a history")
+                } else {
+                    HourCounters::default()
+                }
+            }
+            Err(e) => rebuilt(&file, counters_path, &format!("cannot be read ({e})")),
         };
         History {
-            path: path.to_path_buf(),
+            file,
             counters_path: counters_path.to_path_buf(),
             counters,
+            pending: Vec::new(),
             write_error: None,
+            last_try: None,
         }
+    }
+
+    /// The history file, for readers off the control loop.
+    pub fn file(&self) -> HistoryFile {
+        self.file.clone()
     }
 
     /// A job ended: its record (program jobs only) appended, the counters added to.
     pub fn add(&mut self, record: Option<&JobRecord>, machine_s: f64, spark_s: f64) {
         self.counters.machine_s += machine_s;
         self.counters.spark_s += spark_s;
-        let mut result = Ok(());
         if let Some(r) = record {
             self.counters.jobs += 1;
-            result = append_line(&self.path, r);
+            let mut line = serde_json::to_string(r).expect("plain data");
+            line.push('\n');
+            self.pending.push(line);
+            if self.pending.len() > MAX_PENDING {
+                let dropped = self.pending.len() - MAX_PENDING;
+                self.pending.drain(..dropped);
+                tracing::error!(
+                    "job history: {dropped} unwritten line(s) dropped ({MAX_PENDING} kept)"
+                );
+            }
         }
-        let counters = serde_json::to_vec_pretty(&self.counters).expect("plain data");
-        let result = result.and_then(|()| {
+        self.write();
+    }
+
+    /// Lines still waiting: tried again when the last try is [`RETRY_EVERY`] old.
+    pub fn retry(&mut self) {
+        if !self.pending.is_empty() && self.last_try.is_none_or(|t| t.elapsed() >= RETRY_EVERY) {
+            self.write();
+        }
+    }
+
+    /// Writes what waits, then the counters.
+    fn write(&mut self) {
+        self.last_try = Some(Instant::now());
+        let result = self.file.append(&self.pending).and_then(|()| {
+            let counters = serde_json::to_vec_pretty(&self.counters).expect("plain data");
             crate::sys::write_atomic(&self.counters_path, &counters)
                 .map_err(|e| format!("{}: {e}", self.counters_path.display()))
         });
         match result {
-            Ok(()) => self.write_error = None,
+            Ok(()) => {
+                if self.write_error.take().is_some() {
+                    tracing::info!("job history: written again, nothing lost");
+                }
+                self.pending.clear();
+            }
             Err(e) => {
-                tracing::error!("job history: {e}");
+                if self.write_error.as_ref() != Some(&e) {
+                    tracing::error!(
+                        "job history: {e}; {} line(s) kept to be written later",
+                        self.pending.len()
+                    );
+                }
                 self.write_error = Some(e);
             }
         }
     }
 
-    /// The last `n` jobs, newest first (lines that do not read are skipped and counted).
+    /// The last `n` jobs, newest first, read now (tests and the daemon's own start only:
+    /// clients read pages off the loop).
     pub fn last(&self, n: usize) -> (Vec<JobRecord>, usize) {
-        let Ok(text) = std::fs::read_to_string(&self.path) else {
-            return (Vec::new(), 0);
-        };
-        let mut bad = 0;
-        let mut jobs: Vec<JobRecord> = text
-            .lines()
-            .filter(|l| !l.trim().is_empty())
-            .filter_map(|l| serde_json::from_str(l).map_err(|_| bad += 1).ok())
-            .collect();
-        jobs.reverse();
-        jobs.truncate(n);
-        (jobs, bad)
+        match self.file.page(0, n) {
+            Ok(page) => (page.jobs, page.unreadable.len()),
+            Err(_) => (Vec::new(), 0),
+        }
     }
+}
+
+/// The counters that did not read, kept aside, and the ones the history gives instead.
+fn rebuilt(file: &HistoryFile, counters_path: &Path, why: &str) -> HourCounters {
+    let mut aside = counters_path.as_os_str().to_owned();
+    aside.push(format!(".bad-{}", crate::sys::local_stamp()));
+    let aside = PathBuf::from(aside);
+    let kept = match std::fs::rename(counters_path, &aside) {
+        Ok(()) => format!("kept as {}", aside.display()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "none to keep".to_string(),
+        Err(e) => format!("not moved aside ({e})"),
+    };
+    let (counters, unreadable) = file.totals();
+    tracing::warn!(
+        "{}: {why}; {kept}; the counters are rebuilt from the history: {} jobs, {:.0} s \
+         machine time, {:.0} s spark time (jogs and MDI lines are not in the history; {} \
+         unreadable lines skipped)",
+        counters_path.display(),
+        counters.jobs,
+        counters.machine_s,
+        counters.spark_s,
+        unreadable
+    );
+    counters
 }
 
 /// The history as `edmd ctl jobs` prints it: one job a line, newest first, its passes
 /// after it.
-pub fn table(jobs: &[JobRecord], unreadable: usize) -> String {
+pub fn table(page: &Page) -> String {
     use std::fmt::Write;
+    let jobs = &page.jobs;
     let mut t = String::new();
     if jobs.is_empty() {
         t.push_str("no jobs in the history yet");
@@ -188,11 +276,16 @@ pub fn table(jobs: &[JobRecord], unreadable: usize) -> String {
             let _ = writeln!(t, "    broke through at {} mm", at.join(" "));
         }
     }
-    if unreadable > 0 {
+    if !page.unreadable.is_empty() {
         let _ = write!(
             t,
-            "\n({unreadable} lines of the history file do not read as jobs)"
+            "\n({} line(s) of the history file do not read as jobs, skipped: {})",
+            page.unreadable.len(),
+            page.unreadable.join("; ")
         );
+    }
+    if page.more {
+        t.push_str("\n(older jobs follow: --skip)");
     }
     t.trim_end().to_string()
 }
@@ -205,20 +298,6 @@ fn duration(s: f64) -> String {
         60..3600 => format!("{} min {:02} s", whole / 60, whole % 60),
         _ => format!("{} h {:02} min", whole / 3600, whole / 60 % 60),
     }
-}
-
-fn append_line(path: &Path, record: &JobRecord) -> Result<(), String> {
-    let mut line = serde_json::to_string(record).expect("plain data");
-    line.push('\n');
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(path)
-        .and_then(|mut f| f.write_all(line.as_bytes()).and_then(|()| f.sync_data()))
-        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Local time now as the history writes it: `YYYY-MM-DD HH:MM:SS`.
@@ -249,6 +328,7 @@ pub fn record_of(
         dry_run,
         from_line,
         machine_time_s: summary.virtual_time_s,
+        spark_s: None,
         passes,
         technology,
         shorts: summary.servo.shorts,
@@ -264,73 +344,4 @@ pub fn record_of(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_history_appends_and_lists_newest_first_and_the_counters_persist() {
-        let dir = std::env::temp_dir().join(format!("edmd-history-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let (jobs, counters) = (
-            dir.join("state/jobs.jsonl"),
-            dir.join("state/counters.json"),
-        );
-        let mut h = History::open(&jobs, &counters);
-        let record = |program: &str| JobRecord {
-            program: program.into(),
-            started: local_time(),
-            ended: local_time(),
-            outcome: "done".into(),
-            error: None,
-            dry_run: false,
-            from_line: None,
-            machine_time_s: 60.0,
-            passes: vec![PassTime {
-                pass: 1,
-                condition: Some(4),
-                row: Some("30 mm row".into()),
-                time_s: 60.0,
-            }],
-            technology: Some("material=steel height=30 wire=0.25 (…)".into()),
-            shorts: 2,
-            turn_backs: 2,
-            wire_breaks: 0,
-            breakthrough_mm: None,
-            report: None,
-        };
-        h.add(Some(&record("a.nc")), 60.0, 50.0);
-        h.add(None, 5.0, 0.0);
-        h.add(Some(&record("b.nc")), 60.0, 40.0);
-        assert_eq!(h.write_error, None);
-        let (listed, bad) = h.last(10);
-        assert_eq!(bad, 0);
-        assert_eq!(
-            listed
-                .iter()
-                .map(|r| r.program.as_str())
-                .collect::<Vec<_>>(),
-            ["b.nc", "a.nc"]
-        );
-        assert_eq!(listed[0].passes[0].condition, Some(4));
-        // A restart reads the counters back.
-        let again = History::open(&jobs, &counters);
-        assert_eq!(
-            again.counters,
-            HourCounters {
-                jobs: 2,
-                machine_s: 125.0,
-                spark_s: 90.0
-            }
-        );
-        assert_eq!(again.last(1).0.len(), 1);
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-
-    #[test]
-    fn the_local_time_reads_as_a_date_and_a_clock() {
-        let t = local_time();
-        assert_eq!(t.len(), 19, "{t}");
-        assert_eq!(&t[10..11], " ");
-        assert_eq!(&t[13..14], ":");
-    }
-}
+mod tests;
