@@ -247,3 +247,65 @@ fn table_mistakes_are_located_in_their_file() {
     let e = Tables::new(Path::new("t"), twice).unwrap_err().to_string();
     assert!(e.starts_with("b.toml: the same material and wire"), "{e}");
 }
+
+#[test]
+fn a_table_file_that_cannot_be_read_is_an_error_never_skipped() {
+    let dir = std::env::temp_dir().join(format!("edmd-tables-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("steel.toml"), STEEL).unwrap();
+    std::fs::write(dir.join("notes.txt"), "not a table").unwrap();
+    assert_eq!(Tables::load(&dir).unwrap().tables().len(), 1);
+    // A link to nothing: an error naming it, not "no tables".
+    std::os::unix::fs::symlink(dir.join("gone.toml"), dir.join("aluminium.toml")).unwrap();
+    let e = Tables::load(&dir).unwrap_err().to_string();
+    assert!(e.contains("aluminium.toml"), "{e}");
+    std::fs::remove_file(dir.join("aluminium.toml")).unwrap();
+    // A FIFO: refused at once, never waited on.
+    let made = std::process::Command::new("mkfifo")
+        .arg(dir.join("copper.TOML"))
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let e = Tables::load(&dir).unwrap_err().to_string();
+    assert!(e.contains("copper.TOML") && e.contains("FIFO"), "{e}");
+    // The folder missing: no tables.
+    assert!(
+        Tables::load(&dir.join("nothing"))
+            .unwrap()
+            .tables()
+            .is_empty()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_header_past_its_bound_is_refused_at_its_line_and_one_within_is_read() {
+    let dir = std::env::temp_dir().join(format!("edmd-header-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let long = dir.join("long.ngc");
+    let note = "(note)\n";
+    let within = note.repeat(100_000);
+    std::fs::write(
+        &long,
+        format!("{within}(TECH material=steel height=32 wire=0.25)\nG1 X1\n"),
+    )
+    .unwrap();
+    let r = header(&long, "long.ngc").unwrap().unwrap();
+    assert_eq!(r.text(), "material=steel height=32 wire=0.25");
+    let past = note.repeat(200_000);
+    std::fs::write(
+        &long,
+        format!("{past}(TECH material=steel height=32 wire=0.25)\nG1 X1\n"),
+    )
+    .unwrap();
+    let e = header(&long, "long.ngc").unwrap_err().to_string();
+    let lines = super::request::HEADER_BYTES as usize / note.len();
+    assert!(e.starts_with(&format!("long.ngc:{lines}:1:")), "{e}");
+    assert!(e.contains("runs past 1024 KiB"), "{e}");
+    // A short program of comments only: no request, no error.
+    std::fs::write(&long, "(only a note)\n").unwrap();
+    assert!(header(&long, "long.ngc").unwrap().is_none());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -280,3 +280,26 @@ fn a_program_name_of_255_bytes_uploads_and_runs_with_its_report() {
         .expect("a report folder");
     assert!(report.file_name().len() <= 255);
 }
+
+#[test]
+fn a_credentials_file_others_may_read_is_used_with_a_warning() {
+    let dir = common::scratch("http", "loose-credentials");
+    let credentials = dir.join("mqtt-credentials");
+    std::fs::write(&credentials, "edm:secret\n").unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&credentials, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let sets = [
+        "daemon.mqtt.broker=\"mqtt://127.0.0.1:1\"".to_string(),
+        format!("daemon.mqtt.credentials_file=\"{}\"", credentials.display()),
+    ];
+    let sets: Vec<&str> = sets.iter().map(String::as_str).collect();
+    let (d, _) = start("loose-credentials", &sets);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !d
+        .log()
+        .contains("is mode 0644: others on this computer may read it")
+    {
+        assert!(Instant::now() < deadline, "no warning:\n{}", d.log());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}

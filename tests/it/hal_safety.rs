@@ -310,3 +310,32 @@ fn as_a_service_the_socket_listens_when_hal_continues_and_a_kill_fails_the_servi
     assert!(log.contains("ended without a clean stop"), "{log}");
     assert!(log.contains("removed from HAL"), "{log}");
 }
+
+#[test]
+fn without_hal_running_edmd_makes_no_component_and_says_how_to_start() {
+    if !common::hal::enabled("hal_safety") {
+        return;
+    }
+    // No bench is up while this turn is held: no rtapi_app runs.
+    let _turn = common::hal::turn();
+    let dir = common::scratch("hal", "not-running");
+    let mut sets = common::daemon::base_sets(&dir, "p.csv");
+    sets.extend([
+        "output.kind=\"hal\"".to_string(),
+        "gap.kind=\"none\"".to_string(),
+        "homing.required=false".to_string(),
+    ]);
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"));
+    cmd.arg("serve")
+        .current_dir(&dir)
+        .env_remove("NOTIFY_SOCKET");
+    for s in &sets {
+        cmd.args(["--set", s]);
+    }
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("HAL is not running"), "{err}");
+    assert!(!err.contains("component edmd ready"), "{err}");
+    assert!(!dir.join("edmd.sock").exists(), "nothing listens");
+}

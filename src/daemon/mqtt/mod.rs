@@ -150,7 +150,9 @@ fn credentials(path: &std::path::Path) -> Result<(String, String), MqttError> {
     let line = text.lines().next().unwrap_or("").trim_end();
     match line.split_once(':') {
         Some((name, password)) if !name.is_empty() => Ok((name.into(), password.into())),
-        _ => Err(MqttError::CredentialsForm { path: path.to_path_buf() }),
+        _ => Err(MqttError::CredentialsForm {
+            path: path.to_path_buf(),
+        }),
     }
 }
 

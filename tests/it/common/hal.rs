@@ -46,7 +46,7 @@ pub struct HalBench {
 }
 
 /// A turn at HAL for the calling test: no other bench is up while it is held.
-fn turn() -> std::fs::File {
+pub fn turn() -> std::fs::File {
     let turn = std::fs::File::options()
         .create(true)
         .truncate(false)
