@@ -44,6 +44,8 @@ pub struct Daemon {
     pub child: Child,
     pub socket: PathBuf,
     pub log: PathBuf,
+    /// A share of the test machine's cores while the daemon lives.
+    _machine: super::MachineHold,
 }
 
 /// The `--set` arguments every daemon of `dir` runs with.
@@ -81,7 +83,12 @@ impl Daemon {
     /// A daemon that `child` started (`halrun` loading `edmd serve`), reached at `socket`,
     /// `child`'s output in `log`: waits for the socket.
     pub fn adopt(child: Child, socket: PathBuf, log: PathBuf) -> Daemon {
-        let daemon = Daemon { child, socket, log };
+        let daemon = Daemon {
+            child,
+            socket,
+            log,
+            _machine: super::MachineHold::share(),
+        };
         let deadline = Instant::now() + Duration::from_secs(30);
         while UnixStream::connect(&daemon.socket).is_err() {
             assert!(

@@ -7,6 +7,71 @@ pub mod web;
 pub mod wire;
 
 use std::path::PathBuf;
+use std::sync::{Condvar, Mutex};
+
+/// The test machine's cores, shared by the daemons the tests start. The load test
+/// (`tests/it/load.rs`) saturates both for seconds on purpose; a daemon whose timing another
+/// test measures (a dead-man's 300 ms, an E-stop's milliseconds) must not run beside it.
+/// Every daemon holds a share while it lives; the load test holds the whole machine: it
+/// waits until no daemon runs (between two tests of the other test thread), and no daemon
+/// starts until it is done. A share never waits for a test that only waits for the whole
+/// machine, so a test that starts a second daemon beside its first cannot deadlock. Within
+/// one test process, as `cargo test` runs the suite; a runner with a process per test does
+/// not see it.
+static MACHINE: Mutex<Holders> = Mutex::new(Holders {
+    shares: 0,
+    whole: false,
+});
+static MACHINE_CHANGED: Condvar = Condvar::new();
+
+struct Holders {
+    shares: usize,
+    whole: bool,
+}
+
+/// A daemon's hold on the machine: a share, or all of it; given back on drop.
+pub struct MachineHold {
+    whole: bool,
+}
+
+impl MachineHold {
+    fn take(whole: bool) -> MachineHold {
+        let mut holders = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+        while holders.whole || (whole && holders.shares > 0) {
+            holders = MACHINE_CHANGED
+                .wait(holders)
+                .unwrap_or_else(|e| e.into_inner());
+        }
+        if whole {
+            holders.whole = true;
+        } else {
+            holders.shares += 1;
+        }
+        MachineHold { whole }
+    }
+
+    /// A share: waits while a test holds the whole machine.
+    pub fn share() -> MachineHold {
+        MachineHold::take(false)
+    }
+
+    /// The whole machine: waits until no share is held.
+    pub fn whole() -> MachineHold {
+        MachineHold::take(true)
+    }
+}
+
+impl Drop for MachineHold {
+    fn drop(&mut self) {
+        let mut holders = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+        if self.whole {
+            holders.whole = false;
+        } else {
+            holders.shares -= 1;
+        }
+        MACHINE_CHANGED.notify_all();
+    }
+}
 
 /// The blocks a program's own path makes (wire offset, taper, orbit) from what `reader`
 /// reads, its errors as the reader's: the path a job of the whole program cuts.

@@ -15,6 +15,8 @@ pub struct Daemon {
     pub log: PathBuf,
     pub base: String,
     pub token: String,
+    /// A share of the test machine's cores, or all of them (the load test).
+    _machine: super::MachineHold,
 }
 
 impl Drop for Daemon {
@@ -28,9 +30,24 @@ pub fn start(name: &str, sets: &[&str]) -> (Daemon, PathBuf) {
     start_with(name, sets, |_, _| {})
 }
 
+/// [`start`] with the test machine's cores to itself: it waits until no other test's daemon
+/// runs, and none starts until it ends (the load test).
+pub fn start_alone(name: &str, sets: &[&str]) -> (Daemon, PathBuf) {
+    start_holding(super::MachineHold::whole(), name, sets, |_, _| {})
+}
+
 /// [`start`], with `configure` applied to the command and the `--set` list first (limits, a
 /// configuration file in place of a default).
 pub fn start_with(
+    name: &str,
+    sets: &[&str],
+    configure: impl FnOnce(&mut Command, &mut Vec<String>),
+) -> (Daemon, PathBuf) {
+    start_holding(super::MachineHold::share(), name, sets, configure)
+}
+
+fn start_holding(
+    machine: super::MachineHold,
     name: &str,
     sets: &[&str],
     configure: impl FnOnce(&mut Command, &mut Vec<String>),
@@ -102,6 +119,7 @@ pub fn start_with(
             log,
             base,
             token,
+            _machine: machine,
         },
         dir,
     )
