@@ -7,14 +7,18 @@
 # ticks that ended after their next deadline without the load and under it, and the status
 # answers a second.
 #
-#   scripts/status-load.sh [BINARY] [TICK_US] [CLIENTS] [SECONDS]
-#       defaults: target/release/edmd 200 50 10; needs Debian's wrk
+#   scripts/status-load.sh [BINARY] [TICK_US] [CLIENTS] [SECONDS] [SETTING=VALUE...]
+#       defaults: target/release/edmd 200 50 10; needs Debian's wrk. The configuration is the
+#       working directory's config/edmd.toml (run it from the checkout BINARY was built from);
+#       settings after SECONDS are passed on as --set.
 set -euo pipefail
 repo="$(cd "$(dirname "$0")/.." && pwd)"
 bin="$(realpath "${1:-$repo/target/release/edmd}")"
 tick="${2:-200}"
 clients="${3:-50}"
 seconds="${4:-10}"
+extra=()
+for set in "${@:5}"; do extra+=(--set "$set"); done
 work="$(mktemp -d)"
 trap 'kill "$daemon" 2>/dev/null || true; wait 2>/dev/null || true; rm -rf "$work"' EXIT
 mkdir -p "$work/programs"
@@ -28,7 +32,7 @@ mkdir -p "$work/programs"
   --set daemon.state_dir="\"$work/state\"" --set daemon.http='"127.0.0.1:18317"' \
   --set daemon.http_token_file="\"$work/token\"" --set fine.virtual_time=false \
   --set fine.tick_us="$tick" --set gap.kind='"none"' --set output.kind='"null"' \
-  --set homing.required=false --set log.format='"plain"' 2>"$work/serve.log" &
+  --set homing.required=false --set log.format='"plain"' "${extra[@]}" 2>"$work/serve.log" &
 daemon=$!
 for _ in $(seq 1 100); do [ -S "$work/edmd.sock" ] && break; sleep 0.1; done
 "$bin" ctl --socket "$work/edmd.sock" run long.ngc >/dev/null
