@@ -285,7 +285,8 @@ impl Checkpoint {
     }
 
     /// Checks a program's bytes (their SHA-256, `found`) are the checkpoint's.
-    pub fn check_program(&self, found: &str) -> Result<(), CheckpointError> {
+    #[cfg(test)]
+    fn check_program(&self, found: &str) -> Result<(), CheckpointError> {
         if found != self.program_sha256 {
             return Err(CheckpointError::ProgramChanged {
                 program: self.program.clone(),
@@ -298,7 +299,7 @@ impl Checkpoint {
 
     /// Checks the settings are those of the checkpoint, and (without `force`) that it was
     /// written at a standstill. The program is checked where it is read
-    /// ([`check_program`](Self::check_program)).
+    /// (`check_program`).
     pub fn check_resumable(
         &self,
         config: &Config,

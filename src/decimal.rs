@@ -423,7 +423,7 @@ fn push_fixed_general(out: &mut Vec<u8>, x: f64, places: usize) {
 }
 
 /// Appends an integer in decimal, as `{}` prints it.
-pub fn push_i64(out: &mut Vec<u8>, n: i64) {
+fn push_i64(out: &mut Vec<u8>, n: i64) {
     out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
 }
 

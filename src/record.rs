@@ -370,7 +370,7 @@ impl Recording {
     }
 
     /// The position (mm, machine axis order) of the last sample so far.
-    pub fn last_position_mm(&self) -> Vec<f64> {
+    fn last_position_mm(&self) -> Vec<f64> {
         self.last.map_or_else(
             || {
                 (0..self.step_mm.len())

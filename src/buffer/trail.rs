@@ -69,7 +69,7 @@ impl Trail {
         }
     }
 
-    pub fn new_chunk(&self) -> Vec<StepBlock> {
+    fn new_chunk(&self) -> Vec<StepBlock> {
         Vec::with_capacity(self.chunk_len())
     }
 

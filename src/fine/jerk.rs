@@ -35,7 +35,7 @@ pub struct Room {
 /// (along the motion; `a < 0` is already braking) to at most `v_end` with no acceleration
 /// left, under `limits`. A state that can not avoid going below `v_end` (it brakes too hard
 /// to ease off in time) needs only the way to `v_end`.
-pub fn stopping_distance(v: f64, a: f64, v_end: f64, limits: JerkLimits) -> f64 {
+fn stopping_distance(v: f64, a: f64, v_end: f64, limits: JerkLimits) -> f64 {
     let JerkLimits { accel, jerk } = limits;
     let (mut v, mut d) = (v, 0.0);
     // Still speeding up: ease the acceleration off first.

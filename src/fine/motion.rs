@@ -104,7 +104,7 @@ impl Motion {
 
     /// The override that applies to the block in hand.
     #[inline]
-    pub fn override_factor(&self) -> f64 {
+    fn override_factor(&self) -> f64 {
         if self.block.flags.contains(BlockFlags::RAPID) {
             self.overrides.rapid
         } else {
@@ -162,7 +162,7 @@ impl Motion {
     /// `stop_at_end`: going forward, the block ends at a standstill whatever the plan said
     /// (single block).
     #[inline]
-    pub fn planned_limit(&self, accel: f64, dt: f64, stop_at_end: bool) -> f64 {
+    fn planned_limit(&self, accel: f64, dt: f64, stop_at_end: bool) -> f64 {
         let b = &self.block;
         let v_exit = if stop_at_end { 0.0 } else { b.v_exit };
         self.limit_between(b.v_entry, v_exit, b.v_limit.max(b.v_cruise), accel, dt)
@@ -197,7 +197,7 @@ impl Motion {
     /// `accel` (the reversal's), its cruise whatever the programmed feed, never below the
     /// creep speed, capped at one event per tick.
     #[inline]
-    pub fn path_limit(&self, accel: f64, dt: f64) -> f64 {
+    fn path_limit(&self, accel: f64, dt: f64) -> f64 {
         let p = &self.block.path;
         self.limit_between(p.entry, p.exit, p.cruise, accel, dt)
     }
@@ -296,7 +296,7 @@ impl Motion {
 
     /// Adds one event's steps to the ledger.
     #[inline]
-    pub fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
+    fn add_steps(&mut self, steps: &[i8; MAX_AXES]) {
         for (p, &s) in self.position.iter_mut().zip(steps) {
             *p += s as i64;
         }

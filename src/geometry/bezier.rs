@@ -136,11 +136,12 @@ impl<const W: usize, const R: usize> Bezier<W, R> {
     /// zero past the curve's axes, so that its loops have a constant length. Inlined into
     /// the certificate's walk, which calls it for every piece it looks at.
     #[inline]
-    pub fn max_over_control_points(&self, f: impl FnMut(&[f64]) -> f64) -> f64 {
+    #[cfg(test)]
+    fn max_over_control_points(&self, f: impl FnMut(&[f64]) -> f64) -> f64 {
         self.max_over_control_points_from::<0>(f)
     }
 
-    /// [`max_over_control_points`](Self::max_over_control_points) over the control points
+    /// `max_over_control_points` over the control points
     /// from `FIRST` on (0 when there are none). A constant, so that the loop keeps a
     /// constant length and unrolls.
     #[inline]

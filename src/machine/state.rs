@@ -140,7 +140,7 @@ impl MachineState {
     }
 
     /// Every axis is homed.
-    pub fn all_homed(&self) -> bool {
+    fn all_homed(&self) -> bool {
         self.homed.iter().all(|&h| h)
     }
 

@@ -110,7 +110,7 @@ impl PinLevels {
 
 /// The level of status pin `pin` in a status register value (`None` for a pin that is not a
 /// status pin).
-pub fn status_pin_high(status: u8, pin: Pin) -> Option<bool> {
+fn status_pin_high(status: u8, pin: Pin) -> Option<bool> {
     let bit = status_bit(pin)?;
     Some((status ^ STATUS_HW_INVERTED) >> bit & 1 == 1)
 }
@@ -163,7 +163,7 @@ impl PinMap {
         &self.condition[..self.condition_bits as usize]
     }
 
-    pub fn is_inverted(&self, pin: Pin) -> bool {
+    fn is_inverted(&self, pin: Pin) -> bool {
         self.inverted >> pin & 1 == 1
     }
 

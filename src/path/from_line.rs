@@ -268,7 +268,7 @@ pub fn path_approach(mut block: Block, feed_mm_per_min: f64) -> Block {
 /// (if the machine has Z and it is set, and Z stands below it) and across as rapids, then
 /// down to the start at `feed_mm_per_min`; without a safe height, one straight move at that
 /// feed. Every move has the spark off and carries `first`'s line and condition.
-pub fn direct_approach(
+fn direct_approach(
     origin: &Point,
     first: &Block,
     axes: &[Axis],

@@ -199,7 +199,7 @@ impl Orbiting {
 }
 
 /// The orbit's offset (x, y, tool axis) at radius `r` (of the full `full`) and angle `theta`.
-pub fn orbit_offset(shape: OrbitShape, r: f64, full: f64, theta: f64) -> [f64; 3] {
+fn orbit_offset(shape: OrbitShape, r: f64, full: f64, theta: f64) -> [f64; 3] {
     let (s, c) = theta.sin_cos();
     // The triangle wave 1, 0, −1, 0, 1 over a turn (a cosine's corners: every move ends,
     // and a held one starts, at a full stroke).

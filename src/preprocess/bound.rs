@@ -243,7 +243,8 @@ impl TimeOptimalBound {
     }
 
     /// The most samples held at once so far.
-    pub fn peak_samples(&self) -> usize {
+    #[cfg(test)]
+    fn peak_samples(&self) -> usize {
         self.profile.peak_open
     }
 

@@ -23,7 +23,7 @@
 //! fourfold per halving. Only pieces over the tolerance are halved, up to [`MAX_DEPTH`] times;
 //! a piece still over it then is reported as over (the segmenter shortens the segment).
 //!
-//! **Rounding.** The bound is computed in floating point; [`rounding_allowance`] adds the
+//! **Rounding.** The bound is computed in floating point; [`allowance_on`] adds the
 //! worst the lerps and distances can lose (a few hundred ulps of the coordinates' magnitude
 //! at the deepest halving: about 5e-11 mm at 500 mm), far below any tolerance, so rounding
 //! cannot turn a bound into an underestimate. Distances are computed from the offset's
@@ -145,11 +145,12 @@ pub fn hull_excess(degree: usize) -> f64 {
 /// ends, plus `tol` since a bound that holds keeps the control points within it of the
 /// chord), the computed distances are within `(16 + 2 degree (MAX_DEPTH + 2))` ulps of `scale`
 /// of the exact ones: about 5e-11 mm at 500 mm for degree 9, 1e-11 mm for a cubic.
-pub fn rounding_allowance(a: &Point, b: &Point, degree: usize, tol: f64) -> f64 {
+#[cfg(test)]
+fn rounding_allowance(a: &Point, b: &Point, degree: usize, tol: f64) -> f64 {
     allowance_on::<MAX_AXES>(a, b, degree, tol)
 }
 
-/// [`rounding_allowance`] on the first `N` coordinates: the rest, zero, change no maximum.
+/// `rounding_allowance` on the first `N` coordinates: the rest, zero, change no maximum.
 fn allowance_on<const N: usize>(a: &Point, b: &Point, degree: usize, tol: f64) -> f64 {
     // The largest magnitude of a coordinate, as nalgebra's `amax` gives it, in a plain loop
     // (`amax` goes through simba's generic comparisons: 3 % of the certificate's cost).

@@ -581,7 +581,7 @@ pub(crate) fn unit(v: &Point) -> Point {
 
 /// Arc length of a gently curved piece from its chord and sagitta (`L + 8h²/(3L)`, the
 /// circular-arc expansion); exact to far below a micron for chord-bounded pieces.
-pub fn arc_length_estimate(chord: f64, sagitta: f64) -> f64 {
+fn arc_length_estimate(chord: f64, sagitta: f64) -> f64 {
     if chord > 0.0 {
         chord + 8.0 * sagitta * sagitta / (3.0 * chord)
     } else {

@@ -272,7 +272,7 @@ impl Servo {
     }
 
     /// The short has lasted `servo.max_short_s` while turning back.
-    pub fn on_short_timeout(&mut self, here: PathPoint) -> Option<ServoEvent> {
+    fn on_short_timeout(&mut self, here: PathPoint) -> Option<ServoEvent> {
         self.alarm(here, true)
     }
 

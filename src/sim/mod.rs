@@ -273,7 +273,7 @@ impl SimGap {
     }
 
     /// The gap distance (mm).
-    pub fn gap_mm(&self) -> f64 {
+    fn gap_mm(&self) -> f64 {
         self.front - self.progress
     }
 

@@ -66,7 +66,7 @@ pub struct ExecutedEvent {
 }
 
 /// A copy of what `executed` holds now (the recording's lock is held for the copy only).
-pub fn executed_path(executed: &Executed) -> ExecutedPath {
+fn executed_path(executed: &Executed) -> ExecutedPath {
     let recording = executed.recording.lock();
     let shorts: Vec<[f64; 2]> = recording
         .events

@@ -91,7 +91,7 @@ mod base64_sha256 {
 
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
 
-    pub fn digest_b64(text: &str) -> String {
+    pub(super) fn digest_b64(text: &str) -> String {
         encode(&Sha256::digest(text.as_bytes()))
     }
 

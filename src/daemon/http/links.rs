@@ -48,7 +48,7 @@ impl LoginLinks {
     }
 
     /// Uses `code` up: true once, for a code issued and not expired at `now`.
-    pub fn redeem(&self, code: &str, now: Instant) -> bool {
+    fn redeem(&self, code: &str, now: Instant) -> bool {
         let mut codes = self.codes.lock();
         codes.retain(|(_, expires)| *expires > now);
         match codes

@@ -92,7 +92,17 @@ const CORE_TIMEOUT: Duration = Duration::from_secs(10);
 const EVENT_POLL: Duration = Duration::from_millis(100);
 const EVENT_HEARTBEAT: Duration = Duration::from_secs(1);
 
-const PAGE: &str = include_str!("page.html");
+/// The operator's page: one document served whole (its style and script inline, so the
+/// Content Security Policy can name their hashes), written in parts by what each holds.
+const PAGE: &str = concat!(
+    include_str!("page/head.html"),
+    include_str!("page/style.css"),
+    include_str!("page/body.html"),
+    include_str!("page/status.js"),
+    include_str!("page/drawing.js"),
+    include_str!("page/controls.js"),
+    include_str!("page/tail.html"),
+);
 
 /// What HTTP takes from the configuration; the part SIGHUP may change is [`Reloadable`].
 #[derive(Debug, Clone)]

@@ -169,7 +169,7 @@ impl BlockMaker {
 
     /// The next blocks are pass `number` (1-based) of the technology table; `at_start_hole`:
     /// it starts there (not at a tab).
-    pub fn start_pass(&mut self, number: u8, at_start_hole: bool) {
+    fn start_pass(&mut self, number: u8, at_start_hole: bool) {
         self.pass = number;
         self.pass_starts = BlockFlags::PASS_START;
         if at_start_hole {
@@ -179,7 +179,7 @@ impl BlockMaker {
 
     /// The path length (mm) the next block starts at: a direct approach counts the program
     /// it skips, so progress and placed debris stay where a full run has them.
-    pub fn set_path_mm(&mut self, mm: f64) {
+    fn set_path_mm(&mut self, mm: f64) {
         self.path_mm = mm;
     }
 

@@ -105,7 +105,7 @@ impl Progress {
         self.done.store(0, Ordering::Relaxed);
     }
 
-    pub fn advance_to(&self, done: u64) {
+    fn advance_to(&self, done: u64) {
         self.done.store(done, Ordering::Relaxed);
     }
 

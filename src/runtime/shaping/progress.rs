@@ -54,14 +54,14 @@ impl PathPace {
     }
 
     /// The plan's time for the whole path, s.
-    pub fn total_s(&self) -> f64 {
+    fn total_s(&self) -> f64 {
         self.pieces
             .last()
             .map_or(0.0, |&(from, to, s, v)| s + (to - from) / v)
     }
 
     /// The plan's time from the start to `x` mm along the path, s.
-    pub fn seconds_to(&self, x: f64) -> f64 {
+    fn seconds_to(&self, x: f64) -> f64 {
         let i = self.pieces.partition_point(|&(_, to, _, _)| to <= x);
         match self.pieces.get(i) {
             Some(&(from, _, s, v)) => s + (x - from).max(0.0) / v,
@@ -161,7 +161,8 @@ impl ProgressTracker {
     }
 
     /// Running time so far (held and paused time left out), s.
-    pub fn running_s(&self) -> f64 {
+    #[cfg(test)]
+    fn running_s(&self) -> f64 {
         self.running.as_secs_f64()
     }
 

@@ -56,7 +56,7 @@ impl LatencyHistogram {
 
     /// The latency (ns) below which a fraction `q` of the samples fall: the upper edge of
     /// the bucket holding the `q`-quantile, never above the maximum seen.
-    pub fn quantile_ns(&self, q: f64) -> u64 {
+    fn quantile_ns(&self, q: f64) -> u64 {
         if self.samples == 0 {
             return 0;
         }
@@ -92,7 +92,7 @@ impl LatencyHistogram {
 
     /// Counts per whole microsecond, `counts[us]` holding wake-ups in `[us, us + 1)` µs, up to
     /// the histogram's range (2 ms), and the count beyond it: cyclictest's `-h` layout.
-    pub fn per_microsecond(&self) -> (Vec<u64>, u64) {
+    fn per_microsecond(&self) -> (Vec<u64>, u64) {
         let per_us = (1000 / BUCKET_NS) as usize;
         let (inside, beyond) = self.counts.split_at(BUCKETS - 1);
         let counts = inside.chunks(per_us).map(|c| c.iter().sum()).collect();
