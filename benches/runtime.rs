@@ -21,7 +21,7 @@ use edmd::parport::{
     Clock, ParportGap, ParportOutput, PinMap, Port, PortWriter, SpinClock, StepTiming,
 };
 use edmd::servo::Feeds;
-use edmd::sim::{SimGap, SimSettings};
+use edmd::sim::{SimMachine, SimSettings};
 use edmd::vocab::MAX_AXES;
 use parking_lot::Mutex;
 
@@ -391,11 +391,12 @@ fn io_per_tick(c: &mut Criterion) {
     group.bench_function("parport gap sample (status read, filter 3)", |b| {
         b.iter(|| gap.sample(k).unwrap())
     });
-    let mut sim = SimGap::new(
+    let mut sim = SimMachine::new(
         &SimSettings::from_config(&config),
         &[(0.0, 1e9)],
         Vec::new(),
-    );
+    )
+    .gap;
     let x = [1, 0, 0, 0, 0, 0];
     group.bench_function("sim gap sample + observe", |b| {
         b.iter(|| {

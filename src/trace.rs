@@ -223,20 +223,8 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
         self.inner.moving_in(now)
     }
 
-    fn safety(&self) -> crate::vocab::SafetyInputs {
-        self.inner.safety()
-    }
-
     fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
         self.inner.probe_reads(what)
-    }
-
-    fn wire_broken(&self) -> bool {
-        self.inner.wire_broken()
-    }
-
-    fn rethreaded(&mut self) {
-        self.inner.rethreaded()
     }
 
     fn volts(&self) -> Option<f64> {

@@ -105,14 +105,18 @@ impl JobControl {
         let tracer = (config.output.trace || config.gap.trace).then(|| {
             crate::trace::Tracer::new(4096, config.fine.virtual_time, Some(std::thread::current()))
         });
-        let io = |output, gap, inputs, tracer| JobIo {
-            output,
-            gap,
-            inputs,
-            probe_reads: Default::default(),
-            tracer,
-            recording: None,
-            progress: None,
+        let io = |output, gap: Option<runtime::OpenedGap>, inputs, tracer| {
+            let (gap, gap_inputs) = gap.map_or((None, None), |g| (Some(g.gap), g.inputs));
+            JobIo {
+                output,
+                gap,
+                inputs,
+                gap_inputs,
+                probe_reads: Default::default(),
+                tracer,
+                recording: None,
+                progress: None,
+            }
         };
         if self.fine.has_claim() {
             if config.output.trace || config.gap.trace || config.output.fault_at_tick.is_some() {
@@ -129,8 +133,9 @@ impl JobControl {
             return Ok(io(None, gap, None, None));
         }
         let opened = runtime::open_output(config, start)?;
-        let gap = runtime::open_gap(config, check, opened.port_gap)?;
-        let (output, gap) = runtime::wrap_io(config, opened.output, gap, tracer.as_ref());
+        let mut gap = runtime::open_gap(config, check, opened.port_gap)?;
+        let output;
+        (output, gap.gap) = runtime::wrap_io(config, opened.output, gap.gap, tracer.as_ref());
         Ok(io(Some(output), Some(gap), Some(opened.inputs), tracer))
     }
 }

@@ -7,6 +7,10 @@
 //! ([`crate::parport::ParportGap`], `"parport"`), an ADC's gap voltage through Linux IIO
 //! ([`IioGap`], `"iio"`). The tracer
 //! ([`crate::trace::TracedGap`]) wraps any of them.
+//!
+//! A gap input answers what the gap does, nothing else: a simulated machine's E-stop,
+//! limits and wire come through its inputs side ([`crate::inputs::MachineInputs`]), as a
+//! port's and HAL's do, so no wrapper here can drop one.
 
 mod iio;
 mod script;
@@ -16,7 +20,7 @@ use crate::vocab::MAX_AXES;
 /// The gap state is shared vocabulary (the servo and the tick core read it too).
 pub use crate::vocab::GapState;
 pub use iio::{IioError, IioGap, IioSettings};
-pub use script::{ScriptError, ScriptGap};
+pub use script::{GapScript, ScriptError, ScriptGap, ScriptInputs};
 pub(crate) use script::{read_script, words};
 
 /// A gap input that failed mid-job (a device that stopped answering).
@@ -60,24 +64,11 @@ pub trait GapSensor {
         None
     }
 
-    /// The wire-break input at the last [`sample`](Self::sample): a broken-wire sensor, or
-    /// the simulator's broken wire. `false` for inputs without one.
-    fn wire_broken(&self) -> bool {
-        false
-    }
-
-    /// The operator asked for a rethread: the simulator's wire is whole again.
-    fn rethreaded(&mut self) {}
-
-    /// The E-stop and limit-switch inputs at the last [`sample`](Self::sample); none for
-    /// inputs without them.
-    fn safety(&self) -> crate::vocab::SafetyInputs {
-        crate::vocab::SafetyInputs::default()
-    }
-
     /// What the job's probing moves read as their contact (a homing job's switch, a touch
-    /// cycle's part, or the probe). Inputs without switches ignore it: their homing finds no
-    /// contact and fails.
+    /// cycle's part, or the probe). A wire's contact with the part is sensed through the
+    /// gap (a short), so the simulator's gap answers a touch cycle from its part, and with
+    /// its generator off through a homing job it answers the simulated switch too. A real
+    /// gap input ignores it: its machine's switches are machine inputs.
     fn probe_reads(&mut self, _what: crate::vocab::ProbeReads) {}
 }
 
@@ -110,18 +101,6 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn ratios(&self) -> Option<(f64, f64)> {
         (**self).ratios()
-    }
-
-    fn wire_broken(&self) -> bool {
-        (**self).wire_broken()
-    }
-
-    fn rethreaded(&mut self) {
-        (**self).rethreaded()
-    }
-
-    fn safety(&self) -> crate::vocab::SafetyInputs {
-        (**self).safety()
     }
 
     fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {

@@ -18,6 +18,7 @@
 use std::path::Path;
 
 use super::{GapError, GapSensor, GapState};
+use crate::inputs::{InputError, InputReading, MachineInputs, SimulatedWire};
 use crate::vocab::{LimitSwitch, SafetyInputs};
 
 /// A gap script that could not be read.
@@ -79,30 +80,45 @@ pub(crate) fn words(content: &str) -> Vec<(usize, &str)> {
     words
 }
 
-/// A parsed gap script, replayed against the tick count.
-#[derive(Debug, Clone, PartialEq)]
+/// A parsed gap script: the machine it scripts, a gap side and an inputs side, replayed
+/// against the tick count.
+#[derive(Debug, Clone)]
+pub struct GapScript {
+    pub gap: ScriptGap,
+    pub inputs: ScriptInputs,
+}
+
+/// The script's gap states.
+#[derive(Debug, Clone)]
 pub struct ScriptGap {
     changes: Vec<(u64, GapState)>,
     next: usize,
     state: GapState,
+    /// No wire, no discharge: the gap reads open while the script's wire is broken.
+    wire: SimulatedWire,
+}
+
+/// The script's machine inputs: its E-stop, limit switches and wire breaks.
+#[derive(Debug, Clone)]
+pub struct ScriptInputs {
     /// Ticks of the `wire-break` lines, and how many of them have happened.
     breaks: Vec<u64>,
     breaks_done: usize,
-    broken: bool,
+    wire: SimulatedWire,
     /// The safety inputs' changes (`estop`, `limit X+`), by tick, and those in force.
     trips: Vec<(u64, SafetyInputs)>,
     next_trip: usize,
     safety: SafetyInputs,
 }
 
-impl ScriptGap {
-    pub fn load(path: &Path) -> Result<ScriptGap, ScriptError> {
+impl GapScript {
+    pub fn load(path: &Path) -> Result<GapScript, ScriptError> {
         let (text, name) = read_script(path, "gap script")?;
-        ScriptGap::parse(&text, &name)
+        GapScript::parse(&text, &name)
     }
 
     /// Parses script text; `name` is used in error messages.
-    pub fn parse(text: &str, name: &str) -> Result<ScriptGap, ScriptError> {
+    pub fn parse(text: &str, name: &str) -> Result<GapScript, ScriptError> {
         let mut changes: Vec<(u64, GapState)> = Vec::new();
         let mut breaks: Vec<u64> = Vec::new();
         let mut trips: Vec<(u64, SafetyInputs)> = Vec::new();
@@ -194,19 +210,27 @@ impl ScriptGap {
                 }
             }
         }
-        Ok(ScriptGap {
-            changes,
-            next: 0,
-            state: GapState::Normal,
-            breaks,
-            breaks_done: 0,
-            broken: false,
-            trips,
-            next_trip: 0,
-            safety: SafetyInputs::default(),
+        let wire = SimulatedWire::default();
+        Ok(GapScript {
+            gap: ScriptGap {
+                changes,
+                next: 0,
+                state: GapState::Normal,
+                wire: wire.clone(),
+            },
+            inputs: ScriptInputs {
+                breaks,
+                breaks_done: 0,
+                wire,
+                trips,
+                next_trip: 0,
+                safety: SafetyInputs::default(),
+            },
         })
     }
+}
 
+impl ScriptGap {
     /// A script from a list of changes (for tests and benches).
     pub fn from_changes(mut changes: Vec<(u64, GapState)>) -> ScriptGap {
         changes.sort_by_key(|&(tick, _)| tick);
@@ -214,26 +238,15 @@ impl ScriptGap {
             changes,
             next: 0,
             state: GapState::Normal,
-            breaks: Vec::new(),
-            breaks_done: 0,
-            broken: false,
-            trips: Vec::new(),
-            next_trip: 0,
-            safety: SafetyInputs::default(),
+            wire: SimulatedWire::default(),
         }
     }
 }
 
 impl GapSensor for ScriptGap {
-    /// Ticks are expected in increasing order (the consumer's order).
+    /// Ticks are expected in increasing order (the consumer's order). The inputs side is
+    /// read first in a tick, so a `wire-break` of this tick is already in the wire.
     fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
-        while let Some(&(at, inputs)) = self.trips.get(self.next_trip) {
-            if at > tick {
-                break;
-            }
-            self.safety = inputs;
-            self.next_trip += 1;
-        }
         while let Some(&(at, state)) = self.changes.get(self.next) {
             if at > tick {
                 break;
@@ -241,31 +254,40 @@ impl GapSensor for ScriptGap {
             self.state = state;
             self.next += 1;
         }
-        while self
-            .breaks
-            .get(self.breaks_done)
-            .is_some_and(|&at| at <= tick)
-        {
-            self.broken = true;
-            self.breaks_done += 1;
-        }
-        Ok(if self.broken {
+        Ok(if self.wire.is_broken() {
             GapState::Open
         } else {
             self.state
         })
     }
+}
 
-    fn wire_broken(&self) -> bool {
-        self.broken
-    }
-
-    fn safety(&self) -> SafetyInputs {
-        self.safety
+impl MachineInputs for ScriptInputs {
+    fn sample(&mut self, tick: u64) -> Result<InputReading, InputError> {
+        while let Some(&(at, inputs)) = self.trips.get(self.next_trip) {
+            if at > tick {
+                break;
+            }
+            self.safety = inputs;
+            self.next_trip += 1;
+        }
+        while self
+            .breaks
+            .get(self.breaks_done)
+            .is_some_and(|&at| at <= tick)
+        {
+            self.wire.set_broken(true);
+            self.breaks_done += 1;
+        }
+        Ok(InputReading {
+            safety: self.safety,
+            wire_broken: self.wire.is_broken(),
+            contact: None,
+        })
     }
 
     fn rethreaded(&mut self) {
-        self.broken = false;
+        self.wire.set_broken(false);
     }
 }
 
@@ -275,8 +297,9 @@ mod tests {
 
     #[test]
     fn states_hold_until_the_next_line() {
-        let mut gap =
-            ScriptGap::parse("# test\n10 short\n\n20 open # comment\n20 normal\n", "g").unwrap();
+        let mut gap = GapScript::parse("# test\n10 short\n\n20 open # comment\n20 normal\n", "g")
+            .unwrap()
+            .gap;
         let states: Vec<_> = [0, 9, 10, 19, 20, 1000]
             .into_iter()
             .map(|t| gap.sample(t).unwrap())
@@ -287,26 +310,32 @@ mod tests {
 
     #[test]
     fn a_wire_break_holds_until_the_rethread() {
-        let mut gap = ScriptGap::parse("0 normal\n10 wire-break\n20 short\n", "g").unwrap();
-        assert_eq!(gap.sample(9).unwrap(), GapState::Normal);
-        assert!(!gap.wire_broken());
-        assert_eq!(gap.sample(10).unwrap(), GapState::Open);
-        assert!(gap.wire_broken());
-        assert_eq!(gap.sample(25).unwrap(), GapState::Open, "no wire, no short");
-        gap.rethreaded();
-        assert!(!gap.wire_broken());
+        let GapScript {
+            mut gap,
+            mut inputs,
+        } = GapScript::parse("0 normal\n10 wire-break\n20 short\n", "g").unwrap();
+        // The loop's order in a tick: the inputs, then the gap.
+        let mut tick = |t| {
+            let wire = inputs.sample(t).unwrap().wire_broken;
+            (wire, gap.sample(t).unwrap())
+        };
+        assert_eq!(tick(9), (false, GapState::Normal));
+        assert_eq!(tick(10), (true, GapState::Open));
+        assert_eq!(tick(25), (true, GapState::Open), "no wire, no short");
+        inputs.rethreaded();
+        assert!(!inputs.sample(26).unwrap().wire_broken);
         assert_eq!(gap.sample(26).unwrap(), GapState::Short);
     }
 
     #[test]
     fn a_byte_order_mark_is_skipped() {
-        let mut gap = ScriptGap::parse("\u{feff}10 short\n", "g").unwrap();
+        let mut gap = GapScript::parse("\u{feff}10 short\n", "g").unwrap().gap;
         assert_eq!(gap.sample(10).unwrap(), GapState::Short);
     }
 
     #[test]
     fn bad_lines_are_located() {
-        let err = |text: &str| ScriptGap::parse(text, "gap.txt").unwrap_err().to_string();
+        let err = |text: &str| GapScript::parse(text, "gap.txt").unwrap_err().to_string();
         assert_eq!(
             err("10 short\n  5 normal\n"),
             "gap.txt:2:3: tick 5 comes before the previous line's tick 10"

@@ -44,7 +44,8 @@ use tick::{histogram, realtime};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};
 pub use devices::{
-    BoxedGap, BoxedInputs, BoxedOutput, OpenedOutput, open_gap, open_io, open_output, wrap_io,
+    BoxedGap, BoxedInputs, BoxedOutput, OpenedGap, OpenedIo, OpenedOutput, open_gap, open_io,
+    open_output, wrap_io,
 };
 pub use error::JobError;
 pub use fine_thread::{Claimed, FineDone, FineJob, FineThread, JobRecorder, ResumePoint};
@@ -134,11 +135,12 @@ pub fn run_file_from(
     let mut spec = JobSpec::from_config(config, false);
     spec.path.work = start.clone();
     spec.path.cut = cut.clone();
-    let (output, gap, inputs) = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
+    let opened = open_io(config, &check, &spec.start_steps(), tracer.as_ref())?;
     let io = JobIo {
-        output: Some(output),
-        gap: Some(gap),
-        inputs: Some(inputs),
+        output: Some(opened.output),
+        gap: Some(opened.gap),
+        inputs: Some(opened.inputs),
+        gap_inputs: opened.gap_inputs,
         probe_reads: Default::default(),
         tracer,
         recording: observers.recording,
@@ -192,6 +194,9 @@ pub struct JobIo {
     pub output: Option<BoxedOutput>,
     pub gap: Option<BoxedGap>,
     pub inputs: Option<BoxedInputs>,
+    /// The inputs side of the job's simulated gap ([`OpenedGap::inputs`]), read beside
+    /// the machine's.
+    pub gap_inputs: Option<BoxedInputs>,
     /// What the job's probing moves read as their contact (a homing job's switch, a touch
     /// cycle's part; the probe otherwise), told to the gap and the inputs it runs on.
     pub probe_reads: crate::vocab::ProbeReads,

@@ -64,6 +64,7 @@ pub fn run(
         output,
         gap,
         inputs,
+        gap_inputs,
         probe_reads,
         tracer,
         recording,
@@ -108,6 +109,7 @@ pub fn run(
             output,
             gap,
             inputs,
+            gap_inputs,
             recorder,
             probe_reads,
             conditions: spec

@@ -35,6 +35,14 @@ pub enum SimEvent {
     Limit(crate::vocab::LimitSwitch),
 }
 
+impl SimEvent {
+    /// The event presses one of the machine's inputs (the inputs side applies it); the
+    /// others change the gap (the gap side's).
+    pub fn presses_an_input(&self) -> bool {
+        matches!(self, SimEvent::Estop | SimEvent::Limit(_))
+    }
+}
+
 /// Reads and checks an events file.
 pub fn load(path: &Path) -> Result<Vec<(u64, SimEvent)>, ScriptError> {
     let (text, name) = read_script(path, "sim events file")?;

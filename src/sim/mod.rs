@@ -46,17 +46,20 @@
 //! next cut starts at `initial_gap` from the work, as after positioning to a new start hole.
 
 pub mod events;
+mod inputs;
 mod probe;
 
 use crate::buffer::BlockFlags;
 use std::path::PathBuf;
 
 use crate::gap::{GapError, GapSensor, GapState, ScriptError};
+use crate::inputs::SimulatedWire;
 use crate::rng::SplitMix64;
 use crate::vocab::TickPeriod;
 use crate::vocab::{GapVolts, MAX_AXES};
 
 pub use events::SimEvent;
+pub use inputs::SimInputs;
 pub use probe::{SimHole, SimPart};
 
 /// The simulated gap's own settings (`[sim]`, validated by the configuration), lengths in mm
@@ -121,7 +124,47 @@ pub struct SimCounters {
     pub wire_breaks: u64,
 }
 
-/// `gap.kind = "sim"`: the closed-loop gap model.
+/// `gap.kind = "sim"`: the simulated machine, as a device with two sides like the port's
+/// and HAL's: the gap and the machine inputs.
+#[derive(Debug, Clone)]
+pub struct SimMachine {
+    pub gap: SimGap,
+    pub inputs: SimInputs,
+}
+
+impl SimMachine {
+    /// The machine for a program whose cutting moves lie at `cutting_spans` along its path
+    /// (`(from, to)`, mm of path length from the start), with scripted `events`.
+    pub fn new(
+        settings: &SimSettings,
+        cutting_spans: &[(f64, f64)],
+        events: Vec<(u64, SimEvent)>,
+    ) -> SimMachine {
+        let (pressed, gap_events): (Vec<_>, Vec<_>) =
+            events.into_iter().partition(|(_, e)| e.presses_an_input());
+        let wire = SimulatedWire::default();
+        SimMachine {
+            gap: SimGap::new(settings, cutting_spans, gap_events, wire.clone()),
+            inputs: SimInputs::new(pressed, wire),
+        }
+    }
+
+    /// The machine of `settings` for a program with these cutting spans (see
+    /// [`new`](Self::new)), with the scripted events of `sim.events` (read and checked here,
+    /// before the job).
+    pub fn load(
+        settings: &SimSettings,
+        cutting_spans: &[(f64, f64)],
+    ) -> Result<SimMachine, ScriptError> {
+        let events = match &settings.params.events {
+            Some(path) => events::load(path)?,
+            None => Vec::new(),
+        };
+        Ok(SimMachine::new(settings, cutting_spans, events))
+    }
+}
+
+/// The simulated machine's gap side: the closed-loop gap model.
 #[derive(Debug, Clone)]
 pub struct SimGap {
     params: SimConfig,
@@ -147,8 +190,6 @@ pub struct SimGap {
     next_event: usize,
     /// A scripted hold: this state until (excluding) this tick.
     hold: Option<(GapState, u64)>,
-    /// The E-stop and limit switches the events have raised.
-    safety: crate::vocab::SafetyInputs,
     state: GapState,
     /// The move in hand is a rapid: the spark is off, the electrode moves through the open.
     rapid: bool,
@@ -170,8 +211,10 @@ pub struct SimGap {
     into_work_mm: f64,
     /// The wire breaks' own generator, so that turning them on leaves the debris as it was.
     break_rng: SplitMix64,
-    /// The wire is broken: the gap reads open and the wire-break input is set.
+    /// The wire is broken: the gap reads open. The wire is the one the inputs side reports
+    /// and a rethread mends (`wire_sensor`); `broken` is what this side last knew of it.
     broken: bool,
+    wire_sensor: SimulatedWire,
     /// Voltage thresholds (V), see [`GapSensor::volts`].
     volts: GapVolts,
     /// The ratio counters of the window in progress (open, short, ticks) and the last
@@ -182,12 +225,13 @@ pub struct SimGap {
 }
 
 impl SimGap {
-    /// The model for a program whose cutting moves lie at `cutting_spans` along its path
-    /// (`(from, to)`, mm of path length from the start), with scripted `events`.
-    pub fn new(
+    /// The gap side of [`SimMachine::new`], with the events that change the gap and the
+    /// wire it shares with the inputs side.
+    fn new(
         settings: &SimSettings,
         cutting_spans: &[(f64, f64)],
         events: Vec<(u64, SimEvent)>,
+        wire_sensor: SimulatedWire,
     ) -> SimGap {
         let step_mm = settings.step_mm;
         let dt = settings.tick.secs();
@@ -234,6 +278,7 @@ impl SimGap {
             next_break_mm,
             break_rng,
             broken: false,
+            wire_sensor,
             debris_per_tick: -(-params.debris_shorts_per_s * dt).exp_m1(),
             rng,
             front: params.initial_gap_mm,
@@ -249,7 +294,6 @@ impl SimGap {
             events,
             next_event: 0,
             hold: None,
-            safety: crate::vocab::SafetyInputs::default(),
             state: GapState::Open,
             rapid: false,
             volts: settings.volts,
@@ -257,19 +301,6 @@ impl SimGap {
             ratios: (1.0, 0.0),
             counters: SimCounters::default(),
         }
-    }
-
-    /// The model of `settings` for a program with these cutting spans (see [`new`](Self::new)),
-    /// with the scripted events of `sim.events` (read and checked here, before the job).
-    pub fn load(
-        settings: &SimSettings,
-        cutting_spans: &[(f64, f64)],
-    ) -> Result<SimGap, ScriptError> {
-        let events = match &settings.params.events {
-            Some(path) => events::load(path)?,
-            None => Vec::new(),
-        };
-        Ok(SimGap::new(settings, cutting_spans, events))
     }
 
     /// The gap distance (mm).
@@ -300,10 +331,20 @@ impl SimGap {
                 SimEvent::Hold { state, ticks } => {
                     self.hold = Some((state, at.saturating_add(ticks)));
                 }
-                SimEvent::Estop => self.safety.estop = true,
-                SimEvent::Limit(switch) => self.safety.limits.insert(switch),
+                // The inputs side's (split off in `SimMachine::new`).
+                SimEvent::Estop | SimEvent::Limit(_) => {}
             }
         }
+    }
+
+    /// The inputs side mended the wire (a rethread): the next break is drawn from here.
+    fn rethreaded(&mut self) {
+        self.broken = false;
+        self.next_break_mm = next_break(
+            &mut self.break_rng,
+            self.params.wire_breaks_per_m,
+            self.cut_mm,
+        );
     }
 
     /// While sparking: is a debris bridge forming now? Returns its clearing distance.
@@ -417,13 +458,12 @@ impl SimGap {
 
 impl GapSensor for SimGap {
     fn sample(&mut self, tick: u64) -> Result<GapState, GapError> {
+        if self.broken && !self.wire_sensor.is_broken() {
+            self.rethreaded();
+        }
         let state = self.sample_state(tick);
         self.count_pulses(state);
         Ok(state)
-    }
-
-    fn safety(&self) -> crate::vocab::SafetyInputs {
-        self.safety
     }
 
     fn observe(&mut self, steps: &[i8; MAX_AXES], dir: i8) {
@@ -449,6 +489,7 @@ impl GapSensor for SimGap {
             self.cut_mm += len;
             if self.cut_mm >= self.next_break_mm {
                 self.broken = true;
+                self.wire_sensor.set_broken(true);
                 self.counters.wire_breaks += 1;
             }
         }
@@ -469,21 +510,6 @@ impl GapSensor for SimGap {
 
     fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
         self.probe = probe::Target::new(what);
-    }
-
-    fn wire_broken(&self) -> bool {
-        self.broken
-    }
-
-    fn rethreaded(&mut self) {
-        if self.broken {
-            self.broken = false;
-            self.next_break_mm = next_break(
-                &mut self.break_rng,
-                self.params.wire_breaks_per_m,
-                self.cut_mm,
-            );
-        }
     }
 
     /// The generator's average gap voltage as the model sees it: 0 V shorted, the

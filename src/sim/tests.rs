@@ -48,7 +48,7 @@ pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
 }
 
 fn gap(overrides: &[&str]) -> SimGap {
-    SimGap::new(&settings(overrides), &[(0.0, 10.0)], Vec::new())
+    SimMachine::new(&settings(overrides), &[(0.0, 10.0)], Vec::new()).gap
 }
 
 fn sample(g: &mut SimGap, tick: u64) -> GapState {
@@ -141,16 +141,17 @@ fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
         gap(&["sim.debris_shorts_per_mm=0.5", "sim.seed=4"]).debris_positions()
     );
     // The number goes with the cutting: none on a move of a few mm at the default rate.
-    let short = SimGap::new(&settings(&[]), &[(0.0, 4.0)], Vec::new());
+    let short = SimMachine::new(&settings(&[]), &[(0.0, 4.0)], Vec::new()).gap;
     assert!(short.debris_positions().is_empty());
     assert_eq!(gap(&[]).debris_positions().len(), 1, "0.1 per mm of 9.7 mm");
     // Only on cutting moves: a 10 mm rapid, 2 mm cut, 5 mm rapid, 2 mm cut.
     let spans = [(10.0, 12.0), (17.0, 19.0)];
-    let g = SimGap::new(
+    let g = SimMachine::new(
         &settings(&["sim.debris_shorts_per_mm=10", "sim.debris_clear_um=0.001"]),
         &spans,
         Vec::new(),
-    );
+    )
+    .gap;
     for p in g.debris_positions() {
         assert!(spans.iter().any(|(a, b)| p >= a && p <= b), "{p}");
     }
@@ -189,11 +190,12 @@ fn scripted_events_hold_erode_and_bridge() {
         "ev",
     )
     .unwrap();
-    let mut g = SimGap::new(
+    let mut g = SimMachine::new(
         &settings(&["sim.debris_shorts_per_mm=0", "sim.initial_gap_um=5"]),
         &[(0.0, 10.0)],
         events,
-    );
+    )
+    .gap;
     let states: Vec<GapState> = (0..3).map(|t| sample(&mut g, t)).collect();
     assert_eq!(
         states,
@@ -223,4 +225,52 @@ fn scripted_events_hold_erode_and_bridge() {
     }
     g.front = g.progress + 0.005;
     assert_eq!(sample(&mut g, 24), GapState::Normal);
+}
+
+#[test]
+fn the_machine_s_inputs_side_reads_its_e_stop_limits_and_wire() {
+    use crate::inputs::MachineInputs;
+    let events = events::parse("3 estop\n5 limit X+\n", "ev").unwrap();
+    let SimMachine {
+        gap: mut g,
+        mut inputs,
+    } = SimMachine::new(
+        &settings(&[
+            "sim.debris_shorts_per_mm=0",
+            "sim.initial_gap_um=5",
+            "sim.wire_breaks_per_m=1000",
+        ]),
+        &[(0.0, 10.0)],
+        events,
+    );
+    // The loop's order in a tick: the inputs, the gap, then the steps.
+    let tick = |t: u64, g: &mut SimGap, inputs: &mut SimInputs| {
+        let read = inputs.sample(t).unwrap();
+        let state = sample(g, t);
+        g.observe(&X, 1);
+        g.front = g.progress + 0.005;
+        (read, state)
+    };
+    let (r, _) = tick(2, &mut g, &mut inputs);
+    assert!(!r.safety.estop && r.safety.limits.is_empty());
+    let (r, _) = tick(3, &mut g, &mut inputs);
+    assert!(r.safety.estop, "pressed in its own tick");
+    let (r, _) = tick(5, &mut g, &mut inputs);
+    assert_eq!(r.safety.limits.iter().count(), 1);
+    // 1000 breaks per m: one within a few mm of cutting.
+    let mut t = 6;
+    let broke = loop {
+        let (r, state) = tick(t, &mut g, &mut inputs);
+        if r.wire_broken {
+            assert_eq!(state, GapState::Open, "no wire, no discharge");
+            break t;
+        }
+        t += 1;
+        assert!(t < 100_000, "the wire never broke");
+    };
+    assert_eq!(g.counters().wire_breaks, 1);
+    inputs.rethreaded();
+    let (r, state) = tick(broke + 1, &mut g, &mut inputs);
+    assert!(!r.wire_broken);
+    assert_eq!(state, GapState::Normal, "sparking again on the new wire");
 }

@@ -166,6 +166,7 @@ fn job_steered(
         output: Some(Box::new(output)),
         gap: Some(Box::new(gap)),
         inputs: Some(Box::new(inputs)),
+        gap_inputs: None,
         probe_reads: Default::default(),
         tracer: None,
         recording: None,
@@ -649,6 +650,7 @@ fn fault_then_resume(
             output: Some(output),
             gap: Some(Box::new(edmd::gap::AlwaysNormal)),
             inputs: Some(Box::new(edmd::inputs::NoInputs)),
+            gap_inputs: None,
             probe_reads: Default::default(),
             tracer: None,
             recording: None,
@@ -746,7 +748,11 @@ fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
         ("none", Box::new(edmd::gap::AlwaysNormal)),
         (
             "script",
-            Box::new(ScriptGap::parse("0 normal\n", "gap.txt").unwrap()),
+            Box::new(
+                edmd::gap::GapScript::parse("0 normal\n", "gap.txt")
+                    .unwrap()
+                    .gap,
+            ),
         ),
         ("sim", {
             let check = runtime::precheck(
@@ -757,7 +763,7 @@ fn the_estop_pin_stops_the_job_whatever_the_gap_input() {
                 &runtime::Progress::new(),
             )
             .unwrap();
-            runtime::open_gap(&config, &check, None).unwrap()
+            runtime::open_gap(&config, &check, None).unwrap().gap
         }),
         (
             "iio",

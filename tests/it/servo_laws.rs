@@ -10,7 +10,7 @@ use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
 use edmd::servo::{GapReading, Law, ServoState};
-use edmd::sim::{SimGap, SimSettings};
+use edmd::sim::{SimMachine, SimSettings};
 use edmd::vocab::MAX_AXES;
 
 /// 200 blocks of 0.1 mm along X, planned at up to 20 mm/s (the servo decides).
@@ -72,11 +72,12 @@ fn run(law: &str) -> Run {
     )
     .unwrap();
     let settings = FineSettings::from_config(&config);
-    let mut sim = SimGap::new(
+    let mut sim = SimMachine::new(
         &SimSettings::from_config(&config),
         &[(0.0, 20.0)],
         Vec::new(),
-    );
+    )
+    .gap;
     let mut source = VecSource::new(straight_cut(), 16);
     let mut fine = Interpolator::new(settings, [0; MAX_AXES]);
     let (mut sum, mut n) = (0.0, 0u64);

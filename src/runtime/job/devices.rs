@@ -3,7 +3,9 @@
 //! machine inputs that come with it (the port's status pins, the HAL component's input pins;
 //! none otherwise), and the gap source (`gap.kind`: simulator, script, the port's status
 //! pins, the HAL component's gap pins, an ADC, none), each wrapped in the fault injector and
-//! the tracer when configured.
+//! the tracer when configured. A simulated gap (the simulator, a script) is a device with
+//! two sides: its gap and the inputs of the machine it simulates, read beside the output
+//! device's inputs.
 //!
 //! Everything that can fail at startup fails here, before anything moves. This is the only
 //! place that knows which device a kind names; the job runner takes boxed traits.
@@ -13,10 +15,10 @@ use std::sync::Arc;
 use super::error::JobError;
 use super::precheck::Precheck;
 use crate::config::{Config, GapKind, OutputKind};
-use crate::gap::{AlwaysNormal, GapSensor, IioGap, ScriptGap};
+use crate::gap::{AlwaysNormal, GapScript, GapSensor, IioGap};
 use crate::inputs::{MachineInputs, NoInputs};
 use crate::output::{FaultInjector, NullOutput, PulseLog, PulseLogHeader, PulseOutput};
-use crate::sim::{SimGap, SimSettings};
+use crate::sim::{SimMachine, SimSettings};
 use crate::trace::{TracedGap, TracedOutput, Tracer};
 
 pub type BoxedOutput = Box<dyn PulseOutput + Send>;
@@ -39,6 +41,23 @@ pub struct OpenedOutput {
     pub distrust: Option<String>,
 }
 
+/// An opened gap source, with the inputs side of the machine it simulates.
+pub struct OpenedGap {
+    pub gap: BoxedGap,
+    /// A simulator's or a gap script's E-stop, limits and wire, read beside the machine's
+    /// own inputs; `None` for a real gap input.
+    pub inputs: Option<BoxedInputs>,
+}
+
+/// A job's devices, opened.
+pub struct OpenedIo {
+    pub output: BoxedOutput,
+    pub gap: BoxedGap,
+    pub inputs: BoxedInputs,
+    /// See [`OpenedGap::inputs`].
+    pub gap_inputs: Option<BoxedInputs>,
+}
+
 /// Opens the output, the machine inputs and the gap source of `config`, with the fault
 /// injector and the tracer when configured: everything that can fail at startup fails here,
 /// before anything moves.
@@ -47,14 +66,19 @@ pub fn open_io(
     check: &Precheck,
     start: &[i64],
     tracer: Option<&Arc<Tracer>>,
-) -> Result<(BoxedOutput, BoxedGap, BoxedInputs), JobError> {
+) -> Result<OpenedIo, JobError> {
     let opened = open_output(config, start)?;
     if let Some(ready) = opened.ready {
         ready.send()?;
     }
     let gap = open_gap(config, check, opened.port_gap)?;
-    let (output, gap) = wrap_io(config, opened.output, gap, tracer);
-    Ok((output, gap, opened.inputs))
+    let (output, sensor) = wrap_io(config, opened.output, gap.gap, tracer);
+    Ok(OpenedIo {
+        output,
+        gap: sensor,
+        inputs: opened.inputs,
+        gap_inputs: gap.inputs,
+    })
 }
 
 /// Opens the pulse output of `config`; a parallel port comes with its status pins (the gap
@@ -117,9 +141,10 @@ pub fn open_gap(
     config: &Config,
     check: &Precheck,
     port_gap: Option<BoxedGap>,
-) -> Result<BoxedGap, JobError> {
+) -> Result<OpenedGap, JobError> {
+    let real = |gap: BoxedGap| OpenedGap { gap, inputs: None };
     Ok(match (config.gap.kind, port_gap) {
-        (GapKind::Parport | GapKind::Hal, Some(gap)) => gap,
+        (GapKind::Parport | GapKind::Hal, Some(gap)) => real(gap),
         // Validation refuses this combination; a hand-built `Config` gets an error, not a panic.
         (GapKind::Parport | GapKind::Hal, None) => {
             return Err(JobError::Config(
@@ -128,13 +153,22 @@ pub fn open_gap(
                     .to_string(),
             ));
         }
-        (GapKind::None, _) => Box::new(AlwaysNormal),
-        (GapKind::Script, _) => Box::new(ScriptGap::load(&config.gap.script)?),
-        (GapKind::Iio, _) => Box::new(IioGap::open(&config.gap.iio, config.gap.volts)?),
-        (GapKind::Sim, _) => Box::new(SimGap::load(
-            &SimSettings::from_config(config),
-            &check.cutting_spans,
-        )?),
+        (GapKind::None, _) => real(Box::new(AlwaysNormal)),
+        (GapKind::Script, _) => {
+            let script = GapScript::load(&config.gap.script)?;
+            OpenedGap {
+                gap: Box::new(script.gap),
+                inputs: Some(Box::new(script.inputs)),
+            }
+        }
+        (GapKind::Iio, _) => real(Box::new(IioGap::open(&config.gap.iio, config.gap.volts)?)),
+        (GapKind::Sim, _) => {
+            let sim = SimMachine::load(&SimSettings::from_config(config), &check.cutting_spans)?;
+            OpenedGap {
+                gap: Box::new(sim.gap),
+                inputs: Some(Box::new(sim.inputs)),
+            }
+        }
     })
 }
 

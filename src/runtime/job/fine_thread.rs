@@ -35,7 +35,7 @@ use super::devices::{BoxedGap, BoxedInputs, BoxedOutput};
 use crate::buffer::LoopBuffer;
 use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::gap::{AlwaysNormal, GapSensor};
-use crate::inputs::{MachineInputs, NoInputs};
+use crate::inputs::{Both, MachineInputs, NoInputs};
 use crate::output::{NullOutput, OutputError, PulseOutput, StopReason};
 use crate::record::{RecordedOutput, Recorder};
 use crate::servo::PathPoint;
@@ -81,6 +81,8 @@ pub struct FineJob {
     pub output: Option<BoxedOutput>,
     pub gap: Option<BoxedGap>,
     pub inputs: Option<BoxedInputs>,
+    /// The inputs side of a simulated gap, read beside the machine's (dropped at the end).
+    pub gap_inputs: Option<BoxedInputs>,
     /// Wrap the output in a recorder for this job.
     pub recorder: Option<JobRecorder>,
     /// What the job's probing moves read as their contact.
@@ -276,6 +278,7 @@ fn run(job: FineJob, device: Option<&mut Device>, rt_refused: &[String]) -> Fine
         mut output,
         mut gap,
         mut inputs,
+        mut gap_inputs,
         recorder,
         probe_reads,
         conditions,
@@ -307,6 +310,18 @@ fn run(job: FineJob, device: Option<&mut Device>, rt_refused: &[String]) -> Fine
     let machine_inputs: &mut (dyn MachineInputs + Send) = match inputs.as_deref_mut() {
         Some(i) => i,
         None => claimed_inputs.map_or(&mut no_inputs, |i| i),
+    };
+    // A simulated gap's machine is read beside the real one: either's E-stop stops.
+    let mut both;
+    let machine_inputs: &mut dyn MachineInputs = match gap_inputs.as_deref_mut() {
+        Some(simulated) => {
+            both = Both {
+                first: machine_inputs,
+                second: simulated,
+            };
+            &mut both
+        }
+        None => machine_inputs,
     };
     let mut recorded;
     let out: &mut dyn PulseOutput = match recorder {

@@ -204,7 +204,7 @@ where
     loop {
         wait_for_tick(&mut latency, deadline, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
-        take_requests(fine, sensor, published);
+        take_requests(fine, inputs, published);
         let probing = activity.flags.contains(BlockFlags::PROBE);
         let sensed = sense(inputs, inputs_wired, sensor, probing, tick_no, published);
         let (machine, gap) = match sensed {
@@ -217,7 +217,7 @@ where
         // An E-stop, or a limit switch that closed during the job, stops motion in the tick
         // it is seen: no step of this tick is taken; the output's finish then drops the
         // drives' enable and the spark.
-        let safety = machine.safety.merged(sensor.safety());
+        let safety = machine.safety;
         report.limits_at_end = safety.limits;
         let allowed = *limits_at_start.get_or_insert(safety.limits);
         if let Some(trip) = newly_tripped(safety, allowed) {
@@ -227,7 +227,7 @@ where
         // Where the electrode stands before this tick (two words): if the output refuses the
         // tick's step, this is the point that goes with the ledger the drives received.
         let before = fine.here();
-        fine.set_wire_input(machine.wire_broken || sensor.wire_broken());
+        fine.set_wire_input(machine.wire_broken);
         let reading = read_for(law_input, gap, sensor);
         let tick = fine.tick_measured(reading, source);
         tell_activity(&mut activity, fine, tick_no, output, sensor, published);
@@ -378,15 +378,15 @@ fn newly_tripped(safety: SafetyInputs, allowed: LimitSet) -> Option<Trip> {
 
 /// Phase 1c: what the other threads asked for: a rethread, a hold (the dead-man's too).
 #[inline(always)]
-fn take_requests<G: GapSensor + ?Sized>(
+fn take_requests<I: MachineInputs + ?Sized>(
     fine: &mut Interpolator,
-    sensor: &mut G,
+    inputs: &mut I,
     published: &Published,
 ) {
     if let Some(at) = published.rethread.take()
         && fine.rethread(at)
     {
-        sensor.rethreaded();
+        inputs.rethreaded();
     }
     keep_dead_man(published);
     fine.set_hold(published.hold.load(Ordering::Acquire));
