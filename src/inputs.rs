@@ -81,6 +81,16 @@ impl SimulatedWire {
     pub fn set_broken(&self, broken: bool) {
         self.0.store(broken, Ordering::Relaxed);
     }
+
+    /// What a simulated machine's inputs read: its `safety` and this wire. No contact pin:
+    /// a simulated contact is sensed through the gap.
+    pub fn reading(&self, safety: SafetyInputs) -> InputReading {
+        InputReading {
+            safety,
+            wire_broken: self.is_broken(),
+            contact: None,
+        }
+    }
 }
 
 /// No wired inputs: nothing is ever pressed, no contact pin.

@@ -279,11 +279,7 @@ impl MachineInputs for ScriptInputs {
             self.wire.set_broken(true);
             self.breaks_done += 1;
         }
-        Ok(InputReading {
-            safety: self.safety,
-            wire_broken: self.wire.is_broken(),
-            contact: None,
-        })
+        Ok(self.wire.reading(self.safety))
     }
 
     fn rethreaded(&mut self) {

@@ -48,12 +48,7 @@ impl MachineInputs for SimInputs {
                 _ => {}
             }
         }
-        Ok(InputReading {
-            safety: self.safety,
-            wire_broken: self.wire.is_broken(),
-            // Contact is sensed through the gap: the gap side answers probing moves.
-            contact: None,
-        })
+        Ok(self.wire.reading(self.safety))
     }
 
     fn rethreaded(&mut self) {
