@@ -4,7 +4,6 @@
 //!
 //! `cargo bench --bench runtime`
 
-use edmd::buffer::BlockFlags;
 use std::hint::black_box;
 use std::path::Path;
 use std::sync::Arc;
@@ -80,18 +79,7 @@ fn blocks(count: u64, len: i64, axes: usize) -> Vec<StepBlock> {
                     exit: 1e3,
                 },
                 line: 1,
-                u_end: f64::NAN,
-                flags: BlockFlags::NONE,
-                path_end_mm: 0.0,
-                rest_mm: 0.0,
-                contour_mm: 0.0,
-                dwell_s: 0.0,
-                condition: 0,
-                condition_feed: 0.0,
-                condition_v_ref: 0.0,
-                condition_jump: [f32::NAN; 3],
-                pass: 0,
-                wire_offset_mm: 0.0,
+                ..StepBlock::EMPTY
             };
             at = end;
             b

@@ -31,8 +31,9 @@ pub mod path;
 pub mod preprocess;
 // Floor 5: the loop buffer.
 pub mod buffer;
-// Floor 6: the tick core and its servo.
+// Floor 6: the tick core, its servo and the process in force.
 pub mod fine;
+pub mod process;
 pub mod servo;
 // Floor 7: the machine's two sides (pulse outputs, gap and machine inputs), their devices and
 // wrappers.

@@ -176,8 +176,8 @@ impl<O: PulseOutput> PulseOutput for TracedOutput<O> {
         self.inner.moving_in(now)
     }
 
-    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
-        self.inner.conditions(table)
+    fn set_points(&mut self, condition: u16, set: &crate::vocab::GeneratorSetPoints) {
+        self.inner.set_points(condition, set)
     }
 }
 

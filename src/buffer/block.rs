@@ -45,15 +45,9 @@ pub struct StepBlock {
     pub contour_mm: f64,
     /// `G4` dwell before the move, s (first move of its G-code block only).
     pub dwell_s: f64,
-    /// The machining condition in force (`E<number>`; 0 none), and what it sets for the
-    /// servo: the sparking feed (mm/s) and the voltage law's reference (V); 0 keeps the
-    /// `[servo]` settings.
+    /// The machining condition the move is cut in (`E<number>`; 0 none). What it sets is
+    /// looked up by the tick core's process part when the move is entered.
     pub condition: u16,
-    pub condition_feed: f32,
-    pub condition_v_ref: f32,
-    /// The condition's jumps: interval (s), height (mm) and feed (mm/s); NaN keeps the
-    /// `[servo]` setting, an interval of 0 turns jumps off.
-    pub condition_jump: [f32; 3],
     /// The pass of the technology table this move belongs to (1-based; 0: the job does not
     /// run in passes), so a report marks where each pass starts, also after a resume.
     pub pass: u8,
@@ -139,6 +133,9 @@ pub struct Activity {
     pub spark: bool,
     /// The machining condition in force (`E<number>`; 0 none).
     pub condition: u16,
+    /// Changes whenever the generator's set points in force do (a new condition, or one
+    /// adapted during the cut): the output is due to be told them.
+    pub set_points: u32,
 }
 
 impl StepBlock {
@@ -161,9 +158,6 @@ impl StepBlock {
         contour_mm: 0.0,
         dwell_s: 0.0,
         condition: 0,
-        condition_feed: 0.0,
-        condition_v_ref: 0.0,
-        condition_jump: [f32::NAN; 3],
         pass: 0,
         wire_offset_mm: 0.0,
     };

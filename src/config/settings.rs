@@ -15,6 +15,7 @@ use crate::parport::{PinMap, StepTiming};
 use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
 use crate::preprocess::corners::CornerRule;
+use crate::process::{Condition, ConditionTable, ServoSetPoints};
 use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
 use crate::vocab::{Axis, MAX_AXES};
@@ -145,6 +146,33 @@ impl FineSettings {
                 },
             },
         }
+    }
+}
+
+impl ConditionTable {
+    /// `[generator] condition`s (the technology table's, once merged): the sparking feed in
+    /// mm/s, the jumps in s, mm and mm/s, NaN where the `[servo]` setting stays.
+    pub fn from_config(config: &Config) -> ConditionTable {
+        let or_keep = |v: Option<f64>| v.map_or(f32::NAN, |v| v as f32);
+        ConditionTable::new(
+            config
+                .conditions
+                .iter()
+                .map(|c| Condition {
+                    number: c.number as u16,
+                    servo: ServoSetPoints {
+                        feed_mm_per_s: (c.feed_mm_per_min / 60.0) as f32,
+                        v_ref: c.generator.servo_ref_v as f32,
+                        jump: [
+                            or_keep(c.jump_interval_s),
+                            or_keep(c.jump_height_mm),
+                            or_keep(c.jump_feed_mm_per_min.map(|v| v / 60.0)),
+                        ],
+                    },
+                    generator: c.generator,
+                })
+                .collect(),
+        )
     }
 }
 

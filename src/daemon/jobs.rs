@@ -64,9 +64,9 @@ pub(super) struct JobControl {
     /// The verdict of the last check.
     pub last_check: Option<protocol::CheckStatus>,
     /// The continuous jog in progress (being checked or moving) and its dead-man.
-    pub continuous: Option<super::manual::ContinuousJog>,
+    pub continuous: Option<super::commands::ContinuousJog>,
     /// A continuous jog a hold or the dead-man stopped, whose renewals are refused.
-    pub stopped_jog: Option<super::manual::StoppedJog>,
+    pub stopped_jog: Option<super::commands::StoppedJog>,
     pub next_check_id: u64,
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
@@ -173,8 +173,8 @@ impl Core {
             return released;
         }
         self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        self.refuse_if_untrusted("resume", force)?;
+        self.desk().refuse_if_tripped(None)?;
+        self.desk().refuse_if_untrusted("resume", force)?;
         let Some(cp) = self.checkpoints.current.clone() else {
             return Err(Refusal::NothingToResume {
                 why: match &self.checkpoints.read_error {
@@ -278,7 +278,7 @@ impl Core {
                 error,
                 consequence: "the job stays held",
             })?;
-        self.machine.save(true).map_err(super::machine::unwritten)?;
+        self.machine.save(true).map_err(super::desk::unwritten)?;
         job.published.hold.store(false, Ordering::Release);
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
@@ -315,7 +315,7 @@ impl Core {
                     error,
                     consequence: "the wire stays where it broke",
                 })?;
-            self.machine.save(true).map_err(super::machine::unwritten)?;
+            self.machine.save(true).map_err(super::desk::unwritten)?;
             job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
@@ -383,7 +383,7 @@ impl Core {
         // travel, an alarm): the renewals of its client, still pressing, are refused until it
         // lets go. One that `jog-stop` or the dead-man ended was taken already.
         if let Some(c) = self.jobs.continuous.take() {
-            self.jobs.stopped_jog = Some(super::manual::StoppedJog {
+            self.jobs.stopped_jog = Some(super::commands::StoppedJog {
                 axis: c.axis,
                 positive: c.positive,
                 last_ns: crate::sys::monotonic_ns(),
@@ -430,7 +430,7 @@ impl Core {
         let _ = self
             .machine
             .stopped(&at, ran_to_the_end.then(|| job.leaves.clone()))
-            .map_err(super::machine::unwritten);
+            .map_err(super::desk::unwritten);
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }

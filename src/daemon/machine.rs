@@ -4,6 +4,7 @@
 //! standstill, written at the standstill where it ends. The operator's commands that change
 //! it without motion live here too: `offsets`, `touch-off` (homing: [`super::homing`]).
 
+use super::desk::unwritten;
 use super::protocol::{FindStatus, MachineStatus};
 use super::refusal::Refusal;
 use super::{Core, DaemonError};
@@ -11,7 +12,7 @@ use crate::checkpoint;
 use crate::config::Config;
 use crate::gcode::{WorkStart, WorkSystem};
 use crate::machine::travel::offset_allowed;
-use crate::machine::{Admission, Denial, Found, Machine, WriteError};
+use crate::machine::{Found, Machine};
 use crate::vocab::{Axis, Steps, Trip};
 
 /// Opens the machine of `config` (`daemon.state_file`): a clean standstill restores position
@@ -80,12 +81,6 @@ pub(super) fn distrust_moved_drives(machine: &mut Machine, why: &str) {
     }
 }
 
-/// A failed write of the state file, as the operator is told (and the log says).
-pub(super) fn unwritten(e: WriteError) -> Refusal {
-    tracing::error!("{e}");
-    Refusal::MachineState(e.to_string())
-}
-
 /// What the status shows of the machine; `live` is a running job's ledger, `find` the running
 /// or last touch cycle.
 pub(super) fn machine_status(
@@ -142,8 +137,8 @@ impl Core {
         self.refuse_if_busy()?;
         // An offset set while the machine is stopped by an E-stop or a limit is set from a
         // position nobody has checked since.
-        self.refuse_if_tripped(None)?;
-        let (i, axis) = self.machine_axis(axis)?;
+        self.desk().refuse_if_tripped(None)?;
+        let (i, axis) = self.desk().axis(axis)?;
         if !value.is_finite() || value.abs() > 1.0e6 {
             return Err(Refusal::BadArgument(format!(
                 "touch-off value {value} is not a coordinate (±1000000 mm)"
@@ -197,23 +192,6 @@ impl Core {
                  [{min}, {max}] mm: check the value and where the machine stands"
             ))
         })
-    }
-
-    /// The machine's axis named `name` and its index.
-    pub(super) fn machine_axis(&self, name: &str) -> Result<(usize, Axis), Refusal> {
-        let axes = &self.config.machine.axes;
-        let mut chars = name.trim().chars();
-        let axis = match (chars.next(), chars.next()) {
-            (Some(c), None) => Axis::from_letter(c.to_ascii_uppercase()),
-            _ => None,
-        };
-        axis.and_then(|a| axes.iter().position(|&x| x == a).map(|i| (i, a)))
-            .ok_or_else(|| {
-                Refusal::BadArgument(format!(
-                    "{name:?} is not an axis of this machine ({})",
-                    self.config.machine.axis_names().join(", ")
-                ))
-            })
     }
 
     /// Where the checkpoint's job started: the resume replays it from there. Refused when the
@@ -436,54 +414,5 @@ impl Core {
         // again by itself once it is cleared.
         self.latch_stopped_jog();
         self.set_trip(Some(trip));
-    }
-
-    /// Motion refused while an E-stop or a limit switch holds the machine; `jog` names the
-    /// axis and direction of a jog (the only motion a limit switch allows, away from it).
-    pub(super) fn refuse_if_tripped(&self, jog: Option<(Axis, bool)>) -> Result<(), Refusal> {
-        self.machine
-            .admit(Admission::Motion { jog })
-            .map_err(|d| refusal(d, "move"))
-    }
-
-    /// A resume or a run from a line continues a cut where the machine is believed to stand:
-    /// refused while an axis is unhomed under `homing.required`, or while the position is
-    /// distrusted after an unclean stop, unless `force` says the operator checked it.
-    pub(super) fn refuse_if_untrusted(
-        &self,
-        what: &'static str,
-        force: bool,
-    ) -> Result<(), Refusal> {
-        let homing_required = self.config.homing.required;
-        let Err(denial) = self.machine.admit(Admission::Continue { homing_required }) else {
-            return Ok(());
-        };
-        let refusal = match denial {
-            Denial::Unhomed { axes } => Refusal::UnhomedResume { what, axes },
-            other => refusal(other, what),
-        };
-        if !force {
-            return Err(refusal);
-        }
-        tracing::warn!("{refusal} (forced: the operator says the position was checked)");
-        Ok(())
-    }
-
-    /// `run` on a machine that must be homed first.
-    pub(super) fn refuse_if_unhomed(&self) -> Result<(), Refusal> {
-        let homing_required = self.config.homing.required;
-        self.machine
-            .admit(Admission::Run { homing_required })
-            .map_err(|d| refusal(d, "run"))
-    }
-}
-
-/// The operator's refusal for the machine's denial of `what`.
-fn refusal(denial: Denial, what: &'static str) -> Refusal {
-    match denial {
-        Denial::EStop => Refusal::EStop,
-        Denial::Limit { switch } => Refusal::Limit { switch },
-        Denial::Unhomed { axes } => Refusal::Unhomed { axes },
-        Denial::Distrusted => Refusal::Distrusted { what },
     }
 }

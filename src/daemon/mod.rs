@@ -32,15 +32,15 @@
 
 pub mod board;
 mod checkpoints;
+mod commands;
+mod desk;
 pub mod error;
 pub mod history;
-mod homing;
 pub mod http;
 mod jobs;
 mod launch;
 pub mod link;
 mod machine;
-mod manual;
 pub mod mqtt;
 pub mod names;
 pub mod noise;

@@ -149,11 +149,11 @@ impl Core {
             force,
         } = ask;
         self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        self.refuse_if_unhomed()?;
+        self.desk().refuse_if_tripped(None)?;
+        self.desk().refuse_if_unhomed()?;
         let from_line = self.run_from_line(dry_run, from_line, approach)?;
         if from_line.is_some() {
-            self.refuse_if_untrusted("run from a line", force)?;
+            self.desk().refuse_if_untrusted("run from a line", force)?;
         } else if force {
             return Err(Refusal::BadArgument(
                 "--force is for a run from a line (a whole program starts where it says)".into(),
@@ -441,7 +441,7 @@ impl Core {
     fn refuse_if_tripped_since(&self, kind: JobKind) -> Result<(), Refusal> {
         match (kind, self.machine.state.trip) {
             (JobKind::Jog { .. }, Some(crate::vocab::Trip::Limit(_))) => Ok(()),
-            _ => self.refuse_if_tripped(None),
+            _ => self.desk().refuse_if_tripped(None),
         }
     }
 
@@ -502,7 +502,7 @@ impl Core {
         let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
         self.homing_started(switch.as_ref());
-        self.machine.save(true).map_err(super::machine::unwritten)?;
+        self.machine.save(true).map_err(super::desk::unwritten)?;
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
             return Err(Refusal::WriteAhead {
                 error,

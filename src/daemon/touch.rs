@@ -38,8 +38,8 @@ impl Core {
     /// `find TARGET [--system G5x]`: starts the cycle's first move.
     pub(super) fn find(&mut self, target: &str, system: Option<&str>) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        self.refuse_if_unhomed()?;
+        self.desk().refuse_if_tripped(None)?;
+        self.desk().refuse_if_unhomed()?;
         let target = Target::parse(target).map_err(|e| Refusal::BadArgument(e.to_string()))?;
         let plane = self.config.machine.plane_axes().ok_or_else(|| {
             Refusal::BadArgument(format!(
@@ -228,7 +228,7 @@ impl Core {
             }
         }
         state.offsets.set(system, offset);
-        if let Err(e) = self.machine.save(false).map_err(super::machine::unwritten) {
+        if let Err(e) = self.machine.save(false).map_err(super::desk::unwritten) {
             self.machine.state.offsets.set(system, before);
             return Err(e);
         }

@@ -239,7 +239,7 @@ impl Core {
                 let _ = self
                     .machine
                     .standstill(&snap.position)
-                    .map_err(super::machine::unwritten);
+                    .map_err(super::desk::unwritten);
                 tracing::info!(
                     target: TARGET,
                     "held at {}:{} ({:?} steps)",

@@ -52,15 +52,14 @@ mod motion;
 
 pub use breakthrough::BreakthroughSettings;
 pub use motion::Overrides;
+mod settings;
 mod skip;
 mod stops;
 
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
-use crate::servo::{
-    Feeds, GapReading, Law, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState,
-    ShortRules,
-};
+use crate::process::{ConditionTable, Process};
+use crate::servo::{GapReading, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
 use excursion::ExcursionState;
@@ -69,39 +68,8 @@ use stops::Stops;
 
 pub use bresenham::Bresenham;
 pub use excursion::ExcursionSettings;
+pub use settings::FineSettings;
 pub use skip::SkipError;
-
-/// The fine interpolator's fixed parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FineSettings {
-    /// Tick period (s).
-    pub dt: f64,
-    /// Tangential acceleration limit (mm/s²).
-    pub accel: f64,
-    /// The servo's own acceleration (mm/s²): braking into a turn-back, the reversal, and the
-    /// turn-back and re-advance themselves (`servo.reverse_accel_mm_per_s2`).
-    pub reverse_accel: f64,
-    pub feeds: Feeds,
-    /// When a short is believed and how far a turn-back goes at least.
-    pub shorts: ShortRules,
-    /// Step size per axis (mm); unused axes 0.
-    pub step_mm: [f64; MAX_AXES],
-    /// A short lasting this many ticks raises the alarm (0: only the reserved history does).
-    pub max_short_ticks: u64,
-    /// The servo law (it reads what [`Interpolator::tick_measured`] is given).
-    pub law: Law,
-    /// Jumps, wire-break detection and rethreading.
-    pub excursions: ExcursionSettings,
-    /// A dry run: the program's moves at their planned feed with the spark off and the servo
-    /// out of the loop (a short is a collision, as on a rapid).
-    pub dry_run: bool,
-    /// Breakthrough on drilling moves.
-    pub breakthrough: BreakthroughSettings,
-    /// Jerk limit of rapids, jumps and rethread returns (mm/s³); 0: trapezoids.
-    pub jerk: f64,
-    /// The tool axis (Z) a jump off an orbit lifts along; `None`: the machine has none.
-    pub lift_axis: Option<usize>,
-}
 
 /// What one tick produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -138,6 +106,8 @@ pub struct Interpolator {
     motion: Motion,
     stops: Stops,
     excursions: ExcursionState,
+    /// The machining condition in force and its set points.
+    process: Process,
     /// An event met outside a tick (a resume at the mark), reported by the next tick.
     pending: Option<ServoEvent>,
     counters: FineCounters,
@@ -166,9 +136,20 @@ impl Interpolator {
                 contact_reading: true,
                 ..ExcursionState::default()
             },
+            process: Process::default(),
             pending: None,
             counters: FineCounters::default(),
         }
+    }
+
+    /// The job's machining conditions, before its first tick.
+    pub fn set_conditions(&mut self, table: ConditionTable) {
+        self.process = Process::new(table);
+    }
+
+    /// The machining condition in force and its set points.
+    pub fn process(&self) -> &Process {
+        &self.process
     }
 
     /// Single block, from the thread loop (the job's published controls): while on, every
@@ -418,14 +399,14 @@ impl Interpolator {
             tick.event = Some(alarm);
             return None;
         }
-        let block = &self.motion.block;
-        let (dir, feed) = self.servo.law_motion(gap, block.condition_v_ref);
+        let set = self.process.servo();
+        let (dir, feed) = self.servo.law_motion(gap, set.v_ref);
         let sparking = gap == GapState::Normal
             && dir > 0
             && self.servo.three_state()
-            && block.condition_feed > 0.0;
+            && set.feed_mm_per_s > 0.0;
         let motion = if sparking {
-            (dir, block.condition_feed as f64)
+            (dir, set.feed_mm_per_s as f64)
         } else {
             (dir, feed)
         };
@@ -669,8 +650,9 @@ impl Interpolator {
     }
 
     fn enter_block(&mut self, at_end: bool) {
+        self.process.enter(self.motion.block.condition);
         self.excursions.on_enter(
-            &self.motion.block,
+            self.process.servo(),
             &self.settings.excursions,
             self.settings.dt,
         );

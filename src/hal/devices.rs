@@ -29,9 +29,6 @@ pub struct HalOutput {
     step_mm: Vec<f64>,
     letters: Vec<char>,
     max_following_error_mm: Option<f64>,
-    /// The job's conditions' set points, and the condition whose are on the pins.
-    generator: Vec<(u32, GeneratorSetPoints)>,
-    set_points_of: Option<u16>,
     tick_ns: u64,
     /// edmd's heartbeat on `edmd.watchdog`: its level's period and how long it has stood.
     heartbeat_ns: u64,
@@ -54,8 +51,6 @@ impl HalOutput {
             step_mm: settings.step_mm.clone(),
             letters: settings.axes.iter().map(|a| a.letter()).collect(),
             max_following_error_mm: settings.max_following_error_mm,
-            generator: Vec::new(),
-            set_points_of: None,
             tick_ns: settings.tick_ns,
             heartbeat_ns: settings.heartbeat_ns.max(1),
             beat_for_ns: 0,
@@ -86,23 +81,6 @@ impl HalOutput {
     /// The drives' feedback did not read 0 when the component was made.
     pub(super) fn drives_moved(&self) -> bool {
         self.drives_moved
-    }
-
-    /// The set points of `condition` on the `edmd.gen.*` pins (a lookup in the job's short
-    /// table, no allocation: called from the tick's thread).
-    fn write_set_points(&mut self, condition: u16) {
-        if self.set_points_of == Some(condition) {
-            return;
-        }
-        let set = self
-            .generator
-            .iter()
-            .find(|(n, _)| *n == u32::from(condition))
-            .map_or_else(GeneratorSetPoints::default, |(_, s)| *s);
-        for (pin, (_, value)) in self.pins.generator.iter().zip(set.named()) {
-            pin.set(value);
-        }
-        self.set_points_of = Some(condition);
     }
 
     /// The first axis whose feedback is further from the command than the limit, or not a
@@ -185,7 +163,6 @@ impl PulseOutput for HalOutput {
             .flush_on
             .set(now.flags.contains(crate::buffer::BlockFlags::FLUSH));
         self.pins.condition.set(i32::from(now.condition));
-        self.write_set_points(now.condition);
     }
 
     /// The first job after the component was made takes up where the drives stand: HAL's
@@ -199,9 +176,12 @@ impl PulseOutput for HalOutput {
         }
     }
 
-    fn conditions(&mut self, table: &[(u32, GeneratorSetPoints)]) {
-        self.generator = table.to_vec();
-        self.set_points_of = None;
+    /// The set points on the `edmd.gen.*` pins (no allocation: called from the tick's
+    /// thread).
+    fn set_points(&mut self, _condition: u16, set: &GeneratorSetPoints) {
+        for (pin, (_, value)) in self.pins.generator.iter().zip(set.named()) {
+            pin.set(value);
+        }
     }
 
     /// The spark and the flushing go off. The drives stay enabled after a job that ended (the

@@ -56,8 +56,8 @@ impl<O: PulseOutput> PulseOutput for FaultInjector<O> {
         self.inner.moving_in(now)
     }
 
-    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
-        self.inner.conditions(table)
+    fn set_points(&mut self, condition: u16, set: &crate::vocab::GeneratorSetPoints) {
+        self.inner.set_points(condition, set)
     }
 }
 

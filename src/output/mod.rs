@@ -116,15 +116,15 @@ pub trait PulseOutput {
     /// writes it down, the port drives its flushing pin, a recorder notes rapids.
     fn moving_in(&mut self, _now: Activity) {}
 
-    /// A job is about to step the device (before its conditions and its first tick): a
+    /// A job is about to step the device (before its set points and its first tick): a
     /// device that takes up where its drives stand does so now (HAL's `pos-cmd` from
     /// `pos-fb`, the first time after it was made, once HAL has netted its pins).
     fn prepare(&mut self) {}
 
-    /// The job's machining conditions, before its first tick: what each E number sets the
-    /// generator to. A device with set-point outputs (HAL's `edmd.gen.*`) keeps them and
-    /// writes the set points of the condition in force as it changes.
-    fn conditions(&mut self, _table: &[(u32, crate::vocab::GeneratorSetPoints)]) {}
+    /// The generator's set points in force (of `condition`, as the job's process holds them):
+    /// before the first tick, and whenever they change during the job (another condition,
+    /// or one adapted). A device with set-point outputs (HAL's `edmd.gen.*`) writes them.
+    fn set_points(&mut self, _condition: u16, _set: &crate::vocab::GeneratorSetPoints) {}
 }
 
 pub use crate::buffer::Activity;
@@ -195,8 +195,8 @@ impl<O: PulseOutput + ?Sized> PulseOutput for &mut O {
         (**self).prepare()
     }
 
-    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
-        (**self).conditions(table)
+    fn set_points(&mut self, condition: u16, set: &crate::vocab::GeneratorSetPoints) {
+        (**self).set_points(condition, set)
     }
 }
 
@@ -230,7 +230,7 @@ impl<O: PulseOutput + ?Sized> PulseOutput for Box<O> {
         (**self).prepare()
     }
 
-    fn conditions(&mut self, table: &[(u32, crate::vocab::GeneratorSetPoints)]) {
-        (**self).conditions(table)
+    fn set_points(&mut self, condition: u16, set: &crate::vocab::GeneratorSetPoints) {
+        (**self).set_points(condition, set)
     }
 }

@@ -56,7 +56,7 @@ pub use program::{JobProgram, Progress, TempCopy};
 pub use progress::ProgressTracker;
 pub use realtime::{RealtimeGuard, apply_realtime};
 pub use run::{JobRun, run};
-pub use spec::{JobSpec, StepCondition, fine_speed_cap, start_steps};
+pub use spec::{JobSpec, fine_speed_cap, start_steps};
 pub use summary::{JobSummary, LastProbe, Outcome, StopPoint, axis_list};
 
 /// Logs one trace record (from the main thread).

@@ -112,11 +112,7 @@ pub fn run(
             gap_inputs,
             recorder,
             probe_reads,
-            conditions: spec
-                .conditions
-                .iter()
-                .map(|c| (c.number, c.generator))
-                .collect(),
+            conditions: spec.conditions.clone(),
             settings: spec.fine,
             loop_settings: spec.run_loop,
             resume: job.resume.clone(),

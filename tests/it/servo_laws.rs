@@ -4,7 +4,6 @@
 //! does it again; the voltage law feeds `gain · (V − V_ref)` and settles where its feed equals
 //! the erosion rate, a few volts above `V_ref`, with no shorts.
 
-use edmd::buffer::BlockFlags;
 use edmd::buffer::{StepBlock, VecSource};
 use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
@@ -36,18 +35,8 @@ fn straight_cut() -> Vec<StepBlock> {
                     exit: if i == 199 { 0.0 } else { 20.0 },
                 },
                 line: 1,
-                u_end: f64::NAN,
-                flags: BlockFlags::NONE,
                 path_end_mm: 0.1 * (i + 1) as f64,
-                rest_mm: 0.0,
-                contour_mm: 0.0,
-                dwell_s: 0.0,
-                condition: 0,
-                condition_feed: 0.0,
-                condition_v_ref: 0.0,
-                condition_jump: [f32::NAN; 3],
-                pass: 0,
-                wire_offset_mm: 0.0,
+                ..StepBlock::EMPTY
             }
         })
         .collect()

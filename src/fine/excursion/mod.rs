@@ -27,8 +27,9 @@
 use super::jerk::{JerkLimits, Room};
 use super::motion::Motion;
 use super::{Interpolator, Tick};
-use crate::buffer::{BlockFlags, BlockSource, Fetch, StepBlock};
+use crate::buffer::{BlockFlags, BlockSource, Fetch};
 
+use crate::process::ServoSetPoints;
 use crate::servo::{Excursion, Rethread, Servo, ServoEvent, ServoState};
 use crate::vocab::GapState;
 
@@ -105,10 +106,10 @@ pub(super) struct Lift {
 }
 
 impl ExcursionState {
-    /// Takes the jump settings of the block entered: its machining condition's where it
-    /// sets them, `settings`' otherwise (ticks of `dt`).
-    pub fn on_enter(&mut self, block: &StepBlock, settings: &ExcursionSettings, dt: f64) {
-        let [interval, height, feed] = block.condition_jump;
+    /// Takes the jump settings of the block entered: its machining condition's (`set`) where
+    /// it sets them, `settings`' otherwise (ticks of `dt`).
+    pub fn on_enter(&mut self, set: &ServoSetPoints, settings: &ExcursionSettings, dt: f64) {
+        let [interval, height, feed] = set.jump;
         self.jump_every = if interval.is_nan() {
             settings.jump_interval_ticks
         } else {

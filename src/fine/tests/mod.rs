@@ -3,6 +3,7 @@ use proptest::prelude::*;
 use super::*;
 use crate::buffer::BlockFlags;
 use crate::buffer::VecSource;
+use crate::servo::{Feeds, ShortRules};
 use crate::vocab::Steps;
 
 pub(crate) const SETTINGS: FineSettings = FineSettings {
@@ -57,18 +58,7 @@ pub(crate) fn chain(points: &[Steps], v: f64) -> Vec<StepBlock> {
                     exit: if i + 1 == n { 0.0 } else { PATH_CRUISE },
                 },
                 line: i as u64 + 1,
-                u_end: f64::NAN,
-                flags: BlockFlags::NONE,
-                path_end_mm: 0.0,
-                rest_mm: 0.0,
-                contour_mm: 0.0,
-                dwell_s: 0.0,
-                condition: 0,
-                condition_feed: 0.0,
-                condition_v_ref: 0.0,
-                condition_jump: [f32::NAN; 3],
-                pass: 0,
-                wire_offset_mm: 0.0,
+                ..StepBlock::EMPTY
             }
         })
         .collect()

@@ -37,6 +37,7 @@ use crate::fine::{FineSettings, Interpolator, SkipError};
 use crate::gap::{AlwaysNormal, GapSensor};
 use crate::inputs::{Both, MachineInputs, NoInputs};
 use crate::output::{NullOutput, OutputError, PulseOutput, StopReason};
+use crate::process::ConditionTable;
 use crate::record::{RecordedOutput, Recorder};
 use crate::servo::PathPoint;
 use crate::vocab::{Steps, Trip};
@@ -87,8 +88,8 @@ pub struct FineJob {
     pub recorder: Option<JobRecorder>,
     /// What the job's probing moves read as their contact.
     pub probe_reads: crate::vocab::ProbeReads,
-    /// The job's machining conditions: what each E number sets the generator to.
-    pub conditions: Vec<(u32, crate::vocab::GeneratorSetPoints)>,
+    /// The job's machining conditions: what each E number sets.
+    pub conditions: ConditionTable,
     pub settings: FineSettings,
     pub loop_settings: LoopSettings,
     pub resume: Option<ResumePoint>,
@@ -334,8 +335,9 @@ fn run(job: FineJob, device: Option<&mut Device>, rt_refused: &[String]) -> Fine
     out.prepare();
     sensor.probe_reads(probe_reads);
     machine_inputs.probe_reads(probe_reads);
-    out.conditions(&conditions);
     let mut fine = Interpolator::new(settings, start);
+    fine.set_conditions(conditions);
+    out.set_points(fine.process().condition(), fine.process().generator());
     // The walk to the checkpoint waits for the producer whatever the time mode: nothing
     // ticks yet, so waiting costs no deadline.
     let mut source = buffer.consumer(true);

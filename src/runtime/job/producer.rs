@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use super::super::shaping::program::JobProgram;
 use super::super::tick::probe::ProbeLink;
-use super::spec::{JobSpec, StepCondition};
+use super::spec::JobSpec;
 use crate::buffer::{LoopBuffer, StepBlock};
 use crate::gcode::{self, BlockKind};
 use crate::geometry::Point;
@@ -83,8 +83,6 @@ pub struct BlockMaker {
     path_mm: f64,
     /// The next segment is the first of its G-code block (it carries the block's stops).
     first_of_block: bool,
-    /// `[generator] condition`s as the blocks carry them.
-    conditions: Vec<StepCondition>,
     /// The pass the next blocks belong to (0: none), and the flags of the next block if it
     /// starts it (`PASS_START`, and `START_HOLE` where it starts at the start hole).
     pass: u8,
@@ -108,7 +106,6 @@ impl BlockMaker {
             last_end: spec.start_steps(),
             path_mm: 0.0,
             first_of_block: true,
-            conditions: spec.conditions.clone(),
             pass: 0,
             pass_starts: BlockFlags::NONE,
             drills_along: spec
@@ -264,9 +261,6 @@ impl BlockMaker {
             contour_mm,
             dwell_s: if first { segment.block.dwell_s } else { 0.0 } + segment.corner_dwell_s,
             condition: segment.block.condition as u16,
-            condition_feed: 0.0,
-            condition_v_ref: 0.0,
-            condition_jump: [f32::NAN; 3],
             pass: self.pass,
             wire_offset_mm: segment.block.wire_offset.map_or(0.0, |w| {
                 if w.left {
@@ -276,16 +270,6 @@ impl BlockMaker {
                 }
             }),
         };
-        let mut block = block;
-        if let Some(c) = self
-            .conditions
-            .iter()
-            .find(|c| c.number == segment.block.condition)
-        {
-            block.condition_feed = c.feed;
-            block.condition_v_ref = c.v_ref;
-            block.condition_jump = c.jump;
-        }
         self.path_mm += segment.length;
         self.seq += 1;
         self.last_end = end;

@@ -7,22 +7,10 @@ use crate::fine::FineSettings;
 use crate::gcode::WorkStart;
 use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
+use crate::process::ConditionTable;
 use crate::vocab::{Axis, Steps, TickPeriod};
 
 use super::super::tick::consumer::LoopSettings;
-
-/// A machining condition as the step blocks carry it: its number, the sparking feed (mm/s)
-/// and the voltage law's reference (V) it sets, and its jumps: interval (s), height (mm) and
-/// feed (mm/s), NaN where it keeps the `[servo]` setting; and the generator's set points.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepCondition {
-    pub number: u32,
-    pub feed: f32,
-    pub v_ref: f32,
-    pub jump: [f32; 3],
-    /// What it sets the generator to (the output's `edmd.gen.*` pins).
-    pub generator: crate::vocab::GeneratorSetPoints,
-}
 
 /// Everything a job's threads need.
 #[derive(Debug, Clone)]
@@ -43,7 +31,7 @@ pub struct JobSpec {
     pub buffer_reserved: usize,
     /// Executed blocks kept beyond the reserved area (`buffer.trail_blocks`).
     pub buffer_trail: usize,
-    pub conditions: Vec<StepCondition>,
+    pub conditions: ConditionTable,
     /// The fastest path speed the outputs can take (one step per axis per tick), mm/s.
     pub speed_cap: f64,
     pub max_feed_mm_per_min: f64,
@@ -73,22 +61,7 @@ impl JobSpec {
             } else {
                 0
             },
-            conditions: config
-                .conditions
-                .iter()
-                .map(|c| StepCondition {
-                    number: c.number,
-                    feed: (c.feed_mm_per_min / 60.0) as f32,
-                    v_ref: c.generator.servo_ref_v as f32,
-                    jump: [
-                        c.jump_interval_s.map_or(f32::NAN, |v| v as f32),
-                        c.jump_height_mm.map_or(f32::NAN, |v| v as f32),
-                        c.jump_feed_mm_per_min
-                            .map_or(f32::NAN, |v| (v / 60.0) as f32),
-                    ],
-                    generator: c.generator,
-                })
-                .collect(),
+            conditions: ConditionTable::from_config(config),
             speed_cap: fine_speed_cap(config),
             max_feed_mm_per_min: config.machine.max_feed_mm_per_min,
         }

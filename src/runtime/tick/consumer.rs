@@ -503,7 +503,8 @@ fn tell_activity<O, G>(
             && !excursion
             && !fine.held()
             && !fine.state().is_final(),
-        condition: block.map_or(activity.condition, |b| b.condition),
+        condition: fine.process().condition(),
+        set_points: fine.process().changes(),
     };
     if now != *activity {
         let tell = |event| {
@@ -537,6 +538,9 @@ fn tell_activity<O, G>(
             sensor.moving_in(now);
             // The input reads the contact from the next tick on (or stops reading it).
             fine.set_contact_reading(flags.contains(BlockFlags::PROBE));
+        }
+        if now.set_points != activity.set_points {
+            output.set_points(now.condition, fine.process().generator());
         }
         *activity = now;
         output.moving_in(now);

@@ -7,7 +7,6 @@
 //! of a job), and its histogram printed in cyclictest's format, so that
 //! `scripts/latency-vs-cyclictest.sh` can read both with the same code.
 
-use crate::buffer::BlockFlags;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -124,19 +123,7 @@ impl BlockSource for SquarePath {
                 entry: self.feed,
                 exit: self.feed,
             },
-            line: 0,
-            u_end: f64::NAN,
-            flags: BlockFlags::NONE,
-            path_end_mm: 0.0,
-            rest_mm: 0.0,
-            contour_mm: 0.0,
-            dwell_s: 0.0,
-            condition: 0,
-            condition_feed: 0.0,
-            condition_v_ref: 0.0,
-            condition_jump: [f32::NAN; 3],
-            pass: 0,
-            wire_offset_mm: 0.0,
+            ..StepBlock::EMPTY
         };
         self.at = end;
         self.next_seq += 1;

@@ -22,7 +22,7 @@ const FLOORS: &[&[&str]] = &[
     &["path"],
     &["preprocess"],
     &["buffer"],
-    &["fine", "servo"],
+    &["fine", "process", "servo"],
     &[
         "gap", "hal", "inputs", "output", "parport", "record", "sim", "trace",
     ],
@@ -510,9 +510,9 @@ const WIDE_TYPES: &[(&str, usize)] = &[
     // The G-code reader's whole: its parts (InterpState, ProgramFlow, LineScratch) exist but
     // the methods stay on the reader.
     ("BlockReader", 9),
-    // The daemon's control loop: the machine's commands (homing, jog, MDI, touch-off, touch
-    // cycles) still live on it beside the jobs, the status and the upkeep.
-    ("Core", 9),
+    // The daemon's control loop: touch-off and the touch cycles still live on it beside the
+    // jobs, the status and the upkeep (homing, jog and MDI decide at the desk).
+    ("Core", 8),
 ];
 
 /// The files each type's inherent `impl` blocks stand in (tests aside).
@@ -570,14 +570,13 @@ const INNER_FLOORS: &[(&str, &[&[&str]])] = &[
             &["board", "launch", "link", "names", "protocol"],
             &["http"],
             &["mqtt", "opcua"],
-            &["error", "reload", "socket"],
+            &["desk", "error", "reload", "socket"],
             // The control loop (`Core`, in mod.rs) and the rooms that extend it.
             &[
                 "checkpoints",
-                "homing",
+                "commands",
                 "jobs",
                 "machine",
-                "manual",
                 "mod",
                 "overrides",
                 "start",

@@ -1,23 +1,16 @@
-//! Motion the operator asks for by hand: a jog (one positioning move on one axis, spark off,
-//! held to the soft limits) and MDI (G-code lines typed in). Both become jobs through the same
-//! pipeline as a program (check, soft limits, servo, turn-back, checkpoints, the state
-//! file's write-ahead), from program text the daemon makes.
+//! The machine's commands as the control loop runs them: each asks the desk
+//! ([`super::desk`]) what to launch, and launches it when the loop is free; a continuous
+//! jog's renewals, its dead-man and its latch follow the job in hand, so they live here.
 
 use std::sync::atomic::Ordering;
-use std::time::Duration;
 
 use super::Core;
-use super::launch::{JobKind, Launch, Source};
+use super::desk::manual::{DEAD_MAN, sign};
+use super::desk::{self, Desk, Order};
+use super::launch::JobKind;
 use super::refusal::Refusal;
-use crate::machine::travel::{JogEnd, jog_end};
-use crate::vocab::Axis;
-
-/// Longest MDI text accepted, bytes.
-const MAX_MDI_BYTES: usize = 16 * 1024;
-/// Longest jog, mm (and how far a continuous jog aims on an axis without soft limits).
-const MAX_JOG_MM: f64 = 1.0e4;
-/// How long a continuous jog moves without a renewal.
-pub(super) const DEAD_MAN: Duration = Duration::from_millis(250);
+use crate::runtime::JobSummary;
+use crate::vocab::HomeSwitch;
 
 /// A continuous jog: its axis and direction, and when it stops unless renewed (monotonic
 /// ns: the job's thread holds the job at the same deadline, [`crate::runtime::Published`]).
@@ -41,13 +34,71 @@ fn dead_man_ns() -> u64 {
     DEAD_MAN.as_nanos() as u64
 }
 
-fn sign(positive: bool) -> char {
-    if positive { '+' } else { '-' }
-}
-
 impl Core {
-    /// `jog AXIS DISTANCE [--feed F]`: a `G53 G0` to where the axis would be, at the jog feed
-    /// (at most `machine.max_jog_feed_mm_per_min`), stopped at the soft limit it would pass.
+    /// What the machine's commands read: the configuration and the machine.
+    pub(super) fn desk(&self) -> Desk<'_> {
+        Desk {
+            config: &self.config,
+            machine: &self.machine,
+        }
+    }
+
+    /// Starts the check of what a command ordered; what the operator is told.
+    fn launch(&mut self, order: Order) -> String {
+        let Order {
+            source,
+            launch,
+            said,
+        } = order;
+        let id = self.begin_check(source, None, launch);
+        format!("{said} (check {id})")
+    }
+
+    /// `home [AXIS…] [--here]`.
+    pub(super) fn home(
+        &mut self,
+        axes: &[String],
+        here: bool,
+        force: bool,
+    ) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        self.desk().refuse_if_tripped(None)?;
+        if here {
+            return desk::homing::here(&self.config, &mut self.machine, axes, force);
+        }
+        let order = desk::homing::by_switch(self.desk(), axes)?;
+        let names: Vec<String> = order
+            .iter()
+            .map(|&i| self.config.machine.axes[i].to_string())
+            .collect();
+        let (first, rest) = order.split_first().expect("at least one axis");
+        self.machine.homing_queue = rest.to_vec();
+        let job = desk::homing::axis_job(self.desk(), *first);
+        let id = self.begin_check(job.source, None, job.launch);
+        Ok(format!(
+            "homing {} by their switches, in that order (check {id})",
+            names.join(", ")
+        ))
+    }
+
+    /// A job starts; a homing job's axis is unhomed until it latches.
+    pub(super) fn homing_started(&mut self, switch: Option<&HomeSwitch>) {
+        if let Some(switch) = switch {
+            self.machine.state.homed[switch.axis] = false;
+        }
+    }
+
+    /// A homing job ended: the next axis starts, if the latch says so.
+    pub(super) fn homing_done(&mut self, switch: &HomeSwitch, summary: &JobSummary) {
+        if let Some(next) =
+            desk::homing::latched(&self.config, &mut self.machine, switch, summary.into())
+        {
+            let job = desk::homing::axis_job(self.desk(), next);
+            self.begin_check(job.source, None, job.launch);
+        }
+    }
+
+    /// `jog AXIS DISTANCE [--feed F]`.
     pub(super) fn jog(
         &mut self,
         axis: &str,
@@ -55,24 +106,15 @@ impl Core {
         feed: Option<f64>,
     ) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
-        let (i, axis) = self.machine_axis(axis)?;
-        self.refuse_if_tripped(Some((axis, distance_mm > 0.0)))?;
-        self.refuse_if_unhomed()?;
-        // Less than a step moves nothing: it would be a jog that never ends or never starts.
-        let step = self.config.machine.step_mm[i];
-        if !distance_mm.is_finite() || distance_mm.abs() < step || distance_mm.abs() > MAX_JOG_MM {
-            return Err(Refusal::BadArgument(format!(
-                "jog distance {distance_mm} mm: give a move of at least one step ({step} mm on \
-                 {axis}) and at most {MAX_JOG_MM} mm, either way"
-            )));
-        }
-        let feed = self.jog_feed(feed)?;
-        let here = self.machine.state.position_mm()[i];
-        let (target, note) = self.jog_target(i, axis, distance_mm)?;
-        let id = self.start_jog(axis, target, feed);
-        Ok(format!(
-            "jog {axis} {here:.4} -> {target:.4} mm at {feed:.0} mm/min{note} (check {id})"
-        ))
+        let order = desk::manual::jog(self.desk(), axis, distance_mm, feed)?;
+        Ok(self.launch(order))
+    }
+
+    /// `mdi LINES`.
+    pub(super) fn mdi(&mut self, lines: &str) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let order = desk::manual::mdi(self.desk(), lines)?;
+        Ok(self.launch(order))
     }
 
     /// `jog-continuous`: towards the soft limit (or [`MAX_JOG_MM`]) while renewed; the same
@@ -84,7 +126,7 @@ impl Core {
         positive: bool,
         feed: Option<f64>,
     ) -> Result<String, Refusal> {
-        let (i, letter) = self.machine_axis(axis)?;
+        let (i, letter) = self.desk().axis(axis)?;
         let now = crate::sys::monotonic_ns();
         if let Some(stopped) = &mut self.jobs.stopped_jog {
             if stopped.axis == i
@@ -130,22 +172,14 @@ impl Core {
             )));
         }
         self.refuse_if_busy()?;
-        self.refuse_if_tripped(Some((letter, positive)))?;
-        self.refuse_if_unhomed()?;
-        let feed = self.jog_feed(feed)?;
-        let way = if positive { MAX_JOG_MM } else { -MAX_JOG_MM };
-        let (target, note) = self.jog_target(i, letter, way)?;
-        let id = self.start_jog(letter, target, feed);
+        let order = desk::manual::continuous(self.desk(), i, letter, positive, feed)?;
+        let reply = self.launch(order);
         self.jobs.continuous = Some(ContinuousJog {
             axis: i,
             positive,
             deadline_ns: crate::sys::monotonic_ns() + dead_man_ns(),
         });
-        Ok(format!(
-            "jog {letter}{} at {feed:.0} mm/min while renewed every {} ms{note} (check {id})",
-            sign(positive),
-            DEAD_MAN.as_millis()
-        ))
+        Ok(reply)
     }
 
     /// `jog-stop`: the continuous jog brakes to a standstill now.
@@ -220,87 +254,5 @@ impl Core {
             job.stop.store(true, Ordering::Relaxed);
         }
         tracing::info!("jog: {why}");
-    }
-
-    /// The jog feed asked for, capped at `machine.max_jog_feed_mm_per_min`.
-    fn jog_feed(&self, feed: Option<f64>) -> Result<f64, Refusal> {
-        let max = self.config.machine.max_jog_feed_mm_per_min;
-        let min = crate::vocab::MIN_FEED_MM_PER_MIN;
-        match feed {
-            None => Ok(max),
-            Some(f) if f.is_finite() && f >= min => Ok(f.min(max)),
-            Some(f) => Err(Refusal::BadArgument(format!(
-                "jog feed {f} mm/min: at least {min} mm/min (a micrometre a minute), at most \
-                 machine.max_jog_feed_mm_per_min = {max}"
-            ))),
-        }
-    }
-
-    /// Where a jog of `distance_mm` on axis `i` ends: clamped to the soft limit it would pass
-    /// (with a note), refused when the axis already stands at or past it.
-    fn jog_target(&self, i: usize, axis: Axis, distance_mm: f64) -> Result<(f64, String), Refusal> {
-        let here = self.machine.state.position_mm()[i];
-        match jog_end(here, distance_mm, self.config.machine.travel[i]) {
-            JogEnd::Full(target) => Ok((target, String::new())),
-            JogEnd::AtLimit(limit) => Ok((limit, format!(" (stops at the soft limit {limit} mm)"))),
-            JogEnd::Past(limit) => Err(Refusal::BadArgument(format!(
-                "{axis} stands at {here:.4} mm, at or past its {} soft limit {limit} mm: \
-                 jog the other way",
-                if distance_mm > 0.0 { "upper" } else { "lower" }
-            ))),
-        }
-    }
-
-    /// Starts the check of a jog to machine coordinate `target` on `axis`; its id.
-    fn start_jog(&mut self, axis: Axis, target: f64, feed: f64) -> u64 {
-        let text = format!("G21 G90\nG53 G0 {}{target:.6}\n", axis.letter());
-        let launch = Launch {
-            technology: Default::default(),
-            start: self.machine.state.work_start(),
-            kind: JobKind::Jog {
-                feed_mm_per_min: feed,
-            },
-            cut: Default::default(),
-        };
-        self.begin_check(
-            Source::Generated {
-                text,
-                name: "jog".into(),
-            },
-            None,
-            launch,
-        )
-    }
-
-    /// `mdi LINES`: the lines as a job, checked like a program (soft limits included), in the
-    /// work system and offsets of the machine and the units and distance mode the last MDI
-    /// lines left.
-    pub(super) fn mdi(&mut self, lines: &str) -> Result<String, Refusal> {
-        self.refuse_if_busy()?;
-        self.refuse_if_tripped(None)?;
-        self.refuse_if_unhomed()?;
-        if lines.trim().is_empty() || lines.len() > MAX_MDI_BYTES {
-            return Err(Refusal::BadArgument(format!(
-                "MDI needs 1 to {MAX_MDI_BYTES} bytes of G-code"
-            )));
-        }
-        let mut start = self.machine.state.work_start();
-        start.modes = self.machine.mdi_modes;
-        let launch = Launch {
-            technology: Default::default(),
-            start,
-            kind: JobKind::Mdi,
-            cut: Default::default(),
-        };
-        let text = format!("{}\n", lines.trim_end());
-        let id = self.begin_check(
-            Source::Generated {
-                text,
-                name: "mdi".into(),
-            },
-            None,
-            launch,
-        );
-        Ok(format!("mdi: checking (check {id})"))
     }
 }
