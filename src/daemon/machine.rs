@@ -2,7 +2,8 @@
 //! homed axes, the work offset table and the active system, in `daemon.state_file`
 //! ([`crate::machine`]), with the write-ahead rule: marked moving before a job leaves a
 //! standstill, written at the standstill where it ends. The operator's commands that change
-//! it without motion live here too: `offsets`, `touch-off` (homing: [`super::homing`]).
+//! it without motion (`offsets`, `touch-off`, `home --here`) decide at the desk
+//! ([`super::desk`]); the trips, the reset and a resume's start stay here.
 
 use super::desk::unwritten;
 use super::protocol::{FindStatus, MachineStatus};
@@ -10,10 +11,9 @@ use super::refusal::Refusal;
 use super::{Core, DaemonError};
 use crate::checkpoint;
 use crate::config::Config;
-use crate::gcode::{WorkStart, WorkSystem};
-use crate::machine::travel::offset_allowed;
+use crate::gcode::WorkStart;
 use crate::machine::{Found, Machine};
-use crate::vocab::{Axis, Steps, Trip};
+use crate::vocab::{Steps, Trip};
 
 /// Opens the machine of `config` (`daemon.state_file`): a clean standstill restores position
 /// and homed axes (unless `homing.require_after_start`), a moving one restores the position but
@@ -118,82 +118,6 @@ pub(super) fn machine_status(
 }
 
 impl Core {
-    /// `offsets`: the table, one system a line, the active one marked `*`.
-    pub(super) fn offsets(&self) -> Result<String, Refusal> {
-        Ok(format!(
-            "work offsets (mm, machine coordinates of each system's zero):\n{}",
-            self.machine.state.offsets_text()
-        ))
-    }
-
-    /// `touch-off AXIS VALUE [SYSTEM]`: `G10 L20` for where the machine stands: the system's
-    /// offset on `axis` is set so that the current position reads `value` (mm) in it.
-    pub(super) fn touch_off(
-        &mut self,
-        axis: &str,
-        value: f64,
-        system: Option<&str>,
-    ) -> Result<String, Refusal> {
-        self.refuse_if_busy()?;
-        // An offset set while the machine is stopped by an E-stop or a limit is set from a
-        // position nobody has checked since.
-        self.desk().refuse_if_tripped(None)?;
-        let (i, axis) = self.desk().axis(axis)?;
-        if !value.is_finite() || value.abs() > 1.0e6 {
-            return Err(Refusal::BadArgument(format!(
-                "touch-off value {value} is not a coordinate (±1000000 mm)"
-            )));
-        }
-        let offset_mm = self.machine.state.position_mm()[i] - value;
-        self.offset_in_travel(i, axis, offset_mm)?;
-        let state = &mut self.machine.state;
-        let system = match system {
-            None => state.system,
-            Some(name) => WorkSystem::parse(name).ok_or_else(|| {
-                Refusal::BadArgument(format!("{name:?} is not a work system (G54 … G59.3)"))
-            })?,
-        };
-        let mut offset = *state.offsets.get(system);
-        let before = offset[i];
-        offset[i] = state.position_mm()[i] - value;
-        state.offsets.set(system, offset);
-        if let Err(e) = self.machine.save(false) {
-            self.machine.state.offsets.set(system, {
-                let mut o = offset;
-                o[i] = before;
-                o
-            });
-            return Err(unwritten(e));
-        }
-        tracing::info!(
-            edmd_event = "touch_off",
-            "touch-off: {system} {axis} offset {before:.4} -> {:.4} mm (here reads {axis}{value:.4})",
-            offset[i]
-        );
-        Ok(format!(
-            "{system} {axis} offset is {:.4} mm: here reads {axis}{value:.4}",
-            offset[i]
-        ))
-    }
-
-    /// A work offset must put the system's zero within the axis's travel (soft limits, or
-    /// ±[`crate::machine::travel::MAX_OFFSET_MM`] without them): a zero beyond it is a typing
-    /// error or a position nobody trusts, and every program would run from there.
-    pub(super) fn offset_in_travel(
-        &self,
-        i: usize,
-        axis: Axis,
-        offset_mm: f64,
-    ) -> Result<(), Refusal> {
-        let travel = self.config.machine.travel.get(i).copied().flatten();
-        offset_allowed(travel, offset_mm).map_err(|(min, max)| {
-            Refusal::BadArgument(format!(
-                "the {axis} offset would be {offset_mm:.4} mm, outside the axis's travel \
-                 [{min}, {max}] mm: check the value and where the machine stands"
-            ))
-        })
-    }
-
     /// Where the checkpoint's job started: the resume replays it from there. Refused when the
     /// work offsets it started with differ from the machine's now (unless `force`): the same
     /// program would resume in another place.

@@ -560,7 +560,7 @@ impl Core {
             Request::Resume { force } => self.resume(force),
             Request::Abort {} => self.abort(),
             Request::Rethread { here } => self.rethread(here),
-            Request::Offsets {} => self.offsets(),
+            Request::Offsets {} => Ok(desk::offsets::table(&self.machine)),
             Request::WebLink {} => match &self.clients.http {
                 Some(http) => http
                     .login_link()
@@ -573,7 +573,15 @@ impl Core {
                 axis,
                 value,
                 system,
-            } => self.touch_off(&axis, value, system.as_deref()),
+            } => self.refuse_if_busy().and_then(|()| {
+                desk::offsets::touch_off(
+                    &self.config,
+                    &mut self.machine,
+                    &axis,
+                    value,
+                    system.as_deref(),
+                )
+            }),
             Request::Home { axes, here, force } => self.home(&axes, here, force),
             Request::Find { target, system } => self.find(&target, system.as_deref()),
             Request::Jog {

@@ -1,4 +1,4 @@
-//! The desk: the machine's commands (homing, jog, MDI) as functions of what they read, the
+//! The desk: the machine's commands (homing, jog, MDI, the work offsets) as functions of what they read, the
 //! configuration and the machine, that answer with what to launch or a refusal.
 //!
 //! A command at the desk decides; the control loop (`Core`) acts. Each function takes a
@@ -11,11 +11,12 @@
 //! daemon, no threads.
 //!
 //! The functions that change the machine without motion (`home --here`, a homing job's
-//! latch) take the machine mutably and save it themselves: the write-ahead rule stays one
+//! latch, `touch-off`) take the machine mutably and save it themselves: the write-ahead rule stays one
 //! call (`Machine::save`).
 
 pub(super) mod homing;
 pub(super) mod manual;
+pub(super) mod offsets;
 
 use super::launch::{JobKind, Launch, Source};
 use super::refusal::Refusal;

@@ -2,6 +2,7 @@
 
 use super::homing::{self, HomingEnd};
 use super::manual;
+use super::offsets;
 use super::*;
 use crate::config::Config;
 use crate::machine::Machine;
@@ -205,4 +206,23 @@ fn mdi_runs_in_the_modes_the_last_lines_left() {
     assert!(order.launch.start.modes.inch);
     assert_eq!(order.said, "mdi: checking");
     assert!(refused(manual::mdi(desk, "  \n")).contains("1 to 16384 bytes"));
+}
+
+#[test]
+fn touch_off_makes_here_read_the_value_in_the_system_named() {
+    let c = config(&[]);
+    let mut m = machine(&c);
+    m.state.position[0] = 12_500;
+    let said = offsets::touch_off(&c, &mut m, "X", 2.5, Some("G55")).unwrap();
+    assert_eq!(said, "G55 X offset is 10.0000 mm: here reads X2.5000");
+    let g55 = crate::gcode::WorkSystem::parse("G55").unwrap();
+    assert_eq!(m.state.offsets.get(g55)[0], 10.0);
+    assert!(offsets::table(&m).contains("G55"));
+    // A zero outside the axis's travel is a typing error: refused, nothing changed.
+    let e = refused(offsets::touch_off(&c, &mut m, "X", -1.0e5, Some("G55")));
+    assert!(e.contains("outside the axis's travel"), "{e}");
+    assert_eq!(m.state.offsets.get(g55)[0], 10.0);
+    assert!(refused(offsets::touch_off(&c, &mut m, "X", 1.0, Some("G60"))).contains("work system"));
+    m.state.trip = Some(Trip::EStop);
+    assert!(offsets::touch_off(&c, &mut m, "X", 1.0, None).is_err());
 }
