@@ -83,10 +83,6 @@ impl ConditionTable {
                 ..Condition::NONE
             })
     }
-
-    pub fn iter(&self) -> impl Iterator<Item = &Condition> {
-        self.0.iter()
-    }
 }
 
 /// The condition in force during a job and its set points: the tick core's part that owns

@@ -19,6 +19,10 @@ fn machine(config: &Config) -> Machine {
     Machine::open(None, &config.machine).expect("a machine").0
 }
 
+fn at<'a>(config: &'a Config, machine: &'a Machine) -> Desk<'a> {
+    Desk { config, machine }
+}
+
 fn text(order: &Order) -> &str {
     match &order.source {
         Source::Generated { text, .. } => text,
@@ -37,10 +41,7 @@ fn refused(r: Result<impl Sized, Refusal>) -> String {
 fn axes_are_named_by_one_letter_of_the_machine() {
     let c = config(&[]);
     let m = machine(&c);
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     assert_eq!(desk.axis(" y ").unwrap(), (1, Axis::Y));
     assert!(refused(desk.axis("Z")).contains("not an axis of this machine (X, Y)"));
     assert!(refused(desk.axis("XY")).contains("not an axis"));
@@ -51,10 +52,7 @@ fn axes_are_named_by_one_letter_of_the_machine() {
 fn homing_by_switch_runs_in_sequence_order_whatever_the_order_named() {
     let c = config(&[]);
     let m = machine(&c);
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     assert_eq!(homing::by_switch(desk, &[]).unwrap(), [0, 1]);
     let named = ["Y".to_string(), "X".to_string()];
     assert_eq!(homing::by_switch(desk, &named).unwrap(), [0, 1]);
@@ -66,10 +64,7 @@ fn homing_by_switch_runs_in_sequence_order_whatever_the_order_named() {
     assert!(program.contains("G38.4 Y"), "{program}");
     // A machine that reads no switches says how to home it instead.
     let c = config(&["gap.kind=\"none\""]);
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     assert!(refused(homing::by_switch(desk, &[])).contains("`home --here`"));
 }
 
@@ -97,16 +92,7 @@ fn a_latch_sets_the_home_position_and_names_the_next_axis() {
     let mut m = machine(&c);
     m.homing_queue = vec![1];
     m.state.position[0] = 5_000;
-    let switch = match homing::axis_job(
-        Desk {
-            config: &c,
-            machine: &m,
-        },
-        0,
-    )
-    .launch
-    .kind
-    {
+    let switch = match homing::axis_job(at(&c, &m), 0).launch.kind {
         JobKind::Home { switch, .. } => switch,
         _ => unreachable!(),
     };
@@ -147,10 +133,7 @@ fn a_jog_stops_at_the_soft_limit_and_not_past_it() {
     let c = config(&[]);
     let mut m = machine(&c);
     let max = c.machine.travel[0].unwrap().max_mm;
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     let order = manual::jog(desk, "x", 2.0 * max, Some(100.0)).unwrap();
     assert!(text(&order).contains(&format!("G53 G0 X{max:.6}")));
     assert!(
@@ -163,10 +146,7 @@ fn a_jog_stops_at_the_soft_limit_and_not_past_it() {
     );
     // At the limit, only the other way.
     m.state.position[0] = (max / c.machine.step_mm[0]).round() as i64;
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     assert!(refused(manual::jog(desk, "X", 1.0, None)).contains("jog the other way"));
     assert!(manual::jog(desk, "X", -1.0, None).is_ok());
     // Less than a step, or a feed below the least, is refused.
@@ -179,10 +159,7 @@ fn a_tripped_machine_refuses_motion_but_a_jog_away_from_the_switch() {
     let c = config(&[]);
     let mut m = machine(&c);
     m.state.trip = Some(Trip::EStop);
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     assert!(manual::jog(desk, "X", 1.0, None).is_err());
     assert!(manual::mdi(desk, "G0 X1").is_err());
     assert!(manual::continuous(desk, 0, Axis::X, true, None).is_err());
@@ -197,10 +174,7 @@ fn mdi_runs_in_the_modes_the_last_lines_left() {
     let c = config(&[]);
     let mut m = machine(&c);
     m.mdi_modes.inch = true;
-    let desk = Desk {
-        config: &c,
-        machine: &m,
-    };
+    let desk = at(&c, &m);
     let order = manual::mdi(desk, "G0 X1\n\n").unwrap();
     assert_eq!(text(&order), "G0 X1\n");
     assert!(order.launch.start.modes.inch);
