@@ -63,10 +63,9 @@ pub(super) struct JobControl {
     pub check: Option<Check>,
     /// The verdict of the last check.
     pub last_check: Option<protocol::CheckStatus>,
-    /// The continuous jog in progress (being checked or moving) and its dead-man.
-    pub continuous: Option<super::commands::ContinuousJog>,
-    /// A continuous jog a hold or the dead-man stopped, whose renewals are refused.
-    pub stopped_jog: Option<super::commands::StoppedJog>,
+    /// The continuous jog in progress (being checked or moving), its dead-man and the
+    /// latched one whose renewals are refused.
+    pub pendant: super::desk::pendant::Pendant,
     pub next_check_id: u64,
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
@@ -222,7 +221,7 @@ impl Core {
                 &cp.program.display().to_string(),
             )?),
         };
-        let start = self.resume_start(&cp, force)?;
+        let start = self.desk().resume_start(&cp, force)?;
         let resume = Resume {
             point,
             sha256: cp.program_sha256.clone(),
@@ -382,13 +381,7 @@ impl Core {
         // A continuous jog that ended by itself (an E-stop, a limit switch, its end of
         // travel, an alarm): the renewals of its client, still pressing, are refused until it
         // lets go. One that `jog-stop` or the dead-man ended was taken already.
-        if let Some(c) = self.jobs.continuous.take() {
-            self.jobs.stopped_jog = Some(super::commands::StoppedJog {
-                axis: c.axis,
-                positive: c.positive,
-                last_ns: crate::sys::monotonic_ns(),
-            });
-        }
+        self.jobs.pendant.stop(true, crate::sys::monotonic_ns());
         let summary = end.summary;
         let text = summary.text();
         let mut lines = text.lines();
@@ -434,7 +427,7 @@ impl Core {
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }
-        self.note_trip(&summary);
+        super::desk::trips::after_job(&self.config, &mut self.machine, &summary);
         // Before a homing sequence or a touch cycle starts its next check: that check's copy
         // is not this job's and must not be pruned.
         self.jobs

@@ -32,8 +32,8 @@
 
 pub mod board;
 mod checkpoints;
-mod commands;
 mod desk;
+mod dispatch;
 pub mod error;
 pub mod history;
 pub mod http;
@@ -53,7 +53,6 @@ pub mod reload;
 pub mod socket;
 mod start;
 mod status;
-mod touch;
 mod upkeep;
 
 use std::path::PathBuf;
@@ -73,7 +72,6 @@ use link::CoreLink;
 pub use names::{confine, has_control};
 use notify::{Notifier, Watchdog, WatchdogGate};
 use protocol::{Reply, Request};
-use refusal::Refusal;
 pub use reload::ConfigSource;
 
 /// How often the control loop does its periodic work when no message arrives.
@@ -163,7 +161,7 @@ struct Core {
     checkpoints: CheckpointKeeper,
     machine: crate::machine::Machine,
     /// The wire-touch cycle in progress and the last one, as the status shows it.
-    touch: touch::TouchRuns,
+    touch: desk::touch::TouchCycles,
     clients: Clients,
     notifier: Notifier,
     watchdog: Option<WatchdogGate>,
@@ -267,8 +265,7 @@ pub fn serve(
             job: None,
             check: None,
             last_check: None,
-            continuous: None,
-            stopped_jog: None,
+            pendant: Default::default(),
             next_check_id: 0,
             last: None,
             finished: protocol::Counters::default(),
@@ -277,7 +274,7 @@ pub fn serve(
         },
         checkpoints,
         machine,
-        touch: touch::TouchRuns::default(),
+        touch: Default::default(),
         clients: Clients {
             to_core,
             max_clients,
@@ -476,155 +473,6 @@ fn unix_now() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs())
-}
-
-impl Core {
-    fn run(&mut self, inbox: &Receiver<CoreMsg>) {
-        loop {
-            // A continuous jog's dead-man is looked at when it falls due, not a period late;
-            // while something moves, the board is posted every POST_EVERY.
-            let period = self.post_period();
-            let wait = self.jobs.continuous.as_ref().map_or(period, |c| {
-                Duration::from_nanos(c.deadline_ns.saturating_sub(crate::sys::monotonic_ns()))
-                    .min(period)
-            });
-            let message = inbox.recv_timeout(wait);
-            // Anything but a status request may change what the status says.
-            self.post_due |= !matches!(message, Ok(CoreMsg::Request(Request::Status {}, _)));
-            self.control_requests += u64::from(matches!(message, Ok(CoreMsg::Request(..))));
-            match message {
-                Ok(CoreMsg::Request(Request::Jobs { count, skip }, reply)) => {
-                    self.list_jobs(count, skip, reply)
-                }
-                Ok(CoreMsg::Request(request, reply)) => {
-                    let answer = self.handle(request);
-                    // Posted before the reply: a client that reads the status after its
-                    // command's reply sees what the command did.
-                    self.post_status();
-                    // A client that went away changes nothing: the command stands or was
-                    // refused either way.
-                    let _ = reply.send(answer);
-                }
-                Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
-                Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
-                Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, *result),
-                Ok(CoreMsg::Reloaded(read)) => self.on_reloaded(*read),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return,
-            }
-            self.periodic();
-            self.post_status();
-            if self.shutting_down && self.jobs.job.is_none() && self.jobs.check.is_none() {
-                return;
-            }
-        }
-    }
-
-    // ---- commands -------------------------------------------------------------------------
-
-    fn handle(&mut self, request: Request) -> Reply {
-        // What the fine thread saw of the machine since the last round counts before any
-        // command: a run sent right after an E-stop pulse is refused.
-        self.watch_inputs();
-        let result = match request {
-            Request::Technology { request } => {
-                let mut reply = match request.as_deref().map(|r| self.explain(r)) {
-                    None => Reply::ok(self.technology.list().join("\n"), self.status()),
-                    Some(Ok(text)) => Reply::ok(text, self.status()),
-                    Some(Err(e)) => Reply::error(e, Some(self.status())),
-                };
-                reply.technology = Some(self.technology.summaries());
-                return reply;
-            }
-            // Read off the loop (`list_jobs`); a request here is answered the same way.
-            Request::Jobs { .. } => Ok("jobs".to_string()),
-            Request::Status {} => Ok("status".to_string()),
-            Request::Run {
-                program,
-                dry_run,
-                from_line,
-                approach,
-                passes,
-                technology,
-                force,
-            } => self.run_program(start::RunAsk {
-                program: &program,
-                dry_run,
-                from_line,
-                approach,
-                passes,
-                technology: technology.as_deref(),
-                force,
-            }),
-            Request::Hold {} => self.hold(),
-            Request::Resume { force } => self.resume(force),
-            Request::Abort {} => self.abort(),
-            Request::Rethread { here } => self.rethread(here),
-            Request::Offsets {} => Ok(desk::offsets::table(&self.machine)),
-            Request::WebLink {} => match &self.clients.http {
-                Some(http) => http
-                    .login_link()
-                    .map_err(|e| Refusal::BadArgument(format!("cannot make a login code: {e}"))),
-                None => Err(Refusal::BadArgument(
-                    "daemon.http is off: there is no page to log in to".into(),
-                )),
-            },
-            Request::TouchOff {
-                axis,
-                value,
-                system,
-            } => self.refuse_if_busy().and_then(|()| {
-                desk::offsets::touch_off(
-                    &self.config,
-                    &mut self.machine,
-                    &axis,
-                    value,
-                    system.as_deref(),
-                )
-            }),
-            Request::Home { axes, here, force } => self.home(&axes, here, force),
-            Request::Find { target, system } => self.find(&target, system.as_deref()),
-            Request::Jog {
-                axis,
-                distance_mm,
-                feed_mm_per_min,
-            } => self.jog(&axis, distance_mm, feed_mm_per_min),
-            Request::Mdi { line } => self.mdi(&line),
-            Request::JogContinuous {
-                axis,
-                positive,
-                feed_mm_per_min,
-            } => self.jog_continuous(&axis, positive, feed_mm_per_min),
-            Request::JogStop {} => self.jog_stop(),
-            Request::Reset {} => self.reset(),
-            Request::Override { kind, percent } => self.jobs.set_override(kind, percent),
-            Request::SingleBlock { on } => self.jobs.set_single_block(on),
-        };
-        self.notify_status();
-        match result {
-            Ok(message) => Reply::ok(message, self.status()),
-            Err(refusal) => Reply::error(refusal.to_string(), Some(self.status())),
-        }
-    }
-
-    fn refuse_if_busy(&self) -> Result<(), Refusal> {
-        if self.shutting_down {
-            return Err(Refusal::ShuttingDown);
-        }
-        if let Some(job) = &self.jobs.job {
-            return Err(Refusal::JobRunning {
-                state: self.state().name(),
-                program: job.program.clone(),
-            });
-        }
-        if let Some(check) = &self.jobs.check {
-            return Err(Refusal::Checking {
-                name: check.name.clone(),
-                id: check.id,
-            });
-        }
-        Ok(())
-    }
 }
 
 #[cfg(test)]

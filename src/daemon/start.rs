@@ -421,7 +421,7 @@ impl Core {
             Err(error) => {
                 // A homing sequence and a touch cycle stop at their first refusal.
                 self.machine.homing_queue.clear();
-                self.find_refused(&error.to_string());
+                self.touch.refused(&error.to_string());
                 tracing::error!(
                     edmd_event = "refusal",
                     edmd_program = check.name,
@@ -491,11 +491,11 @@ impl Core {
         let (published, stop) = (job.published.clone(), job.stop.clone());
         // A continuous jog's dead-man is kept by the job's own thread too.
         if matches!(kind, JobKind::Jog { .. })
-            && let Some(c) = &self.jobs.continuous
+            && let Some(deadline_ns) = self.jobs.pendant.deadline_ns()
         {
             published
                 .dead_man_ns
-                .store(c.deadline_ns, std::sync::atomic::Ordering::Release);
+                .store(deadline_ns, std::sync::atomic::Ordering::Release);
         }
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.

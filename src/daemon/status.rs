@@ -74,7 +74,7 @@ impl Core {
                 &self.machine,
                 config,
                 live.as_ref(),
-                self.touch.status.clone(),
+                self.touch.status().cloned(),
             ),
             overrides: OverrideStatus {
                 feed_pct: self.jobs.controls.feed_pct,

@@ -1,5 +1,5 @@
-//! What the control loop does besides answering commands: signals (stop, reload, log
-//! level), the web side's reload, and the periodic work of every round (the dead-man of a
+//! The control loop's round and what it does besides answering commands: signals (stop,
+//! reload, log level), the web side's reload, and the periodic work of every round (the dead-man of a
 //! continuous jog, hold and periodic checkpoints, overrun reports, the status line, the
 //! systemd watchdog).
 
@@ -16,6 +16,51 @@ pub(super) struct Reloading {
     reported: bool,
     /// Another SIGHUP came meanwhile: read again when this one answers.
     again: bool,
+}
+
+impl Core {
+    /// The control loop: one message at a time (a request, a signal, a job's end, a
+    /// check's verdict, a reload's reads), then the periodic work, until it is told to stop.
+    pub(super) fn run(&mut self, inbox: &Receiver<CoreMsg>) {
+        loop {
+            // A continuous jog's dead-man is looked at when it falls due, not a period late;
+            // while something moves, the board is posted every POST_EVERY.
+            let period = self.post_period();
+            let wait = self.jobs.pendant.deadline_ns().map_or(period, |deadline| {
+                Duration::from_nanos(deadline.saturating_sub(crate::sys::monotonic_ns()))
+                    .min(period)
+            });
+            let message = inbox.recv_timeout(wait);
+            // Anything but a status request may change what the status says.
+            self.post_due |= !matches!(message, Ok(CoreMsg::Request(Request::Status {}, _)));
+            self.control_requests += u64::from(matches!(message, Ok(CoreMsg::Request(..))));
+            match message {
+                Ok(CoreMsg::Request(Request::Jobs { count, skip }, reply)) => {
+                    self.list_jobs(count, skip, reply)
+                }
+                Ok(CoreMsg::Request(request, reply)) => {
+                    let answer = self.handle(request);
+                    // Posted before the reply: a client that reads the status after its
+                    // command's reply sees what the command did.
+                    self.post_status();
+                    // A client that went away changes nothing: the command stands or was
+                    // refused either way.
+                    let _ = reply.send(answer);
+                }
+                Ok(CoreMsg::Signal(signal)) => self.on_signal(signal),
+                Ok(CoreMsg::JobDone(end)) => self.on_job_done(*end),
+                Ok(CoreMsg::Checked { id, result }) => self.on_checked(id, *result),
+                Ok(CoreMsg::Reloaded(read)) => self.on_reloaded(*read),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return,
+            }
+            self.periodic();
+            self.post_status();
+            if self.shutting_down && self.jobs.job.is_none() && self.jobs.check.is_none() {
+                return;
+            }
+        }
+    }
 }
 
 impl Core {

@@ -39,7 +39,7 @@ use crate::trace::{TraceEvent, TraceRecord, Tracer};
 use job::{devices, error, precheck, spec, summary};
 pub use job::{fine_thread, producer};
 pub use shaping::{program, progress};
-pub use tick::{consumer, controls, latency, probe};
+pub use tick::{consumer, controls, idle, latency, probe};
 use tick::{histogram, realtime};
 
 pub use consumer::{EventRecord, LoopReport, LoopSettings, Published, Snapshot};

@@ -17,6 +17,10 @@
 pub(super) mod homing;
 pub(super) mod manual;
 pub(super) mod offsets;
+pub(super) mod pendant;
+mod resume;
+pub(super) mod touch;
+pub(super) mod trips;
 
 use super::launch::{JobKind, Launch, Source};
 use super::refusal::Refusal;

@@ -200,3 +200,218 @@ fn touch_off_makes_here_read_the_value_in_the_system_named() {
     m.state.trip = Some(Trip::EStop);
     assert!(offsets::touch_off(&c, &mut m, "X", 1.0, None).is_err());
 }
+
+#[test]
+fn the_pendant_renews_a_held_button_and_latches_a_jog_stopped_under_it() {
+    use super::pendant::{LetGo, Pendant, Press};
+    let dead_man = manual::DEAD_MAN.as_nanos() as u64;
+    let mut p = Pendant::default();
+    assert_eq!(p.press(0, true, 0, false), Press::New);
+    p.started(0, true, 0);
+    assert_eq!(p.deadline_ns(), Some(dead_man));
+    // Renewed within the dead-man: the deadline moves on; another button is refused.
+    assert_eq!(
+        p.press(0, true, 100, false),
+        Press::Renewed {
+            deadline_ns: 100 + dead_man
+        }
+    );
+    assert_eq!(
+        p.press(1, false, 120, false),
+        Press::Busy {
+            axis: 0,
+            positive: true
+        }
+    );
+    assert!(!p.dead_man_due(99 + dead_man, false));
+    assert!(p.dead_man_due(100 + dead_man, false));
+    assert!(p.dead_man_due(200, true), "the job's thread held it first");
+    // Its job stopped it (a hold): the press is the latch's to make.
+    assert_eq!(p.press(0, true, 200, true), Press::StoppedInJob);
+    assert!(p.stop(true, 200));
+    assert!(!p.is_moving());
+    // The same button, still held, is refused for as long as it is pressed again within the
+    // dead-man; a pause longer than that is a new press.
+    assert_eq!(p.press(0, true, 200 + dead_man, false), Press::Latched);
+    assert_eq!(p.press(0, true, 200 + 2 * dead_man, false), Press::Latched);
+    assert_eq!(p.press(0, true, 201 + 3 * dead_man, false), Press::New);
+    // Let go (`jog-stop`) ends a latch at once; with nothing moving or latched it is refused.
+    p.started(0, true, 0);
+    p.stop(true, 10);
+    assert_eq!(p.let_go(), LetGo::AlreadyStopped);
+    assert_eq!(p.press(0, true, 11, false), Press::New);
+    assert_eq!(p.let_go(), LetGo::Nothing);
+    p.started(0, true, 20);
+    assert_eq!(p.let_go(), LetGo::Stop);
+    // A stop without a latch (`jog-stop`) leaves the next press free.
+    assert!(p.stop(false, 30));
+    assert_eq!(p.press(0, true, 31, false), Press::New);
+    assert!(!p.stop(true, 40), "nothing was moving");
+}
+
+fn seen(estop_now: bool, estop_seen: bool, limits: &[&str]) -> crate::runtime::idle::IdleSeen {
+    let mut set = crate::vocab::LimitSet::default();
+    for s in limits {
+        set.insert(crate::vocab::LimitSwitch::parse(s).unwrap());
+    }
+    crate::runtime::idle::IdleSeen {
+        now: Some(crate::vocab::SafetyInputs {
+            estop: estop_now,
+            limits: set,
+        }),
+        seen: crate::vocab::SafetyInputs {
+            estop: estop_seen,
+            limits: set,
+        },
+        fault: None,
+    }
+}
+
+#[test]
+fn idle_inputs_trip_the_machine_and_only_a_released_estop_is_reset() {
+    let c = config(&[]);
+    let mut m = machine(&c);
+    assert!(!super::trips::watch(&mut m, seen(false, false, &[])));
+    assert!(refused(super::trips::reset(&mut m, false)).contains("nothing to reset"));
+    // A pulse already released still trips (the fine thread latched it).
+    assert!(super::trips::watch(&mut m, seen(false, true, &[])));
+    assert_eq!(m.state.trip, Some(Trip::EStop));
+    // While tripped by the E-stop, nothing new trips; a reset needs the input released.
+    assert!(!super::trips::watch(&mut m, seen(true, true, &["X+"])));
+    assert!(refused(super::trips::reset(&mut m, true)).contains("still reads pressed"));
+    assert!(super::trips::reset(&mut m, false).is_ok());
+    assert_eq!(m.state.trip, None);
+    // A limit switch holds until it reads open; reset is not for it.
+    assert!(super::trips::watch(&mut m, seen(false, false, &["X+"])));
+    let switch = crate::vocab::LimitSwitch::parse("X+").unwrap();
+    assert_eq!(m.state.trip, Some(Trip::Limit(switch)));
+    assert!(refused(super::trips::reset(&mut m, false)).contains("jog away from it"));
+    assert!(!super::trips::watch(&mut m, seen(false, false, &["X+"])));
+    assert!(!super::trips::watch(&mut m, seen(false, false, &[])));
+    assert_eq!(m.state.trip, None);
+    // A device fault is an E-stop.
+    let fault = crate::runtime::idle::IdleSeen {
+        fault: Some("HAL's real-time side stopped".into()),
+        ..Default::default()
+    };
+    super::trips::watch(&mut m, fault);
+    assert_eq!(m.state.trip, Some(Trip::EStop));
+}
+
+/// A job of one tick that ended with `outcome` where it started.
+fn ended(outcome: Outcome) -> crate::runtime::JobSummary {
+    crate::runtime::JobSummary {
+        program: "job".into(),
+        outcome,
+        error: None,
+        limit_switch: None,
+        limits_closed: Vec::new(),
+        axes: vec!["X".into(), "Y".into()],
+        blocks: 1,
+        segments: 1,
+        steps_per_axis: vec![0, 0],
+        end_steps: vec![0, 0],
+        program_end_steps: vec![0, 0],
+        end_mm: vec![0.0, 0.0],
+        events_forward: 0,
+        events_backward: 0,
+        servo: Default::default(),
+        last_probe: Default::default(),
+        overruns: 0,
+        missed_deadlines: 0,
+        latency_us: None,
+        tick_us: 100,
+        ticks: 1,
+        virtual_time: true,
+        virtual_time_s: 1e-4,
+        wall_time_s: 0.0,
+        producer_busy_s: 0.0,
+        peak_rss_kib: 0,
+        buffer_capacity: 1,
+        buffer_high_water: 0,
+        events_dropped: 0,
+        trace_dropped: 0,
+        rt_refused: Vec::new(),
+        stopped_at: None,
+        stages: Vec::new(),
+    }
+}
+
+#[test]
+fn a_job_ended_by_an_estop_trips_and_unhomes_the_machine() {
+    let c = config(&["homing.lost_on_estop=true"]);
+    let mut m = machine(&c);
+    m.state.homed.iter_mut().for_each(|h| *h = true);
+    let summary = ended(Outcome::Estop);
+    super::trips::after_job(&c, &mut m, &summary);
+    assert_eq!(m.state.trip, Some(Trip::EStop));
+    assert!(m.state.homed.iter().all(|h| !h));
+}
+
+#[test]
+fn a_resume_starts_only_where_its_checkpoint_stopped() {
+    let c = config(&[]);
+    let mut m = machine(&c);
+    let cp = crate::checkpoint::Checkpoint {
+        version: 1,
+        program: "part.nc".into(),
+        program_sha256: String::new(),
+        motion_sha256: String::new(),
+        motion_settings: Default::default(),
+        reason: crate::checkpoint::Reason::Moving,
+        still: true,
+        line: 1,
+        segment: 0,
+        step: 0,
+        segment_steps: 0,
+        parameter: None,
+        dwell_s: 0.0,
+        axes: vec!["X".into(), "Y".into()],
+        position_steps: vec![100, 0],
+        position_mm: vec![0.01, 0.0],
+        written_unix_s: 0,
+        start: None,
+        from_line: None,
+        passes: Vec::new(),
+        tab_mm: 0.0,
+        technology: None,
+    };
+    let e = refused(at(&c, &m).resume_start(&cp, false));
+    assert!(
+        e.contains("X0.0000 Y0.0000") && e.contains("X0.1000 Y0.0000"),
+        "{e}"
+    );
+    assert!(at(&c, &m).resume_start(&cp, true).is_ok(), "forced");
+    m.state.position[0] = 100;
+    assert_eq!(
+        at(&c, &m).resume_start(&cp, false).unwrap(),
+        crate::gcode::WorkStart::default()
+    );
+}
+
+#[test]
+fn a_touch_cycle_orders_its_moves_and_fails_on_a_move_that_did_not_end() {
+    let c = config(&[]);
+    let mut m = machine(&c);
+    let mut cycles = super::touch::TouchCycles::default();
+    let e = refused(cycles.start(&c, &mut m, "edge X+", Some("G60")));
+    assert!(e.contains("not a work system"), "{e}");
+    let order = cycles.start(&c, &mut m, "edge X+", Some("G55")).unwrap();
+    assert!(order.said.starts_with("find 1: "), "{}", order.said);
+    assert!(matches!(order.launch.kind, JobKind::Touch { .. }));
+    assert!(
+        matches!(&order.source, Source::Generated { name, .. } if name == "find-approach-xplus")
+    );
+    assert_eq!(cycles.status().unwrap().state, "running");
+    let aborted = ended(Outcome::Stopped);
+    assert!(cycles.moved(&c, &mut m, &aborted).is_none());
+    let status = cycles.status().unwrap();
+    assert_eq!(status.state, "failed");
+    assert!(
+        status.message.contains("the move did not end"),
+        "{}",
+        status.message
+    );
+    // A moved job with no cycle in hand is none of the cycles' business.
+    assert!(cycles.moved(&c, &mut m, &aborted).is_none());
+}

@@ -510,9 +510,9 @@ const WIDE_TYPES: &[(&str, usize)] = &[
     // The G-code reader's whole: its parts (InterpState, ProgramFlow, LineScratch) exist but
     // the methods stay on the reader.
     ("BlockReader", 9),
-    // The daemon's control loop: touch-off and the touch cycles still live on it beside the
-    // jobs, the status and the upkeep (homing, jog and MDI decide at the desk).
-    ("Core", 8),
+    // The daemon's control loop: the job's lifecycle (start, jobs), the transports' dispatch,
+    // the status and the loop's round (upkeep); the machine's commands decide at the desk.
+    ("Core", 5),
 ];
 
 /// The files each type's inherent `impl` blocks stand in (tests aside).
@@ -574,14 +574,13 @@ const INNER_FLOORS: &[(&str, &[&[&str]])] = &[
             // The control loop (`Core`, in mod.rs) and the rooms that extend it.
             &[
                 "checkpoints",
-                "commands",
+                "dispatch",
                 "jobs",
                 "machine",
                 "mod",
                 "overrides",
                 "start",
                 "status",
-                "touch",
                 "upkeep",
             ],
         ],

@@ -1,0 +1,352 @@
+//! The transports' dispatch: a request from any client (the socket, the page, OPC UA) is
+//! handled here, on the control loop. The machine's commands ask the desk
+//! ([`super::desk`]) what to launch and launch it when the loop is free; the desk's
+//! [`Pendant`](super::desk::pendant::Pendant) keeps a continuous jog's button, and this file
+//! brakes the job it moves.
+
+use std::sync::atomic::Ordering;
+
+use super::desk::manual::sign;
+use super::desk::pendant::{LetGo, Press};
+use super::desk::{self, Desk, Order};
+use super::launch::JobKind;
+use super::protocol::{Reply, Request};
+use super::refusal::Refusal;
+use super::{Core, start};
+use crate::runtime::JobSummary;
+use crate::vocab::HomeSwitch;
+
+impl Core {
+    /// What the machine's commands read: the configuration and the machine.
+    pub(super) fn desk(&self) -> Desk<'_> {
+        Desk {
+            config: &self.config,
+            machine: &self.machine,
+        }
+    }
+
+    /// Starts the check of what a command ordered; what the operator is told.
+    pub(super) fn launch(&mut self, order: Order) -> String {
+        let Order {
+            source,
+            launch,
+            said,
+        } = order;
+        let id = self.begin_check(source, None, launch);
+        format!("{said} (check {id})")
+    }
+
+    /// A client's request, answered with the status as it stands after it.
+    pub(super) fn handle(&mut self, request: Request) -> Reply {
+        // What the fine thread saw of the machine since the last round counts before any
+        // command: a run sent right after an E-stop pulse is refused.
+        self.watch_inputs();
+        let result = match request {
+            Request::Technology { request } => {
+                let mut reply = match request.as_deref().map(|r| self.explain(r)) {
+                    None => Reply::ok(self.technology.list().join("\n"), self.status()),
+                    Some(Ok(text)) => Reply::ok(text, self.status()),
+                    Some(Err(e)) => Reply::error(e, Some(self.status())),
+                };
+                reply.technology = Some(self.technology.summaries());
+                return reply;
+            }
+            // Read off the loop (`list_jobs`); a request here is answered the same way.
+            Request::Jobs { .. } => Ok("jobs".to_string()),
+            Request::Status {} => Ok("status".to_string()),
+            Request::Run {
+                program,
+                dry_run,
+                from_line,
+                approach,
+                passes,
+                technology,
+                force,
+            } => self.run_program(start::RunAsk {
+                program: &program,
+                dry_run,
+                from_line,
+                approach,
+                passes,
+                technology: technology.as_deref(),
+                force,
+            }),
+            Request::Hold {} => self.hold(),
+            Request::Resume { force } => self.resume(force),
+            Request::Abort {} => self.abort(),
+            Request::Rethread { here } => self.rethread(here),
+            Request::Offsets {} => Ok(desk::offsets::table(&self.machine)),
+            Request::WebLink {} => match &self.clients.http {
+                Some(http) => http
+                    .login_link()
+                    .map_err(|e| Refusal::BadArgument(format!("cannot make a login code: {e}"))),
+                None => Err(Refusal::BadArgument(
+                    "daemon.http is off: there is no page to log in to".into(),
+                )),
+            },
+            Request::TouchOff {
+                axis,
+                value,
+                system,
+            } => self.refuse_if_busy().and_then(|()| {
+                desk::offsets::touch_off(
+                    &self.config,
+                    &mut self.machine,
+                    &axis,
+                    value,
+                    system.as_deref(),
+                )
+            }),
+            Request::Home { axes, here, force } => self.home(&axes, here, force),
+            Request::Find { target, system } => self.find(&target, system.as_deref()),
+            Request::Jog {
+                axis,
+                distance_mm,
+                feed_mm_per_min,
+            } => self.jog(&axis, distance_mm, feed_mm_per_min),
+            Request::Mdi { line } => self.mdi(&line),
+            Request::JogContinuous {
+                axis,
+                positive,
+                feed_mm_per_min,
+            } => self.jog_continuous(&axis, positive, feed_mm_per_min),
+            Request::JogStop {} => self.jog_stop(),
+            Request::Reset {} => self.reset(),
+            Request::Override { kind, percent } => self.jobs.set_override(kind, percent),
+            Request::SingleBlock { on } => self.jobs.set_single_block(on),
+        };
+        self.notify_status();
+        match result {
+            Ok(message) => Reply::ok(message, self.status()),
+            Err(refusal) => Reply::error(refusal.to_string(), Some(self.status())),
+        }
+    }
+
+    pub(super) fn refuse_if_busy(&self) -> Result<(), Refusal> {
+        if self.shutting_down {
+            return Err(Refusal::ShuttingDown);
+        }
+        if let Some(job) = &self.jobs.job {
+            return Err(Refusal::JobRunning {
+                state: self.state().name(),
+                program: job.program.clone(),
+            });
+        }
+        if let Some(check) = &self.jobs.check {
+            return Err(Refusal::Checking {
+                name: check.name.clone(),
+                id: check.id,
+            });
+        }
+        Ok(())
+    }
+
+    /// `home [AXIS…] [--here]`.
+    fn home(&mut self, axes: &[String], here: bool, force: bool) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        self.desk().refuse_if_tripped(None)?;
+        if here {
+            return desk::homing::here(&self.config, &mut self.machine, axes, force);
+        }
+        let order = desk::homing::by_switch(self.desk(), axes)?;
+        let names: Vec<String> = order
+            .iter()
+            .map(|&i| self.config.machine.axes[i].to_string())
+            .collect();
+        let (first, rest) = order.split_first().expect("at least one axis");
+        self.machine.homing_queue = rest.to_vec();
+        let job = desk::homing::axis_job(self.desk(), *first);
+        let id = self.begin_check(job.source, None, job.launch);
+        Ok(format!(
+            "homing {} by their switches, in that order (check {id})",
+            names.join(", ")
+        ))
+    }
+
+    /// A job starts; a homing job's axis is unhomed until it latches.
+    pub(super) fn homing_started(&mut self, switch: Option<&HomeSwitch>) {
+        if let Some(switch) = switch {
+            self.machine.state.homed[switch.axis] = false;
+        }
+    }
+
+    /// A homing job ended: the next axis starts, if the latch says so.
+    pub(super) fn homing_done(&mut self, switch: &HomeSwitch, summary: &JobSummary) {
+        if let Some(next) =
+            desk::homing::latched(&self.config, &mut self.machine, switch, summary.into())
+        {
+            let job = desk::homing::axis_job(self.desk(), next);
+            self.begin_check(job.source, None, job.launch);
+        }
+    }
+
+    /// `jog AXIS DISTANCE [--feed F]`.
+    fn jog(&mut self, axis: &str, distance_mm: f64, feed: Option<f64>) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let order = desk::manual::jog(self.desk(), axis, distance_mm, feed)?;
+        Ok(self.launch(order))
+    }
+
+    /// `mdi LINES`.
+    fn mdi(&mut self, lines: &str) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let order = desk::manual::mdi(self.desk(), lines)?;
+        Ok(self.launch(order))
+    }
+
+    /// `find TARGET [--system G5x]`: the touch cycle's first move.
+    fn find(&mut self, target: &str, system: Option<&str>) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let order = self
+            .touch
+            .start(&self.config, &mut self.machine, target, system)?;
+        Ok(self.launch(order))
+    }
+
+    /// A touch cycle's move ended: its next move starts, if the cycle orders one.
+    pub(super) fn find_moved(&mut self, summary: &JobSummary) {
+        if let Some(order) = self.touch.moved(&self.config, &mut self.machine, summary) {
+            self.launch(order);
+        }
+    }
+
+    /// `reset` after an E-stop: refused while the E-stop input still reads pressed (on the
+    /// claimed device, whose inputs the fine thread reads between jobs).
+    fn reset(&mut self) -> Result<String, Refusal> {
+        // Whatever the fine thread saw since the last look counts first: a reset must not
+        // clear an E-stop pressed (and released) a moment ago that no trip records yet.
+        self.watch_inputs();
+        let fine = &self.jobs.fine;
+        let estop_reads = fine.has_claim() && fine.idle_watch().reading().is_none_or(|r| r.estop);
+        desk::trips::reset(&mut self.machine, estop_reads)
+    }
+
+    /// Between jobs the fine thread reads the claimed device's inputs every millisecond and
+    /// latches what it saw ([`crate::runtime::Claimed`]); the desk's trips judge it
+    /// ([`desk::trips::watch`]). Called every round of the loop and before any command.
+    pub(super) fn watch_inputs(&mut self) {
+        if self.jobs.job.is_some() || !self.jobs.fine.has_claim() {
+            return;
+        }
+        let seen = self.jobs.fine.idle_watch().take();
+        if desk::trips::watch(&mut self.machine, seen) {
+            self.latch_stopped_jog();
+        }
+    }
+
+    /// `jog-continuous`: towards the soft limit (or the longest jog) while renewed (the
+    /// desk's [`Pendant`](desk::pendant::Pendant)). Another axis or direction while one moves
+    /// is refused.
+    fn jog_continuous(
+        &mut self,
+        axis: &str,
+        positive: bool,
+        feed: Option<f64>,
+    ) -> Result<String, Refusal> {
+        let (i, letter) = self.desk().axis(axis)?;
+        let stopped_in_job = self.jobs.job.as_ref().is_some_and(|job| {
+            matches!(job.kind, JobKind::Jog { .. })
+                && (job.published.hold.load(Ordering::Relaxed)
+                    || job.published.dead_man_tripped.load(Ordering::Relaxed))
+        });
+        let now = crate::sys::monotonic_ns();
+        let stopped = || {
+            Refusal::BadArgument(format!(
+                "jog {letter}{} was stopped (a hold, its dead-man, a trip or its end): renewals \
+                 are refused; let go and start it again",
+                sign(positive)
+            ))
+        };
+        match self.jobs.pendant.press(i, positive, now, stopped_in_job) {
+            Press::Latched => return Err(stopped()),
+            Press::StoppedInJob => {
+                self.stop_continuous("held: a renewal does not move it again", true);
+                return Err(stopped());
+            }
+            Press::Renewed { deadline_ns } => {
+                if let Some(job) = &self.jobs.job {
+                    job.published
+                        .dead_man_ns
+                        .store(deadline_ns, Ordering::Release);
+                }
+                return Ok(format!("jog {letter}{}: renewed", sign(positive)));
+            }
+            Press::Busy { axis, positive } => {
+                return Err(Refusal::BadArgument(format!(
+                    "a continuous jog of {}{} is moving: stop it first",
+                    self.config.machine.axes[axis],
+                    sign(positive)
+                )));
+            }
+            Press::New => {}
+        }
+        self.refuse_if_busy()?;
+        let order = desk::manual::continuous(self.desk(), i, letter, positive, feed)?;
+        let reply = self.launch(order);
+        self.jobs
+            .pendant
+            .started(i, positive, crate::sys::monotonic_ns());
+        Ok(reply)
+    }
+
+    /// `jog-stop`: the continuous jog brakes to a standstill now.
+    fn jog_stop(&mut self) -> Result<String, Refusal> {
+        match self.jobs.pendant.let_go() {
+            LetGo::Stop => {
+                self.stop_continuous("stopped", false);
+                Ok("jog: braking to a standstill".into())
+            }
+            LetGo::AlreadyStopped => Ok("jog: already stopped".into()),
+            LetGo::Nothing => Err(Refusal::BadArgument("no continuous jog is moving".into())),
+        }
+    }
+
+    /// A continuous jog not renewed in time stops (from the control loop's period; the
+    /// job's own thread has held it at the same deadline already).
+    pub(super) fn dead_man(&mut self) {
+        let held_by_job = self
+            .jobs
+            .job
+            .as_ref()
+            .is_some_and(|job| job.published.dead_man_tripped.load(Ordering::Relaxed));
+        if self
+            .jobs
+            .pendant
+            .dead_man_due(crate::sys::monotonic_ns(), held_by_job)
+        {
+            self.stop_continuous("not renewed for 250 ms: stopping (dead-man)", true);
+        }
+    }
+
+    /// An E-stop or a limit switch ends the continuous jog (being checked or moving) for
+    /// good: its client's renewals are refused until it lets go.
+    fn latch_stopped_jog(&mut self) {
+        if self.jobs.pendant.is_moving() {
+            self.stop_continuous("a trip ends the continuous jog", true);
+        }
+    }
+
+    /// A hold ends a continuous jog: it brakes and ends, and its renewals are refused.
+    pub(super) fn hold_ends_jog(&mut self) -> bool {
+        if !self.jobs.pendant.is_moving() {
+            return false;
+        }
+        self.stop_continuous("held: stopping the continuous jog", true);
+        true
+    }
+
+    /// Ends the continuous jog: its check is cancelled, its job braked; `latch`: its client's
+    /// renewals that follow are refused.
+    fn stop_continuous(&mut self, why: &str, latch: bool) {
+        self.jobs.pendant.stop(latch, crate::sys::monotonic_ns());
+        if let Some(check) = &self.jobs.check {
+            check.progress.cancel();
+        }
+        if let Some(job) = &self.jobs.job
+            && matches!(job.kind, JobKind::Jog { .. })
+        {
+            job.stop.store(true, Ordering::Relaxed);
+        }
+        tracing::info!("jog: {why}");
+    }
+}
