@@ -6,36 +6,15 @@
 
 use std::sync::atomic::Ordering;
 
+use super::desk;
 use super::desk::manual::sign;
 use super::desk::pendant::{LetGo, Press};
-use super::desk::{self, Desk, Order};
 use super::launch::JobKind;
 use super::protocol::{Reply, Request};
 use super::refusal::Refusal;
 use super::{Core, start};
-use crate::runtime::JobSummary;
-use crate::vocab::HomeSwitch;
 
 impl Core {
-    /// What the machine's commands read: the configuration and the machine.
-    pub(super) fn desk(&self) -> Desk<'_> {
-        Desk {
-            config: &self.config,
-            machine: &self.machine,
-        }
-    }
-
-    /// Starts the check of what a command ordered; what the operator is told.
-    pub(super) fn launch(&mut self, order: Order) -> String {
-        let Order {
-            source,
-            launch,
-            said,
-        } = order;
-        let id = self.begin_check(source, None, launch);
-        format!("{said} (check {id})")
-    }
-
     /// A client's request, answered with the status as it stands after it.
     pub(super) fn handle(&mut self, request: Request) -> Reply {
         // What the fine thread saw of the machine since the last round counts before any
@@ -122,25 +101,6 @@ impl Core {
         }
     }
 
-    pub(super) fn refuse_if_busy(&self) -> Result<(), Refusal> {
-        if self.shutting_down {
-            return Err(Refusal::ShuttingDown);
-        }
-        if let Some(job) = &self.jobs.job {
-            return Err(Refusal::JobRunning {
-                state: self.state().name(),
-                program: job.program.clone(),
-            });
-        }
-        if let Some(check) = &self.jobs.check {
-            return Err(Refusal::Checking {
-                name: check.name.clone(),
-                id: check.id,
-            });
-        }
-        Ok(())
-    }
-
     /// `home [AXIS…] [--here]`.
     fn home(&mut self, axes: &[String], here: bool, force: bool) -> Result<String, Refusal> {
         self.refuse_if_busy()?;
@@ -161,23 +121,6 @@ impl Core {
             "homing {} by their switches, in that order (check {id})",
             names.join(", ")
         ))
-    }
-
-    /// A job starts; a homing job's axis is unhomed until it latches.
-    pub(super) fn homing_started(&mut self, switch: Option<&HomeSwitch>) {
-        if let Some(switch) = switch {
-            self.machine.state.homed[switch.axis] = false;
-        }
-    }
-
-    /// A homing job ended: the next axis starts, if the latch says so.
-    pub(super) fn homing_done(&mut self, switch: &HomeSwitch, summary: &JobSummary) {
-        if let Some(next) =
-            desk::homing::latched(&self.config, &mut self.machine, switch, summary.into())
-        {
-            let job = desk::homing::axis_job(self.desk(), next);
-            self.begin_check(job.source, None, job.launch);
-        }
     }
 
     /// `jog AXIS DISTANCE [--feed F]`.
@@ -201,13 +144,6 @@ impl Core {
             .touch
             .start(&self.config, &mut self.machine, target, system)?;
         Ok(self.launch(order))
-    }
-
-    /// A touch cycle's move ended: its next move starts, if the cycle orders one.
-    pub(super) fn find_moved(&mut self, summary: &JobSummary) {
-        if let Some(order) = self.touch.moved(&self.config, &mut self.machine, summary) {
-            self.launch(order);
-        }
     }
 
     /// `reset` after an E-stop: refused while the E-stop input still reads pressed (on the
@@ -299,54 +235,5 @@ impl Core {
             LetGo::AlreadyStopped => Ok("jog: already stopped".into()),
             LetGo::Nothing => Err(Refusal::BadArgument("no continuous jog is moving".into())),
         }
-    }
-
-    /// A continuous jog not renewed in time stops (from the control loop's period; the
-    /// job's own thread has held it at the same deadline already).
-    pub(super) fn dead_man(&mut self) {
-        let held_by_job = self
-            .jobs
-            .job
-            .as_ref()
-            .is_some_and(|job| job.published.dead_man_tripped.load(Ordering::Relaxed));
-        if self
-            .jobs
-            .pendant
-            .dead_man_due(crate::sys::monotonic_ns(), held_by_job)
-        {
-            self.stop_continuous("not renewed for 250 ms: stopping (dead-man)", true);
-        }
-    }
-
-    /// An E-stop or a limit switch ends the continuous jog (being checked or moving) for
-    /// good: its client's renewals are refused until it lets go.
-    fn latch_stopped_jog(&mut self) {
-        if self.jobs.pendant.is_moving() {
-            self.stop_continuous("a trip ends the continuous jog", true);
-        }
-    }
-
-    /// A hold ends a continuous jog: it brakes and ends, and its renewals are refused.
-    pub(super) fn hold_ends_jog(&mut self) -> bool {
-        if !self.jobs.pendant.is_moving() {
-            return false;
-        }
-        self.stop_continuous("held: stopping the continuous jog", true);
-        true
-    }
-
-    /// Ends the continuous jog: its check is cancelled, its job braked; `latch`: its client's
-    /// renewals that follow are refused.
-    fn stop_continuous(&mut self, why: &str, latch: bool) {
-        self.jobs.pendant.stop(latch, crate::sys::monotonic_ns());
-        if let Some(check) = &self.jobs.check {
-            check.progress.cancel();
-        }
-        if let Some(job) = &self.jobs.job
-            && matches!(job.kind, JobKind::Jog { .. })
-        {
-            job.stop.store(true, Ordering::Relaxed);
-        }
-        tracing::info!("jog: {why}");
     }
 }

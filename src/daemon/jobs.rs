@@ -9,6 +9,7 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use super::checkpoints::CheckpointKeeper;
+use super::desk;
 use super::launch::{JobKind, Launch, Source};
 use super::names::confine;
 use super::protocol;
@@ -20,6 +21,7 @@ use crate::record::EventKind;
 use crate::runtime::program::{self, JobProgram, Progress};
 use crate::runtime::{self, FineThread, JobEnd, JobError, JobIo, JobSummary, Outcome, ResumePoint};
 use crate::servo::{Rethread, ServoState};
+use crate::vocab::HomeSwitch;
 
 /// A resume waiting for its check: where to resume, and the bytes it must be.
 pub(super) struct Resume {
@@ -476,5 +478,75 @@ impl Core {
             .add(record.as_ref(), summary.virtual_time_s, spark_s);
         self.jobs.last = Some(summary);
         self.notify_status();
+    }
+}
+
+/// What a job's end or a hold means to the commands that launched it: the next axis of a
+/// homing sequence, the next move of a touch cycle, a continuous jog braked.
+impl Core {
+    /// A homing job ended: the next axis starts, if the latch says so.
+    pub(super) fn homing_done(&mut self, switch: &HomeSwitch, summary: &JobSummary) {
+        if let Some(next) =
+            desk::homing::latched(&self.config, &mut self.machine, switch, summary.into())
+        {
+            let job = desk::homing::axis_job(self.desk(), next);
+            self.begin_check(job.source, None, job.launch);
+        }
+    }
+
+    /// A touch cycle's move ended: its next move starts, if the cycle orders one.
+    pub(super) fn find_moved(&mut self, summary: &JobSummary) {
+        if let Some(order) = self.touch.moved(&self.config, &mut self.machine, summary) {
+            self.launch(order);
+        }
+    }
+
+    /// A continuous jog not renewed in time stops (from the control loop's period; the
+    /// job's own thread has held it at the same deadline already).
+    pub(super) fn dead_man(&mut self) {
+        let held_by_job = self
+            .jobs
+            .job
+            .as_ref()
+            .is_some_and(|job| job.published.dead_man_tripped.load(Ordering::Relaxed));
+        if self
+            .jobs
+            .pendant
+            .dead_man_due(crate::sys::monotonic_ns(), held_by_job)
+        {
+            self.stop_continuous("not renewed for 250 ms: stopping (dead-man)", true);
+        }
+    }
+
+    /// An E-stop or a limit switch ends the continuous jog (being checked or moving) for
+    /// good: its client's renewals are refused until it lets go.
+    pub(super) fn latch_stopped_jog(&mut self) {
+        if self.jobs.pendant.is_moving() {
+            self.stop_continuous("a trip ends the continuous jog", true);
+        }
+    }
+
+    /// A hold ends a continuous jog: it brakes and ends, and its renewals are refused.
+    fn hold_ends_jog(&mut self) -> bool {
+        if !self.jobs.pendant.is_moving() {
+            return false;
+        }
+        self.stop_continuous("held: stopping the continuous jog", true);
+        true
+    }
+
+    /// Ends the continuous jog: its check is cancelled, its job braked; `latch`: its client's
+    /// renewals that follow are refused.
+    pub(super) fn stop_continuous(&mut self, why: &str, latch: bool) {
+        self.jobs.pendant.stop(latch, crate::sys::monotonic_ns());
+        if let Some(check) = &self.jobs.check {
+            check.progress.cancel();
+        }
+        if let Some(job) = &self.jobs.job
+            && matches!(job.kind, JobKind::Jog { .. })
+        {
+            job.stop.store(true, Ordering::Relaxed);
+        }
+        tracing::info!("jog: {why}");
     }
 }

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
+use super::desk::{Desk, Order};
 use super::jobs::{Check, Resume};
 use super::launch::{Checked, JobKind, Launch, Source, copy_and_check};
 use super::protocol::CheckStatus;
@@ -130,6 +131,46 @@ pub(super) struct RunAsk<'a> {
 }
 
 impl Core {
+    /// What the machine's commands read: the configuration and the machine.
+    pub(super) fn desk(&self) -> Desk<'_> {
+        Desk {
+            config: &self.config,
+            machine: &self.machine,
+        }
+    }
+
+    /// Starts the check of what a command ordered; what the operator is told.
+    pub(super) fn launch(&mut self, order: Order) -> String {
+        let Order {
+            source,
+            launch,
+            said,
+        } = order;
+        let id = self.begin_check(source, None, launch);
+        format!("{said} (check {id})")
+    }
+
+    /// A command that starts a check is refused while the loop has a job or a check in hand,
+    /// or is shutting down.
+    pub(super) fn refuse_if_busy(&self) -> Result<(), Refusal> {
+        if self.shutting_down {
+            return Err(Refusal::ShuttingDown);
+        }
+        if let Some(job) = &self.jobs.job {
+            return Err(Refusal::JobRunning {
+                state: self.state().name(),
+                program: job.program.clone(),
+            });
+        }
+        if let Some(check) = &self.jobs.check {
+            return Err(Refusal::Checking {
+                name: check.name.clone(),
+                id: check.id,
+            });
+        }
+        Ok(())
+    }
+
     /// What `request` selects from the tables in force, explained.
     pub(super) fn explain(&self, request: &str) -> Result<String, String> {
         crate::technology::Request::parse(request, "technology", 1, 1)
@@ -501,7 +542,7 @@ impl Core {
         // from where it starts; a job that cannot record that does not start.
         let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
-        self.homing_started(switch.as_ref());
+        super::desk::homing::started(&mut self.machine, switch.as_ref());
         self.machine.save(true).map_err(super::desk::unwritten)?;
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
             return Err(Refusal::WriteAhead {

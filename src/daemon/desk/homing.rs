@@ -298,3 +298,10 @@ pub(in crate::daemon) fn latched(
     );
     (!machine.homing_queue.is_empty()).then(|| machine.homing_queue.remove(0))
 }
+
+/// A job starts: a homing job's axis is unhomed until it latches.
+pub(in crate::daemon) fn started(machine: &mut Machine, switch: Option<&HomeSwitch>) {
+    if let Some(switch) = switch {
+        machine.state.homed[switch.axis] = false;
+    }
+}

@@ -12,7 +12,9 @@ mod source;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use source::{code_only, code_without_tests, crate_paths, inherent_impls, module_paths};
+use source::{
+    code_only, code_without_tests, crate_paths, impl_blocks, inherent_impls, module_paths,
+};
 
 /// The floors, lowest first: shared vocabulary at the bottom, the command line at the top.
 const FLOORS: &[&[&str]] = &[
@@ -559,6 +561,151 @@ fn no_type_spreads_its_methods_over_more_than_three_files() {
     );
 }
 
+/// Types whose files still call one another round a circle, with the number of files on it
+/// today: it may only fall. Each is a debt named in ARCHITECTURE.md, "Debts".
+const CALL_CIRCLES: &[(&str, usize)] = &[
+    // The G-code reader: every file of it calls into the others.
+    ("BlockReader", 9),
+    // The tick core and its excursions (jumps, wire breaks, probing moves): each calls the
+    // other's steps; the fine <-> servo seam runs through both.
+    ("Interpolator", 2),
+];
+
+/// For each type whose methods stand in more than one file: which file calls a method that
+/// another one defines (`self.name(…)`), as (type, from file, to file) and the methods called.
+fn method_calls_across_files() -> BTreeMap<(String, String, String), BTreeSet<String>> {
+    let mut defined: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
+    let mut calling: Vec<(String, String, BTreeSet<String>)> = Vec::new();
+    for path in rust_files(&root().join("src")) {
+        let rel = format!("src/{}", rel(&path));
+        let code = code_without_tests(&std::fs::read_to_string(&path).unwrap());
+        for block in impl_blocks(&code) {
+            for method in block.defines {
+                defined
+                    .entry((block.name.clone(), method))
+                    .or_default()
+                    .insert(rel.clone());
+            }
+            calling.push((block.name, rel.clone(), block.calls));
+        }
+    }
+    let mut edges = BTreeMap::new();
+    for (name, from, calls) in calling {
+        for method in calls {
+            // A name defined in more than one file (two impls of a generic type) says nothing
+            // of which one is called.
+            let Some(files) = defined.get(&(name.clone(), method.clone())) else {
+                continue;
+            };
+            if files.len() == 1 && !files.contains(&from) {
+                let to = files.iter().next().unwrap().clone();
+                edges
+                    .entry((name.clone(), from.clone(), to))
+                    .or_insert_with(BTreeSet::new)
+                    .insert(method);
+            }
+        }
+    }
+    edges
+}
+
+/// The circles of each type's call graph between its files: the files that reach one
+/// another both ways, per type.
+fn call_circles() -> BTreeMap<String, Vec<BTreeSet<String>>> {
+    let mut graphs: BTreeMap<String, BTreeMap<String, BTreeSet<String>>> = BTreeMap::new();
+    for (name, from, to) in method_calls_across_files().into_keys() {
+        graphs
+            .entry(name)
+            .or_default()
+            .entry(from)
+            .or_default()
+            .insert(to);
+    }
+    let mut circles = BTreeMap::new();
+    for (name, graph) in graphs {
+        let reach = |start: &String| {
+            let mut seen = BTreeSet::new();
+            let mut todo = vec![start.clone()];
+            while let Some(f) = todo.pop() {
+                for g in graph.get(&f).into_iter().flatten() {
+                    if seen.insert(g.clone()) {
+                        todo.push(g.clone());
+                    }
+                }
+            }
+            seen
+        };
+        let reached: BTreeMap<&String, BTreeSet<String>> =
+            graph.keys().map(|f| (f, reach(f))).collect();
+        let mut found: Vec<BTreeSet<String>> = Vec::new();
+        for (f, r) in &reached {
+            if !r.contains(*f) || found.iter().any(|c| c.contains(*f)) {
+                continue;
+            }
+            let circle: BTreeSet<String> = r
+                .iter()
+                .filter(|g| reached.get(g).is_some_and(|rg| rg.contains(*f)))
+                .cloned()
+                .collect();
+            found.push(circle);
+        }
+        if !found.is_empty() {
+            circles.insert(name, found);
+        }
+    }
+    circles
+}
+
+#[test]
+fn no_type_calls_round_a_circle_of_its_files() {
+    let circles = call_circles();
+    let mut wrong = Vec::new();
+    for (name, found) in &circles {
+        let allowed = CALL_CIRCLES
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(0, |(_, n)| *n);
+        for circle in found {
+            if circle.len() > allowed {
+                wrong.push(format!(
+                    "{name}: {} files call one another round a circle (at most {allowed}): {}",
+                    circle.len(),
+                    circle.iter().cloned().collect::<Vec<_>>().join(", ")
+                ));
+            }
+        }
+    }
+    for (name, n) in CALL_CIRCLES {
+        let now = circles
+            .get(*name)
+            .and_then(|c| c.iter().map(BTreeSet::len).max())
+            .unwrap_or(0);
+        if now < *n {
+            wrong.push(format!(
+                "{name}'s circle has {now} files now: lower CALL_CIRCLES (listed at {n})"
+            ));
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "a type's files call one another round a circle: a method moved to the file that \
+         owns its state breaks it\n  {}",
+        wrong.join("\n  ")
+    );
+}
+
+#[test]
+fn the_call_reader_finds_methods_called_across_lines() {
+    let code = code_only(
+        "impl A {\n    fn one(&self) { self.two(); self\n        .three::<u8>(); self.field.four(); }\n    pub(crate) fn five() { Self::six(1) }\n}\nimpl Tr for A { fn seven(&self) { self.eight() } }\n",
+    );
+    let blocks = impl_blocks(&code);
+    assert_eq!(blocks.len(), 1, "a trait's impl is not the type's own");
+    assert_eq!(blocks[0].defines, ["one", "five"]);
+    let calls: Vec<&String> = blocks[0].calls.iter().collect();
+    assert_eq!(calls, ["six", "three", "two"]);
+}
+
 /// Floors inside the modules whose children import one another, lowest first, as for the
 /// crate's modules. `mod` is the module's own `mod.rs` and what it declares; a child on its
 /// floor is one of its rooms and may use what `mod.rs` declares, a child below may not.
@@ -702,6 +849,18 @@ fn print_inner_imports() {
             println!("{name}: {}", files.len());
         }
     }
+    for ((name, from, to), methods) in method_calls_across_files() {
+        let methods: Vec<String> = methods.into_iter().collect();
+        println!("{name}: {from} -> {to}   ({})", methods.join(", "));
+    }
+    for (name, circles) in call_circles() {
+        for c in circles {
+            println!(
+                "{name} circle: {}",
+                c.into_iter().collect::<Vec<_>>().join(", ")
+            );
+        }
+    }
 }
 
 /// Every type on `WIDE_TYPES` is a debt ARCHITECTURE.md names, with its count.
@@ -714,6 +873,10 @@ fn architecture_md_names_every_wide_type() {
         .expect("ARCHITECTURE.md has a `## Debts` section");
     for (name, n) in WIDE_TYPES {
         let said = format!("`{name}` spans {n} files");
+        assert!(debts.contains(&said), "ARCHITECTURE.md, Debts: no {said:?}");
+    }
+    for (name, n) in CALL_CIRCLES {
+        let said = format!("`{name}`'s files call round a circle of {n}");
         assert!(debts.contains(&said), "ARCHITECTURE.md, Debts: no {said:?}");
     }
 }

@@ -343,3 +343,102 @@ pub fn module_paths(code: &str, here: &[String]) -> Vec<(Vec<String>, usize)> {
     }
     found
 }
+
+/// An inherent `impl` block: its type, the methods it defines and the methods it calls on
+/// `self` (`self.name(…)`, `Self::name(…)`), by name.
+pub struct ImplBlock {
+    pub name: String,
+    pub defines: Vec<String>,
+    pub calls: std::collections::BTreeSet<String>,
+}
+
+/// The inherent `impl` blocks of `code` (as [`code_only`] leaves it: its braces balance).
+pub fn impl_blocks(code: &str) -> Vec<ImplBlock> {
+    let line_starts: Vec<usize> = std::iter::once(0)
+        .chain(code.match_indices('\n').map(|(i, _)| i + 1))
+        .collect();
+    let bytes = code.as_bytes();
+    let mut blocks = Vec::new();
+    for (name, line) in inherent_impls(code) {
+        let Some(open) = code[line_starts[line - 1]..]
+            .find('{')
+            .map(|k| k + line_starts[line - 1])
+        else {
+            continue;
+        };
+        let mut depth = 0usize;
+        let mut close = code.len();
+        for (k, &b) in bytes.iter().enumerate().skip(open) {
+            match b {
+                b'{' => depth += 1,
+                b'}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        close = k;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let body = &code[open + 1..close];
+        blocks.push(ImplBlock {
+            name,
+            defines: words_after(body, "fn").map(|(w, _)| w).collect(),
+            calls: self_calls(body),
+        });
+    }
+    blocks
+}
+
+/// The identifiers that follow the word `keyword` in `code`, with what follows them.
+fn words_after<'a>(code: &'a str, keyword: &'a str) -> impl Iterator<Item = (String, &'a str)> {
+    code.match_indices(keyword).filter_map(move |(at, _)| {
+        let before = code[..at].chars().next_back();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            return None;
+        }
+        let rest = &code[at + keyword.len()..];
+        if !rest.starts_with(char::is_whitespace) {
+            return None;
+        }
+        let rest = rest.trim_start();
+        let end = rest
+            .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .unwrap_or(rest.len());
+        (end > 0).then(|| (rest[..end].to_string(), &rest[end..]))
+    })
+}
+
+/// The methods `code` calls on `self` or `Self`, whitespace and line breaks allowed around
+/// the `.` and before the parenthesis (as rustfmt breaks a long call).
+fn self_calls(code: &str) -> std::collections::BTreeSet<String> {
+    let mut calls = std::collections::BTreeSet::new();
+    for (at, _) in code.match_indices("self") {
+        let before = code[..at].chars().next_back();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            continue;
+        }
+        let rest = code[at + 4..].trim_start();
+        let Some(rest) = rest.strip_prefix('.') else {
+            continue;
+        };
+        let rest = rest.trim_start();
+        let end = rest
+            .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .unwrap_or(rest.len());
+        if end > 0 && rest[end..].trim_start().starts_with(['(', ':']) {
+            calls.insert(rest[..end].to_string());
+        }
+    }
+    for (at, _) in code.match_indices("Self::") {
+        let rest = &code[at + 6..];
+        let end = rest
+            .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .unwrap_or(rest.len());
+        if end > 0 && rest[end..].trim_start().starts_with('(') {
+            calls.insert(rest[..end].to_string());
+        }
+    }
+    calls
+}
