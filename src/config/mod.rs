@@ -238,6 +238,9 @@ pub struct FineConfig {
     /// `fine.tick_us`.
     pub tick: TickPeriod,
     pub virtual_time: bool,
+    /// `fine.ticks_per_wake`: ticks run back to back per wake-up in real time (1 on a
+    /// machine).
+    pub ticks_per_wake: u32,
     /// SCHED_FIFO priority, 0 for none.
     pub rt_priority: u8,
     pub lock_memory: bool,

@@ -192,6 +192,7 @@ pub(super) struct RawBuffer {
 pub(super) struct RawFine {
     pub(super) tick_us: i64,
     pub(super) virtual_time: bool,
+    pub(super) ticks_per_wake: i64,
     pub(super) rt_priority: i64,
     pub(super) lock_memory: bool,
     pub(super) cpu: i64,

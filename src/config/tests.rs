@@ -158,6 +158,15 @@ fn cross_key_rules() {
     assert!(err.contains("fine.virtual_time: must be false"), "{err}");
     let err = load("[gap]\nkind = \"parport\"\n", &[]).unwrap_err();
     assert!(err.contains("gap.kind"), "{err}");
+    // Steps in bursts are for a pulse file or a simulated machine, never for drives.
+    let port = "[output]\nkind = \"parport\"\n[fine]\nvirtual_time = false\n";
+    let err = load(port, &["fine.ticks_per_wake=10"]).unwrap_err();
+    assert!(err.contains("fine.ticks_per_wake: must be 1"), "{err}");
+    assert_eq!(load(port, &[]).unwrap().fine.ticks_per_wake, 1);
+    let file = load("[output]\nkind = \"file\"\n", &["fine.ticks_per_wake=10"]);
+    assert_eq!(file.unwrap().fine.ticks_per_wake, 10);
+    let err = load("", &["fine.ticks_per_wake=0"]).unwrap_err();
+    assert!(err.contains("fine.ticks_per_wake"), "{err}");
 }
 
 #[test]

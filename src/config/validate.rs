@@ -120,6 +120,16 @@ impl RawConfig {
                 ),
             ));
         }
+        if output.kind.hardware() && fine.ticks_per_wake > 1 {
+            return Err((
+                "fine.ticks_per_wake",
+                format!(
+                    "must be 1 with output.kind = \"{}\": a machine's drives take each step at \
+                     its own tick, not in bursts",
+                    output.kind.name()
+                ),
+            ));
+        }
         let gap = gap(self.gap)?;
         if self.servo.law == ServoLaw::Ratio && gap.kind != GapKind::Sim {
             return Err((
@@ -421,6 +431,7 @@ fn fine(f: RawFine) -> Result<FineConfig, Invalid> {
     Ok(FineConfig {
         tick,
         virtual_time: f.virtual_time,
+        ticks_per_wake: in_range("fine.ticks_per_wake", f.ticks_per_wake, 1, 1000)? as u32,
         rt_priority: in_range("fine.rt_priority", f.rt_priority, 0, 99)? as u8,
         lock_memory: f.lock_memory,
         cpu: match f.cpu {

@@ -353,6 +353,8 @@ fn without_the_hal_library_the_daemon_refuses_to_start_and_names_the_package() {
     let mut sets = common::daemon::base_sets(&dir, "p.csv");
     sets.extend([
         "output.kind=\"hal\"".to_string(),
+        // HAL's drives take each step at its own tick.
+        "fine.ticks_per_wake=1".to_string(),
         "homing.required=false".to_string(),
         format!("hal.library=\"{}\"", dir.join("nothing.so.0").display()),
     ]);

@@ -344,6 +344,8 @@ fn without_hal_running_edmd_makes_no_component_and_says_how_to_start() {
     let mut sets = common::daemon::base_sets(&dir, "p.csv");
     sets.extend([
         "output.kind=\"hal\"".to_string(),
+        // HAL's drives take each step at its own tick.
+        "fine.ticks_per_wake=1".to_string(),
         "gap.kind=\"none\"".to_string(),
         "homing.required=false".to_string(),
     ]);

@@ -326,8 +326,15 @@ fn server_sent_events_carry_the_status() {
 
 #[test]
 fn metrics_are_read_by_promtool_and_scraped_by_prometheus() {
-    // The edge node on, its broker absent (port 1 refuses): its metrics are there, at 0.
-    let (d, dir) = start("metrics", &["daemon.mqtt.broker=\"mqtt://127.0.0.1:1\""]);
+    // The edge node on, its broker absent (port 1 refuses): its metrics are there, at 0. A
+    // wake-up at every tick: the latency histogram counts wake-ups, here one per tick.
+    let (d, dir) = start(
+        "metrics",
+        &[
+            "daemon.mqtt.broker=\"mqtt://127.0.0.1:1\"",
+            "fine.ticks_per_wake=1",
+        ],
+    );
     // While a job runs, its gauges are there too.
     assert_eq!(
         d.post("/api/run", r#"{"program":"runtime-path.nc"}"#).0,

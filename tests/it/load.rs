@@ -75,6 +75,7 @@ fn fifty_pages_polling_the_status_leave_the_tick_on_time() {
             "fine.rt_priority=80",
             "fine.lock_memory=true",
             "fine.tick_us=200",
+            "fine.ticks_per_wake=1",
         ],
     );
     // About 40 s of cutting at 120 mm/min: long enough for both measurements.

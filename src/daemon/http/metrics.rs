@@ -248,7 +248,7 @@ fn counter_metrics(o: &mut Out, c: &Counters) {
     o.family(
         "tick_latency_seconds",
         "histogram",
-        "Wake-up latency of the real-time ticks (none in virtual time).",
+        "Wake-up latency of the real-time ticks (one per fine.ticks_per_wake ticks; none in virtual time).",
     );
     let mut cumulative = 0;
     for (i, le) in LATENCY_BUCKETS_US.iter().enumerate() {

@@ -42,6 +42,8 @@ use crate::vocab::{Axis, LimitSet, MAX_AXES, SafetyInputs, Trip};
 pub struct LoopSettings {
     pub tick_ns: u64,
     pub virtual_time: bool,
+    /// Ticks run back to back per wake-up in real time (`fine.ticks_per_wake`).
+    pub ticks_per_wake: u32,
     /// SCHED_FIFO priority, 0 for none.
     pub rt_priority: u8,
     pub lock_memory: bool,
@@ -60,6 +62,7 @@ impl LoopSettings {
         LoopSettings {
             tick_ns: f.tick.ns(),
             virtual_time: f.virtual_time,
+            ticks_per_wake: f.ticks_per_wake,
             rt_priority: f.rt_priority,
             lock_memory: f.lock_memory,
             cpu: f.cpu,
@@ -202,7 +205,8 @@ where
     let mut limits_at_start: Option<LimitSet> = None;
     let inputs_wired = inputs.wired();
     loop {
-        wait_for_tick(&mut latency, deadline, fine, published);
+        let wakes = tick_no.is_multiple_of(u64::from(settings.ticks_per_wake));
+        wait_for_tick(&mut latency, deadline, wakes, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
         take_requests(fine, inputs, published);
         let probing = activity.flags.contains(BlockFlags::PROBE);
@@ -408,15 +412,20 @@ fn keep_dead_man(published: &Published) {
 }
 
 /// Phase 1 of a tick: wait for its deadline (real time: sleep to it and record how late the
-/// wake-up was), or in virtual time let the CPU go while held at a standstill.
+/// wake-up was; a tick that does not `wake` runs at once, in the burst of the last wake-up),
+/// or in virtual time let the CPU go while held at a standstill.
 #[inline(always)]
 fn wait_for_tick(
     latency: &mut Option<LatencyHistogram>,
     deadline: u64,
+    wake: bool,
     fine: &Interpolator,
     published: &Published,
 ) {
     if let Some(histogram) = latency.as_mut() {
+        if !wake {
+            return;
+        }
         sys::sleep_until_ns(deadline);
         let woke = sys::monotonic_ns();
         let late = woke.saturating_sub(deadline);

@@ -83,6 +83,7 @@ fn start_holding(
         // As common::daemon::base_sets: the load test asks for the shipped settings.
         "fine.rt_priority=0".to_string(),
         "fine.lock_memory=false".to_string(),
+        "fine.ticks_per_wake=10".to_string(),
         "gap.kind=\"none\"".to_string(),
         "output.kind=\"file\"".to_string(),
         format!("output.path=\"{}\"", dir.join("pulses.csv").display()),
