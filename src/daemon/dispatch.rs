@@ -1,8 +1,8 @@
 //! The transports' dispatch: a request from any client (the socket, the page, OPC UA) is
 //! handled here, on the control loop. The machine's commands ask the desk
-//! ([`super::desk`]) what to launch and launch it when the loop is free; the desk's
-//! [`Pendant`](super::desk::pendant::Pendant) keeps a continuous jog's button, and this file
-//! brakes the job it moves.
+//! ([`super::desk`]) what to launch, and the loop launches it when it is free (a check
+//! first, as for any program); the desk's [`Pendant`](super::desk::pendant::Pendant) keeps a
+//! continuous jog's button, and the jobs' room brakes the job it moves.
 
 use std::sync::atomic::Ordering;
 

@@ -1,7 +1,9 @@
 //! The control loop's commands to a job: `hold`, `resume` (of a hold, or of the checkpoint,
 //! whose check `start.rs` runs), `rethread`, `abort`, and what happens when a job ends: the
 //! checkpoint written at a standstill, or removed when the job is done. A job's I/O is opened
-//! here, or lent by the fine thread (the claimed parallel port or HAL component).
+//! here, or lent by the fine thread (the claimed parallel port or HAL component). What a job's
+//! end means to the command that launched it (a homing sequence's next axis, a touch cycle's
+//! next move) and the braking of a continuous jog are here too.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -67,7 +69,7 @@ pub(super) struct JobControl {
     pub last_check: Option<protocol::CheckStatus>,
     /// The continuous jog in progress (being checked or moving), its dead-man and the
     /// latched one whose renewals are refused.
-    pub pendant: super::desk::pendant::Pendant,
+    pub pendant: desk::pendant::Pendant,
     pub next_check_id: u64,
     pub last: Option<JobSummary>,
     /// Counts of the jobs that ended (the running one's are added when asked).
@@ -279,7 +281,7 @@ impl Core {
                 error,
                 consequence: "the job stays held",
             })?;
-        self.machine.save(true).map_err(super::desk::unwritten)?;
+        self.machine.save(true).map_err(desk::unwritten)?;
         job.published.hold.store(false, Ordering::Release);
         job.hold_checkpointed = false;
         job.last_checkpoint = Instant::now();
@@ -316,7 +318,7 @@ impl Core {
                     error,
                     consequence: "the wire stays where it broke",
                 })?;
-            self.machine.save(true).map_err(super::desk::unwritten)?;
+            self.machine.save(true).map_err(desk::unwritten)?;
             job.last_checkpoint = Instant::now();
         }
         let (request, message) = if here {
@@ -425,11 +427,11 @@ impl Core {
         let _ = self
             .machine
             .stopped(&at, ran_to_the_end.then(|| job.leaves.clone()))
-            .map_err(super::desk::unwritten);
+            .map_err(desk::unwritten);
         if ran_to_the_end && job.kind == JobKind::Mdi {
             self.machine.mdi_modes = job.modes;
         }
-        super::desk::trips::after_job(&self.config, &mut self.machine, &summary);
+        desk::trips::after_job(&self.config, &mut self.machine, &summary);
         // Before a homing sequence or a touch cycle starts its next check: that check's copy
         // is not this job's and must not be pruned.
         self.jobs
