@@ -205,8 +205,7 @@ where
     let mut limits_at_start: Option<LimitSet> = None;
     let inputs_wired = inputs.wired();
     loop {
-        let wakes = tick_no.is_multiple_of(u64::from(settings.ticks_per_wake));
-        wait_for_tick(&mut latency, deadline, wakes, fine, published);
+        wait_for_tick(&mut latency, deadline, tick_no, settings, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
         take_requests(fine, inputs, published);
         let probing = activity.flags.contains(BlockFlags::PROBE);
@@ -412,18 +411,22 @@ fn keep_dead_man(published: &Published) {
 }
 
 /// Phase 1 of a tick: wait for its deadline (real time: sleep to it and record how late the
-/// wake-up was; a tick that does not `wake` runs at once, in the burst of the last wake-up),
-/// or in virtual time let the CPU go while held at a standstill.
+/// wake-up was; a tick between two wake-ups, `fine.ticks_per_wake`, runs at once in the
+/// burst of the last one), or in virtual time let the CPU go while held at a standstill.
 #[inline(always)]
 fn wait_for_tick(
     latency: &mut Option<LatencyHistogram>,
     deadline: u64,
-    wake: bool,
+    tick_no: u64,
+    settings: &LoopSettings,
     fine: &Interpolator,
     published: &Published,
 ) {
     if let Some(histogram) = latency.as_mut() {
-        if !wake {
+        // Only in real time: virtual time never pays the division.
+        if settings.ticks_per_wake > 1
+            && !tick_no.is_multiple_of(u64::from(settings.ticks_per_wake))
+        {
             return;
         }
         sys::sleep_until_ns(deadline);
