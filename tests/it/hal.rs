@@ -293,10 +293,17 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     });
     let x = s["machine"]["position_machine_mm"][0].as_f64().unwrap();
     assert!((x - 195.0).abs() < 1e-9, "{s}");
-    // The drive stands 5 mm back from where the switch closed (within a few steps of
-    // latching lag): pos-cmd is the motor position, homing moved only edmd's idea of it.
+    // The drive stands 5 mm back from where the switch closed: pos-cmd is the motor position,
+    // homing moved only edmd's idea of it. The switch is seen late, never early: the command
+    // goes on at the latch feed (30 mm/min, 0.5 mm/s) while stepgen, the feedback and `comp`
+    // wait for HAL's servo thread, and on a loaded machine (two cores, the suite beside this
+    // test) a uspace thread can stall for a few hundred milliseconds: 0.25 mm is 0.5 s of it.
     let motor = bench.getp_f64("edmd.axis.x.pos-cmd");
-    assert!((motor - (switch - 5.0)).abs() < 0.05, "pos-cmd {motor}");
+    let late = motor - (switch - 5.0);
+    assert!(
+        (-0.002..0.25).contains(&late),
+        "pos-cmd {motor}, switch at {switch}: latched {late} mm past it"
+    );
     assert_eq!(bench.getp("edmd.axis.x.home-sw"), "FALSE");
     drop(bench);
 

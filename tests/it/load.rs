@@ -22,6 +22,15 @@ use common::web::start_alone;
 const CLIENTS: usize = 50;
 const LOAD: Duration = Duration::from_secs(8);
 
+/// Sets the flag when dropped, a panic's unwinding included.
+struct StopOnDrop<'a>(&'a AtomicBool);
+
+impl Drop for StopOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
 /// One client: `GET /api/status` on one kept-alive connection, as fast as answers come;
 /// the number answered.
 fn poll(port: u16, stop: &AtomicBool) -> u64 {
@@ -114,6 +123,9 @@ fn fifty_pages_polling_the_status_leave_the_tick_on_time() {
         for _ in 0..CLIENTS {
             s.spawn(|| answered.fetch_add(poll(port, &stop), Ordering::Relaxed));
         }
+        // The clients stop however this closure ends: a failed assertion below fails the
+        // test instead of leaving the scope waiting on fifty clients that poll for ever.
+        let _stop_clients = StopOnDrop(&stop);
         // Halfway through, a hold and its release through the same server: answered at once.
         std::thread::sleep(LOAD / 2);
         let asked = Instant::now();
@@ -121,7 +133,8 @@ fn fifty_pages_polling_the_status_leave_the_tick_on_time() {
         let took = asked.elapsed();
         assert_eq!(code, 200, "{reply}");
         d.wait_for("held", |s| s["state"] == "held");
-        assert_eq!(d.post("/api/resume", r#"{"force":false}"#).0, 200);
+        let (code, reply) = d.post("/api/resume", r#"{"force":false}"#);
+        assert_eq!(code, 200, "{reply}\n{}", d.log());
         std::thread::sleep(LOAD / 2);
         stop.store(true, Ordering::Relaxed);
         took

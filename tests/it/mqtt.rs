@@ -380,8 +380,11 @@ fn a_broker_frozen_then_gone_for_30_s_does_not_disturb_a_cut_which_is_born_again
     }
     assert!(broker.is_none());
     eprintln!("the slowest status during the 30 s outage: {slowest:?}");
+    // Each status is an `edmd ctl` process the test starts: with the suite beside it on two
+    // cores, starting one has taken 343 ms. A control loop that waited on the frozen broker
+    // would wait seconds (its keep-alive, TCP's timeouts), not a fraction of one.
     assert!(
-        slowest < Duration::from_millis(250),
+        slowest < Duration::from_secs(1),
         "a status took {slowest:?} while the broker was away"
     );
     let status = daemon.status();
