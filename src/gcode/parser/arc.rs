@@ -53,9 +53,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let plane = self.state.modal.plane;
         let [la, lb] = plane.axis_letters();
         let [oa, ob] = plane.offset_letters();
-        self.check_letters_with(letters, true, &|c| [oa, ob, 'R', 'P'].contains(&c), &|| {
-            format!("in {} ({}) arcs", plane.g_code(), plane.name())
-        })?;
+        self.axes.check_letters_with(
+            letters,
+            true,
+            &|c| [oa, ob, 'R', 'P'].contains(&c),
+            &|| format!("in {} ({}) arcs", plane.g_code(), plane.name()),
+        )?;
         let turns = match letters.get('P') {
             Some(p) => arc_turns(p)?,
             None => 1,
@@ -70,13 +73,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     plane: plane.g_code(),
                     a: la,
                     b: lb,
-                    axes: self.axes_list(),
+                    axes: self.axes.list(),
                 },
             )
                 .into());
         };
-        let feed = self.feed_limit(col);
-        let (end, _) = self.target(&self.state.position, letters, "")?;
+        let feed = self
+            .state
+            .feed_limit(&mut self.diag, self.scratch.line_no, col);
+        let (end, _) = self.state.target(
+            &self.axes,
+            self.scratch.machine_move,
+            &self.state.position,
+            letters,
+            "",
+        )?;
         let start = self.state.position;
         self.check_helix(letters, [ia, ib], &start, &end, col)?;
         let radius_word = letters.get('R');
@@ -117,7 +128,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         // The end radius: what LinuxCNC offsets an arc by (`convert_arc_comp2`).
         let radius = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
         self.state.position = end;
-        Ok(Some(self.block(
+        Ok(Some(self.state.block(
             line_no,
             BlockKind::Arc {
                 center,

@@ -349,7 +349,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 GCode::Retract { initial_level } => {
                     self.state.cycle.retract_to_initial = initial_level;
                 }
-                GCode::WorkSystem(system) => self.select_system(system, w)?,
+                GCode::WorkSystem(system) => self.state.select_system(&self.axes, system, w)?,
                 GCode::CompOff => self.state.modal.wire_offset.cancel(),
                 GCode::Comp { left } => {
                     let d = self.wire_offset(w, kept.get('D'))?;
@@ -414,7 +414,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     "G{} tilts the wire with the upper guide: it needs the axes X, Y, U and V \
                      (machine.axes has {})",
                     g.text,
-                    self.axes_list()
+                    self.axes.list()
                 ),
             ));
         }

@@ -72,7 +72,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let by = |l: char| letters.get(l).map_or(0.0, |w| w.value * s);
             ([start[ix], start[iy]], [by('X'), by('Y')])
         } else {
-            let (target, _) = self.target(&start, letters, "Z")?;
+            let (target, _) =
+                self.state
+                    .target(&self.axes, self.scratch.machine_move, &start, letters, "Z")?;
             ([target[ix], target[iy]], [0.0, 0.0])
         };
         let holes = Holes {
@@ -80,7 +82,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             step,
             count: words.repeats,
         };
-        let feed = self.feed_limit(col);
+        let feed = self
+            .state
+            .feed_limit(&mut self.diag, self.scratch.line_no, col);
         let mut moves = MoveList::new(start, line_no, self.axes.len());
         let clear = self.state.cycle.retract_to_initial;
         drill(
@@ -115,7 +119,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Cycle::DwellAtBottom => "RLP",
             Cycle::Peck | Cycle::ChipBreak => "RLQD",
         };
-        self.check_letters(letters, true, own, &format!("with {code}"))?;
+        self.axes
+            .check_letters(letters, true, own, &format!("with {code}"))?;
         if self.state.modal.wire_offset.engaged() {
             return Err(cycle_fail(
                 col,
@@ -132,7 +137,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let index = |axis| self.axes.iter().position(|&a| a == axis);
         let (Some(ix), Some(iy), Some(iz)) = (index(Axis::X), index(Axis::Y), index(Axis::Z))
         else {
-            let axes = self.axes_list();
+            let axes = self.axes.list();
             return Err(cycle_fail(
                 col,
                 format!("{code} needs the axes X, Y and Z (machine.axes has {axes})"),
@@ -193,7 +198,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let Some(first) = blocks.next() else {
             return Ok(None);
         };
-        let first = self.block(first.line, first.kind, first.curve, first.feed_mm_per_min);
+        let first = self
+            .state
+            .block(first.line, first.kind, first.curve, first.feed_mm_per_min);
         for mut b in blocks {
             b.flushing = first.flushing;
             b.condition = first.condition;

@@ -8,6 +8,7 @@
 //! loop locates (`file:line:col` and the line's text) before it leaves the reader.
 
 mod arc;
+mod axes;
 mod codes;
 mod control;
 mod cycles;
@@ -24,11 +25,12 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use super::error::{GcodeError, GcodeErrorKind, Warning};
-use super::lexer::{Word, lex, oword_of, program_number_of};
+use super::lexer::{Word, lex, program_number_of};
 use super::lines::{Line, LineSource, MAX_LINE_BYTES};
 use super::{Block, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
+use axes::MachineAxes;
 use state::{Diagnostics, InterpState, LineScratch, Output, ProgramFlow};
 use system::ReaderEnv;
 
@@ -100,7 +102,7 @@ impl<'w> Letters<'w> {
 pub struct BlockReader<R> {
     options: ProgramOptions,
     source_name: Arc<str>,
-    axes: Vec<Axis>,
+    axes: MachineAxes,
     state: InterpState,
     program: ProgramFlow<R>,
     scratch: LineScratch,
@@ -126,7 +128,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let mut reader = Self {
             options,
             source_name: source_name.into(),
-            axes: axes.to_vec(),
+            axes: MachineAxes::new(axes),
             state: InterpState::new(),
             program: ProgramFlow::new(LineSource::new(reader)),
             scratch: LineScratch::default(),
@@ -137,7 +139,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
             diag: Diagnostics::default(),
         };
         // G54 is active from the start, and `#5220` says so (LinuxCNC: 1).
-        reader.load_system(crate::gcode::work::WorkSystem::G54);
+        reader
+            .state
+            .load_system(&reader.axes, crate::gcode::work::WorkSystem::G54);
         reader
     }
 
@@ -186,11 +190,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
             text,
             called_from: self.program.flow.call_lines(),
         }
-    }
-
-    /// What expressions read: the parameters and the interpreter's own values.
-    fn env(&self) -> ReaderEnv<'_, R> {
-        ReaderEnv { reader: self }
     }
 
     fn next_block(&mut self) -> Result<Option<Block>, GcodeError> {
@@ -259,7 +258,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     }
                 }
             };
-            if let Err(fail) = self.note_structure(self.scratch.line_start, line_no, &text) {
+            if let Err(fail) = self.program.note_structure(
+                self.scratch.line_start,
+                line_no,
+                &text,
+                self.options.block_delete,
+            ) {
                 return Err(self.error(line_no, &text, fail));
             }
             if let Some(col) = latin1_at {
@@ -307,7 +311,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 message: "the program ends with the wire offset on (no G40 exit move)".into(),
             });
         }
-        if let Err(fail) = self.scan_to_the_end() {
+        if let Err(fail) = self.program.scan_to_the_end(self.options.block_delete) {
             return Err(self.error(0, "", fail));
         }
         if let Some((line, message)) = self.program.structure.unclosed() {
@@ -361,7 +365,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             return Ok(None);
         }
         let mut assigns = std::mem::take(&mut self.scratch.assigns);
-        let lexed = lex(text, words, &mut assigns, &self.env()).map_err(Fail::from);
+        let lexed = lex(text, words, &mut assigns, &ReaderEnv::of(self)).map_err(Fail::from);
         let info = match lexed {
             Ok(info) => info,
             Err(e) => {
@@ -435,57 +439,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
 }
 
 impl<R: BufRead + Seek> BlockReader<R> {
-    /// Shows `text`, line `line_no` starting at byte `start`, to the structure check if the
-    /// reader meets it for the first time (loops and calls read lines again; the check sees
-    /// each line once, in file order).
-    fn note_structure(&mut self, start: u64, line_no: u64, text: &str) -> Step<()> {
-        if start < self.program.scanned.offset {
-            return Ok(());
-        }
-        self.program.scanned = self.program.lines.position();
-        if self.options.block_delete && text.trim_start().starts_with('/') {
-            return Ok(());
-        }
-        match oword_of(text) {
-            Some(o) => self
-                .program
-                .structure
-                .note(&o, line_no)
-                .map_err(|(col, message)| Fail {
-                    col,
-                    kind: GcodeErrorKind::Control(message),
-                    at: Some((line_no, text.to_string())),
-                }),
-            None => Ok(()),
-        }
-    }
-
-    /// After the program's end (`M2`/`M30`), the lines the flow never reached are still part
-    /// of the program's text (subroutines live there): their structure is checked up to the
-    /// end of the file or a closing `%`.
-    fn scan_to_the_end(&mut self) -> Step<()> {
-        if self.program.closed_at.is_some() {
-            return Ok(());
-        }
-        let io = |e| Fail::from((1, GcodeErrorKind::Io(e)));
-        if self.program.lines.position().offset < self.program.scanned.offset {
-            self.program.lines.seek(self.program.scanned).map_err(io)?;
-        }
-        loop {
-            self.program.cancelled()?;
-            let start = self.program.lines.position().offset;
-            let Some((line_no, line)) = self.program.lines.next_line().map_err(io)? else {
-                return Ok(());
-            };
-            let Line::Text(text) = line else { continue };
-            if text.trim_start().starts_with('%') {
-                return Ok(());
-            }
-            let text = text.to_string();
-            self.note_structure(start, line_no, &text)?;
-        }
-    }
-
     /// A line after the program's end (M2/M30 or the closing `%`): ignored with a warning,
     /// and reading stops, as LinuxCNC and Fanuc do. Subprograms there are found by their calls.
     fn after_end(&mut self, line_no: u64, text: &str, col: usize) -> Step<Option<Block>> {

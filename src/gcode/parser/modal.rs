@@ -7,12 +7,11 @@ use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, Motion, OffsetCode, Probing, g_codes};
 use super::nurbs::curve_letters;
-use super::{BlockReader, Fail, Letters, MAX_COORD_MM, Step, first_col, whole, whole_as};
+use super::{BlockReader, Fail, Letters, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, VendorAction, WireOffset};
-use crate::geometry::{NurbsCurve, Point};
-use crate::vocab::Axis;
+use crate::geometry::NurbsCurve;
 
 #[derive(Debug, Clone)]
 pub(super) struct Modal {
@@ -196,7 +195,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let block = block?;
         if program_end {
             self.program.ended_at = Some(line_no);
-            self.end_in_g54();
+            self.state.end_in_g54(&self.axes);
         }
         if let Some(p) = pause {
             self.state.pending_pause = Some((line_no, p));
@@ -353,7 +352,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let previous = self.state.modal.motion;
         Ok(match motion_word {
             Some((GCode::Curve(form), w)) => {
-                self.check_letters(
+                self.axes.check_letters(
                     letters,
                     true,
                     curve_letters(form, true),
@@ -367,53 +366,40 @@ impl<R: BufRead + Seek> BlockReader<R> {
             Some((GCode::MotionCancel, _)) => {
                 self.state.modal.motion = None;
                 self.state.cycle.initial_level = None;
-                self.check_letters(letters, false, "", "with G80")?;
+                self.axes.check_letters(letters, false, "", "with G80")?;
                 None
             }
             Some((GCode::Motion(m), w)) => {
                 if !matches!(m, Motion::Probe(Probing { one_shot: true, .. })) {
                     self.state.modal.motion = Some(m);
                 }
-                if self.moves(m, letters)? {
+                if self.axes.moves(m, letters)? {
                     self.motion_block(m, previous == Some(m), line_no, letters, w.col)?
                 } else {
-                    self.check_letters(letters, false, "", "without axis words")?;
+                    self.axes
+                        .check_letters(letters, false, "", "without axis words")?;
                     None
                 }
             }
             _ => match self.state.modal.motion {
-                Some(m) if self.moves(m, letters)? => {
+                Some(m) if self.axes.moves(m, letters)? => {
                     self.motion_block(m, true, line_no, letters, first_col(words))?
                 }
                 Some(_) => {
-                    self.check_letters(letters, false, "", "without axis words")?;
+                    self.axes
+                        .check_letters(letters, false, "", "without axis words")?;
                     None
                 }
                 None => {
-                    if let Some(w) = self.first_axis_word(letters)? {
+                    if let Some(w) = self.axes.first_word(letters)? {
                         return Err((w.col, GcodeErrorKind::NoMotionMode).into());
                     }
-                    self.check_letters(letters, false, "", "without a motion word")?;
+                    self.axes
+                        .check_letters(letters, false, "", "without a motion word")?;
                     None
                 }
             },
         })
-    }
-
-    /// A motion block, taking the dwell and pause waiting for it.
-    pub(super) fn block(
-        &mut self,
-        line: u64,
-        kind: BlockKind,
-        curve: NurbsCurve,
-        feed: Option<f64>,
-    ) -> Block {
-        let mut block = Block::new(line, kind, curve, feed);
-        block.dwell_s = std::mem::take(&mut self.state.pending_dwell);
-        block.pause = self.state.pending_pause.take();
-        block.flushing = self.state.flushing;
-        block.condition = self.state.condition;
-        block
     }
 
     /// A dwell or pause that no motion follows: said once, as it changes nothing.
@@ -433,171 +419,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
     }
 
-    /// Whether a block in motion mode `m` moves: it has axis words, or, for an arc, a centre
-    /// or radius (a full circle needs no axis words). A bare `G1` only sets the mode.
-    pub(super) fn moves(&self, m: Motion, letters: &Letters) -> Step<bool> {
-        if self.first_axis_word(letters)?.is_some() {
-            return Ok(true);
-        }
-        let arc_words = matches!(m, Motion::Cw | Motion::Ccw)
-            && ['I', 'J', 'K', 'R']
-                .iter()
-                .any(|&l| letters.get(l).is_some());
-        Ok(arc_words)
-    }
-
-    pub(super) fn axes_list(&self) -> String {
-        self.axes
-            .iter()
-            .map(|a| a.letter().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    }
-
-    /// The axis a word names: `Some` for one of the machine's axes, `None` for a letter that is
-    /// no axis, an error for an axis letter the machine does not have.
-    pub(super) fn machine_axis(&self, w: &Word) -> Step<Option<Axis>> {
-        match Axis::from_letter(w.letter) {
-            Some(axis) if !self.axes.contains(&axis) => Err((
-                w.col,
-                GcodeErrorKind::AxisNotOnMachine {
-                    axis: w.letter,
-                    axes: self.axes_list(),
-                },
-            )
-                .into()),
-            found => Ok(found),
-        }
-    }
-
-    /// The first axis word of the block, checking that every axis word names a machine axis.
-    pub(super) fn first_axis_word<'w>(&self, letters: &Letters<'w>) -> Step<Option<&'w Word>> {
-        let mut first: Option<&Word> = None;
-        for w in letters.present() {
-            let polar = matches!(w.letter, '@' | '^');
-            if (polar || self.machine_axis(w)?.is_some()) && first.is_none_or(|f| w.col < f.col) {
-                first = Some(w);
-            }
-        }
-        Ok(first)
-    }
-
-    /// Rejects any word outside G M N F S T, `extra`, and (with `allow_axes`) the machine's
-    /// axes. An axis letter the machine does not have is reported as such either way.
-    pub(super) fn check_letters(
-        &self,
-        letters: &Letters,
-        allow_axes: bool,
-        extra: &str,
-        context: &str,
-    ) -> Step<()> {
-        self.check_letters_with(letters, allow_axes, &|c| extra.contains(c), &|| {
-            context.to_string()
-        })
-    }
-
-    /// [`check_letters`](Self::check_letters) with the form's own letters as a test and the
-    /// error's context made only for an error: an arc's context names its plane, and writing
-    /// it for every arc block cost a tenth of reading one.
-    pub(super) fn check_letters_with(
-        &self,
-        letters: &Letters,
-        allow_axes: bool,
-        extra: &dyn Fn(char) -> bool,
-        context: &dyn Fn() -> String,
-    ) -> Step<()> {
-        for w in letters.present() {
-            if extra(w.letter) || "GMNFSTE".contains(w.letter) {
-                continue; // a form's own word (G38's C) wins over an axis letter
-            }
-            if allow_axes && (matches!(w.letter, '@' | '^') || self.machine_axis(w)?.is_some()) {
-                continue;
-            }
-            return Err((
-                w.col,
-                GcodeErrorKind::UnexpectedWord {
-                    letter: w.letter,
-                    context: context(),
-                },
-            )
-                .into());
-        }
-        Ok(())
-    }
-
-    /// The point reached from `base` by the block's axis words (absolute or incremental),
-    /// and whether any axis word was present. Letters in `reserved` are not axis words here.
-    pub(super) fn target(
-        &self,
-        base: &Point,
-        letters: &Letters,
-        reserved: &str,
-    ) -> Step<(Point, bool)> {
-        let mut p = *base;
-        let mut any = false;
-        // A G53 move names machine coordinates.
-        let offset = if self.scratch.machine_move {
-            Point::zeros()
-        } else {
-            self.state.offset()
-        };
-        for (i, axis) in self.axes.iter().enumerate() {
-            if reserved.contains(axis.letter()) {
-                continue;
-            }
-            if let Some(w) = letters.get(axis.letter()) {
-                let v = w.value * self.state.scale();
-                p[i] = if self.state.modal.incremental {
-                    base[i] + v
-                } else {
-                    v + offset[i]
-                };
-                if p[i].abs() > MAX_COORD_MM {
-                    return Err((
-                        w.col,
-                        GcodeErrorKind::OutOfRange {
-                            what: "coordinate (mm)",
-                            value: p[i],
-                            min: -MAX_COORD_MM,
-                            max: MAX_COORD_MM,
-                        },
-                    )
-                        .into());
-                }
-                any = true;
-            }
-        }
-        let frame = super::polar::PolarFrame {
-            axes: &self.axes,
-            offset: self.state.offset(),
-            scale: self.state.scale(),
-            incremental: self.state.modal.incremental,
-            machine_move: self.scratch.machine_move,
-        };
-        let polar = super::polar::polar_end(&frame, base, letters)?;
-        if let Some(([ix, iy], [x, y])) = polar {
-            p[ix] = x;
-            p[iy] = y;
-            any = true;
-        }
-        Ok((p, any))
-    }
-
-    /// The programmed feed for a feed move. On an EDM the gap servo sets the advance speed and
-    /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
-    /// it runs at up to the machine maximum, and the operator is told once.
-    pub(super) fn feed_limit(&mut self, col: usize) -> Option<f64> {
-        if self.state.modal.feed.is_none() {
-            self.diag.once_about(
-                self.scratch.line_no,
-                "no feed",
-                col,
-                "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
-            );
-        }
-        self.state.modal.feed
-    }
-
     /// The block's motion in mode `motion`; `continuing`: the mode was already in force (a
     /// canned cycle's words hold).
     pub(super) fn motion_block(
@@ -614,7 +435,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         match motion {
             Motion::Rapid | Motion::Linear => {
-                self.check_letters(
+                self.axes.check_letters(
                     letters,
                     true,
                     "",
@@ -624,9 +445,18 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         "with G1"
                     },
                 )?;
-                let (target, _) = self.target(&self.state.position, letters, "")?;
+                let (target, _) = self.state.target(
+                    &self.axes,
+                    self.scratch.machine_move,
+                    &self.state.position,
+                    letters,
+                    "",
+                )?;
                 let feed = match motion {
-                    Motion::Linear => self.feed_limit(col),
+                    Motion::Linear => {
+                        self.state
+                            .feed_limit(&mut self.diag, self.scratch.line_no, col)
+                    }
                     _ => None,
                 };
                 if target == self.state.position {
@@ -640,7 +470,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 } else {
                     BlockKind::Line
                 };
-                Ok(Some(self.block(line_no, kind, curve, feed)))
+                Ok(Some(self.state.block(line_no, kind, curve, feed)))
             }
             Motion::Cw | Motion::Ccw => {
                 self.arc_block(motion == Motion::Ccw, line_no, letters, col)

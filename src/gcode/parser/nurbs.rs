@@ -15,6 +15,7 @@
 use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, classify_g, g_code_tenths};
+use super::state::Diagnostics;
 use super::{
     BlockReader, CURVE_START_TOLERANCE_MM, Fail, Letters, MAX_CURVE_POINTS, Step, first_col, whole,
 };
@@ -115,46 +116,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
         g_word: &Word,
         letters: &Letters,
     ) -> Step<Option<Block>> {
-        let feed = self.feed_limit(g_word.col);
-        let degree = match form {
-            NurbsForm::G38 => {
-                let o = letters.get('O').ok_or((
-                    g_word.col,
-                    GcodeErrorKind::MissingCoordinate {
-                        what: "the first G38 block needs O<degree>".into(),
-                    },
-                ))?;
-                whole(o, 1.0, MAX_DEGREE as f64)? as usize
-            }
-            NurbsForm::Fanuc => {
-                let p = letters.get('P').ok_or((
-                    g_word.col,
-                    GcodeErrorKind::MissingCoordinate {
-                        what: "the first G06.2 block needs P<order>".into(),
-                    },
-                ))?;
-                whole(p, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1
-            }
-            // LinuxCNC's order is 3 unless L is above 3 (interp_convert.cc, convert_nurbs).
-            NurbsForm::LinuxCnc => match letters.get('L') {
-                Some(l) => {
-                    let order = whole(l, 0.0, (MAX_DEGREE + 1) as f64)? as usize;
-                    if order < 3 {
-                        self.diag.once_about(
-                            self.scratch.line_no,
-                            "G5.2 order",
-                            l.col,
-                            format!(
-                                "L{}: an order below 3 is read as order 3, as LinuxCNC does",
-                                l.text
-                            ),
-                        );
-                    }
-                    order.max(3) - 1
-                }
-                None => 2,
-            },
-        };
+        let feed = self
+            .state
+            .feed_limit(&mut self.diag, self.scratch.line_no, g_word.col);
+        let degree = opening_degree(form, g_word, letters, &mut self.diag, self.scratch.line_no)?;
         let mut curve = PendingCurve {
             form,
             start_line: line_no,
@@ -201,7 +166,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 .map(|a| a.letter())
                 .filter(|&l| l != 'X' && l != 'Y')
                 .collect();
-            let (_, any) = self.target(&self.state.position, letters, &off_plane)?;
+            let (_, any) = self.state.target(
+                &self.axes,
+                self.scratch.machine_move,
+                &self.state.position,
+                letters,
+                &off_plane,
+            )?;
             let p0_weight = if any { 1.0 } else { weight(letters.get('P'))? };
             curve.points.push(self.state.position);
             curve.push_weight(p0_weight, letters.get('P'))?;
@@ -300,7 +271,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 );
             }
         }
-        let (p, any) = self.target(&base, letters, &reserved)?;
+        let (p, any) = self.state.target(
+            &self.axes,
+            self.scratch.machine_move,
+            &base,
+            letters,
+            &reserved,
+        )?;
         if !any {
             return Err((
                 col,
@@ -398,14 +375,14 @@ impl<R: BufRead + Seek> BlockReader<R> {
             )
                 .into());
         }
-        self.check_letters(
+        self.axes.check_letters(
             letters,
             true,
             curve_letters(curve.form, false),
             curve.form.inside_name(),
         )?;
         let col = first_col(words);
-        let has_axis = self.first_axis_word(letters)?.is_some();
+        let has_axis = self.axes.first_word(letters)?.is_some();
         match curve.form {
             NurbsForm::LinuxCnc => {
                 self.add_point(curve, letters, col)?;
@@ -481,13 +458,64 @@ impl<R: BufRead + Seek> BlockReader<R> {
         .map_err(|e| at(e.into()))?;
         self.state.position = nurbs.end_point();
         self.state.modal.motion = None;
-        Ok(self.block(
+        Ok(self.state.block(
             curve.start_line,
             BlockKind::Nurbs { form: curve.form },
             nurbs,
             curve.feed,
         ))
     }
+}
+
+/// The degree the first block of a curve in `form` gives (`G38`'s `O`, `G06.2`'s order `P`,
+/// `G5.2`'s order `L`), an order below LinuxCNC's 3 warned about in `diag` at `line`.
+fn opening_degree(
+    form: NurbsForm,
+    g_word: &Word,
+    letters: &Letters,
+    diag: &mut Diagnostics,
+    line: u64,
+) -> Step<usize> {
+    let degree = match form {
+        NurbsForm::G38 => {
+            let o = letters.get('O').ok_or((
+                g_word.col,
+                GcodeErrorKind::MissingCoordinate {
+                    what: "the first G38 block needs O<degree>".into(),
+                },
+            ))?;
+            whole(o, 1.0, MAX_DEGREE as f64)? as usize
+        }
+        NurbsForm::Fanuc => {
+            let p = letters.get('P').ok_or((
+                g_word.col,
+                GcodeErrorKind::MissingCoordinate {
+                    what: "the first G06.2 block needs P<order>".into(),
+                },
+            ))?;
+            whole(p, 2.0, (MAX_DEGREE + 1) as f64)? as usize - 1
+        }
+        // LinuxCNC's order is 3 unless L is above 3 (interp_convert.cc, convert_nurbs).
+        NurbsForm::LinuxCnc => match letters.get('L') {
+            Some(l) => {
+                let order = whole(l, 0.0, (MAX_DEGREE + 1) as f64)? as usize;
+                if order < 3 {
+                    diag.once_about(
+                        line,
+                        "G5.2 order",
+                        l.col,
+                        format!(
+                            "L{}: an order below 3 is read as order 3, as LinuxCNC does",
+                            l.text
+                        ),
+                    );
+                }
+                order.max(3) - 1
+            }
+            None => 2,
+        },
+    };
+    Ok(degree)
 }
 
 /// Knots for a curve whose program gives none: clamped and uniform, on `[0, 1]` for G38 (seed 000,
@@ -564,7 +592,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         col: usize,
     ) -> Step<Block> {
         let fail = |col, what: &str| Fail::from((col, GcodeErrorKind::Control(what.to_string())));
-        self.check_letters(letters, true, "IJ", "with G5.1")?;
+        self.axes.check_letters(letters, true, "IJ", "with G5.1")?;
         if self.state.modal.plane != crate::gcode::Plane::XY {
             return Err(fail(col, "G5.1 works in the XY plane (G17) only"));
         }
@@ -585,9 +613,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
         else {
             return Err(fail(col, "G5.1 needs the axes X and Y"));
         };
-        let feed = self.feed_limit(col);
+        let feed = self
+            .state
+            .feed_limit(&mut self.diag, self.scratch.line_no, col);
         let start = self.state.position;
-        let (end, _) = self.target(&start, letters, "")?;
+        let (end, _) =
+            self.state
+                .target(&self.axes, self.scratch.machine_move, &start, letters, "")?;
         let mut control = start;
         control[ix] += i.value * self.state.scale();
         control[iy] += j.value * self.state.scale();
@@ -604,6 +636,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let kind = BlockKind::Nurbs {
             form: NurbsForm::LinuxCnc,
         };
-        Ok(self.block(line_no, kind, curve, feed))
+        Ok(self.state.block(line_no, kind, curve, feed))
     }
 }

@@ -17,6 +17,7 @@ use std::io::{BufRead, Seek};
 
 use super::codes::OffsetCode;
 use super::cycles::MoveList;
+use super::state::InterpState;
 use super::{BlockReader, Fail, Letters, Step, whole_as};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::ParamRef;
@@ -65,7 +66,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.state.params.set(&ParamRef::Numbered(p), offset[i]);
             }
         }
-        self.load_system(start.system);
+        self.state.load_system(&self.axes, start.system);
         self.state.unhomed = start.unhomed;
         self.state.modal.inch = start.modes.inch;
         self.state.modal.incremental = start.modes.incremental;
@@ -83,7 +84,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub fn work_offsets(&self) -> WorkOffsets {
         let mut table = WorkOffsets::default();
         for system in WorkSystem::all() {
-            table.set(system, self.table_entry(system));
+            table.set(system, self.state.table_entry(&self.axes, system));
         }
         table
     }
@@ -94,24 +95,22 @@ impl<R: BufRead + Seek> BlockReader<R> {
     }
 }
 
-impl<R> BlockReader<R> {
+/// The work offsets are the state's: the table lives in its parameters.
+impl InterpState {
     /// `system`'s offset as its parameters hold it, mm.
-    fn table_entry(&self, system: WorkSystem) -> Point {
+    pub(super) fn table_entry(&self, axes: &[Axis], system: WorkSystem) -> Point {
         let mut offset = Point::zeros();
-        for (i, &axis) in self.axes.iter().enumerate() {
-            offset[i] = self
-                .state
-                .params
-                .numbered(table_param(system, param_slot(axis)));
+        for (i, &axis) in axes.iter().enumerate() {
+            offset[i] = self.params.numbered(table_param(system, param_slot(axis)));
         }
         offset
     }
 
     /// Makes `system` active, loading its offset from the table.
-    pub(super) fn load_system(&mut self, system: WorkSystem) {
-        self.state.system = system;
-        self.state.g5x = self.table_entry(system);
-        self.state.params.set(
+    pub(super) fn load_system(&mut self, axes: &[Axis], system: WorkSystem) {
+        self.system = system;
+        self.g5x = self.table_entry(axes, system);
+        self.params.set(
             &ParamRef::Numbered(ACTIVE_SYSTEM),
             f64::from(system.number()),
         );
@@ -120,8 +119,13 @@ impl<R> BlockReader<R> {
     /// `G54`…`G59.3`: selecting another system loads its offset (the machine does not move;
     /// the program's coordinates of where it stands change). Selecting the active one again
     /// does nothing, as in LinuxCNC (a table parameter assigned since is not reloaded).
-    pub(super) fn select_system(&mut self, system: WorkSystem, w: &Word) -> Step<()> {
-        if self.state.modal.wire_offset.engaged() {
+    pub(super) fn select_system(
+        &mut self,
+        axes: &[Axis],
+        system: WorkSystem,
+        w: &Word,
+    ) -> Step<()> {
+        if self.modal.wire_offset.engaged() {
             return Err((
                 w.col,
                 GcodeErrorKind::WorkOffset(format!(
@@ -131,8 +135,8 @@ impl<R> BlockReader<R> {
             )
                 .into());
         }
-        if system != self.state.system {
-            self.load_system(system);
+        if system != self.system {
+            self.load_system(axes, system);
         }
         Ok(())
     }
@@ -141,11 +145,12 @@ impl<R> BlockReader<R> {
     /// system selected as by its G word (`col`: where to point an error).
     pub(super) fn restore_modes(
         &mut self,
+        axes: &[Axis],
         saved: super::control::SavedModes,
         col: usize,
     ) -> Step<()> {
-        if saved.system != self.state.system {
-            if self.state.modal.wire_offset.engaged() {
+        if saved.system != self.system {
+            if self.modal.wire_offset.engaged() {
                 return Err((
                     col,
                     GcodeErrorKind::WorkOffset(
@@ -156,30 +161,30 @@ impl<R> BlockReader<R> {
                 )
                     .into());
             }
-            self.load_system(saved.system);
+            self.load_system(axes, saved.system);
         }
-        let modal = &mut self.state.modal;
+        let modal = &mut self.modal;
         modal.inch = saved.inch;
         modal.incremental = saved.incremental;
         modal.arc_centre_absolute = saved.arc_centre_absolute;
         modal.plane = saved.plane;
         modal.feed = saved.feed;
-        self.state.flushing = saved.flushing;
-        self.state.condition = saved.condition;
-        self.state.cycle.retract_to_initial = saved.retract_to_initial;
+        self.flushing = saved.flushing;
+        self.condition = saved.condition;
+        self.cycle.retract_to_initial = saved.retract_to_initial;
         Ok(())
     }
 
     /// A program end (`M2`/`M30`) returns to `G54`, as LinuxCNC's does.
-    pub(super) fn end_in_g54(&mut self) {
-        if self.state.system != WorkSystem::G54 {
-            self.load_system(WorkSystem::G54);
+    pub(super) fn end_in_g54(&mut self, axes: &[Axis]) {
+        if self.system != WorkSystem::G54 {
+            self.load_system(axes, WorkSystem::G54);
         }
     }
 
     /// The program's coordinates of the machine point `machine`, mm.
     pub(super) fn program_point(&self, machine: &Point) -> Point {
-        machine - self.state.g5x - self.state.g92
+        machine - self.g5x - self.g92
     }
 }
 
@@ -312,7 +317,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     .into(),
             ));
         }
-        let mut offset = self.table_entry(system);
+        let mut offset = self.state.table_entry(&self.axes, system);
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(v) = letters.get(axis.letter()) {
                 let value = v.value * self.state.scale();
@@ -356,7 +361,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     pub fn probed(&mut self, at: &Point, contact: bool) {
         self.state.position = *at;
         let scale = self.state.scale();
-        let program = self.program_point(at);
+        let program = self.state.program_point(at);
         for (i, axis) in self.axes.iter().enumerate() {
             if let Some(k) = PARAM_AXES.iter().position(|&l| l == axis.letter()) {
                 let v = program[i] / scale;
@@ -396,14 +401,22 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let base = if g30 { G30_PARAMS } else { G28_PARAMS };
         let param = |axis: Axis| ParamRef::Numbered(base + param_slot(axis));
         if store {
-            self.check_letters(letters, false, "", &format!("with {code}"))?;
+            self.axes
+                .check_letters(letters, false, "", &format!("with {code}"))?;
             for (i, &axis) in self.axes.iter().enumerate() {
                 self.state.params.set(&param(axis), self.state.position[i]);
             }
             return Ok(None);
         }
-        self.check_letters(letters, true, "", &format!("with {code}"))?;
-        let (via, named) = self.target(&self.state.position, letters, "")?;
+        self.axes
+            .check_letters(letters, true, "", &format!("with {code}"))?;
+        let (via, named) = self.state.target(
+            &self.axes,
+            self.scratch.machine_move,
+            &self.state.position,
+            letters,
+            "",
+        )?;
         let mut moves = MoveList::new(self.state.position, line_no, self.axes.len());
         // With axis words only the named axes go on to the stored point (LinuxCNC 2.9).
         let axes: Vec<usize> = (0..self.axes.len())
@@ -437,7 +450,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         col: usize,
     ) -> Step<Option<Block>> {
         let code = probe.g_code();
-        self.check_letters(letters, true, "", "with a probing move")?;
+        self.axes
+            .check_letters(letters, true, "", "with a probing move")?;
         let fail = |what: String| Fail::from((col, GcodeErrorKind::Probing(what)));
         if self.state.modal.wire_offset.engaged() {
             return Err(fail(format!(
@@ -447,7 +461,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let Some(feed) = self.state.modal.feed else {
             return Err(fail(format!("{code} needs a feed F (the probing speed)")));
         };
-        let (target, _) = self.target(&self.state.position, letters, "")?;
+        let (target, _) = self.state.target(
+            &self.axes,
+            self.scratch.machine_move,
+            &self.state.position,
+            letters,
+            "",
+        )?;
         if target == self.state.position {
             if !probe.must_touch {
                 // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it
@@ -473,7 +493,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         // Until the machine says where contact happened (`probed`), the program reads on
         // as LinuxCNC's reader alone does: at the end point, no contact (`#5070` 0).
         self.probed(&target, false);
-        Ok(Some(self.block(
+        Ok(Some(self.state.block(
             line_no,
             BlockKind::Probe(probe),
             curve,

@@ -20,15 +20,16 @@ use super::cycles::CycleState;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
 use super::structure::Structure;
-use super::{Fail, MM_PER_INCH, Step};
+use super::{Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::error::Warning;
 use crate::gcode::expr::Params;
-use crate::gcode::lexer::{Assign, Word};
-use crate::gcode::lines::{LineSource, Pos};
+use crate::gcode::lexer::{Assign, Word, oword_of};
+use crate::gcode::lines::{Line, LineSource, Pos};
 use crate::gcode::work::WorkSystem;
-use crate::gcode::{Block, Pause, Plane};
-use crate::geometry::Point;
+use crate::gcode::{Block, BlockKind, Pause, Plane};
+use crate::geometry::{NurbsCurve, Point};
+use crate::vocab::Axis;
 
 /// The interpreter's state: what one block leaves for the next.
 pub(super) struct InterpState {
@@ -138,6 +139,65 @@ impl<R: BufRead + Seek> ProgramFlow<R> {
     }
 }
 
+/// The structure check, fed as the reader meets lines ([`super::structure`]).
+impl<R: BufRead + Seek> ProgramFlow<R> {
+    /// Shows `text`, line `line_no` starting at byte `start`, to the structure check if the
+    /// reader meets it for the first time (loops and calls read lines again; the check sees
+    /// each line once, in file order). `block_delete`: a `/` line is deleted, not checked.
+    pub fn note_structure(
+        &mut self,
+        start: u64,
+        line_no: u64,
+        text: &str,
+        block_delete: bool,
+    ) -> Step<()> {
+        if start < self.scanned.offset {
+            return Ok(());
+        }
+        self.scanned = self.lines.position();
+        if block_delete && text.trim_start().starts_with('/') {
+            return Ok(());
+        }
+        match oword_of(text) {
+            Some(o) => self
+                .structure
+                .note(&o, line_no)
+                .map_err(|(col, message)| Fail {
+                    col,
+                    kind: GcodeErrorKind::Control(message),
+                    at: Some((line_no, text.to_string())),
+                }),
+            None => Ok(()),
+        }
+    }
+
+    /// After the program's end (`M2`/`M30`), the lines the flow never reached are still part
+    /// of the program's text (subroutines live there): their structure is checked up to the
+    /// end of the file or a closing `%`.
+    pub fn scan_to_the_end(&mut self, block_delete: bool) -> Step<()> {
+        if self.closed_at.is_some() {
+            return Ok(());
+        }
+        let io = |e| Fail::from((1, GcodeErrorKind::Io(e)));
+        if self.lines.position().offset < self.scanned.offset {
+            self.lines.seek(self.scanned).map_err(io)?;
+        }
+        loop {
+            self.cancelled()?;
+            let start = self.lines.position().offset;
+            let Some((line_no, line)) = self.lines.next_line().map_err(io)? else {
+                return Ok(());
+            };
+            let Line::Text(text) = line else { continue };
+            if text.trim_start().starts_with('%') {
+                return Ok(());
+            }
+            let text = text.to_string();
+            self.note_structure(start, line_no, &text, block_delete)?;
+        }
+    }
+}
+
 impl<R> ProgramFlow<R> {
     pub fn new(lines: LineSource<R>) -> ProgramFlow<R> {
         ProgramFlow {
@@ -207,6 +267,102 @@ impl Diagnostics {
                 message: format!("{}{}: {message}", w.letter, w.text),
             });
         }
+    }
+}
+
+/// What the state makes of a block: its target, its feed, the block itself.
+impl InterpState {
+    /// A motion block, taking the dwell and pause waiting for it.
+    pub fn block(
+        &mut self,
+        line: u64,
+        kind: BlockKind,
+        curve: NurbsCurve,
+        feed: Option<f64>,
+    ) -> Block {
+        let mut block = Block::new(line, kind, curve, feed);
+        block.dwell_s = std::mem::take(&mut self.pending_dwell);
+        block.pause = self.pending_pause.take();
+        block.flushing = self.flushing;
+        block.condition = self.condition;
+        block
+    }
+
+    /// The point reached from `base` by the block's axis words for `axes` (absolute or
+    /// incremental; `machine_move`: a `G53` line's, in machine coordinates), and whether any
+    /// axis word was present. Letters in `reserved` are not axis words here.
+    pub fn target(
+        &self,
+        axes: &[Axis],
+        machine_move: bool,
+        base: &Point,
+        letters: &Letters,
+        reserved: &str,
+    ) -> Step<(Point, bool)> {
+        let mut p = *base;
+        let mut any = false;
+        // A G53 move names machine coordinates.
+        let offset = if machine_move {
+            Point::zeros()
+        } else {
+            self.offset()
+        };
+        for (i, axis) in axes.iter().enumerate() {
+            if reserved.contains(axis.letter()) {
+                continue;
+            }
+            if let Some(w) = letters.get(axis.letter()) {
+                let v = w.value * self.scale();
+                p[i] = if self.modal.incremental {
+                    base[i] + v
+                } else {
+                    v + offset[i]
+                };
+                if p[i].abs() > MAX_COORD_MM {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::OutOfRange {
+                            what: "coordinate (mm)",
+                            value: p[i],
+                            min: -MAX_COORD_MM,
+                            max: MAX_COORD_MM,
+                        },
+                    )
+                        .into());
+                }
+                any = true;
+            }
+        }
+        let frame = super::polar::PolarFrame {
+            axes,
+            offset: self.offset(),
+            scale: self.scale(),
+            incremental: self.modal.incremental,
+            machine_move,
+        };
+        let polar = super::polar::polar_end(&frame, base, letters)?;
+        if let Some(([ix, iy], [x, y])) = polar {
+            p[ix] = x;
+            p[iy] = y;
+            any = true;
+        }
+        Ok((p, any))
+    }
+
+    /// The programmed feed for a feed move. On an EDM the gap servo sets the advance speed and
+    /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
+    /// it runs at up to the machine maximum, and the operator is told once (in `diag`, at
+    /// `line`).
+    pub fn feed_limit(&self, diag: &mut Diagnostics, line: u64, col: usize) -> Option<f64> {
+        if self.modal.feed.is_none() {
+            diag.once_about(
+                line,
+                "no feed",
+                col,
+                "feed move without a programmed F: it runs at up to machine.max_feed_mm_per_min, as the gap servo allows".into(),
+            );
+        }
+        self.modal.feed
     }
 }
 

@@ -77,6 +77,13 @@ fn read_only_name(name: &str) -> bool {
         || name.strip_prefix('_').is_some_and(axis)
 }
 
+impl<'a, R> ReaderEnv<'a, R> {
+    /// What expressions read in `reader`: its parameters and its own values.
+    pub(super) fn of(reader: &'a BlockReader<R>) -> Self {
+        ReaderEnv { reader }
+    }
+}
+
 impl<R> ReaderEnv<'_, R> {
     /// Position on the axis `letter` in program units and coordinates (0 if not on the machine).
     fn axis_position(&self, letter: char) -> f64 {
@@ -85,7 +92,7 @@ impl<R> ReaderEnv<'_, R> {
         r.axes
             .iter()
             .position(|a| a.letter() == letter)
-            .map_or(0.0, |i| r.program_point(&r.state.position)[i] / scale)
+            .map_or(0.0, |i| r.state.program_point(&r.state.position)[i] / scale)
     }
 }
 

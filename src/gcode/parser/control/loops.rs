@@ -3,6 +3,8 @@
 
 use std::io::{BufRead, Seek};
 
+use crate::gcode::parser::system::ReaderEnv;
+
 use super::{Flow, Purpose, count_fits, mismatch};
 use crate::gcode::lexer::{Keyword, Label, OWord};
 use crate::gcode::lines::Pos;
@@ -40,7 +42,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.program.flow.loops.last(),
             Some(Loop { label: l, kind: LoopKind::Do { .. }, .. }) if *l == label
         );
-        let truth = self.condition(text, o)?;
+        let truth = ReaderEnv::of(self).condition(text, o)?;
         if closes_do {
             let top = self.program.flow.loops.last_mut().expect("checked above");
             if truth {
@@ -160,7 +162,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
 
     /// `repeat`: the body so many times (none for a count below one).
     pub(super) fn repeat_statement(&mut self, text: &str, o: &OWord, label: Label) -> Step<()> {
-        let n = self.one_argument(text, o, true)?.unwrap_or(0.0).round();
+        let n = ReaderEnv::of(self)
+            .one_argument(text, o, true)?
+            .unwrap_or(0.0)
+            .round();
         if n < 1.0 {
             self.program.flow.start_skip(
                 Some(label),

@@ -26,14 +26,17 @@
 //! reaches the same line in the same loop iteration and call: that is how a checkpoint inside
 //! a subroutine resumes (the interpreter state is rebuilt by the replay, never guessed).
 
+mod args;
 mod loops;
 
 use std::collections::HashMap;
 use std::io::{BufRead, Seek};
 
+use crate::gcode::parser::system::ReaderEnv;
+
 use super::{BlockReader, Fail, Step};
 use crate::gcode::error::GcodeErrorKind;
-use crate::gcode::expr::{self, ARGUMENTS, ParamRef, Scanner};
+use crate::gcode::expr::{ARGUMENTS, ParamRef};
 use crate::gcode::lexer::{Keyword, Label, OWord, has_m99, oword_of, program_number_of};
 use crate::gcode::lines::{Line, Pos};
 use loops::{Loop, LoopKind};
@@ -259,7 +262,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             return Ok(false);
         }
         match (skip.purpose, o.keyword) {
-            (Purpose::FalseIf, Keyword::Elseif) if self.condition(text, &o)? => {
+            (Purpose::FalseIf, Keyword::Elseif) if ReaderEnv::of(self).condition(text, &o)? => {
                 self.program.flow.ifs.push((o.label, self.scratch.line_no));
                 self.program.flow.skip = None;
             }
@@ -281,55 +284,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
         Ok(false)
     }
 
-    /// Values of `[…]` arguments after the keyword, as many as there are.
-    fn arguments(&self, text: &str, o: &OWord) -> Step<Vec<f64>> {
-        let mut sc = Scanner::at(text, o.rest, o.rest_col);
-        let env = self.env();
-        let mut args = Vec::new();
-        loop {
-            sc.skip_ws();
-            match sc.peek() {
-                None | Some('(' | ';') => return Ok(args),
-                Some('[') => args.push(expr::value(&mut sc, &env).map_err(Fail::from)?),
-                Some(c) => {
-                    return Err((
-                        sc.next_col(),
-                        GcodeErrorKind::UnexpectedChar {
-                            ch: c,
-                            hint: " (O-word arguments are bracketed: [value])",
-                        },
-                    )
-                        .into());
-                }
-            }
-        }
-    }
-
-    fn one_argument(&self, text: &str, o: &OWord, required: bool) -> Step<Option<f64>> {
-        let args = self.arguments(text, o)?;
-        match (args.len(), required) {
-            (0, true) => Err((
-                o.rest_col + 1,
-                control(format!("{} {} needs a [value]", o.label, o.keyword.name())),
-            )
-                .into()),
-            (0 | 1, _) => Ok(args.first().copied()),
-            _ => Err((
-                o.rest_col + 1,
-                control(format!(
-                    "{} {} takes one [value]",
-                    o.label,
-                    o.keyword.name()
-                )),
-            )
-                .into()),
-        }
-    }
-
-    fn condition(&self, text: &str, o: &OWord) -> Step<bool> {
-        Ok(self.one_argument(text, o, true)? != Some(0.0))
-    }
-
     /// Executes an O-word statement met in the flow.
     pub(super) fn statement(&mut self, text: &str, o: OWord) -> Step<()> {
         let label = o.label.clone();
@@ -349,7 +303,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 );
             }
             Keyword::Endsub | Keyword::Return => {
-                let value = self.one_argument(text, &o, false)?;
+                let value = ReaderEnv::of(self).one_argument(text, &o, false)?;
                 match self.program.flow.frames.last() {
                     // LinuxCNC lets `return` carry any label (its own `retval.ngc` returns
                     // with the label of the `if` around it); `endsub` must name the sub.
@@ -370,7 +324,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.return_from_call()?;
             }
             Keyword::Call => {
-                let args = self.arguments(text, &o)?;
+                let args = ReaderEnv::of(self).arguments(text, &o)?;
                 if args.len() > ARGUMENTS {
                     return Err(mismatch("at most 30 arguments"));
                 }
@@ -398,7 +352,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.program.seek(body)?;
             }
             Keyword::If => {
-                if self.condition(text, &o)? {
+                if ReaderEnv::of(self).condition(text, &o)? {
                     self.program.flow.ifs.push((label, self.scratch.line_no));
                 } else {
                     self.program.flow.start_skip(
@@ -445,7 +399,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.program.flow.loops.truncate(frame.loops);
         self.program.flow.ifs.truncate(frame.ifs);
         if let Some(saved) = frame.restore {
-            self.restore_modes(saved, 1)?;
+            self.state.restore_modes(&self.axes, saved, 1)?;
         }
         self.program.seek(frame.return_to)
     }
@@ -501,7 +455,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     )
                         .into());
                 };
-                self.restore_modes(saved, col)?;
+                self.state.restore_modes(&self.axes, saved, col)?;
             }
             _ => {
                 let saved = self.state.saved_modes();
@@ -593,7 +547,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             };
             let Line::Text(text) = line else { continue };
             let text = text.to_string();
-            self.note_structure(start, line_no, &text)?;
+            self.program
+                .note_structure(start, line_no, &text, self.options.block_delete)?;
             if let Some(OWord {
                 label,
                 keyword: Keyword::Sub,
