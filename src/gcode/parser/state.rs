@@ -3,9 +3,10 @@
 //!
 //! - [`InterpState`]: the interpreter's state, from block to block: the modal groups, the
 //!   position, the work system and `G92` offsets, the parameters, the M-state (flushing, condition) and the
-//!   stops waiting for the next motion.
+//!   stops waiting for the next motion. What needs only it is its own: a block's target and
+//!   feed, the block itself (here), the work systems ([`super::offsets`]).
 //! - [`ProgramFlow`]: where reading is in the text: the lines, the O-word flow control and
-//!   the structure check, and how the program ends.
+//!   the structure check (fed here, line by line), and how the program ends.
 //! - [`LineScratch`]: the line being read, rebuilt every line: its words, its assignments,
 //!   its number and where it starts.
 //! - [`Output`]: what is on its way out: the NURBS curve being collected.
