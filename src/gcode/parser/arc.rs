@@ -81,13 +81,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let feed = self
             .state
             .feed_limit(&mut self.diag, self.scratch.line_no, col);
-        let (end, _) = self.state.target(
-            &self.axes,
-            self.scratch.machine_move,
-            &self.state.position,
-            letters,
-            "",
-        )?;
+        let (end, _) = self
+            .state
+            .target_here(&self.axes, self.scratch.machine_move, letters)?;
         let start = self.state.position;
         self.check_helix(letters, [ia, ib], &start, &end, col)?;
         let radius_word = letters.get('R');

@@ -445,13 +445,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         "with G1"
                     },
                 )?;
-                let (target, _) = self.state.target(
-                    &self.axes,
-                    self.scratch.machine_move,
-                    &self.state.position,
-                    letters,
-                    "",
-                )?;
+                let (target, _) =
+                    self.state
+                        .target_here(&self.axes, self.scratch.machine_move, letters)?;
                 let feed = match motion {
                     Motion::Linear => {
                         self.state

@@ -15,7 +15,6 @@
 use std::io::{BufRead, Seek};
 
 use super::codes::{GCode, classify_g, g_code_tenths};
-use super::state::Diagnostics;
 use super::{
     BlockReader, CURVE_START_TOLERANCE_MM, Fail, Letters, MAX_CURVE_POINTS, Step, first_col, whole,
 };
@@ -119,7 +118,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let feed = self
             .state
             .feed_limit(&mut self.diag, self.scratch.line_no, g_word.col);
-        let degree = opening_degree(form, g_word, letters, &mut self.diag, self.scratch.line_no)?;
+        let (degree, low_order) = opening_degree(form, g_word, letters)?;
+        if let Some((col, message)) = low_order {
+            self.diag
+                .once_about(self.scratch.line_no, "G5.2 order", col, message);
+        }
         let mut curve = PendingCurve {
             form,
             start_line: line_no,
@@ -468,14 +471,13 @@ impl<R: BufRead + Seek> BlockReader<R> {
 }
 
 /// The degree the first block of a curve in `form` gives (`G38`'s `O`, `G06.2`'s order `P`,
-/// `G5.2`'s order `L`), an order below LinuxCNC's 3 warned about in `diag` at `line`.
+/// `G5.2`'s order `L`), and the warning (column, text) for an order below LinuxCNC's 3.
 fn opening_degree(
     form: NurbsForm,
     g_word: &Word,
     letters: &Letters,
-    diag: &mut Diagnostics,
-    line: u64,
-) -> Step<usize> {
+) -> Step<(usize, Option<(usize, String)>)> {
+    let mut low_order = None;
     let degree = match form {
         NurbsForm::G38 => {
             let o = letters.get('O').ok_or((
@@ -500,22 +502,20 @@ fn opening_degree(
             Some(l) => {
                 let order = whole(l, 0.0, (MAX_DEGREE + 1) as f64)? as usize;
                 if order < 3 {
-                    diag.once_about(
-                        line,
-                        "G5.2 order",
+                    low_order = Some((
                         l.col,
                         format!(
                             "L{}: an order below 3 is read as order 3, as LinuxCNC does",
                             l.text
                         ),
-                    );
+                    ));
                 }
                 order.max(3) - 1
             }
             None => 2,
         },
     };
-    Ok(degree)
+    Ok((degree, low_order))
 }
 
 /// Knots for a curve whose program gives none: clamped and uniform, on `[0, 1]` for G38 (seed 000,

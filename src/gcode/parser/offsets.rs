@@ -17,7 +17,6 @@ use std::io::{BufRead, Seek};
 
 use super::codes::OffsetCode;
 use super::cycles::MoveList;
-use super::state::InterpState;
 use super::{BlockReader, Fail, Letters, Step, whole_as};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::ParamRef;
@@ -39,7 +38,7 @@ const G28_PARAMS: usize = 5161;
 const G30_PARAMS: usize = 5181;
 
 /// `#5220`: the active work system (1 = `G54`).
-const ACTIVE_SYSTEM: usize = 5220;
+pub(super) const ACTIVE_SYSTEM: usize = 5220;
 
 /// The slot of `axis` in LinuxCNC's parameter blocks.
 pub(super) fn param_slot(axis: Axis) -> usize {
@@ -50,7 +49,7 @@ pub(super) fn param_slot(axis: Axis) -> usize {
 }
 
 /// The parameter that holds `system`'s offset on the axis in slot `k`.
-fn table_param(system: WorkSystem, k: usize) -> usize {
+pub(super) fn table_param(system: WorkSystem, k: usize) -> usize {
     ACTIVE_SYSTEM + 1 + 20 * system.index() + k
 }
 
@@ -92,99 +91,6 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// The active work system.
     pub fn work_system(&self) -> WorkSystem {
         self.state.system
-    }
-}
-
-/// The work offsets are the state's: the table lives in its parameters.
-impl InterpState {
-    /// `system`'s offset as its parameters hold it, mm.
-    pub(super) fn table_entry(&self, axes: &[Axis], system: WorkSystem) -> Point {
-        let mut offset = Point::zeros();
-        for (i, &axis) in axes.iter().enumerate() {
-            offset[i] = self.params.numbered(table_param(system, param_slot(axis)));
-        }
-        offset
-    }
-
-    /// Makes `system` active, loading its offset from the table.
-    pub(super) fn load_system(&mut self, axes: &[Axis], system: WorkSystem) {
-        self.system = system;
-        self.g5x = self.table_entry(axes, system);
-        self.params.set(
-            &ParamRef::Numbered(ACTIVE_SYSTEM),
-            f64::from(system.number()),
-        );
-    }
-
-    /// `G54`…`G59.3`: selecting another system loads its offset (the machine does not move;
-    /// the program's coordinates of where it stands change). Selecting the active one again
-    /// does nothing, as in LinuxCNC (a table parameter assigned since is not reloaded).
-    pub(super) fn select_system(
-        &mut self,
-        axes: &[Axis],
-        system: WorkSystem,
-        w: &Word,
-    ) -> Step<()> {
-        if self.modal.wire_offset.engaged() {
-            return Err((
-                w.col,
-                GcodeErrorKind::WorkOffset(format!(
-                    "G{}: the work system cannot change with the wire offset on (G40 first)",
-                    w.text
-                )),
-            )
-                .into());
-        }
-        if system != self.system {
-            self.load_system(axes, system);
-        }
-        Ok(())
-    }
-
-    /// `M72` (and a return from a call that gave `M73`): the modes `saved` back, the work
-    /// system selected as by its G word (`col`: where to point an error).
-    pub(super) fn restore_modes(
-        &mut self,
-        axes: &[Axis],
-        saved: super::control::SavedModes,
-        col: usize,
-    ) -> Step<()> {
-        if saved.system != self.system {
-            if self.modal.wire_offset.engaged() {
-                return Err((
-                    col,
-                    GcodeErrorKind::WorkOffset(
-                        "the restored modes change the work system, which cannot change with \
-                         the wire offset on (G40 first)"
-                            .into(),
-                    ),
-                )
-                    .into());
-            }
-            self.load_system(axes, saved.system);
-        }
-        let modal = &mut self.modal;
-        modal.inch = saved.inch;
-        modal.incremental = saved.incremental;
-        modal.arc_centre_absolute = saved.arc_centre_absolute;
-        modal.plane = saved.plane;
-        modal.feed = saved.feed;
-        self.flushing = saved.flushing;
-        self.condition = saved.condition;
-        self.cycle.retract_to_initial = saved.retract_to_initial;
-        Ok(())
-    }
-
-    /// A program end (`M2`/`M30`) returns to `G54`, as LinuxCNC's does.
-    pub(super) fn end_in_g54(&mut self, axes: &[Axis]) {
-        if self.system != WorkSystem::G54 {
-            self.load_system(axes, WorkSystem::G54);
-        }
-    }
-
-    /// The program's coordinates of the machine point `machine`, mm.
-    pub(super) fn program_point(&self, machine: &Point) -> Point {
-        machine - self.g5x - self.g92
     }
 }
 
@@ -410,13 +316,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         self.axes
             .check_letters(letters, true, "", &format!("with {code}"))?;
-        let (via, named) = self.state.target(
-            &self.axes,
-            self.scratch.machine_move,
-            &self.state.position,
-            letters,
-            "",
-        )?;
+        let (via, named) =
+            self.state
+                .target_here(&self.axes, self.scratch.machine_move, letters)?;
         let mut moves = MoveList::new(self.state.position, line_no, self.axes.len());
         // With axis words only the named axes go on to the stored point (LinuxCNC 2.9).
         let axes: Vec<usize> = (0..self.axes.len())
@@ -461,13 +363,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
         let Some(feed) = self.state.modal.feed else {
             return Err(fail(format!("{code} needs a feed F (the probing speed)")));
         };
-        let (target, _) = self.state.target(
-            &self.axes,
-            self.scratch.machine_move,
-            &self.state.position,
-            letters,
-            "",
-        )?;
+        let (target, _) = self
+            .state
+            .target_here(&self.axes, self.scratch.machine_move, letters)?;
         if target == self.state.position {
             if !probe.must_touch {
                 // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it

@@ -4,7 +4,7 @@
 //! - [`InterpState`]: the interpreter's state, from block to block: the modal groups, the
 //!   position, the work system and `G92` offsets, the parameters, the M-state (flushing, condition) and the
 //!   stops waiting for the next motion. What needs only it is its own: a block's target and
-//!   feed, the block itself (here), the work systems ([`super::offsets`]).
+//!   feed, the block itself, the work systems (their parameter numbers in [`super::offsets`]).
 //! - [`ProgramFlow`]: where reading is in the text: the lines, the O-word flow control and
 //!   the structure check (fed here, line by line), and how the program ends.
 //! - [`LineScratch`]: the line being read, rebuilt every line: its words, its assignments,
@@ -20,11 +20,12 @@ use super::control::{Flow, SavedModes};
 use super::cycles::CycleState;
 use super::modal::Modal;
 use super::nurbs::PendingCurve;
+use super::offsets::{ACTIVE_SYSTEM, param_slot, table_param};
 use super::structure::Structure;
 use super::{Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::error::Warning;
-use crate::gcode::expr::Params;
+use crate::gcode::expr::{ParamRef, Params};
 use crate::gcode::lexer::{Assign, Word, oword_of};
 use crate::gcode::lines::{Line, LineSource, Pos};
 use crate::gcode::work::WorkSystem;
@@ -350,6 +351,16 @@ impl InterpState {
         Ok((p, any))
     }
 
+    /// [`target`](Self::target) from where the machine stands, every axis word an axis.
+    pub fn target_here(
+        &self,
+        axes: &[Axis],
+        machine_move: bool,
+        letters: &Letters,
+    ) -> Step<(Point, bool)> {
+        self.target(axes, machine_move, &self.position, letters, "")
+    }
+
     /// The programmed feed for a feed move. On an EDM the gap servo sets the advance speed and
     /// `F` is only an upper limit, so a program without one (seed 000's G38 example) is valid:
     /// it runs at up to the machine maximum, and the operator is told once (in `diag`, at
@@ -381,5 +392,98 @@ impl InterpState {
             retract_to_initial: self.cycle.retract_to_initial,
             system: self.system,
         }
+    }
+}
+
+/// The work offsets are the state's: the table lives in its parameters.
+impl InterpState {
+    /// `system`'s offset as its parameters hold it, mm.
+    pub(super) fn table_entry(&self, axes: &[Axis], system: WorkSystem) -> Point {
+        let mut offset = Point::zeros();
+        for (i, &axis) in axes.iter().enumerate() {
+            offset[i] = self.params.numbered(table_param(system, param_slot(axis)));
+        }
+        offset
+    }
+
+    /// Makes `system` active, loading its offset from the table.
+    pub(super) fn load_system(&mut self, axes: &[Axis], system: WorkSystem) {
+        self.system = system;
+        self.g5x = self.table_entry(axes, system);
+        self.params.set(
+            &ParamRef::Numbered(ACTIVE_SYSTEM),
+            f64::from(system.number()),
+        );
+    }
+
+    /// `G54`…`G59.3`: selecting another system loads its offset (the machine does not move;
+    /// the program's coordinates of where it stands change). Selecting the active one again
+    /// does nothing, as in LinuxCNC (a table parameter assigned since is not reloaded).
+    pub(super) fn select_system(
+        &mut self,
+        axes: &[Axis],
+        system: WorkSystem,
+        w: &Word,
+    ) -> Step<()> {
+        if self.modal.wire_offset.engaged() {
+            return Err((
+                w.col,
+                GcodeErrorKind::WorkOffset(format!(
+                    "G{}: the work system cannot change with the wire offset on (G40 first)",
+                    w.text
+                )),
+            )
+                .into());
+        }
+        if system != self.system {
+            self.load_system(axes, system);
+        }
+        Ok(())
+    }
+
+    /// `M72` (and a return from a call that gave `M73`): the modes `saved` back, the work
+    /// system selected as by its G word (`col`: where to point an error).
+    pub(super) fn restore_modes(
+        &mut self,
+        axes: &[Axis],
+        saved: SavedModes,
+        col: usize,
+    ) -> Step<()> {
+        if saved.system != self.system {
+            if self.modal.wire_offset.engaged() {
+                return Err((
+                    col,
+                    GcodeErrorKind::WorkOffset(
+                        "the restored modes change the work system, which cannot change with \
+                         the wire offset on (G40 first)"
+                            .into(),
+                    ),
+                )
+                    .into());
+            }
+            self.load_system(axes, saved.system);
+        }
+        let modal = &mut self.modal;
+        modal.inch = saved.inch;
+        modal.incremental = saved.incremental;
+        modal.arc_centre_absolute = saved.arc_centre_absolute;
+        modal.plane = saved.plane;
+        modal.feed = saved.feed;
+        self.flushing = saved.flushing;
+        self.condition = saved.condition;
+        self.cycle.retract_to_initial = saved.retract_to_initial;
+        Ok(())
+    }
+
+    /// A program end (`M2`/`M30`) returns to `G54`, as LinuxCNC's does.
+    pub(super) fn end_in_g54(&mut self, axes: &[Axis]) {
+        if self.system != WorkSystem::G54 {
+            self.load_system(axes, WorkSystem::G54);
+        }
+    }
+
+    /// The program's coordinates of the machine point `machine`, mm.
+    pub(super) fn program_point(&self, machine: &Point) -> Point {
+        machine - self.g5x - self.g92
     }
 }
