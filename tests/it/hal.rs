@@ -190,7 +190,13 @@ fn edmd_drives_stepgen_through_hal_and_obeys_its_inputs() {
     );
 
     // A short on the generator's pin: the electrode turns back along the path, then cuts on.
+    // 3 mm in first: the turn-back retraces at 2 mm/s and may not run past the job's start
+    // (the reserved history ends there: an alarm), and on a loaded machine the 60 ms short
+    // lasts as long as the halcmd that ends it takes to start.
     start_and_move(&bench, "long.ngc");
+    bench.daemon().wait_for("3 mm cut", |s| {
+        s["job"]["pulses"][0].as_u64().is_some_and(|x| x > 3000)
+    });
     bench.setp("edmd.gap.short", "true");
     std::thread::sleep(Duration::from_millis(60));
     bench.setp("edmd.gap.short", "false");
