@@ -231,7 +231,7 @@ mod tests {
     fn a_resume_walks_into_a_drilling_move_but_not_past_it() {
         use crate::buffer::{BlockFlags, VecSource};
         use crate::fine::Interpolator;
-        use crate::fine::skip::SkipError;
+        use crate::fine::SkipError;
         use crate::fine::tests::{SETTINGS, chain, p2};
         use crate::servo::PathPoint;
         let mut blocks = chain(&[p2(0, 0), p2(300, 0), p2(300, 300)], 10.0);

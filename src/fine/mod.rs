@@ -44,6 +44,7 @@
 //! [`ServoEvent::Paused`], released by [`Interpolator::set_hold`]. Re-entering a block after a
 //! turn-back, or walking over it to a checkpoint, does not repeat them.
 
+mod blocks;
 mod breakthrough;
 pub mod bresenham;
 mod excursion;
@@ -53,23 +54,24 @@ mod motion;
 pub use breakthrough::BreakthroughSettings;
 pub use motion::Overrides;
 mod settings;
-mod skip;
 mod stops;
 
 use crate::buffer::BlockFlags;
 use crate::buffer::{BlockSource, Fetch, StepBlock};
 use crate::process::{ConditionTable, Process};
-use crate::servo::{GapReading, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState};
+use crate::servo::{
+    GapReading, LawInput, PathPoint, Servo, ServoCounters, ServoEvent, ServoState, Travel,
+};
 use crate::vocab::GapState;
 use crate::vocab::{MAX_AXES, Steps};
 use excursion::ExcursionState;
 use motion::{Motion, Pace};
 use stops::Stops;
 
+pub use blocks::SkipError;
 pub use bresenham::Bresenham;
 pub use excursion::ExcursionSettings;
 pub use settings::FineSettings;
-pub use skip::SkipError;
 
 /// What one tick produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -296,10 +298,12 @@ impl Interpolator {
             return true;
         }
         match self.fetch_forward(source) {
-            Fetch::Block => self.servo.on_block(),
+            Fetch::Block => {
+                self.servo.observe(Travel::BlockInHand);
+            }
             Fetch::Empty => {}
             Fetch::End => {
-                tick.event = self.servo.on_end();
+                tick.event = self.servo.observe(Travel::ProgramEnd);
                 return false;
             }
         }
@@ -375,7 +379,7 @@ impl Interpolator {
         self.motion.stop();
         if !self.stops.hold {
             self.stops.hold = true;
-            tick.event = Some(self.servo.on_collision(self.here()));
+            tick.event = self.servo.observe(Travel::Collision { at: self.here() });
         }
         None
     }
@@ -393,10 +397,10 @@ impl Interpolator {
                 .drill
                 .tick(&self.settings.breakthrough, gap, &at);
         }
-        tick.event = self.servo.on_gap(gap, here);
-        if let Some(alarm) = self.servo.count_short(gap, here) {
+        tick.event = self.servo.observe(Travel::Cutting { gap, at: here });
+        if self.servo.state() == ServoState::Alarm {
+            // The short outlasted `max_short_ticks` while turning back.
             self.motion.stop();
-            tick.event = Some(alarm);
             return None;
         }
         let set = self.process.servo();
@@ -515,7 +519,9 @@ impl Interpolator {
             self.apply(tick);
             self.counters.events_backward += 1;
             self.excursions.behind_mm += self.motion.event_mm;
-            self.servo.on_backward(self.motion.event_mm);
+            self.servo.observe(Travel::Backward {
+                mm: self.motion.event_mm,
+            });
             if self.servo.state() == ServoState::Retreat {
                 self.retreated(tick);
             }
@@ -585,12 +591,12 @@ impl Interpolator {
             match self.fetch_forward(source) {
                 Fetch::Block => {}
                 Fetch::Empty => {
-                    tick.event = self.servo.on_starved(self.here());
+                    tick.event = self.servo.observe(Travel::Starved { at: self.here() });
                     self.motion.stop();
                     return;
                 }
                 Fetch::End => {
-                    tick.event = self.servo.on_end();
+                    tick.event = self.servo.observe(Travel::ProgramEnd);
                     return;
                 }
             }
@@ -598,7 +604,7 @@ impl Interpolator {
         self.motion.walk.forward(&mut tick.steps);
         self.apply(tick);
         self.counters.events_forward += 1;
-        let mut event = self.servo.on_forward(self.here());
+        let mut event = self.servo.observe(Travel::Forward { at: self.here() });
         if event.is_none()
             && let Some(kind) = self.stops.take_pause()
         {
@@ -616,58 +622,21 @@ impl Interpolator {
         if self.motion.walk.at_end() && !waits {
             match self.fetch_forward(source) {
                 Fetch::Block => {
-                    if let Some(e) = self.servo.on_forward(self.here()) {
+                    if let Some(e) = self.servo.observe(Travel::Forward { at: self.here() }) {
                         event = Some(e);
                     }
                 }
                 Fetch::Empty => {
-                    event = self.servo.on_starved(self.here()).or(event);
+                    let at = self.here();
+                    event = self.servo.observe(Travel::Starved { at }).or(event);
                     self.motion.stop();
                 }
-                Fetch::End => event = self.servo.on_end().or(event),
+                Fetch::End => event = self.servo.observe(Travel::ProgramEnd).or(event),
             }
         }
         if event.is_some() {
             tick.event = event;
         }
-    }
-
-    /// Copies the next block with steps into hand, passing over blocks of zero steps.
-    fn fetch_forward<S: BlockSource + ?Sized>(&mut self, source: &mut S) -> Fetch {
-        loop {
-            let fetch = source.next(&mut self.motion.block);
-            if fetch != Fetch::Block {
-                self.motion.has_block = false;
-                return fetch;
-            }
-            self.counters.blocks_entered += 1;
-            self.enter_block(false);
-            self.stops.on_enter(&self.motion.block, self.settings.dt);
-            if self.motion.walk.events() > 0 {
-                return Fetch::Block;
-            }
-        }
-    }
-
-    fn enter_block(&mut self, at_end: bool) {
-        self.process.enter(self.motion.block.condition);
-        self.excursions.on_enter(
-            self.process.servo(),
-            &self.settings.excursions,
-            self.settings.dt,
-        );
-        self.motion.enter(at_end, &self.settings.step_mm);
-    }
-
-    /// Output bookkeeping of one event: the ledger, the pulse counters, the tick's direction.
-    #[inline]
-    fn apply(&mut self, tick: &mut Tick) {
-        for i in 0..MAX_AXES {
-            let s = tick.steps[i];
-            self.motion.position[i] += s as i64;
-            self.counters.pulses[i] += s.unsigned_abs() as u64;
-        }
-        tick.dir = self.motion.dir;
     }
 }
 

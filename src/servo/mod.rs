@@ -35,7 +35,10 @@
 //!   the operator resumes.
 //!
 //! The machine only decides; the fine interpolator moves, and reports back where it is
-//! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area).
+//! ([`PathPoint`]) and what it ran into (block boundaries, the end of the reserved area) as a
+//! [`Travel`], through [`Servo::observe`] alone. Beside it the interpolator only asks (the
+//! state, the law's direction and feed) and relays the operator's release, rethread and
+//! resume.
 
 mod law;
 mod state;
@@ -43,7 +46,7 @@ mod state;
 pub use law::{GapReading, Law, LawInput};
 pub use state::{
     Excursion, Feeds, PathPoint, PauseKind, Rethread, ServoCounters, ServoEvent, ServoState,
-    ShortRules,
+    ShortRules, Travel,
 };
 
 use crate::vocab::GapState;
@@ -116,6 +119,44 @@ impl Servo {
         self.mark
     }
 
+    /// What the interpolator met along the path, as it happens: the one door through which
+    /// motion reaches the state machine. Returns the event when the state changed.
+    ///
+    /// Always inlined: each call site names its variant, so the match folds away and the
+    /// tick pays what it paid for calling the handler directly (not inlined, the door cost
+    /// 68 instructions a tick, +6.7 % of a job's; BENCHMARKS.md).
+    #[inline(always)]
+    pub fn observe(&mut self, travel: Travel) -> Option<ServoEvent> {
+        match travel {
+            Travel::Cutting { gap, at } => {
+                let event = self.on_gap(gap, at);
+                self.count_short(gap, at).or(event)
+            }
+            Travel::Returning { gap, at } => self.on_gap(gap, at),
+            Travel::BlockInHand => {
+                self.on_block();
+                None
+            }
+            Travel::Forward { at } => self.on_forward(at),
+            Travel::Backward { mm } => {
+                self.on_backward(mm);
+                None
+            }
+            Travel::BlockBack => {
+                self.on_block_back();
+                None
+            }
+            Travel::Starved { at } => self.on_starved(at),
+            Travel::ProgramEnd => self.on_end(),
+            Travel::WayBackEnds { at } => self.on_reserved_exhausted(at),
+            Travel::RetreatEnds { at, mm, exhausted } => self.on_retreat_done(at, mm, exhausted),
+            Travel::Collision { at } => Some(self.on_collision(at)),
+            Travel::ProbeEnds { at, missed } => self.on_probe_end(at, missed),
+            Travel::WireBreak { at, open } => self.on_wire_break(at, open),
+            Travel::JumpDue { at } => self.start_jump(at),
+        }
+    }
+
     /// This tick's gap state, as the law reads what the input measured.
     #[inline]
     pub fn classify(&mut self, reading: &GapReading) -> GapState {
@@ -144,7 +185,7 @@ impl Servo {
     /// Counts a tick of the gap at `here`: while turning back on a short, a short that has
     /// lasted `max_short_ticks` raises the alarm (returned); anything else resets the count.
     #[inline]
-    pub fn count_short(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
+    fn count_short(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
         if gap == GapState::Short && self.state == ServoState::TurnBack {
             self.short_ticks += 1;
             if self.max_short_ticks > 0 && self.short_ticks >= self.max_short_ticks {
@@ -158,14 +199,20 @@ impl Servo {
 
     /// The gap shorted during a rapid at `here`: a collision (the interpolator stops and
     /// holds there).
-    pub fn on_collision(&mut self, here: PathPoint) -> ServoEvent {
+    fn on_collision(&mut self, here: PathPoint) -> ServoEvent {
         self.counters.collisions += 1;
         ServoEvent::Collision { at: here }
     }
 
-    /// A probing move finished (with or without contact).
-    pub fn on_probe_done(&mut self) {
+    /// A probing move ended at `here`: counted, or (`missed`, it had to touch and did not)
+    /// the job cannot go on (final, like an alarm).
+    fn on_probe_end(&mut self, here: PathPoint, missed: bool) -> Option<ServoEvent> {
+        if missed {
+            self.state = ServoState::Alarm;
+            return Some(ServoEvent::ProbeMissed { at: here });
+        }
         self.counters.probes += 1;
+        None
     }
 
     /// The gap state of this tick at `here`. Returns an event when the state changed.
@@ -173,7 +220,7 @@ impl Servo {
     /// A short is believed after `rules.confirm_ticks` ticks in a row (one that clears
     /// sooner is counted as brief); a turn-back ends when the gap has cleared and it has
     /// backed off at least `rules.min_retract_mm`.
-    pub fn on_gap(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
+    fn on_gap(&mut self, gap: GapState, here: PathPoint) -> Option<ServoEvent> {
         self.shorted = gap == GapState::Short;
         match (self.state, gap) {
             (
@@ -227,14 +274,14 @@ impl Servo {
 
     /// The interpolator stepped `mm` backwards along the path.
     #[inline]
-    pub fn on_backward(&mut self, mm: f64) {
+    fn on_backward(&mut self, mm: f64) {
         if self.state == ServoState::TurnBack {
             self.backed_mm += mm;
         }
     }
 
     /// The interpolator moved forward to `here` (after an event or a block change).
-    pub fn on_forward(&mut self, here: PathPoint) -> Option<ServoEvent> {
+    fn on_forward(&mut self, here: PathPoint) -> Option<ServoEvent> {
         match self.state {
             ServoState::ReAdvance if here >= self.mark => {
                 self.state = ServoState::Forward;
@@ -256,7 +303,7 @@ impl Servo {
     }
 
     /// The turn-back entered the previous block (from the reserved area).
-    pub fn on_block_back(&mut self) {
+    fn on_block_back(&mut self) {
         self.depth += 1;
         let c = &mut self.counters;
         c.deepest_turn_back_blocks = c.deepest_turn_back_blocks.max(self.depth);
@@ -264,7 +311,7 @@ impl Servo {
 
     /// The turn-back reached the start of the reserved area: the alarm with the gap still
     /// shorted; with the gap clear (backing off its least retraction) the re-advance.
-    pub fn on_reserved_exhausted(&mut self, here: PathPoint) -> Option<ServoEvent> {
+    fn on_reserved_exhausted(&mut self, here: PathPoint) -> Option<ServoEvent> {
         if self.state == ServoState::TurnBack && !self.shorted {
             return Some(self.end_turn_back());
         }
@@ -300,7 +347,7 @@ impl Servo {
     }
 
     /// Forward motion found no block to execute.
-    pub fn on_starved(&mut self, here: PathPoint) -> Option<ServoEvent> {
+    fn on_starved(&mut self, here: PathPoint) -> Option<ServoEvent> {
         (self.state == ServoState::Forward).then(|| {
             self.state = ServoState::Hold;
             self.counters.starvations += 1;
@@ -309,14 +356,14 @@ impl Servo {
     }
 
     /// A block is in hand again after a hold.
-    pub fn on_block(&mut self) {
+    fn on_block(&mut self) {
         if self.state == ServoState::Hold {
             self.state = ServoState::Forward;
         }
     }
 
     /// Forward motion found the end of the program.
-    pub fn on_end(&mut self) -> Option<ServoEvent> {
+    fn on_end(&mut self) -> Option<ServoEvent> {
         (!self.state.is_final()).then(|| {
             self.state = ServoState::Done;
             ServoEvent::Done
@@ -324,7 +371,7 @@ impl Servo {
     }
 
     /// The jump interval has passed while cutting forward at `here`: lift along the path.
-    pub fn start_jump(&mut self, here: PathPoint) -> Option<ServoEvent> {
+    fn start_jump(&mut self, here: PathPoint) -> Option<ServoEvent> {
         (self.state == ServoState::Forward).then(|| {
             self.mark = here;
             self.state = ServoState::Retreat;
@@ -343,12 +390,7 @@ impl Servo {
     /// rethread parks for threading.
     /// `exhausted`: it stopped at the oldest executed block the loop buffer keeps, short of
     /// where it was going.
-    pub fn on_retreat_done(
-        &mut self,
-        here: PathPoint,
-        mm: f64,
-        exhausted: bool,
-    ) -> Option<ServoEvent> {
+    fn on_retreat_done(&mut self, here: PathPoint, mm: f64, exhausted: bool) -> Option<ServoEvent> {
         (self.state == ServoState::Retreat).then(|| {
             self.state = match self.excursion {
                 Excursion::Jump => ServoState::Return,
@@ -365,7 +407,7 @@ impl Servo {
 
     /// The wire broke at `here` while it was cutting (or closing in). The mark stays the
     /// farthest point cut, where the return after threading ends.
-    pub fn on_wire_break(&mut self, here: PathPoint, open: bool) -> Option<ServoEvent> {
+    fn on_wire_break(&mut self, here: PathPoint, open: bool) -> Option<ServoEvent> {
         let cutting = matches!(
             self.state,
             ServoState::Forward | ServoState::ReAdvance | ServoState::TurnBack | ServoState::Hold
@@ -402,12 +444,6 @@ impl Servo {
         }
         self.state = ServoState::Return;
         self.on_forward(here)
-    }
-
-    /// A probing move that had to touch reached its end point without contact: the job
-    /// cannot go on (final, like an alarm).
-    pub fn on_probe_missed(&mut self) {
-        self.state = ServoState::Alarm;
     }
 
     /// Direction and feed under a proportional law for a sparking gap whose `signal` is the
@@ -470,6 +506,58 @@ mod tests {
 
     fn at(seq: u64, event: i64) -> PathPoint {
         PathPoint { seq, event }
+    }
+
+    /// The interpolator's side of the seam: a turn-back told only through `observe`, from the
+    /// short to the resume, then a short that outlasts its ticks while turning back.
+    #[test]
+    fn a_turn_back_through_the_one_door() {
+        let mut servo = Servo::with_law(FEEDS, Law::ThreeState, 3, 1.0, ShortRules::IMMEDIATE);
+        assert_eq!(servo.observe(Travel::BlockInHand), None);
+        assert_eq!(servo.observe(Travel::Forward { at: at(1, 4) }), None);
+        let short = Travel::Cutting {
+            gap: GapState::Short,
+            at: at(1, 5),
+        };
+        assert_eq!(
+            servo.observe(short),
+            Some(ServoEvent::Short { at: at(1, 5) })
+        );
+        assert_eq!(servo.state(), ServoState::TurnBack);
+        assert_eq!(servo.observe(Travel::Backward { mm: 0.001 }), None);
+        assert_eq!(servo.observe(Travel::BlockBack), None);
+        let clear = Travel::Cutting {
+            gap: GapState::Normal,
+            at: at(0, 9),
+        };
+        assert_eq!(servo.observe(clear), Some(ServoEvent::Cleared { depth: 1 }));
+        assert_eq!(servo.observe(Travel::Forward { at: at(1, 4) }), None);
+        assert_eq!(
+            servo.observe(Travel::Forward { at: at(1, 5) }),
+            Some(ServoEvent::Resumed { at: at(1, 5) })
+        );
+        assert_eq!(servo.state(), ServoState::Forward);
+        // Shorted for 3 ticks in a turn-back: the alarm on the third (the first also turned
+        // back), reported over the tick's other event.
+        let short = Travel::Cutting {
+            gap: GapState::Short,
+            at: at(1, 6),
+        };
+        assert!(matches!(
+            servo.observe(short),
+            Some(ServoEvent::Short { .. })
+        ));
+        assert_eq!(servo.observe(short), None);
+        assert_eq!(
+            servo.observe(short),
+            Some(ServoEvent::Alarm {
+                at: at(1, 6),
+                depth: 0,
+                timed_out: true
+            })
+        );
+        assert_eq!(servo.state(), ServoState::Alarm);
+        assert_eq!(servo.counters.turn_backs, 2);
     }
 
     #[test]

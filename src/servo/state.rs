@@ -182,6 +182,57 @@ impl ShortRules {
     };
 }
 
+/// What the fine interpolator met along the path, told to the servo as it happens: the one
+/// way motion reaches the servo's state machine ([`Servo::observe`](super::Servo::observe)).
+/// The interpolator moves and reports; the servo decides what a report means for its state.
+/// A change to the turn-back is a change to the servo's answer to one of these, not to the
+/// interpolator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Travel {
+    /// This tick's gap at `at` while cutting: a short believed starts a turn-back, a cleared
+    /// gap ends one, and a short that lasts too long while turning back is the alarm.
+    Cutting {
+        gap: crate::vocab::GapState,
+        at: PathPoint,
+    },
+    /// This tick's gap at `at` on the way back to the mark after a jump or a rethread: a
+    /// short turns back as in a re-advance (no short timer: the return is spark off).
+    Returning {
+        gap: crate::vocab::GapState,
+        at: PathPoint,
+    },
+    /// A block is in hand (after a hold, a probing move's end, a resume at a checkpoint).
+    BlockInHand,
+    /// One step forward, or a block change going forward, now at `at`.
+    Forward { at: PathPoint },
+    /// One event backward along the path, `mm` long.
+    Backward { mm: f64 },
+    /// Going backward, the previous block came into hand from the reserved area.
+    BlockBack,
+    /// Going forward, the loop buffer had no block for the interpolator.
+    Starved { at: PathPoint },
+    /// Going forward, the program ended.
+    ProgramEnd,
+    /// Going backward, the way back ended at `at`: the start of the reserved area, or a
+    /// barrier (a probing move, the rapid before the cut).
+    WayBackEnds { at: PathPoint },
+    /// A retreat (jump, rethread) ended at `at`, `mm` of path behind the mark; `exhausted`:
+    /// at the oldest executed block kept, short of where it was going.
+    RetreatEnds {
+        at: PathPoint,
+        mm: f64,
+        exhausted: bool,
+    },
+    /// The gap shorted during a rapid at `at`: the electrode stopped there.
+    Collision { at: PathPoint },
+    /// A probing move ended at `at`; `missed`: it had to touch and did not.
+    ProbeEnds { at: PathPoint, missed: bool },
+    /// The wire broke at `at`: by the sensor, or (`open`) by an open gap over its distance.
+    WireBreak { at: PathPoint, open: bool },
+    /// The jump interval has passed while cutting at `at`.
+    JumpDue { at: PathPoint },
+}
+
 /// Something the servo did that the outside world wants to hear about (logged by a normal
 /// thread, never by the tick core).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -30,7 +30,7 @@ use super::{Interpolator, Tick};
 use crate::buffer::{BlockFlags, BlockSource, Fetch};
 
 use crate::process::ServoSetPoints;
-use crate::servo::{Excursion, Rethread, Servo, ServoEvent, ServoState};
+use crate::servo::{Excursion, Rethread, Servo, ServoEvent, ServoState, Travel};
 use crate::vocab::GapState;
 
 /// Jumps, wire-break detection and rethreading, in the interpolator's units.
@@ -193,12 +193,16 @@ impl Interpolator {
     pub(super) fn retreat_blocked(&mut self, tick: &mut Tick, exhausted: bool) {
         self.motion.stop();
         let here = self.motion.here();
-        let event = if self.servo.state() == ServoState::Retreat {
-            self.servo
-                .on_retreat_done(here, self.excursions.retreat_mm, exhausted)
+        let travel = if self.servo.state() == ServoState::Retreat {
+            Travel::RetreatEnds {
+                at: here,
+                mm: self.excursions.retreat_mm,
+                exhausted,
+            }
         } else {
-            self.servo.on_reserved_exhausted(here)
+            Travel::WayBackEnds { at: here }
         };
+        let event = self.servo.observe(travel);
         if event.is_some() {
             tick.event = event;
         }
@@ -242,7 +246,7 @@ impl Interpolator {
                 self.retreat_blocked(tick, false);
                 return false;
             }
-            self.servo.on_block_back();
+            self.servo.observe(Travel::BlockBack);
             self.enter_block(true);
             if self.motion.walk.events() > 0 {
                 return true;
@@ -260,9 +264,11 @@ impl Interpolator {
             // The retreat braked on its way here and arrives at creep speed: it stops on this
             // point, so every jump lifts exactly its height.
             self.motion.stop();
-            tick.event =
-                self.servo
-                    .on_retreat_done(self.motion.here(), self.excursions.retreat_mm, false);
+            tick.event = self.servo.observe(Travel::RetreatEnds {
+                at: self.motion.here(),
+                mm: self.excursions.retreat_mm,
+                exhausted: false,
+            });
         }
     }
 
@@ -275,7 +281,8 @@ impl Interpolator {
     }
 
     fn wire_break(&mut self, tick: &mut Tick, open: bool) -> bool {
-        match self.servo.on_wire_break(self.motion.here(), open) {
+        let at = self.motion.here();
+        match self.servo.observe(Travel::WireBreak { at, open }) {
             Some(event) => {
                 self.motion.stop();
                 self.excursions.open_mm = 0.0;
@@ -320,7 +327,9 @@ impl Interpolator {
         }
         self.excursions.cut_ticks = 0;
         self.excursions.retreat_mm = 0.0;
-        tick.event = self.servo.start_jump(self.motion.here());
+        tick.event = self.servo.observe(Travel::JumpDue {
+            at: self.motion.here(),
+        });
         if let Some(axis) = self.settings.lift_axis
             && self.motion.holds(BlockFlags::ORBIT)
         {
@@ -382,7 +391,7 @@ impl Interpolator {
                     let dir = if gap == GapState::Short { -1 } else { 1 };
                     return Some((dir, feed));
                 }
-                if let Some(event) = self.servo.on_gap(gap, here) {
+                if let Some(event) = self.servo.observe(Travel::Returning { gap, at: here }) {
                     tick.event = Some(event);
                     return Some(self.servo.motion(gap));
                 }
@@ -411,12 +420,11 @@ impl Interpolator {
             self.excursions.contact_grace_mm = PROBE_RELEASE_MM;
         }
         let at = self.motion.here();
-        if !contact && self.motion.block.flags.contains(BlockFlags::PROBE_MUST) {
-            self.servo.on_probe_missed();
-            tick.event = Some(ServoEvent::ProbeMissed { at });
+        let missed = !contact && self.motion.block.flags.contains(BlockFlags::PROBE_MUST);
+        if let Some(event) = self.servo.observe(Travel::ProbeEnds { at, missed }) {
+            tick.event = Some(event);
             return;
         }
-        self.servo.on_probe_done();
         tick.event = Some(ServoEvent::Probed {
             at,
             steps: self.motion.position,
@@ -480,12 +488,12 @@ impl Interpolator {
         }
         match self.fetch_forward(source) {
             Fetch::Block => {
-                self.servo.on_block();
+                self.servo.observe(Travel::BlockInHand);
                 true
             }
             Fetch::Empty => false,
             Fetch::End => {
-                tick.event = self.servo.on_end();
+                tick.event = self.servo.observe(Travel::ProgramEnd);
                 false
             }
         }
@@ -556,11 +564,11 @@ impl Interpolator {
             self.excursions.retreat_mm = steps as f64 * step;
             if self.excursions.retreat_mm >= self.excursions.jump_height - 0.5 * step {
                 self.motion.stop();
-                tick.event = self.servo.on_retreat_done(
-                    self.motion.here(),
-                    self.excursions.retreat_mm,
-                    false,
-                );
+                tick.event = self.servo.observe(Travel::RetreatEnds {
+                    at: self.motion.here(),
+                    mm: self.excursions.retreat_mm,
+                    exhausted: false,
+                });
             }
         } else {
             self.counters.events_forward += 1;
@@ -568,7 +576,9 @@ impl Interpolator {
                 // Back on the orbit: it carries on from here.
                 self.motion.stop();
                 self.excursions.lift = None;
-                tick.event = self.servo.on_forward(self.motion.here());
+                tick.event = self.servo.observe(Travel::Forward {
+                    at: self.motion.here(),
+                });
             }
         }
     }

@@ -564,11 +564,7 @@ fn no_type_spreads_its_methods_over_more_than_three_files() {
 
 /// Types whose files still call one another round a circle, with the number of files on it
 /// today: it may only fall. Each is a debt named in ARCHITECTURE.md, "Debts".
-const CALL_CIRCLES: &[(&str, usize)] = &[
-    // The tick core and its excursions (jumps, wire breaks, probing moves): each calls the
-    // other's steps; the fine <-> servo seam runs through both.
-    ("Interpolator", 2),
-];
+const CALL_CIRCLES: &[(&str, usize)] = &[];
 
 /// For each type whose methods stand in more than one file: which file calls a method that
 /// another one defines (`self.name(…)`), as (type, from file, to file) and the methods called.

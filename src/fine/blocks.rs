@@ -1,10 +1,56 @@
-//! Resuming a job: the walk along the program, emitting nothing, to a checkpoint's point.
+//! The block in hand and the pulse ledger: taking the next block from the source and
+//! entering it (its condition, its excursions, its lattice walk), booking every step a tick
+//! returns, and a resumed job's walk along the program, emitting nothing, to its checkpoint's
+//! point. Every phase of a tick and every excursion shares these; they call nothing else of
+//! the interpolator's, so its files call one way: the tick's phases and the excursions down
+//! to here.
 
-use super::Interpolator;
-use crate::buffer::BlockFlags;
-use crate::buffer::{BlockSource, Fetch};
-use crate::servo::PathPoint;
+use super::{Interpolator, Tick};
+use crate::buffer::{BlockFlags, BlockSource, Fetch};
+use crate::servo::{PathPoint, Travel};
 use crate::vocab::MAX_AXES;
+
+impl Interpolator {
+    /// Copies the next block with steps into hand, passing over blocks of zero steps.
+    pub(super) fn fetch_forward<S: BlockSource + ?Sized>(&mut self, source: &mut S) -> Fetch {
+        loop {
+            let fetch = source.next(&mut self.motion.block);
+            if fetch != Fetch::Block {
+                self.motion.has_block = false;
+                return fetch;
+            }
+            self.counters.blocks_entered += 1;
+            self.enter_block(false);
+            self.stops.on_enter(&self.motion.block, self.settings.dt);
+            if self.motion.walk.events() > 0 {
+                return Fetch::Block;
+            }
+        }
+    }
+
+    /// The block just copied into hand becomes the one walked: its machining condition, its
+    /// excursions' settings and its lattice walk (from its end, `at_end`, going backward).
+    pub(super) fn enter_block(&mut self, at_end: bool) {
+        self.process.enter(self.motion.block.condition);
+        self.excursions.on_enter(
+            self.process.servo(),
+            &self.settings.excursions,
+            self.settings.dt,
+        );
+        self.motion.enter(at_end, &self.settings.step_mm);
+    }
+
+    /// Output bookkeeping of one event: the ledger, the pulse counters, the tick's direction.
+    #[inline]
+    pub(super) fn apply(&mut self, tick: &mut Tick) {
+        for i in 0..MAX_AXES {
+            let s = tick.steps[i];
+            self.motion.position[i] += s as i64;
+            self.counters.pulses[i] += s.unsigned_abs() as u64;
+        }
+        tick.dir = self.motion.dir;
+    }
+}
 
 /// Why a resumed job could not walk to its checkpoint.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -96,8 +142,10 @@ impl Interpolator {
                 expected: expected[..n].to_vec(),
             });
         }
-        self.servo.on_block();
-        self.servo.on_forward(self.here());
+        self.servo.observe(Travel::BlockInHand);
+        self.servo.observe(Travel::Forward {
+            at: self.motion.here(),
+        });
         // The first run honoured every stop up to here.
         self.stops.resumed();
         Ok(())
