@@ -21,6 +21,7 @@
 //!
 //! Skipped (said on stderr) unless `EDMD_HAL_TESTS` is set; the benches take turns.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::common;
@@ -68,9 +69,13 @@ fn run_to_end(bench: &HalBench, program: &str) -> Value {
 
 /// One continuous-jog request on the socket: its reply.
 fn jog_request(bench: &HalBench) -> Value {
-    let socket = bench.dir.join("edmd.sock");
+    jog_on(&bench.dir.join("edmd.sock"))
+}
+
+/// One continuous-jog request on the daemon's socket at `socket`: its reply.
+fn jog_on(socket: &std::path::Path) -> Value {
     let reply = common::daemon::raw_exchange(
-        &socket,
+        socket,
         &[r#"{"cmd":"jog-continuous","axis":"X","positive":true,"feed_mm_per_min":60}"#],
     );
     reply[0].clone()
@@ -100,17 +105,6 @@ fn press_until_jogging(bench: &HalBench, then: Duration) -> bool {
         std::thread::sleep(Duration::from_millis(100));
     }
     true
-}
-
-/// Renews a continuous jog every 100 ms for `how_long`: how many renewals were taken.
-fn keep_renewing(bench: &HalBench, how_long: Duration) -> usize {
-    let until = Instant::now() + how_long;
-    let mut taken = 0;
-    while Instant::now() < until {
-        taken += usize::from(jog_plus(bench));
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    taken
 }
 
 #[test]
@@ -164,18 +158,42 @@ fn the_drives_follow_the_machine_between_jobs_and_edmd_s_life() {
         "{}",
         log(&bench)
     );
-    bench.setp("edmd.estop-ok-in", "false");
-    bench
-        .daemon()
-        .wait_for("the E-stop", |s| s["state"] == "estop");
-    assert_eq!(keep_renewing(&bench, Duration::from_millis(400)), 0);
-    bench.setp("edmd.estop-ok-in", "true");
-    bench.daemon().ok(&["reset"]);
-    let stopped = counts(&bench);
+    // The client goes on pressing every 100 ms from a thread of its own, through the trip,
+    // the reset and after, as a held button does: the test's own steps (a `halcmd`, an
+    // `edmd ctl`) take as long as a loaded machine makes them without a gap in the presses
+    // that would read as the button let go. A press sent once the E-stop is seen is refused,
+    // before the reset and after it.
+    let socket = bench.dir.join("edmd.sock");
+    let tripped = AtomicBool::new(false);
+    let held = AtomicBool::new(true);
+    let (taken, stopped) = std::thread::scope(|scope| {
+        let presser = scope.spawn(|| {
+            let mut taken = 0;
+            while held.load(Ordering::SeqCst) {
+                let after_trip = tripped.load(Ordering::SeqCst);
+                if jog_on(&socket)["ok"] == true && after_trip {
+                    taken += 1;
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            taken
+        });
+        bench.setp("edmd.estop-ok-in", "false");
+        bench
+            .daemon()
+            .wait_for("the E-stop", |s| s["state"] == "estop");
+        tripped.store(true, Ordering::SeqCst);
+        std::thread::sleep(Duration::from_millis(400));
+        bench.setp("edmd.estop-ok-in", "true");
+        bench.daemon().ok(&["reset"]);
+        let stopped = counts(&bench);
+        std::thread::sleep(Duration::from_millis(800));
+        held.store(false, Ordering::SeqCst);
+        (presser.join().unwrap(), stopped)
+    });
     assert_eq!(
-        keep_renewing(&bench, Duration::from_millis(800)),
-        0,
-        "the client still pressing is refused"
+        taken, 0,
+        "the client still pressing is refused: presses taken after the trip"
     );
     assert_eq!(counts(&bench), stopped, "nothing moved after the reset");
     // Let go, press again: a new jog.
