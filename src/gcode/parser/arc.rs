@@ -15,9 +15,9 @@
 //! cubic within [`crate::geometry::SPIRAL_FIT_TOLERANCE_MM`] of it ([`spiral_arc`]). The
 //! block's radius is the end radius, which LinuxCNC offsets an arc by.
 
-use std::io::{BufRead, Seek};
-
-use super::{BlockReader, Fail, Letters, MM_PER_INCH, Step};
+use super::axes::MachineAxes;
+use super::state::{BlockEnv, InterpState};
+use super::{Fail, Letters, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind};
@@ -42,192 +42,187 @@ fn spiral_tolerance_mm(inch: bool) -> f64 {
     }
 }
 
-impl<R: BufRead + Seek> BlockReader<R> {
-    pub(super) fn arc_block(
-        &mut self,
-        ccw: bool,
-        line_no: u64,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<Option<Block>> {
-        let plane = self.state.modal.plane;
-        let [la, lb] = plane.axis_letters();
-        let [oa, ob] = plane.offset_letters();
-        self.axes.check_letters_with(
-            letters,
-            true,
-            &|c| [oa, ob, 'R', 'P'].contains(&c),
-            &|| format!("in {} ({}) arcs", plane.g_code(), plane.name()),
-        )?;
-        let turns = match letters.get('P') {
-            Some(p) => arc_turns(p)?,
-            None => 1,
-        };
-        let index = |letter: char| {
-            Axis::from_letter(letter).and_then(|a| self.axes.iter().position(|&m| m == a))
-        };
-        let (Some(ia), Some(ib)) = (index(la), index(lb)) else {
-            return Err((
-                col,
-                GcodeErrorKind::ArcPlaneNotOnMachine {
-                    plane: plane.g_code(),
-                    a: la,
-                    b: lb,
-                    axes: self.axes.list(),
-                },
-            )
-                .into());
-        };
-        let feed = self
-            .state
-            .feed_limit(&mut self.diag, self.scratch.line_no, col);
-        let (end, _) = self
-            .state
-            .target_here(&self.axes, self.scratch.machine_move, letters)?;
-        let start = self.state.position;
-        self.check_helix(letters, [ia, ib], &start, &end, col)?;
-        let radius_word = letters.get('R');
-        let (off_a, off_b) = (letters.get(oa), letters.get(ob));
-        if let (Some(r), Some(o)) = (radius_word, off_a.or(off_b)) {
-            return Err((r.col.max(o.col), GcodeErrorKind::ArcRAndCentre).into());
-        }
-        let chord_a = end[ia] - start[ia];
-        let chord_b = end[ib] - start[ib];
-        let chord = chord_a.hypot(chord_b);
-        let full_circle = chord < 1e-9;
-        let mut center = start;
-        if let Some(r) = radius_word {
-            if full_circle {
-                return Err((r.col, GcodeErrorKind::ArcFullCircleWithR).into());
-            }
-            let radius = r.value * self.state.scale();
-            let [ca, cb] = centre_of_radius(
-                r.col,
-                radius,
-                ccw,
-                [start[ia], start[ib]],
-                [chord_a, chord_b],
-                chord,
-            )?;
-            center[ia] = ca;
-            center[ib] = cb;
-        } else {
-            center = self.centre_of_offsets(off_a, off_b, [ia, ib], &start, &end, col)?;
-        }
-        let a0 = (start[ib] - center[ib]).atan2(start[ia] - center[ia]);
-        let a1 = (end[ib] - center[ib]).atan2(end[ia] - center[ia]);
-        let extra_turns = std::f64::consts::TAU * f64::from(turns - 1);
-        let sweep = sweep_of(a0, a1, ccw, full_circle);
-        let sweep = sweep + extra_turns.copysign(sweep);
-        let curve = spiral_arc(self.axes.len(), [ia, ib], &center, &start, &end, sweep)
-            .map_err(|e| Fail::from((col, e.into())))?;
-        // The end radius: what LinuxCNC offsets an arc by (`convert_arc_comp2`).
-        let radius = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
-        self.state.position = end;
-        Ok(Some(self.state.block(
-            line_no,
-            BlockKind::Arc {
-                center,
-                radius,
-                sweep,
-                plane,
+/// A `G2` (`ccw` false) or `G3` block's arc, from `state`'s position, which moves to its
+/// end.
+pub(super) fn arc_block(
+    state: &mut InterpState,
+    env: &mut BlockEnv,
+    ccw: bool,
+    line_no: u64,
+    letters: &Letters,
+    col: usize,
+) -> Step<Block> {
+    let plane = state.modal.plane;
+    let [la, lb] = plane.axis_letters();
+    let [oa, ob] = plane.offset_letters();
+    env.axes
+        .check_letters_with(letters, true, &|c| [oa, ob, 'R', 'P'].contains(&c), &|| {
+            format!("in {} ({}) arcs", plane.g_code(), plane.name())
+        })?;
+    let turns = match letters.get('P') {
+        Some(p) => arc_turns(p)?,
+        None => 1,
+    };
+    let index = |letter: char| {
+        Axis::from_letter(letter).and_then(|a| env.axes.iter().position(|&m| m == a))
+    };
+    let (Some(ia), Some(ib)) = (index(la), index(lb)) else {
+        return Err((
+            col,
+            GcodeErrorKind::ArcPlaneNotOnMachine {
+                plane: plane.g_code(),
+                a: la,
+                b: lb,
+                axes: env.axes.list(),
             },
-            curve,
-            feed,
-        )))
+        )
+            .into());
+    };
+    let feed = env.feed_limit(state, col);
+    let (end, _) = env.target(state, &state.position, letters, "")?;
+    let start = state.position;
+    check_helix(state, env.axes, letters, [ia, ib], &start, &end, col)?;
+    let radius_word = letters.get('R');
+    let (off_a, off_b) = (letters.get(oa), letters.get(ob));
+    if let (Some(r), Some(o)) = (radius_word, off_a.or(off_b)) {
+        return Err((r.col.max(o.col), GcodeErrorKind::ArcRAndCentre).into());
     }
-
-    /// An axis outside the arc's plane `[ia, ib]` that moves makes a helix: refused where a
-    /// stage works in the plane (the wire offset, the taper).
-    fn check_helix(
-        &self,
-        letters: &Letters,
-        [ia, ib]: [usize; 2],
-        start: &Point,
-        end: &Point,
-        col: usize,
-    ) -> Step<()> {
-        let why = if self.state.modal.wire_offset.engaged() {
-            "under the wire offset (G41/G42 offset the path in the plane: cut the helix after G40)"
-        } else if self.state.modal.taper != 0.0 {
-            "under a taper (G51/G52 tilt the wire along a path in the plane: G50 first)"
-        } else {
-            return Ok(());
-        };
-        for (i, axis) in self.axes.iter().enumerate() {
-            if i != ia && i != ib && end[i] != start[i] {
-                let w = letters.get(axis.letter()).map_or(col, |w| w.col);
-                return Err((
-                    w,
-                    GcodeErrorKind::HelicalArc {
-                        axis: axis.letter(),
-                        why,
-                    },
-                )
-                    .into());
-            }
+    let chord_a = end[ia] - start[ia];
+    let chord_b = end[ib] - start[ib];
+    let chord = chord_a.hypot(chord_b);
+    let full_circle = chord < 1e-9;
+    let mut center = start;
+    if let Some(r) = radius_word {
+        if full_circle {
+            return Err((r.col, GcodeErrorKind::ArcFullCircleWithR).into());
         }
-        Ok(())
+        let radius = r.value * state.scale();
+        let [ca, cb] = centre_of_radius(
+            r.col,
+            radius,
+            ccw,
+            [start[ia], start[ib]],
+            [chord_a, chord_b],
+            chord,
+        )?;
+        center[ia] = ca;
+        center[ib] = cb;
+    } else {
+        center = centre_of_offsets(state, off_a, off_b, [ia, ib], &start, &end, col)?;
     }
+    let a0 = (start[ib] - center[ib]).atan2(start[ia] - center[ia]);
+    let a1 = (end[ib] - center[ib]).atan2(end[ia] - center[ia]);
+    let extra_turns = std::f64::consts::TAU * f64::from(turns - 1);
+    let sweep = sweep_of(a0, a1, ccw, full_circle);
+    let sweep = sweep + extra_turns.copysign(sweep);
+    let curve = spiral_arc(env.axes.len(), [ia, ib], &center, &start, &end, sweep)
+        .map_err(|e| Fail::from((col, e.into())))?;
+    // The end radius: what LinuxCNC offsets an arc by (`convert_arc_comp2`).
+    let radius = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
+    state.position = end;
+    Ok(state.block(
+        line_no,
+        BlockKind::Arc {
+            center,
+            radius,
+            sweep,
+            plane,
+        },
+        curve,
+        feed,
+    ))
+}
 
-    /// The centre of an `I J K` arc in the plane of axes `[ia, ib]` (the offsets relative to
-    /// the start, or absolute under `G90.1`, where both are needed), its start and end radii
-    /// within LinuxCNC's spiral tolerance.
-    fn centre_of_offsets(
-        &self,
-        off_a: Option<&Word>,
-        off_b: Option<&Word>,
-        [ia, ib]: [usize; 2],
-        start: &Point,
-        end: &Point,
-        col: usize,
-    ) -> Step<Point> {
-        let mut center = *start;
-        let (va, vb) = match (off_a, off_b) {
-            (None, None) => return Err((col, GcodeErrorKind::ArcMissingCentre).into()),
-            (a, b) if self.state.modal.arc_centre_absolute && (a.is_none() || b.is_none()) => {
-                let [la, lb] = self.state.modal.plane.offset_letters();
-                let letter = if a.is_none() { la } else { lb };
-                let at = a.or(b).map_or(col, |w| w.col);
-                return Err((at, GcodeErrorKind::ArcCentreWordMissing { letter }).into());
-            }
-            (a, b) => (a, b),
-        };
-        let s = self.state.scale();
-        let va = va.map_or(0.0, |w| w.value * s);
-        let vb = vb.map_or(0.0, |w| w.value * s);
-        if self.state.modal.arc_centre_absolute {
-            let offset = self.state.offset();
-            center[ia] = va + offset[ia];
-            center[ib] = vb + offset[ib];
-        } else {
-            center[ia] = start[ia] + va;
-            center[ib] = start[ib] + vb;
-        }
-        let r_start = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
-        let r_end = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
-        let offset_col = off_a.or(off_b).map_or(col, |w| w.col);
-        if r_start < ARC_RADIUS_TOLERANCE_MM || r_end < ARC_RADIUS_TOLERANCE_MM {
-            return Err((offset_col, GcodeErrorKind::ArcZeroRadius).into());
-        }
-        let tolerance = spiral_tolerance_mm(self.state.modal.inch);
-        let apart = (r_start - r_end).abs();
-        let relative = apart / r_start.max(r_end);
-        if apart > 100.0 * tolerance || (relative > SPIRAL_RELATIVE && apart > tolerance) {
-            let limit =
-                (100.0 * tolerance).min(tolerance.max(SPIRAL_RELATIVE * r_start.max(r_end)));
+/// An axis outside the arc's plane `[ia, ib]` that moves makes a helix: refused where a
+/// stage works in the plane (the wire offset, the taper).
+fn check_helix(
+    state: &InterpState,
+    axes: &MachineAxes,
+    letters: &Letters,
+    [ia, ib]: [usize; 2],
+    start: &Point,
+    end: &Point,
+    col: usize,
+) -> Step<()> {
+    let why = if state.modal.wire_offset.engaged() {
+        "under the wire offset (G41/G42 offset the path in the plane: cut the helix after G40)"
+    } else if state.modal.taper != 0.0 {
+        "under a taper (G51/G52 tilt the wire along a path in the plane: G50 first)"
+    } else {
+        return Ok(());
+    };
+    for (i, axis) in axes.iter().enumerate() {
+        if i != ia && i != ib && end[i] != start[i] {
+            let w = letters.get(axis.letter()).map_or(col, |w| w.col);
             return Err((
-                offset_col,
-                GcodeErrorKind::ArcSpiralTooFar {
-                    start: r_start,
-                    end: r_end,
-                    limit,
+                w,
+                GcodeErrorKind::HelicalArc {
+                    axis: axis.letter(),
+                    why,
                 },
             )
                 .into());
         }
-        Ok(center)
     }
+    Ok(())
+}
+
+/// The centre of an `I J K` arc in the plane of axes `[ia, ib]` (the offsets relative to
+/// the start, or absolute under `G90.1`, where both are needed), its start and end radii
+/// within LinuxCNC's spiral tolerance.
+fn centre_of_offsets(
+    state: &InterpState,
+    off_a: Option<&Word>,
+    off_b: Option<&Word>,
+    [ia, ib]: [usize; 2],
+    start: &Point,
+    end: &Point,
+    col: usize,
+) -> Step<Point> {
+    let mut center = *start;
+    let (va, vb) = match (off_a, off_b) {
+        (None, None) => return Err((col, GcodeErrorKind::ArcMissingCentre).into()),
+        (a, b) if state.modal.arc_centre_absolute && (a.is_none() || b.is_none()) => {
+            let [la, lb] = state.modal.plane.offset_letters();
+            let letter = if a.is_none() { la } else { lb };
+            let at = a.or(b).map_or(col, |w| w.col);
+            return Err((at, GcodeErrorKind::ArcCentreWordMissing { letter }).into());
+        }
+        (a, b) => (a, b),
+    };
+    let s = state.scale();
+    let va = va.map_or(0.0, |w| w.value * s);
+    let vb = vb.map_or(0.0, |w| w.value * s);
+    if state.modal.arc_centre_absolute {
+        let offset = state.offset();
+        center[ia] = va + offset[ia];
+        center[ib] = vb + offset[ib];
+    } else {
+        center[ia] = start[ia] + va;
+        center[ib] = start[ib] + vb;
+    }
+    let r_start = (start[ia] - center[ia]).hypot(start[ib] - center[ib]);
+    let r_end = (end[ia] - center[ia]).hypot(end[ib] - center[ib]);
+    let offset_col = off_a.or(off_b).map_or(col, |w| w.col);
+    if r_start < ARC_RADIUS_TOLERANCE_MM || r_end < ARC_RADIUS_TOLERANCE_MM {
+        return Err((offset_col, GcodeErrorKind::ArcZeroRadius).into());
+    }
+    let tolerance = spiral_tolerance_mm(state.modal.inch);
+    let apart = (r_start - r_end).abs();
+    let relative = apart / r_start.max(r_end);
+    if apart > 100.0 * tolerance || (relative > SPIRAL_RELATIVE && apart > tolerance) {
+        let limit = (100.0 * tolerance).min(tolerance.max(SPIRAL_RELATIVE * r_start.max(r_end)));
+        return Err((
+            offset_col,
+            GcodeErrorKind::ArcSpiralTooFar {
+                start: r_start,
+                end: r_end,
+                limit,
+            },
+        )
+            .into());
+    }
+    Ok(center)
 }
 
 /// An arc's `P`: how many times it goes round (1: as far as its end point, as without `P`).

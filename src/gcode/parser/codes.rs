@@ -2,19 +2,12 @@
 //! one group in a block conflict), and the refusals, each with the reason and what to post
 //! instead. Codes are compared as whole tenths (`G06.2` is 62), never as floats.
 
-use std::io::{BufRead, Seek};
+use super::{Fail, Step};
 
-use super::{BlockReader, Fail, Letters, Step, whole};
-
-/// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
-const MAX_DWELL_S: f64 = 86_400.0;
-/// Steepest taper accepted (degrees from vertical).
-const MAX_TAPER_DEG: f64 = 30.0;
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::work::WorkSystem;
 use crate::gcode::{NurbsForm, Plane};
-use crate::vocab::Axis;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Motion {
@@ -305,166 +298,6 @@ pub(super) fn classify_g(tenths: u32, col: usize) -> Step<GCode> {
                 .into());
         }
     })
-}
-
-impl<R: BufRead + Seek> BlockReader<R> {
-    /// Takes the G codes of a block in order: the modal groups they set, a dwell, the wire
-    /// offset, the work system; returns the words that act later (motion, offset, `G53`).
-    pub(super) fn apply_g_codes<'w>(
-        &mut self,
-        codes: &[(GCode, &'w Word)],
-        kept: &mut Letters<'w>,
-    ) -> Step<LaterCodes<'w>> {
-        let mut later = LaterCodes::default();
-        for &(code, w) in codes {
-            match code {
-                GCode::Dwell => {
-                    let Some(p) = kept.get('P') else {
-                        return Err((
-                            w.col,
-                            GcodeErrorKind::MissingCoordinate {
-                                what: "G4 needs P, the dwell in seconds".into(),
-                            },
-                        )
-                            .into());
-                    };
-                    if !(0.0..=MAX_DWELL_S).contains(&p.value) {
-                        return Err((
-                            p.col,
-                            GcodeErrorKind::OutOfRange {
-                                what: "dwell P (s)",
-                                value: p.value,
-                                min: 0.0,
-                                max: MAX_DWELL_S,
-                            },
-                        )
-                            .into());
-                    }
-                    self.state.pending_dwell += p.value;
-                    *kept = kept.without(&['P']);
-                }
-                GCode::Offset(o) => later.offset = Some((o, w)),
-                GCode::MachineCoords => later.machine = Some(w),
-                GCode::Reference { g30, store } => later.reference = Some((g30, store, w)),
-                GCode::Retract { initial_level } => {
-                    self.state.cycle.retract_to_initial = initial_level;
-                }
-                GCode::WorkSystem(system) => self.state.select_system(&self.axes, system, w)?,
-                GCode::CompOff => self.state.modal.wire_offset.cancel(),
-                GCode::Comp { left } => {
-                    let d = self.wire_offset(w, kept.get('D'))?;
-                    *kept = kept.without(&['D']);
-                    let plane = self.state.modal.plane;
-                    let has_xy = self.axes.contains(&Axis::X) && self.axes.contains(&Axis::Y);
-                    self.state
-                        .modal
-                        .wire_offset
-                        .start(left, d, plane, has_xy)
-                        .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
-                }
-                GCode::TaperOff => self.state.modal.taper = 0.0,
-                GCode::Taper { left } => {
-                    self.state.modal.taper = self.taper_angle(w, kept.get('A'), left)?;
-                    *kept = kept.without(&['A']);
-                }
-                GCode::Inch(inch) => self.state.modal.inch = inch,
-                GCode::Incremental(inc) => self.state.modal.incremental = inc,
-                GCode::ArcCentreAbsolute(abs) => self.state.modal.arc_centre_absolute = abs,
-                GCode::Plane(p) => self.state.modal.plane = p,
-                GCode::Accepted(_) => {}
-                GCode::Ignored {
-                    takes,
-                    only_with_words,
-                    why,
-                    ..
-                } => {
-                    let with_words = takes.iter().any(|&l| kept.get(l).is_some());
-                    *kept = kept.without(takes);
-                    if with_words || !only_with_words {
-                        self.diag
-                            .once_about(self.scratch.line_no, why, w.col, why.to_string());
-                    }
-                }
-                GCode::SpindleMode => self.diag.once_about(
-                    self.scratch.line_no,
-                    "spindle mode",
-                    w.col,
-                    format!(
-                        "G{}: spindle speed modes (G96/G97) do nothing on an EDM and are ignored",
-                        w.text
-                    ),
-                ),
-                GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
-                    later.motion = Some((code, w));
-                }
-            }
-        }
-        Ok(later)
-    }
-
-    /// The tilt `A` gives `G51`/`G52`, as the signed tangent of the angle (+: to the left of
-    /// the direction of travel), on a machine that can tilt the wire.
-    fn taper_angle(&self, g: &Word, a: Option<&Word>, left: bool) -> Step<f64> {
-        let fail = |col, message: String| Fail::from((col, GcodeErrorKind::Taper(message)));
-        let has = |axis| self.axes.contains(&axis);
-        if !(has(Axis::X) && has(Axis::Y) && has(Axis::U) && has(Axis::V)) {
-            return Err(fail(
-                g.col,
-                format!(
-                    "G{} tilts the wire with the upper guide: it needs the axes X, Y, U and V \
-                     (machine.axes has {})",
-                    g.text,
-                    self.axes.list()
-                ),
-            ));
-        }
-        let Some(a) = a else {
-            return Err(fail(
-                g.col,
-                format!(
-                    "G{} needs A, the wire's angle from vertical in degrees",
-                    g.text
-                ),
-            ));
-        };
-        if !(0.0..=MAX_TAPER_DEG).contains(&a.value) {
-            return Err(fail(
-                a.col,
-                format!(
-                    "A{}: the taper angle is 0 to {MAX_TAPER_DEG} degrees (G51 tilts left of \
-                     the direction of travel, G52 right)",
-                    a.text
-                ),
-            ));
-        }
-        let tan = a.value.to_radians().tan();
-        Ok(if left { tan } else { -tan })
-    }
-
-    /// The offset `D` names for `G41`/`G42`.
-    fn wire_offset(&self, g: &Word, d: Option<&Word>) -> Step<f64> {
-        let Some(d) = d else {
-            return Err((
-                g.col,
-                GcodeErrorKind::WireOffset(format!(
-                    "G{} needs D, the offset register (compensation.d_mm)",
-                    g.text
-                )),
-            )
-                .into());
-        };
-        let registers = &self.options.d_mm;
-        let k = whole(d, 0.0, 99.0)? as usize;
-        registers.get(k).copied().ok_or_else(|| {
-            Fail::from((
-                d.col,
-                GcodeErrorKind::WireOffset(format!(
-                    "D{k} is not set: compensation.d_mm has D0 to D{}",
-                    registers.len() - 1
-                )),
-            ))
-        })
-    }
 }
 
 /// The G words of a block that act after the modes are set: its motion, its offset code

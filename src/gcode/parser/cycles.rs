@@ -10,10 +10,10 @@
 //!
 //! Never under the wire offset (LinuxCNC refuses them with cutter compensation).
 
-use std::io::{BufRead, Seek};
-
+use super::axes::MachineAxes;
 use super::codes::Cycle;
-use super::{BlockReader, Fail, Letters, Step};
+use super::state::{BlockEnv, InterpState};
+use super::{Fail, Letters, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::{Block, BlockKind, Plane};
 use crate::geometry::{NurbsCurve, Point};
@@ -24,190 +24,152 @@ use crate::vocab::Axis;
 /// versions default to 1 mm on a mm machine and take `D`, as edmd does.)
 const PECK_CLEARANCE_MM: f64 = 0.010 * super::MM_PER_INCH;
 
-/// What the canned cycles keep from block to block.
-#[derive(Debug, Clone, Default)]
-pub(super) struct CycleState {
-    /// `G98`: out to the initial level after a hole; `G99` (false, the default): to R.
-    pub retract_to_initial: bool,
-    /// The Z (machine, mm) the series of cycles started at; cleared by any other motion.
-    pub initial_level: Option<f64>,
-    /// The last cycle's `R`, `Z`, `P` and `Q`, as written (program units).
-    pub r: f64,
-    pub z: f64,
-    pub p: f64,
-    pub q: f64,
+/// A canned cycle's block: its moves, from `state`'s position, which it moves to the last.
+/// `continuing`: the block is in the mode the last one set (its `R`, `Z`, `P`, `Q` hold).
+pub(super) fn cycle_moves(
+    state: &mut InterpState,
+    env: &mut BlockEnv,
+    cycle: Cycle,
+    continuing: bool,
+    line_no: u64,
+    letters: &Letters,
+    col: usize,
+) -> Step<Vec<Block>> {
+    let words = cycle_words(state, env.axes, cycle, continuing, letters, col)?;
+    let start = state.position;
+    let offset = state.offset();
+    let s = state.scale();
+    let [ix, iy, iz] = words.axes;
+    let first_level = *state.cycle.initial_level.get_or_insert(start[iz]);
+    let incremental = state.modal.incremental;
+    let (r, bottom) = if incremental {
+        let r = words.r * s + first_level;
+        (r, r + words.z * s)
+    } else {
+        (words.r * s + offset[iz], words.z * s + offset[iz])
+    };
+    if r < bottom {
+        return Err(cycle_fail(
+            col,
+            format!("{}: the R plane is below the bottom Z", cycle.g_code()),
+        ));
+    }
+    let (hole, step) = if incremental {
+        let by = |l: char| letters.get(l).map_or(0.0, |w| w.value * s);
+        ([start[ix], start[iy]], [by('X'), by('Y')])
+    } else {
+        let (target, _) = env.target(state, &start, letters, "Z")?;
+        ([target[ix], target[iy]], [0.0, 0.0])
+    };
+    let holes = Holes {
+        first: hole,
+        step,
+        count: words.repeats,
+    };
+    let feed = env.feed_limit(state, col);
+    let mut moves = MoveList::new(start, line_no, env.axes.len());
+    let clear = state.cycle.retract_to_initial;
+    drill(
+        &mut moves,
+        cycle,
+        &words,
+        holes,
+        [first_level, r, bottom],
+        clear,
+        feed,
+        col,
+    )?;
+    state.cycle.r = words.r;
+    state.cycle.z = words.z;
+    state.cycle.p = words.p;
+    state.cycle.q = words.q;
+    state.position = moves.at();
+    Ok(moves.blocks)
 }
 
-impl<R: BufRead + Seek> BlockReader<R> {
-    /// A canned cycle's block: its moves, the first returned and the others queued.
-    /// `continuing`: the block is in the mode the last one set (its `R`, `Z`, `P`, `Q` hold).
-    pub(super) fn cycle_block(
-        &mut self,
-        cycle: Cycle,
-        continuing: bool,
-        line_no: u64,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<Option<Block>> {
-        let words = self.cycle_words(cycle, continuing, letters, col)?;
-        let start = self.state.position;
-        let offset = self.state.offset();
-        let s = self.state.scale();
-        let [ix, iy, iz] = words.axes;
-        let first_level = *self.state.cycle.initial_level.get_or_insert(start[iz]);
-        let incremental = self.state.modal.incremental;
-        let (r, bottom) = if incremental {
-            let r = words.r * s + first_level;
-            (r, r + words.z * s)
-        } else {
-            (words.r * s + offset[iz], words.z * s + offset[iz])
-        };
-        if r < bottom {
-            return Err(cycle_fail(
-                col,
-                format!("{}: the R plane is below the bottom Z", cycle.g_code()),
-            ));
-        }
-        let (hole, step) = if incremental {
-            let by = |l: char| letters.get(l).map_or(0.0, |w| w.value * s);
-            ([start[ix], start[iy]], [by('X'), by('Y')])
-        } else {
-            let (target, _) =
-                self.state
-                    .target(&self.axes, self.scratch.machine_move, &start, letters, "Z")?;
-            ([target[ix], target[iy]], [0.0, 0.0])
-        };
-        let holes = Holes {
-            first: hole,
-            step,
-            count: words.repeats,
-        };
-        let feed = self
-            .state
-            .feed_limit(&mut self.diag, self.scratch.line_no, col);
-        let mut moves = MoveList::new(start, line_no, self.axes.len());
-        let clear = self.state.cycle.retract_to_initial;
-        drill(
-            &mut moves,
-            cycle,
-            &words,
-            holes,
-            [first_level, r, bottom],
-            clear,
-            feed,
+/// A cycle block's words, checked, with those the last block held where it has none.
+fn cycle_words(
+    state: &InterpState,
+    axes: &MachineAxes,
+    cycle: Cycle,
+    continuing: bool,
+    letters: &Letters,
+    col: usize,
+) -> Step<CycleWords> {
+    let code = cycle.g_code();
+    let own = match cycle {
+        Cycle::Drill => "RL",
+        Cycle::DwellAtBottom => "RLP",
+        Cycle::Peck | Cycle::ChipBreak => "RLQD",
+    };
+    axes.check_letters(letters, true, own, &format!("with {code}"))?;
+    if state.modal.wire_offset.engaged() {
+        return Err(cycle_fail(
             col,
-        )?;
-        self.state.cycle.r = words.r;
-        self.state.cycle.z = words.z;
-        self.state.cycle.p = words.p;
-        self.state.cycle.q = words.q;
-        self.state.position = moves.at();
-        self.emit_all(moves.blocks)
+            format!("{code} cannot run with the wire offset on (G40 first)"),
+        ));
     }
-
-    /// A cycle block's words, checked, with those the last block held where it has none.
-    fn cycle_words(
-        &self,
-        cycle: Cycle,
-        continuing: bool,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<CycleWords> {
-        let code = cycle.g_code();
-        let own = match cycle {
-            Cycle::Drill => "RL",
-            Cycle::DwellAtBottom => "RLP",
-            Cycle::Peck | Cycle::ChipBreak => "RLQD",
-        };
-        self.axes
-            .check_letters(letters, true, own, &format!("with {code}"))?;
-        if self.state.modal.wire_offset.engaged() {
-            return Err(cycle_fail(
-                col,
-                format!("{code} cannot run with the wire offset on (G40 first)"),
-            ));
-        }
-        if self.state.modal.plane != Plane::XY {
-            let plane = self.state.modal.plane.g_code();
-            return Err(cycle_fail(
-                col,
-                format!("{code} in {plane}: edmd's canned cycles plunge along Z, in G17"),
-            ));
-        }
-        let index = |axis| self.axes.iter().position(|&a| a == axis);
-        let (Some(ix), Some(iy), Some(iz)) = (index(Axis::X), index(Axis::Y), index(Axis::Z))
-        else {
-            let axes = self.axes.list();
-            return Err(cycle_fail(
-                col,
-                format!("{code} needs the axes X, Y and Z (machine.axes has {axes})"),
-            ));
-        };
-        let held = &self.state.cycle;
-        let word = |letter: char, held: f64, name: &str| -> Step<f64> {
-            match letters.get(letter) {
-                Some(w) => Ok(w.value),
-                None if continuing => Ok(held),
-                None => Err(cycle_fail(col, format!("{code} needs {letter}, {name}"))),
-            }
-        };
-        let at = |letter: char| letters.get(letter).map_or(col, |w| w.col);
-        let z = word('Z', held.z, "the bottom of the hole")?;
-        let r = word('R', held.r, "the R plane the plunge starts from")?;
-        let p = match cycle {
-            Cycle::DwellAtBottom => word('P', held.p, "the dwell at the bottom (s)")?,
-            _ => held.p,
-        };
-        if !(0.0..=86_400.0).contains(&p) {
-            return Err(cycle_fail(
-                at('P'),
-                format!("{code}'s dwell P is 0 to 86400 s"),
-            ));
-        }
-        let q = match cycle {
-            Cycle::Peck | Cycle::ChipBreak => word('Q', held.q, "the depth of each peck")?,
-            _ => held.q,
-        };
-        if matches!(cycle, Cycle::Peck | Cycle::ChipBreak) && q <= 0.0 {
-            return Err(cycle_fail(
-                at('Q'),
-                format!("{code}'s peck Q must be more than 0"),
-            ));
-        }
-        let repeats = match letters.get('L') {
-            Some(l) => super::whole_as(l, 1.0, 1e6, "a cycle's repeat count L")? as u32,
-            None => 1,
-        };
-        let s = self.state.scale();
-        Ok(CycleWords {
-            axes: [ix, iy, iz],
-            r,
-            z,
-            p,
-            q,
-            repeats,
-            clearance_mm: letters.get('D').map_or(PECK_CLEARANCE_MM, |d| d.value * s),
-            q_mm: q * s,
-        })
+    if state.modal.plane != Plane::XY {
+        let plane = state.modal.plane.g_code();
+        return Err(cycle_fail(
+            col,
+            format!("{code} in {plane}: edmd's canned cycles plunge along Z, in G17"),
+        ));
     }
-
-    /// The first of `blocks` (with the dwell and pause waiting for a motion), the others
-    /// queued behind it.
-    pub(super) fn emit_all(&mut self, blocks: Vec<Block>) -> Step<Option<Block>> {
-        let mut blocks = blocks.into_iter();
-        let Some(first) = blocks.next() else {
-            return Ok(None);
-        };
-        let first = self
-            .state
-            .block(first.line, first.kind, first.curve, first.feed_mm_per_min);
-        for mut b in blocks {
-            b.flushing = first.flushing;
-            b.condition = first.condition;
-            self.out.queued.push_back(b);
+    let index = |axis| axes.iter().position(|&a| a == axis);
+    let (Some(ix), Some(iy), Some(iz)) = (index(Axis::X), index(Axis::Y), index(Axis::Z)) else {
+        let list = axes.list();
+        return Err(cycle_fail(
+            col,
+            format!("{code} needs the axes X, Y and Z (machine.axes has {list})"),
+        ));
+    };
+    let held = &state.cycle;
+    let word = |letter: char, held: f64, name: &str| -> Step<f64> {
+        match letters.get(letter) {
+            Some(w) => Ok(w.value),
+            None if continuing => Ok(held),
+            None => Err(cycle_fail(col, format!("{code} needs {letter}, {name}"))),
         }
-        Ok(Some(first))
+    };
+    let at = |letter: char| letters.get(letter).map_or(col, |w| w.col);
+    let z = word('Z', held.z, "the bottom of the hole")?;
+    let r = word('R', held.r, "the R plane the plunge starts from")?;
+    let p = match cycle {
+        Cycle::DwellAtBottom => word('P', held.p, "the dwell at the bottom (s)")?,
+        _ => held.p,
+    };
+    if !(0.0..=86_400.0).contains(&p) {
+        return Err(cycle_fail(
+            at('P'),
+            format!("{code}'s dwell P is 0 to 86400 s"),
+        ));
     }
+    let q = match cycle {
+        Cycle::Peck | Cycle::ChipBreak => word('Q', held.q, "the depth of each peck")?,
+        _ => held.q,
+    };
+    if matches!(cycle, Cycle::Peck | Cycle::ChipBreak) && q <= 0.0 {
+        return Err(cycle_fail(
+            at('Q'),
+            format!("{code}'s peck Q must be more than 0"),
+        ));
+    }
+    let repeats = match letters.get('L') {
+        Some(l) => super::whole_as(l, 1.0, 1e6, "a cycle's repeat count L")? as u32,
+        None => 1,
+    };
+    let s = state.scale();
+    Ok(CycleWords {
+        axes: [ix, iy, iz],
+        r,
+        z,
+        p,
+        q,
+        repeats,
+        clearance_mm: letters.get('D').map_or(PECK_CLEARANCE_MM, |d| d.value * s),
+        q_mm: q * s,
+    })
 }
 
 fn cycle_fail(col: usize, what: String) -> Fail {

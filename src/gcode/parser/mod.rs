@@ -3,9 +3,12 @@
 //! This file is the reader's loop: pull a line ([`super::lines`]), lex it
 //! ([`super::lexer`]), index its words by letter, then hand the block to the modal
 //! interpreter ([`modal`]: units, distance mode, plane, feed, lines; the `G` words are
-//! classified by [`codes`]), which passes arcs to [`arc`] and NURBS curves to [`nurbs`] (the
-//! three dialects, collected over several lines until they close). Every failure is a [`Fail`] (column and kind) that the
-//! loop locates (`file:line:col` and the line's text) before it leaves the reader.
+//! classified by [`codes`]), which passes arcs to [`arc`], NURBS curves to [`nurbs`] (the
+//! three dialects, collected over several lines until they close) and canned cycles to
+//! [`cycles`]. Those forms are functions of the interpreter's state and what the reader lends
+//! them for the block ([`state::BlockEnv`]), not methods of the reader. Every failure is a
+//! [`Fail`] (column and kind) that the loop locates (`file:line:col` and the line's text)
+//! before it leaves the reader.
 
 mod arc;
 mod axes;
@@ -13,8 +16,10 @@ mod codes;
 mod control;
 mod cycles;
 mod modal;
+mod modes;
 mod nurbs;
 mod offsets;
+mod params;
 mod polar;
 mod state;
 mod structure;
@@ -27,11 +32,13 @@ use std::sync::atomic::AtomicBool;
 use super::error::{GcodeError, GcodeErrorKind, Warning};
 use super::lexer::{Word, lex, program_number_of};
 use super::lines::{Line, LineSource, MAX_LINE_BYTES};
+use super::work::{StartModes, WorkOffsets, WorkStart, WorkSystem};
 use super::{Block, ProgramOptions};
 use crate::geometry::Point;
 use crate::vocab::Axis;
 use axes::MachineAxes;
-use state::{Diagnostics, InterpState, LineScratch, Output, ProgramFlow};
+use nurbs::PendingCurve;
+use state::{Diagnostics, InterpState, LineScratch, ProgramFlow};
 use system::ReaderEnv;
 
 pub use arc::ARC_RADIUS_TOLERANCE_MM;
@@ -95,6 +102,31 @@ impl<'w> Letters<'w> {
 
     pub(super) fn present(&self) -> impl Iterator<Item = &'w Word> + '_ {
         self.by_letter.iter().flatten().copied()
+    }
+}
+
+/// What is on its way out of the reader.
+struct Output {
+    /// A NURBS curve being collected over several lines.
+    pending: Option<PendingCurve>,
+    /// The moves after the first of a block that makes several (a canned cycle, `G28`),
+    /// handed out before the next line is read.
+    queued: std::collections::VecDeque<Block>,
+}
+
+impl Output {
+    /// The first of `blocks` (with the dwell and pause waiting in `state` for a motion), the
+    /// others queued behind it.
+    fn emit_all(&mut self, state: &mut InterpState, blocks: Vec<Block>) -> Option<Block> {
+        let mut blocks = blocks.into_iter();
+        let first = blocks.next()?;
+        let first = state.block(first.line, first.kind, first.curve, first.feed_mm_per_min);
+        for mut b in blocks {
+            b.flushing = first.flushing;
+            b.condition = first.condition;
+            self.queued.push_back(b);
+        }
+        Some(first)
     }
 }
 
@@ -175,6 +207,37 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// The line of the M2/M30 that ended the program, if one did.
     pub fn program_end_line(&self) -> Option<u64> {
         self.program.ended_at
+    }
+
+    /// Starts the program at `start`: the machine position, the work offsets (written to their
+    /// parameters) and the active system. Call before the first block is read.
+    pub fn start_at(&mut self, start: &WorkStart) {
+        self.state.start_at(&self.axes, start);
+    }
+
+    /// The units and distance mode in force now (for the next MDI line).
+    pub fn modes(&self) -> StartModes {
+        StartModes {
+            inch: self.state.modal.inch,
+            incremental: self.state.modal.incremental,
+        }
+    }
+
+    /// The work offsets as the program has left them (`G10` changes them), mm.
+    pub fn work_offsets(&self) -> WorkOffsets {
+        self.state.work_offsets(&self.axes)
+    }
+
+    /// The active work system.
+    pub fn work_system(&self) -> WorkSystem {
+        self.state.system
+    }
+
+    /// The probing move just read ended at `at` (mm, machine axes; with `contact`, or at its
+    /// end point without): the program goes on from there (`#5061`… hold the point, `#5070`
+    /// whether it touched).
+    pub fn probed(&mut self, at: &Point, contact: bool) {
+        self.state.probed(&self.axes, at, contact);
     }
 
     fn error(&self, line: u64, text: &str, fail: Fail) -> GcodeError {
@@ -431,8 +494,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         if let Some(n) = letters.get('N') {
             whole(n, 0.0, 1e9)?;
         }
-        if self.out.pending.is_some() {
-            return self.continue_curve(&letters, words);
+        if let Some(curve) = self.out.pending.take() {
+            return self.curve_line(curve, &letters, words);
         }
         self.start_block(line_no, text, &letters, words)
     }

@@ -1,106 +1,53 @@
-//! The modal state of an RS274 controller and the blocks it turns into motion: G-code
-//! words classified into their groups (motion, units, distance mode, arc centres, plane, and
-//! the modes edmd is always in), M and feed words, and `G0`/`G1` lines. Arcs go to
-//! [`super::arc`], NURBS curves to [`super::nurbs`].
+//! A block's dispatch: its G codes applied in order to the modal groups ([`super::modes`];
+//! classified by [`super::codes`]), its M and feed words, then its motion: `G0`/`G1` lines
+//! here; arcs to [`super::arc`], NURBS curves to [`super::nurbs`], canned cycles to
+//! [`super::cycles`], the offsets' codes, `G28`/`G30` and probing to [`super::offsets`]. Those
+//! are functions of the interpreter's state and the [`super::state::BlockEnv`] lent for the
+//! block.
 
 use std::io::{BufRead, Seek};
 
-use super::codes::{GCode, Motion, OffsetCode, Probing, g_codes};
-use super::nurbs::curve_letters;
+use super::arc::arc_block;
+use super::axes::MachineAxes;
+use super::codes::{GCode, LaterCodes, Motion, OffsetCode, Probing, g_codes};
+use super::cycles::cycle_moves;
+use super::nurbs::{PendingCurve, curve_letters, quad_spline};
+use super::offsets::{check_machine_move, coordinate_offset, probe_block, reference_point};
+use super::state::{BlockEnv, InterpState};
 use super::{BlockReader, Fail, Letters, Step, first_col, whole, whole_as};
 use crate::gcode::error::{GcodeErrorKind, Warning};
 use crate::gcode::lexer::Word;
-use crate::gcode::{Block, BlockKind, NurbsForm, Pause, Plane, VendorAction, WireOffset};
+use crate::gcode::{Block, BlockKind, NurbsForm, Pause, VendorAction};
 use crate::geometry::NurbsCurve;
-
-#[derive(Debug, Clone)]
-pub(super) struct Modal {
-    pub(super) inch: bool,
-    pub(super) incremental: bool,
-    pub(super) arc_centre_absolute: bool,
-    pub(super) plane: Plane,
-    pub(super) motion: Option<Motion>,
-    /// mm/min
-    pub(super) feed: Option<f64>,
-    /// The wire's tilt (`G51`/`G52`): the tangent of its angle from vertical, + to the left
-    /// of the direction of travel; 0: vertical (`G50`).
-    pub(super) taper: f64,
-    /// `G41`/`G42`/`G40`.
-    pub(super) wire_offset: WireOffsetMode,
-}
-
-/// The wire offset as the program set it (`G41`/`G42`, `G40`) and where its moves stand. The
-/// reader refuses what cannot happen under it (changing offsets, probing, a second `G41`);
-/// every move carries the offset it is cut with ([`crate::gcode::Block::wire_offset`]) and
-/// the path's wire-offset stage does the geometry.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub(super) enum WireOffsetMode {
-    #[default]
-    Off,
-    /// `G41`/`G42` given: the next move is the entry.
-    Entry(WireOffset),
-    On(WireOffset),
-    /// `G40` given while on: the next move is the exit.
-    Exit,
-}
-
-impl WireOffsetMode {
-    /// The offset is on, or about to be, or its exit move is still to come.
-    pub(super) fn engaged(self) -> bool {
-        self != WireOffsetMode::Off
-    }
-
-    /// `G41` (`left`) or `G42` with offset `d_mm`, in `plane`, on a machine that has X and Y
-    /// (`has_xy`). Errors are messages for the G word.
-    pub(super) fn start(
-        &mut self,
-        left: bool,
-        d_mm: f64,
-        plane: Plane,
-        has_xy: bool,
-    ) -> Result<(), String> {
-        if plane != Plane::XY {
-            return Err("the wire offset works in the XY plane (G17) only".into());
-        }
-        if !has_xy {
-            return Err("the wire offset needs axes X and Y on the machine".into());
-        }
-        if matches!(self, WireOffsetMode::On(_) | WireOffsetMode::Exit) {
-            return Err("the wire offset is already on: cancel it with G40 first".into());
-        }
-        *self = if d_mm == 0.0 {
-            WireOffsetMode::Off
-        } else {
-            WireOffsetMode::Entry(WireOffset { left, d_mm })
-        };
-        Ok(())
-    }
-
-    /// `G40`.
-    pub(super) fn cancel(&mut self) {
-        *self = match *self {
-            WireOffsetMode::Off | WireOffsetMode::Entry(_) => WireOffsetMode::Off,
-            WireOffsetMode::On(_) | WireOffsetMode::Exit => WireOffsetMode::Exit,
-        };
-    }
-
-    /// A move was read: the offset it is cut with; the entry and the exit move the mode on.
-    pub(super) fn stamp_move(&mut self) -> Option<WireOffset> {
-        match *self {
-            WireOffsetMode::Off => None,
-            WireOffsetMode::Entry(w) | WireOffsetMode::On(w) => {
-                *self = WireOffsetMode::On(w);
-                Some(w)
-            }
-            WireOffsetMode::Exit => {
-                *self = WireOffsetMode::Off;
-                None
-            }
-        }
-    }
-}
+use crate::vocab::Axis;
 
 impl<R: BufRead + Seek> BlockReader<R> {
+    /// The interpreter's state and what a block's form reads beside it, lent for one block.
+    fn form_parts(&mut self) -> (&mut InterpState, BlockEnv<'_>) {
+        let env = BlockEnv {
+            options: &self.options,
+            axes: &self.axes,
+            diag: &mut self.diag,
+            line: &self.scratch,
+        };
+        (&mut self.state, env)
+    }
+
+    /// A line of the open curve `curve`: its block once the line closes it.
+    pub(super) fn curve_line(
+        &mut self,
+        mut curve: PendingCurve,
+        letters: &Letters,
+        words: &[Word],
+    ) -> Step<Option<Block>> {
+        let (state, mut env) = self.form_parts();
+        if curve.take_line(state, &mut env, letters, words)? {
+            return curve.close(state, env.axes).map(Some);
+        }
+        self.out.pending = Some(curve);
+        Ok(None)
+    }
+
     pub(super) fn start_block(
         &mut self,
         line_no: u64,
@@ -122,7 +69,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             None => None,
         };
-        let later = self.apply_g_codes(&codes, &mut kept)?;
+        let (state, mut env) = self.form_parts();
+        let later = apply_g_codes(state, &mut env, &codes, &mut kept)?;
         let motion_word = later.motion;
         if let (Some((_, _, r)), Some((_, m))) = (later.reference, motion_word) {
             return Err((
@@ -145,7 +93,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 )
                     .into());
             }
-            self.coordinate_offset(code, w, &kept)?;
+            coordinate_offset(&mut self.state, &self.axes, code, w, &kept)?;
             let axis_letters: Vec<char> = self.axes.iter().map(|a| a.letter()).collect();
             kept = kept.without(&axis_letters);
             if code == OffsetCode::Table {
@@ -158,7 +106,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 Some(_) => None,
                 None => self.state.modal.motion,
             };
-            self.check_machine_move(g53, matches!(motion, Some(Motion::Rapid | Motion::Linear)))?;
+            let straight = matches!(motion, Some(Motion::Rapid | Motion::Linear));
+            check_machine_move(&self.state, g53, straight)?;
         }
         self.scratch.machine_move = later.machine.is_some();
         let letters = &kept;
@@ -188,7 +137,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.condition_and_feed(line_no, letters)?;
 
         let block = match later.reference {
-            Some((g30, store, w)) => self.reference_point(g30, store, w, line_no, letters),
+            Some((g30, store, w)) => {
+                let (state, mut env) = self.form_parts();
+                reference_point(state, &mut env, g30, store, w, line_no, letters)
+                    .map(|moves| self.out.emit_all(&mut self.state, moves))
+            }
             None => self.motion_of(motion_word, line_no, text, letters, words),
         };
         self.scratch.machine_move = false;
@@ -358,7 +311,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     curve_letters(form, true),
                     &format!("with {}", form.name()),
                 )?;
-                self.open_curve(form, line_no, text, w, letters)?
+                let (state, mut env) = self.form_parts();
+                let curve = PendingCurve::open(state, &mut env, form, text, w, letters)?;
+                self.out.pending = Some(curve);
+                None
             }
             Some((GCode::CurveEnd, w)) => {
                 return Err((w.col, GcodeErrorKind::NurbsEndWithoutStart).into());
@@ -469,11 +425,30 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 Ok(Some(self.state.block(line_no, kind, curve, feed)))
             }
             Motion::Cw | Motion::Ccw => {
-                self.arc_block(motion == Motion::Ccw, line_no, letters, col)
+                let (state, mut env) = self.form_parts();
+                arc_block(
+                    state,
+                    &mut env,
+                    motion == Motion::Ccw,
+                    line_no,
+                    letters,
+                    col,
+                )
+                .map(Some)
             }
-            Motion::Probe(p) => self.probe_block(p.probe, line_no, letters, col),
-            Motion::QuadSpline => self.quad_spline(line_no, letters, col).map(Some),
-            Motion::Cycle(c) => self.cycle_block(c, continuing, line_no, letters, col),
+            Motion::Probe(p) => {
+                let (state, mut env) = self.form_parts();
+                probe_block(state, &mut env, p.probe, line_no, letters, col)
+            }
+            Motion::QuadSpline => {
+                let (state, mut env) = self.form_parts();
+                quad_spline(state, &mut env, line_no, letters, col).map(Some)
+            }
+            Motion::Cycle(c) => {
+                let (state, mut env) = self.form_parts();
+                let moves = cycle_moves(state, &mut env, c, continuing, line_no, letters, col)?;
+                Ok(self.out.emit_all(&mut self.state, moves))
+            }
         }
     }
 }
@@ -502,4 +477,165 @@ struct MWords {
     program_end: bool,
     pause: Option<Pause>,
     m99: Option<usize>,
+}
+
+/// Longest dwell accepted, s (a P in milliseconds by mistake is caught well before a day).
+const MAX_DWELL_S: f64 = 86_400.0;
+/// Steepest taper accepted (degrees from vertical).
+const MAX_TAPER_DEG: f64 = 30.0;
+
+/// Takes the G codes of a block in order: the modal groups they set, a dwell, the wire
+/// offset, the work system; returns the words that act later (motion, offset, `G53`).
+pub(super) fn apply_g_codes<'w>(
+    state: &mut InterpState,
+    env: &mut BlockEnv,
+    codes: &[(GCode, &'w Word)],
+    kept: &mut Letters<'w>,
+) -> Step<LaterCodes<'w>> {
+    let mut later = LaterCodes::default();
+    for &(code, w) in codes {
+        match code {
+            GCode::Dwell => {
+                let Some(p) = kept.get('P') else {
+                    return Err((
+                        w.col,
+                        GcodeErrorKind::MissingCoordinate {
+                            what: "G4 needs P, the dwell in seconds".into(),
+                        },
+                    )
+                        .into());
+                };
+                if !(0.0..=MAX_DWELL_S).contains(&p.value) {
+                    return Err((
+                        p.col,
+                        GcodeErrorKind::OutOfRange {
+                            what: "dwell P (s)",
+                            value: p.value,
+                            min: 0.0,
+                            max: MAX_DWELL_S,
+                        },
+                    )
+                        .into());
+                }
+                state.pending_dwell += p.value;
+                *kept = kept.without(&['P']);
+            }
+            GCode::Offset(o) => later.offset = Some((o, w)),
+            GCode::MachineCoords => later.machine = Some(w),
+            GCode::Reference { g30, store } => later.reference = Some((g30, store, w)),
+            GCode::Retract { initial_level } => {
+                state.cycle.retract_to_initial = initial_level;
+            }
+            GCode::WorkSystem(system) => state.select_system(env.axes, system, w)?,
+            GCode::CompOff => state.modal.wire_offset.cancel(),
+            GCode::Comp { left } => {
+                let d = wire_offset(&env.options.d_mm, w, kept.get('D'))?;
+                *kept = kept.without(&['D']);
+                let plane = state.modal.plane;
+                let has_xy = env.axes.contains(&Axis::X) && env.axes.contains(&Axis::Y);
+                state
+                    .modal
+                    .wire_offset
+                    .start(left, d, plane, has_xy)
+                    .map_err(|m| Fail::from((w.col, GcodeErrorKind::WireOffset(m))))?;
+            }
+            GCode::TaperOff => state.modal.taper = 0.0,
+            GCode::Taper { left } => {
+                state.modal.taper = taper_angle(env.axes, w, kept.get('A'), left)?;
+                *kept = kept.without(&['A']);
+            }
+            GCode::Inch(inch) => state.modal.inch = inch,
+            GCode::Incremental(inc) => state.modal.incremental = inc,
+            GCode::ArcCentreAbsolute(abs) => state.modal.arc_centre_absolute = abs,
+            GCode::Plane(p) => state.modal.plane = p,
+            GCode::Accepted(_) => {}
+            GCode::Ignored {
+                takes,
+                only_with_words,
+                why,
+                ..
+            } => {
+                let with_words = takes.iter().any(|&l| kept.get(l).is_some());
+                *kept = kept.without(takes);
+                if with_words || !only_with_words {
+                    env.warn_once(why, w.col, why.to_string());
+                }
+            }
+            GCode::SpindleMode => env.warn_once(
+                "spindle mode",
+                w.col,
+                format!(
+                    "G{}: spindle speed modes (G96/G97) do nothing on an EDM and are ignored",
+                    w.text
+                ),
+            ),
+            GCode::Motion(_) | GCode::MotionCancel | GCode::Curve(_) | GCode::CurveEnd => {
+                later.motion = Some((code, w));
+            }
+        }
+    }
+    Ok(later)
+}
+
+/// The tilt `A` gives `G51`/`G52`, as the signed tangent of the angle (+: to the left of
+/// the direction of travel), on a machine that can tilt the wire.
+fn taper_angle(axes: &MachineAxes, g: &Word, a: Option<&Word>, left: bool) -> Step<f64> {
+    let fail = |col, message: String| Fail::from((col, GcodeErrorKind::Taper(message)));
+    let has = |axis| axes.contains(&axis);
+    if !(has(Axis::X) && has(Axis::Y) && has(Axis::U) && has(Axis::V)) {
+        return Err(fail(
+            g.col,
+            format!(
+                "G{} tilts the wire with the upper guide: it needs the axes X, Y, U and V \
+                 (machine.axes has {})",
+                g.text,
+                axes.list()
+            ),
+        ));
+    }
+    let Some(a) = a else {
+        return Err(fail(
+            g.col,
+            format!(
+                "G{} needs A, the wire's angle from vertical in degrees",
+                g.text
+            ),
+        ));
+    };
+    if !(0.0..=MAX_TAPER_DEG).contains(&a.value) {
+        return Err(fail(
+            a.col,
+            format!(
+                "A{}: the taper angle is 0 to {MAX_TAPER_DEG} degrees (G51 tilts left of \
+                 the direction of travel, G52 right)",
+                a.text
+            ),
+        ));
+    }
+    let tan = a.value.to_radians().tan();
+    Ok(if left { tan } else { -tan })
+}
+
+/// The offset `D` names for `G41`/`G42`.
+fn wire_offset(registers: &[f64], g: &Word, d: Option<&Word>) -> Step<f64> {
+    let Some(d) = d else {
+        return Err((
+            g.col,
+            GcodeErrorKind::WireOffset(format!(
+                "G{} needs D, the offset register (compensation.d_mm)",
+                g.text
+            )),
+        )
+            .into());
+    };
+    let k = whole(d, 0.0, 99.0)? as usize;
+    registers.get(k).copied().ok_or_else(|| {
+        Fail::from((
+            d.col,
+            GcodeErrorKind::WireOffset(format!(
+                "D{k} is not set: compensation.d_mm has D0 to D{}",
+                registers.len() - 1
+            )),
+        ))
+    })
 }

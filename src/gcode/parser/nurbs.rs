@@ -12,12 +12,10 @@
 //! A curve in progress is a [`PendingCurve`]; anything else on its lines (another motion,
 //! an unknown word, a decreasing knot) is an error naming the line where the curve began.
 
-use std::io::{BufRead, Seek};
-
+use super::axes::MachineAxes;
 use super::codes::{GCode, classify_g, g_code_tenths};
-use super::{
-    BlockReader, CURVE_START_TOLERANCE_MM, Fail, Letters, MAX_CURVE_POINTS, Step, first_col, whole,
-};
+use super::state::{BlockEnv, InterpState};
+use super::{CURVE_START_TOLERANCE_MM, Fail, Letters, MAX_CURVE_POINTS, Step, first_col, whole};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind, NurbsForm};
@@ -106,26 +104,25 @@ impl PendingCurve {
     }
 }
 
-impl<R: BufRead + Seek> BlockReader<R> {
-    pub(super) fn open_curve(
-        &mut self,
+impl PendingCurve {
+    /// The curve a `G38`, `G06.2` or `G5.2` block opens at `state`'s position, with the
+    /// block's control point (if it gives one) in it.
+    pub(super) fn open(
+        state: &InterpState,
+        env: &mut BlockEnv,
         form: NurbsForm,
-        line_no: u64,
         text: &str,
         g_word: &Word,
         letters: &Letters,
-    ) -> Step<Option<Block>> {
-        let feed = self
-            .state
-            .feed_limit(&mut self.diag, self.scratch.line_no, g_word.col);
+    ) -> Step<PendingCurve> {
+        let feed = env.feed_limit(state, g_word.col);
         let (degree, low_order) = opening_degree(form, g_word, letters)?;
         if let Some((col, message)) = low_order {
-            self.diag
-                .once_about(self.scratch.line_no, "G5.2 order", col, message);
+            env.warn_once("G5.2 order", col, message);
         }
         let mut curve = PendingCurve {
             form,
-            start_line: line_no,
+            start_line: env.line.line_no,
             start_col: g_word.col,
             start_text: text.to_string(),
             degree,
@@ -163,68 +160,46 @@ impl<R: BufRead + Seek> BlockReader<R> {
         if form == NurbsForm::LinuxCnc {
             // The current position is the first control point; a G5.2 without axis words only
             // sets that point's weight.
-            let off_plane: String = self
-                .axes
-                .iter()
-                .map(|a| a.letter())
-                .filter(|&l| l != 'X' && l != 'Y')
-                .collect();
-            let (_, any) = self.state.target(
-                &self.axes,
-                self.scratch.machine_move,
-                &self.state.position,
-                letters,
-                &off_plane,
-            )?;
+            let (_, any) = env.target(state, &state.position, letters, &off_plane(env.axes))?;
             let p0_weight = if any { 1.0 } else { weight(letters.get('P'))? };
-            curve.points.push(self.state.position);
+            curve.points.push(state.position);
             curve.push_weight(p0_weight, letters.get('P'))?;
             if any {
-                self.add_point(&mut curve, letters, g_word.col)?;
+                curve.add_point(state, env, letters, g_word.col)?;
             }
         } else {
-            let first = self.add_point(&mut curve, letters, g_word.col)?;
-            let gap = (first - self.state.position).norm();
+            let first = curve.add_point(state, env, letters, g_word.col)?;
+            let gap = (first - state.position).norm();
             if gap > CURVE_START_TOLERANCE_MM {
                 return Err((
                     g_word.col,
                     GcodeErrorKind::NurbsStartMismatch {
-                        first: self.format_point(&first),
-                        current: self.format_point(&self.state.position),
+                        first: format_point(env.axes, state.scale(), &first),
+                        current: format_point(env.axes, state.scale(), &state.position),
                     },
                 )
                     .into());
             }
             // Within tolerance: start exactly where the tool is, so no step is lost or invented.
-            curve.points[0] = self.state.position;
+            curve.points[0] = state.position;
         }
-        self.out.pending = Some(curve);
-        Ok(None)
+        Ok(curve)
     }
 
-    pub(super) fn format_point(&self, p: &Point) -> String {
-        let parts: Vec<String> = self
-            .axes
-            .iter()
-            .enumerate()
-            .map(|(i, a)| format!("{a}{:.4}", p[i] / self.state.scale()))
-            .collect();
-        parts.join(" ")
-    }
-
-    /// Adds the block's control point (and its weight and knot) to `curve`; returns the point.
+    /// Adds the block's control point (and its weight and knot); returns the point.
     ///
     /// `G5.2` points follow LinuxCNC (interp_convert.cc, `convert_nurbs`): under `G91` each is
     /// relative to the curve's start point, not to the previous point, and only X and Y are
     /// part of the curve (other axis words are ignored; the curve stays at its start's other
     /// coordinates). Each is warned about once where a program relies on it.
-    pub(super) fn add_point(
+    fn add_point(
         &mut self,
-        curve: &mut PendingCurve,
+        state: &InterpState,
+        env: &mut BlockEnv,
         letters: &Letters,
         col: usize,
     ) -> Step<Point> {
-        if curve.points.len() >= MAX_CURVE_POINTS {
+        if self.points.len() >= MAX_CURVE_POINTS {
             return Err((
                 col,
                 GcodeErrorKind::TooManyPoints {
@@ -233,28 +208,23 @@ impl<R: BufRead + Seek> BlockReader<R> {
             )
                 .into());
         }
-        let linuxcnc = curve.form == NurbsForm::LinuxCnc;
-        let base = match curve.points.first() {
+        let linuxcnc = self.form == NurbsForm::LinuxCnc;
+        let base = match self.points.first() {
             Some(&start) if linuxcnc => start,
-            _ => curve.points.last().copied().unwrap_or(self.state.position),
+            _ => self.points.last().copied().unwrap_or(state.position),
         };
         // G38's first line uses C for the point count, even on a machine with a C axis; a G5.2
         // curve takes X and Y only.
-        let reserved: String = if curve.form == NurbsForm::G38 && curve.points.is_empty() {
+        let reserved: String = if self.form == NurbsForm::G38 && self.points.is_empty() {
             "C".into()
         } else if linuxcnc {
-            self.axes
-                .iter()
-                .map(|a| a.letter())
-                .filter(|&l| l != 'X' && l != 'Y')
-                .collect()
+            off_plane(env.axes)
         } else {
             String::new()
         };
         if linuxcnc {
             if let Some(w) = reserved.chars().find_map(|l| letters.get(l)) {
-                self.diag.once_about(
-                self.scratch.line_no,
+                env.warn_once(
                     "G5.2 plane",
                     w.col,
                     format!(
@@ -263,9 +233,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     ),
                 );
             }
-            if self.state.modal.incremental && curve.points.len() >= 2 {
-                self.diag.once_about(
-                    self.scratch.line_no,
+            if state.modal.incremental && self.points.len() >= 2 {
+                env.warn_once(
                     "G5.2 incremental",
                     col,
                     "G5.2 under G91: every control point is relative to the curve's start point, \
@@ -274,25 +243,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 );
             }
         }
-        let (p, any) = self.state.target(
-            &self.axes,
-            self.scratch.machine_move,
-            &base,
-            letters,
-            &reserved,
-        )?;
+        let (p, any) = env.target(state, &base, letters, &reserved)?;
         if !any {
             return Err((
                 col,
                 GcodeErrorKind::MissingCoordinate {
-                    what: format!("{} control point without axis words", curve.form.name()),
+                    what: format!("{} control point without axis words", self.form.name()),
                 },
             )
                 .into());
         }
-        let w = weight(letters.get(curve.form.weight_letter()))?;
-        if curve.form == NurbsForm::Fanuc || curve.knots_given {
-            push_knot(curve, letters, col)?;
+        let w = weight(letters.get(self.form.weight_letter()))?;
+        if self.form == NurbsForm::Fanuc || self.knots_given {
+            push_knot(self, letters, col)?;
         } else if let Some(k) = letters.get('K') {
             return Err((
                 k.col,
@@ -303,36 +266,16 @@ impl<R: BufRead + Seek> BlockReader<R> {
             )
                 .into());
         }
-        curve.points.push(p);
-        curve.push_weight(w, letters.get(curve.form.weight_letter()))?;
+        self.points.push(p);
+        self.push_weight(w, letters.get(self.form.weight_letter()))?;
         Ok(p)
     }
 
-    pub(super) fn continue_curve(
-        &mut self,
-        letters: &Letters,
-        words: &[Word],
-    ) -> Step<Option<Block>> {
-        let mut curve = self
-            .out
-            .pending
-            .take()
-            .expect("continue_curve with a pending curve");
-        let result = self.continue_curve_inner(&mut curve, letters, words);
-        match result {
-            Ok(true) => self.close_curve(curve).map(Some),
-            Ok(false) => {
-                self.out.pending = Some(curve);
-                Ok(None)
-            }
-            Err(e) => Err(e),
-        }
-    }
-
     /// Takes one line of an open curve; `true` when the curve is complete.
-    pub(super) fn continue_curve_inner(
+    pub(super) fn take_line(
         &mut self,
-        curve: &mut PendingCurve,
+        state: &InterpState,
+        env: &mut BlockEnv,
         letters: &Letters,
         words: &[Word],
     ) -> Step<bool> {
@@ -342,7 +285,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let by = format!("{}{}", w.letter, w.text);
             if w.letter == 'G' {
                 let code = classify_g(g_code_tenths(w)?, w.col)?;
-                match (curve.form, code) {
+                match (self.form, code) {
                     (NurbsForm::G38, GCode::Curve(NurbsForm::G38))
                     | (NurbsForm::Fanuc, GCode::Curve(NurbsForm::Fanuc)) => {
                         own_g = true;
@@ -364,83 +307,79 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     _ => {}
                 }
             }
-            return Err((w.col, curve.interrupted(by, curve.close_hint())).into());
+            return Err((w.col, self.interrupted(by, self.close_hint())).into());
         }
-        if curve.form == NurbsForm::G38 && !own_g {
+        if self.form == NurbsForm::G38 && !own_g {
             return Err((
                 first_col(words),
                 GcodeErrorKind::NurbsInterrupted {
                     form: NurbsForm::G38,
-                    start_line: curve.start_line,
+                    start_line: self.start_line,
                     by: "a block without G38".into(),
                     hint: " (every control point line starts with G38)",
                 },
             )
                 .into());
         }
-        self.axes.check_letters(
+        env.axes.check_letters(
             letters,
             true,
-            curve_letters(curve.form, false),
-            curve.form.inside_name(),
+            curve_letters(self.form, false),
+            self.form.inside_name(),
         )?;
         let col = first_col(words);
-        let has_axis = self.axes.first_word(letters)?.is_some();
-        match curve.form {
+        let has_axis = env.axes.first_word(letters)?.is_some();
+        match self.form {
             NurbsForm::LinuxCnc => {
-                self.add_point(curve, letters, col)?;
+                self.add_point(state, env, letters, col)?;
                 Ok(false)
             }
             NurbsForm::G38 => {
-                let announced = curve.announced_points.unwrap_or(0);
-                if curve.points.len() < announced {
-                    self.add_point(curve, letters, col)?;
-                    return Ok(curve.points.len() == announced && !curve.knots_given);
+                let announced = self.announced_points.unwrap_or(0);
+                if self.points.len() < announced {
+                    self.add_point(state, env, letters, col)?;
+                    return Ok(self.points.len() == announced && !self.knots_given);
                 }
-                self.closing_knot(curve, letters, has_axis, col)
+                self.closing_knot(letters, has_axis, col)
             }
             NurbsForm::Fanuc => {
                 if has_axis || letters.get('R').is_some() {
-                    if curve.closing_knots > 0 {
+                    if self.closing_knots > 0 {
                         return Err((
                             col,
                             GcodeErrorKind::PointAfterClosingKnots {
-                                form: curve.form.name(),
+                                form: self.form.name(),
                             },
                         )
                             .into());
                     }
-                    self.add_point(curve, letters, col)?;
+                    self.add_point(state, env, letters, col)?;
                     return Ok(false);
                 }
-                self.closing_knot(curve, letters, has_axis, col)
+                self.closing_knot(letters, has_axis, col)
             }
         }
     }
 
     /// A knot-only block; `true` once all `order` closing knots are in.
-    pub(super) fn closing_knot(
-        &self,
-        curve: &mut PendingCurve,
-        letters: &Letters,
-        has_axis: bool,
-        col: usize,
-    ) -> Step<bool> {
+    fn closing_knot(&mut self, letters: &Letters, has_axis: bool, col: usize) -> Step<bool> {
         if has_axis {
             return Err((
                 col,
                 GcodeErrorKind::PointAfterClosingKnots {
-                    form: curve.form.name(),
+                    form: self.form.name(),
                 },
             )
                 .into());
         }
-        push_knot(curve, letters, col)?;
-        curve.closing_knots += 1;
-        Ok(curve.closing_knots == curve.order())
+        push_knot(self, letters, col)?;
+        self.closing_knots += 1;
+        Ok(self.closing_knots == self.order())
     }
 
-    pub(super) fn close_curve(&mut self, curve: PendingCurve) -> Step<Block> {
+    /// The curve's block, once its last line is in; `state` moves to its end.
+    pub(super) fn close(self, state: &mut InterpState, axes: &MachineAxes) -> Step<Block> {
+        let curve = self;
         let knots = if curve.form == NurbsForm::Fanuc || curve.knots_given {
             curve.knots
         } else {
@@ -453,21 +392,39 @@ impl<R: BufRead + Seek> BlockReader<R> {
         };
         let nurbs = NurbsCurve::new(
             curve.degree,
-            self.axes.len(),
+            axes.len(),
             &curve.points,
             &curve.weights,
             knots,
         )
         .map_err(|e| at(e.into()))?;
-        self.state.position = nurbs.end_point();
-        self.state.modal.motion = None;
-        Ok(self.state.block(
+        state.position = nurbs.end_point();
+        state.modal.motion = None;
+        Ok(state.block(
             curve.start_line,
             BlockKind::Nurbs { form: curve.form },
             nurbs,
             curve.feed,
         ))
     }
+}
+
+/// `p` in program units, as `X1.0000 Y2.0000`, for a message.
+fn format_point(axes: &MachineAxes, scale: f64, p: &Point) -> String {
+    let parts: Vec<String> = axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| format!("{a}{:.4}", p[i] / scale))
+        .collect();
+    parts.join(" ")
+}
+
+/// The machine's axis letters a `G5.2` curve does not move: all but X and Y.
+fn off_plane(axes: &MachineAxes) -> String {
+    axes.iter()
+        .map(|a| a.letter())
+        .filter(|&l| l != 'X' && l != 'Y')
+        .collect()
 }
 
 /// The degree the first block of a curve in `form` gives (`G38`'s `O`, `G06.2`'s order `P`,
@@ -581,61 +538,55 @@ pub(super) fn curve_letters(form: NurbsForm, first: bool) -> &'static str {
     }
 }
 
-impl<R: BufRead + Seek> BlockReader<R> {
-    /// `G5.1 X Y I J`: LinuxCNC's quadratic B-spline from here to the end point, its middle
-    /// control point at `I J` from the start (both needed), in the XY plane and never under
-    /// the wire offset (LinuxCNC refuses both). Exact as a degree-2 curve.
-    pub(super) fn quad_spline(
-        &mut self,
-        line_no: u64,
-        letters: &Letters,
-        col: usize,
-    ) -> Step<Block> {
-        let fail = |col, what: &str| Fail::from((col, GcodeErrorKind::Control(what.to_string())));
-        self.axes.check_letters(letters, true, "IJ", "with G5.1")?;
-        if self.state.modal.plane != crate::gcode::Plane::XY {
-            return Err(fail(col, "G5.1 works in the XY plane (G17) only"));
-        }
-        if self.state.modal.wire_offset.engaged() {
-            return Err(fail(
-                col,
-                "G5.1 cannot be used with the wire offset on (G40 first)",
-            ));
-        }
-        let (Some(i), Some(j)) = (letters.get('I'), letters.get('J')) else {
-            return Err(fail(
-                col,
-                "G5.1 needs both I and J (its control point from the start)",
-            ));
-        };
-        let index = |axis| self.axes.iter().position(|&a| a == axis);
-        let (Some(ix), Some(iy)) = (index(crate::vocab::Axis::X), index(crate::vocab::Axis::Y))
-        else {
-            return Err(fail(col, "G5.1 needs the axes X and Y"));
-        };
-        let feed = self
-            .state
-            .feed_limit(&mut self.diag, self.scratch.line_no, col);
-        let start = self.state.position;
-        let (end, _) =
-            self.state
-                .target(&self.axes, self.scratch.machine_move, &start, letters, "")?;
-        let mut control = start;
-        control[ix] += i.value * self.state.scale();
-        control[iy] += j.value * self.state.scale();
-        let curve = NurbsCurve::new(
-            2,
-            self.axes.len(),
-            &[start, control, end],
-            &[1.0; 3],
-            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
-        )
-        .map_err(|e| Fail::from((col, e.into())))?;
-        self.state.position = end;
-        // Of LinuxCNC's G5.x family: reported with its NURBS form.
-        let kind = BlockKind::Nurbs {
-            form: NurbsForm::LinuxCnc,
-        };
-        Ok(self.state.block(line_no, kind, curve, feed))
+/// `G5.1 X Y I J`: LinuxCNC's quadratic B-spline from here to the end point, its middle
+/// control point at `I J` from the start (both needed), in the XY plane and never under
+/// the wire offset (LinuxCNC refuses both). Exact as a degree-2 curve.
+pub(super) fn quad_spline(
+    state: &mut InterpState,
+    env: &mut BlockEnv,
+    line_no: u64,
+    letters: &Letters,
+    col: usize,
+) -> Step<Block> {
+    let fail = |col, what: &str| Fail::from((col, GcodeErrorKind::Control(what.to_string())));
+    env.axes.check_letters(letters, true, "IJ", "with G5.1")?;
+    if state.modal.plane != crate::gcode::Plane::XY {
+        return Err(fail(col, "G5.1 works in the XY plane (G17) only"));
     }
+    if state.modal.wire_offset.engaged() {
+        return Err(fail(
+            col,
+            "G5.1 cannot be used with the wire offset on (G40 first)",
+        ));
+    }
+    let (Some(i), Some(j)) = (letters.get('I'), letters.get('J')) else {
+        return Err(fail(
+            col,
+            "G5.1 needs both I and J (its control point from the start)",
+        ));
+    };
+    let index = |axis| env.axes.iter().position(|&a| a == axis);
+    let (Some(ix), Some(iy)) = (index(crate::vocab::Axis::X), index(crate::vocab::Axis::Y)) else {
+        return Err(fail(col, "G5.1 needs the axes X and Y"));
+    };
+    let feed = env.feed_limit(state, col);
+    let start = state.position;
+    let (end, _) = env.target(state, &start, letters, "")?;
+    let mut control = start;
+    control[ix] += i.value * state.scale();
+    control[iy] += j.value * state.scale();
+    let curve = NurbsCurve::new(
+        2,
+        env.axes.len(),
+        &[start, control, end],
+        &[1.0; 3],
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+    )
+    .map_err(|e| Fail::from((col, e.into())))?;
+    state.position = end;
+    // Of LinuxCNC's G5.x family: reported with its NURBS form.
+    let kind = BlockKind::Nurbs {
+        form: NurbsForm::LinuxCnc,
+    };
+    Ok(state.block(line_no, kind, curve, feed))
 }

@@ -9,18 +9,18 @@
 //!   the structure check (fed here, line by line), and how the program ends.
 //! - [`LineScratch`]: the line being read, rebuilt every line: its words, its assignments,
 //!   its number and where it starts.
-//! - [`Output`]: what is on its way out: the NURBS curve being collected.
 //! - [`Diagnostics`]: the warnings, each given once.
+//! - [`BlockEnv`]: the axes, the warnings and the line, lent for one block to the forms (an
+//!   arc, a curve, a canned cycle) that change the state.
 
 use std::io::{BufRead, Seek};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::axes::MachineAxes;
 use super::control::{Flow, SavedModes};
-use super::cycles::CycleState;
-use super::modal::Modal;
-use super::nurbs::PendingCurve;
-use super::offsets::{ACTIVE_SYSTEM, param_slot, table_param};
+use super::modes::Modal;
+use super::params::{ACTIVE_SYSTEM, PARAM_AXES, PROBE_PARAMS, param_slot, table_param};
 use super::structure::Structure;
 use super::{Fail, Letters, MAX_COORD_MM, MM_PER_INCH, Step};
 use crate::gcode::error::GcodeErrorKind;
@@ -28,10 +28,24 @@ use crate::gcode::error::Warning;
 use crate::gcode::expr::{ParamRef, Params};
 use crate::gcode::lexer::{Assign, Word, oword_of};
 use crate::gcode::lines::{Line, LineSource, Pos};
-use crate::gcode::work::WorkSystem;
-use crate::gcode::{Block, BlockKind, Pause, Plane};
+use crate::gcode::work::{WorkOffsets, WorkStart, WorkSystem};
+use crate::gcode::{Block, BlockKind, Pause, Plane, ProgramOptions};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
+
+/// What the canned cycles keep from block to block.
+#[derive(Debug, Clone, Default)]
+pub(super) struct CycleState {
+    /// `G98`: out to the initial level after a hole; `G99` (false, the default): to R.
+    pub retract_to_initial: bool,
+    /// The Z (machine, mm) the series of cycles started at; cleared by any other motion.
+    pub initial_level: Option<f64>,
+    /// The last cycle's `R`, `Z`, `P` and `Q`, as written (program units).
+    pub r: f64,
+    pub z: f64,
+    pub p: f64,
+    pub q: f64,
+}
 
 /// The interpreter's state: what one block leaves for the next.
 pub(super) struct InterpState {
@@ -84,7 +98,7 @@ impl InterpState {
                 motion: None,
                 feed: None,
                 taper: 0.0,
-                wire_offset: super::modal::WireOffsetMode::Off,
+                wire_offset: super::modes::WireOffsetMode::Off,
             },
             position: Point::zeros(),
             system: WorkSystem::G54,
@@ -230,15 +244,6 @@ pub(super) struct LineScratch {
     pub machine_move: bool,
 }
 
-/// What is on its way out of the reader.
-pub(super) struct Output {
-    /// A NURBS curve being collected over several lines.
-    pub pending: Option<PendingCurve>,
-    /// The moves after the first of a block that makes several (a canned cycle, `G28`),
-    /// handed out before the next line is read.
-    pub queued: std::collections::VecDeque<Block>,
-}
-
 /// Warnings, each kind given once per program.
 #[derive(Default)]
 pub(super) struct Diagnostics {
@@ -269,6 +274,40 @@ impl Diagnostics {
                 message: format!("{}{}: {message}", w.letter, w.text),
             });
         }
+    }
+}
+
+/// What a block's form (an arc, a curve, a canned cycle) reads of the reader besides the
+/// interpreter's state it changes: the machine's axes, the warnings and the line being read.
+/// The reader lends it for one block, so each form is a function of the state and this, not
+/// a method of the reader.
+pub(super) struct BlockEnv<'r> {
+    pub options: &'r ProgramOptions,
+    pub axes: &'r MachineAxes,
+    pub diag: &'r mut Diagnostics,
+    pub line: &'r LineScratch,
+}
+
+impl BlockEnv<'_> {
+    /// [`InterpState::target`] for this line (a `G53` line's in machine coordinates).
+    pub fn target(
+        &self,
+        state: &InterpState,
+        base: &Point,
+        letters: &Letters,
+        reserved: &str,
+    ) -> Step<(Point, bool)> {
+        state.target(self.axes, self.line.machine_move, base, letters, reserved)
+    }
+
+    /// [`InterpState::feed_limit`], its warning given at this line.
+    pub fn feed_limit(&mut self, state: &InterpState, col: usize) -> Option<f64> {
+        state.feed_limit(self.diag, self.line.line_no, col)
+    }
+
+    /// A warning about `about` at this line, the first time it comes up.
+    pub fn warn_once(&mut self, about: &'static str, col: usize, message: String) {
+        self.diag.once_about(self.line.line_no, about, col, message);
     }
 }
 
@@ -485,5 +524,52 @@ impl InterpState {
     /// The program's coordinates of the machine point `machine`, mm.
     pub(super) fn program_point(&self, machine: &Point) -> Point {
         machine - self.g5x - self.g92
+    }
+}
+
+impl InterpState {
+    /// Starts the program at `start`: the machine position, the work offsets (written to
+    /// their parameters for `axes`), the active system, the units and distance mode.
+    pub(super) fn start_at(&mut self, axes: &[Axis], start: &WorkStart) {
+        self.position = start.position_mm;
+        for system in WorkSystem::all() {
+            let offset = start.offsets.get(system);
+            for (i, &axis) in axes.iter().enumerate() {
+                let p = table_param(system, param_slot(axis));
+                self.params.set(&ParamRef::Numbered(p), offset[i]);
+            }
+        }
+        self.load_system(axes, start.system);
+        self.unhomed = start.unhomed;
+        self.modal.inch = start.modes.inch;
+        self.modal.incremental = start.modes.incremental;
+    }
+
+    /// The work offsets as the program has left them (`G10` changes them), mm.
+    pub(super) fn work_offsets(&self, axes: &[Axis]) -> WorkOffsets {
+        let mut table = WorkOffsets::default();
+        for system in WorkSystem::all() {
+            table.set(system, self.table_entry(axes, system));
+        }
+        table
+    }
+
+    /// A probing move ended at `at` (mm, machine axes; with `contact`, or at its end point
+    /// without): the program goes on from there. LinuxCNC's `#5061`… (`X Y Z A B C U V W`,
+    /// program coordinates) hold the point and `#5070` is 1 with contact, 0 without.
+    pub(super) fn probed(&mut self, axes: &[Axis], at: &Point, contact: bool) {
+        self.position = *at;
+        let scale = self.scale();
+        let program = self.program_point(at);
+        for (i, axis) in axes.iter().enumerate() {
+            if let Some(k) = PARAM_AXES.iter().position(|&l| l == axis.letter()) {
+                let v = program[i] / scale;
+                self.params.set(&ParamRef::Numbered(PROBE_PARAMS + k), v);
+            }
+        }
+        self.params.set(
+            &ParamRef::Numbered(PROBE_PARAMS + 9),
+            if contact { 1.0 } else { 0.0 },
+        );
     }
 }

@@ -12,7 +12,7 @@ pub(super) struct ReaderEnv<'a, R> {
     pub(super) reader: &'a BlockReader<R>,
 }
 
-use super::offsets::PARAM_AXES as SYSTEM_AXES;
+use super::params::PARAM_AXES as SYSTEM_AXES;
 
 /// LinuxCNC's read-only numbered parameters: the tool's data (`#5400`…`#5413`) and the
 /// position (`#5420`…`#5428`).
