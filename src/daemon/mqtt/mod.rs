@@ -385,16 +385,8 @@ impl Session {
                 _ = stop.wait_for(|s| *s) => break,
                 told = from_network.recv() => match told {
                     Some(Net::Connected { bd_seq }) => {
-                        tracing::info!(
-                            "mqtt: connected as {} (bdSeq {bd_seq})", self.topics.nbirth
-                        );
                         lost_before = false;
-                        self.connected = true;
-                        self.since = Some(std::time::Instant::now());
-                        self.counters.connected.store(true, Ordering::Relaxed);
-                        self.node.set_session(bd_seq);
-                        self.subscribe();
-                        self.sample(true).await;
+                        self.begin(bd_seq).await;
                     }
                     Some(Net::Command(payload)) => self.command(&payload).await,
                     Some(Net::Birth(payload)) => self.birth_seen(&payload),
@@ -455,6 +447,21 @@ impl Session {
         }
     }
 
+    /// A session began (CONNACK) with its will carrying `bd_seq`: subscribe, and be born.
+    async fn begin(&mut self, bd_seq: u64) {
+        tracing::info!("mqtt: connected as {} (bdSeq {bd_seq})", self.topics.nbirth);
+        self.connected = true;
+        self.since = Some(std::time::Instant::now());
+        self.counters.connected.store(true, Ordering::Relaxed);
+        self.node.set_session(bd_seq);
+        self.subscribe();
+        // Due until it is published: a session that begins before the control loop has
+        // posted its first status (a daemon starting on a loaded machine) is born at the
+        // first sample that has one.
+        self.birth_due = true;
+        self.sample(true).await;
+    }
+
     /// NCMD (unless a message too large turned commands off), and the node's own NBIRTH
     /// topic, where another node's birth tells a duplicate `node_id`.
     fn subscribe(&self) {
@@ -508,7 +515,7 @@ impl Session {
     }
 
     /// A status sample (the one the control loop last posted): NBIRTH when `birth`, else
-    /// NDATA with what moved.
+    /// NDATA with what moved. Nothing before the loop's first status (a birth stays due).
     async fn sample(&mut self, birth: bool) {
         let posted = self.to_core.status();
         let Some(status) = posted.status() else {
@@ -590,6 +597,7 @@ impl Session {
 mod tests {
     use super::*;
     use crate::config::Deadbands;
+    use crate::daemon::board::StatusBoard;
     use crate::daemon::protocol::DaemonState;
 
     /// A session whose network task never runs: its queue of `cap` fills and stays full.
@@ -621,6 +629,39 @@ mod tests {
             since: None,
             stop: watch::channel(false).1,
         }
+    }
+
+    /// A session that connects before the control loop has posted a status is born at the
+    /// first tick after the status comes, and sends no NDATA before its birth. (On a loaded
+    /// machine the broker's CONNACK can come first; the birth was lost, and the node stayed
+    /// unborn for good.)
+    #[test]
+    fn a_session_begun_before_the_first_status_is_born_when_it_comes() {
+        let mut session = stuck_session(16);
+        let board = Arc::new(StatusBoard::default());
+        session.to_core = CoreLink::new(|_, _| false, || true, board.clone());
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        // CONNACK, then two ticks, as `run` takes them.
+        runtime.block_on(session.begin(0));
+        assert_eq!(session.counters.births.load(Ordering::Relaxed), 0);
+        assert_eq!(session.counters.published.load(Ordering::Relaxed), 0);
+        assert!(session.birth_due, "no status yet: the birth is still due");
+        board.post(Status::bare(DaemonState::Idle));
+        let due = session.birth_due;
+        runtime.block_on(session.sample(due));
+        assert_eq!(session.counters.births.load(Ordering::Relaxed), 1);
+        assert_eq!(session.counters.published.load(Ordering::Relaxed), 1);
+        assert!(!session.birth_due);
+        let due = session.birth_due;
+        runtime.block_on(session.sample(due));
+        assert_eq!(
+            session.counters.births.load(Ordering::Relaxed),
+            1,
+            "born once"
+        );
     }
 
     #[test]
