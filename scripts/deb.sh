@@ -112,5 +112,7 @@ EOF
 (cd "$stage" && find . -path ./DEBIAN -prune -o -type f -printf '%P\0' | sort -z |
   xargs -0 md5sum >DEBIAN/md5sums)
 deb="target/debian/edmd_${version}_${arch}.deb"
-dpkg-deb --root-owner-group -Zxz --build "$stage" "$deb" >/dev/null
+# xz for the package a user downloads; CI, which installs it once and purges it, asks for
+# gzip (DEB_COMPRESSION=gzip): the same files, packed in 2 s instead of 15.
+dpkg-deb --root-owner-group -Z"${DEB_COMPRESSION:-xz}" --build "$stage" "$deb" >/dev/null
 echo "$deb"
