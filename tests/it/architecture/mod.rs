@@ -509,12 +509,6 @@ const MAX_IMPL_FILES: usize = 3;
 /// number may only fall (a type that grows wider fails, one back within the limit must be
 /// taken off the list). Each is a debt named in ARCHITECTURE.md, "Debts".
 const WIDE_TYPES: &[(&str, usize)] = &[
-    // The G-code reader: the line loop (mod.rs), the block's dispatch (modal.rs), the O-word
-    // flow (control/: it moves the reader's place in the text). The parts own what needs only
-    // them (InterpState its offsets, targets and blocks, ProgramFlow the structure check,
-    // MachineAxes the word checks), and the forms (the G codes' modes, arcs, curves, canned
-    // cycles, offsets, probing) are functions of the state and a BlockEnv lent for the block.
-    ("BlockReader", 4),
     // The daemon's control loop: the job's lifecycle (start, jobs), the transports' dispatch,
     // the status and the loop's round (upkeep); the machine's commands decide at the desk.
     ("Core", 5),

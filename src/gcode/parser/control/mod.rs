@@ -39,7 +39,7 @@ use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::{ARGUMENTS, ParamRef};
 use crate::gcode::lexer::{Keyword, Label, OWord, has_m99, oword_of, program_number_of};
 use crate::gcode::lines::{Line, Pos};
-use loops::{Loop, LoopKind};
+use loops::{Loop, LoopKind, LoopLine};
 
 /// Deepest nesting of subroutine calls.
 pub const MAX_CALL_DEPTH: usize = 64;
@@ -380,15 +380,56 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     return Err(mismatch("without its if"));
                 }
             }
-            Keyword::While => self.while_statement(text, &o, label)?,
-            Keyword::Do => self.do_statement(label)?,
-            Keyword::Repeat => self.repeat_statement(text, &o, label)?,
-            Keyword::Endwhile | Keyword::Endrepeat | Keyword::Continue => {
-                self.loop_end(&o, label)?
-            }
-            Keyword::Break => self.break_statement(&o, label)?,
+            Keyword::While
+            | Keyword::Do
+            | Keyword::Repeat
+            | Keyword::Endwhile
+            | Keyword::Endrepeat
+            | Keyword::Continue
+            | Keyword::Break => self.loop_statement(text, &o, label)?,
         }
         Ok(())
+    }
+
+    /// A loop's statement: its condition or count evaluated here, the loop's business done by
+    /// the flow, and the reading moved to where a loop going round returns.
+    fn loop_statement(&mut self, text: &str, o: &OWord, label: Label) -> Step<()> {
+        let at = LoopLine {
+            line: self.scratch.line_no,
+            start: Pos {
+                offset: self.scratch.line_start,
+                line: self.scratch.line_no,
+            },
+            next: self.program.lines.position(),
+            limit: self.options.max_loop_iterations,
+        };
+        let back_to = match o.keyword {
+            Keyword::While => {
+                let truth = ReaderEnv::of(self).condition(text, o)?;
+                self.program.flow.while_statement(truth, label, &at)?
+            }
+            Keyword::Do => {
+                self.program.flow.do_statement(label, &at)?;
+                None
+            }
+            Keyword::Repeat => {
+                let n = ReaderEnv::of(self)
+                    .one_argument(text, o, true)?
+                    .unwrap_or(0.0)
+                    .round();
+                self.program.flow.repeat_statement(n, o, label, &at)?;
+                None
+            }
+            Keyword::Break => {
+                self.program.flow.break_statement(o, label, &at)?;
+                None
+            }
+            _ => self.program.flow.loop_end(o, label, &at)?,
+        };
+        match back_to {
+            Some(pos) => self.program.seek(pos),
+            None => Ok(()),
+        }
     }
 
     fn return_from_call(&mut self) -> Step<()> {
