@@ -79,7 +79,7 @@ pub(super) fn arc_block(
             .into());
     };
     let feed = env.feed_limit(state, col);
-    let (end, _) = env.target(state, &state.position, letters, "")?;
+    let (end, _) = env.target_here(state, letters)?;
     let start = state.position;
     check_helix(state, env.axes, letters, [ia, ib], &start, &end, col)?;
     let radius_word = letters.get('R');

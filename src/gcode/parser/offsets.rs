@@ -222,7 +222,7 @@ pub(super) fn reference_point(
     }
     env.axes
         .check_letters(letters, true, "", &format!("with {code}"))?;
-    let (via, named) = env.target(state, &state.position, letters, "")?;
+    let (via, named) = env.target_here(state, letters)?;
     let mut moves = MoveList::new(state.position, line_no, env.axes.len());
     // With axis words only the named axes go on to the stored point (LinuxCNC 2.9).
     let axes: Vec<usize> = (0..env.axes.len())
@@ -263,7 +263,7 @@ pub(super) fn probe_block(
     let Some(feed) = state.modal.feed else {
         return Err(fail(format!("{code} needs a feed F (the probing speed)")));
     };
-    let (target, _) = env.target(state, &state.position, letters, "")?;
+    let (target, _) = env.target_here(state, letters)?;
     if target == state.position {
         if !probe.must_touch {
             // LinuxCNC: a probe that may end without contact (G38.3, G38.5) to where it

@@ -300,6 +300,11 @@ impl BlockEnv<'_> {
         state.target(self.axes, self.line.machine_move, base, letters, reserved)
     }
 
+    /// [`InterpState::target_here`] for this line: from where the machine stands.
+    pub fn target_here(&self, state: &InterpState, letters: &Letters) -> Step<(Point, bool)> {
+        state.target_here(self.axes, self.line.machine_move, letters)
+    }
+
     /// [`InterpState::feed_limit`], its warning given at this line.
     pub fn feed_limit(&mut self, state: &InterpState, col: usize) -> Option<f64> {
         state.feed_limit(self.diag, self.line.line_no, col)
