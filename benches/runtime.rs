@@ -20,7 +20,7 @@ use edmd::parport::{
     Clock, ParportGap, ParportOutput, PinMap, Port, PortWriter, SpinClock, StepTiming,
 };
 use edmd::servo::Feeds;
-use edmd::sim::{SimMachine, SimSettings};
+use edmd::sim::{SimMachine, SimScript, SimSettings};
 use edmd::vocab::MAX_AXES;
 use parking_lot::Mutex;
 
@@ -382,7 +382,7 @@ fn io_per_tick(c: &mut Criterion) {
     let mut sim = SimMachine::new(
         &SimSettings::from_config(&config),
         &[(0.0, 1e9)],
-        Vec::new(),
+        SimScript::default(),
     )
     .gap;
     let x = [1, 0, 0, 0, 0, 0];
@@ -392,6 +392,39 @@ fn io_per_tick(c: &mut Criterion) {
             sim.observe(&x, 1);
             state
         })
+    });
+    // The discharge model's tick at a sparking gap (8 µm, the shipped E21), and the
+    // adaptive law's share of a tick: what issue [3/7] adds to the 50 µs.
+    let edmd::sim::SimModel::Discharge(params) = &config.sim.model else {
+        panic!("the shipped sim.model is the discharge model");
+    };
+    let mut model = edmd::sim::Discharges::new(**params);
+    let e21 = edmd::vocab::GeneratorSetPoints {
+        on_time_us: 8.0,
+        off_time_us: 10.0,
+        peak_current_a: 12.0,
+        open_voltage_v: 90.0,
+        wire_speed_m_per_min: 9.0,
+        ..Default::default()
+    };
+    let mut rng = edmd::rng::SplitMix64::new(1);
+    group.bench_function("discharge model tick (8 µm gap, E21)", |b| {
+        b.iter(|| model.tick(50.0, 8.0, &e21, &mut rng))
+    });
+    let mut adapted = config.clone();
+    adapted.adaptive.enabled = true;
+    let mut process =
+        edmd::process::Process::new(edmd::process::ConditionTable::from_config(&adapted));
+    process.enter(4);
+    let pulses = edmd::vocab::PulseCounts {
+        normal: 2,
+        arc: 0,
+        short: 0,
+        open: 0,
+        delay_sum_us: 30.0,
+    };
+    group.bench_function("adaptive law per tick (window of 20)", |b| {
+        b.iter(|| process.observe(Some(&pulses), 1e-5, Some(1.0)))
     });
     group.finish();
 }

@@ -234,6 +234,18 @@ impl<G: GapSensor> GapSensor for TracedGap<G> {
     fn ratios(&self) -> Option<(f64, f64)> {
         self.inner.ratios()
     }
+
+    fn pulses(&self) -> Option<crate::vocab::PulseCounts> {
+        self.inner.pulses()
+    }
+
+    fn generator(&mut self, set: &crate::vocab::GeneratorSetPoints) {
+        self.inner.generator(set)
+    }
+
+    fn flushing(&self) -> Option<f64> {
+        self.inner.flushing()
+    }
 }
 
 #[cfg(test)]

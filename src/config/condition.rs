@@ -43,8 +43,33 @@ impl RawCondition {
                 ));
             }
         };
+        let bound = |v: Option<f64>, what: &str| {
+            v.map(|v| positive(key, v, 1e6, &format!("µs ({what})")))
+                .transpose()
+        };
+        let off_time_bounds_us = match (
+            bound(self.off_time_min_us, "off_time_min_us")?,
+            bound(self.off_time_max_us, "off_time_max_us")?,
+        ) {
+            (None, None) => None,
+            (Some(lo), Some(hi)) if lo <= hi => Some([lo, hi]),
+            (Some(lo), Some(hi)) => {
+                return Err((
+                    key,
+                    format!("E{number}: off_time_min_us ({lo}) is above off_time_max_us ({hi})"),
+                ));
+            }
+            _ => {
+                return Err((
+                    key,
+                    format!("E{number}: give both off_time_min_us and off_time_max_us, or neither"),
+                ));
+            }
+        };
         Ok(Condition {
             number,
+            adaptive: self.adaptive,
+            off_time_bounds_us,
             corner,
             orbit_shape,
             orbit_radius_mm,

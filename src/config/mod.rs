@@ -385,6 +385,21 @@ pub struct Condition {
     /// `[sinker.orbit]`'s.
     pub orbit_shape: Option<crate::vocab::OrbitShape>,
     pub orbit_radius_mm: Option<f64>,
+    /// Adapted by `[adaptive]` (`None`: as `adaptive.enabled` says), and the bounds of its
+    /// off time (`None`: `[adaptive]`'s), µs.
+    pub adaptive: Option<bool>,
+    pub off_time_bounds_us: Option<[f64; 2]>,
+}
+
+/// `[adaptive]`: the off-time law, and which conditions it adapts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdaptiveConfig {
+    /// Adapt every condition that does not say otherwise.
+    pub enabled: bool,
+    /// The law's settings, for ticks of `fine.tick_us`.
+    pub law: crate::process::AdaptiveSettings,
+    /// The off time's bounds for a condition that gives none, µs.
+    pub off_time_bounds_us: [f64; 2],
 }
 
 /// `[sinker]`: how a die-sinker's sinking moves orbit.
@@ -451,6 +466,7 @@ pub struct Config {
     pub sinker: SinkerConfig,
     /// `[technology]`: where the technology tables are.
     pub technology: TechnologyConfig,
+    pub adaptive: AdaptiveConfig,
 }
 
 /// `[technology]`: the technology tables (`crate::technology`), one TOML file each.

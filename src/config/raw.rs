@@ -30,6 +30,31 @@ pub(super) struct RawConfig {
     pub(super) wire: RawWire,
     pub(super) sinker: RawSinker,
     pub(super) technology: RawTechnology,
+    pub(super) adaptive: RawAdaptive,
+}
+
+/// `[adaptive]`: the off-time law.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawAdaptive {
+    pub(super) enabled: bool,
+    pub(super) window_ms: f64,
+    pub(super) lengthen: f64,
+    pub(super) shorten: f64,
+    pub(super) margin: f64,
+    pub(super) arc_limit: f64,
+    pub(super) limit_w_at_20mm: f64,
+    pub(super) limit_height_exponent: f64,
+    pub(super) poor_flushing_factor: f64,
+    pub(super) poor_flushing_arc_share: f64,
+    pub(super) poor_flushing_below: f64,
+    pub(super) discharge_voltage_v: f64,
+    pub(super) height_mm2_per_as: f64,
+    pub(super) height_window_mm: f64,
+    pub(super) arc_charge_weight: f64,
+    pub(super) initial_height_mm: f64,
+    pub(super) off_time_min_us: f64,
+    pub(super) off_time_max_us: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -109,6 +134,15 @@ pub struct RawCondition {
     pub(super) jump_height_mm: Option<f64>,
     #[serde(default)]
     pub(super) jump_feed_mm_per_min: Option<f64>,
+    /// Adapt this condition's off time (`[adaptive]`): true or false whatever
+    /// `adaptive.enabled` says; absent: as it says.
+    #[serde(default)]
+    pub(super) adaptive: Option<bool>,
+    /// The bounds the adaptive law keeps this condition's off time within, µs.
+    #[serde(default)]
+    pub(super) off_time_min_us: Option<f64>,
+    #[serde(default)]
+    pub(super) off_time_max_us: Option<f64>,
     #[serde(default)]
     pub(super) corner_angle_deg: Option<f64>,
     #[serde(default)]
@@ -301,6 +335,41 @@ pub(super) struct RawSim {
     pub(super) hole_diameter_mm: f64,
     pub(super) touch_bounce_mm: f64,
     pub(super) breakthrough_at_mm: f64,
+    pub(super) model: String,
+    pub(super) work_height_mm: f64,
+    pub(super) discharge: RawDischarge,
+}
+
+/// `[sim.discharge]`: the discharge model's constants.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawDischarge {
+    pub(super) side_gaps_um: f64,
+    pub(super) discharge_voltage_v: f64,
+    pub(super) ignition_median_us: [f64; 3],
+    pub(super) ignition_timeout_us: f64,
+    pub(super) arc_delay_us: f64,
+    pub(super) deionization_us: f64,
+    pub(super) removal_mm3_per_j: f64,
+    pub(super) arc_removal: f64,
+    pub(super) debris_per_mm2: f64,
+    pub(super) arc_debris: f64,
+    pub(super) flush_time_ms: f64,
+    pub(super) flushing_depth_mm: f64,
+    pub(super) debris_bursts_per_s: f64,
+    pub(super) debris_burst: f64,
+    pub(super) short_contamination: f64,
+    pub(super) wire_heat_fraction: f64,
+    pub(super) wire_convection_w_per_m2k: f64,
+    pub(super) arc_spot_mm: f64,
+    pub(super) wire_break_rise_k: f64,
+    pub(super) wire_density_kg_m3: f64,
+    pub(super) wire_heat_capacity_j_kgk: f64,
+    pub(super) on_time_us: f64,
+    pub(super) off_time_us: f64,
+    pub(super) peak_current_a: f64,
+    pub(super) open_voltage_v: f64,
+    pub(super) wire_speed_m_per_min: f64,
 }
 
 #[derive(Debug, Deserialize)]

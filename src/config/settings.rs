@@ -15,7 +15,7 @@ use crate::parport::{PinMap, StepTiming};
 use crate::path::{CutPlan, PathSpec};
 use crate::preprocess::PlanSettings;
 use crate::preprocess::corners::CornerRule;
-use crate::process::{Condition, ConditionTable, ServoSetPoints};
+use crate::process::{Condition, ConditionTable, OffTimeBounds, ServoSetPoints};
 use crate::servo::{Feeds, Law};
 use crate::sim::SimSettings;
 use crate::vocab::{Axis, MAX_AXES};
@@ -170,9 +170,16 @@ impl ConditionTable {
                         ],
                     },
                     generator: c.generator,
+                    adaptive: c.adaptive.unwrap_or(config.adaptive.enabled).then(|| {
+                        let [min_us, max_us] = c
+                            .off_time_bounds_us
+                            .unwrap_or(config.adaptive.off_time_bounds_us);
+                        OffTimeBounds { min_us, max_us }
+                    }),
                 })
                 .collect(),
         )
+        .with_adaptive(config.adaptive.law)
     }
 }
 

@@ -227,10 +227,15 @@ fn line_col_counts_characters() {
 fn the_shipped_defaults_hand_down_what_the_lower_floors_unit_tests_assume() {
     // sim's unit tests build their settings by hand, from these same defaults.
     let c = Config::default();
+    let mut shipped = crate::sim::SimSettings::from_config(&c);
+    // The discharge model's constants are its own tests' (`sim::discharge::tests::params`);
+    // the gap's other tests run on the kinematic model.
     assert_eq!(
-        crate::sim::SimSettings::from_config(&c),
-        crate::sim::tests::settings(&[])
+        shipped.params.model,
+        crate::sim::SimModel::Discharge(Box::new(crate::sim::discharge::tests::params()))
     );
+    shipped.params.model = crate::sim::SimModel::Kinematic;
+    assert_eq!(shipped, crate::sim::tests::settings(&[]));
     let fine = crate::fine::FineSettings::from_config(&c);
     assert_eq!(fine.dt, c.fine.tick.secs());
     assert_eq!(fine.feeds.normal, c.servo.normal_feed_mm_per_min / 60.0);

@@ -164,7 +164,6 @@ impl RawConfig {
 
         let servo = self.servo.validate(&machine)?;
         let homing = self.homing.validate(&machine, &parport, output.kind)?;
-        let sim = self.sim.validate(&machine, &homing)?;
         let daemon = daemon(self.daemon)?;
         let log = LogConfig {
             level: self.log.level,
@@ -180,7 +179,9 @@ impl RawConfig {
         let compensation = compensation(self.compensation)?;
         let conditions = conditions(self.generator)?;
         let wire = self.wire.validate(&compensation)?;
+        let sim = self.sim.validate(&machine, &homing, wire.diameter_mm)?;
         let sinker = self.sinker.validate(&conditions)?;
+        let adaptive = self.adaptive.validate(fine.tick)?;
         let technology = TechnologyConfig {
             dir: non_empty("technology.dir", self.technology.dir)?,
         };
@@ -212,6 +213,7 @@ impl RawConfig {
             compensation,
             conditions,
             technology,
+            adaptive,
             homing,
             wire,
             sinker,

@@ -142,6 +142,38 @@ impl Core {
     }
 }
 
+/// The process as the job's pulses tell it; `None` from a gap input that counts none.
+fn process_status(job: &super::Job, snap: &Snapshot) -> Option<super::protocol::ProcessStatus> {
+    use super::protocol::{ProcessStatus, PulseClasses};
+    let [normal, arc, short, open] = snap.pulse_totals;
+    if normal + arc + short + open == 0 {
+        return None;
+    }
+    let seconds = job.config.fine.tick.ticks_to_secs(snap.tick).max(1e-9);
+    let ignited = normal + arc;
+    let height = snap.height_mm.is_finite().then_some(snap.height_mm);
+    Some(ProcessStatus {
+        pulses: PulseClasses {
+            normal,
+            arc,
+            short,
+            open,
+        },
+        rates_hz: PulseClasses {
+            normal: normal as f64 / seconds,
+            arc: arc as f64 / seconds,
+            short: short as f64 / seconds,
+            open: open as f64 / seconds,
+        },
+        mean_ignition_delay_us: (ignited > 0).then(|| snap.delay_sum_us / ignited as f64),
+        off_time_us: snap.off_time_us,
+        height_estimate_mm: height,
+        cut_rate_mm2_per_min: height
+            .zip(job.progress.recent_feed())
+            .map(|(h, feed)| h * feed * 60.0),
+    })
+}
+
 /// The running job as the status shows it, from its snapshot `snap`.
 fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
     let p = &job.published;
@@ -156,6 +188,7 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
         servo: snap.state,
         gap: p.gap(),
         gap_volts: p.gap_volts(),
+        process: process_status(job, snap),
         position_steps: snap.position[..axes].to_vec(),
         position_mm: mm(&snap.position[..axes], &job.config.machine.step_mm),
         feed_mm_per_min: snap.speed * 60.0,
@@ -193,7 +226,15 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
             .conditions
             .iter()
             .find(|c| u64::from(c.number) == snap.condition)
-            .map(|c| c.generator),
+            // The off time in force: the adaptive law's where it adapts the condition.
+            .map(|c| crate::vocab::GeneratorSetPoints {
+                off_time_us: if snap.off_time_us > 0.0 {
+                    snap.off_time_us
+                } else {
+                    c.generator.off_time_us
+                },
+                ..c.generator
+            }),
         technology: job.technology.as_ref().map(|t| t.summary()),
         technology_table: job.technology.as_ref().map(|t| t.table.clone()),
         wire_offset: super::protocol::WireOffsetStatus::of(snap.wire_offset_mm),

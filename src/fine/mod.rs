@@ -264,7 +264,16 @@ impl Interpolator {
         source: &mut S,
     ) -> Tick {
         let gap = self.servo.classify(&reading);
-        self.tick(gap, source)
+        let tick = self.tick(gap, source);
+        let travel_mm = if tick.dir != 0 && self.motion.has_block {
+            let b = &self.motion.block;
+            tick.dir as f64 * b.length_mm / b.events().max(1) as f64
+        } else {
+            0.0
+        };
+        self.process
+            .observe(reading.pulses.as_ref(), travel_mm, reading.flushing);
+        tick
     }
 
     /// One tick with gap state `gap`, in named phases: acquire a block, honour what stops

@@ -64,6 +64,24 @@ pub trait GapSensor {
         None
     }
 
+    /// The generator's pulses of the last [`sample`](Self::sample) by class, for inputs that
+    /// count them (the simulator's discharge model, HAL's discriminator pins, a script that
+    /// gives them); `None` otherwise.
+    fn pulses(&self) -> Option<crate::vocab::PulseCounts> {
+        None
+    }
+
+    /// How well the flushing reaches the slot (1: the nozzle at the part; less with the
+    /// nozzle off it), as a nozzle-pressure sensor tells, for inputs that have one (the
+    /// simulator, HAL's `edmd.gap.flushing`); `None` otherwise.
+    fn flushing(&self) -> Option<f64> {
+        None
+    }
+
+    /// The generator's set points changed (a new condition, an adaptation): a simulated gap
+    /// discharges with them; a real one ignores it (its generator is told by the output).
+    fn generator(&mut self, _set: &crate::vocab::GeneratorSetPoints) {}
+
     /// What the job's probing moves read as their contact (a homing job's switch, a touch
     /// cycle's part, or the probe). A wire's contact with the part is sensed through the
     /// gap (a short), so the simulator's gap answers a touch cycle from its part, and with
@@ -105,5 +123,17 @@ impl<G: GapSensor + ?Sized> GapSensor for Box<G> {
 
     fn probe_reads(&mut self, what: crate::vocab::ProbeReads) {
         (**self).probe_reads(what)
+    }
+
+    fn pulses(&self) -> Option<crate::vocab::PulseCounts> {
+        (**self).pulses()
+    }
+
+    fn generator(&mut self, set: &crate::vocab::GeneratorSetPoints) {
+        (**self).generator(set)
+    }
+
+    fn flushing(&self) -> Option<f64> {
+        (**self).flushing()
     }
 }

@@ -12,14 +12,17 @@
 //! gap reads open and the wire-break input is set) until the operator's rethread. `estop`
 //! presses the emergency stop and `limit X+` (an axis and its side) closes a limit switch,
 //! from their tick to the end of the job or, for a switch, to a `release X+` line (the
-//! switch opens: the axis moved off it). Ticks must not decrease. The whole script is read and checked before the job starts,
+//! switch opens: the axis moved off it). `TICK pulses NORMAL ARC SHORT OPEN [DELAY_US]` gives
+//! the pulses a discriminator counts in each tick from then on (and their mean ignition
+//! delay), as `edmd.gap.pulses-*` would: the servo laws and the adaptive law read them. Ticks
+//! must not decrease. The whole script is read and checked before the job starts,
 //! so a bad line is an error with `file:line:col`, never a surprise mid-job.
 
 use std::path::Path;
 
 use super::{GapError, GapSensor, GapState};
 use crate::inputs::{InputError, InputReading, MachineInputs, SimulatedWire};
-use crate::vocab::{LimitSwitch, SafetyInputs};
+use crate::vocab::{LimitSwitch, PulseCounts, SafetyInputs};
 
 /// A gap script that could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -96,6 +99,11 @@ pub struct ScriptGap {
     state: GapState,
     /// No wire, no discharge: the gap reads open while the script's wire is broken.
     wire: SimulatedWire,
+    /// The `pulses` lines: each tick's pulses from their tick on; the next one to apply and
+    /// those in force (none before the first line).
+    pulse_changes: Vec<(u64, PulseCounts)>,
+    next_pulses: usize,
+    pulses: Option<PulseCounts>,
 }
 
 /// The script's machine inputs: its E-stop, limit switches and wire breaks.
@@ -122,6 +130,7 @@ impl GapScript {
         let mut changes: Vec<(u64, GapState)> = Vec::new();
         let mut breaks: Vec<u64> = Vec::new();
         let mut trips: Vec<(u64, SafetyInputs)> = Vec::new();
+        let mut pulse_changes: Vec<(u64, PulseCounts)> = Vec::new();
         for (index, raw) in crate::vocab::without_bom(text).lines().enumerate() {
             let line = index + 1;
             let content = raw.split('#').next().unwrap_or("");
@@ -202,6 +211,10 @@ impl GapScript {
                         "expected `TICK STATE`, e.g. `1200 short`".to_string(),
                     ));
                 }
+                [(col, tick), (_, "pulses"), counts @ ..] => {
+                    let last = pulse_changes.last().map(|p| p.0);
+                    pulse_changes.push(pulse_line(*col, tick, counts, last, &invalid)?);
+                }
                 [_, _, (col, extra), ..] => {
                     return Err(invalid(
                         *col,
@@ -217,6 +230,9 @@ impl GapScript {
                 next: 0,
                 state: GapState::Normal,
                 wire: wire.clone(),
+                pulse_changes,
+                next_pulses: 0,
+                pulses: None,
             },
             inputs: ScriptInputs {
                 breaks,
@@ -230,6 +246,69 @@ impl GapScript {
     }
 }
 
+/// A `TICK pulses NORMAL ARC SHORT OPEN [DELAY_US]` line (`counts`: the words after
+/// `pulses`) after a pulses line at tick `last`: its tick and the pulses of each tick from
+/// then on.
+fn pulse_line(
+    col: usize,
+    tick: &str,
+    counts: &[(usize, &str)],
+    last: Option<u64>,
+    invalid: &dyn Fn(usize, String) -> ScriptError,
+) -> Result<(u64, PulseCounts), ScriptError> {
+    let tick: u64 = tick.parse().map_err(|_| {
+        invalid(
+            col,
+            format!("\"{tick}\" is not a tick number (a whole number >= 0)"),
+        )
+    })?;
+    if let Some(last) = last.filter(|&last| tick < last) {
+        return Err(invalid(
+            col,
+            format!("tick {tick} comes before the previous pulses line's {last}"),
+        ));
+    }
+    if !(4..=5).contains(&counts.len()) {
+        return Err(invalid(
+            col,
+            "expected `TICK pulses NORMAL ARC SHORT OPEN [DELAY_US]`, e.g. `0 pulses 2 0 0 1 9.5`"
+                .to_string(),
+        ));
+    }
+    let mut n = [0u32; 4];
+    for (slot, &(c, word)) in n.iter_mut().zip(counts) {
+        *slot = word.parse().map_err(|_| {
+            invalid(
+                c,
+                format!("\"{word}\" is not a pulse count (a whole number >= 0)"),
+            )
+        })?;
+    }
+    let delay = match counts.get(4) {
+        None => 0.0,
+        Some(&(c, word)) => match word.parse::<f64>() {
+            Ok(v) if v.is_finite() && v >= 0.0 => v,
+            _ => {
+                return Err(invalid(
+                    c,
+                    format!("\"{word}\" is not an ignition delay (µs >= 0)"),
+                ));
+            }
+        },
+    };
+    let [normal, arc, short, open] = n;
+    Ok((
+        tick,
+        PulseCounts {
+            normal,
+            arc,
+            short,
+            open,
+            delay_sum_us: delay * f64::from(normal + arc),
+        },
+    ))
+}
+
 impl ScriptGap {
     /// A script from a list of changes (for tests and benches).
     pub fn from_changes(mut changes: Vec<(u64, GapState)>) -> ScriptGap {
@@ -239,6 +318,9 @@ impl ScriptGap {
             next: 0,
             state: GapState::Normal,
             wire: SimulatedWire::default(),
+            pulse_changes: Vec::new(),
+            next_pulses: 0,
+            pulses: None,
         }
     }
 }
@@ -254,11 +336,22 @@ impl GapSensor for ScriptGap {
             self.state = state;
             self.next += 1;
         }
+        while let Some(&(at, pulses)) = self.pulse_changes.get(self.next_pulses) {
+            if at > tick {
+                break;
+            }
+            self.pulses = Some(pulses);
+            self.next_pulses += 1;
+        }
         Ok(if self.wire.is_broken() {
             GapState::Open
         } else {
             self.state
         })
+    }
+
+    fn pulses(&self) -> Option<PulseCounts> {
+        self.pulses
     }
 }
 
@@ -352,6 +445,40 @@ mod tests {
         assert_eq!(
             err("7 open now\n"),
             "gap.txt:1:8: unexpected \"now\" after `TICK STATE`"
+        );
+    }
+
+    #[test]
+    fn pulses_lines_give_each_ticks_pulses_from_their_tick_on() {
+        let mut gap = GapScript::parse(
+            "5 pulses 2 1 0 0 8.5
+9 pulses 0 0 3 0
+",
+            "g",
+        )
+        .unwrap()
+        .gap;
+        assert_eq!(gap.sample(0).unwrap(), GapState::Normal);
+        assert_eq!(gap.pulses(), None);
+        gap.sample(6).unwrap();
+        let p = gap.pulses().unwrap();
+        assert_eq!((p.normal, p.arc, p.short, p.open), (2, 1, 0, 0));
+        assert_eq!(p.mean_delay_us(), 8.5);
+        gap.sample(9).unwrap();
+        assert_eq!(gap.pulses().unwrap().short, 3);
+        let err = |text: &str| GapScript::parse(text, "gap.txt").unwrap_err().to_string();
+        assert_eq!(
+            err("5 pulses 2 1 0\n"),
+            "gap.txt:1:1: expected `TICK pulses NORMAL ARC SHORT OPEN [DELAY_US]`, e.g. \
+             `0 pulses 2 0 0 1 9.5`"
+        );
+        assert_eq!(
+            err("5 pulses 2 x 0 0\n"),
+            "gap.txt:1:12: \"x\" is not a pulse count (a whole number >= 0)"
+        );
+        assert_eq!(
+            err("9 pulses 1 0 0 0\n5 pulses 1 0 0 0\n"),
+            "gap.txt:2:1: tick 5 comes before the previous pulses line's 9"
         );
     }
 }

@@ -11,6 +11,7 @@ use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{OutputError, PulseOutput, StopReason};
 use crate::vocab::{
     Axis, GapVolts, GeneratorSetPoints, HomeSwitch, LimitSet, LimitSwitch, MAX_AXES, ProbeReads,
+    PulseCounts,
 };
 
 /// The pulse output: the ledger as `pos-cmd`, checked against `pos-fb`, with the two
@@ -220,6 +221,12 @@ pub struct HalGap {
     mode: GapPins,
     volts: GapVolts,
     last_volts: f64,
+    /// The discriminator's counters as last read, and the pulses they gained in the last
+    /// tick; `counting` once any counter has moved (an unconnected discriminator counts
+    /// nothing, and then the input has no pulses to give).
+    counters: [i32; 4],
+    pulses: PulseCounts,
+    counting: bool,
 }
 
 impl HalGap {
@@ -229,12 +236,46 @@ impl HalGap {
             mode: settings.gap,
             volts: settings.volts,
             last_volts: 0.0,
+            counters: [0; 4],
+            pulses: PulseCounts::default(),
+            counting: false,
         }
+    }
+
+    /// What the discriminator's counters gained since the last tick (wrapping).
+    fn count_pulses(&mut self) {
+        let mut gained = [0u32; 4];
+        for ((pin, last), gain) in self
+            .pins
+            .gap_pulses
+            .iter()
+            .zip(&mut self.counters)
+            .zip(&mut gained)
+        {
+            let now = pin.get();
+            *gain = now.wrapping_sub(*last) as u32;
+            *last = now;
+        }
+        let [normal, arc, short, open] = gained;
+        self.counting |= gained.iter().any(|&g| g != 0);
+        let delay = self.pins.gap_ignition_delay_us.get();
+        self.pulses = PulseCounts {
+            normal,
+            arc,
+            short,
+            open,
+            delay_sum_us: if delay.is_finite() && delay > 0.0 {
+                delay * f64::from(normal + arc)
+            } else {
+                0.0
+            },
+        };
     }
 }
 
 impl GapSensor for HalGap {
     fn sample(&mut self, _tick: u64) -> Result<GapState, GapError> {
+        self.count_pulses();
         Ok(match self.mode {
             GapPins::Bits if self.pins.gap_short.get() => GapState::Short,
             GapPins::Bits if self.pins.gap_open.get() => GapState::Open,
@@ -248,6 +289,15 @@ impl GapSensor for HalGap {
 
     fn volts(&self) -> Option<f64> {
         (self.mode == GapPins::Voltage).then_some(self.last_volts)
+    }
+
+    fn pulses(&self) -> Option<PulseCounts> {
+        self.counting.then_some(self.pulses)
+    }
+
+    fn flushing(&self) -> Option<f64> {
+        let f = self.pins.gap_flushing.get();
+        (f.is_finite() && f > 0.0).then(|| f.min(1.0))
     }
 }
 

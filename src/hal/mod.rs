@@ -9,6 +9,9 @@
 //!  edmd.axis.L.pos-fb ◄──────────────────────net── stepgen.N.position-fb   (following error)
 //!  edmd.estop-ok-in, …-lim-sw, home-sw, probe-in, wire-break-in ◄── input pins
 //!  edmd.gap.short / .open / .voltage ◄── the generator's gap detection
+//!  edmd.gap.pulses-normal / -arc / -short / -open, .ignition-delay-us, .flushing
+//!                                      ◄── its pulse discriminator's counters, the nozzle's
+//!                                          pressure sensor
 //!  edmd.enable-out, spark-on, flush-on, condition, state ──► the drives and the generator
 //!  edmd.watchdog ──► a `watchdog` in a HAL thread (edmd's heartbeat)
 //!  edmd.rt-beat-in ◄── `charge_pump` in the servo thread (HAL's heartbeat)
@@ -178,6 +181,13 @@ pub(crate) struct Pins {
     pub gap_voltage: Pin<f64>,
     pub gap_short: BitPin,
     pub gap_open: BitPin,
+    /// The discriminator's running counts of normal, arc, short and open pulses (edmd reads
+    /// what each gained in a tick; they may wrap), the mean ignition delay of its last
+    /// pulses (µs) and the flushing a nozzle pressure sensor reads (1 at the part, 0: not
+    /// connected).
+    pub gap_pulses: [Pin<i32>; 4],
+    pub gap_ignition_delay_us: Pin<f64>,
+    pub gap_flushing: Pin<f64>,
     /// edmd's heartbeat, for a HAL `watchdog`.
     pub watchdog: BitPin,
     /// HAL's heartbeat (a bit a HAL thread toggles).
@@ -273,6 +283,14 @@ pub fn open(settings: &HalSettings) -> Result<Opened, HalError> {
         gap_voltage: c.float(&name("gap.voltage"), Dir::In)?,
         gap_short: c.bit(&name("gap.short"), Dir::In)?,
         gap_open: c.bit(&name("gap.open"), Dir::In)?,
+        gap_pulses: [
+            c.s32(&name("gap.pulses-normal"), Dir::In)?,
+            c.s32(&name("gap.pulses-arc"), Dir::In)?,
+            c.s32(&name("gap.pulses-short"), Dir::In)?,
+            c.s32(&name("gap.pulses-open"), Dir::In)?,
+        ],
+        gap_ignition_delay_us: c.float(&name("gap.ignition-delay-us"), Dir::In)?,
+        gap_flushing: c.float(&name("gap.flushing"), Dir::In)?,
         watchdog: c.bit(&name("watchdog"), Dir::Out)?,
         rt_beat_in: c.bit(&name("rt-beat-in"), Dir::In)?,
     };
@@ -288,7 +306,7 @@ pub fn open(settings: &HalSettings) -> Result<Opened, HalError> {
     tracing::info!(
         "HAL: component {} made ({} pins)",
         c.name(),
-        5 * pins.axes.len() + 13 + pins.generator.len()
+        5 * pins.axes.len() + 19 + pins.generator.len()
     );
     let pins = Arc::new(pins);
     let output = HalOutput::new(pins.clone(), settings);

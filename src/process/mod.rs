@@ -13,7 +13,11 @@
 //! Like the tick core it belongs to, it never allocates after the job is assembled: the
 //! table is built before the first tick and only read afterwards.
 
-use crate::vocab::GeneratorSetPoints;
+mod adaptive;
+
+pub use adaptive::{AdaptiveLaw, AdaptiveSettings, AdaptiveView, OffTimeBounds};
+
+use crate::vocab::{GeneratorSetPoints, PulseCounts};
 
 /// What a machining condition asks of the servo. A value the condition does not give keeps
 /// the `[servo]` setting: a feed or reference of 0, a jump value of NaN.
@@ -43,6 +47,9 @@ pub struct Condition {
     pub number: u16,
     pub servo: ServoSetPoints,
     pub generator: GeneratorSetPoints,
+    /// The adaptive law adjusts this condition's off time within these bounds; `None`: it
+    /// runs as set.
+    pub adaptive: Option<OffTimeBounds>,
 }
 
 impl Condition {
@@ -60,21 +67,36 @@ impl Condition {
             wire_speed_m_per_min: 0.0,
             flushing_bar: 0.0,
         },
+        adaptive: None,
     };
 }
 
-/// The job's machining conditions (a short list: a lookup is a scan).
+/// The job's machining conditions (a short list: a lookup is a scan), and the adaptive
+/// law's settings for those it adapts.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct ConditionTable(Vec<Condition>);
+pub struct ConditionTable {
+    conditions: Vec<Condition>,
+    adaptive: Option<AdaptiveSettings>,
+}
 
 impl ConditionTable {
     pub fn new(conditions: Vec<Condition>) -> ConditionTable {
-        ConditionTable(conditions)
+        ConditionTable {
+            conditions,
+            adaptive: None,
+        }
+    }
+
+    /// The table with the adaptive law's settings (`[adaptive]`): its conditions with bounds
+    /// are adapted.
+    pub fn with_adaptive(mut self, settings: AdaptiveSettings) -> ConditionTable {
+        self.adaptive = Some(settings);
+        self
     }
 
     /// Condition `number`; [`Condition::NONE`] (under that number) when the table has none.
     pub fn get(&self, number: u16) -> Condition {
-        self.0
+        self.conditions
             .iter()
             .find(|c| c.number == number)
             .copied()
@@ -93,6 +115,13 @@ pub struct Process {
     in_force: Condition,
     /// Bumped on every change of the set points in force.
     changes: u32,
+    /// The adaptive law, from the first adapted condition on (its height estimate carries
+    /// over from one condition to the next).
+    law: Option<AdaptiveLaw>,
+    /// Every pulse the gap input counted in the job, by class (normal, arc, short, open),
+    /// and the sum of their ignition delays (µs).
+    pulse_totals: [u64; 4],
+    delay_sum_us: f64,
 }
 
 impl Default for Process {
@@ -108,6 +137,9 @@ impl Process {
             table,
             in_force: Condition::NONE,
             changes: 0,
+            law: None,
+            pulse_totals: [0; 4],
+            delay_sum_us: 0.0,
         }
     }
 
@@ -117,7 +149,58 @@ impl Process {
         if number != self.in_force.number {
             self.in_force = self.table.get(number);
             self.changes = self.changes.wrapping_add(1);
+            if self.law.is_none()
+                && self.in_force.adaptive.is_some()
+                && let Some(settings) = self.table.adaptive
+            {
+                self.law = Some(AdaptiveLaw::new(settings));
+            }
         }
+    }
+
+    /// Phase 5 of a tick (after the drive): the gap's pulses of the tick and the net travel
+    /// along the path (mm). The adaptive law, where the condition in force is adapted, takes
+    /// them; at the end of its window the off time it asks for is in force (a change of the
+    /// set points, which the thread loop then writes to the generator).
+    #[inline]
+    pub fn observe(&mut self, pulses: Option<&PulseCounts>, travel_mm: f64, flushing: Option<f64>) {
+        if let Some(p) = pulses {
+            for (total, n) in self
+                .pulse_totals
+                .iter_mut()
+                .zip([p.normal, p.arc, p.short, p.open])
+            {
+                *total += u64::from(n);
+            }
+            self.delay_sum_us += p.delay_sum_us;
+        }
+        let (Some(law), Some(bounds), Some(pulses)) =
+            (self.law.as_mut(), self.in_force.adaptive, pulses)
+        else {
+            return;
+        };
+        if let Some(off) = law.observe(
+            pulses,
+            travel_mm,
+            flushing,
+            &self.in_force.generator,
+            bounds,
+        ) && off != self.in_force.generator.off_time_us
+        {
+            self.in_force.generator.off_time_us = off;
+            self.changes = self.changes.wrapping_add(1);
+        }
+    }
+
+    /// Every pulse counted in the job by class (normal, arc, short, open), and the sum of
+    /// the ignition delays of the normal and arc ones (µs).
+    pub fn pulse_totals(&self) -> ([u64; 4], f64) {
+        (self.pulse_totals, self.delay_sum_us)
+    }
+
+    /// What the adaptive law measured, once it runs.
+    pub fn adaptive(&self) -> Option<&AdaptiveView> {
+        self.law.as_ref().map(|l| l.view())
     }
 
     /// The condition in force.
@@ -157,6 +240,7 @@ mod tests {
                 off_time_us,
                 ..GeneratorSetPoints::default()
             },
+            adaptive: None,
         }
     }
 

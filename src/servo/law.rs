@@ -13,7 +13,7 @@
 //!   `short_limit` up is a short, an open ratio from `open_limit` up is open; in between the
 //!   feed is `gain · (open − short − r_ref)`.
 
-use crate::vocab::{GapState, GapVolts};
+use crate::vocab::{GapState, GapVolts, PulseCounts};
 
 /// How the servo turns the gap into a feed, as configured.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,12 +58,17 @@ impl Law {
 }
 
 /// What the gap input read this tick: its state, and what it measured beside it (the gap
-/// voltage, V; the open and short ratios of its last window).
+/// voltage, V; the open and short ratios of its last window; the tick's pulses).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GapReading {
     pub state: GapState,
     pub volts: Option<f64>,
     pub ratios: Option<(f64, f64)>,
+    /// The tick's pulses by class, from an input that counts them (whatever the law: the
+    /// adaptive control reads them too).
+    pub pulses: Option<PulseCounts>,
+    /// The flushing as the input senses it (1: the nozzle at the part).
+    pub flushing: Option<f64>,
 }
 
 impl GapReading {
@@ -73,6 +78,8 @@ impl GapReading {
             state,
             volts: None,
             ratios: None,
+            pulses: None,
+            flushing: None,
         }
     }
 }

@@ -6,7 +6,18 @@
 //! its motion through [`GapSensor::observe`]: each emitted event's length (from the steps
 //! and the step sizes), signed by its direction along the program.
 //!
-//! A one-dimensional model along the programmed path, the view the servo has of it:
+//! Two models of what happens in the gap (`sim.model`):
+//! - **discharge** (the default, [`discharge`]): the generator's pulses one by one (ignition
+//!   delay against the gap width, normal, arc, short and open pulses, removal by energy,
+//!   debris and flushing, the wire's heat and its breaking), driven by the condition in
+//!   force, the part height and the flushing along the cut (`@MM` lines of `sim.events`);
+//! - **kinematic**: the front erodes at `sim.erosion_mm_per_min` while the gap sparks,
+//!   whatever the condition; deterministic shorts from placed debris and wire breaks per
+//!   metre (the tests that need that determinism use it).
+//!
+//! Both share the geometry below and everything else here (rapids, probing, holds,
+//! breakthrough). A one-dimensional model along the programmed path, the view the servo has
+//! of it:
 //!
 //! ```text
 //!   electrode progress σ ──► gap g = φ − σ ◄── workpiece front φ
@@ -45,6 +56,7 @@
 //! collision is simulated), and moving forward through one carries the front along, so the
 //! next cut starts at `initial_gap` from the work, as after positioning to a new start hole.
 
+pub mod discharge;
 pub mod events;
 mod inputs;
 mod probe;
@@ -56,9 +68,10 @@ use crate::gap::{GapError, GapSensor, GapState, ScriptError};
 use crate::inputs::SimulatedWire;
 use crate::rng::SplitMix64;
 use crate::vocab::TickPeriod;
-use crate::vocab::{GapVolts, MAX_AXES};
+use crate::vocab::{GapVolts, GeneratorSetPoints, MAX_AXES, PulseCounts};
 
-pub use events::SimEvent;
+pub use discharge::{DischargeParams, Discharges};
+pub use events::{CutChange, SimEvent, SimScript};
 pub use inputs::SimInputs;
 pub use probe::{SimHole, SimPart};
 
@@ -89,6 +102,17 @@ pub struct SimConfig {
     /// less the turn-backs over it) there is no material and the gap reads open (a drill
     /// breaks through); infinite: never.
     pub breakthrough_at_mm: f64,
+    /// What happens in the gap.
+    pub model: SimModel,
+}
+
+/// `sim.model`: what the gap does when it sparks.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimModel {
+    /// The front erodes at `erosion_mm_per_s`, whatever the condition.
+    Kinematic,
+    /// The generator's pulses, one by one.
+    Discharge(Box<DischargeParams>),
 }
 
 /// Everything the model needs: its own settings, the machine's step sizes (unused axes 0)
@@ -138,13 +162,17 @@ impl SimMachine {
     pub fn new(
         settings: &SimSettings,
         cutting_spans: &[(f64, f64)],
-        events: Vec<(u64, SimEvent)>,
+        script: SimScript,
     ) -> SimMachine {
-        let (pressed, gap_events): (Vec<_>, Vec<_>) =
-            events.into_iter().partition(|(_, e)| e.presses_an_input());
+        let (pressed, gap_events): (Vec<_>, Vec<_>) = script
+            .by_tick
+            .into_iter()
+            .partition(|(_, e)| e.presses_an_input());
         let wire = SimulatedWire::default();
+        let mut gap = SimGap::new(settings, cutting_spans, gap_events, wire.clone());
+        gap.along = script.by_cut_mm;
         SimMachine {
-            gap: SimGap::new(settings, cutting_spans, gap_events, wire.clone()),
+            gap,
             inputs: SimInputs::new(pressed, wire),
         }
     }
@@ -158,7 +186,7 @@ impl SimMachine {
     ) -> Result<SimMachine, ScriptError> {
         let events = match &settings.params.events {
             Some(path) => events::load(path)?,
-            None => Vec::new(),
+            None => SimScript::default(),
         };
         Ok(SimMachine::new(settings, cutting_spans, events))
     }
@@ -222,6 +250,17 @@ pub struct SimGap {
     window: (f64, f64, u32),
     ratios: (f64, f64),
     counters: SimCounters,
+    /// The discharge model (`sim.model = "discharge"`), its own random numbers, the
+    /// generator's set points in force, the last tick's pulses and mean voltage.
+    discharges: Option<Discharges>,
+    process_rng: SplitMix64,
+    generator: GeneratorSetPoints,
+    pulses: PulseCounts,
+    window_pulses: PulseCounts,
+    process_volts: f64,
+    /// The changes along the cut, by position into the work (mm); the next one to apply.
+    along: Vec<(f64, CutChange)>,
+    next_along: usize,
 }
 
 impl SimGap {
@@ -243,7 +282,13 @@ impl SimGap {
         let cutting: f64 = cutting_spans.iter().map(|(a, b)| b - a).sum();
         let clear = params.debris_clear_mm;
         let room = (cutting - clear).max(0.0);
-        let n = (params.debris_per_mm * room).round() as usize;
+        // The discharge model makes its own shorts (contamination) and breaks (heat).
+        let kinematic = params.model == SimModel::Kinematic;
+        let n = if kinematic {
+            (params.debris_per_mm * room).round() as usize
+        } else {
+            0
+        };
         // The bridges' cutting distances increase with k, so one walk over the spans places
         // them all.
         let mut spans = cutting_spans.iter().peekable();
@@ -262,7 +307,12 @@ impl SimGap {
             })
             .collect();
         let mut break_rng = SplitMix64::new(params.seed ^ 0x5749_5245_4252_4b21);
-        let next_break_mm = next_break(&mut break_rng, params.wire_breaks_per_m, 0.0);
+        let breaks_per_m = if kinematic {
+            params.wire_breaks_per_m
+        } else {
+            0.0
+        };
+        let next_break_mm = next_break(&mut break_rng, breaks_per_m, 0.0);
         SimGap {
             spark_off: false,
             away: false,
@@ -279,7 +329,11 @@ impl SimGap {
             break_rng,
             broken: false,
             wire_sensor,
-            debris_per_tick: -(-params.debris_shorts_per_s * dt).exp_m1(),
+            debris_per_tick: if kinematic {
+                -(-params.debris_shorts_per_s * dt).exp_m1()
+            } else {
+                0.0
+            },
             rng,
             front: params.initial_gap_mm,
             erosion: params.erosion_mm_per_s,
@@ -300,6 +354,17 @@ impl SimGap {
             window: (0.0, 0.0, 0),
             ratios: (1.0, 0.0),
             counters: SimCounters::default(),
+            discharges: match &settings.params.model {
+                SimModel::Kinematic => None,
+                SimModel::Discharge(p) => Some(Discharges::new(**p)),
+            },
+            process_rng: SplitMix64::new(settings.params.seed ^ 0x4449_5343_4841_5247),
+            generator: GeneratorSetPoints::default(),
+            pulses: PulseCounts::default(),
+            window_pulses: PulseCounts::default(),
+            process_volts: f64::NAN,
+            along: Vec::new(),
+            next_along: 0,
         }
     }
 
@@ -340,6 +405,9 @@ impl SimGap {
     /// The inputs side mended the wire (a rethread): the next break is drawn from here.
     fn rethreaded(&mut self) {
         self.broken = false;
+        if let Some(d) = &mut self.discharges {
+            d.rethreaded();
+        }
         self.next_break_mm = next_break(
             &mut self.break_rng,
             self.params.wire_breaks_per_m,
@@ -407,6 +475,10 @@ impl SimGap {
             self.state = GapState::Open;
             return self.state;
         }
+        if self.discharges.is_some() {
+            self.state = self.discharge_state();
+            return self.state;
+        }
         let gap = self.gap_mm();
         let previous = self.state;
         self.state = if gap < self.params.short_gap_mm {
@@ -431,10 +503,75 @@ impl SimGap {
         self.state
     }
 
+    /// The discharge model's tick: the generator's cycles at the gap's width (a contact below
+    /// `short_gap`), the front moved by what they removed, the wire heated; with the spark
+    /// off, only the distance (and the wire cools).
+    fn discharge_state(&mut self) -> GapState {
+        let Some(d) = self.discharges.as_mut() else {
+            return self.state;
+        };
+        let gap = self.front - self.progress;
+        let contact = gap < self.params.short_gap_mm;
+        let dt_us = self.dt * 1e6;
+        if self.spark_off {
+            d.idle(dt_us);
+            self.pulses = PulseCounts::default();
+            self.process_volts = f64::NAN;
+            return if contact {
+                GapState::Short
+            } else {
+                GapState::Open
+            };
+        }
+        while let Some(&(at, change)) = self.along.get(self.next_along) {
+            if at > self.into_work_mm {
+                break;
+            }
+            self.next_along += 1;
+            match change {
+                CutChange::Height(mm) => d.set_height(mm),
+                CutChange::Flushing(f) => d.set_flushing(f),
+            }
+        }
+        let gap_um = if contact { 0.0 } else { gap * 1000.0 };
+        let t = d.tick(dt_us, gap_um, &self.generator, &mut self.process_rng);
+        self.front += t.removed_mm;
+        self.pulses = t.pulses;
+        if t.volts.is_finite() {
+            self.process_volts = t.volts;
+        }
+        if t.wire_broke {
+            self.broken = true;
+            self.wire_sensor.set_broken(true);
+            self.counters.wire_breaks += 1;
+            return GapState::Open;
+        }
+        let state = t.pulses.state().unwrap_or(self.state);
+        if contact && self.state != GapState::Short {
+            self.counters.proximity_shorts += 1;
+        }
+        if state == GapState::Normal {
+            self.counters.sparking_ticks += 1;
+        }
+        state
+    }
+
     /// Counts the tick into the pulse-ratio window: an open gap is all open pulses, a shorted
     /// one all short, a sparking one open in proportion to how far across the sparking band the
     /// gap is (a wider gap fails to ignite more often).
     fn count_pulses(&mut self, state: GapState) {
+        if self.discharges.is_some() {
+            self.window_pulses.add(&self.pulses);
+            self.window.2 += 1;
+            if self.window.2 >= RATIO_WINDOW_TICKS {
+                let w = self.window_pulses;
+                let n = w.total().max(1) as f64;
+                self.ratios = (w.open as f64 / n, w.short as f64 / n);
+                self.window_pulses = PulseCounts::default();
+                self.window.2 = 0;
+            }
+            return;
+        }
         let open = match state {
             GapState::Open => 1.0,
             GapState::Short => 0.0,
@@ -517,6 +654,17 @@ impl GapSensor for SimGap {
     /// linear rise from the short threshold to the open one: a wider gap burns at a higher
     /// voltage, as a real gap does.
     fn volts(&self) -> Option<f64> {
+        if self.discharges.is_some() {
+            // The mean over the tick's cycles where it sparked; a shorted or open gap's as
+            // the kinematic model says.
+            return Some(match self.state {
+                GapState::Short => 0.0,
+                _ if self.process_volts.is_finite() && !self.spark_off && !self.rapid => {
+                    self.process_volts
+                }
+                _ => OPEN_CIRCUIT_V,
+            });
+        }
         Some(match self.state {
             GapState::Short => 0.0,
             GapState::Open => OPEN_CIRCUIT_V,
@@ -531,6 +679,18 @@ impl GapSensor for SimGap {
 
     fn ratios(&self) -> Option<(f64, f64)> {
         Some(self.ratios)
+    }
+
+    fn pulses(&self) -> Option<PulseCounts> {
+        self.discharges.as_ref().map(|_| self.pulses)
+    }
+
+    fn generator(&mut self, set: &GeneratorSetPoints) {
+        self.generator = *set;
+    }
+
+    fn flushing(&self) -> Option<f64> {
+        self.discharges.as_ref().map(|d| d.flushing())
     }
 }
 

@@ -20,6 +20,7 @@ pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
         home_switch_mm: vec![None, None],
         part: SimPart::default(),
         breakthrough_at_mm: f64::INFINITY,
+        model: SimModel::Kinematic,
     };
     for o in overrides {
         let (key, value) = o.split_once('=').expect("sim.KEY=VALUE");
@@ -48,7 +49,7 @@ pub(crate) fn settings(overrides: &[&str]) -> SimSettings {
 }
 
 fn gap(overrides: &[&str]) -> SimGap {
-    SimMachine::new(&settings(overrides), &[(0.0, 10.0)], Vec::new()).gap
+    SimMachine::new(&settings(overrides), &[(0.0, 10.0)], SimScript::default()).gap
 }
 
 fn sample(g: &mut SimGap, tick: u64) -> GapState {
@@ -141,7 +142,7 @@ fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
         gap(&["sim.debris_shorts_per_mm=0.5", "sim.seed=4"]).debris_positions()
     );
     // The number goes with the cutting: none on a move of a few mm at the default rate.
-    let short = SimMachine::new(&settings(&[]), &[(0.0, 4.0)], Vec::new()).gap;
+    let short = SimMachine::new(&settings(&[]), &[(0.0, 4.0)], SimScript::default()).gap;
     assert!(short.debris_positions().is_empty());
     assert_eq!(gap(&[]).debris_positions().len(), 1, "0.1 per mm of 9.7 mm");
     // Only on cutting moves: a 10 mm rapid, 2 mm cut, 5 mm rapid, 2 mm cut.
@@ -149,7 +150,7 @@ fn placed_debris_spreads_over_the_path_and_forms_where_placed() {
     let g = SimMachine::new(
         &settings(&["sim.debris_shorts_per_mm=10", "sim.debris_clear_um=0.001"]),
         &spans,
-        Vec::new(),
+        SimScript::default(),
     )
     .gap;
     for p in g.debris_positions() {

@@ -129,3 +129,68 @@ impl GeneratorSetPoints {
             .join(", ")
     }
 }
+
+/// The generator's pulses of one tick, by class, as a discriminator counts them: normal
+/// discharges (ignited after a delay), arcs (ignited at once on a contaminated gap), shorts
+/// (current with no voltage: contact or a bridge) and open pulses (no breakdown within the
+/// generator's wait), with the sum of the ignition delays of the ignited ones. One fact for the
+/// simulator, HAL's `edmd.gap.pulses-*` pins, gap scripts, the servo and the adaptive law.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct PulseCounts {
+    pub normal: u32,
+    pub arc: u32,
+    pub short: u32,
+    pub open: u32,
+    /// Sum of the ignition delays of the normal and arc pulses, µs.
+    pub delay_sum_us: f64,
+}
+
+impl PulseCounts {
+    /// Every pulse counted.
+    #[inline]
+    pub fn total(&self) -> u32 {
+        self.normal + self.arc + self.short + self.open
+    }
+
+    /// The pulses that discharged (normal and arc).
+    #[inline]
+    pub fn ignited(&self) -> u32 {
+        self.normal + self.arc
+    }
+
+    /// The mean ignition delay of the ignited pulses, µs (NaN with none).
+    #[inline]
+    pub fn mean_delay_us(&self) -> f64 {
+        if self.ignited() == 0 {
+            f64::NAN
+        } else {
+            self.delay_sum_us / self.ignited() as f64
+        }
+    }
+
+    /// Adds `other`'s counts to these.
+    #[inline]
+    pub fn add(&mut self, other: &PulseCounts) {
+        self.normal += other.normal;
+        self.arc += other.arc;
+        self.short += other.short;
+        self.open += other.open;
+        self.delay_sum_us += other.delay_sum_us;
+    }
+
+    /// The gap state the tick's pulses say: shorted when shorts are at least half of them,
+    /// open when none discharged, sparking otherwise; `None` with no pulse.
+    #[inline]
+    pub fn state(&self) -> Option<GapState> {
+        let total = self.total();
+        if total == 0 {
+            None
+        } else if 2 * self.short >= total {
+            Some(GapState::Short)
+        } else if self.ignited() == 0 {
+            Some(GapState::Open)
+        } else {
+            Some(GapState::Normal)
+        }
+    }
+}

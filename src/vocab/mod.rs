@@ -16,7 +16,7 @@ mod safety;
 mod text;
 mod tick;
 
-pub use gap::{GapState, GapVolts, GeneratorSetPoints};
+pub use gap::{GapState, GapVolts, GeneratorSetPoints, PulseCounts};
 pub use modes::{OrbitShape, Predictor, Segmentation};
 pub use motion::{Axis, Guides, MAX_AXES, MIN_FEED_MM_PER_MIN, Steps};
 pub use safety::{HomeSwitch, LimitSet, LimitSwitch, ProbeReads, SafetyInputs, Trip};

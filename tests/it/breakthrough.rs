@@ -23,6 +23,7 @@ fn drill(name: &str, thickness: f64, on: bool) -> (f64, [i64; 3], String) {
         "machine.step_mm=[0.001,0.001,0.001]".to_string(),
         "gap.kind=\"sim\"".to_string(),
         format!("sim.breakthrough_at_mm={thickness}"),
+        "sim.model=\"kinematic\"".to_string(),
         format!("sinker.breakthrough={on}"),
         format!("sinker.breakthrough_extra_mm={EXTRA_MM}"),
         "log.format=\"plain\"".to_string(),

@@ -42,6 +42,8 @@ fn run(dir: &Path, program: &str, sets: &[&str]) -> Job {
             "--set",
             "sim.debris_shorts_per_mm=0",
             "--set",
+            "sim.model=\"kinematic\"",
+            "--set",
             "output.kind=\"file\"",
         ])
         .arg("--set")
@@ -158,6 +160,8 @@ fn a_plunge_with_jumps_ends_exactly_and_every_jump_is_in_the_pulse_log() {
         .args([
             "--set",
             "sim.debris_shorts_per_mm=0",
+            "--set",
+            "sim.model=\"kinematic\"",
             "--set",
             "servo.jump_interval_s=0.2",
             "--report",
@@ -325,6 +329,8 @@ fn a_wire_break_stops_edmd_run_with_a_checkpoint() {
         .args([
             "--set",
             "sim.debris_shorts_per_mm=0",
+            "--set",
+            "sim.model=\"kinematic\"",
             "--set",
             "sim.wire_breaks_per_m=300",
         ])

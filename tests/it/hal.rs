@@ -383,3 +383,60 @@ fn without_the_hal_library_the_daemon_refuses_to_start_and_names_the_package() {
     assert!(err.contains("apt install linuxcnc-uspace"), "{err}");
     assert!(!dir.join("edmd.sock").exists(), "nothing listens");
 }
+
+/// A cut in E4 (off time 16 µs), the adaptive law on: 8 mm at 2 mm/s.
+const ADAPT: &str = "G21 G90\nE4\nG1 X8.5 Y1.5 F120\nM2\n";
+
+/// The discriminator's pulse counters (`edmd.gap.pulses-*`), driven through HAL: a burst of
+/// arcs lengthens the off time to the bound at once, and normal pulses under the breakage
+/// limit shorten it again; the generator's `edmd.gen.off-time-us` pin follows the law, and
+/// the status counts the pulses.
+#[test]
+fn the_pulse_count_pins_drive_the_adaptive_law() {
+    if !common::hal::enabled("hal adaptive") {
+        return;
+    }
+    let bench = HalBench::start(
+        "adaptive",
+        &[("[homing]", "[adaptive]\nenabled = true\n\n[homing]")],
+        &[("adapt.ngc", ADAPT)],
+    );
+    let log = || bench.log();
+    start_and_move(&bench, "adapt.ngc");
+    let off = || bench.getp_f64("edmd.gen.off-time-us");
+    assert_eq!(off(), 16.0, "E4's off time before any pulse: {}", log());
+    // A thousand arcs in one tick: the window is all arcs.
+    bench.setp("edmd.gap.pulses-arc", "1000");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while off() != 60.0 {
+        assert!(
+            Instant::now() < deadline,
+            "off time {} µs: {}",
+            off(),
+            log()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // A few normal pulses, far under the limit: each window with them shortens it.
+    for n in 1..=5 {
+        bench.setp("edmd.gap.pulses-normal", &n.to_string());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let shortened = off();
+    assert!(shortened < 60.0 && shortened > 40.0, "{shortened} µs");
+    // The status counts the pulses and shows the off time in force.
+    let s = bench.daemon().status();
+    assert_eq!(s["job"]["process"]["pulses"]["arc"], 1000, "{s}");
+    assert_eq!(s["job"]["process"]["pulses"]["normal"], 5, "{s}");
+    let shown = s["job"]["process"]["off_time_us"].as_f64().unwrap();
+    assert!(
+        (shown - shortened).abs() < 1e-3,
+        "{shown} against the pin's {shortened}"
+    );
+    let job = bench
+        .daemon()
+        .wait_for("the job's end", |s| s["state"] == "idle")["last_job"]
+        .clone();
+    assert_eq!(job["outcome"], "done", "{job}\n{}", log());
+}

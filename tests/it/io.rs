@@ -38,6 +38,9 @@ fn config(overrides: &[&str]) -> Config {
 }
 
 /// `edmd run PROGRAM --summary DIR/summary.json --set ...` in the repository.
+/// The simulated gap's kinematic model: placed debris, erosion at a set rate.
+const KINEMATIC: &str = "sim.model=\"kinematic\"";
+
 fn edmd_run(program: &str, dir: &Path, sets: &[&str]) -> (Output, serde_json::Value) {
     let summary = dir.join("summary.json");
     let _ = std::fs::remove_file(&summary);
@@ -542,7 +545,7 @@ fn without_timing(mut summary: serde_json::Value) -> serde_json::Value {
 }
 
 #[test]
-fn the_default_sim_places_debris_by_the_mm_on_both_papers_curves_deterministically() {
+fn the_kinematic_sim_places_debris_by_the_mm_on_both_papers_curves_deterministically() {
     let dir = scratch("sim");
     // sim.debris_shorts_per_mm = 0.1 over the cutting past its first 0.3 mm: Huang's curve
     // is 49.0 mm, Jin's 1151.3 mm.
@@ -550,18 +553,18 @@ fn the_default_sim_places_debris_by_the_mm_on_both_papers_curves_deterministical
         ("programs/huang-table1-g38.nc", 5),
         ("programs/jin-table1-g06_2.nc", 115),
     ] {
-        let (out, a) = edmd_run(program, &dir, &[]);
+        let (out, a) = edmd_run(program, &dir, &[KINEMATIC]);
         assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
         assert_eq!(a["shorts"], shorts, "{program}");
         assert_eq!(a["turn_backs"], shorts, "{program}");
         assert_eq!(a["end_steps"], a["program_end_steps"], "{program}");
-        let (_, b) = edmd_run(program, &dir, &[]);
+        let (_, b) = edmd_run(program, &dir, &[KINEMATIC]);
         assert_eq!(
             without_timing(a.clone()),
             without_timing(b),
             "same seed, same job"
         );
-        let (_, c) = edmd_run(program, &dir, &["sim.seed=2"]);
+        let (_, c) = edmd_run(program, &dir, &["sim.seed=2", KINEMATIC]);
         assert_ne!(a["ticks"], c["ticks"], "another seed, other shorts");
         assert_eq!(c["end_steps"], c["program_end_steps"]);
     }
@@ -575,6 +578,7 @@ fn a_servo_feed_above_the_erosion_rate_gives_proximity_shorts_and_still_ends_exa
         &dir,
         &[
             "sim.debris_shorts_per_mm=0",
+            "sim.model=\"kinematic\"",
             "servo.normal_feed_mm_per_min=90",
         ],
     );
@@ -584,7 +588,7 @@ fn a_servo_feed_above_the_erosion_rate_gives_proximity_shorts_and_still_ends_exa
     let (_, none) = edmd_run(
         "programs/huang-table1-g38.nc",
         &dir,
-        &["sim.debris_shorts_per_mm=0"],
+        &["sim.debris_shorts_per_mm=0", "sim.model=\"kinematic\""],
     );
     assert_eq!(none["shorts"], 0, "erosion outpaces the default feed");
 }
@@ -600,6 +604,7 @@ fn scripted_sim_events_reach_the_job_and_bad_ones_are_located() {
         &dir,
         &[
             "sim.debris_shorts_per_mm=0",
+            "sim.model=\"kinematic\"",
             &format!("sim.events={}", events.display()),
             "buffer.reserved=64",
         ],

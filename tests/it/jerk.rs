@@ -51,6 +51,8 @@ fn run(dir: &Path, program: &str, sets: &[&str]) -> Job {
             "--set",
             "sim.debris_shorts_per_mm=0",
             "--set",
+            "sim.model=\"kinematic\"",
+            "--set",
             "output.kind=\"file\"",
         ])
         .arg("--set")

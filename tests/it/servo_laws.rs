@@ -9,7 +9,7 @@ use edmd::config::Config;
 use edmd::fine::{FineSettings, Interpolator};
 use edmd::gap::{GapSensor, GapState};
 use edmd::servo::{GapReading, Law, ServoState};
-use edmd::sim::{SimMachine, SimSettings};
+use edmd::sim::{SimMachine, SimScript, SimSettings};
 use edmd::vocab::MAX_AXES;
 
 /// 200 blocks of 0.1 mm along X, planned at up to 20 mm/s (the servo decides).
@@ -57,6 +57,7 @@ fn run(law: &str) -> Run {
             format!("servo.law=\"{law}\""),
             "sim.debris_shorts_per_mm=0".into(),
             "sim.erosion_mm_per_min=40.0".into(),
+            "sim.model=\"kinematic\"".into(),
         ],
     )
     .unwrap();
@@ -64,7 +65,7 @@ fn run(law: &str) -> Run {
     let mut sim = SimMachine::new(
         &SimSettings::from_config(&config),
         &[(0.0, 20.0)],
-        Vec::new(),
+        SimScript::default(),
     )
     .gap;
     let mut source = VecSource::new(straight_cut(), 16);
@@ -79,6 +80,8 @@ fn run(law: &str) -> Run {
             state: gap,
             volts,
             ratios,
+            pulses: None,
+            flushing: None,
         };
         let tick = fine.tick_measured(reading, &mut source);
         sim.observe(&tick.steps, tick.dir);
@@ -182,6 +185,8 @@ fn the_voltage_law_at_fixed_voltages() {
                 state: GapState::Normal,
                 volts: Some(v),
                 ratios: None,
+                pulses: None,
+                flushing: None,
             };
             let tick = fine.tick_measured(reading, &mut source);
             if arrived {

@@ -75,6 +75,8 @@ fn soak(dir: &Path, blocks: u64) -> Soak {
             "--set",
             "sim.debris_shorts_per_mm=0",
             "--set",
+            "sim.model=\"kinematic\"",
+            "--set",
             "sim.debris_shorts_per_s=2.0",
             "--set",
             "output.kind=\"sim\"",

@@ -372,6 +372,8 @@ fn a_tapered_die_with_shorts_ends_exactly_on_its_end_point() {
             "gap.kind=\"sim\"",
             "--set",
             "sim.debris_shorts_per_mm=0.1",
+            "--set",
+            "sim.model=\"kinematic\"",
             "--summary",
             dir.join("summary.json").to_str().unwrap(),
             "--report",

@@ -190,6 +190,9 @@ fn job_metrics(o: &mut Out, j: &JobStatus, axes: &[String]) {
         "Path speed, mm/min.",
         j.feed_mm_per_min,
     );
+    if let Some(p) = &j.process {
+        process_metrics(o, p);
+    }
     o.family("buffer_blocks", "gauge", "Loop-buffer blocks by area.");
     o.sample(
         "buffer_blocks",
@@ -207,6 +210,55 @@ fn job_metrics(o: &mut Out, j: &JobStatus, axes: &[String]) {
         "Loop-buffer capacity, blocks.",
         j.buffer_capacity as f64,
     );
+}
+
+/// The process as the pulses tell it: rates by class, the ignition delay, the off time, the
+/// height estimate and the cut rate.
+fn process_metrics(o: &mut Out, p: &crate::daemon::protocol::ProcessStatus) {
+    o.family(
+        "gap_pulses_per_second",
+        "gauge",
+        "The generator's pulses per second by class, over the job so far.",
+    );
+    let r = &p.rates_hz;
+    for (class, rate) in [
+        ("normal", r.normal),
+        ("arc", r.arc),
+        ("short", r.short),
+        ("open", r.open),
+    ] {
+        o.sample("gap_pulses_per_second", &format!("class=\"{class}\""), rate);
+    }
+    if let Some(delay) = p.mean_ignition_delay_us {
+        o.one(
+            "gap_ignition_delay_us",
+            "gauge",
+            "Mean ignition delay of the discharges so far, µs.",
+            delay,
+        );
+    }
+    o.one(
+        "generator_off_time_us",
+        "gauge",
+        "The generator's off time in force (adapted or as set), µs.",
+        p.off_time_us,
+    );
+    if let Some(h) = p.height_estimate_mm {
+        o.one(
+            "process_height_estimate_mm",
+            "gauge",
+            "The adaptive law's estimate of the part height, mm.",
+            h,
+        );
+    }
+    if let Some(rate) = p.cut_rate_mm2_per_min {
+        o.one(
+            "process_cut_rate_mm2_per_minute",
+            "gauge",
+            "Recent feed times the estimated height, mm²/min.",
+            rate,
+        );
+    }
 }
 
 /// The counts since the daemon started, and the latency histogram.

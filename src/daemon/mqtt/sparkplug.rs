@@ -148,6 +148,28 @@ fn job<'a, T>(s: &Sample<'a>, f: impl Fn(&'a JobStatus) -> T) -> Option<T> {
     s.status.job.as_ref().map(f)
 }
 
+/// A figure of the job's process (none without a job, or from an input that counts no
+/// pulses).
+fn process(
+    s: &Sample<'_>,
+    f: impl Fn(&crate::daemon::protocol::ProcessStatus) -> Option<f64>,
+) -> Option<f64> {
+    s.status.job.as_ref()?.process.as_ref().and_then(f)
+}
+
+/// One class's share of the job's pulses so far (0 with none counted).
+fn pulse_share(
+    s: &Sample<'_>,
+    class: fn(&crate::daemon::protocol::PulseClasses<u64>) -> u64,
+) -> f64 {
+    process(s, |p| {
+        let c = &p.pulses;
+        let total = c.normal + c.arc + c.short + c.open;
+        (total > 0).then(|| class(c) as f64 / total as f64)
+    })
+    .unwrap_or(0.0)
+}
+
 fn text(t: &str) -> Value {
     Value::Text(t.to_string())
 }
@@ -204,6 +226,30 @@ const WHOLE: &[(&str, Band, ReadWhole)] = &[
     }),
     ("Generator/Gap Voltage", Band::Exact, |s| {
         Value::Real(job(s, |j| j.gap_volts).flatten().unwrap_or(0.0).round())
+    }),
+    ("Gap/Normal Pulses Share", Band::Fraction, |s| {
+        Value::Real(pulse_share(s, |p| p.normal))
+    }),
+    ("Gap/Arc Pulses Share", Band::Fraction, |s| {
+        Value::Real(pulse_share(s, |p| p.arc))
+    }),
+    ("Gap/Short Pulses Share", Band::Fraction, |s| {
+        Value::Real(pulse_share(s, |p| p.short))
+    }),
+    ("Gap/Open Pulses Share", Band::Fraction, |s| {
+        Value::Real(pulse_share(s, |p| p.open))
+    }),
+    ("Gap/Ignition Delay", Band::MmPerMin, |s| {
+        Value::Real(process(s, |p| p.mean_ignition_delay_us).unwrap_or(0.0))
+    }),
+    ("Generator/Off Time", Band::Exact, |s| {
+        Value::Real(process(s, |p| Some(p.off_time_us)).unwrap_or(0.0))
+    }),
+    ("Process/Height Estimate", Band::Mm, |s| {
+        Value::Real(process(s, |p| p.height_estimate_mm).unwrap_or(0.0))
+    }),
+    ("Process/Cut Rate", Band::MmPerMin, |s| {
+        Value::Real(process(s, |p| p.cut_rate_mm2_per_min).unwrap_or(0.0))
     }),
     ("Gap/Normal Share", Band::Fraction, |s| {
         Value::Real(s.shares[0])

@@ -82,6 +82,19 @@ fn set_point(status: &Status, f: fn(&crate::vocab::GeneratorSetPoints) -> f64) -
     Variant::from(set.map_or(0.0, f))
 }
 
+/// A figure of the job's process; empty without one.
+fn process(
+    status: &Status,
+    f: fn(&crate::daemon::protocol::ProcessStatus) -> Option<f64>,
+) -> Variant {
+    status
+        .job
+        .as_ref()
+        .and_then(|j| j.process.as_ref())
+        .and_then(f)
+        .map_or(Variant::Empty, Variant::from)
+}
+
 /// How a machine-wide variable is read from the status.
 type ReadWhole = fn(&Status) -> Variant;
 /// How an axis's variable is read from the status, given the axis's index.
@@ -160,7 +173,51 @@ const WHOLE: &[(&str, &str, DataTypeId, ReadWhole)] = &[
                 .map_or(Variant::Empty, Variant::from)
         },
     ),
-    // The condition's set points (0: not given, or no condition in force).
+    // The process as the pulses tell it (empty without a counting gap input).
+    (
+        "Monitoring/EDMGenerator",
+        "IgnitionDelay",
+        DataTypeId::Double,
+        |s| process(s, |p| p.mean_ignition_delay_us),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "NormalPulseRate",
+        DataTypeId::Double,
+        |s| process(s, |p| Some(p.rates_hz.normal)),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "ArcPulseRate",
+        DataTypeId::Double,
+        |s| process(s, |p| Some(p.rates_hz.arc)),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "ShortPulseRate",
+        DataTypeId::Double,
+        |s| process(s, |p| Some(p.rates_hz.short)),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "OpenPulseRate",
+        DataTypeId::Double,
+        |s| process(s, |p| Some(p.rates_hz.open)),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "HeightEstimate",
+        DataTypeId::Double,
+        |s| process(s, |p| p.height_estimate_mm),
+    ),
+    (
+        "Monitoring/EDMGenerator",
+        "CutRate",
+        DataTypeId::Double,
+        |s| process(s, |p| p.cut_rate_mm2_per_min),
+    ),
+    // The condition's set points (0: not given, or no condition in force; the off time the
+    // one in force, adapted or not).
     (
         "Monitoring/EDMGenerator",
         "OnTime",

@@ -79,6 +79,10 @@ pub struct JobStatus {
     /// states only: a parallel port's pins, a script).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_volts: Option<f64>,
+    /// What the generator's pulses did, from a gap input that counts them (the simulator's
+    /// discharge model, HAL's discriminator pins).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub process: Option<ProcessStatus>,
     pub position_steps: Vec<i64>,
     pub position_mm: Vec<f64>,
     pub feed_mm_per_min: f64,
@@ -119,4 +123,31 @@ pub struct JobStatus {
     /// Why it is paused there: "program stop (M0/M1)", "single block", "secure the slug".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pause: Option<String>,
+}
+
+/// The process as the pulses tell it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProcessStatus {
+    /// Pulses so far by class.
+    pub pulses: PulseClasses<u64>,
+    /// Pulses per second by class, over the job so far.
+    pub rates_hz: PulseClasses<f64>,
+    /// The mean ignition delay of the normal and arc pulses, µs.
+    pub mean_ignition_delay_us: Option<f64>,
+    /// The generator's off time in force (adapted or as set), µs.
+    pub off_time_us: f64,
+    /// The adaptive law's estimate of the part height, mm.
+    pub height_estimate_mm: Option<f64>,
+    /// The cut rate: the recent feed times the part height (the estimate, else the
+    /// technology row's), mm²/min.
+    pub cut_rate_mm2_per_min: Option<f64>,
+}
+
+/// One figure per pulse class.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PulseClasses<T> {
+    pub normal: T,
+    pub arc: T,
+    pub short: T,
+    pub open: T,
 }

@@ -15,7 +15,7 @@ mod console;
 mod json;
 mod text;
 
-pub use console::{JobStatus, WireOffsetStatus, WorkOffsetRow};
+pub use console::{JobStatus, ProcessStatus, PulseClasses, WireOffsetStatus, WorkOffsetRow};
 pub use json::from_json;
 pub use text::duration_text;
 

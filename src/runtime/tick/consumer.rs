@@ -76,17 +76,27 @@ impl LoopSettings {
 /// law reads them (they are not asked for otherwise).
 #[inline]
 fn read_for<G: GapSensor + ?Sized>(input: LawInput, gap: GapState, sensor: &G) -> GapReading {
+    let pulses = sensor.pulses();
+    let flushing = sensor.flushing();
     match input {
-        LawInput::State => GapReading::state(gap),
+        LawInput::State => GapReading {
+            pulses,
+            flushing,
+            ..GapReading::state(gap)
+        },
         LawInput::Volts => GapReading {
             state: gap,
             volts: sensor.volts(),
             ratios: None,
+            pulses,
+            flushing,
         },
         LawInput::Ratios => GapReading {
             state: gap,
             volts: None,
             ratios: sensor.ratios(),
+            pulses,
+            flushing,
         },
     }
 }
@@ -553,6 +563,7 @@ fn tell_activity<O, G>(
         }
         if now.set_points != activity.set_points {
             output.set_points(now.condition, fine.process().generator());
+            sensor.generator(fine.process().generator());
         }
         *activity = now;
         output.moving_in(now);

@@ -46,6 +46,14 @@ pub struct Snapshot {
     pub condition: u64,
     pub pass: u64,
     pub wire_offset_mm: f64,
+    /// The gap's pulses so far by class (normal, arc, short, open; all 0 from an input that
+    /// does not count them) and the sum of their ignition delays (µs).
+    pub pulse_totals: [u64; 4],
+    pub delay_sum_us: f64,
+    /// The generator's off time in force (µs; 0 with no condition), and the adaptive law's
+    /// estimate of the part height (mm; NaN while the law does not run).
+    pub off_time_us: f64,
+    pub height_mm: f64,
 }
 }
 
@@ -70,6 +78,10 @@ impl Default for Snapshot {
             condition: 0,
             pass: 0,
             wire_offset_mm: 0.0,
+            pulse_totals: [0; 4],
+            delay_sum_us: 0.0,
+            off_time_us: 0.0,
+            height_mm: f64::NAN,
         }
     }
 }
@@ -112,6 +124,10 @@ impl Snapshot {
             condition: fine.block().map_or(0, |b| u64::from(b.condition)),
             pass: fine.block().map_or(0, |b| u64::from(b.pass)),
             wire_offset_mm: fine.block().map_or(0.0, |b| f64::from(b.wire_offset_mm)),
+            pulse_totals: fine.process().pulse_totals().0,
+            delay_sum_us: fine.process().pulse_totals().1,
+            off_time_us: fine.process().generator().off_time_us,
+            height_mm: fine.process().adaptive().map_or(f64::NAN, |a| a.height_mm),
         }
     }
 
@@ -223,6 +239,10 @@ mod tests {
                 condition: r(),
                 pass: r(),
                 wire_offset_mm: (r() % 1000) as f64 / -3.0,
+                pulse_totals: std::array::from_fn(|_| r()),
+                delay_sum_us: (r() % 100_000) as f64 / 3.0,
+                off_time_us: (r() % 1000) as f64 / 7.0,
+                height_mm: (r() % 1000) as f64 / 9.0,
             };
             lock.write(&snap.encode());
             assert_eq!(Snapshot::decode(&lock.read()), snap);
