@@ -288,7 +288,7 @@ fn buffer_handoff(c: &mut Criterion) {
 }
 
 fn end_to_end(c: &mut Criterion) {
-    let program = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/jin-table1-g06_2.nc");
+    let program = Path::new(env!("CARGO_MANIFEST_DIR")).join("../programs/jin-table1-g06_2.nc");
     let mut group = c.benchmark_group("run, virtual time");
     group.sample_size(10);
     for (name, feed) in [

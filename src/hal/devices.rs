@@ -224,7 +224,7 @@ pub struct HalGap {
     /// The discriminator's counters as last read, and the pulses they gained in the last
     /// tick; `counting` once any counter has moved (an unconnected discriminator counts
     /// nothing, and then the input has no pulses to give).
-    counters: [i32; 4],
+    counters: Option<[i32; 4]>,
     pulses: PulseCounts,
     counting: bool,
 }
@@ -236,26 +236,18 @@ impl HalGap {
             mode: settings.gap,
             volts: settings.volts,
             last_volts: 0.0,
-            counters: [0; 4],
+            counters: None,
             pulses: PulseCounts::default(),
             counting: false,
         }
     }
 
-    /// What the discriminator's counters gained since the last tick (wrapping).
+    /// What the discriminator's counters gained since the last tick (wrapping; the first
+    /// reading is where they stand, whatever they counted before edmd was there).
     fn count_pulses(&mut self) {
-        let mut gained = [0u32; 4];
-        for ((pin, last), gain) in self
-            .pins
-            .gap_pulses
-            .iter()
-            .zip(&mut self.counters)
-            .zip(&mut gained)
-        {
-            let now = pin.get();
-            *gain = now.wrapping_sub(*last) as u32;
-            *last = now;
-        }
+        let now: [i32; 4] = std::array::from_fn(|i| self.pins.gap_pulses[i].get());
+        let last = self.counters.replace(now).unwrap_or(now);
+        let gained: [u32; 4] = std::array::from_fn(|i| now[i].wrapping_sub(last[i]) as u32);
         let [normal, arc, short, open] = gained;
         self.counting |= gained.iter().any(|&g| g != 0);
         let delay = self.pins.gap_ignition_delay_us.get();

@@ -250,7 +250,7 @@ impl Discharges {
     pub fn idle(&mut self, dt_us: f64) {
         self.next_cycle_us = 0.0;
         self.last_energy_j = [0.0; 2];
-        self.cool(dt_us, 9.0);
+        self.cool(dt_us, self.params.generator.wire_speed_m_per_min);
     }
 
     /// One tick of `dt_us` with the gap `gap_um` wide (≤ 0: contact), the generator at `set`.
