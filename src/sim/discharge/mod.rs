@@ -279,38 +279,36 @@ impl Discharges {
             };
             let p_arc = (self.debris * deionized).min(0.95) * (1.0 - p_short);
             let r = rng.next_f64();
-            let length = if r < p_short {
+            // An ignited pulse: its delay, whether the discriminator counts it an arc, and
+            // whose energy it is (0: a discharge's, 1: an arc's on its spot).
+            let (length, ignition) = if r < p_short {
                 out.pulses.short += 1;
-                on + off
+                (on + off, None)
             } else if r < p_short + p_arc {
                 let delay = rng.next_f64() * p.arc_delay_us;
-                out.pulses.arc += 1;
-                out.pulses.delay_sum_us += delay;
-                energy[1] += pulse_j;
-                volt_us += set.open_voltage_v * delay + p.discharge_voltage_v * on;
-                delay + on + off
+                (delay + on + off, Some((delay, true, 1)))
             } else {
                 let delay = p.draw_delay_us(gap_um, rng);
                 if delay >= p.ignition_timeout_us {
                     out.pulses.open += 1;
                     volt_us += set.open_voltage_v * p.ignition_timeout_us;
-                    p.ignition_timeout_us + off
-                } else if delay < p.arc_delay_us {
+                    (p.ignition_timeout_us + off, None)
+                } else {
                     // Ignited at once on a clean gap: a discharge all the same, but the
                     // discriminator cannot tell it from an arc.
-                    out.pulses.arc += 1;
-                    out.pulses.delay_sum_us += delay;
-                    energy[0] += pulse_j;
-                    volt_us += set.open_voltage_v * delay + p.discharge_voltage_v * on;
-                    delay + on + off
-                } else {
-                    out.pulses.normal += 1;
-                    out.pulses.delay_sum_us += delay;
-                    energy[0] += pulse_j;
-                    volt_us += set.open_voltage_v * delay + p.discharge_voltage_v * on;
-                    delay + on + off
+                    (delay + on + off, Some((delay, delay < p.arc_delay_us, 0)))
                 }
             };
+            if let Some((delay, arc, source)) = ignition {
+                if arc {
+                    out.pulses.arc += 1;
+                } else {
+                    out.pulses.normal += 1;
+                }
+                out.pulses.delay_sum_us += delay;
+                energy[source] += pulse_j;
+                volt_us += set.open_voltage_v * delay + p.discharge_voltage_v * on;
+            }
             energized_us += length - off;
             self.next_cycle_us += length;
         }
