@@ -206,6 +206,36 @@ const PLOT_POINTS: usize = 20_000;
 /// Events kept in a report (a job with more lists the first ones and says how many it left).
 pub const MAX_EVENTS: usize = 100_000;
 
+/// Points kept of the process trace; past it every other point goes and the spacing doubles.
+const PROCESS_POINTS: usize = 4_000;
+/// The process trace's first spacing (s of machine time): a share of pulses over a quarter
+/// second is the process, over one tick it is noise.
+pub const PROCESS_EVERY_S: f64 = 0.25;
+
+/// One reading of the process, as the job's supervisor takes it from the snapshot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProcessPoint {
+    pub tick: u64,
+    /// Path length from the program's start (mm); goes back during a turn-back.
+    pub path_mm: f64,
+    /// The gap's pulses so far by class (normal, arc, short, open): running totals.
+    pub pulses: [u64; 4],
+    /// The generator's off time in force (µs; 0 with no condition).
+    pub off_time_us: f64,
+    /// The adaptive law's estimate of the part height (mm; NaN while it does not run).
+    pub height_mm: f64,
+}
+
+/// What a stretch of the job cut, from its process trace.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CutStretch {
+    /// Advanced along the path (mm): where the stretch ended less where it began, so a
+    /// turn-back and its re-advance count nothing.
+    pub cut_mm: f64,
+    /// The mean of the height estimates within it (mm), where the adaptive law ran.
+    pub height_estimate_mm: Option<f64>,
+}
+
 /// What the supervisor gathered of a job: bounded whatever the job's length.
 #[derive(Debug)]
 pub struct Recording {
@@ -232,6 +262,11 @@ pub struct Recording {
     /// A four-axis wire machine's upper guide (X + U, Y + V; mm), decimated, and the indices
     /// of U and V.
     pub upper: Option<([usize; 2], Decimated)>,
+    /// The process as the pulses told it, in tick order: running totals, so thinning the
+    /// trace makes its windows longer, never wrong.
+    pub process: Vec<ProcessPoint>,
+    /// Ticks between process points kept (doubles as the trace thins).
+    process_every: u64,
     last: Option<Sample>,
     /// Where the feed's current window started: steps are whole, so a feed measured over a
     /// few ticks is mostly quantisation; over [`FEED_WINDOW_S`] it is the feed.
@@ -259,6 +294,8 @@ impl Recording {
             start: None,
             direction: None,
             upper: None,
+            process: Vec::new(),
+            process_every: ((PROCESS_EVERY_S * 1e9) as u64 / tick.ns()).max(1),
             last: None,
             feed_from: None,
             turning_back: false,
@@ -367,6 +404,59 @@ impl Recording {
         } else {
             self.events_left_out += 1;
         }
+    }
+
+    /// Takes one reading of the process (in tick order): kept if it is the first, the
+    /// job's last (`closing`), or the spacing after the last one kept.
+    pub fn process_point(&mut self, point: ProcessPoint, closing: bool) {
+        let due = self.process.last().is_none_or(|last| {
+            point.tick >= last.tick + self.process_every || (closing && point.tick > last.tick)
+        });
+        if !due {
+            return;
+        }
+        if self.process.len() >= PROCESS_POINTS {
+            let mut i = 0;
+            self.process.retain(|_| {
+                i += 1;
+                i % 2 == 1
+            });
+            self.process_every *= 2;
+        }
+        self.process.push(point);
+    }
+
+    /// Where along the path the electrode stood at `tick` (mm), between the process points
+    /// around it; `None` with no trace.
+    fn path_at(&self, tick: u64) -> Option<f64> {
+        let after = self.process.partition_point(|p| p.tick < tick);
+        match (
+            after.checked_sub(1).map(|i| self.process[i]),
+            self.process.get(after).copied(),
+        ) {
+            (Some(a), Some(b)) if b.tick > a.tick => {
+                let f = (tick - a.tick) as f64 / (b.tick - a.tick) as f64;
+                Some(a.path_mm + f * (b.path_mm - a.path_mm))
+            }
+            (_, Some(p)) | (Some(p), None) => Some(p.path_mm),
+            (None, None) => None,
+        }
+    }
+
+    /// What the job cut from tick `from` to tick `until`; `None` with no process trace.
+    pub fn cut_between(&self, from: u64, until: u64) -> Option<CutStretch> {
+        let cut_mm = self.path_at(until)? - self.path_at(from)?;
+        let heights: Vec<f64> = self
+            .process
+            .iter()
+            .filter(|p| p.tick >= from && p.tick <= until && p.height_mm.is_finite())
+            .map(|p| p.height_mm)
+            .collect();
+        Some(CutStretch {
+            cut_mm,
+            height_estimate_mm: (!heights.is_empty())
+                .then(|| heights.iter().sum::<f64>() / heights.len() as f64),
+        })
     }
 
     /// The position (mm, machine axis order) of the last sample so far.
@@ -487,5 +577,63 @@ mod tests {
         let (_, upper) = r.upper.as_ref().unwrap();
         assert_eq!(upper.points(), [(0.0, 0.0), (1.5, -0.5), (3.0, -1.0)]);
         assert!(Recording::new(&[0.001; 2], tick).upper.is_none());
+    }
+
+    fn point(tick: u64, path_mm: f64, height_mm: f64) -> ProcessPoint {
+        ProcessPoint {
+            tick,
+            path_mm,
+            pulses: [tick, 0, 0, 0],
+            off_time_us: 16.0,
+            height_mm,
+        }
+    }
+
+    #[test]
+    fn the_process_trace_keeps_its_spacing_and_thins_without_losing_the_ends() {
+        // 1 ms ticks: a point every 250 ticks at first.
+        let mut r = Recording::new(&[0.001; 2], TickPeriod::from_us(1000).unwrap());
+        for tick in 0..1000 {
+            r.process_point(point(tick, 0.0, f64::NAN), false);
+        }
+        let ticks: Vec<u64> = r.process.iter().map(|p| p.tick).collect();
+        assert_eq!(ticks, [0, 250, 500, 750]);
+        // The job's last reading is kept whatever the spacing.
+        r.process_point(point(999, 0.0, f64::NAN), true);
+        assert_eq!(r.process.last().unwrap().tick, 999);
+        // Past its capacity the trace halves and its spacing doubles: bounded, still in
+        // order, still starting at the job's start.
+        let mut r = Recording::new(&[0.001; 2], TickPeriod::from_us(1000).unwrap());
+        for tick in (0..10_000_000).step_by(50) {
+            r.process_point(point(tick, 0.0, f64::NAN), false);
+        }
+        assert!(r.process.len() <= PROCESS_POINTS, "{}", r.process.len());
+        assert!(r.process.len() > PROCESS_POINTS / 4, "{}", r.process.len());
+        assert_eq!(r.process[0].tick, 0);
+        assert!(r.process.windows(2).all(|w| w[0].tick < w[1].tick));
+    }
+
+    #[test]
+    fn a_stretch_cut_is_where_it_ended_less_where_it_began_turn_backs_netted_out() {
+        let mut r = Recording::new(&[0.001; 2], TickPeriod::from_us(1000).unwrap());
+        assert_eq!(r.cut_between(0, 100), None, "no trace, no figure");
+        // Forward 2 mm, back 1 mm (a turn-back), forward 3 mm; the law's height from tick
+        // 500 on.
+        for (tick, mm, h) in [
+            (0, 0.0, f64::NAN),
+            (250, 2.0, f64::NAN),
+            (500, 1.0, 20.0),
+            (750, 4.0, 30.0),
+        ] {
+            r.process_point(point(tick, mm, h), false);
+        }
+        let all = r.cut_between(0, 750).unwrap();
+        assert_eq!(all.cut_mm, 4.0);
+        assert_eq!(all.height_estimate_mm, Some(25.0));
+        // Between the points, along the line from one to the next.
+        let part = r.cut_between(125, 625).unwrap();
+        assert!((part.cut_mm - (2.5 - 1.0)).abs() < 1e-12, "{part:?}");
+        let early = r.cut_between(0, 250).unwrap();
+        assert_eq!(early.height_estimate_mm, None);
     }
 }

@@ -73,7 +73,8 @@ impl CliJob {
             .as_ref()
             .map(Selection::pass_rows)
             .unwrap_or_default();
-        crate::report::pass_times(recording, end_tick, &conditions, &rows)
+        let height = self.technology.as_ref().and_then(|t| t.part_height_mm());
+        crate::report::pass_times(recording, end_tick, &conditions, &rows, height)
     }
 }
 

@@ -441,6 +441,7 @@ impl Core {
             JobKind::Touch { .. } => self.find_moved(&summary),
             _ => {}
         }
+        let part_height_mm = job.technology.as_ref().and_then(|t| t.part_height_mm());
         let passes = {
             let conditions: Vec<u32> = job.cut.passes.iter().map(|p| p.condition).collect();
             let rows = job
@@ -448,7 +449,13 @@ impl Core {
                 .as_ref()
                 .map(|t| t.pass_rows())
                 .unwrap_or_default();
-            crate::report::pass_times(&job.recording.lock(), summary.ticks, &conditions, &rows)
+            crate::report::pass_times(
+                &job.recording.lock(),
+                summary.ticks,
+                &conditions,
+                &rows,
+                part_height_mm,
+            )
         };
         if let Some(dir) = &job.report {
             match crate::report::write_report(dir, &mut job.recording.lock(), &summary, &passes) {
@@ -470,6 +477,11 @@ impl Core {
                 job.report.as_deref(),
             );
             record.spark_s = Some(spark_s);
+            record.mean_rate_mm2_per_min = job
+                .recording
+                .lock()
+                .cut_between(0, summary.ticks)
+                .and_then(|s| crate::report::mean_rate(&s, summary.virtual_time_s, part_height_mm));
             // The program as the operator names it: below the program directory.
             if let Ok(name) = job.program.strip_prefix(&self.config.daemon.program_dir) {
                 record.program = name.display().to_string();

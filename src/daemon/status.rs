@@ -169,6 +169,7 @@ fn process_status(job: &super::Job, snap: &Snapshot) -> Option<super::protocol::
         off_time_us: snap.off_time_us,
         height_estimate_mm: height,
         cut_rate_mm2_per_min: height
+            .or_else(|| job.technology.as_ref().and_then(|t| t.part_height_mm()))
             .zip(job.progress.recent_feed())
             .map(|(h, feed)| h * feed * 60.0),
     })

@@ -14,6 +14,9 @@ impl Interpolator {
     /// Copies the next block with steps into hand, passing over blocks of zero steps.
     pub(super) fn fetch_forward<S: BlockSource + ?Sized>(&mut self, source: &mut S) -> Fetch {
         loop {
+            if self.motion.has_block {
+                self.motion.passed_mm = self.motion.block.path_end_mm;
+            }
             let fetch = source.next(&mut self.motion.block);
             if fetch != Fetch::Block {
                 self.motion.has_block = false;

@@ -233,6 +233,21 @@ impl Interpolator {
         self.motion.has_block.then_some(&self.motion.block)
     }
 
+    /// Path length from the program's start to the electrode (mm), along the block in hand
+    /// (it goes back during a turn-back); with none in hand, the end of the last one left.
+    pub fn path_mm(&self) -> f64 {
+        let Some(b) = self.block() else {
+            return self.motion.passed_mm;
+        };
+        let events = b.events() as i64;
+        let left = if events > 0 {
+            (events - self.here().event).clamp(0, events) as f64 / events as f64
+        } else {
+            0.0
+        };
+        b.path_end_mm - b.length_mm * left
+    }
+
     /// Where along the program the electrode is.
     pub fn here(&self) -> PathPoint {
         self.motion.here()

@@ -15,6 +15,9 @@ pub(super) struct Motion {
     pub block: StepBlock,
     /// A block is in hand (false before the first block and while starved).
     pub has_block: bool,
+    /// Where along the path (mm from the program's start) the electrode stands with no
+    /// block in hand: the end of the last block it left forward (0 before the first).
+    pub passed_mm: f64,
     pub walk: Bresenham,
     /// Lattice distance of one event of the block in hand (mm).
     pub event_mm: f64,
@@ -83,6 +86,7 @@ impl Motion {
         Motion {
             block: StepBlock::EMPTY,
             has_block: false,
+            passed_mm: 0.0,
             walk: Bresenham::new(&[0; MAX_AXES], false),
             event_mm: 0.0,
             lattice_mm: 0.0,

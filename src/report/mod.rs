@@ -10,7 +10,13 @@
 //! - `events.csv`: every servo event (short, turn-back, resume, starvation, alarm, jump, wire
 //!   break, probe, end) with its machine time, source line and position;
 //! - `summary.json`: the job's summary, as `--summary` writes it;
-//! - `passes.csv` (a job in passes): each pass's technology row, condition and machine time.
+//! - `pulses.svg` (a gap that counts its pulses: the simulator, a discriminator through HAL):
+//!   the share of normal, arc, short and open pulses against machine time, over the gap
+//!   state's band, so an open gap reads open however the three-state band rounds it;
+//! - `generator.svg` (the same): the off time in force and the adaptive law's estimate of
+//!   the part height against machine time;
+//! - `passes.csv` (a job in passes): each pass's technology row, condition, machine time,
+//!   what it advanced, its mean cut rate and its wire breaks.
 //!
 //! Every series is decimated to a fixed number of points, so a report's size does not grow
 //! with the job.
@@ -70,7 +76,88 @@ pub fn write_report(
         band: Some(gap_band(recording)),
         ..Chart::default()
     };
-    write("feed.svg", &feed.render())
+    write("feed.svg", &feed.render())?;
+    if let Some((pulses, generator)) = process_charts(recording) {
+        write("pulses.svg", &pulses.render())?;
+        write("generator.svg", &generator.render())?;
+    }
+    Ok(())
+}
+
+/// `pulses.svg` and `generator.svg`, from the process trace; none from a gap that counted no
+/// pulses.
+fn process_charts(recording: &Recording) -> Option<(Chart, Chart)> {
+    let trace = &recording.process;
+    if trace
+        .last()
+        .is_none_or(|p| p.pulses.iter().sum::<u64>() == 0)
+    {
+        return None;
+    }
+    const CLASSES: [(&str, &str); 4] = [
+        ("normal", "#1a7f37"),
+        ("arc", "#cf5a00"),
+        ("short", "#d1242f"),
+        ("open", "#bf8700"),
+    ];
+    let mut shares: [Vec<(f64, f64)>; 4] = Default::default();
+    let (mut off_time, mut height) = (Vec::new(), Vec::new());
+    for pair in trace.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let t = recording.secs(b.tick);
+        let d: Vec<f64> = (0..4)
+            .map(|c| b.pulses[c].saturating_sub(a.pulses[c]) as f64)
+            .collect();
+        let n: f64 = d.iter().sum();
+        if n > 0.0 {
+            for (share, d) in shares.iter_mut().zip(&d) {
+                share.push((t, d / n * 100.0));
+            }
+        }
+        off_time.push((t, b.off_time_us));
+        if b.height_mm.is_finite() {
+            height.push((t, b.height_mm));
+        }
+    }
+    let pulses = Chart {
+        title: "What the gap did: pulses by class".into(),
+        x_label: "machine time (s)".into(),
+        y_label: "share of the pulses (%)".into(),
+        series: CLASSES
+            .iter()
+            .zip(shares)
+            .map(|(&(name, color), points)| Series {
+                name: name.into(),
+                color,
+                style: Style::Line,
+                points,
+            })
+            .collect(),
+        band: Some(gap_band(recording)),
+        ..Chart::default()
+    };
+    let mut series = vec![Series {
+        name: "off time in force (µs)".into(),
+        color: "#1f5fbf",
+        style: Style::Line,
+        points: off_time,
+    }];
+    if !height.is_empty() {
+        series.push(Series {
+            name: "estimated part height (mm)".into(),
+            color: "#8250df",
+            style: Style::Line,
+            points: height,
+        });
+    }
+    let generator = Chart {
+        title: "The generator: off time and estimated height".into(),
+        x_label: "machine time (s)".into(),
+        y_label: "µs, mm".into(),
+        series,
+        ..Chart::default()
+    };
+    Some((pulses, generator))
 }
 
 /// One pass of a job in passes: the technology row it came from, its condition and its
@@ -85,16 +172,41 @@ pub struct PassTime {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub row: Option<String>,
     pub time_s: f64,
+    /// Advanced along the path in the pass (mm; a turn-back and its re-advance count
+    /// nothing); none from a job recorded without its process.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cut_mm: Option<f64>,
+    /// The pass's mean cut rate: what it advanced times the part height, over its time
+    /// (mm²/min). The height is the adaptive law's estimate where it ran, else the
+    /// technology's; none without either.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_rate_mm2_per_min: Option<f64>,
+    /// Wire breaks within the pass.
+    #[serde(default)]
+    pub wire_breaks: u64,
+}
+
+/// The mean cut rate (mm²/min) of a stretch that advanced `cut_mm` in `time_s`, at the
+/// estimated height where the law ran, else at `part_height_mm`.
+pub fn mean_rate(
+    stretch: &crate::record::CutStretch,
+    time_s: f64,
+    part_height_mm: Option<f64>,
+) -> Option<f64> {
+    let height = stretch.height_estimate_mm.or(part_height_mm)?;
+    (time_s > 0.0).then(|| stretch.cut_mm.max(0.0) * height / time_s * 60.0)
 }
 
 /// What a job's recording says of its passes: each pass's machine time, from its start to
 /// the next one's (or the job's end at `end_tick`), with the condition and the table row of
-/// each (`conditions[k]`, `rows[k]` for pass k + 1).
+/// each (`conditions[k]`, `rows[k]` for pass k + 1), what it advanced, its mean cut rate (at
+/// `part_height_mm` where the adaptive law did not estimate one) and its wire breaks.
 pub fn pass_times(
     recording: &Recording,
     end_tick: u64,
     conditions: &[u32],
     rows: &[String],
+    part_height_mm: Option<f64>,
 ) -> Vec<PassTime> {
     let starts: Vec<(u64, u64)> = recording
         .events
@@ -108,11 +220,20 @@ pub fn pass_times(
         .map(|(i, &(pass, tick))| {
             let k = pass.checked_sub(1).map(|k| k as usize);
             let until = starts.get(i + 1).map_or(end_tick, |&(_, t)| t);
+            let time_s = recording.tick.ticks_to_secs(until.saturating_sub(tick));
+            let stretch = recording.cut_between(tick, until);
             PassTime {
                 pass,
                 condition: k.and_then(|k| conditions.get(k).copied()),
                 row: k.and_then(|k| rows.get(k).cloned()),
-                time_s: recording.tick.ticks_to_secs(until.saturating_sub(tick)),
+                time_s,
+                cut_mm: stretch.map(|s| s.cut_mm),
+                mean_rate_mm2_per_min: stretch.and_then(|s| mean_rate(&s, time_s, part_height_mm)),
+                wire_breaks: recording
+                    .events
+                    .iter()
+                    .filter(|e| e.kind == EventKind::WireBreak && e.tick >= tick && e.tick < until)
+                    .count() as u64,
             }
         })
         .collect()
@@ -120,15 +241,20 @@ pub fn pass_times(
 
 /// `passes.csv`: a line per pass.
 fn passes_csv(passes: &[PassTime]) -> String {
-    let mut csv = String::from("pass,condition,row,time_s\n");
+    let mut csv =
+        String::from("pass,condition,row,time_s,cut_mm,mean_rate_mm2_per_min,wire_breaks\n");
+    let figure = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
     for p in passes {
         let _ = writeln!(
             csv,
-            "{},{},\"{}\",{:.3}",
+            "{},{},\"{}\",{:.3},{},{},{}",
             p.pass,
             p.condition.map_or(String::new(), |c| format!("E{c}")),
             p.row.as_deref().unwrap_or_default().replace('"', "'"),
-            p.time_s
+            p.time_s,
+            figure(p.cut_mm),
+            figure(p.mean_rate_mm2_per_min),
+            p.wire_breaks
         );
     }
     csv

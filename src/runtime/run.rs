@@ -192,6 +192,7 @@ impl Supervisor<'_> {
         let done = loop {
             self.steer_stop();
             self.drain();
+            self.record_process(false);
             self.report_progress();
             self.publish_fill();
             match result.try_recv() {
@@ -202,7 +203,28 @@ impl Supervisor<'_> {
             std::thread::park_timeout(Duration::from_millis(10));
         };
         self.drain();
+        self.record_process(true);
         done
+    }
+
+    /// Hands the process as the snapshot tells it to the report's recording (the job's
+    /// last reading when `closing`).
+    fn record_process(&self, closing: bool) {
+        if let Some((recording, _)) = self.recording {
+            let snap = self.published.snapshot();
+            if snap.events == 0 && snap.path_mm == 0.0 && !closing {
+                // Before the first block: a job resumed mid-program is not at 0 mm.
+                return;
+            }
+            let point = crate::record::ProcessPoint {
+                tick: snap.tick,
+                path_mm: snap.path_mm,
+                pulses: snap.pulse_totals,
+                off_time_us: snap.off_time_us,
+                height_mm: snap.height_mm,
+            };
+            recording.lock().process_point(point, closing);
+        }
     }
 
     /// A controlled stop: hold, and end the loop once it stands still. A consumer that

@@ -293,6 +293,14 @@ pub struct Selection {
 }
 
 impl Selection {
+    /// The part's height a wire cut was asked for (mm); none for a sinker.
+    pub fn part_height_mm(&self) -> Option<f64> {
+        match self.request {
+            Request::Wire { height_mm, .. } => Some(height_mm),
+            Request::Sinker { .. } => None,
+        }
+    }
+
     /// The passes, as `--passes` cuts them.
     pub fn wire_passes(&self) -> Vec<WirePass> {
         self.passes.iter().map(|p| p.pass).collect()

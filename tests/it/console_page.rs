@@ -347,3 +347,67 @@ fn the_run_dialog_picks_a_technology_and_explains_it() {
     click(&browser, "abort");
     d.wait_for("the abort", |s| s["state"] == "idle");
 }
+
+/// The process on the page while the simulated gap cuts on its discharge model with the
+/// adaptive law: the pulse rates by class, the ignition delay, the off time in force, the
+/// estimated height and the cut rate, and the gap strip drawn from the pulse shares (arcs
+/// among them); the job in the history with its mean cut rate.
+#[test]
+fn the_page_shows_the_process_as_the_pulses_tell_it() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start(
+        "console-process",
+        &[
+            "gap.kind=\"sim\"",
+            "adaptive.enabled=true",
+            "servo.law=\"voltage\"",
+            "generator.condition=[{ number = 21, on_us = 8.0, off_us = 16.0, current_a = 12.0, \
+             v_ref = 64.0, open_voltage_v = 90.0, wire_speed_m_per_min = 9.0, \
+             flushing_bar = 12.0, feed_mm_per_min = 30.0, off_time_min_us = 5.0, \
+             off_time_max_us = 60.0 }]",
+        ],
+    );
+    std::fs::write(
+        dir.join("programs/slot.ngc"),
+        "G21 G90 G17\nE21\nG1 X3 F30\nM2\n",
+    )
+    .unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "slot.ngc listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'slot.ngc')",
+    );
+    pick(&browser, "slot.ngc");
+    click(&browser, "run");
+    let row = wait(
+        &browser,
+        "the process row",
+        "const p = document.getElementById('process'); \
+         const t = p.textContent, h = document.getElementById('process-height'); \
+         return Number(p.dataset.pulses) > 10000 && t.includes('normal') && t.includes('µs') \
+           && h && h.textContent.includes(' mm') ? t : false",
+    );
+    eprintln!("process: {row}");
+    let off: f64 = browser
+        .eval("return document.getElementById('process-off-time').querySelector('b').textContent")
+        .as_str()
+        .unwrap()
+        .trim_end_matches(" µs")
+        .parse()
+        .unwrap();
+    assert!((5.0..=60.0).contains(&off), "{off} µs: within the bounds");
+    // The strip draws the pulse shares: a normal, an arc, a short and an open share each.
+    wait(
+        &browser,
+        "the strip from the pulses",
+        "return strip.length > 3 && strip.every(v => Math.abs(v.normal + v.arc + v.short + v.open - 1) < 1e-9)",
+    );
+    browser.eval("document.getElementById('strip').scrollIntoView(); return true");
+    shot(&browser, &dir.join("page-process.png"));
+    click(&browser, "abort");
+    click(&browser, "abort");
+    d.wait_for("the abort", |s| s["state"] == "idle");
+}

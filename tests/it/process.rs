@@ -94,3 +94,64 @@ fn an_off_time_shorter_than_the_baseline_breaks_the_wire_where_the_flushing_is_p
         .unwrap_or_else(|| panic!("no break: {}", describe(&c)));
     assert!((6.0..9.0).contains(&at), "broke at {at} mm");
 }
+
+/// `edmd run --report` on the discharge model: the report's charts show what the gap did
+/// pulse by pulse (the share of each class over machine time) and what the generator was
+/// set to (the off time the law chose, the height it estimated), through the binary.
+#[test]
+fn a_run_report_shows_the_pulses_the_off_time_and_the_estimated_height() {
+    let dir = crate::common::scratch("process", "report");
+    let program = dir.join("step.ngc");
+    // Through the first step: 60 mm high for 5 mm, then 20 mm.
+    std::fs::write(&program, "G21 G90 G17\nG0 X0 Y0\nE21\nG1 X6.5 F30\nM2\n").unwrap();
+    let report = dir.join("report");
+    let data = stepped::data();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .arg("run")
+        .arg(&program)
+        .arg("--config")
+        .arg(data.join("stepped.toml"))
+        .arg("--report")
+        .arg(&report)
+        .args([
+            "--set",
+            "adaptive.enabled=true",
+            "--set",
+            "output.kind=\"null\"",
+        ])
+        .arg("--set")
+        .arg(format!(
+            "sim.events={:?}",
+            data.join("stepped.events").display().to_string()
+        ))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let pulses = std::fs::read_to_string(report.join("pulses.svg")).unwrap();
+    for class in [
+        ">normal</text>",
+        ">arc</text>",
+        ">short</text>",
+        ">open</text>",
+    ] {
+        assert!(pulses.contains(class), "{class} in the legend");
+    }
+    assert!(pulses.contains("share of the pulses (%)") && pulses.contains(">gap</text>"));
+    // Four classes, each a line of many windows (a quarter second each at least).
+    assert_eq!(pulses.matches("<path d=").count(), 4, "{pulses}");
+    let normal = pulses
+        .lines()
+        .find(|l| l.starts_with("<path d=") && l.contains("stroke=\"#1a7f37\""))
+        .unwrap();
+    assert!(normal.matches(',').count() > 100, "{normal}");
+    let generator = std::fs::read_to_string(report.join("generator.svg")).unwrap();
+    assert!(generator.contains("off time in force (µs)"), "{generator}");
+    assert!(
+        generator.contains("estimated part height (mm)"),
+        "{generator}"
+    );
+    // A job not in passes writes no passes.csv.
+    assert!(!report.join("passes.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

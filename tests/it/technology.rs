@@ -214,10 +214,43 @@ fn a_header_comment_cuts_the_tables_passes_at_their_offsets_and_is_recorded() {
         record["passes"][1]["row"], "30 mm, between the 20 and 40 mm rows",
         "{record}"
     );
+    // Each pass's mean cut rate: what it advanced along the path (the contour, each pass
+    // once) times the table's 30 mm, over its time; no wire broke.
+    let first_mm = record["passes"][0]["cut_mm"].as_f64().unwrap();
+    for pass in record["passes"].as_array().unwrap() {
+        let (cut, time) = (
+            pass["cut_mm"].as_f64().unwrap(),
+            pass["time_s"].as_f64().unwrap(),
+        );
+        assert!(
+            cut > 10.0 && (cut - first_mm).abs() < 0.1 * first_mm,
+            "{pass}"
+        );
+        let rate = pass["mean_rate_mm2_per_min"].as_f64().unwrap();
+        assert!(
+            (rate - cut * 30.0 / time * 60.0).abs() < 1e-6 * rate,
+            "{pass}"
+        );
+        assert_eq!(pass["wire_breaks"], 0, "{pass}");
+    }
+    let job_rate = record["mean_rate_mm2_per_min"].as_f64().unwrap();
+    let job_mm: f64 = record["passes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["cut_mm"].as_f64().unwrap())
+        .sum();
+    let machine_s = record["machine_time_s"].as_f64().unwrap();
+    // The job's approach and leave add a little path beyond the passes.
+    let bare = job_mm * 30.0 / machine_s * 60.0;
+    assert!((job_rate - bare).abs() < 0.1 * bare, "{job_rate} vs {bare}");
     let report = Path::new(record["report"].as_str().unwrap());
     let csv = std::fs::read_to_string(report.join("passes.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], "pass,condition,row,time_s");
+    assert_eq!(
+        lines[0],
+        "pass,condition,row,time_s,cut_mm,mean_rate_mm2_per_min,wire_breaks"
+    );
     assert!(
         lines[2].starts_with("2,E52,\"30 mm, between the 20 and 40 mm rows\","),
         "{csv}"

@@ -54,6 +54,10 @@ pub struct JobRecord {
     /// Each pass of the technology table: its number, condition and machine time.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<PassTime>,
+    /// The job's mean cut rate (mm²/min): what it advanced along the path times the part
+    /// height (the adaptive law's estimate, else the technology's), over its machine time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_rate_mm2_per_min: Option<f64>,
     /// The technology it was cut with (`material=steel height=32 wire=0.25 (…)`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub technology: Option<String>,
@@ -239,7 +243,7 @@ pub fn table(page: &Page) -> String {
     for j in jobs {
         let _ = write!(
             t,
-            "{}  {:<8} {}{}{}  {}  {} shorts, {} wire breaks",
+            "{}  {:<8} {}{}{}  {}{}  {} shorts, {} wire breaks",
             j.started,
             j.outcome,
             j.program,
@@ -248,6 +252,9 @@ pub fn table(page: &Page) -> String {
                 .map(|l| format!(" from line {l}"))
                 .unwrap_or_default(),
             duration(j.machine_time_s),
+            j.mean_rate_mm2_per_min
+                .map(|r| format!(" at {r:.0} mm²/min"))
+                .unwrap_or_default(),
             j.shorts,
             j.wire_breaks
         );
@@ -261,10 +268,19 @@ pub fn table(page: &Page) -> String {
         for p in &j.passes {
             let _ = writeln!(
                 t,
-                "    pass {}{}  {}{}",
+                "    pass {}{}  {}{}{}{}{}",
                 p.pass,
                 p.condition.map(|c| format!(" E{c}")).unwrap_or_default(),
                 duration(p.time_s),
+                p.cut_mm.map(|c| format!("  {c:.3} mm")).unwrap_or_default(),
+                p.mean_rate_mm2_per_min
+                    .map(|r| format!(" at {r:.0} mm²/min"))
+                    .unwrap_or_default(),
+                match p.wire_breaks {
+                    0 => String::new(),
+                    1 => ", 1 wire break".into(),
+                    n => format!(", {n} wire breaks"),
+                },
                 p.row
                     .as_ref()
                     .map(|r| format!("  ({r})"))
@@ -330,6 +346,7 @@ pub fn record_of(
         machine_time_s: summary.virtual_time_s,
         spark_s: None,
         passes,
+        mean_rate_mm2_per_min: None,
         technology,
         shorts: summary.servo.shorts,
         turn_backs: summary.servo.turn_backs,

@@ -28,7 +28,11 @@ fn the_history_appends_and_lists_newest_first_and_the_counters_persist() {
             condition: Some(4),
             row: Some("30 mm row".into()),
             time_s: 60.0,
+            cut_mm: Some(30.0),
+            mean_rate_mm2_per_min: Some(900.0),
+            wire_breaks: 1,
         }],
+        mean_rate_mm2_per_min: Some(900.0),
         technology: Some("material=steel height=30 wire=0.25 (…)".into()),
         shorts: 2,
         turn_backs: 2,
@@ -50,6 +54,18 @@ fn the_history_appends_and_lists_newest_first_and_the_counters_persist() {
         ["b.nc", "a.nc"]
     );
     assert_eq!(listed[0].passes[0].condition, Some(4));
+    assert_eq!(listed[0].passes[0].wire_breaks, 1);
+    assert_eq!(listed[0].passes[0].mean_rate_mm2_per_min, Some(900.0));
+    let table = table(&Page {
+        jobs: listed.clone(),
+        unreadable: Vec::new(),
+        more: false,
+    });
+    assert!(
+        table
+            .contains("pass 1 E4  1 min 00 s  30.000 mm at 900 mm²/min, 1 wire break  (30 mm row)"),
+        "{table}"
+    );
     // A restart reads the counters back.
     let again = History::open(&jobs, &counters);
     assert_eq!(
@@ -76,6 +92,7 @@ fn record(program: &str) -> JobRecord {
         machine_time_s: 60.0,
         spark_s: Some(50.0),
         passes: Vec::new(),
+        mean_rate_mm2_per_min: None,
         technology: None,
         shorts: 0,
         turn_backs: 0,

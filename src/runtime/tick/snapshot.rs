@@ -35,7 +35,7 @@ pub struct Snapshot {
     /// Pulses emitted per axis.
     pub pulses: [u64; MAX_AXES],
     /// Path length from the program's start to the electrode (mm), along the segment in
-    /// hand: goes back during a turn-back.
+    /// hand: goes back during a turn-back; with none in hand, the end of the last one left.
     pub path_mm: f64,
     /// What a retreat or return is for (in those states).
     pub excursion: Option<Excursion>,
@@ -95,15 +95,7 @@ impl Snapshot {
         let (events, u_end) = fine
             .block()
             .map_or((0, f64::NAN), |b| (b.events() as i64, b.u_end));
-        let here = fine.here();
-        let path_mm = fine.block().map_or(0.0, |b| {
-            let left = if events > 0 {
-                (events - here.event).clamp(0, events) as f64 / events as f64
-            } else {
-                0.0
-            };
-            b.path_end_mm - b.length_mm * left
-        });
+        let path_mm = fine.path_mm();
         Snapshot {
             tick,
             state: fine.state(),

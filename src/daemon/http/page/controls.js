@@ -8,12 +8,16 @@ async function loadJobs() {
     lastJobs = (await r.json()).jobs || [];
   } catch (e) { return; }
   const t = $("jobs-table");
-  t.innerHTML = "<tr><th>started</th><th>program</th><th>outcome</th><th>time</th><th>passes</th><th>shorts</th><th>wire breaks</th></tr>";
+  t.innerHTML = "<tr><th>started</th><th>program</th><th>outcome</th><th>time</th><th>mm²/min</th><th>passes</th><th>shorts</th><th>wire breaks</th></tr>";
   lastJobs.forEach((j) => {
     const tr = document.createElement("tr");
-    const passes = (j.passes || []).map((p) => `${p.pass}${p.condition != null ? ` E${p.condition}` : ""}: ${fmtTime(p.time_s)}`).join(", ");
+    // Each pass: its time, its mean cut rate where the height is known, its wire breaks.
+    const rate = (r) => (r != null ? r.toFixed(0) : null);
+    const passes = (j.passes || []).map((p) => `${p.pass}${p.condition != null ? ` E${p.condition}` : ""}: ` +
+      [fmtTime(p.time_s), rate(p.mean_rate_mm2_per_min) && `${rate(p.mean_rate_mm2_per_min)} mm²/min`,
+       p.wire_breaks ? `${p.wire_breaks} break${p.wire_breaks > 1 ? "s" : ""}` : null].filter((x) => x).join(" ")).join(", ");
     const cells = [j.started, `${j.program}${j.dry_run ? " (dry run)" : ""}${j.from_line ? ` from line ${j.from_line}` : ""}${j.technology ? ` · ${j.technology}` : ""}`,
-      j.outcome, fmtTime(j.machine_time_s), passes || "–", j.shorts, j.wire_breaks];
+      j.outcome, fmtTime(j.machine_time_s), rate(j.mean_rate_mm2_per_min) || "–", passes || "–", j.shorts, j.wire_breaks];
     cells.forEach((c, i) => { const td = document.createElement("td"); td.textContent = c; if (i === 2 && c !== "done") td.className = "bad"; tr.appendChild(td); });
     t.appendChild(tr);
   });

@@ -117,7 +117,7 @@ function draw() {
   strip.forEach((v, i) => {
     const x = sw - (strip.length - i) * bw;
     let y = sh;
-    [["normal", "--normal"], ["open", "--open"], ["short", "--short"]].forEach(([k, col]) => {
+    [["normal", "--normal"], ["arc", "--arc"], ["open", "--open"], ["short", "--short"]].forEach(([k, col]) => {
       const hh = v[k] * sh;
       q.fillStyle = getComputedStyle(document.body).getPropertyValue(col);
       q.globalAlpha = .35; q.fillRect(x, y - hh, bw + .5, hh); y -= hh;

@@ -2,8 +2,8 @@
 // the operator may press now.
 "use strict";
 const $ = (id) => document.getElementById(id);
-const strip = [];         // {t, normal, open, short, feed}
-let planned = null, plannedFor = null, lastGap = null, maxFeed = 1, axes = ["X", "Y"];
+const strip = [];         // {normal, arc, open, short (shares), feed, volts}
+let planned = null, plannedFor = null, lastGap = null, lastPulses = null, maxFeed = 1, axes = ["X", "Y"];
 // The executed path as the daemon recorded it (GET /api/executed), where the electrode is,
 // and what turns machine coordinates into the work coordinates the plot is drawn in.
 let executedPath = null, executedAt = 0, executedBusy = false, wasRunning = false;
@@ -96,18 +96,44 @@ function show(status) {
     if ($("message").className !== "error") $("message").textContent = "";
   }
   wasRunning = !!j;
-  if (lastGap) {
+  // The strip: each status's share of pulses by class where the gap counts them (the
+  // simulator, a discriminator through HAL), else its share of ticks by gap state.
+  const pr = j && j.process;
+  const pulses = pr ? [pr.pulses.normal, pr.pulses.arc, pr.pulses.short, pr.pulses.open] : null;
+  const live = { feed: j ? j.feed_mm_per_min : 0, volts: j && j.gap_volts != null ? j.gap_volts : null };
+  if (pulses && lastPulses) {
+    const d = pulses.map((v, i) => v - lastPulses[i]);
+    const n = d[0] + d[1] + d[2] + d[3];
+    if (n > 0) strip.push({ normal: d[0] / n, arc: d[1] / n, short: d[2] / n, open: d[3] / n, ...live });
+  } else if (!pulses && lastGap) {
     const d = c.gap_ticks.map((v, i) => v - lastGap[i]);
     const n = d[0] + d[1] + d[2];
-    if (n > 0) strip.push({ normal: d[0] / n, open: d[1] / n, short: d[2] / n,
-                            feed: j ? j.feed_mm_per_min : 0,
-                            volts: j && j.gap_volts != null ? j.gap_volts : null });
-    if (strip.length > 600) strip.shift();
+    if (n > 0) strip.push({ normal: d[0] / n, arc: 0, open: d[1] / n, short: d[2] / n, ...live });
   }
+  if (strip.length > 600) strip.shift();
   lastGap = c.gap_ticks;
+  lastPulses = pulses;
+  showProcess(pr);
   showControls(status);
   showListing(j ? j.program : $("program-list").value, j ? j.line : 0);
   draw();
+}
+
+// The process as the pulses tell it: rates by class, the mean ignition delay, the off time
+// in force, the estimated height and the cut rate.
+function showProcess(pr) {
+  const el = $("process");
+  if (!pr) { el.innerHTML = ""; el.dataset.pulses = "0"; return; }
+  const r = pr.rates_hz, k = (v) => (v >= 1000 ? `${(v / 1000).toFixed(1)} k` : v.toFixed(0));
+  const figures = [["normal", `${k(r.normal)}/s`], ["arc", `${k(r.arc)}/s`], ["short", `${k(r.short)}/s`],
+    ["open", `${k(r.open)}/s`],
+    ["ignition delay", pr.mean_ignition_delay_us != null ? `${pr.mean_ignition_delay_us.toFixed(1)} µs` : "–"],
+    ["off time", `${pr.off_time_us.toFixed(1)} µs`],
+    ["height", pr.height_estimate_mm != null ? `${pr.height_estimate_mm.toFixed(1)} mm` : "–"],
+    ["cut rate", pr.cut_rate_mm2_per_min != null ? `${pr.cut_rate_mm2_per_min.toFixed(0)} mm²/min` : "–"]];
+  el.innerHTML = figures.map(([name, v]) => `<span class="kv" id="process-${name.replace(" ", "-")}">${name} <b>${v}</b></span>`).join("");
+  const p = pr.pulses;
+  el.dataset.pulses = p.normal + p.arc + p.short + p.open;
 }
 
 // The program's listing, the line in hand highlighted and kept in view (the list scrolls,
