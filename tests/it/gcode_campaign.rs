@@ -180,8 +180,12 @@ fn section(p: &mut Program, rng: &mut SplitMix64) {
             let retract = ["G98", "G99"][rng.below(2)];
             let cycle = ["G81", "G82 P0.1", "G83 Q0.7", "G73 Q0.4"][rng.below(4)];
             let (x, y) = (p.num(u(rng, -20.0, 20.0)), p.num(u(rng, -20.0, 20.0)));
+            // Ended by G80 alone, or by the posts' safe-start line: G80 beside a motion
+            // code, which LinuxCNC passes over.
+            let end =
+                ["G80", "G0 G80 Z{z}", "G80 G1 Z{z}"][rng.below(3)].replace("{z}", &p.num(6.0));
             p.line(&format!(
-                "G0 Z{}\n{retract} {cycle} X{x} Y{y} Z{} R{}\nX{}\nG80",
+                "G0 Z{}\n{retract} {cycle} X{x} Y{y} Z{} R{}\nX{}\n{end}\nG80",
                 p.num(5.0),
                 p.num(-2.0),
                 p.num(1.0),
@@ -190,13 +194,23 @@ fn section(p: &mut Program, rng: &mut SplitMix64) {
         }
         13 => {
             let g = if p.inch { "G20" } else { "G21" };
-            p.line(&format!(
-                "M70\nG91 G1 X{} Y{}\nM72\nG1 X{} Y{}",
-                p.num(1.0),
-                p.num(-1.0),
-                p.num(2.0),
-                p.num(2.0)
-            ));
+            let (a, b) = (p.num(1.0), p.num(-1.0));
+            let (c, d) = (p.num(2.0), p.num(2.0));
+            match rng.below(3) {
+                // Alone on their lines.
+                0 => p.line(&format!("M70\nG91 G1 X{a} Y{b}\nM72\nG1 X{c} Y{d}")),
+                // On a line with G codes, which act after them.
+                1 => p.line(&format!(
+                    "G91 M70\nG1 X{a} Y{b}\nG90 M72\nG1 X{c} Y{d}\nG90"
+                )),
+                // Whether the G92 offset is applied, saved and restored.
+                _ => {
+                    let (x, y) = (p.num(u(rng, -10.0, 10.0)), p.num(u(rng, -10.0, 10.0)));
+                    p.line(&format!(
+                        "G92 X{x} Y{y}\nM70\nG92.2\nG1 X{a} Y{b}\nM72\nG1 X{c} Y{d}\nG92.1"
+                    ));
+                }
+            }
             p.line(g);
         }
         14 => {

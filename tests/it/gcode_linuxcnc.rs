@@ -543,3 +543,67 @@ fn a_machine_builders_m_codes_do_what_the_table_says() {
         "{err}"
     );
 }
+
+/// Round three (issue [4/7]): `G80` beside another motion code is passed over (the safe-start
+/// line of Fanuc and Haas posts), in either order; two other motion codes stay refused.
+#[test]
+fn g80_beside_a_motion_code_is_passed_over() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "g80.ngc",
+        "G21 G90 G17\nG0 X0 Y0 Z5\nG0 G80 X1\nG1 G80 X2 F100\nG81 G80 X3 Z-1 R1\nX4\n\
+         G80 G81 X5 Z-1 R1\nG80\nG0 X6\nM2\n",
+    );
+    both_refuse(&rs274, "g0g1.ngc", "G21 G90\nG0 G1 X5 F100\nM2\n", "G0");
+}
+
+/// Round three: `M70`–`M73` act before the G codes of their line (`G91 M70` saves `G90`),
+/// save and restore whether the `G92` offset is applied (`G92.2`/`G92.3`), and `M72`
+/// restores `G40`, ending a wire offset the save did not have.
+#[test]
+fn m70_to_m73_act_first_and_restore_g92_and_the_wire_offset() {
+    let Some(rs274) = rs274() else { return };
+    agree(
+        &rs274,
+        "m70first.ngc",
+        "G21 G90 F100\nG0 X0 Y0\nG91 M70\nG1 X1\nM72\nG1 X5\nM2\n",
+    );
+    agree(
+        &rs274,
+        "m72g92.ngc",
+        "G21 G90 F100\nG0 X5 Y0\nG92 X10\nG1 X1\nM70\nG92.2\nG1 X2\nM72\nG1 X3\nM2\n",
+    );
+    agree(
+        &rs274,
+        "m73g92.ngc",
+        "o100 sub\nM73\nG92.2\nG1 X1\no100 endsub\nG21 G90 F100\nG0 X5 Y0\nG92 X10\n\
+         o100 call\nG1 X3\nM2\n",
+    );
+    agree(
+        &rs274,
+        "m72g40.ngc",
+        "G21 G90 F100\nG0 X0 Y0\nM70\nG41 D1\nG1 X10 Y0\nG1 X10 Y10\nM72\nG1 X0 Y10\n\
+         G1 X0 Y0\nM2\n",
+    );
+}
+
+/// Round three: what rs274 refuses or reads on with around `M70`–`M73` and `O` numbers: an
+/// `M72` at the top level of what a subroutine saved is refused; `M73` outside a subroutine
+/// saves nothing and reads on; six-digit `O` numbers are names like any other.
+#[test]
+fn the_save_stack_and_long_o_numbers_as_rs274_reads_them() {
+    let Some(rs274) = rs274() else { return };
+    both_refuse(
+        &rs274,
+        "m70sub.ngc",
+        "G21 G90 F100\no100 sub\nM70\no100 endsub\no100 call\nM72\nM2\n",
+        "M72",
+    );
+    agree(&rs274, "m73top.ngc", "G21 G90 F100\nM73\nG1 X1\nM2\n");
+    agree(
+        &rs274,
+        "o123456.ngc",
+        "G21 G90 F100\nO123456 sub\nG1 X1\nO123456 endsub\nO123456 call\nG1 X2\nM2\n",
+    );
+}

@@ -311,11 +311,20 @@ pub(super) struct LaterCodes<'w> {
     pub(super) reference: Option<(bool, bool, &'w Word)>,
 }
 
-/// The G codes of a block, one per modal group.
+/// The G codes of a block, one per modal group. `G80` beside another motion code is passed
+/// over, in either order, as LinuxCNC does: `G0 G80`, `G80 G81` are the safe-start and
+/// restart lines of Fanuc and Haas posts, and the other code is what moves.
 pub(super) fn g_codes(words: &[Word]) -> Result<Vec<(GCode, &Word)>, Fail> {
     let mut codes: Vec<(GCode, &Word)> = Vec::new();
     for w in words.iter().filter(|w| w.letter == 'G') {
         let code = classify_g(g_code_tenths(w)?, w.col)?;
+        let motion = code.group() == 1;
+        if motion && code == GCode::MotionCancel && codes.iter().any(|(c, _)| c.group() == 1) {
+            continue;
+        }
+        if motion {
+            codes.retain(|(c, _)| *c != GCode::MotionCancel);
+        }
         if let Some((_, other)) = codes.iter().find(|(c, _)| c.group() == code.group()) {
             return Err((
                 w.col,

@@ -69,6 +69,21 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             None => None,
         };
+        // M70–M73 act before the block's G codes, as in LinuxCNC (its order of execution:
+        // F, then the modal state's M codes, then the G codes): `G91 M70` saves G90, and
+        // `G91 M72` ends in G91. M70/M73 save the modes as they were (with the line's F,
+        // set before them); M72 restores them before the G codes act.
+        let state_codes: Vec<(u32, usize)> = words
+            .iter()
+            .filter(|w| w.letter == 'M' && (70.0..=73.0).contains(&w.value))
+            .map(|w| Ok((whole(w, 70.0, 73.0)? as u32, w.col)))
+            .collect::<Step<_>>()?;
+        let before = self.state.saved_modes();
+        let mut restored = false;
+        for &(code, col) in state_codes.iter().filter(|(c, _)| matches!(c, 71 | 72)) {
+            self.restore_code(code, col)?;
+            restored |= code == 72;
+        }
         let (state, mut env) = self.form_parts();
         let later = apply_g_codes(state, &mut env, &codes, &mut kept)?;
         let motion_word = later.motion;
@@ -116,7 +131,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
         {
             // Fanuc's program number (`O1000`) stands alone on its line.
             if words.iter().all(|w| matches!(w.letter, 'O' | 'N')) {
-                whole(o, 0.0, 99_999.0)?;
+                // Any whole number, as LinuxCNC reads it (posts write six digits and more).
+                whole(o, 0.0, f64::from(u32::MAX))?;
                 return Ok(None);
             }
             return Err((
@@ -134,7 +150,22 @@ impl<R: BufRead + Seek> BlockReader<R> {
             pause,
             m99,
         } = self.m_codes(line_no, words)?;
-        self.condition_and_feed(line_no, letters)?;
+        if restored {
+            // The line's F (and E) came before the M72 that restored over them.
+            self.condition_and_feed(line_no, &letters.without(&['F', 'E']))?;
+        } else {
+            self.condition_and_feed(line_no, letters)?;
+        }
+        for &(code, col) in state_codes.iter().filter(|(c, _)| matches!(c, 70 | 73)) {
+            let mut modes = before.clone();
+            if letters.get('F').is_some() {
+                modes.feed = self.state.modal.feed;
+            }
+            if letters.get('E').is_some() {
+                modes.condition = self.state.condition;
+            }
+            self.save_code(code, col, modes);
+        }
 
         let block = match later.reference {
             Some((g30, store, w)) => {
@@ -188,7 +219,8 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 ),
                 98 => {}
                 99 => m99 = Some(w.col),
-                70..=73 => self.modal_state_code(code, w.col)?,
+                // Done before the G codes (start_block).
+                70..=73 => {}
                 _ if self.options.mcodes.iter().any(|m| m.number == code) => {
                     if let Some(p) = self.vendor_m(code, w)? {
                         pause = Some(p);

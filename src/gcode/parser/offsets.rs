@@ -68,31 +68,51 @@ pub(super) fn coordinate_offset(
                 )
                     .into());
             }
-            state.saved_g92 = None;
         }
-        OffsetCode::Clear => {
-            state.g92 = Point::zeros();
-            state.saved_g92 = None;
-        }
-        OffsetCode::Suspend => {
-            state.saved_g92 = Some(state.g92);
-            state.g92 = Point::zeros();
-        }
-        OffsetCode::Restore => {
-            if let Some(saved) = state.saved_g92.take() {
-                state.g92 = saved;
-            }
+        OffsetCode::Clear => state.g92 = Point::zeros(),
+        OffsetCode::Suspend | OffsetCode::Restore => {
+            state.apply_g92(axes, code == OffsetCode::Restore);
+            return Ok(());
         }
     }
+    // G92 and G92.1 write the offset into #5211… and say whether it is applied in #5210.
     let on = state.g92.iter().any(|&o| o != 0.0);
     state
         .params
         .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
     for (i, &axis) in axes.iter().enumerate() {
-        let p = G92_ENABLED + 1 + param_slot(axis);
-        state.params.set(&ParamRef::Numbered(p), state.g92[i]);
+        state
+            .params
+            .set(&ParamRef::Numbered(g92_param(axis)), state.g92[i]);
     }
     Ok(())
+}
+
+/// The parameter holding the `G92` offset of `axis` (`#5211` for X).
+fn g92_param(axis: Axis) -> usize {
+    G92_ENABLED + 1 + param_slot(axis)
+}
+
+impl InterpState {
+    /// The `G92` offset is applied (`#5210`, LinuxCNC's flag).
+    pub(super) fn g92_applied(&self) -> bool {
+        self.params.numbered(G92_ENABLED) != 0.0
+    }
+
+    /// `G92.3` (`on`): the offset applied from `#5211`…, where `G92.2` left it (or a program
+    /// wrote it); `G92.2`: not applied, its parameters kept. As LinuxCNC, which `M72` and a
+    /// return from `M73` also call to put the flag back.
+    pub(super) fn apply_g92(&mut self, axes: &[Axis], on: bool) {
+        for (i, &axis) in axes.iter().enumerate() {
+            self.g92[i] = if on {
+                self.params.numbered(g92_param(axis))
+            } else {
+                0.0
+            };
+        }
+        self.params
+            .set(&ParamRef::Numbered(G92_ENABLED), if on { 1.0 } else { 0.0 });
+    }
 }
 
 /// `G10 L2 P… X…` sets system `P`'s offset on the named axes; `G10 L20 P… X…` sets it so

@@ -58,8 +58,6 @@ pub(super) struct InterpState {
     pub g5x: Point,
     /// G92 offset, mm: machine position = program position + g5x + g92.
     pub g92: Point,
-    /// The offset G92.2 suspended, for G92.3.
-    pub saved_g92: Option<Point>,
     pub params: Params,
     /// M7/M8 on, M9 off.
     pub flushing: bool,
@@ -104,7 +102,6 @@ impl InterpState {
             system: WorkSystem::G54,
             g5x: Point::zeros(),
             g92: Point::zeros(),
-            saved_g92: None,
             params: Params::default(),
             flushing: false,
             condition: 0,
@@ -426,6 +423,8 @@ impl InterpState {
     /// The modes `M70` saves.
     pub fn saved_modes(&self) -> SavedModes {
         SavedModes {
+            g92_applied: self.g92_applied(),
+            offset_off: !self.modal.wire_offset.engaged(),
             inch: self.modal.inch,
             incremental: self.modal.incremental,
             arc_centre_absolute: self.modal.arc_centre_absolute,
@@ -506,6 +505,15 @@ impl InterpState {
                     .into());
             }
             self.load_system(axes, saved.system);
+        }
+        // LinuxCNC's restore ends cutter compensation begun since the save (as a G40 line:
+        // the last offset move ends at its own offset point), then sets the G92 offset
+        // applied or not as it was (G92.3 or G92.2).
+        if saved.offset_off {
+            self.modal.wire_offset.cancel();
+        }
+        if saved.g92_applied != self.g92_applied() {
+            self.apply_g92(axes, saved.g92_applied);
         }
         let modal = &mut self.modal;
         modal.inch = saved.inch;

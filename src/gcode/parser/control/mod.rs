@@ -58,9 +58,12 @@ pub(super) enum CallKind {
 
 /// The modal state `M70` saves and `M72` restores (LinuxCNC's list, as far as edmd has the
 /// modes): units, distance modes, plane, feed, flushing, the condition, the retract mode,
-/// the work system.
+/// the work system, whether the `G92` offset is applied and whether the wire offset is off.
 #[derive(Debug, Clone)]
 pub(super) struct SavedModes {
+    pub(super) g92_applied: bool,
+    /// The wire offset was off (`G40`): `M72` ends one begun since.
+    pub(super) offset_off: bool,
     pub(super) inch: bool,
     pub(super) incremental: bool,
     pub(super) arc_centre_absolute: bool,
@@ -79,8 +82,11 @@ pub(super) struct Frame {
     pub(super) call_line: u64,
     loops: usize,
     ifs: usize,
-    /// The modes `M73` saved in this call, restored on its return.
-    pub(super) restore: Option<SavedModes>,
+    /// The modes `M70` or `M73` saved in this call: each call level has its own, as in
+    /// LinuxCNC (an `M72` restores only what its own level saved).
+    pub(super) saved: Option<SavedModes>,
+    /// `M73` asked for them back when the call returns.
+    pub(super) restore_on_return: bool,
 }
 
 /// Why lines are being skipped, and what ends the skip.
@@ -232,7 +238,8 @@ impl Flow {
             call_line,
             loops: self.loops.len(),
             ifs: self.ifs.len(),
-            restore: None,
+            saved: None,
+            restore_on_return: false,
         };
         self.frames.push(frame);
     }
@@ -439,7 +446,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
         }
         self.program.flow.loops.truncate(frame.loops);
         self.program.flow.ifs.truncate(frame.ifs);
-        if let Some(saved) = frame.restore {
+        if let (true, Some(saved)) = (frame.restore_on_return, frame.saved) {
             self.state.restore_modes(&self.axes, saved, 1)?;
         }
         self.program.seek(frame.return_to)
@@ -482,39 +489,53 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.program.seek(body)
     }
 
-    /// `M70` save the modal state, `M71` forget it, `M72` restore it, `M73` save it to be
-    /// restored when the subroutine it is given in returns (LinuxCNC's four).
-    pub(super) fn modal_state_code(&mut self, code: u32, col: usize) -> Step<()> {
-        match code {
-            70 => self.state.saved_modes = Some(self.state.saved_modes()),
-            71 => self.state.saved_modes = None,
-            72 => {
-                let Some(saved) = self.state.saved_modes.clone() else {
-                    return Err((
-                        col,
-                        control("M72: no modal state to restore (M70 saves one)".into()),
-                    )
-                        .into());
-                };
-                self.state.restore_modes(&self.axes, saved, col)?;
-            }
-            _ => {
-                let saved = self.state.saved_modes();
-                let Some(frame) = self.program.flow.frames.last_mut() else {
-                    return Err((
-                        col,
-                        control(
-                            "M73 outside a subroutine: it restores the modes when one returns \
-                             (M70 saves them anywhere)"
-                                .into(),
-                        ),
-                    )
-                        .into());
-                };
-                frame.restore = Some(saved);
+    /// `M71` forgets the modal state this call level saved, `M72` restores it (LinuxCNC's
+    /// order: before the block's G codes, so `G91 M72` ends in G91).
+    pub(super) fn restore_code(&mut self, code: u32, col: usize) -> Step<()> {
+        if code == 71 {
+            *self.saved_slot() = None;
+            return Ok(());
+        }
+        let Some(saved) = self.saved_slot().clone() else {
+            return Err((
+                col,
+                control(
+                    "M72: no modal state to restore at this call level (M70 saves one; a \
+                     subroutine's is its own)"
+                        .into(),
+                ),
+            )
+                .into());
+        };
+        self.state.restore_modes(&self.axes, saved, col)
+    }
+
+    /// `M70` saves `modes` (the modal state before the block's G codes, with its F), `M73`
+    /// saves them to be restored when the subroutine it is given in returns. Outside a
+    /// subroutine `M73` only saves, as LinuxCNC reads it (said once).
+    pub(super) fn save_code(&mut self, code: u32, col: usize, modes: SavedModes) {
+        *self.saved_slot() = Some(modes);
+        if code == 73 {
+            match self.program.flow.frames.last_mut() {
+                Some(frame) => frame.restore_on_return = true,
+                None => self.diag.once_about(
+                    self.scratch.line_no,
+                    "M73 at the top level",
+                    col,
+                    "M73 outside a subroutine: the modes are saved (M72 restores them) but \
+                     no return restores them"
+                        .into(),
+                ),
             }
         }
-        Ok(())
+    }
+
+    /// Where this call level keeps the modes `M70`/`M73` saved.
+    fn saved_slot(&mut self) -> &mut Option<SavedModes> {
+        match self.program.flow.frames.last_mut() {
+            Some(frame) => &mut frame.saved,
+            None => &mut self.state.saved_modes,
+        }
     }
 
     /// `M99`: the end of a Fanuc subprogram.
