@@ -607,3 +607,60 @@ fn the_save_stack_and_long_o_numbers_as_rs274_reads_them() {
         "G21 G90 F100\nO123456 sub\nG1 X1\nO123456 endsub\nO123456 call\nG1 X2\nM2\n",
     );
 }
+
+/// Round three: in `G91` a canned cycle's polar words step each repeat round the origin (a
+/// bolt circle in one block, as LinuxCNC's `hole-circle.ngc` drills it); at the origin the
+/// step is indeterminate and both refuse.
+#[test]
+fn polar_words_step_a_g91_cycles_repeats() {
+    let Some(rs274) = rs274() else { return };
+    let holes = agree(
+        &rs274,
+        "boltcircle.ngc",
+        "G21 G90 G17 F100\nG0 X0 Y0 Z1\nG0 @10 ^0\nG91 G81 R-0.9 Z-0.5 ^60 L6\nG90 G80\n\
+         G0 @5 ^45\nG91 G83 R-0.9 Z-0.5 Q0.2 @1.5 ^-30 L3\nG90 G80\n\
+         G0 X5 Y0\nG91 G81 R-0.9 Z-0.5 X1 Y2 L2\nG90 G80\nM2\n",
+    );
+    assert!(holes > 6 * 4, "{holes} moves");
+    both_refuse(
+        &rs274,
+        "polarorigin.ngc",
+        "G21 G90 G17 F100\nG0 X0 Y0 Z1\nG91 G81 R-0.9 Z-0.5 @2 L3\nG90 G80\nM2\n",
+        "indeterminate at the origin",
+    );
+}
+
+/// Round three: `G83`/`G73` in inches where the depth is an exact multiple of `Q` peck as
+/// often as LinuxCNC's (it steps the pecks in the program's units, where `0.1 + 0.1 + 0.1`
+/// is not `0.3`), in G90 and G91, from R planes and depths of a few decimals.
+#[test]
+fn inch_pecks_at_an_exact_multiple_of_q_count_as_rs274_counts_them() {
+    let Some(rs274) = rs274() else { return };
+    let mut program = String::from("G20 G90 G17 F10\nG0 X0 Y0 Z1\n");
+    let mut cases = 0;
+    for (k, q) in [0.1, 0.03, 0.07, 0.2, 0.05, 0.013].iter().enumerate() {
+        for n in 1..=6 {
+            for (r, mode) in [(0.1, "G90"), (0.0, "G90"), (-0.25, "G90"), (-0.4, "G91")] {
+                let depth = q * f64::from(n);
+                let (r_word, z_word) = if mode == "G91" {
+                    (r, -depth)
+                } else {
+                    (r, r - depth)
+                };
+                let cycle = ["G83", "G73"][(k + n as usize) % 2];
+                program.push_str(&format!(
+                    "{mode} {cycle} X{:.4} Y{:.4} R{r_word:.4} Z{z_word:.4} Q{q:.4}\nG90 G80\nG0 Z1\n",
+                    0.1 * n as f64,
+                    0.1 * k as f64
+                ));
+                cases += 1;
+            }
+        }
+    }
+    program.push_str("M2\n");
+    let moves = agree(&rs274, "inchpecks.ngc", &program);
+    assert!(
+        cases >= 100 && moves > 4 * cases,
+        "{cases} cycles, {moves} moves"
+    );
+}

@@ -6,7 +6,8 @@
 //!   plunge at the feed (under the servo, like any feed move; `G83` and `G73` in pecks of
 //!   `Q`), and a rapid out to the R plane (`G99`, the default) or the level the series of
 //!   cycles started at (`G98`). `R`, `Z`, `P` and `Q` hold until the mode changes; `L`
-//!   repeats a hole (in `G91`, each one `X Y` further);
+//!   repeats a hole (in `G91`, each one `X Y` further, or with `@ ^` each one that much
+//!   further round the origin, as LinuxCNC's `hole-circle.ngc` drills a bolt circle);
 //!
 //! Never under the wire offset (LinuxCNC refuses them with cutter compensation).
 
@@ -48,32 +49,49 @@ pub(super) fn cycle_moves(
     } else {
         (words.r * s + offset[iz], words.z * s + offset[iz])
     };
+    // The R plane and the bottom in the program's units, where LinuxCNC steps the pecks.
+    let units = if incremental {
+        let r = (first_level - offset[iz]) / s + words.r;
+        PeckUnits {
+            r,
+            bottom: r + words.z,
+            scale: s,
+            origin: offset[iz],
+        }
+    } else {
+        PeckUnits {
+            r: words.r,
+            bottom: words.z,
+            scale: s,
+            origin: offset[iz],
+        }
+    };
     if r < bottom {
         return Err(cycle_fail(
             col,
             format!("{}: the R plane is below the bottom Z", cycle.g_code()),
         ));
     }
-    let (hole, step) = if incremental {
-        let by = |l: char| letters.get(l).map_or(0.0, |w| w.value * s);
-        ([start[ix], start[iy]], [by('X'), by('Y')])
-    } else {
-        let (target, _) = env.target(state, &start, letters, "Z")?;
-        ([target[ix], target[iy]], [0.0, 0.0])
-    };
-    let holes = Holes {
-        first: hole,
-        step,
-        count: words.repeats,
-    };
     let feed = env.feed_limit(state, col);
+    // Each hole from the last: in G91 the block's X Y (or its polar @ ^, about the origin)
+    // added to where the last one was; in G90 the same point each time.
+    let next_hole = |[x, y]: [f64; 2]| -> Step<[f64; 2]> {
+        let mut from = start;
+        (from[ix], from[iy]) = (x, y);
+        let (to, _) = env.target(state, &from, letters, "Z")?;
+        Ok([to[ix], to[iy]])
+    };
     let mut moves = MoveList::new(start, line_no, env.axes.len());
     let clear = state.cycle.retract_to_initial;
+    let holes = Holes {
+        from: [start[ix], start[iy]],
+        count: words.repeats,
+    };
     drill(
         &mut moves,
         cycle,
-        &words,
-        holes,
+        (&words, &units),
+        (holes, next_hole),
         [first_level, r, bottom],
         clear,
         feed,
@@ -168,7 +186,6 @@ fn cycle_words(
         q,
         repeats,
         clearance_mm: letters.get('D').map_or(PECK_CLEARANCE_MM, |d| d.value * s),
-        q_mm: q * s,
     })
 }
 
@@ -177,7 +194,7 @@ fn cycle_fail(col: usize, what: String) -> Fail {
 }
 
 /// A cycle block's words: the axes' indices (X, Y, Z), `R`, `Z`, `P`, `Q` as written
-/// (program units), the repeats, the peck clearance and depth in mm.
+/// (program units), the repeats, the peck clearance in mm.
 struct CycleWords {
     axes: [usize; 3],
     r: f64,
@@ -186,13 +203,23 @@ struct CycleWords {
     q: f64,
     repeats: u32,
     clearance_mm: f64,
-    q_mm: f64,
 }
 
-/// Where the holes are: the first (machine X, Y), the step to each next one (`G91`'s `L`).
+/// A cycle's R plane and bottom in the program's units (its `Z` axis, work coordinates), and
+/// the way back to machine mm: the pecks are stepped there, as LinuxCNC's `G83` loop does
+/// (`depth -= Q` while `depth > bottom`), so a depth that is an exact multiple of `Q` in
+/// inches pecks as often as it does.
+struct PeckUnits {
+    r: f64,
+    bottom: f64,
+    scale: f64,
+    origin: f64,
+}
+
+/// Where the holes start from (machine X, Y: where the block starts) and how many there are
+/// (`L`); each is found from the last by the block's words.
 struct Holes {
-    first: [f64; 2],
-    step: [f64; 2],
+    from: [f64; 2],
     count: u32,
 }
 
@@ -203,8 +230,8 @@ struct Holes {
 fn drill(
     moves: &mut MoveList,
     cycle: Cycle,
-    words: &CycleWords,
-    holes: Holes,
+    (words, units): (&CycleWords, &PeckUnits),
+    (holes, mut next_hole): (Holes, impl FnMut([f64; 2]) -> Step<[f64; 2]>),
     [first_level, r, bottom]: [f64; 3],
     to_initial: bool,
     feed: Option<f64>,
@@ -217,10 +244,10 @@ fn drill(
         level = r;
     }
     let clear = if to_initial { level } else { r };
-    let [mut x, mut y] = holes.first;
+    let mut hole = holes.from;
     for k in 0..holes.count {
-        x += holes.step[0];
-        y += holes.step[1];
+        hole = next_hole(hole)?;
+        let [x, y] = hole;
         if k == 0 && moves.at()[iz] > r {
             moves.to(col, &[(ix, x), (iy, y)])?;
         } else {
@@ -228,14 +255,15 @@ fn drill(
         }
         moves.to(col, &[(iz, r)])?;
         if matches!(cycle, Cycle::Peck | Cycle::ChipBreak) {
-            let mut depth = r - words.q_mm;
-            while depth > bottom {
+            let mut depth_u = units.r - words.q;
+            while depth_u > units.bottom {
+                let depth = depth_u * units.scale + units.origin;
                 moves.feed_to(col, &[(iz, depth)], feed)?;
                 if cycle == Cycle::Peck {
                     moves.to(col, &[(iz, r)])?;
                 }
                 moves.to(col, &[(iz, depth + words.clearance_mm)])?;
-                depth -= words.q_mm;
+                depth_u -= words.q;
             }
         }
         moves.feed_to(col, &[(iz, bottom)], feed)?;
