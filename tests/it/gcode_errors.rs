@@ -516,14 +516,14 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "G5.2 never closed",
-            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0\nX3 Y1\nM30\n",
+            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0 P1\nX3 Y1 P1\nM30\n",
             5,
             1,
             "G5.2 curve started at line 2 is interrupted by M30",
         ),
         case(
             "G5.2 at end of file",
-            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0\n",
+            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0 P1\n",
             2,
             1,
             "close it with G5.3",
@@ -537,7 +537,7 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "G5.2 too few points for the order",
-            "G0 X0 Y0\nG5.2 X1 Y1 L4\nX2 Y0\nG5.3\n",
+            "G0 X0 Y0\nG5.2 X1 Y1 L4\nX2 Y0 P1\nG5.3\n",
             2,
             1,
             "degree 3 needs at least 4 control points, got 3",
@@ -551,7 +551,7 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "G5.3 with words",
-            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0\nG5.3 X5\n",
+            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0 P1\nG5.3 X5\n",
             4,
             6,
             "only closes the curve",
@@ -562,6 +562,20 @@ fn cases() -> Vec<Case> {
             3,
             1,
             "(close it with G5.3)",
+        ),
+        case(
+            "G5.2 point without Y",
+            "G0 X0 Y0\nG5.2 X1 Y1\nX2 P1\nX3 Y1 P1\nG5.3\n",
+            3,
+            1,
+            "needs both X and Y",
+        ),
+        case(
+            "G5.2 point without its weight",
+            "G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0\nX3 Y1 P1\nG5.3\n",
+            3,
+            1,
+            "needs its weight P",
         ),
         // ---- O-word structure, checked as text (LinuxCNC's rules for its O-codes)
         case(

@@ -664,3 +664,30 @@ fn inch_pecks_at_an_exact_multiple_of_q_count_as_rs274_counts_them() {
         "{cases} cycles, {moves} moves"
     );
 }
+
+/// Round three: a `G5.2` control point takes both `X` and `Y` whatever the plane (a curve
+/// written in G18 with X Z points is refused, not flattened to XY), and every line after the
+/// `G5.2` its weight `P`; the `G5.2` line itself may leave `P` out, and its `Z` is ignored.
+#[test]
+fn g5_2_points_need_x_y_and_a_weight_as_in_linuxcnc() {
+    let Some(rs274) = rs274() else { return };
+    let curve = |plane: &str, first: &str, second: &str| {
+        format!(
+            "G21 G90 {plane} F100\nG0 X0 Y0\nG5.2 {first} L3\n{second}\nX3 Y1 P1\nG5.3\nG1 X0 Y0\nM2\n"
+        )
+    };
+    agree(&rs274, "g18xy.ngc", &curve("G18", "X1 Y1 P1", "X2 Y0 P1"));
+    agree(&rs274, "firstp.ngc", &curve("G17", "X1 Y1", "X2 Y0 P1"));
+    agree(&rs274, "firstz.ngc", &curve("G17", "X1 Y1 Z1 P1", "X2 Y0 P1"));
+    agree(&rs274, "weightonly.ngc", &curve("G17", "P2", "X2 Y0 P1"));
+    let needs = "needs both X and Y";
+    both_refuse(&rs274, "g18xz.ngc", &curve("G18", "X1 Z1 P1", "X2 Z0 P1"), needs);
+    both_refuse(&rs274, "g19yz.ngc", &curve("G19", "Y1 Z1 P1", "Y2 Z0 P1"), needs);
+    both_refuse(&rs274, "noy.ngc", &curve("G17", "X1 Y1 P1", "X2 P1"), needs);
+    both_refuse(
+        &rs274,
+        "nop.ngc",
+        &curve("G17", "X1 Y1 P1", "X2 Y0"),
+        "needs its weight P",
+    );
+}

@@ -203,8 +203,8 @@ fn incremental_mode_applies_to_nurbs_control_points() {
     assert_eq!(a[1].curve, b[1].curve);
 
     // G5.2 under G91 follows LinuxCNC: offsets from the curve's start point (X1 Y1).
-    let g52_abs = "G0 X1 Y1\nF100\nG5.2 X2 Y3\nX4 Y3\nX5 Y1\nG5.3\nM30\n";
-    let g52_inc = "G0 X1 Y1\nF100\nG91 G5.2 X1 Y2\nX3 Y2\nX4 Y0\nG5.3\nM30\n";
+    let g52_abs = "G0 X1 Y1\nF100\nG5.2 X2 Y3\nX4 Y3 P1\nX5 Y1 P1\nG5.3\nM30\n";
+    let g52_inc = "G0 X1 Y1\nF100\nG91 G5.2 X1 Y2\nX3 Y2 P1\nX4 Y0 P1\nG5.3\nM30\n";
     assert_eq!(parse(g52_abs, XY).0[1].curve, parse(g52_inc, XY).0[1].curve);
 
     let g38_abs = "G0 X1 Y1\nG38 O2 C3 X1 Y1 F50\nG38 X3 Y4\nG38 X6 Y1\nM30\n";
@@ -322,7 +322,7 @@ fn modal_motion_needs_axis_words_and_nurbs_cancels_it() {
     assert_eq!(blocks.len(), 3);
     assert_eq!(blocks[2].kind, BlockKind::Rapid);
     let err = BlockReader::new(
-        Cursor::new("G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0\nG5.3\nX5\n"),
+        Cursor::new("G0 X0 Y0\nG5.2 X1 Y1\nX2 Y0 P1\nG5.3\nX5\n"),
         "t.nc",
         XY,
     )

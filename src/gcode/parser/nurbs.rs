@@ -223,6 +223,33 @@ impl PendingCurve {
             String::new()
         };
         if linuxcnc {
+            // LinuxCNC 2.9 takes a point only with both X and Y (whatever the plane: a
+            // curve in G18 written with X Z is refused, not flattened), and every line after
+            // the G5.2 with its weight.
+            if letters.get('X').is_none() || letters.get('Y').is_none() {
+                return Err((
+                    col,
+                    GcodeErrorKind::MissingCoordinate {
+                        what: "a G5.2 control point needs both X and Y, as in LinuxCNC (the \
+                               curve lies in the XY plane whatever G17/G18/G19 says)"
+                            .into(),
+                    },
+                )
+                    .into());
+            }
+            if env.line.line_no != self.start_line && letters.get('P').is_none() {
+                return Err((
+                    col,
+                    GcodeErrorKind::MissingCoordinate {
+                        what: "a G5.2 control point after the first line needs its weight P, \
+                               as in LinuxCNC"
+                            .into(),
+                    },
+                )
+                    .into());
+            }
+        }
+        if linuxcnc {
             if let Some(w) = reserved.chars().find_map(|l| letters.get(l)) {
                 env.warn_once(
                     "G5.2 plane",
