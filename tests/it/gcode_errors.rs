@@ -138,7 +138,21 @@ fn cases() -> Vec<Case> {
             "G41 D1\n",
             1,
             5,
-            "D1 is not set: compensation.d_mm has D0 to D0",
+            "D1 is not set: compensation.d_mm has registers 0 to 0",
+        ),
+        case(
+            "wire offset register by H not set",
+            "G41 H02\n",
+            1,
+            5,
+            "H2 is not set: compensation.d_mm has registers 0 to 0",
+        ),
+        case(
+            "wire offset by D and H",
+            "G41 D0 H0\n",
+            1,
+            8,
+            "D and H both name the offset register",
         ),
         case(
             "wire offset without D",

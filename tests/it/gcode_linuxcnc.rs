@@ -678,11 +678,25 @@ fn g5_2_points_need_x_y_and_a_weight_as_in_linuxcnc() {
     };
     agree(&rs274, "g18xy.ngc", &curve("G18", "X1 Y1 P1", "X2 Y0 P1"));
     agree(&rs274, "firstp.ngc", &curve("G17", "X1 Y1", "X2 Y0 P1"));
-    agree(&rs274, "firstz.ngc", &curve("G17", "X1 Y1 Z1 P1", "X2 Y0 P1"));
+    agree(
+        &rs274,
+        "firstz.ngc",
+        &curve("G17", "X1 Y1 Z1 P1", "X2 Y0 P1"),
+    );
     agree(&rs274, "weightonly.ngc", &curve("G17", "P2", "X2 Y0 P1"));
     let needs = "needs both X and Y";
-    both_refuse(&rs274, "g18xz.ngc", &curve("G18", "X1 Z1 P1", "X2 Z0 P1"), needs);
-    both_refuse(&rs274, "g19yz.ngc", &curve("G19", "Y1 Z1 P1", "Y2 Z0 P1"), needs);
+    both_refuse(
+        &rs274,
+        "g18xz.ngc",
+        &curve("G18", "X1 Z1 P1", "X2 Z0 P1"),
+        needs,
+    );
+    both_refuse(
+        &rs274,
+        "g19yz.ngc",
+        &curve("G19", "Y1 Z1 P1", "Y2 Z0 P1"),
+        needs,
+    );
     both_refuse(&rs274, "noy.ngc", &curve("G17", "X1 Y1 P1", "X2 P1"), needs);
     both_refuse(
         &rs274,

@@ -1,6 +1,6 @@
 //! The wire offset (`G41`/`G42` with `D`) on wire-EDM style programs: a die with corners trimmed
 //! inside, a punch with a notch (rounded outside corners, trimmed inside ones), a NURBS punch, a
-//! parametric slot from a subroutine. Every compensated move is sampled densely and its
+//! parametric slot from a subroutine, a die as Fanuc-style posts write it (`G41 H01`). Every compensated move is sampled densely and its
 //! distance to the programmed contour is measured here, against contours the test builds from
 //! closed forms (segments, arcs, a NURBS curve built directly), not by the code under test:
 //! each sample must be `d` away within the chord tolerance, on the side G41/G42 names.
@@ -384,4 +384,48 @@ fn moves_the_offset_cannot_take_are_errors_naming_the_line() {
         e.starts_with("w.ngc:4:1: wire offset: the wire offset is already on"),
         "{e}"
     );
+}
+
+/// A wire program as Fanuc-style posts write it (`G41 H01`, `N` numbers, `G92` at the start
+/// hole, the wire and flushing M-codes) reads with the shipped example layer
+/// `config/fanuc-wire.toml`: `H01` offsets as `D1` does, the M-codes pause and flush as its
+/// tables say, and nothing is refused.
+#[test]
+fn a_fanuc_style_wire_program_cuts_with_h_registers_and_the_example_m_codes() {
+    let repo = common::repo();
+    let config = edmd::config::Config::load(Some(&repo.join("config/fanuc-wire.toml")), &[])
+        .expect("the example layer loads");
+    let options = ProgramOptions::from_config(&config);
+    let text = std::fs::read_to_string(repo.join("tests/data/fanuc-wire-die.nc")).unwrap();
+    let read = |text: &str| -> Vec<Block> {
+        let reader = BlockReader::with_options(
+            Cursor::new(text.as_bytes().to_vec()),
+            "fanuc-wire-die.nc",
+            XY,
+            options.clone(),
+        );
+        common::program_path(reader)
+            .collect::<Result<_, _>>()
+            .expect("reads")
+    };
+    let by_h = read(&text);
+    let by_d = read(&text.replace("H01", "D1"));
+    assert_eq!(by_h.len(), by_d.len());
+    for (h, d) in by_h.iter().zip(&by_d) {
+        assert_eq!(h.end(), d.end(), "H01 is the register D1 is");
+    }
+    assert_continuous(&by_h);
+    // The die's corners: 0.145 mm inside the 10 mm square.
+    let corner = by_h
+        .iter()
+        .map(|b| b.end())
+        .find(|p| p[0] > 4.0 && p[1] > 4.0)
+        .expect("a corner");
+    assert!(
+        (corner[0] - 4.855).abs() < 1e-9 && (corner[1] - 4.855).abs() < 1e-9,
+        "{corner:?}"
+    );
+    // M60 paused before the cut (its line, 6), M80 turned the flushing on for all of it.
+    assert_eq!(by_h[0].pause.map(|(line, _)| line), Some(6), "M60");
+    assert!(by_h.iter().all(|b| b.flushing), "M80");
 }

@@ -561,8 +561,8 @@ pub(super) fn apply_g_codes<'w>(
             GCode::WorkSystem(system) => state.select_system(env.axes, system, w)?,
             GCode::CompOff => state.modal.wire_offset.cancel(),
             GCode::Comp { left } => {
-                let d = wire_offset(&env.options.d_mm, w, kept.get('D'))?;
-                *kept = kept.without(&['D']);
+                let d = wire_offset(&env.options.d_mm, w, kept)?;
+                *kept = kept.without(&['D', 'H']);
                 let plane = state.modal.plane;
                 let has_xy = env.axes.contains(&Axis::X) && env.axes.contains(&Axis::Y);
                 state
@@ -649,25 +649,43 @@ fn taper_angle(axes: &MachineAxes, g: &Word, a: Option<&Word>, left: bool) -> St
 }
 
 /// The offset `D` names for `G41`/`G42`.
-fn wire_offset(registers: &[f64], g: &Word, d: Option<&Word>) -> Step<f64> {
-    let Some(d) = d else {
-        return Err((
-            g.col,
-            GcodeErrorKind::WireOffset(format!(
-                "G{} needs D, the offset register (compensation.d_mm)",
-                g.text
-            )),
-        )
-            .into());
+/// The wire offset `G41`/`G42` (the word `g`) asks for: the register its `D` names, or its
+/// `H` as the Fanuc-style wire controls write it (`G41 H01`; the same registers,
+/// `compensation.d_mm`).
+fn wire_offset(registers: &[f64], g: &Word, letters: &Letters) -> Step<f64> {
+    let fail = |col: usize, what: String| Fail::from((col, GcodeErrorKind::WireOffset(what)));
+    let register = match (letters.get('D'), letters.get('H')) {
+        (Some(d), None) => d,
+        (None, Some(h)) => h,
+        (Some(_), Some(h)) => {
+            return Err(fail(
+                h.col,
+                format!(
+                    "G{}: D and H both name the offset register; give one",
+                    g.text
+                ),
+            ));
+        }
+        (None, None) => {
+            return Err(fail(
+                g.col,
+                format!(
+                    "G{} needs D (or H, as Fanuc-style wire programs write it), the offset \
+                     register (compensation.d_mm)",
+                    g.text
+                ),
+            ));
+        }
     };
-    let k = whole(d, 0.0, 99.0)? as usize;
+    let k = whole(register, 0.0, 99.0)? as usize;
     registers.get(k).copied().ok_or_else(|| {
-        Fail::from((
-            d.col,
-            GcodeErrorKind::WireOffset(format!(
-                "D{k} is not set: compensation.d_mm has D0 to D{}",
+        fail(
+            register.col,
+            format!(
+                "{}{k} is not set: compensation.d_mm has registers 0 to {}",
+                register.letter,
                 registers.len() - 1
-            )),
-        ))
+            ),
+        )
     })
 }
