@@ -442,8 +442,8 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     for item in reader.by_ref() {
         match item {
             Ok(block) => {
-                // A measure for the table and totals: exact for lines and arcs.
-                let length = block.curve.length_estimate();
+                // A measure for the table and totals: exact for lines, arcs and helices.
+                let length = block.length_mm(axes);
                 if !args.quiet {
                     outln!("{}", check::describe_block(&block, length, axes));
                 }

@@ -458,6 +458,45 @@ impl Block {
     pub fn end(&self) -> Point {
         self.curve.end_point()
     }
+
+    /// The block's path length (mm) for the tables and totals of `check`, on a machine of
+    /// `axes`: in closed form for an arc or a helix whose curve still runs on its circle
+    /// (its radius times its sweep, with the rise of the axes outside the plane), as the
+    /// curve's estimate otherwise (a line or a plain arc exactly; a spiral, a NURBS, an arc
+    /// the wire offset moved off its circle by quadrature). A helix is a fitted cubic of
+    /// many pieces, whose quadrature was two thirds of what `check` spent on one.
+    pub fn length_mm(&self, axes: &[Axis]) -> f64 {
+        if let BlockKind::Arc {
+            center,
+            radius,
+            sweep,
+            plane,
+        } = self.kind
+        {
+            let index = |letter: char| axes.iter().position(|a| a.letter() == letter);
+            let [a, b] = plane.axis_letters();
+            if let (Some(ia), Some(ib)) = (index(a), index(b)) {
+                let (start, end) = (self.start(), self.end());
+                let on_circle = |p: &Point| {
+                    ((p[ia] - center[ia]).hypot(p[ib] - center[ib]) - radius).abs()
+                        <= 1e-9 * radius.max(1.0)
+                };
+                // And the sweep still takes the start to the end (a trimmed arc's would not).
+                let angle = |p: &Point| (p[ib] - center[ib]).atan2(p[ia] - center[ia]);
+                let turn = (angle(&start) + sweep - angle(&end)) / std::f64::consts::TAU;
+                let swept = (turn - turn.round()).abs() <= 1e-9;
+                if on_circle(&start) && on_circle(&end) && swept {
+                    let rise = (0..axes.len())
+                        .filter(|&i| i != ia && i != ib)
+                        .map(|i| (end[i] - start[i]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    return (radius * sweep.abs()).hypot(rise);
+                }
+            }
+        }
+        self.curve.length_estimate()
+    }
 }
 
 /// Runs `work` on a thread named `name` with [`PARSER_STACK_BYTES`] of stack and returns

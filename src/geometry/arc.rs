@@ -7,6 +7,7 @@
 
 use std::f64::consts::FRAC_PI_2;
 
+use super::nurbs::{HOMOGENEOUS_WIDTH, WEIGHT_SLOT};
 use super::{NurbsCurve, NurbsError, Point};
 
 /// Builds the arc from `start` around `center` by `sweep` radians in the plane of axes
@@ -89,10 +90,10 @@ pub fn spiral_arc(
         return circular_arc(dim, plane, center, start, end, sweep);
     }
     let angle0 = (start[b] - center[b]).atan2(start[a] - center[a]);
-    // The true curve and its derivative by t in [0, 1].
-    let at = |t: f64| -> (Point, Point) {
-        let (angle, r) = (angle0 + t * sweep, r0 + t * (r1 - r0));
-        let (sin, cos) = angle.sin_cos();
+    // The true curve and its derivative by t in [0, 1], given the sine and cosine of its
+    // angle there.
+    let at_trig = |t: f64, (sin, cos): (f64, f64)| -> (Point, Point) {
+        let r = r0 + t * (r1 - r0);
         let mut p = *start;
         let mut d = Point::zeros();
         for i in 0..dim {
@@ -105,6 +106,7 @@ pub fn spiral_arc(
         d[b] = (r1 - r0) * sin + r * sweep * cos;
         (p, d)
     };
+    let at = |t: f64| at_trig(t, (angle0 + t * sweep).sin_cos());
     let hermite = |(p0, d0): (Point, Point), (p1, d1): (Point, Point), h: f64, s: f64| {
         let (s2, s3) = (s * s, s * s * s);
         let (h00, h10) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s);
@@ -112,9 +114,15 @@ pub fn spiral_arc(
         p0 * h00 + d0 * (h10 * h) + p1 * h01 + d1 * (h11 * h)
     };
     let mut pieces = ((sweep.abs() / (std::f64::consts::PI / 8.0)).ceil() as usize).max(2);
+    // A helix's pieces are all the same piece turned and raised (its radius is constant and
+    // its rise linear in the angle), so the first one's error is every one's: checking one
+    // instead of all made the fit of a helix a fraction of its cost. A spiral's radius
+    // changes along it, so each piece is checked.
+    let congruent = (r1 - r0).abs() <= 1e-9;
     loop {
         let h = 1.0 / pieces as f64;
-        let fits = (0..pieces).all(|k| {
+        let checked = if congruent { 1 } else { pieces };
+        let fits = (0..checked).all(|k| {
             let (t0, t1) = (k as f64 * h, (k + 1) as f64 * h);
             let (e0, e1) = (at(t0), at(t1));
             [0.25, 0.5, 0.75].iter().all(|&s| {
@@ -133,11 +141,33 @@ pub fn spiral_arc(
     // Piecewise Bézier with double interior knots: the junction point is the middle of
     // the two inner points beside it, so only those are stored.
     let h = 1.0 / pieces as f64;
-    let mut points = Vec::with_capacity(2 * pieces + 2);
-    let mut knots = vec![0.0; 4];
+    // The angle steps by h·sweep from piece to piece: its sine and cosine by the addition
+    // formulas, not a sin_cos at each (a drift of a few ulps over the curve, far inside the
+    // fit's tolerance; the ends are the exact start and end).
+    let (step_sin, step_cos) = (h * sweep).sin_cos();
+    let mut trig = angle0.sin_cos();
+    // Valid by construction (clamped knots, unit weights, finite points that move), so the
+    // control points are written straight into the curve's homogeneous form, without
+    // `NurbsCurve::new`'s checks and copies: those were a quarter of a helix's cost.
+    let mut homogeneous: Vec<[f64; HOMOGENEOUS_WIDTH]> = Vec::with_capacity(2 * pieces + 2);
+    let mut push = |p: &Point, d: &Point, by: f64| {
+        let mut w = [0.0; HOMOGENEOUS_WIDTH];
+        for i in 0..dim {
+            w[i] = p[i] + d[i] * by;
+        }
+        w[WEIGHT_SLOT] = 1.0;
+        homogeneous.push(w);
+    };
+    let mut knots = Vec::with_capacity(2 * pieces + 6);
+    knots.extend([0.0; 4]);
     for k in 0..=pieces {
         let t = k as f64 * h;
-        let (p, d) = at(t);
+        let (p, d) = at_trig(t, trig);
+        let (sin, cos) = trig;
+        trig = (
+            sin * step_cos + cos * step_sin,
+            cos * step_cos - sin * step_sin,
+        );
         let p = if k == 0 {
             *start
         } else if k == pieces {
@@ -146,21 +176,20 @@ pub fn spiral_arc(
             p
         };
         if k > 0 {
-            points.push(p - d * (h / 3.0));
+            push(&p, &d, -h / 3.0);
         }
         if k == 0 || k == pieces {
-            points.push(p);
+            push(&p, &d, 0.0);
         }
         if k < pieces {
-            points.push(p + d * (h / 3.0));
+            push(&p, &d, h / 3.0);
         }
         if k > 0 && k < pieces {
             knots.extend([t, t]);
         }
     }
     knots.extend([1.0; 4]);
-    let weights = vec![1.0; points.len()];
-    NurbsCurve::new(3, dim, &points, &weights, knots)
+    Ok(NurbsCurve::from_parts(3, dim, knots, homogeneous))
 }
 
 /// The test curves' semicircle: radius 10 about the origin in X/Y, counter-clockwise from

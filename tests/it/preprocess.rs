@@ -621,3 +621,40 @@ mod properties {
         }
     }
 }
+
+/// `check`'s length of an arc or a helix is its closed form (radius times sweep, with the
+/// rise), and it agrees with the fitted curve's own quadrature in every plane and over
+/// several turns; a spiral (its radius changing) is measured on its curve.
+#[test]
+fn arc_and_helix_lengths_in_closed_form_match_their_curves() {
+    use edmd::gcode::BlockReader;
+    use edmd::vocab::Axis;
+    let axes = [Axis::X, Axis::Y, Axis::Z];
+    let program = "G21 G0 X10 Y0 Z0\nG17 G2 X-10 Y0 Z-2 I-10 J0 F100\nG3 X10 Y0 Z-4 R10\n\
+                   G18 G2 X0 Z6 Y5 I-10 K0\nG19 G3 Y15 Z16 X-5 J10 K0\n\
+                   G17 G3 X-5 Y15 Z0 I0 J10 P3\nG3 X5 Y15 I5 J0\nG2 X0 Y17.08 I-5 J-5\nM2\n";
+    let reader = BlockReader::new(std::io::Cursor::new(program), "h.ngc", &axes);
+    let blocks: Vec<_> = reader.collect::<Result<_, _>>().expect("reads");
+    let mut closed = 0;
+    for b in &blocks {
+        let quadrature = b.curve.length();
+        let length = b.length_mm(&axes);
+        assert!(
+            (length - quadrature).abs() <= 1e-6 * quadrature.max(1.0),
+            "line {}: {length} vs the curve's {quadrature}",
+            b.line
+        );
+        if let edmd::gcode::BlockKind::Arc { radius, sweep, .. } = b.kind
+            && (length - (radius * sweep.abs())).abs() > 1e-12
+        {
+            closed += 1;
+        }
+    }
+    assert!(closed >= 5, "the helices rise: {closed}");
+    // The three-turn helix: exactly 3 turns of radius 10 less... its closed form.
+    let three = blocks.iter().find(|b| b.line == 6).unwrap();
+    let edmd::gcode::BlockKind::Arc { sweep, .. } = three.kind else {
+        panic!("an arc")
+    };
+    assert!(sweep.abs() > 2.0 * std::f64::consts::TAU, "{sweep}");
+}

@@ -69,21 +69,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             }
             None => None,
         };
-        // M70–M73 act before the block's G codes, as in LinuxCNC (its order of execution:
-        // F, then the modal state's M codes, then the G codes): `G91 M70` saves G90, and
-        // `G91 M72` ends in G91. M70/M73 save the modes as they were (with the line's F,
-        // set before them); M72 restores them before the G codes act.
-        let state_codes: Vec<(u32, usize)> = words
-            .iter()
-            .filter(|w| w.letter == 'M' && (70.0..=73.0).contains(&w.value))
-            .map(|w| Ok((whole(w, 70.0, 73.0)? as u32, w.col)))
-            .collect::<Step<_>>()?;
-        let before = self.state.saved_modes();
-        let mut restored = false;
-        for &(code, col) in state_codes.iter().filter(|(c, _)| matches!(c, 71 | 72)) {
-            self.restore_code(code, col)?;
-            restored |= code == 72;
-        }
+        let state_codes = self.modal_state_first(words)?;
         let (state, mut env) = self.form_parts();
         let later = apply_g_codes(state, &mut env, &codes, &mut kept)?;
         let motion_word = later.motion;
@@ -150,22 +136,10 @@ impl<R: BufRead + Seek> BlockReader<R> {
             pause,
             m99,
         } = self.m_codes(line_no, words)?;
-        if restored {
-            // The line's F (and E) came before the M72 that restored over them.
-            self.condition_and_feed(line_no, &letters.without(&['F', 'E']))?;
-        } else {
-            self.condition_and_feed(line_no, letters)?;
-        }
-        for &(code, col) in state_codes.iter().filter(|(c, _)| matches!(c, 70 | 73)) {
-            let mut modes = before.clone();
-            if letters.get('F').is_some() {
-                modes.feed = self.state.modal.feed;
-            }
-            if letters.get('E').is_some() {
-                modes.condition = self.state.condition;
-            }
-            self.save_code(code, col, modes);
-        }
+        // The line's F (and E) came before an M72 that restored over them.
+        let fed = [*letters, letters.without(&['F', 'E'])][usize::from(state_codes.restored)];
+        self.condition_and_feed(line_no, &fed)?;
+        self.modal_state_last(state_codes, letters);
 
         let block = match later.reference {
             Some((g30, store, w)) => {

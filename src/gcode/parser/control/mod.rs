@@ -34,12 +34,15 @@ use std::io::{BufRead, Seek};
 
 use crate::gcode::parser::system::ReaderEnv;
 
-use super::{BlockReader, Fail, Step};
+use super::{BlockReader, Fail, Letters, Step};
 use crate::gcode::error::GcodeErrorKind;
 use crate::gcode::expr::{ARGUMENTS, ParamRef};
+use crate::gcode::lexer::Word;
 use crate::gcode::lexer::{Keyword, Label, OWord, has_m99, oword_of, program_number_of};
 use crate::gcode::lines::{Line, Pos};
 use loops::{Loop, LoopKind, LoopLine};
+mod saves;
+pub(super) use saves::{SavedModes, StateCodes};
 
 /// Deepest nesting of subroutine calls.
 pub const MAX_CALL_DEPTH: usize = 64;
@@ -54,25 +57,6 @@ pub(super) enum CallKind {
     },
     /// `M98 P<n> L<k>`: the caller's scope, `remaining` more runs of the body at `body`.
     Fanuc { remaining: u64, body: Pos },
-}
-
-/// The modal state `M70` saves and `M72` restores (LinuxCNC's list, as far as edmd has the
-/// modes): units, distance modes, plane, feed, flushing, the condition, the retract mode,
-/// the work system, whether the `G92` offset is applied and whether the wire offset is off.
-#[derive(Debug, Clone)]
-pub(super) struct SavedModes {
-    pub(super) g92_applied: bool,
-    /// The wire offset was off (`G40`): `M72` ends one begun since.
-    pub(super) offset_off: bool,
-    pub(super) inch: bool,
-    pub(super) incremental: bool,
-    pub(super) arc_centre_absolute: bool,
-    pub(super) plane: crate::gcode::Plane,
-    pub(super) feed: Option<f64>,
-    pub(super) flushing: bool,
-    pub(super) condition: u32,
-    pub(super) retract_to_initial: bool,
-    pub(super) system: crate::gcode::work::WorkSystem,
 }
 
 #[derive(Debug, Clone)]
@@ -489,9 +473,54 @@ impl<R: BufRead + Seek> BlockReader<R> {
         self.program.seek(body)
     }
 
+    /// The line's `M70`–`M73`, which act before its G codes, as in LinuxCNC (its order of
+    /// execution: F, then the modal state's M codes, then the G codes): `G91 M70` saves G90,
+    /// and `G91 M72` ends in G91. `M71` and `M72` act here; `M70`/`M73` save the modes as
+    /// they are here, once the line's F (set before them) is known
+    /// ([`modal_state_last`](Self::modal_state_last)).
+    pub(in crate::gcode::parser) fn modal_state_first(
+        &mut self,
+        words: &[Word],
+    ) -> Step<StateCodes> {
+        let codes: Vec<(u32, usize)> = words
+            .iter()
+            .filter(|w| w.letter == 'M' && (70.0..=73.0).contains(&w.value))
+            .map(|w| Ok((super::whole(w, 70.0, 73.0)? as u32, w.col)))
+            .collect::<Step<_>>()?;
+        let before = self.state.saved_modes();
+        let mut restored = false;
+        for &(code, col) in codes.iter().filter(|(c, _)| matches!(c, 71 | 72)) {
+            self.restore_code(code, col)?;
+            restored |= code == 72;
+        }
+        Ok(StateCodes {
+            codes,
+            before,
+            restored,
+        })
+    }
+
+    /// The line's `M70`/`M73`: the modes before its G codes, with its F and E.
+    pub(in crate::gcode::parser) fn modal_state_last(
+        &mut self,
+        line: StateCodes,
+        letters: &Letters,
+    ) {
+        for &(code, col) in line.codes.iter().filter(|(c, _)| matches!(c, 70 | 73)) {
+            let mut modes = line.before.clone();
+            if letters.get('F').is_some() {
+                modes.feed = self.state.modal.feed;
+            }
+            if letters.get('E').is_some() {
+                modes.condition = self.state.condition;
+            }
+            self.save_code(code, col, modes);
+        }
+    }
+
     /// `M71` forgets the modal state this call level saved, `M72` restores it (LinuxCNC's
     /// order: before the block's G codes, so `G91 M72` ends in G91).
-    pub(super) fn restore_code(&mut self, code: u32, col: usize) -> Step<()> {
+    fn restore_code(&mut self, code: u32, col: usize) -> Step<()> {
         if code == 71 {
             *self.saved_slot() = None;
             return Ok(());
@@ -513,7 +542,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
     /// `M70` saves `modes` (the modal state before the block's G codes, with its F), `M73`
     /// saves them to be restored when the subroutine it is given in returns. Outside a
     /// subroutine `M73` only saves, as LinuxCNC reads it (said once).
-    pub(super) fn save_code(&mut self, code: u32, col: usize, modes: SavedModes) {
+    fn save_code(&mut self, code: u32, col: usize, modes: SavedModes) {
         *self.saved_slot() = Some(modes);
         if code == 73 {
             match self.program.flow.frames.last_mut() {
