@@ -136,9 +136,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             pause,
             m99,
         } = self.m_codes(line_no, words)?;
-        // The line's F (and E) came before an M72 that restored over them.
-        let fed = [*letters, letters.without(&['F', 'E'])][usize::from(state_codes.restored)];
-        self.condition_and_feed(line_no, &fed)?;
+        self.condition_and_feed(line_no, &state_codes.feed_words(letters))?;
         self.modal_state_last(state_codes, letters);
 
         let block = match later.reference {
@@ -622,7 +620,6 @@ fn taper_angle(axes: &MachineAxes, g: &Word, a: Option<&Word>, left: bool) -> St
     Ok(if left { tan } else { -tan })
 }
 
-/// The offset `D` names for `G41`/`G42`.
 /// The wire offset `G41`/`G42` (the word `g`) asks for: the register its `D` names, or its
 /// `H` as the Fanuc-style wire controls write it (`G41 H01`; the same registers,
 /// `compensation.d_mm`).
