@@ -14,32 +14,7 @@ use edmd::vocab::MAX_AXES;
 
 /// 200 blocks of 0.1 mm along X, planned at up to 20 mm/s (the servo decides).
 fn straight_cut() -> Vec<StepBlock> {
-    (0..200)
-        .map(|i| {
-            let mut start = [0i64; MAX_AXES];
-            let mut end = [0i64; MAX_AXES];
-            start[0] = i * 100;
-            end[0] = (i + 1) * 100;
-            StepBlock {
-                seq: i as u64,
-                start,
-                end,
-                length_mm: 0.1,
-                v_entry: if i == 0 { 0.0 } else { 20.0 },
-                v_exit: if i == 199 { 0.0 } else { 20.0 },
-                v_cruise: 20.0,
-                v_limit: 20.0,
-                path: edmd::preprocess::PathLimits {
-                    cruise: 20.0,
-                    entry: if i == 0 { 0.0 } else { 20.0 },
-                    exit: if i == 199 { 0.0 } else { 20.0 },
-                },
-                line: 1,
-                path_end_mm: 0.1 * (i + 1) as f64,
-                ..StepBlock::EMPTY
-            }
-        })
-        .collect()
+    crate::stepped::straight_blocks(200, 20.0, 1)
 }
 
 struct Run {

@@ -141,29 +141,39 @@ pub fn config(seed: u64, off: OffTime, sets: &[String]) -> Config {
 /// The cut as step blocks of 0.1 mm along X (1 µm steps), planned at 30 mm/min in E21.
 fn blocks() -> Vec<StepBlock> {
     let n = (LENGTH_MM * 10.0).round() as i64;
-    let v = 0.5;
-    (0..n)
+    straight_blocks(n, 0.5, 7)
+        .into_iter()
+        .map(|b| StepBlock { condition: 21, ..b })
+        .collect()
+}
+
+/// `count` step blocks of 0.1 mm along X (1 µm steps) from the origin, at `v` mm/s from a
+/// standstill to a standstill, all from source line `line`: a straight cut the servo sets
+/// the pace of (also `servo_laws.rs`'s).
+pub fn straight_blocks(count: i64, v: f64, line: u64) -> Vec<StepBlock> {
+    (0..count)
         .map(|i| {
             let mut start = [0i64; MAX_AXES];
             let mut end = [0i64; MAX_AXES];
             start[0] = i * 100;
             end[0] = (i + 1) * 100;
+            let entry = if i == 0 { 0.0 } else { v };
+            let exit = if i == count - 1 { 0.0 } else { v };
             StepBlock {
                 seq: i as u64,
                 start,
                 end,
                 length_mm: 0.1,
-                v_entry: if i == 0 { 0.0 } else { v },
-                v_exit: if i == n - 1 { 0.0 } else { v },
+                v_entry: entry,
+                v_exit: exit,
                 v_cruise: v,
                 v_limit: v,
                 path: edmd::preprocess::PathLimits {
                     cruise: v,
-                    entry: if i == 0 { 0.0 } else { v },
-                    exit: if i == n - 1 { 0.0 } else { v },
+                    entry,
+                    exit,
                 },
-                line: 7,
-                condition: 21,
+                line,
                 path_end_mm: 0.1 * (i + 1) as f64,
                 ..StepBlock::EMPTY
             }
