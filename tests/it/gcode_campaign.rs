@@ -324,19 +324,22 @@ fn arcs(p: &mut Program, rng: &mut SplitMix64) {
 }
 
 /// A closed wire contour under the offset: a rounded rectangle, either way round, offset
-/// left or right, entered and left by straight moves from a start hole.
+/// left or right, entered and left by straight moves from a start hole; in an inch program
+/// its arcs are slight spirals (four decimals of an inch) and its offset 1 mm in inches.
 fn contour(p: &mut Program, rng: &mut SplitMix64) {
-    if p.inch {
-        return; // Offsets are given in mm to edmd: written in G21 only.
-    }
     let (w, h) = (rng.uniform(10.0, 25.0), rng.uniform(10.0, 25.0));
     let c = rng.uniform(2.5, 4.0);
     let (x0, y0) = (rng.uniform(-20.0, 0.0), rng.uniform(-20.0, 0.0));
     let side = ["G41", "G42"][rng.below(2)];
-    let n = |v: f64| format!("{v:.4}");
+    let units = Program {
+        inch: p.inch,
+        ..Program::default()
+    };
+    let n = |v: f64| units.num(v);
     p.line(&format!("G0 X{} Y{}", n(x0 + w / 2.0), n(y0 + h / 2.0)));
     p.ours.push_str(&format!("{side} D1\n"));
-    let _ = writeln!(p.theirs, "{side}.1 D2");
+    let diameter = if p.inch { 2.0 / 25.4 } else { 2.0 };
+    let _ = writeln!(p.theirs, "{side}.1 D{diameter:.12}");
     let ccw = rng.below(2) == 0;
     let mut path = vec![
         format!("G1 X{} Y{}", n(x0 + c), n(y0)),

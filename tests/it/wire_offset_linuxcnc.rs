@@ -279,3 +279,78 @@ fn the_dialect_rewrite_gives_each_reader_its_offset_words() {
         "g0 x1\n\ng41.1 d0.3 g1 y4\ng42.1 d0.3 \ng40 g1 x0\n"
     );
 }
+
+/// A random open chain under the offset from `rng`, in inches or mm (`scale` mm a unit):
+/// lines and arcs (by `I J` or `R`), each tangent to the last or turned by up to a radian,
+/// written to four decimals; entered and left by straight moves. Rounded to four decimals of
+/// an inch, a tangent junction is a slight corner either way and an `I J` arc a slight
+/// spiral: where a corner's offsets meet then moves far along the path, and rs274 has its
+/// own construction for it.
+fn chain(rng: &mut edmd::rng::SplitMix64, scale: f64, side: &str) -> String {
+    let mut text = String::from(if scale == 1.0 { "G21" } else { "G20" });
+    text.push_str(" G90 G17\n");
+    let at = |x: f64, y: f64| format!("X{:.4} Y{:.4}", x / scale, y / scale);
+    let (mut x, mut y) = (0.0f64, 0.0f64);
+    let mut heading = rng.next_f64() * std::f64::consts::TAU;
+    let _ = writeln!(
+        text,
+        "G0 {}\n{side} D1\nG1 {} F10",
+        at(-5.0 * heading.cos(), -5.0 * heading.sin()),
+        at(0.0, 0.0)
+    );
+    for _ in 0..8 {
+        if rng.below(3) == 0 {
+            heading += 2.0 * rng.next_f64() - 1.0;
+        }
+        if rng.below(2) == 0 {
+            let l = 3.0 + 7.0 * rng.next_f64();
+            (x, y) = (x + l * heading.cos(), y + l * heading.sin());
+            let _ = writeln!(text, "G1 {}", at(x, y));
+            continue;
+        }
+        let r = 2.0 + 8.0 * rng.next_f64();
+        let turn = if rng.below(2) == 0 { 1.0 } else { -1.0 };
+        let c = (x - turn * r * heading.sin(), y + turn * r * heading.cos());
+        let sweep = turn * (0.5 + 2.0 * rng.next_f64());
+        let to = (y - c.1).atan2(x - c.0) + sweep;
+        let end = (c.0 + r * to.cos(), c.1 + r * to.sin());
+        let g = if turn > 0.0 { "G3" } else { "G2" };
+        if rng.below(3) == 0 && sweep.abs() < std::f64::consts::PI {
+            let _ = writeln!(text, "{g} {} R{:.4}", at(end.0, end.1), r / scale);
+        } else {
+            let (i, j) = ((c.0 - x) / scale, (c.1 - y) / scale);
+            let _ = writeln!(text, "{g} {} I{i:.4} J{j:.4}", at(end.0, end.1));
+        }
+        ((x, y), heading) = (end, heading + sweep);
+    }
+    let _ = writeln!(
+        text,
+        "G40 G1 {}\nM2",
+        at(x + 5.0 * heading.cos(), y + 5.0 * heading.sin())
+    );
+    text
+}
+
+#[test]
+fn chains_of_lines_and_slightly_spiral_arcs_meet_at_rs274s_corners_in_inches_and_mm() {
+    let Some(rs274) = rs274() else { return };
+    let dir = common::scratch("wire-offset-linuxcnc", "chains");
+    let mut rng = edmd::rng::SplitMix64::new(7);
+    let radius = 0.15;
+    let (mut moves, mut worst) = (0, [0.0f64; 2]);
+    for case in 0..300 {
+        let inch = case % 2 == 0;
+        let scale = if inch { 25.4 } else { 1.0 };
+        let side = if rng.below(2) == 0 { "G41" } else { "G42" };
+        let text = chain(&mut rng, scale, side);
+        let name = format!("chain{case}.ngc");
+        let (n, w) = agree(&rs274, &dir, &name, &text, 2.0 * radius / scale, radius);
+        moves += n;
+        worst[usize::from(inch)] = worst[usize::from(inch)].max(w);
+    }
+    eprintln!(
+        "300 chains, {moves} moves agree, worst {:.2} µm in mm, {:.2} µm in inches",
+        worst[0] * 1e3,
+        worst[1] * 1e3
+    );
+}

@@ -13,7 +13,11 @@
 //!   programmed corner joins them, so every point of it is exactly `d` from the contour (the
 //!   wire-EDM convention; a sharp corner would leave the corner's distance larger);
 //! - **concave corner**: both moves are trimmed at their intersection; none found (the offset
-//!   would cut into the part) is an error naming the line;
+//!   would cut into the part) is an error naming the line. Between two programmed lines or
+//!   arcs the point is placed by LinuxCNC's construction, which is that intersection unless
+//!   an arc is a slight spiral (its `I J` rounded): then it is where LinuxCNC puts it, up to
+//!   tens of µm along the path from the exact crossing at a near-tangent junction, off the
+//!   exact offset by no more than the spiral's own mismatch;
 //! - **tangent junction**: nothing to add.
 //!
 //! **Entry and exit** as LinuxCNC's interpreter does them (`tests/it/wire_offset_linuxcnc.rs`
@@ -385,7 +389,7 @@ impl WireOffsetStage {
             let p = curve.point(u0);
             let corner_point = (p[ix], p[iy]);
             let mut b = prims;
-            let extra = join_prims(&mut all, &mut b, corner_point, self.side, self.d)?;
+            let extra = join_prims(&mut all, &mut b, corner_point, self.side, self.d, false)?;
             all.extend(extra);
             all.extend(b);
         }
@@ -443,8 +447,17 @@ impl WireOffsetStage {
         let [ix, iy] = self.plane.expect("no offset without X and Y");
         let corner = next.template.start();
         let corner = (corner[ix], corner[iy]);
-        let extra = join_prims(&mut prev.prims, &mut next.prims, corner, self.side, self.d)
-            .map_err(|m| fail(next.template.line, m))?;
+        let programmed = |p: &Piece| !matches!(p.template.kind, BlockKind::Nurbs { .. });
+        let both_programmed = programmed(&prev) && programmed(&next);
+        let extra = join_prims(
+            &mut prev.prims,
+            &mut next.prims,
+            corner,
+            self.side,
+            self.d,
+            both_programmed,
+        )
+        .map_err(|m| fail(next.template.line, m))?;
         let joined_at = extra.last().or(prev.prims.last()).map(Prim::end);
         if let (Some(Prim::Arc { .. }), Some(end)) = (next.prims.first(), joined_at) {
             next.entry_from = Some(end);

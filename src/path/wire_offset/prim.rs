@@ -218,12 +218,16 @@ impl Prim {
 
 /// Joins two offset paths meeting at the programmed `corner`: trims both at their
 /// intersection (concave) or returns the arc about `corner` that links them (convex).
+///
+/// `programmed`: `a` ends and `b` starts with the offset of a programmed line or arc (not a
+/// chord of a curve's offset), whose concave corner is placed as LinuxCNC places it.
 pub(super) fn join_prims(
     a: &mut Vec<Prim>,
     b: &mut Vec<Prim>,
     corner: V2,
     side: f64,
     d: f64,
+    programmed: bool,
 ) -> Result<Vec<Prim>, String> {
     let (ea, sb) = (a[a.len() - 1].end(), b[0].start());
     if norm(sub(ea, sb)) <= 1e-7 {
@@ -274,6 +278,15 @@ pub(super) fn join_prims(
             sweep,
         }]);
     }
+    if programmed
+        && let Some(meet) = concave_as_linuxcnc(&a[a.len() - 1], &b[0], corner, side, d)
+        && let (Some(ta), Some(tb)) = (a[a.len() - 1].ending_at(meet), b[0].starting_at(meet))
+    {
+        let last = a.len() - 1;
+        a[last] = ta;
+        b[0] = tb;
+        return Ok(Vec::new());
+    }
     // Concave: the nearest crossing, searching back along `a` and forward along `b`.
     let na = a.len();
     for i in (na.saturating_sub(TRIM_SEARCH)..na).rev() {
@@ -300,4 +313,258 @@ pub(super) fn join_prims(
          meet): the offset is larger than the contour allows",
         crate::vocab::Num(d)
     ))
+}
+
+/// Where LinuxCNC's interpreter ends `a` and starts `b` at a concave corner of two
+/// programmed moves (`convert_straight_comp2`, `convert_arc_comp2`), `corner` the programmed
+/// corner, `side` +1 left, `d` the offset; `None` where it finds no point (it refuses the
+/// corner as gouging; the general search then says why).
+///
+/// Its constructions are the offsets' intersection wherever an arc's start and end radii
+/// agree. Where they differ (an `I J` arc rounded to four decimals of an inch is a slight
+/// spiral), a line into an arc is met on the circle of the arc's end radius at the distance
+/// from its centre that the end radius, not the start radius, gives the line; and the
+/// crossing of two arcs is taken wherever it lies, not only within their sweeps. Near a
+/// tangent junction the point moves far along the path for a micrometre of spiral: edmd
+/// places it where LinuxCNC does, so the two read such a program to the same cut.
+fn concave_as_linuxcnc(a: &Prim, b: &Prim, corner: V2, side: f64, d: f64) -> Option<V2> {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let angle = |v: V2| v.1.atan2(v.0);
+    let at = |c: V2, r: f64, ang: f64| (c.0 + r * ang.cos(), c.1 + r * ang.sin());
+    let unit_range = |l: f64| (-1.0..=1.0).contains(&l).then_some(l);
+    // The wire inside the arc: left of a counter-clockwise one, right of a clockwise one.
+    let inside = |sweep: f64| (side > 0.0) == (sweep > 0.0);
+    match (*a, *b) {
+        (Prim::Line { .. }, Prim::Line { .. }) => None,
+        (Prim::Line { .. }, Prim::Arc { c, r, sweep, .. }) => {
+            let theta = angle(a.tangent(1.0));
+            let delta = angle(sub(c, corner));
+            let alpha = if sweep > 0.0 {
+                delta - FRAC_PI_2
+            } else {
+                delta + FRAC_PI_2
+            };
+            let beta = if side > 0.0 {
+                theta - alpha
+            } else {
+                alpha - theta
+            };
+            let end_radius = if inside(sweep) { r + d } else { r - d };
+            let toward = end_radius * (beta - FRAC_PI_2).sin();
+            let ang = if inside(sweep) {
+                let l = unit_range((toward + d) / r)?;
+                if sweep > 0.0 {
+                    theta + l.asin()
+                } else {
+                    theta - l.asin()
+                }
+            } else {
+                let l = unit_range((toward - d) / r)?;
+                if sweep > 0.0 {
+                    theta + PI - l.asin()
+                } else {
+                    theta + PI + l.asin()
+                }
+            };
+            Some(at(c, r, ang))
+        }
+        (Prim::Arc { c, r, sweep, .. }, Prim::Line { .. }) => {
+            let base = angle(b.tangent(0.0));
+            let theta = if sweep > 0.0 {
+                base + FRAC_PI_2
+            } else {
+                base - FRAC_PI_2
+            };
+            let phi = angle(sub(c, corner));
+            let programmed_radius = if inside(sweep) { r + d } else { r - d };
+            let across = programmed_radius * (theta - phi).cos();
+            let toward = if inside(sweep) {
+                across - d
+            } else {
+                across + d
+            };
+            let turn_back = unit_range(toward / r)?.acos();
+            let ang = if inside(sweep) == (sweep > 0.0) {
+                theta + PI - turn_back
+            } else {
+                theta + PI + turn_back
+            };
+            Some(at(c, r, ang))
+        }
+        (
+            Prim::Arc {
+                c: ca,
+                r: ra,
+                sweep: sa,
+                ..
+            },
+            Prim::Arc {
+                c: cb,
+                r: rb,
+                sweep: sb,
+                ..
+            },
+        ) => {
+            let between = norm(sub(cb, ca));
+            if ra == 0.0 || between == 0.0 {
+                return None;
+            }
+            let cos_back = (ra * ra + between * between - rb * rb) / (2.0 * ra * between);
+            let pullback = unit_range(cos_back)?.acos();
+            let toward = angle(sub(cb, ca));
+            let ang = if inside(sa) == (sb > 0.0) {
+                toward + pullback
+            } else {
+                toward - pullback
+            };
+            Some(at(ca, ra, ang))
+        }
+    }
+}
+
+impl Prim {
+    /// `self` ended at `p` (a line's end moved there; an arc's end moved to `p`'s angle about
+    /// its centre, by less than half a turn), or `None` if that would turn it round.
+    fn ending_at(&self, p: V2) -> Option<Prim> {
+        match *self {
+            Prim::Line { a, b } => {
+                (dot(sub(p, a), sub(b, a)) > 0.0).then_some(Prim::Line { a, b: p })
+            }
+            Prim::Arc { c, r, a0, sweep } => {
+                let moved = wrapped(sub(p, c).1.atan2(sub(p, c).0) - (a0 + sweep));
+                let sweep2 = sweep + moved;
+                (sweep2 * sweep > 0.0).then_some(Prim::Arc {
+                    c,
+                    r,
+                    a0,
+                    sweep: sweep2,
+                })
+            }
+        }
+    }
+
+    /// `self` started at `p`, as [`Prim::ending_at`] ends it.
+    fn starting_at(&self, p: V2) -> Option<Prim> {
+        match *self {
+            Prim::Line { a, b } => {
+                (dot(sub(b, p), sub(b, a)) > 0.0).then_some(Prim::Line { a: p, b })
+            }
+            Prim::Arc { c, r, a0, sweep } => {
+                let moved = wrapped(sub(p, c).1.atan2(sub(p, c).0) - a0);
+                let sweep2 = sweep - moved;
+                (sweep2 * sweep > 0.0).then_some(Prim::Arc {
+                    c,
+                    r,
+                    a0: a0 + moved,
+                    sweep: sweep2,
+                })
+            }
+        }
+    }
+}
+
+/// An angle in (-π, π].
+fn wrapped(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    if w <= -PI { w + TAU } else { w }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The offset (`side` +1 left, `d`) of a programmed move through the corner at the
+    /// origin with tangent `heading` there: a line of length 10, or an arc of radius 5 turning
+    /// `turn` (±1) for 1 radian; `into` the corner (ending there) or out of it.
+    fn offset_move(heading: f64, turn: Option<f64>, into: bool, side: f64, d: f64) -> Prim {
+        let t = (heading.cos(), heading.sin());
+        let Some(turn) = turn else {
+            let n = scale(left(t), side * d);
+            let far = scale(t, if into { -10.0 } else { 10.0 });
+            let (a, b) = if into {
+                (far, (0.0, 0.0))
+            } else {
+                ((0.0, 0.0), far)
+            };
+            return Prim::Line {
+                a: add(a, n),
+                b: add(b, n),
+            };
+        };
+        let c = scale(left(t), 5.0 * turn);
+        let at_corner = (-c.1).atan2(-c.0);
+        let sweep = turn * 1.0;
+        Prim::Arc {
+            c,
+            r: 5.0 - side * d * turn,
+            a0: if into { at_corner - sweep } else { at_corner },
+            sweep,
+        }
+    }
+
+    #[test]
+    fn where_an_arcs_radii_agree_linuxcncs_concave_corner_is_the_offsets_crossing() {
+        let d = 0.3;
+        let mut checked = 0;
+        for side in [1.0, -1.0] {
+            for into in [None, Some(1.0), Some(-1.0)] {
+                for out in [None, Some(1.0), Some(-1.0)] {
+                    if into.is_none() && out.is_none() {
+                        continue; // Two lines: the general crossing, no construction.
+                    }
+                    // Turned 0.7 rad towards the offset's side: a concave corner.
+                    let a = offset_move(0.0, into, true, side, d);
+                    let b = offset_move(side * 0.7, out, false, side, d);
+                    let meet = concave_as_linuxcnc(&a, &b, (0.0, 0.0), side, d)
+                        .unwrap_or_else(|| panic!("no point: {a:?} {b:?}"));
+                    let off = |p: &Prim| match *p {
+                        Prim::Line { a, b } => cross(unit(sub(b, a)), sub(meet, a)).abs(),
+                        Prim::Arc { c, r, .. } => (norm(sub(meet, c)) - r).abs(),
+                    };
+                    assert!(
+                        off(&a) < 1e-12 && off(&b) < 1e-12,
+                        "{a:?} {b:?} meet {meet:?}"
+                    );
+                    // The crossing near the corner, where the search finds it too.
+                    let crossing = a.intersections(&b);
+                    assert!(
+                        crossing
+                            .iter()
+                            .any(|&(s, _)| norm(sub(a.at(s), meet)) < 1e-9),
+                        "{a:?} {b:?}: {meet:?} is not among {crossing:?}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 16);
+    }
+
+    #[test]
+    fn ending_and_starting_at_a_point_keep_the_direction_of_travel() {
+        let arc = Prim::Arc {
+            c: (0.0, 0.0),
+            r: 1.0,
+            a0: 0.0,
+            sweep: 1.0,
+        };
+        let p = (0.9_f64.cos(), 0.9_f64.sin());
+        let Some(Prim::Arc { sweep, .. }) = arc.ending_at(p) else {
+            panic!()
+        };
+        assert!((sweep - 0.9).abs() < 1e-12);
+        let Some(Prim::Arc { a0, sweep, .. }) = arc.starting_at(p) else {
+            panic!()
+        };
+        assert!((a0 - 0.9).abs() < 1e-12 && (sweep - 0.1).abs() < 1e-12);
+        // Past the start of a line, or behind an arc's start, turns the move round: refused.
+        let line = Prim::Line {
+            a: (0.0, 0.0),
+            b: (1.0, 0.0),
+        };
+        assert!(line.ending_at((-0.5, 0.0)).is_none());
+        assert!(arc.starting_at((1.5_f64.cos(), 1.5_f64.sin())).is_none());
+        assert!((wrapped(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+    }
 }
