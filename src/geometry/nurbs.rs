@@ -2,6 +2,7 @@
 
 use super::basis::{MAX_ORDER, basis_derivs, basis_derivs_to, find_span};
 use super::{MAX_AXES, MAX_DEGREE, Point};
+use smallvec::SmallVec;
 
 /// Why a set of NURBS data is not a curve edmd can run. One variant per rule, so that the
 /// G-code layer can point at the word that broke it.
@@ -106,9 +107,15 @@ impl CurveDerivs {
 pub struct NurbsCurve {
     degree: usize,
     dim: usize,
-    knots: Vec<f64>,
-    homogeneous: Vec<[f64; HOMOGENEOUS_WIDTH]>,
+    knots: Knots,
+    homogeneous: Points,
 }
+
+/// A curve's knots: a line's four are kept in the curve itself, so a straight move (a
+/// canned cycle makes five a hole) costs no allocation; longer ones go to the heap.
+type Knots = SmallVec<[f64; 4]>;
+/// A curve's homogeneous control points: a line's two kept in the curve, as its knots are.
+type Points = SmallVec<[[f64; HOMOGENEOUS_WIDTH]; 2]>;
 
 impl NurbsCurve {
     /// Builds and validates a curve. `points` gives the first `dim` coordinates of each control
@@ -118,8 +125,9 @@ impl NurbsCurve {
         dim: usize,
         points: &[Point],
         weights: &[f64],
-        knots: Vec<f64>,
+        knots: impl Into<Knots>,
     ) -> Result<Self, NurbsError> {
+        let knots = knots.into();
         if !(1..=MAX_DEGREE).contains(&degree) {
             return Err(NurbsError::DegreeOutOfRange { degree });
         }
@@ -144,7 +152,7 @@ impl NurbsCurve {
                 return Err(NurbsError::BadWeight { index, value: w });
             }
         }
-        let mut homogeneous = Vec::with_capacity(points.len());
+        let mut homogeneous = Points::with_capacity(points.len());
         for (index, (p, &w)) in points.iter().zip(weights).enumerate() {
             if p.iter().take(dim).any(|c| !c.is_finite()) {
                 return Err(NurbsError::NonFiniteCoordinate { index });
@@ -175,20 +183,20 @@ impl NurbsCurve {
     pub(super) fn from_parts(
         degree: usize,
         dim: usize,
-        knots: Vec<f64>,
-        homogeneous: Vec<[f64; HOMOGENEOUS_WIDTH]>,
+        knots: impl Into<Knots>,
+        homogeneous: impl Into<Points>,
     ) -> NurbsCurve {
         NurbsCurve {
             degree,
             dim,
-            knots,
-            homogeneous,
+            knots: knots.into(),
+            homogeneous: homogeneous.into(),
         }
     }
 
     /// A straight line from `a` to `b` as a degree-1 curve on `[0, 1]`.
     pub fn line(dim: usize, a: &Point, b: &Point) -> Result<Self, NurbsError> {
-        Self::new(1, dim, &[*a, *b], &[1.0, 1.0], vec![0.0, 0.0, 1.0, 1.0])
+        Self::new(1, dim, &[*a, *b], &[1.0, 1.0], [0.0, 0.0, 1.0, 1.0])
     }
 
     /// The same curve run the other way: `reversed().point(a + b - u) == point(u)` on the

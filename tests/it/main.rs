@@ -4,6 +4,7 @@
 mod common;
 mod oracle;
 
+mod allocations;
 mod architecture;
 mod breakthrough;
 mod chord_bound;

@@ -311,11 +311,15 @@ pub(super) struct LaterCodes<'w> {
     pub(super) reference: Option<(bool, bool, &'w Word)>,
 }
 
+/// A block's G codes: kept in the reader's stack frame up to eight (a line costs no
+/// allocation for them; a safe-start line has five or six).
+pub(super) type BlockCodes<'w> = smallvec::SmallVec<[(GCode, &'w Word); 8]>;
+
 /// The G codes of a block, one per modal group. `G80` beside another motion code is passed
 /// over, in either order, as LinuxCNC does: `G0 G80`, `G80 G81` are the safe-start and
 /// restart lines of Fanuc and Haas posts, and the other code is what moves.
-pub(super) fn g_codes(words: &[Word]) -> Result<Vec<(GCode, &Word)>, Fail> {
-    let mut codes: Vec<(GCode, &Word)> = Vec::new();
+pub(super) fn g_codes(words: &[Word]) -> Result<BlockCodes<'_>, Fail> {
+    let mut codes = BlockCodes::new();
     for w in words.iter().filter(|w| w.letter == 'G') {
         let code = classify_g(g_code_tenths(w)?, w.col)?;
         let motion = code.group() == 1;

@@ -25,16 +25,17 @@ use crate::vocab::Axis;
 /// versions default to 1 mm on a mm machine and take `D`, as edmd does.)
 const PECK_CLEARANCE_MM: f64 = 0.010 * super::MM_PER_INCH;
 
-/// A canned cycle's block: its moves, from `state`'s position, which it moves to the last.
-/// `continuing`: the block is in the mode the last one set (its `R`, `Z`, `P`, `Q` hold).
+/// A canned cycle's block: its moves, made in `moves` (from `state`'s position), which
+/// `state` moves to the last of. `continuing`: the block is in the mode the last one set (its
+/// `R`, `Z`, `P`, `Q` hold).
 pub(super) fn cycle_moves(
     state: &mut InterpState,
     env: &mut BlockEnv,
     cycle: Cycle,
     continuing: bool,
-    line_no: u64,
     letters: &Letters,
     col: usize,
+    mut moves: MoveList,
 ) -> Step<Vec<Block>> {
     let words = cycle_words(state, env.axes, cycle, continuing, letters, col)?;
     let start = state.position;
@@ -81,7 +82,6 @@ pub(super) fn cycle_moves(
         let (to, _) = env.target(state, &from, letters, "Z")?;
         Ok([to[ix], to[iy]])
     };
-    let mut moves = MoveList::new(start, line_no, env.axes.len());
     let clear = state.cycle.retract_to_initial;
     let holes = Holes {
         from: [start[ix], start[iy]],
@@ -120,7 +120,9 @@ fn cycle_words(
         Cycle::DwellAtBottom => "RLP",
         Cycle::Peck | Cycle::ChipBreak => "RLQD",
     };
-    axes.check_letters(letters, true, own, &format!("with {code}"))?;
+    axes.check_letters_with(letters, true, &|c| own.contains(c), &|| {
+        format!("with {code}")
+    })?;
     if state.modal.wire_offset.engaged() {
         return Err(cycle_fail(
             col,
@@ -286,12 +288,14 @@ pub(super) struct MoveList {
 }
 
 impl MoveList {
-    /// No moves yet, from `at`, on line `line`, on a machine of `axes` axes.
-    pub(super) fn new(at: Point, line: u64, axes: usize) -> MoveList {
+    /// No moves yet, from `at`, on line `line`, on a machine of `axes` axes, made into
+    /// `reuse` (emptied; its room kept from the last block that made moves).
+    pub(super) fn new(at: Point, line: u64, axes: usize, mut reuse: Vec<Block>) -> MoveList {
+        reuse.clear();
         MoveList {
             at,
             dwell_s: 0.0,
-            blocks: Vec::new(),
+            blocks: reuse,
             line,
             axes,
         }

@@ -112,21 +112,36 @@ struct Output {
     /// The moves after the first of a block that makes several (a canned cycle, `G28`),
     /// handed out before the next line is read.
     queued: std::collections::VecDeque<Block>,
+    /// The room a block that makes several moves makes them in, kept from one such block to
+    /// the next: a canned cycle's holes cost no allocation of their own.
+    room: Vec<Block>,
 }
 
 impl Output {
     /// The first of `blocks` (with the dwell and pause waiting in `state` for a motion), the
     /// others queued behind it.
-    fn emit_all(&mut self, state: &mut InterpState, blocks: Vec<Block>) -> Option<Block> {
-        let mut blocks = blocks.into_iter();
-        let first = blocks.next()?;
-        let first = state.block(first.line, first.kind, first.curve, first.feed_mm_per_min);
-        for mut b in blocks {
-            b.flushing = first.flushing;
-            b.condition = first.condition;
-            self.queued.push_back(b);
-        }
-        Some(first)
+    fn emit_all(&mut self, state: &mut InterpState, mut blocks: Vec<Block>) -> Option<Block> {
+        let first = {
+            let mut made = blocks.drain(..);
+            let first = made.next().map(|first| {
+                state.block(first.line, first.kind, first.curve, first.feed_mm_per_min)
+            });
+            if let Some(first) = &first {
+                for mut b in made {
+                    b.flushing = first.flushing;
+                    b.condition = first.condition;
+                    self.queued.push_back(b);
+                }
+            }
+            first
+        };
+        self.room = blocks;
+        first
+    }
+
+    /// The room to make a block's moves in (see [`Output::room`]).
+    pub(super) fn take_room(&mut self) -> Vec<Block> {
+        std::mem::take(&mut self.room)
     }
 }
 
@@ -167,6 +182,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             out: Output {
                 pending: None,
                 queued: Default::default(),
+                room: Vec::new(),
             },
             diag: Diagnostics::default(),
         };
@@ -282,8 +298,12 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 continue;
             };
             let mut latin1_at = None;
-            let text = match line {
-                Line::Text(t) => t.to_string(),
+            // The line's text in the room the last line's was in: a line costs no
+            // allocation of its own.
+            let mut text = std::mem::take(&mut self.scratch.text);
+            text.clear();
+            match line {
+                Line::Text(t) => text.push_str(t),
                 Line::TooLong => {
                     return Err(self.error(
                         line_no,
@@ -304,12 +324,9 @@ impl<R: BufRead + Seek> BlockReader<R> {
                     // Not UTF-8: read as Latin-1 (one character per byte), which is what an
                     // older editor saved. Accepted inside comments only; anywhere else it is
                     // an error at that column.
-                    let latin1: String = bytes.iter().map(|&b| char::from(b)).collect();
-                    match non_ascii_outside_comments(&latin1) {
-                        None => {
-                            latin1_at = Some(valid_prefix.chars().count() + 1);
-                            latin1
-                        }
+                    text.extend(bytes.iter().map(|&b| char::from(b)));
+                    match non_ascii_outside_comments(&text) {
+                        None => latin1_at = Some(valid_prefix.chars().count() + 1),
                         Some(col) => {
                             let shown = valid_prefix.to_string();
                             return Err(self.error(
@@ -320,7 +337,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                         }
                     }
                 }
-            };
+            }
             if let Err(fail) = self.program.note_structure(
                 self.scratch.line_start,
                 line_no,
@@ -341,15 +358,19 @@ impl<R: BufRead + Seek> BlockReader<R> {
             let mut words = std::mem::take(&mut self.scratch.words);
             let result = self.process_line(line_no, &text, &mut words);
             self.scratch.words = words;
-            match result {
-                Ok(Some(mut block)) => {
+            let made = match result {
+                Ok(made) => made,
+                Err(fail) => return Err(self.error(line_no, &text, fail)),
+            };
+            self.scratch.text = text;
+            match made {
+                Some(mut block) => {
                     block.taper = self.state.modal.taper;
                     block.wire_offset = self.state.modal.wire_offset.stamp_move();
                     return Ok(Some(block));
                 }
-                Ok(None) if self.program.done => self.finish()?,
-                Ok(None) => {}
-                Err(fail) => return Err(self.error(line_no, &text, fail)),
+                None if self.program.done => self.finish()?,
+                None => {}
             }
         }
     }

@@ -10,7 +10,7 @@ use std::io::{BufRead, Seek};
 use super::arc::arc_block;
 use super::axes::MachineAxes;
 use super::codes::{GCode, LaterCodes, Motion, OffsetCode, Probing, g_codes};
-use super::cycles::cycle_moves;
+use super::cycles::{MoveList, cycle_moves};
 use super::nurbs::{PendingCurve, curve_letters, quad_spline};
 use super::offsets::{check_machine_move, coordinate_offset, probe_block, reference_point};
 use super::state::{BlockEnv, InterpState};
@@ -449,8 +449,11 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 quad_spline(state, &mut env, line_no, letters, col).map(Some)
             }
             Motion::Cycle(c) => {
+                let at = self.state.position;
+                let room = self.out.take_room();
+                let moves = MoveList::new(at, line_no, self.axes.len(), room);
                 let (state, mut env) = self.form_parts();
-                let moves = cycle_moves(state, &mut env, c, continuing, line_no, letters, col)?;
+                let moves = cycle_moves(state, &mut env, c, continuing, letters, col, moves)?;
                 Ok(self.out.emit_all(&mut self.state, moves))
             }
         }

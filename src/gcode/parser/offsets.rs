@@ -243,7 +243,7 @@ pub(super) fn reference_point(
     env.axes
         .check_letters(letters, true, "", &format!("with {code}"))?;
     let (via, named) = env.target_here(state, letters)?;
-    let mut moves = MoveList::new(state.position, line_no, env.axes.len());
+    let mut moves = MoveList::new(state.position, line_no, env.axes.len(), Vec::new());
     // With axis words only the named axes go on to the stored point (LinuxCNC 2.9).
     let axes: Vec<usize> = (0..env.axes.len())
         .filter(|&i| !named || letters.get(env.axes[i].letter()).is_some())

@@ -231,6 +231,8 @@ impl<R> ProgramFlow<R> {
 /// The line being read.
 #[derive(Default)]
 pub(super) struct LineScratch {
+    /// The line being read, its room kept from line to line.
+    pub text: String,
     pub words: Vec<Word>,
     pub assigns: Vec<Assign>,
     /// The line's number (for warnings raised deep in a block).
