@@ -31,6 +31,7 @@ mod jerk;
 mod load;
 mod machine;
 mod mqtt;
+mod nc_files;
 mod opcua;
 mod operator;
 mod orbit;

@@ -153,10 +153,7 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
         } else if line.contains("NURBS_FEED(") {
             // rs274 prints no end point for a spline: compared as unknown.
             moves.push([f64::NAN; 3]);
-        } else if !line.trim().is_empty()
-            && !line.contains("N.....")
-            && !line.starts_with("executing")
-        {
+        } else if !line.trim().is_empty() && !is_canon_call(line) && line != "executing" {
             return Err(line.trim().to_string());
         }
     }
@@ -183,6 +180,16 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
         moved
     });
     Ok(moves)
+}
+
+/// A canonical call rs274 prints (`  16 N..... NAME(…)`, or `N0080` where the program numbers
+/// its lines), not an error message.
+fn is_canon_call(line: &str) -> bool {
+    let mut words = line.split_whitespace();
+    words
+        .next()
+        .is_some_and(|n| n.bytes().all(|b| b.is_ascii_digit()))
+        && words.next().is_some_and(|n| n.starts_with('N'))
 }
 
 /// The end points (X Y Z, mm) of the blocks edmd reads, or the first error's message.
