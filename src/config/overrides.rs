@@ -118,10 +118,12 @@ pub(super) fn overlay(
                 });
             }
             // A table of fixed keys (`[sinker.orbit]`) is overlaid key by key too; a free
-            // map (empty by default: `sim.home_switch_mm`) is replaced whole.
+            // map (empty by default: `sim.home_switch_mm`; or keyed by axis letter,
+            // `machine.travel_mm`, whatever axes the default names) is replaced whole.
             if let (Some(toml::Value::Table(inner)), toml::Value::Table(user_inner)) =
                 (defaults.get_mut(&key), &value)
                 && !inner.is_empty()
+                && !FREE_MAPS.contains(&(section.as_str(), key.as_str()))
             {
                 let path = format!("{section}.{key}");
                 for (sub, v) in user_inner {
@@ -152,6 +154,10 @@ fn section_names() -> String {
 /// Keys with no default value (TOML has no null): absent from the shipped file, which
 /// describes them in a comment, and still known.
 const OPTIONAL_KEYS: &[(&str, &str)] = &[("machine", "safe_z_mm")];
+
+/// Tables keyed by the user's own names (axis letters) that have a default: a file's table
+/// replaces the default whole, as the shipped file says, rather than key by key.
+const FREE_MAPS: &[(&str, &str)] = &[("machine", "travel_mm")];
 
 fn known(section: &str, key: &str, defaults: &toml::Table) -> bool {
     defaults.contains_key(key) || OPTIONAL_KEYS.contains(&(section, key))

@@ -517,3 +517,22 @@ fn the_edge_nodes_keys_are_read_and_their_mistakes_located_on_their_line() {
     let e = load("", &["daemon.mqtt.keep_alive_s=1"]).unwrap_err();
     assert!(e.contains("--set daemon.mqtt.keep_alive_s=1"), "{e}");
 }
+
+#[test]
+fn a_files_travel_table_replaces_the_default_whole_for_any_axis() {
+    // A sinker's Z limit, written as the shipped file says: the table replaces the default
+    // (X and Y) whole, so X and Y have no limit unless the file gives them.
+    let text = "[machine]\naxes = [\"X\", \"Y\", \"Z\"]\nstep_mm = [0.001, 0.001, 0.001]\n\
+                [machine.travel_mm]\nZ = [-50.0, 10.0]\nX = [0.0, 300.0]\n";
+    let c = load(text, &[]).unwrap();
+    let z = c.machine.travel[2].expect("Z has its limit");
+    assert_eq!((z.min_mm, z.max_mm), (-50.0, 10.0));
+    assert_eq!(c.machine.travel[0].map(|t| t.max_mm), Some(300.0));
+    assert!(
+        c.machine.travel[1].is_none(),
+        "Y's default limit is replaced with the table"
+    );
+    // Entries for axes the machine does not have are not used, as the shipped file says.
+    let c = load("[machine.travel_mm]\nU = [-5.0, 5.0]\n", &[]).unwrap();
+    assert!(c.machine.travel.iter().all(Option::is_none));
+}
