@@ -61,6 +61,14 @@ impl CliJob {
         })
     }
 
+    /// `check`'s line for the technology in force: what it selects and its passes or stages.
+    pub(super) fn technology_line(&self) -> Option<String> {
+        self.technology.as_ref().map(|t| match t.passes.len() {
+            0 => format!("{}: {} stages", t.summary(), t.stages.len()),
+            n => format!("{}: {n} passes", t.summary()),
+        })
+    }
+
     /// Each pass's row, condition and machine time, from what was recorded.
     pub(super) fn pass_times(
         &self,
@@ -76,16 +84,6 @@ impl CliJob {
         let height = self.technology.as_ref().and_then(|t| t.part_height_mm());
         crate::report::pass_times(recording, end_tick, &conditions, &rows, height)
     }
-}
-
-/// `check`: what the technology the program's header names selects, in a line (or why
-/// nothing: exit 2).
-pub(super) fn header_technology(cfg: &Config, program: &Path) -> Result<Option<String>, ExitCode> {
-    let job = CliJob::new(cfg.clone(), program, None, None)?;
-    Ok(job.technology.map(|t| match t.passes.len() {
-        0 => format!("{}: {} stages", t.summary(), t.stages.len()),
-        n => format!("{}: {n} passes", t.summary()),
-    }))
 }
 
 /// The first `n` passes of the technology table (`--passes N`), with the table's tab.

@@ -422,9 +422,16 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     if args.verbose {
         eprintln!("{}", args.config.describe());
     }
+    // The program's technology applied first, as `plan` and `run` apply it: a sinker
+    // header's table defines the program's E words.
+    let job = match cut::CliJob::new(cfg, &args.program, None, None) {
+        Ok(job) => job,
+        Err(code) => return code,
+    };
+    let cfg = &job.cfg;
     let axes = &cfg.machine.axes;
     let name = args.program.display().to_string();
-    let options = gcode::ProgramOptions::from_config(&cfg);
+    let options = gcode::ProgramOptions::from_config(cfg);
     let mut reader = match gcode::open_program_as(&args.program, &name, axes, options, |f| f) {
         // What the program's moves cut: the wire offset, the taper and the orbits applied.
         Ok(r) => crate::path::Pipeline::new(r),
@@ -473,10 +480,8 @@ fn run_check(args: &CheckArgs) -> ExitCode {
     if let Some(line) = reader.reader().program_end_line() {
         outln!("program end: line {line}");
     }
-    match cut::header_technology(&cfg, &args.program) {
-        Ok(Some(technology)) => outln!("technology: {technology}"),
-        Ok(None) => {}
-        Err(code) => return code,
+    if let Some(technology) = job.technology_line() {
+        outln!("technology: {technology}");
     }
     ExitCode::SUCCESS
 }

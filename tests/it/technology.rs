@@ -441,3 +441,43 @@ fn check_reads_the_header_technology() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("the nearest row is 50 mm"));
 }
+
+/// `check` reads a sinker program as `plan` and `run` do: its header's table defines the E
+/// words the program selects (before, check refused `E43` as a condition the configuration
+/// does not have).
+#[test]
+fn check_takes_a_sinker_headers_conditions_as_plan_and_run_do() {
+    let dir = common::scratch("technology", "check-sinker");
+    let program = dir.join("cavity.ngc");
+    std::fs::write(
+        &program,
+        "(TECH electrode=copper material=steel area=2)\nG21 G90\nG0 X5 Y5\nG0 Z0\n\
+         E43 G1 Z-0.5 F10\nG0 Z1\nM2\n",
+    )
+    .unwrap();
+    let tables = format!(
+        "technology.dir=\"{}\"",
+        common::repo().join("config/technology").display()
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+        .args(["check", "--quiet", "--config"])
+        .arg(common::repo().join("config/edmd.toml"))
+        .args(["--set", "machine.axes=[\"X\",\"Y\",\"Z\"]"])
+        .args(["--set", "machine.step_mm=[0.001,0.001,0.001]"])
+        .args(["--set", &tables])
+        .arg(&program)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}{}",
+        stdout,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("technology: electrode=copper material=steel area=2"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("stages"), "{stdout}");
+}
