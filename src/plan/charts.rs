@@ -44,17 +44,10 @@ pub(super) fn write_reports(
         }
         .render(),
     )?;
+    let feed = series("feed", "#1f8f3f", Style::Line, &c.feed);
     write(
         "feed.svg",
-        &Chart {
-            title: "Planned feed".into(),
-            x_label: "time (s)".into(),
-            y_label: "feed (mm/min)".into(),
-            series: vec![series("feed", "#1f8f3f", Style::Line, &c.feed)],
-            limits: vec![(settings.max_feed_mm_per_s, "max feed".into())],
-            ..Chart::default()
-        }
-        .render(),
+        &feed_chart(feed, settings.max_feed_mm_per_s).render(),
     )?;
     let a = settings.max_tangential_accel_mm_per_s2;
     write(
@@ -209,5 +202,35 @@ impl WireView {
             }],
             ..Chart::default()
         }
+    }
+}
+
+/// The planned feed against time, in mm/min (the series is), with the machine's maximum in
+/// the same unit.
+fn feed_chart(feed: Series, max_feed_mm_per_s: f64) -> Chart {
+    Chart {
+        title: "Planned feed".into(),
+        x_label: "time (s)".into(),
+        y_label: "feed (mm/min)".into(),
+        series: vec![feed],
+        limits: vec![(max_feed_mm_per_s * 60.0, "max feed".into())],
+        ..Chart::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_feed_charts_maximum_is_in_the_series_unit() {
+        let feed = Series {
+            name: "feed".into(),
+            color: "#1f8f3f",
+            style: Style::Line,
+            points: vec![(0.0, 0.0), (1.0, 600.0)],
+        };
+        let chart = feed_chart(feed, 10.0);
+        assert_eq!(chart.limits[0].0, 600.0, "10 mm/s is 600 mm/min");
     }
 }
