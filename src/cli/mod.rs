@@ -9,7 +9,6 @@ use std::sync::atomic::AtomicBool;
 
 use clap::{Args, CommandFactory, Parser, Subcommand};
 
-use crate::check;
 use crate::config::{self, Config, LogFormat};
 use crate::gcode;
 use crate::plan;
@@ -122,6 +121,7 @@ fn write_stdout(args: std::fmt::Arguments, newline: bool) {
     }
 }
 
+mod check_cmd;
 mod ctl;
 mod cut;
 mod docs;
@@ -132,6 +132,7 @@ mod run_state;
 mod tech;
 mod touch;
 
+use check_cmd::run_check;
 use ctl::{CtlArgs, run_ctl};
 use run_state::RunState;
 
@@ -411,79 +412,6 @@ fn load_config(args: &ConfigArgs) -> Result<Config, ExitCode> {
         eprintln!("edmd: error: {e}");
         ExitCode::from(EXIT_BAD_INPUT)
     })
-}
-
-fn run_check(args: &CheckArgs) -> ExitCode {
-    let cfg = match load_config(&args.config) {
-        Ok(c) => c,
-        Err(code) => return code,
-    };
-    let _ = init_logging(&cfg.log);
-    if args.verbose {
-        eprintln!("{}", args.config.describe());
-    }
-    // The program's technology applied first, as `plan` and `run` apply it: a sinker
-    // header's table defines the program's E words.
-    let job = match cut::CliJob::new(cfg, &args.program, None, None) {
-        Ok(job) => job,
-        Err(code) => return code,
-    };
-    let cfg = &job.cfg;
-    let axes = &cfg.machine.axes;
-    let name = args.program.display().to_string();
-    let options = gcode::ProgramOptions::from_config(cfg);
-    let mut reader = match gcode::open_program_as(&args.program, &name, axes, options, |f| f) {
-        // What the program's moves cut: the wire offset, the taper and the orbits applied.
-        Ok(r) => crate::path::Pipeline::new(r),
-        Err(e) => {
-            eprintln!("edmd: error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
-        }
-    };
-    let mut totals = check::Totals::default();
-    if !args.quiet {
-        outln!("{name}");
-        outln!("{}", check::BLOCK_TABLE_HEADER);
-    }
-    let mut failed = None;
-    for item in reader.by_ref() {
-        match item {
-            Ok(block) => {
-                // A measure for the table and totals: exact for lines, arcs and helices.
-                let length = block.length_mm(axes);
-                if !args.quiet {
-                    outln!("{}", check::describe_block(&block, length, axes));
-                }
-                totals.add(&block, length);
-            }
-            Err(e) => {
-                failed = Some(e);
-                break;
-            }
-        }
-    }
-    for w in reader.reader().take_warnings() {
-        if w.line == 0 {
-            eprintln!("{name}: warning: {}", w.message);
-        } else {
-            eprintln!("{name}:{}:{}: warning: {}", w.line, w.col, w.message);
-        }
-    }
-    if let Some(e) = failed {
-        eprintln!("edmd: error: {e}");
-        return ExitCode::from(EXIT_BAD_INPUT);
-    }
-    outln!(
-        "{}",
-        check::describe_totals(&totals, axes, cfg.machine.max_feed_mm_per_min)
-    );
-    if let Some(line) = reader.reader().program_end_line() {
-        outln!("program end: line {line}");
-    }
-    if let Some(technology) = job.technology_line() {
-        outln!("technology: {technology}");
-    }
-    ExitCode::SUCCESS
 }
 
 fn run_plan(args: &PlanArgs) -> ExitCode {

@@ -60,6 +60,12 @@ pub enum TechError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// The program whose header is looked for cannot be read (said as the reader says it).
+    #[error("{}: cannot read the program: {source}", path.display())]
+    Program {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// A table that does not read.
     #[error("{at}: {message}")]
     Invalid { at: Place, message: String },

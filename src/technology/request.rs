@@ -208,7 +208,7 @@ pub fn header(path: &Path, source: &str) -> Result<Option<Request>, TechError> {
     let mut text = Vec::new();
     crate::sys::open_regular(path)
         .and_then(|f| f.take(HEADER_BYTES + 1).read_to_end(&mut text))
-        .map_err(|source| TechError::Io {
+        .map_err(|source| TechError::Program {
             path: path.to_path_buf(),
             source,
         })?;
