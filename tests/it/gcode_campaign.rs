@@ -21,7 +21,7 @@ use crate::common;
 
 use std::fmt::Write as _;
 
-use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, without_moves_under};
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, without_moves_under, worst_apart};
 use edmd::rng::SplitMix64;
 
 /// The seeds CI runs: the campaign is the same programs every time.
@@ -424,12 +424,7 @@ fn generated_programs_read_as_linuxcnc_reads_them() {
                 } else {
                     without_moves_under(a, bound)
                 };
-                let worst = a
-                    .iter()
-                    .zip(&b)
-                    .filter(|(_, q)| !q[0].is_nan())
-                    .map(|(x, y)| (0..3).map(|i| (x[i] - y[i]).abs()).fold(0.0, f64::max))
-                    .fold(0.0, f64::max);
+                let worst = worst_apart(&a, &b);
                 if a.len() != b.len() || worst > bound {
                     let first = a
                         .iter()

@@ -11,7 +11,7 @@ use crate::common;
 use std::io::Cursor;
 use std::path::Path;
 
-use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274};
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, worst_apart};
 use edmd::gcode::{BlockReader, ProgramOptions};
 use edmd::vocab::Axis;
 
@@ -44,12 +44,7 @@ fn agree(rs274: &Path, name: &str, text: &str) -> usize {
     let theirs =
         linuxcnc(rs274, name, text).unwrap_or_else(|e| panic!("rs274 refuses {name}: {e}\n{text}"));
     let ours = edmd(text).unwrap_or_else(|e| panic!("edmd refuses {name}: {e}\n{text}"));
-    let worst = ours
-        .iter()
-        .zip(&theirs)
-        .filter(|(_, b)| !b[0].is_nan())
-        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max))
-        .fold(0.0, f64::max);
+    let worst = worst_apart(&ours, &theirs);
     let bound = if text.contains("G20") {
         AGREE_INCH_MM
     } else {

@@ -11,7 +11,7 @@ use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, without_moves_under};
+use common::linuxcnc::{edmd_ends, linuxcnc_moves, rs274, without_moves_under, worst_apart};
 
 /// Debian's LinuxCNC 2.9 sample programs that both read with moves, all agreeing: measured
 /// when this test was written; fewer means edmd reads fewer of them.
@@ -91,12 +91,7 @@ fn linuxcncs_sample_programs_that_both_read_end_every_move_where_rs274_does() {
         } else {
             without_moves_under(ours, bound)
         };
-        let worst = ours
-            .iter()
-            .zip(&theirs)
-            .filter(|(_, b)| !b[0].is_nan())
-            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max))
-            .fold(0.0, f64::max);
+        let worst = worst_apart(&ours, &theirs);
         if ours.len() == theirs.len() && worst <= bound {
             agreeing += 1;
             moves += ours.len();

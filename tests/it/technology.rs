@@ -361,6 +361,18 @@ fn a_technology_job_stopped_in_its_second_pass_resumes_to_the_uninterrupted_puls
     common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
 }
 
+/// A cavity sunk with the shipped copper-on-steel table's condition 43 (a 2 cm² electrode).
+const CAVITY: &str = "(TECH electrode=copper material=steel area=2)\nG21 G90\nG0 X5 Y5\nG0 Z0\n\
+                      E43 G1 Z-0.5 F10\nG0 Z1\nM2\n";
+
+/// `--set` for the shipped technology tables.
+fn shipped_tables() -> String {
+    format!(
+        "technology.dir=\"{}\"",
+        common::repo().join("config/technology").display()
+    )
+}
+
 /// A sinker table's stage orbits its condition's sinking moves at the stage's radius: the
 /// program's `E43` on a 2 cm² copper electrode (the 1 to 4 cm² row: 0.25 mm) walks a circle of
 /// 0.25 mm about the programmed axis at the bottom of the plunge (from the pulse log).
@@ -368,17 +380,9 @@ fn a_technology_job_stopped_in_its_second_pass_resumes_to_the_uninterrupted_puls
 fn a_sinker_stage_orbits_its_condition_at_the_stages_radius() {
     let dir = common::scratch("technology", "sinker");
     let program = dir.join("cavity.ngc");
-    std::fs::write(
-        &program,
-        "(TECH electrode=copper material=steel area=2)\nG21 G90\nG0 X5 Y5\nG0 Z0\n\
-         E43 G1 Z-0.5 F10\nG0 Z1\nM2\n",
-    )
-    .unwrap();
+    std::fs::write(&program, CAVITY).unwrap();
     let pulses = dir.join("cavity.csv");
-    let tables = format!(
-        "technology.dir=\"{}\"",
-        common::repo().join("config/technology").display()
-    );
+    let tables = shipped_tables();
     let out = common::run_to_pulse_log(
         &program,
         &pulses,
@@ -449,16 +453,8 @@ fn check_reads_the_header_technology() {
 fn check_takes_a_sinker_headers_conditions_as_plan_and_run_do() {
     let dir = common::scratch("technology", "check-sinker");
     let program = dir.join("cavity.ngc");
-    std::fs::write(
-        &program,
-        "(TECH electrode=copper material=steel area=2)\nG21 G90\nG0 X5 Y5\nG0 Z0\n\
-         E43 G1 Z-0.5 F10\nG0 Z1\nM2\n",
-    )
-    .unwrap();
-    let tables = format!(
-        "technology.dir=\"{}\"",
-        common::repo().join("config/technology").display()
-    );
+    std::fs::write(&program, CAVITY).unwrap();
+    let tables = shipped_tables();
     let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
         .args(["check", "--quiet", "--config"])
         .arg(common::repo().join("config/edmd.toml"))

@@ -182,6 +182,16 @@ pub fn linuxcnc_moves(rs274: &Path, program: &Path) -> Result<Vec<[f64; 3]>, Str
     Ok(moves)
 }
 
+/// The largest difference on any axis between two readings' end points, move for move (a
+/// spline's end, which rs274 does not print, left out).
+pub fn worst_apart(ours: &[[f64; 3]], theirs: &[[f64; 3]]) -> f64 {
+    ours.iter()
+        .zip(theirs)
+        .filter(|(_, b)| !b[0].is_nan())
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max)
+}
+
 /// A canonical call rs274 prints (`  16 N..... NAME(…)`, or `N0080` where the program numbers
 /// its lines), not an error message.
 fn is_canon_call(line: &str) -> bool {
