@@ -212,7 +212,22 @@ const PROCESS_POINTS: usize = 4_000;
 /// second is the process, over one tick it is noise.
 pub const PROCESS_EVERY_S: f64 = 0.25;
 
-/// One reading of the process, as the job's supervisor takes it from the snapshot.
+/// Ticks between the process points the consumer's loop queues at `tick`: the trace's
+/// first spacing.
+pub fn process_every_ticks(tick: TickPeriod) -> u64 {
+    ((PROCESS_EVERY_S * 1e9) as u64 / tick.ns()).max(1)
+}
+
+/// The queue from the consumer's loop to the supervisor: a process point every
+/// `every_ticks` of machine time. Lossless in virtual time, so the trace does not depend on
+/// how often the supervisor is scheduled.
+#[derive(Debug, Clone)]
+pub struct ProcessTap {
+    pub queue: Arc<Handoff<ProcessPoint>>,
+    pub every_ticks: u64,
+}
+
+/// One reading of the process, as the consumer's loop queues it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProcessPoint {
     pub tick: u64,
@@ -295,7 +310,7 @@ impl Recording {
             direction: None,
             upper: None,
             process: Vec::new(),
-            process_every: ((PROCESS_EVERY_S * 1e9) as u64 / tick.ns()).max(1),
+            process_every: process_every_ticks(tick),
             last: None,
             feed_from: None,
             turning_back: false,

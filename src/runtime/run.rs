@@ -26,7 +26,8 @@ use super::shaping::progress::ProgressTracker;
 use super::tick::consumer::{EventRecord, Published};
 use super::{JobEnd, JobIo, PROGRESS_EVERY, ProgressFn, log_trace};
 use crate::buffer::LoopBuffer;
-use crate::record::{Recorder, Recording};
+use crate::record::{ProcessPoint, ProcessTap, Recorder, Recording, process_every_ticks};
+use crate::trace::Handoff;
 use crate::trace::Tracer;
 
 /// A report's recorder samples the motion at most this often (and at every gap change).
@@ -71,7 +72,9 @@ pub fn run(
         progress,
     } = io;
     let recorder = recording.is_some().then(|| recorder(&job));
-    let queue = recorder.as_ref().map(|r| r.queue.clone());
+    let queue = recorder
+        .as_ref()
+        .map(|r| (r.queue.clone(), r.process.queue.clone()));
     let mut supervisor = Supervisor {
         name: job.program.name.clone(),
         spec,
@@ -165,8 +168,19 @@ fn recorder(job: &JobRun<'_>) -> JobRecorder {
         ),
         every_ticks: RECORD_EVERY_TICKS,
         start,
+        process: ProcessTap {
+            queue: Handoff::new(
+                256,
+                job.spec.run_loop.virtual_time,
+                Some(std::thread::current()),
+            ),
+            every_ticks: process_every_ticks(job.spec.tick),
+        },
     }
 }
+
+/// The queues a report's recording is fed from: the recorder's, the process trace's.
+type RecordingQueues = (Arc<Recorder>, Arc<Handoff<ProcessPoint>>);
 
 /// The calling thread while a job runs: it logs, steers and reports, never touching the
 /// real-time thread but through `Published`.
@@ -177,8 +191,9 @@ struct Supervisor<'a> {
     buffer: &'a LoopBuffer,
     stop: &'a AtomicBool,
     tracer: Option<&'a Tracer>,
-    /// The report's recording and the recorder's queue that feeds it.
-    recording: Option<(&'a Arc<parking_lot::Mutex<Recording>>, &'a Arc<Recorder>)>,
+    /// The report's recording and the queues that feed it: the recorder's and the process
+    /// trace's.
+    recording: Option<(&'a Arc<parking_lot::Mutex<Recording>>, &'a RecordingQueues)>,
     progress: Option<ProgressFn>,
     tracker: ProgressTracker,
     last_progress: Instant,
@@ -207,23 +222,23 @@ impl Supervisor<'_> {
         done
     }
 
-    /// Hands the process as the snapshot tells it to the report's recording (the job's
-    /// last reading when `closing`).
+    /// Hands the process points the consumer's loop queued to the report's recording, and
+    /// when `closing` the job's last reading (its final snapshot).
     fn record_process(&self, closing: bool) {
-        if let Some((recording, _)) = self.recording {
-            let snap = self.published.snapshot();
-            if snap.events == 0 && snap.path_mm == 0.0 && !closing {
-                // Before the first block: a job resumed mid-program is not at 0 mm.
-                return;
+        if let Some((recording, (_, process))) = self.recording {
+            let mut recording = recording.lock();
+            process.drain(|point| recording.process_point(*point, false));
+            if closing {
+                let snap = self.published.snapshot();
+                let point = ProcessPoint {
+                    tick: snap.tick,
+                    path_mm: snap.path_mm,
+                    pulses: snap.pulse_totals,
+                    off_time_us: snap.off_time_us,
+                    height_mm: snap.height_mm,
+                };
+                recording.process_point(point, true);
             }
-            let point = crate::record::ProcessPoint {
-                tick: snap.tick,
-                path_mm: snap.path_mm,
-                pulses: snap.pulse_totals,
-                off_time_us: snap.off_time_us,
-                height_mm: snap.height_mm,
-            };
-            recording.lock().process_point(point, closing);
         }
     }
 
@@ -253,7 +268,7 @@ impl Supervisor<'_> {
                 events.push(record);
             }
         }
-        if let Some((recording, recorder)) = self.recording {
+        if let Some((recording, (recorder, _))) = self.recording {
             events::record_batch(&mut recording.lock(), recorder, &events);
         }
         if let Some(tracer) = self.tracer {

@@ -38,7 +38,7 @@ use crate::gap::{AlwaysNormal, GapSensor};
 use crate::inputs::{Both, MachineInputs, NoInputs};
 use crate::output::{NullOutput, OutputError, PulseOutput, StopReason};
 use crate::process::ConditionTable;
-use crate::record::{RecordedOutput, Recorder};
+use crate::record::{ProcessTap, RecordedOutput, Recorder};
 use crate::servo::PathPoint;
 use crate::vocab::{Steps, Trip};
 
@@ -60,6 +60,8 @@ pub struct JobRecorder {
     pub queue: Arc<Recorder>,
     pub every_ticks: u64,
     pub start: Steps,
+    /// The process trace, queued by the consumer's loop.
+    pub process: ProcessTap,
 }
 
 /// Where a resumed job starts: a point of the program and the ledger there.
@@ -324,6 +326,10 @@ fn run(job: FineJob, device: Option<&mut Device>, rt_refused: &[String]) -> Fine
         }
         None => machine_inputs,
     };
+    if let Some(r) = &recorder {
+        // A job's Published is its own: the tap is set once, before its loop starts.
+        let _ = published.process.set(r.process.clone());
+    }
     let mut recorded;
     let out: &mut dyn PulseOutput = match recorder {
         Some(r) => {

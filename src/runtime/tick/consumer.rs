@@ -33,6 +33,7 @@ use crate::fine::{Interpolator, Tick};
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{Activity, OutputError, PulseOutput};
+use crate::record::ProcessPoint;
 use crate::servo::{Excursion, GapReading, LawInput, PathPoint, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{Axis, LimitSet, MAX_AXES, SafetyInputs, Trip};
@@ -214,6 +215,8 @@ where
     // move away (a jog off a tripped switch); one that closes later stops it.
     let mut limits_at_start: Option<LimitSet> = None;
     let inputs_wired = inputs.wired();
+    let process = published.process.get();
+    let mut next_process_point = 0;
     loop {
         wait_for_tick(&mut latency, deadline, tick_no, settings, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
@@ -272,6 +275,12 @@ where
             published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
         }
+        if let Some(tap) = process
+            && tick_no >= next_process_point
+        {
+            tap.queue.push(process_point(tick_no, fine));
+            next_process_point = tick_no + tap.every_ticks;
+        }
         if let Err(e) = settle_standstill(fine, output, published, &mut deadline) {
             report.output_error = Some(e);
             break;
@@ -300,6 +309,19 @@ where
     published.probe.close();
     published.finished.store(true, Ordering::Release);
     report
+}
+
+/// The process as it stands after `tick` (the report's trace): running totals, so a point
+/// the supervisor thins away loses nothing.
+fn process_point(tick: u64, fine: &Interpolator) -> ProcessPoint {
+    let process = fine.process();
+    ProcessPoint {
+        tick,
+        path_mm: fine.path_mm(),
+        pulses: process.pulse_totals().0,
+        off_time_us: process.generator().off_time_us,
+        height_mm: process.adaptive().map_or(f64::NAN, |a| a.height_mm),
+    }
 }
 
 /// Phase 2: the machine inputs (when something is wired), then the gap (a probing move reads

@@ -5,6 +5,8 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
+use std::sync::OnceLock;
+
 use crossbeam::queue::ArrayQueue;
 use crossbeam::utils::CachePadded;
 
@@ -13,6 +15,7 @@ use super::probe::ProbeLink;
 use super::snapshot::{SeqLock, Snapshot};
 use crate::fine::Interpolator;
 use crate::gap::GapState;
+use crate::record::ProcessTap;
 use crate::servo::ServoEvent;
 use crate::vocab::Steps;
 
@@ -77,6 +80,9 @@ pub struct Published {
     pub rethread: RethreadRequest,
     /// Where probing moves ended, for the producer.
     pub probe: ProbeLink,
+    /// A report's process trace: where the loop queues a process point every so many ticks
+    /// (set before the loop starts, by a job with a recording).
+    pub process: OnceLock<ProcessTap>,
     /// Set by the supervisor: the operator's feed and rapid overrides and single block.
     pub controls: ControlWord,
     /// A continuous jog's dead-man: the monotonic time (ns) by which its next renewal must
@@ -121,6 +127,7 @@ impl Published {
             paused_kind: AtomicU8::new(0),
             rethread: RethreadRequest::default(),
             probe: ProbeLink::default(),
+            process: OnceLock::new(),
             controls: ControlWord::default(),
             dead_man_ns: AtomicU64::new(0),
             dead_man_tripped: AtomicBool::new(false),
