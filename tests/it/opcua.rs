@@ -245,7 +245,7 @@ fn an_mes_stores_starts_pauses_and_aborts_job_orders_and_reads_their_results() {
     assert_eq!(seen["list_stored"]["J1"], "AllowedToStart");
     // Start, Pause (a hold), Resume, to its end; one order at a time.
     assert_eq!(code("start"), 0, "{}", seen["start"]);
-    assert_eq!(seen["running"], true);
+    assert_eq!(seen["running"], true, "{}", daemon.log());
     assert_eq!(code("pause"), 0);
     assert_eq!(seen["interrupted"], true);
     assert_eq!(
