@@ -33,6 +33,10 @@ pub(super) enum CtlCommand {
         /// `edmd ctl status`)
         #[arg(long)]
         no_wait: bool,
+        /// Wait for the job's end too: exit 0 when it ended done, 1 otherwise (with its
+        /// outcome); a held or paused job is waited for
+        #[arg(long, conflicts_with = "no_wait")]
+        wait_end: bool,
         /// Prove the program: its moves with the spark off and the servo out of the loop,
         /// at the programmed feed (no checkpoint is kept)
         #[arg(long)]
@@ -264,6 +268,25 @@ pub(super) fn run_ctl(args: &CtlArgs) -> ExitCode {
         }
         None => reply,
     };
+    let reply = match &args.command {
+        CtlCommand::Run {
+            wait_end: true,
+            program,
+            ..
+        } if reply.ok => {
+            if !args.json {
+                outln!("{}", reply.message.as_deref().unwrap_or_default());
+            }
+            match crate::daemon::socket::wait_for_end(&socket, program) {
+                Ok(reply) => reply,
+                Err(e) => {
+                    eprintln!("edmd: error: {e}");
+                    return ExitCode::from(EXIT_RUNTIME);
+                }
+            }
+        }
+        _ => reply,
+    };
     if args.json {
         out!("{}", reply.to_line());
     } else {
@@ -317,6 +340,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             passes,
             technology,
             force,
+            wait_end: _,
         } => (
             Request::Run {
                 program: program.clone(),

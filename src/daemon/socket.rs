@@ -407,6 +407,45 @@ pub fn wait_for_verdict(socket: &Path, id: u64, show: bool) -> Result<Reply, Cli
     }
 }
 
+/// Waits for the running job to end (`edmd ctl run --wait-end`): the reply is ok when it
+/// ended done, an error with its outcome otherwise. A held or paused job is waited for: the
+/// operator resumes it. `program` is the job's, to tell its end from an earlier job's.
+pub fn wait_for_end(socket: &Path, program: &str) -> Result<Reply, ClientError> {
+    loop {
+        let reply = request(socket, &Request::Status {})?;
+        let Some(status) = reply.status else {
+            return Err(ClientError::Reply {
+                path: socket.to_path_buf(),
+                message: "a status reply without a status".to_string(),
+            });
+        };
+        if status.job.is_none() {
+            let Some(last) = status
+                .last_job
+                .clone()
+                .filter(|j| j.program.ends_with(program))
+            else {
+                return Err(ClientError::Reply {
+                    path: socket.to_path_buf(),
+                    message: format!("{program}: no job of it ended (another replaced it?)"),
+                });
+            };
+            let outcome = last.outcome.name();
+            let said = format!(
+                "{}: {outcome} after {:.1} s of machine time",
+                last.program, last.virtual_time_s
+            );
+            return Ok(if last.outcome == crate::runtime::Outcome::Done {
+                Reply::ok(said, status)
+            } else {
+                let why = last.error.map(|e| format!(": {e}")).unwrap_or_default();
+                Reply::error(format!("{said}{why}"), Some(status))
+            });
+        }
+        std::thread::sleep(VERDICT_POLL);
+    }
+}
+
 /// Why `edmd ctl` got no answer.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {

@@ -1286,3 +1286,43 @@ fn a_wire_break_holds_rethread_returns_to_the_start_hole_and_resume_finishes_exa
         "{spark_off} spark-off steps: rapid, way back and return are {expected}"
     );
 }
+
+/// `ctl run --wait-end` returns when the job ends: 0 and its outcome when it ended done, 1
+/// and the outcome when it did not (an abort from another shell).
+#[test]
+fn ctl_run_wait_end_returns_at_the_jobs_end_with_its_outcome() {
+    let dir = scratch("wait-end");
+    std::fs::write(dir.join("programs/contour.ngc"), CONTOUR).unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    let ctl = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["ctl", "--socket"])
+            .arg(&daemon.socket)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = ctl(&["run", "contour.ngc", "--wait-end"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    // The verdict, then the end: the job is over when ctl returns.
+    assert!(stdout.contains("running"), "{stdout}");
+    assert!(stdout.contains("contour.ngc: done after"), "{stdout}");
+    let status = daemon.status();
+    assert_eq!(status["state"], "idle");
+    assert_eq!(status["last_job"]["end_steps"][0], CONTOUR_END[0]);
+
+    // The long program, aborted from another shell while ctl waits.
+    let waiting = std::thread::scope(|s| {
+        let waiting = s.spawn(|| ctl(&["run", PROGRAM, "--wait-end"]));
+        daemon.wait_for("the job", |s| s["state"] == "running");
+        daemon.ok(&["abort"]);
+        waiting.join().unwrap()
+    });
+    let stderr = String::from_utf8_lossy(&waiting.stderr);
+    assert_eq!(waiting.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("stopped after"), "{stderr}");
+    // --wait-end and --no-wait ask opposite things.
+    let both = ctl(&["run", PROGRAM, "--wait-end", "--no-wait"]);
+    assert_eq!(both.status.code(), Some(2));
+}

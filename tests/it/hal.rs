@@ -46,18 +46,19 @@ fn ints(v: &Value) -> Vec<i64> {
         .collect()
 }
 
-/// Runs `program` and waits until the daemon leaves `running`; the last job.
+/// Runs `program` as the README does (`ctl run --wait-end`: back at the job's end); the
+/// last job.
 fn run_to_end(bench: &HalBench, program: &str) -> Value {
-    bench.daemon().ok(&["run", program]);
-    bench.daemon().wait_for("the job's end", |s| {
-        !matches!(
-            s["state"].as_str(),
-            Some("checking" | "running" | "stopping")
-        ) && s["last_job"]["program"]
+    let (reply, code) = bench.daemon().ctl(&["run", program, "--wait-end"]);
+    let job = reply["status"]["last_job"].clone();
+    assert!(
+        job["program"]
             .as_str()
-            .is_some_and(|p| p.ends_with(program))
-    })["last_job"]
-        .clone()
+            .is_some_and(|p| p.ends_with(program)),
+        "{reply}"
+    );
+    assert_eq!(code == 0, job["outcome"] == "done", "{reply}");
+    job
 }
 
 /// Runs `program` and returns once it has moved 0.2 mm of its path.

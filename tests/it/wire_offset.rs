@@ -386,6 +386,35 @@ fn moves_the_offset_cannot_take_are_errors_naming_the_line() {
     );
 }
 
+/// Every configuration the repository ships keeps its files in a state directory of its own:
+/// trying an example never writes into the service's (`/var/lib/edmd`, the default file's).
+#[test]
+fn every_shipped_configuration_has_a_state_directory_of_its_own() {
+    let repo = common::repo();
+    let mut dirs = std::collections::BTreeMap::new();
+    for file in [
+        "config/edmd.toml",
+        "config/fanuc-wire.toml",
+        "config/hal/sim.toml",
+    ] {
+        let config = edmd::config::Config::load(Some(&repo.join(file)), &[]).expect(file);
+        let dir = config.daemon.state_dir.clone();
+        if let Some(other) = dirs.insert(dir.clone(), file) {
+            panic!("{file} and {other} share {}", dir.display());
+        }
+        // Its history and checkpoint live there unless the file names another place.
+        assert!(config.daemon.job_history.starts_with(&dir), "{file}");
+    }
+    // And no other configuration hides in config/ (the technology tables are not ones).
+    let shipped: Vec<_> = ["config", "config/hal"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(repo.join(d)).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    assert_eq!(shipped.len(), dirs.len(), "{shipped:?}");
+}
+
 /// A wire program as Fanuc-style posts write it (`G41 H01`, `N` numbers, `G92` at the start
 /// hole, the wire and flushing M-codes) reads with the shipped example layer
 /// `config/fanuc-wire.toml`: `H01` offsets as `D1` does, the M-codes pause and flush as its
