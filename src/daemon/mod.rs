@@ -143,6 +143,8 @@ struct Job {
     leaves: (crate::gcode::WorkOffsets, crate::gcode::WorkSystem),
     /// The units and distance mode it leaves (kept for the next MDI lines).
     modes: crate::gcode::StartModes,
+    /// What the program tells the operator at its stops, by the line stopped before.
+    pause_messages: Vec<(u64, String)>,
     kind: launch::JobKind,
     /// Run from a line, in passes (the checkpoint records them, so a resume replays the same
     /// approach and passes).

@@ -340,6 +340,7 @@ impl Core {
             start: launch.start,
             leaves: (check.work_offsets.clone(), check.work_system),
             modes: check.modes,
+            pause_messages: check.pause_messages.clone(),
             kind: launch.kind,
             technology: match launch.technology {
                 super::launch::JobTechnology::Selected(s) => Some(s),

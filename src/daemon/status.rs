@@ -248,6 +248,15 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
             _ => PauseKind::from_code(p.paused_kind.load(Ordering::Relaxed))
                 .map(|k| k.name().to_string()),
         },
+        pause_message: match p.paused_line.load(Ordering::Relaxed) {
+            0 => None,
+            line => PauseKind::from_code(p.paused_kind.load(Ordering::Relaxed))
+                .filter(|k| *k == PauseKind::Program)
+                .and_then(|_| {
+                    let i = job.pause_messages.binary_search_by_key(&line, |(l, _)| *l);
+                    i.ok().map(|i| job.pause_messages[i].1.clone())
+                }),
+        },
     }
 }
 

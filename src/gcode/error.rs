@@ -279,6 +279,10 @@ fn excerpt(text: &str, col: usize) -> (String, usize) {
     (out, caret)
 }
 
+/// How a warning that is a message to the operator (`(MSG, …)`, a pause M-code's text)
+/// begins: the job shows the text after it at the stop it precedes.
+pub const OPERATOR_MESSAGE: &str = "message: ";
+
 /// Something edmd accepts but wants the operator to know (an ignored spindle word, text after M30).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Warning {

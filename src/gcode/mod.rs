@@ -33,7 +33,7 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
-pub use error::{GcodeError, GcodeErrorKind, Warning};
+pub use error::{GcodeError, GcodeErrorKind, OPERATOR_MESSAGE, Warning};
 pub use expr::{MAX_NESTING, NUMBERED_MAX, PARSER_STACK_BYTES};
 pub use lines::MAX_LINE_BYTES;
 pub use parser::{

@@ -4,6 +4,7 @@
 use crate::common;
 
 use common::daemon::{Daemon, base_sets, scratch};
+use std::process::Command;
 
 /// Steps of axis 0 per tick over the ticks `from..to` of the pulse log.
 fn rate(log: &str, from: u64, to: u64) -> f64 {
@@ -242,6 +243,50 @@ fn single_block_from_a_line_stops_first_before_that_line() {
     assert_eq!(s["job"]["paused_before_line"], 5, "{s}");
     daemon.ok(&["single-block", "off"]);
     daemon.ok(&["resume"]);
+    daemon.wait_for("the job's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+}
+
+/// A stop tells the operator what the program says there: a pause M-code's message, an
+/// `M0`'s `(MSG, …)` on the lines since the move before; a stop with nothing said, nothing.
+#[test]
+fn a_pause_shows_the_programs_message_for_it() {
+    let dir = scratch("pause-message");
+    std::fs::write(
+        dir.join("programs/thread.nc"),
+        "G21 G90\n(MSG, not this one: a move follows)\nG1 X0.2 F300\nM60\nG1 Y0.2\n\
+         (MSG, check the slug)\nM0\nG1 X0\nM0\nG1 Y0\nM2\n",
+    )
+    .unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(
+        "program.mcode=[{number=60, action=\"pause\", message=\"thread the wire, then resume\"}]"
+            .to_string(),
+    );
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", "thread.nc"]);
+    for (line, message) in [
+        (5, Some("M60: thread the wire, then resume")),
+        (8, Some("check the slug")),
+        (10, None),
+    ] {
+        let s = daemon.wait_for("the stop", |s| {
+            s["state"] == "paused" && s["job"]["paused_before_line"] == line
+        });
+        assert_eq!(s["job"]["pause_message"].as_str(), message, "{s}");
+        let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["ctl", "status", "--socket"])
+            .arg(&daemon.socket)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&text.stdout);
+        match message {
+            Some(m) => assert!(text.contains(&format!("message:      {m}")), "{text}"),
+            None => assert!(!text.contains("message:"), "{text}"),
+        }
+        daemon.ok(&["resume"]);
+    }
     daemon.wait_for("the job's end", |s| {
         s["state"] == "idle" && s["last_job"]["outcome"] == "done"
     });

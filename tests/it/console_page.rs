@@ -411,3 +411,47 @@ fn the_page_shows_the_process_as_the_pulses_tell_it() {
     click(&browser, "abort");
     d.wait_for("the abort", |s| s["state"] == "idle");
 }
+
+/// A pause M-code's message on the page, beside the state, while the job waits for it; gone
+/// once the job goes on.
+#[test]
+fn a_pause_shows_its_message_on_the_page() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start(
+        "console-pause-message",
+        &[
+            "program.mcode=[{number=60, action=\"pause\", message=\"thread the wire, then resume\"}]",
+        ],
+    );
+    std::fs::write(
+        dir.join("programs/thread.ngc"),
+        "G21 G90\nG1 X0.2 F300\nM60\nG1 Y0.2\nM2\n",
+    )
+    .unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "thread.ngc listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'thread.ngc')",
+    );
+    pick(&browser, "thread.ngc");
+    click(&browser, "run");
+    let said = wait(
+        &browser,
+        "the pause's message",
+        "const m = document.getElementById('pause-message'); \
+         return !m.hidden && document.getElementById('state').dataset.state === 'paused' \
+           ? m.textContent : false",
+    );
+    assert_eq!(said, "M60: thread the wire, then resume");
+    shot(&browser, &dir.join("page-pause-message.png"));
+    click(&browser, "resume");
+    d.wait_for("the job's end", |s| s["state"] == "idle");
+    wait(
+        &browser,
+        "the message gone",
+        "return document.getElementById('pause-message').hidden",
+    );
+}

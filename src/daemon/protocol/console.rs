@@ -123,6 +123,10 @@ pub struct JobStatus {
     /// Why it is paused there: "program stop (M0/M1)", "single block", "secure the slug".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pause: Option<String>,
+    /// What the program tells the operator at this stop: its `(MSG, …)` or its pause
+    /// M-code's message ("M60: thread the wire (M60), then resume").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pause_message: Option<String>,
 }
 
 /// The process as the pulses tell it.

@@ -227,6 +227,9 @@ impl Status {
                 t,
                 "paused:       {why} before line {line}; `edmd ctl resume` continues"
             );
+            if let Some(message) = &j.pause_message {
+                let _ = writeln!(t, "message:      {message}");
+            }
         }
         match self.state {
             DaemonState::WireBreak => {

@@ -29,7 +29,7 @@ use std::io::{BufRead, Seek};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use super::error::{GcodeError, GcodeErrorKind, Warning};
+use super::error::{GcodeError, GcodeErrorKind, OPERATOR_MESSAGE, Warning};
 use super::lexer::{Word, lex, program_number_of};
 use super::lines::{Line, LineSource, MAX_LINE_BYTES};
 use super::work::{StartModes, WorkOffsets, WorkStart, WorkSystem};
@@ -469,7 +469,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
             self.diag.warnings.push(Warning {
                 line: line_no,
                 col,
-                message: format!("message: {message}"),
+                message: format!("{OPERATOR_MESSAGE}{message}"),
             });
         }
         if let Some(o) = info.oword {

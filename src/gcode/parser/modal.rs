@@ -15,7 +15,7 @@ use super::nurbs::{PendingCurve, curve_letters, quad_spline};
 use super::offsets::{check_machine_move, coordinate_offset, probe_block, reference_point};
 use super::state::{BlockEnv, InterpState};
 use super::{BlockReader, Fail, Letters, Step, first_col, whole, whole_as};
-use crate::gcode::error::{GcodeErrorKind, Warning};
+use crate::gcode::error::{GcodeErrorKind, OPERATOR_MESSAGE, Warning};
 use crate::gcode::lexer::Word;
 use crate::gcode::{Block, BlockKind, NurbsForm, Pause, VendorAction};
 use crate::geometry::NurbsCurve;
@@ -232,7 +232,7 @@ impl<R: BufRead + Seek> BlockReader<R> {
                 self.diag.warnings.push(Warning {
                     line,
                     col: w.col,
-                    message: format!("message: M{code}: {message}"),
+                    message: format!("{OPERATOR_MESSAGE}M{code}: {message}"),
                 });
                 return Ok(Some(Pause::Program));
             }

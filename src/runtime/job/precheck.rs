@@ -34,6 +34,19 @@ pub struct Precheck {
     /// its pass's feed capped by its condition's sparking feed, a rapid at rapid speed): what
     /// the ETA counts the path left by.
     pub pace: PathPace,
+    /// What the program tells the operator at each of its stops (`M0`, `M1`, a pause
+    /// M-code): the line of the move it stops before, and the last message (`(MSG, …)` or
+    /// the M-code's) given since the move before it. Sorted by line.
+    pub pause_messages: Vec<(u64, String)>,
+}
+
+/// A programmed stop the check met: the line of the move it stops before, the line of the
+/// move before that (its messages come after it), and the line that asked for the stop.
+#[derive(Debug, Clone, Copy)]
+struct StopMet {
+    before_line: u64,
+    after_line: u64,
+    asked_at: u64,
 }
 
 /// What the check adds up block by block, over every pass.
@@ -51,6 +64,9 @@ struct Tally<'a> {
     max_feed: f64,
     /// Where the cutting moves lie is measured for the simulated gap's placed debris only.
     measure: bool,
+    /// The line of the last move taken, and the stops met.
+    last_line: u64,
+    stops: Vec<StopMet>,
 }
 
 impl Tally<'_> {
@@ -80,6 +96,14 @@ impl Tally<'_> {
     fn take(&mut self, block: &gcode::Block) -> Result<(), JobError> {
         let machine = &self.config.machine;
         self.blocks += 1;
+        if let Some((asked_at, _)) = block.pause {
+            self.stops.push(StopMet {
+                before_line: block.line,
+                after_line: self.last_line,
+                asked_at,
+            });
+        }
+        self.last_line = block.line;
         crate::machine::travel::hold_to_travel(
             block,
             &machine.axes,
@@ -150,6 +174,8 @@ pub fn precheck(
         rapid_feed: plan.rapid_feed_mm_per_s,
         max_feed: plan.max_feed_mm_per_s,
         measure: config.gap.kind == GapKind::Sim && config.sim.debris_per_mm > 0.0,
+        last_line: 0,
+        stops: Vec::new(),
     };
     let cancelled = || JobError::Cancelled {
         program: program.name.clone(),
@@ -192,7 +218,9 @@ pub fn precheck(
     if !cut.passes.is_empty() {
         tally.ends_at(&start_at)?;
     }
-    for w in path.take_warnings() {
+    let warnings = path.take_warnings();
+    let pause_messages = pause_messages(&tally.stops, &warnings);
+    for w in warnings {
         if w.line == 0 {
             tracing::warn!("{}: {}", program.name, w.message);
         } else {
@@ -209,5 +237,26 @@ pub fn precheck(
         cutting_spans: tally.cutting_spans,
         path_mm: tally.path_mm,
         pace: tally.pace,
+        pause_messages,
     })
+}
+
+/// Each stop's message: the last operator message (the reader's `message: …` warnings) on a
+/// line after the move before the stop and up to the line that asked for it.
+fn pause_messages(stops: &[StopMet], warnings: &[gcode::Warning]) -> Vec<(u64, String)> {
+    let mut said: Vec<(u64, String)> = stops
+        .iter()
+        .filter_map(|stop| {
+            let message = warnings
+                .iter()
+                .filter(|w| w.line > stop.after_line && w.line <= stop.asked_at)
+                .filter_map(|w| w.message.strip_prefix(gcode::OPERATOR_MESSAGE))
+                .next_back()?;
+            Some((stop.before_line, message.to_string()))
+        })
+        .collect();
+    // A program in passes meets its stops once per pass.
+    said.sort();
+    said.dedup_by_key(|(line, _)| *line);
+    said
 }

@@ -22,6 +22,9 @@ function show(status) {
   $("state").textContent = status.job && status.job.pause ? `${state}: ${status.job.pause}` : state;
   $("state").dataset.state = state;
   const j = status.job;
+  // What the program tells the operator at this stop ("M60: thread the wire …").
+  $("pause-message").textContent = j && j.pause_message ? j.pause_message : "";
+  $("pause-message").hidden = !(j && j.pause_message);
   axes = status.axes;
   $("job").textContent = j ? `${j.program} line ${j.line}` : "no job";
   // What is cutting now: the condition, the pass of the technology table, the wire offset.
