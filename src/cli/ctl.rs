@@ -38,7 +38,7 @@ pub(super) enum CtlCommand {
         #[arg(long, conflicts_with = "no_wait")]
         wait_end: bool,
         /// Prove the program: its moves with the spark off and the servo out of the loop,
-        /// at the programmed feed (no checkpoint is kept)
+        /// feed moves at machine.dry_run_feed_mm_per_min (no checkpoint is kept)
         #[arg(long)]
         dry_run: bool,
         /// Cut from this source line: the program is interpreted from its start without

@@ -109,6 +109,7 @@ fn passes_plan(cfg: &Config, passes: Option<usize>) -> Result<crate::path::CutPl
         from_line: None,
         passes,
         tab_mm,
+        dry_run_feed_mm_per_min: None,
     })
 }
 

@@ -163,6 +163,8 @@ pub struct MachineConfig {
     pub max_tangential_accel_mm_per_s2: f64,
     /// Fastest jog, mm/min.
     pub max_jog_feed_mm_per_min: f64,
+    /// A dry run's feed moves go at this feed, mm/min (rapids stay rapids).
+    pub dry_run_feed_mm_per_min: f64,
     /// Jerk limit of positioning moves (rapids, jumps, rethread returns), mm/s³; 0: none.
     pub max_jerk_mm_per_s3: f64,
     /// Soft limits per axis (machine order); `None`: the axis has none.

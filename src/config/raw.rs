@@ -194,6 +194,7 @@ pub(super) struct RawMachine {
     pub(super) max_normal_accel_mm_per_s2: f64,
     pub(super) max_tangential_accel_mm_per_s2: f64,
     pub(super) max_jog_feed_mm_per_min: f64,
+    pub(super) dry_run_feed_mm_per_min: f64,
     pub(super) max_jerk_mm_per_s3: f64,
     pub(super) travel_mm: std::collections::BTreeMap<String, Vec<f64>>,
     #[serde(default)]

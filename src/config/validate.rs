@@ -277,6 +277,11 @@ fn machine(m: RawMachine) -> Result<MachineConfig, Invalid> {
             m.max_jog_feed_mm_per_min,
             1e6,
         )?,
+        dry_run_feed_mm_per_min: feed(
+            "machine.dry_run_feed_mm_per_min",
+            m.dry_run_feed_mm_per_min,
+            1e6,
+        )?,
         max_tangential_accel_mm_per_s2: positive(
             "machine.max_tangential_accel_mm_per_s2",
             m.max_tangential_accel_mm_per_s2,

@@ -250,6 +250,8 @@ impl Core {
                 from_line: cp.from_line,
                 passes: cp.passes.clone(),
                 tab_mm: cp.tab_mm,
+                // A dry run keeps no checkpoint.
+                dry_run_feed_mm_per_min: None,
             },
         };
         let id = self.begin_check(source, Some(resume), launch);

@@ -237,6 +237,7 @@ impl Core {
             from_line,
             passes,
             tab_mm,
+            dry_run_feed_mm_per_min: dry_run.then_some(self.config.machine.dry_run_feed_mm_per_min),
         };
         let program = confine(&self.config.daemon.program_dir, requested)?;
         let with = asked

@@ -202,6 +202,7 @@ fn xy_machine() -> MachineConfig {
         max_normal_accel_mm_per_s2: 1000.0,
         max_tangential_accel_mm_per_s2: 1000.0,
         max_jog_feed_mm_per_min: 600.0,
+        dry_run_feed_mm_per_min: 600.0,
         max_jerk_mm_per_s3: 0.0,
         travel: vec![None, None],
         safe_z_mm: None,

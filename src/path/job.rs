@@ -11,8 +11,8 @@ use super::passes::{self, PassStage, WirePass};
 use super::tabs::{self, PassProgram, TabbedBlock};
 use super::{PathError, Pipeline};
 use crate::gcode::{
-    Block, BlockReader, GcodeError, ProgramOptions, StartModes, Warning, WorkOffsets, WorkStart,
-    WorkSystem,
+    Block, BlockKind, BlockReader, GcodeError, ProgramOptions, StartModes, Warning, WorkOffsets,
+    WorkStart, WorkSystem,
 };
 use crate::geometry::Point;
 use crate::vocab::Axis;
@@ -25,12 +25,25 @@ pub struct CutPlan {
     pub passes: Vec<WirePass>,
     /// In passes: the tab left (mm; 0: none), see [`tabs`].
     pub tab_mm: f64,
+    /// A dry run: every feed move at this feed (mm/min), in place of its programmed one. It
+    /// cuts nothing (the spark is off, the servo out of the loop).
+    pub dry_run_feed_mm_per_min: Option<f64>,
 }
 
 impl CutPlan {
     /// Passes that leave a tab.
     pub fn tabbed(&self) -> bool {
         self.tab_mm > 0.0 && !self.passes.is_empty()
+    }
+
+    /// `block` as this plan moves it: a dry run's feed moves at the dry run's feed.
+    fn moved(&self, mut block: Block) -> Block {
+        if let Some(feed) = self.dry_run_feed_mm_per_min
+            && !matches!(block.kind, BlockKind::Rapid | BlockKind::Probe(_))
+        {
+            block.feed_mm_per_min = Some(feed);
+        }
+        block
     }
 }
 
@@ -127,6 +140,7 @@ where
             if let Some(run) = &mut self.current {
                 match run.next() {
                     Some(Ok(block)) => {
+                        let block = self.spec.cut.moved(block);
                         let mm = run.take_skipped_mm();
                         if mm == 0.0 {
                             return Ok(Some(PathItem::Block(block)));

@@ -338,6 +338,12 @@ fn the_run_dialog_picks_a_technology_and_explains_it() {
         "material=steel height=32 wire=0.25 type=brass (steel with 0.25 mm brass wire)"
     );
     assert_eq!(s["job"]["passes"], 4, "{s}");
+    // A dry run is badged as one: it cuts nothing.
+    wait(
+        &browser,
+        "the DRY RUN badge",
+        "return !document.getElementById('dry-run-badge').hidden",
+    );
     wait(
         &browser,
         "the technology in the header",

@@ -195,12 +195,17 @@ impl Status {
         let list = |v: &[f64]| axis_list(v, &self.axes, |x| format!("{x:.4}"));
         let _ = writeln!(
             t,
-            "job:          {} line {} (segment {}, step {}){}",
+            "job:          {} line {} (segment {}, step {}){}{}",
             j.program,
             j.line,
             j.segment,
             j.step,
-            if j.resumed { ", resumed" } else { "" }
+            if j.resumed { ", resumed" } else { "" },
+            if j.dry_run {
+                "; DRY RUN: spark off, nothing is cut"
+            } else {
+                ""
+            }
         );
         let mut cutting = Vec::new();
         if let Some(e) = j.condition {

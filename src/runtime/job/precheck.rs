@@ -64,6 +64,8 @@ struct Tally<'a> {
     max_feed: f64,
     /// Where the cutting moves lie is measured for the simulated gap's placed debris only.
     measure: bool,
+    /// A dry run: nothing is cut.
+    dry_run: bool,
     /// The line of the last move taken, and the stops met.
     last_line: u64,
     stops: Vec<StopMet>,
@@ -115,7 +117,8 @@ impl Tally<'_> {
         let length = block.curve.length();
         let path_mm = self.path_mm;
         // A spark-off move (an approach, a tabbed run's travel) cuts nothing.
-        let cutting = block.kind != gcode::BlockKind::Rapid && block.spark_off.is_none();
+        let cutting =
+            block.kind != gcode::BlockKind::Rapid && block.spark_off.is_none() && !self.dry_run;
         if self.measure && cutting {
             match self.cutting_spans.last_mut() {
                 Some((_, to)) if *to == path_mm => *to += length,
@@ -174,6 +177,7 @@ pub fn precheck(
         rapid_feed: plan.rapid_feed_mm_per_s,
         max_feed: plan.max_feed_mm_per_s,
         measure: config.gap.kind == GapKind::Sim && config.sim.debris_per_mm > 0.0,
+        dry_run: cut.dry_run_feed_mm_per_min.is_some(),
         last_line: 0,
         stops: Vec::new(),
     };

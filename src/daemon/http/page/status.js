@@ -22,6 +22,8 @@ function show(status) {
   $("state").textContent = status.job && status.job.pause ? `${state}: ${status.job.pause}` : state;
   $("state").dataset.state = state;
   const j = status.job;
+  // A dry run is told apart from a cut at a glance.
+  $("dry-run-badge").hidden = !(j && j.dry_run);
   // What the program tells the operator at this stop ("M60: thread the wire …").
   $("pause-message").textContent = j && j.pause_message ? j.pause_message : "";
   $("pause-message").hidden = !(j && j.pause_message);
