@@ -51,6 +51,10 @@ pub(super) enum CtlCommand {
         /// [default: direct where machine.safe_z_mm is set, path otherwise]
         #[arg(long, value_parser = parse_approach, requires = "from_line")]
         approach: Option<crate::path::Approach>,
+        /// In a job in passes (a technology's, or --passes): the pass the line is cut in,
+        /// from 1 [default: 1]; the later passes are cut whole after it
+        #[arg(long, value_name = "K", requires = "from_line")]
+        pass: Option<u8>,
         /// Cut the program once per pass of the technology table ([wire] pass, or the one
         /// --technology selects): the first N, each at its offset and condition
         #[arg(long, value_name = "N")]
@@ -337,12 +341,14 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             dry_run,
             from_line,
             approach,
+            pass,
             passes,
             technology,
             force,
             wait_end: _,
         } => (
             Request::Run {
+                pass: *pass,
                 program: program.clone(),
                 dry_run: *dry_run,
                 from_line: *from_line,

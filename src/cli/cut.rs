@@ -131,6 +131,7 @@ impl RunArgs {
     pub(super) fn cut_from(&self, cfg: &Config) -> Option<crate::path::FromLine> {
         self.from_line.map(|line| crate::path::FromLine {
             line,
+            pass: None,
             approach: self
                 .approach
                 .unwrap_or(crate::path::Approach::default_for(cfg.machine.safe_z_mm)),

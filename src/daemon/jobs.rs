@@ -474,7 +474,7 @@ impl Core {
                 &job.recording.lock(),
                 job.started_at.clone(),
                 job.kind == JobKind::DryRun,
-                job.cut.from_line.map(|f| f.line),
+                job.cut.from_line,
                 (passes, job.technology.as_ref().map(|t| t.summary())),
                 job.report.as_deref(),
             );

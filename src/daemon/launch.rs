@@ -236,7 +236,7 @@ fn select_technology(
                  stopped): the job cannot be resumed as it was cut",
             ));
         }
-    } else if launch.cut.from_line.is_none() {
+    } else {
         let n = match (&selection, wire, ask.passes) {
             (Some(s), None, Some(_)) => {
                 return Err(refused(
@@ -253,6 +253,18 @@ fn select_technology(
             launch.cut.tab_mm = config.wire.tab_mm;
         }
     }
+    // A run from a line in passes is in pass 1 unless the operator said which.
+    if let Some(from) = launch.cut.from_line.as_mut()
+        && from.pass.is_none()
+        && !launch.cut.passes.is_empty()
+    {
+        from.pass = Some(1);
+    }
+    crate::path::passes::from_line_fits(
+        launch.cut.from_line.as_ref(),
+        &launch.cut.passes,
+        launch.cut.tab_mm,
+    )?;
     let Some(selection) = selection else {
         return Ok(());
     };

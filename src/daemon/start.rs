@@ -124,6 +124,8 @@ pub(super) struct RunAsk<'a> {
     pub dry_run: bool,
     pub from_line: Option<u64>,
     pub approach: Option<crate::path::Approach>,
+    /// The pass a run from a line cuts its line in.
+    pub pass: Option<u8>,
     pub passes: Option<usize>,
     /// `material=steel,height=32,wire=0.25`.
     pub technology: Option<&'a str>,
@@ -185,6 +187,7 @@ impl Core {
             dry_run,
             from_line,
             approach,
+            pass,
             passes,
             technology,
             force,
@@ -192,7 +195,21 @@ impl Core {
         self.refuse_if_busy()?;
         self.desk().refuse_if_tripped(None)?;
         self.desk().refuse_if_unhomed()?;
-        let from_line = self.run_from_line(dry_run, from_line, approach)?;
+        let from_line = self
+            .run_from_line(dry_run, from_line, approach)?
+            .map(|f| crate::path::FromLine { pass, ..f });
+        if pass.is_some() && from_line.is_none() {
+            return Err(Refusal::BadArgument(
+                "a pass is for a run from a line: give from_line too (a whole job cuts every \
+                 pass)"
+                    .into(),
+            ));
+        }
+        if pass == Some(0) {
+            return Err(Refusal::BadArgument(
+                "pass counts from 1 (the first pass of the table)".into(),
+            ));
+        }
         if from_line.is_some() {
             self.desk().refuse_if_untrusted("run from a line", force)?;
         } else if force {
@@ -212,11 +229,6 @@ impl Core {
                     "passes counts from 1 (the first pass of the table)".into(),
                 ));
             }
-            Some(_) if from_line.is_some() => {
-                return Err(Refusal::BadArgument(
-                    "a run in passes starts at the program's start, not from a line".into(),
-                ));
-            }
             // A technology's passes are counted by the check, which selects it.
             Some(_) if asked.is_some() => Vec::new(),
             // The table's; what is wrong with them is said now unless the program's header
@@ -233,6 +245,7 @@ impl Core {
         } else {
             self.config.wire.tab_mm
         };
+
         let cut = crate::path::CutPlan {
             from_line,
             passes,
@@ -261,7 +274,7 @@ impl Core {
         };
         let id = self.begin_check(Source::Original(program.clone()), None, launch);
         let from = match (cut.from_line, cut.passes.len()) {
-            (Some(f), _) => format!(" from line {} ({} approach)", f.line, f.approach.name()),
+            (Some(f), _) => format!(" from {} ({} approach)", f.text(), f.approach.name()),
             (None, 0) => String::new(),
             (None, n) => format!(" in {n} passes"),
         };
@@ -302,7 +315,11 @@ impl Core {
         let approach = approach.unwrap_or(crate::path::Approach::default_for(
             self.config.machine.safe_z_mm,
         ));
-        Ok(Some(crate::path::FromLine { line, approach }))
+        Ok(Some(crate::path::FromLine {
+            line,
+            approach,
+            pass: None,
+        }))
     }
 
     /// The job about to start, as the core keeps it.
@@ -593,8 +610,8 @@ impl Core {
         self.jobs.job = Some(job);
         let message = match from_line {
             Some(f) => format!(
-                " from line {} (the approach: {}){message}",
-                f.line,
+                " from {} (the approach: {}){message}",
+                f.text(),
                 f.approach.name()
             ),
             None => message,

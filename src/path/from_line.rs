@@ -45,6 +45,20 @@ pub struct FromLine {
     /// The source line (1-based) the cut starts at.
     pub line: u64,
     pub approach: Approach,
+    /// In a job in passes, the pass (from 1) the line is cut in: that pass from the line,
+    /// then every later pass whole. `None` without passes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pass: Option<u8>,
+}
+
+impl FromLine {
+    /// Where the cut starts, as the operator is told: "line 8", "line 8 in pass 2".
+    pub fn text(&self) -> String {
+        match self.pass {
+            Some(pass) => format!("line {} in pass {pass}", self.line),
+            None => format!("line {}", self.line),
+        }
+    }
 }
 
 /// How the machine reaches the start of the line.
@@ -339,6 +353,7 @@ mod tests {
     /// A run from line 5 of `p.ngc` by the path.
     fn gate_at_5() -> Gate {
         let from = FromLine {
+            pass: None,
             line: 5,
             approach: Approach::Path,
         };

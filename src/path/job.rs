@@ -89,6 +89,11 @@ pub struct JobPath<'s, R, F> {
     /// The runs not yet started: a pass (number from 1, the pass), or the one run without.
     runs: VecDeque<Option<(u8, WirePass)>>,
     current: Option<Pipeline<R>>,
+    /// A run from a line: its gate is on the first run opened only (the pass it is cut
+    /// in); the later passes are cut whole.
+    gated: bool,
+    /// Where the last block handed on ends (machine mm): where the next run starts.
+    last_end: Option<Point>,
     /// A tabbed job's blocks, planned once every pass is read.
     planned: Option<VecDeque<TabbedBlock>>,
     items: VecDeque<PathItem>,
@@ -109,8 +114,11 @@ where
         } else if spec.cut.tabbed() {
             VecDeque::new()
         } else {
+            // A run from a line in pass k starts with pass k.
+            let first = spec.cut.from_line.and_then(|f| f.pass).unwrap_or(1);
             (1..)
                 .zip(&spec.cut.passes)
+                .skip(usize::from(first.max(1)) - 1)
                 .map(|(n, p)| Some((n, *p)))
                 .collect()
         };
@@ -121,6 +129,8 @@ where
             cancel,
             runs,
             current: None,
+            gated: false,
+            last_end: None,
             planned: None,
             items: VecDeque::new(),
             warnings: None,
@@ -141,6 +151,7 @@ where
                 match run.next() {
                     Some(Ok(block)) => {
                         let block = self.spec.cut.moved(block);
+                        self.last_end = Some(block.end());
                         let mm = run.take_skipped_mm();
                         if mm == 0.0 {
                             return Ok(Some(PathItem::Block(block)));
@@ -200,12 +211,22 @@ where
         if let Some(cancel) = &self.cancel {
             reader.cancel_on(cancel.clone());
         }
-        reader.start_at(&spec.work);
+        // A run starts where the one before it ended: the start hole, every pass ending
+        // where it started, but after a pass cut from a line (which started where the wire
+        // stood) only there.
+        match self.last_end {
+            Some(end) => reader.start_at(&WorkStart {
+                position_mm: end,
+                ..spec.work.clone()
+            }),
+            None => reader.start_at(&spec.work),
+        }
         let mut pipeline = Pipeline::new(reader);
         if let Some(pass) = pass {
             pipeline = pipeline.with_pass(PassStage::new(*pass, &self.name));
         }
-        if let Some(from) = spec.cut.from_line {
+        if let Some(from) = spec.cut.from_line.filter(|_| !self.gated) {
+            self.gated = true;
             let approach = ApproachPlan {
                 origin: Point::from_fn(|i, _| spec.work.position_mm[i]),
                 axes: spec.axes.clone(),
@@ -393,6 +414,55 @@ mod tests {
         );
     }
 
+    /// A run from a line in pass 2 of 3, the wire standing on the contour: pass 2 is gated
+    /// (its approach from where the wire stands, dark), pass 3 is whole and starts where
+    /// pass 2 ended (the start hole), not where the wire stood.
+    #[test]
+    fn a_run_from_a_line_in_a_pass_gates_that_pass_only_and_the_next_starts_at_its_end() {
+        let mut spec = spec(CutPlan {
+            from_line: Some(FromLine {
+                line: 6,
+                approach: Approach::Path,
+                pass: Some(2),
+            }),
+            passes: vec![
+                pass(0.2, 3, false),
+                pass(0.15, 2, false),
+                pass(0.1, 1, false),
+            ],
+            ..CutPlan::default()
+        });
+        spec.work.position_mm = Point::from_fn(|i, _| if i == 0 { 2.2 } else { 0.0 });
+        let got = items(&spec, DIE).unwrap();
+        let starts: Vec<&PathItem> = got
+            .iter()
+            .filter(|i| matches!(i, PathItem::PassStart { .. }))
+            .collect();
+        assert_eq!(starts.len(), 2, "passes 2 and 3 only: {got:?}");
+        let all = blocks(&got);
+        let pass2: Vec<&&Block> = all.iter().filter(|b| b.condition == 2).collect();
+        let pass3: Vec<&&Block> = all.iter().filter(|b| b.condition == 1).collect();
+        // Pass 2: dark up to line 6, cut from it; it starts where the wire stands.
+        assert_eq!(pass2[0].start().x, 2.2);
+        assert!(
+            pass2
+                .iter()
+                .take_while(|b| b.line < 6)
+                .all(|b| b.spark_off.is_some())
+        );
+        assert!(
+            pass2
+                .iter()
+                .skip_while(|b| b.line < 6)
+                .all(|b| b.spark_off.is_none())
+        );
+        // Pass 3: whole, lit, from the start hole where pass 2 ended.
+        assert_eq!(pass2.last().unwrap().end(), Point::zeros());
+        assert_eq!(pass3[0].start(), Point::zeros());
+        assert!(pass3.iter().all(|b| b.spark_off.is_none()));
+        assert_eq!(pass3[0].line, 3);
+    }
+
     #[test]
     fn a_direct_approach_tells_the_path_it_skipped() {
         let text = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F60\nG1 X5\nG1 X0\nG1 Z-2\nG1 X5\nM2\n";
@@ -408,7 +478,11 @@ mod tests {
                 .sum()
         };
         let from = |approach| CutPlan {
-            from_line: Some(FromLine { line: 7, approach }),
+            from_line: Some(FromLine {
+                line: 7,
+                approach,
+                pass: None,
+            }),
             ..CutPlan::default()
         };
         let direct = items(&spec(from(Approach::Direct)), text).unwrap();
@@ -428,6 +502,7 @@ mod tests {
         let e = items(
             &spec(CutPlan {
                 from_line: Some(FromLine {
+                    pass: None,
                     line: 9,
                     approach: Approach::Path,
                 }),

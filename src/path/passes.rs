@@ -53,10 +53,53 @@ pub enum PassError {
     #[error("--passes {asked}: [wire] pass has {have} passes")]
     TooMany { asked: usize, have: usize },
     #[error(
+        "pass {pass}: the job is not cut in passes (no technology table with passes, no \
+         --passes); a run from a line without passes cuts the program as written"
+    )]
+    PassWithoutPasses { pass: u8 },
+    #[error("pass {pass}: the job cuts {have} passes")]
+    PassBeyond { pass: u8, have: usize },
+    #[error(
+        "pass {pass} runs the contour the other way round (reverse = true): a run from a line \
+         starts in a pass that runs it as programmed (an earlier pass, this one then run \
+         whole, or a later one)"
+    )]
+    ReversedFromLine { pass: u8 },
+    #[error(
+        "a job that leaves a tab (wire.tab_mm = {tab_mm}) is not run from a line: the tab is \
+         planned over every pass whole; run it from a line with wire.tab_mm = 0 and cut the \
+         tab's place by hand"
+    )]
+    TabbedFromLine { tab_mm: f64 },
+    #[error(
         "--passes: wire.pass: pass {pass}: condition = {condition} is not one of [generator] \
          condition: give the pass one that is, or define E{condition}"
     )]
     Undefined { pass: usize, condition: u32 },
+}
+
+/// A run from a line in `passes`: its pass is one of them (pass 1 where none is given), and
+/// the job leaves no tab.
+pub fn from_line_fits(
+    from: Option<&super::FromLine>,
+    passes: &[WirePass],
+    tab_mm: f64,
+) -> Result<(), PassError> {
+    let Some(from) = from else {
+        return Ok(());
+    };
+    match from.pass {
+        Some(pass) if passes.is_empty() => Err(PassError::PassWithoutPasses { pass }),
+        Some(pass) if usize::from(pass) > passes.len() => Err(PassError::PassBeyond {
+            pass,
+            have: passes.len(),
+        }),
+        Some(pass) if passes[usize::from(pass) - 1].reverse => {
+            Err(PassError::ReversedFromLine { pass })
+        }
+        _ if !passes.is_empty() && tab_mm > 0.0 => Err(PassError::TabbedFromLine { tab_mm }),
+        _ => Ok(()),
+    }
 }
 
 /// The first `n` passes of the table (`n` = 0: none, the program as written), each in a

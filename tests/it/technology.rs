@@ -477,3 +477,120 @@ fn check_takes_a_sinker_headers_conditions_as_plan_and_run_do() {
     );
     assert!(stdout.contains("stages"), "{stdout}");
 }
+
+/// A run from a line of a die whose header names a technology cuts in the pass it is in:
+/// from line 8 in pass 1, at the table's pass-1 offset and condition from that line only,
+/// then passes 2 (the other way round) and 3 whole, back to the start hole; the status and
+/// the history say the line and the pass. A line in the reversed pass, a pass the table does
+/// not have and a pass without passes are refused.
+#[test]
+fn a_run_from_a_line_cuts_in_the_pass_it_is_in_then_the_later_passes_whole() {
+    let dir = common::daemon::scratch("technology-from-line");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let _ = std::fs::remove_file(dir.join("jobs.jsonl"));
+    std::fs::create_dir_all(dir.join("tech")).unwrap();
+    std::fs::write(dir.join("tech/testium.toml"), FAST_TABLE).unwrap();
+    std::fs::write(dir.join("programs/die.ngc"), die_with_header()).unwrap();
+    std::fs::write(dir.join("programs/plain.ngc"), common::wire::DIE).unwrap();
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push(format!("technology.dir=\"{}\"", dir.join("tech").display()));
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["home", "--here"]);
+
+    // Line 8 (G1 X-2 Y2: the top edge) in pass 1 (the default in passes).
+    let reply = daemon.ok(&["run", "die.ngc", "--from-line", "8", "--force"]);
+    assert!(
+        reply["message"]
+            .as_str()
+            .unwrap()
+            .contains("from line 8 in pass 1"),
+        "{reply}"
+    );
+    let s = daemon.wait_for("cutting in pass 1", |s| {
+        s["job"]["condition"] == 51 && s["job"]["pass"] == 1
+    });
+    assert_eq!(s["job"]["from_line"]["pass"], 1, "{s}");
+    assert_eq!(s["job"]["passes"], 3, "{s}");
+    let s = daemon.wait_for("the end", |s| {
+        s["state"] == "idle" && s["last_job"].is_object()
+    });
+    assert_eq!(s["last_job"]["outcome"], "done", "{s}");
+
+    let (rows, end) = common::wire::walk(&dir.join("pulses.csv"));
+    assert_eq!(end, (0, 0), "back at the start hole");
+    // Pass 1 sparks from line 8's start on: at its offset (210 µm at 30 mm), never on the
+    // right edge (lines 6 and 7, before line 8), which its approach went along dark.
+    let cut1: Vec<(i64, i64)> = rows
+        .iter()
+        .filter(|(_, c, spark)| *c == 51 && *spark)
+        .map(|(at, _, _)| *at)
+        .collect();
+    assert!(cut1.len() > 1000, "{} points of pass 1", cut1.len());
+    assert!(
+        cut1.iter()
+            .filter(|p| p.0.abs() > 300)
+            .all(|p| (inside_die(p) - 210).abs() <= 2),
+        "pass 1 off its offset"
+    );
+    assert!(
+        !cut1.iter().any(|p| p.0 > 2100 && p.1 < 2000),
+        "pass 1 cut the right edge, before its line"
+    );
+    let (by, _) = positions_by_condition(&dir.join("pulses.csv"));
+    for (condition, offset_um, direction) in [(52, 155, -1.0), (53, 125, 1.0)] {
+        common::wire::assert_pass(
+            &format!("E{condition}"),
+            &by[&condition],
+            &inside_die,
+            offset_um,
+            direction,
+        );
+    }
+    let jobs = daemon.ok(&["jobs", "--count", "1"]);
+    let record = &jobs["jobs"][0];
+    assert_eq!(record["from_line"], 8, "{record}");
+    assert_eq!(record["from_pass"], 1, "{record}");
+
+    // What cannot be cut so is refused before anything moves.
+    let refused = |args: &[&str], needle: &str| {
+        let (reply, code) = daemon.ctl(args);
+        assert_eq!(code, 1, "{reply}");
+        assert!(reply.to_string().contains(needle), "{args:?}: {reply}");
+    };
+    refused(
+        &[
+            "run",
+            "die.ngc",
+            "--from-line",
+            "8",
+            "--pass",
+            "2",
+            "--force",
+        ],
+        "pass 2 runs the contour the other way round",
+    );
+    refused(
+        &[
+            "run",
+            "die.ngc",
+            "--from-line",
+            "8",
+            "--pass",
+            "4",
+            "--force",
+        ],
+        "pass 4: the job cuts 3 passes",
+    );
+    refused(
+        &[
+            "run",
+            "plain.ngc",
+            "--from-line",
+            "8",
+            "--pass",
+            "2",
+            "--force",
+        ],
+        "the job is not cut in passes",
+    );
+}

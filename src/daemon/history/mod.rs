@@ -46,6 +46,9 @@ pub struct JobRecord {
     /// Run from this line.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub from_line: Option<u64>,
+    /// A run from a line in passes: the pass the line was cut in.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_pass: Option<u8>,
     /// Machine time from start to end (s), holds and pauses included.
     pub machine_time_s: f64,
     /// Time the gap sparked (s): kept so the hour counters can be rebuilt from the history.
@@ -250,7 +253,10 @@ pub fn table(page: &Page) -> String {
             if j.dry_run { " (dry run)" } else { "" },
             j.from_line
                 .map(|l| format!(" from line {l}"))
-                .unwrap_or_default(),
+                .unwrap_or_default()
+                + &j.from_pass
+                    .map(|p| format!(" in pass {p}"))
+                    .unwrap_or_default(),
             duration(j.machine_time_s),
             j.mean_rate_mm2_per_min
                 .map(|r| format!(" at {r:.0} mm²/min"))
@@ -331,7 +337,7 @@ pub fn record_of(
     recording: &Recording,
     started: String,
     dry_run: bool,
-    from_line: Option<u64>,
+    from_line: Option<crate::path::FromLine>,
     (passes, technology): (Vec<PassTime>, Option<String>),
     report: Option<&Path>,
 ) -> JobRecord {
@@ -342,7 +348,8 @@ pub fn record_of(
         outcome: summary.outcome.name().to_string(),
         error: summary.error.clone(),
         dry_run,
-        from_line,
+        from_line: from_line.map(|f| f.line),
+        from_pass: from_line.and_then(|f| f.pass),
         machine_time_s: summary.virtual_time_s,
         spark_s: None,
         passes,

@@ -21,6 +21,7 @@ fn the_history_appends_and_lists_newest_first_and_the_counters_persist() {
         error: None,
         dry_run: false,
         from_line: None,
+        from_pass: None,
         machine_time_s: 60.0,
         spark_s: Some(45.0),
         passes: vec![PassTime {
@@ -89,6 +90,7 @@ fn record(program: &str) -> JobRecord {
         error: None,
         dry_run: false,
         from_line: None,
+        from_pass: None,
         machine_time_s: 60.0,
         spark_s: Some(50.0),
         passes: Vec::new(),

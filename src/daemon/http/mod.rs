@@ -491,6 +491,8 @@ struct RunBody {
     #[serde(default)]
     approach: Option<crate::path::Approach>,
     #[serde(default)]
+    pass: Option<u8>,
+    #[serde(default)]
     passes: Option<usize>,
     technology: Option<String>,
     #[serde(default)]
@@ -510,6 +512,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        pass,
         passes,
         technology,
         force,
@@ -525,6 +528,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        pass,
         passes,
         technology,
         force,

@@ -46,6 +46,9 @@ pub enum Request {
         from_line: Option<u64>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         approach: Option<crate::path::Approach>,
+        /// A run from a line in a job in passes: the pass (from 1) the line is cut in.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pass: Option<u8>,
         /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         passes: Option<usize>,
@@ -592,6 +595,7 @@ mod tests {
                 dry_run: false,
                 from_line: None,
                 approach: None,
+                pass: None,
                 passes: None,
                 technology: None,
                 force: false,
@@ -604,6 +608,7 @@ mod tests {
                 dry_run: false,
                 from_line: Some(12),
                 approach: Some(crate::path::Approach::Direct),
+                pass: None,
                 passes: None,
                 technology: Some("material=x".into()),
                 force: false,

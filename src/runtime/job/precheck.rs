@@ -194,6 +194,10 @@ pub fn precheck(
         )
     };
     let mut path = JobPath::new(&spec, &program.name, open, Some(progress.cancel_flag()));
+    // Where the pass in hand started: a whole pass ends there (the start hole). A pass cut
+    // from a line started where the wire stood: it is not held to it.
+    let mut pass_start: Option<Steps> = None;
+    let mut first_pass = true;
     loop {
         let item = match path.next_item() {
             Ok(Some(item)) => item,
@@ -204,9 +208,16 @@ pub fn precheck(
         match item {
             // A run in passes ends where it started (the start hole) before the next.
             PathItem::PassStart {
-                pass,
-                at_start_hole,
-            } if pass > 1 && at_start_hole => tally.ends_at(&start_at)?,
+                at_start_hole: true,
+                ..
+            } => {
+                if let Some(start) = pass_start {
+                    tally.ends_at(&start)?;
+                }
+                let from_line = first_pass && cut.from_line.is_some();
+                pass_start = (!from_line).then_some(tally.end_steps);
+                first_pass = false;
+            }
             PathItem::PassStart { .. } => {}
             PathItem::Skipped { mm } => tally.path_mm += mm,
             PathItem::Block(block) => {
@@ -219,8 +230,8 @@ pub fn precheck(
             }
         }
     }
-    if !cut.passes.is_empty() {
-        tally.ends_at(&start_at)?;
+    if let Some(start) = pass_start {
+        tally.ends_at(&start)?;
     }
     let warnings = path.take_warnings();
     let pause_messages = pause_messages(&tally.stops, &warnings);

@@ -16,7 +16,7 @@ async function loadJobs() {
     const passes = (j.passes || []).map((p) => `${p.pass}${p.condition != null ? ` E${p.condition}` : ""}: ` +
       [fmtTime(p.time_s), rate(p.mean_rate_mm2_per_min) && `${rate(p.mean_rate_mm2_per_min)} mm²/min`,
        p.wire_breaks ? `${p.wire_breaks} break${p.wire_breaks > 1 ? "s" : ""}` : null].filter((x) => x).join(" ")).join(", ");
-    const cells = [j.started, `${j.program}${j.dry_run ? " (dry run)" : ""}${j.from_line ? ` from line ${j.from_line}` : ""}${j.technology ? ` · ${j.technology}` : ""}`,
+    const cells = [j.started, `${j.program}${j.dry_run ? " (dry run)" : ""}${j.from_line ? ` from line ${j.from_line}${j.from_pass ? ` in pass ${j.from_pass}` : ""}` : ""}${j.technology ? ` · ${j.technology}` : ""}`,
       j.outcome, fmtTime(j.machine_time_s), rate(j.mean_rate_mm2_per_min) || "–", passes || "–", j.shorts, j.wire_breaks];
     cells.forEach((c, i) => { const td = document.createElement("td"); td.textContent = c; if (i === 2 && c !== "done") td.className = "bad"; tr.appendChild(td); });
     t.appendChild(tr);
@@ -199,7 +199,13 @@ $("run").onclick = () => {
   executedPath = null;
   const body = { program: $("program-list").value, dry_run: $("dry-run").checked };
   const from = Number($("from-line").value);
-  if (from > 0) { body.from_line = from; if ($("approach").value) body.approach = $("approach").value; }
+  if (from > 0) {
+    body.from_line = from;
+    if ($("approach").value) body.approach = $("approach").value;
+    // In a job in passes: the pass the line is cut in (the later ones are cut whole).
+    const pass = Number($("from-pass").value);
+    if (pass > 0) body.pass = pass;
+  }
   const passes = Number($("passes").value);
   if (passes > 0) body.passes = passes;
   const technology = techRequest();
