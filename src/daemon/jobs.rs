@@ -388,7 +388,10 @@ impl Core {
         // travel, an alarm): the renewals of its client, still pressing, are refused until it
         // lets go. One that `jog-stop` or the dead-man ended was taken already.
         self.jobs.pendant.stop(true, crate::sys::monotonic_ns());
-        let summary = end.summary;
+        let mut summary = end.summary;
+        if let JobKind::Home { switch, .. } = job.kind {
+            desk::homing::say_why_it_failed(&self.config, &switch, &mut summary);
+        }
         let text = summary.text();
         let mut lines = text.lines();
         let head = lines.next().unwrap_or_default();

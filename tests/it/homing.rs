@@ -110,12 +110,21 @@ fn a_search_that_finds_no_switch_leaves_the_axis_unhomed_and_stops_the_sequence(
     // Y's switch is 30 mm away: past its 20 mm search.
     let daemon = Daemon::start(&dir, &homing_sets(&dir, "{X=3.0,Y=-30.0}"), &[]);
     daemon.ok(&["home"]);
-    daemon.wait_for_log("homing Y failed");
+    daemon.wait_for_log("homing Y: the home switch did not close");
     let m = idle_machine(&daemon);
     assert_eq!(m["homed"], serde_json::json!([false, false]));
     // It searched the whole 20 mm and stopped there; X never started.
     assert_eq!(floats(&m["position_machine_mm"]), [0.0, -20.0]);
     assert!(!daemon.log().contains("homing X: searching"));
+    // Said in homing's words, not as a probing move's line, segment and step.
+    let last = &daemon.status()["last_job"];
+    let error = last["error"].as_str().unwrap_or_default();
+    assert!(
+        error.starts_with("homing Y: the home switch did not close within the search, 20.0 mm -"),
+        "{last}"
+    );
+    assert!(!error.contains("segment"), "{error}");
+    assert!(daemon.log().contains("the axis stays unhomed"));
     daemon.refused(&["run", "nothing.nc"], "not homed");
 }
 

@@ -225,6 +225,39 @@ pub(in crate::daemon) fn axis_job(desk: Desk, i: usize) -> Order {
     )
 }
 
+/// A homing job whose probing move found no switch: why, in the words of homing (which move
+/// of [`homing_program`] missed, how far it went, what to check), in place of the probing
+/// move's "line 2: … segment 39, step 1000".
+pub(in crate::daemon) fn say_why_it_failed(
+    config: &Config,
+    switch: &HomeSwitch,
+    summary: &mut JobSummary,
+) {
+    if summary.outcome != Outcome::ProbeMissed {
+        return;
+    }
+    let Some(h) = config.homing.axis(switch.axis) else {
+        return;
+    };
+    let a = h.axis;
+    let toward = if h.positive { "+" } else { "-" };
+    let words = match summary.stopped_at.as_ref().map(|s| s.line) {
+        Some(2) => format!(
+            "homing {a}: the home switch did not close within the search, {:.1} mm {toward}              at {:.0} mm/min: is the axis farther than that from its switch              (homing.axis.search_distance_mm), and does the switch reach its input?",
+            h.search_distance_mm, h.search_feed_mm_per_min
+        ),
+        Some(3) => format!(
+            "homing {a}: the home switch closed but did not open again backing off {:.1} mm:              a switch stuck closed, or a latch_distance_mm shorter than its travel",
+            h.latch_distance_mm
+        ),
+        _ => format!(
+            "homing {a}: the home switch did not close again on the slow approach within              {:.1} mm (homing.axis.latch_distance_mm): a switch that closes unevenly",
+            h.latch_distance_mm
+        ),
+    };
+    summary.error = Some(words);
+}
+
 /// How a homing job ended: its outcome, why it failed, and its last probe (the latch).
 pub(in crate::daemon) struct HomingEnd<'a> {
     pub outcome: Outcome,
@@ -263,13 +296,18 @@ pub(in crate::daemon) fn latched(
                 Outcome::Done => "no latch".to_string(),
                 _ => end.error.unwrap_or(end.outcome.name()).to_string(),
             };
+            // A missed switch is already said in homing's words (`say_why_it_failed`).
+            let why = match end.outcome {
+                Outcome::ProbeMissed => why,
+                _ => format!(
+                    "homing {} failed: {why} (no switch within {:.1} mm, or it did not release \
+                     within {:.1} mm?)",
+                    h.axis, h.search_distance_mm, h.latch_distance_mm
+                ),
+            };
             tracing::error!(
                 edmd_event = "home_failed",
-                "homing {} failed: {why} (no switch within {:.1} mm, or it did not \
-                 release within {:.1} mm?); the axis stays unhomed{}",
-                h.axis,
-                h.search_distance_mm,
-                h.latch_distance_mm,
+                "{why}; the axis stays unhomed{}",
                 if machine.homing_queue.is_empty() {
                     String::new()
                 } else {
