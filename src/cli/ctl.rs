@@ -114,6 +114,13 @@ pub(super) enum CtlCommand {
     },
     /// Clear an E-stop once its input is released
     Reset,
+    /// Discard the checkpoint of a stopped job that will not be resumed (it cannot be
+    /// undone); a checkpoint kept aside while another job ran is the checkpoint again
+    Discard {
+        /// The operator confirms it
+        #[arg(long)]
+        yes: bool,
+    },
     /// Feed override (0–200 %) or rapid override (0–100 %): in force at once, and for the
     /// jobs after
     Override {
@@ -380,6 +387,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             false,
         ),
         CtlCommand::Reset => (Request::Reset {}, false),
+        CtlCommand::Discard { yes } => (Request::Discard { confirm: *yes }, false),
         CtlCommand::SingleBlock { state } => (
             Request::SingleBlock {
                 on: matches!(state, OnOff::On),

@@ -22,6 +22,10 @@ pub(super) fn copy_dir(checkpoint: &Path) -> PathBuf {
 pub(super) struct CheckpointKeeper {
     /// The checkpoint as last read or written.
     pub current: Option<Checkpoint>,
+    /// A stopped job's checkpoint kept aside while another program job runs (beside the
+    /// checkpoint, [`parked_path`]): it is the checkpoint again once no other is, until the
+    /// operator discards it.
+    pub parked: Option<Checkpoint>,
     /// Why the checkpoint on disk could not be read (the reply to `resume` says so).
     pub read_error: Option<String>,
     /// Why the last write failed (cleared by the next one that succeeds).
@@ -30,7 +34,103 @@ pub(super) struct CheckpointKeeper {
     pub failures: u64,
 }
 
+/// Where a stopped job's checkpoint is kept while another program job runs.
+pub(super) fn parked_path(checkpoint: &Path) -> PathBuf {
+    checkpoint.with_extension("kept.json")
+}
+
+/// Why a program job cannot start without losing a stopped job's checkpoint.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "the checkpoints of {kept} (kept aside) and of {stopped} (stopped at line {line}) are both \
+     resumable: resume {stopped} or discard its checkpoint before another program runs"
+)]
+pub struct BothKept {
+    pub kept: String,
+    pub stopped: String,
+    pub line: u64,
+}
+
 impl CheckpointKeeper {
+    /// A new program job starts (not a resume): the stopped job's checkpoint is kept aside
+    /// for a later resume, not replaced. Refused while one is kept aside already.
+    pub(super) fn park(&mut self, checkpoint: &Path) -> Result<Option<String>, BothKept> {
+        let Some(current) = self.current.take() else {
+            return Ok(None);
+        };
+        if let Some(kept) = &self.parked {
+            let error = BothKept {
+                kept: kept.program.display().to_string(),
+                stopped: current.program.display().to_string(),
+                line: current.line,
+            };
+            self.current = Some(current);
+            return Err(error);
+        }
+        let program = current.program.display().to_string();
+        let parked = parked_path(checkpoint);
+        if let Err(e) = std::fs::rename(checkpoint, &parked) {
+            // Not moved aside: it stays the checkpoint, and the new job's write-ahead
+            // replaces it, as before keeping existed.
+            tracing::error!("{}: cannot keep it aside ({e})", checkpoint.display());
+            return Ok(None);
+        }
+        tracing::info!(
+            edmd_event = "checkpoint_kept",
+            "checkpoint of {program} (line {}) kept aside while another job runs: {}",
+            current.line,
+            parked.display()
+        );
+        self.parked = Some(current);
+        Ok(Some(program))
+    }
+
+    /// No checkpoint is current (a job ended done, one was discarded): the one kept aside is
+    /// the checkpoint again.
+    pub(super) fn unpark(&mut self, checkpoint: &Path) {
+        if self.current.is_some() {
+            return;
+        }
+        let Some(kept) = self.parked.take() else {
+            return;
+        };
+        match std::fs::rename(parked_path(checkpoint), checkpoint) {
+            Ok(()) => {
+                tracing::info!(
+                    edmd_event = "checkpoint_kept",
+                    "checkpoint of {} (line {}) is the checkpoint again: `resume` continues it",
+                    kept.program.display(),
+                    kept.line
+                );
+                self.current = Some(kept);
+            }
+            Err(e) => {
+                tracing::error!("{}: cannot put it back ({e})", checkpoint.display());
+                self.parked = Some(kept);
+            }
+        }
+    }
+
+    /// The operator discards the checkpoint (confirmed): removed, and the one kept aside, if
+    /// any, is the checkpoint again. What was discarded.
+    pub(super) fn discard(&mut self, checkpoint: &Path) -> std::io::Result<Option<Checkpoint>> {
+        let Some(current) = self.current.take() else {
+            return Ok(None);
+        };
+        if let Err(e) = Checkpoint::remove(checkpoint) {
+            self.current = Some(current);
+            return Err(e);
+        }
+        tracing::warn!(
+            edmd_event = "checkpoint_discarded",
+            "checkpoint of {} (line {}) discarded by the operator",
+            current.program.display(),
+            current.line
+        );
+        self.unpark(checkpoint);
+        Ok(Some(current))
+    }
+
     /// Removes the program copies beside `checkpoint` that no job, check or checkpoint
     /// needs (and half-written ones): `jobs` are the copies (SHA-256) of the running job and
     /// of one about to start; `checking`: a check is reading an incoming copy.
@@ -42,6 +142,7 @@ impl CheckpointKeeper {
             .iter()
             .map(|sha| sha.to_string())
             .chain(self.current.as_ref().map(|c| c.program_sha256.clone()))
+            .chain(self.parked.as_ref().map(|c| c.program_sha256.clone()))
             .map(|sha| format!("{sha}.nc"))
             .collect();
         for entry in entries.flatten() {
@@ -70,6 +171,10 @@ impl CheckpointKeeper {
                 tracing::error!("{e}; ignoring it (it is left in place)");
                 keeper.read_error = Some(e.to_string());
             }
+        }
+        if let Ok(Some(kept)) = Checkpoint::load(&parked_path(path)) {
+            keeper.parked = Some(kept);
+            keeper.unpark(path);
         }
         if let Some(c) = &keeper.current {
             tracing::info!(
@@ -108,6 +213,7 @@ impl CheckpointKeeper {
                     tracing::error!("{}: {e}", checkpoint_path.display());
                 }
                 self.current = None;
+                self.unpark(&checkpoint_path);
             }
             None => {
                 // A refused resume moved nothing: the checkpoint it started from is true

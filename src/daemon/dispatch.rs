@@ -93,6 +93,7 @@ impl Core {
             } => self.jog_continuous(&axis, positive, feed_mm_per_min),
             Request::JogStop {} => self.jog_stop(),
             Request::Reset {} => self.reset(),
+            Request::Discard { confirm } => self.discard_checkpoint(confirm),
             Request::Override { kind, percent } => self.jobs.set_override(kind, percent),
             Request::SingleBlock { on } => self.jobs.set_single_block(on),
         };
@@ -157,6 +158,45 @@ impl Core {
         let fine = &self.jobs.fine;
         let estop_reads = fine.has_claim() && fine.idle_watch().reading().is_none_or(|r| r.estop);
         desk::trips::reset(&mut self.machine, estop_reads)
+    }
+
+    /// `discard`: the checkpoint of a stopped job the operator will not resume, removed once
+    /// confirmed; not while a job runs (it is that job's).
+    fn discard_checkpoint(&mut self, confirm: bool) -> Result<String, Refusal> {
+        self.refuse_if_busy()?;
+        let Some(current) = &self.checkpoints.current else {
+            return Err(Refusal::NothingToDiscard);
+        };
+        if !confirm {
+            return Err(Refusal::DiscardUnconfirmed {
+                program: current.program.display().to_string(),
+                line: current.line,
+            });
+        }
+        let path = self.config.daemon.checkpoint.clone();
+        let gone = self
+            .checkpoints
+            .discard(&path)
+            .map_err(|e| Refusal::BadArgument(format!("{}: {e}", path.display())))?
+            .expect("a current checkpoint");
+        let kept = self
+            .checkpoints
+            .current
+            .as_ref()
+            .map(|c| {
+                format!(
+                    "; the checkpoint of {} (line {}) is the checkpoint again",
+                    c.program.display(),
+                    c.line
+                )
+            })
+            .unwrap_or_default();
+        self.notify_status();
+        Ok(format!(
+            "checkpoint of {} (line {}) discarded{kept}",
+            gone.program.display(),
+            gone.line
+        ))
     }
 
     /// Between jobs the fine thread reads the claimed device's inputs every millisecond and

@@ -153,6 +153,12 @@ pub enum Refusal {
     },
     #[error("cannot start the job thread: {0}")]
     JobThread(std::io::Error),
+    #[error(transparent)]
+    BothKept(#[from] super::checkpoints::BothKept),
+    #[error("discarding the checkpoint of {program} (line {line}) cannot be undone: confirm it")]
+    DiscardUnconfirmed { program: String, line: u64 },
+    #[error("no checkpoint to discard")]
+    NothingToDiscard,
 }
 
 // The large errors travel boxed: a refusal is returned on every command's path.

@@ -557,35 +557,33 @@ impl Core {
                 .dead_man_ns
                 .store(deadline_ns, std::sync::atomic::Ordering::Release);
         }
+        // A new program keeps a stopped job's checkpoint aside, and only now that it really
+        // starts (a jog, MDI, homing or a dry run leave it alone): it is the checkpoint again
+        // once this job is done, until the operator discards it.
         // Write-ahead: before the first step the checkpoint on disk says this job is moving,
         // from where it starts; a job that cannot record that does not start.
-        let old = self.checkpoints.current.clone();
         let at = super::checkpoints::write_ahead_point(resume.as_ref(), &spec, &config);
         super::desk::homing::started(&mut self.machine, switch.as_ref());
         self.machine.save(true).map_err(super::desk::unwritten)?;
+        let checkpoint_path = self.config.daemon.checkpoint.clone();
+        let kept = match !resumed && kind == JobKind::Program {
+            true => self.checkpoints.park(&checkpoint_path)?,
+            false => None,
+        };
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {
+            self.checkpoints.unpark(&checkpoint_path);
             return Err(Refusal::WriteAhead {
                 error,
                 consequence: "the job does not start without its checkpoint",
             });
         }
-        // A new program replaces the checkpoint of an old one, and only now that it really
-        // starts (a jog, MDI, homing or a dry run leave it alone).
-        let mut message = String::new();
-        if !resumed
-            && kind == JobKind::Program
-            && let Some(old) = old
-        {
-            tracing::warn!(
-                "checkpoint of {} (line {}) replaced: a new job starts",
-                old.program.display(),
-                old.line
-            );
-            message = format!(
-                "; the checkpoint of {} was discarded",
-                old.program.display()
-            );
-        }
+        let message = kept
+            .map(|program| {
+                format!(
+                    "; the checkpoint of {program} is kept: `resume` continues it after this job"
+                )
+            })
+            .unwrap_or_default();
         self.jobs.prune_copies(
             &self.checkpoints,
             &self.config.daemon.checkpoint,

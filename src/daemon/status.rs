@@ -88,14 +88,14 @@ impl Core {
             axes: config.machine.axis_names(),
             job,
             last_job: self.jobs.last.clone(),
-            checkpoint: self.checkpoints.current.as_ref().map(|c| CheckpointStatus {
-                program: c.program.display().to_string(),
-                line: c.line,
-                reason: c.reason.name().to_string(),
-                still: c.still,
-                position_steps: c.position_steps.clone(),
-                resumable: self.jobs.job.is_none() && self.jobs.check.is_none(),
+            checkpoint: self.checkpoints.current.as_ref().map(|c| {
+                CheckpointStatus::of(c, self.jobs.job.is_none() && self.jobs.check.is_none())
             }),
+            kept_checkpoint: self
+                .checkpoints
+                .parked
+                .as_ref()
+                .map(|c| CheckpointStatus::of(c, false)),
             checkpoint_write_error: self.checkpoints.write_error.as_ref().map(|e| e.to_string()),
             check: match &self.jobs.check {
                 Some(c) => {
@@ -257,6 +257,20 @@ fn job_status(job: &super::Job, snap: &Snapshot) -> JobStatus {
                     i.ok().map(|i| job.pause_messages[i].1.clone())
                 }),
         },
+    }
+}
+
+impl CheckpointStatus {
+    /// `checkpoint` as the status shows it; `resumable`: `resume` would continue it now.
+    fn of(checkpoint: &crate::checkpoint::Checkpoint, resumable: bool) -> CheckpointStatus {
+        CheckpointStatus {
+            program: checkpoint.program.display().to_string(),
+            line: checkpoint.line,
+            reason: checkpoint.reason.name().to_string(),
+            still: checkpoint.still,
+            position_steps: checkpoint.position_steps.clone(),
+            resumable,
+        }
     }
 }
 

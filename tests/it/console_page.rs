@@ -461,3 +461,46 @@ fn a_pause_shows_its_message_on_the_page() {
         "return document.getElementById('pause-message').hidden",
     );
 }
+
+/// A stopped job's checkpoint on the page: Discard shows with it, asks to be pressed again,
+/// then removes it.
+#[test]
+fn discard_on_the_page_asks_twice_and_removes_the_checkpoint() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, _dir) = start("console-discard", &[]);
+    let (code, _) = d.post("/api/run", r#"{"program": "runtime-path.nc"}"#);
+    assert_eq!(code, 200);
+    d.wait_for("moving", |s| s["state"] == "running");
+    d.post("/api/hold", "{}");
+    d.wait_for("held", |s| s["state"] == "held");
+    d.post("/api/abort", "{}");
+    let s = d.wait_for("the checkpoint", |s| {
+        s["state"] == "idle" && s["checkpoint"]["resumable"] == true
+    });
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "Discard shown",
+        "return !document.getElementById('discard').hidden",
+    );
+    click(&browser, "discard");
+    wait(
+        &browser,
+        "the confirmation",
+        "return document.getElementById('discard').textContent === 'Confirm discard'",
+    );
+    assert_eq!(
+        d.status()["checkpoint"],
+        s["checkpoint"],
+        "one press discards nothing"
+    );
+    click(&browser, "discard");
+    d.wait_for("no checkpoint", |s| s.get("checkpoint").is_none());
+    wait(
+        &browser,
+        "Discard hidden",
+        "return document.getElementById('discard').hidden",
+    );
+}

@@ -1326,3 +1326,70 @@ fn ctl_run_wait_end_returns_at_the_jobs_end_with_its_outcome() {
     let both = ctl(&["run", PROGRAM, "--wait-end", "--no-wait"]);
     assert_eq!(both.status.code(), Some(2));
 }
+
+/// An aborted job's checkpoint outlives another program's job: kept aside while it runs, the
+/// checkpoint again once it is done, resumed then to the aborted job's end. A third job is
+/// refused while two stopped jobs wait; `discard` asks for a confirmation and brings the
+/// kept one back.
+#[test]
+fn an_aborted_jobs_checkpoint_is_kept_across_another_job_until_discarded() {
+    let dir = scratch("kept-checkpoint");
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    std::fs::write(dir.join("programs/contour.ngc"), CONTOUR).unwrap();
+    let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
+    daemon.ok(&["run", PROGRAM]);
+    daemon.wait_for("moving", is_moving);
+    let aborted = daemon.hold_abort_checkpoint(&dir);
+    assert_eq!(
+        aborted["program"].as_str().map(|p| p.ends_with(".nc")),
+        Some(true)
+    );
+
+    // Another program: the aborted job's checkpoint is kept aside, not discarded.
+    let reply = daemon.ok(&["run", "contour.ngc"]);
+    assert!(
+        reply["message"].as_str().unwrap().contains("is kept"),
+        "{reply}"
+    );
+    let s = daemon.status();
+    assert_eq!(s["kept_checkpoint"]["line"], aborted["line"], "{s}");
+    let s = daemon.wait_for("the contour's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    // Done: the aborted job's checkpoint is the checkpoint again, on disk too.
+    assert_eq!(s["checkpoint"]["line"], aborted["line"], "{s}");
+    assert!(s.get("kept_checkpoint").is_none(), "{s}");
+    let on_disk: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(on_disk["position_steps"], aborted["position_steps"]);
+
+    // The contour again, aborted too: two stopped jobs, and a third program is refused.
+    daemon.ok(&["run", "contour.ngc"]);
+    daemon.wait_for("moving", is_moving);
+    daemon.hold_abort_checkpoint(&dir);
+    daemon.refused(&["run", "contour.ngc"], "are both resumable");
+    // Discard asks for a confirmation, then brings the kept checkpoint back.
+    daemon.refused(&["discard"], "cannot be undone");
+    let reply = daemon.ok(&["discard", "--yes"]);
+    assert!(
+        reply["message"]
+            .as_str()
+            .unwrap()
+            .contains("is the checkpoint again"),
+        "{reply}"
+    );
+    let s = daemon.status();
+    assert_eq!(s["checkpoint"]["line"], aborted["line"], "{s}");
+    // The machine moved since (the contour): the operator confirms where it stands.
+    daemon.ok(&["mdi", "G90 G0 X0 Y0"]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    let back: Vec<String> = ints(&aborted["position_steps"])
+        .iter()
+        .zip(["X", "Y"])
+        .map(|(s, a)| format!("{a}{:.3}", *s as f64 / 1000.0))
+        .collect();
+    daemon.ok(&["mdi", &format!("G0 {}", back.join(" "))]);
+    daemon.wait_for("idle", |s| s["state"] == "idle");
+    daemon.resume_to_the_end(&PROGRAM_END);
+}

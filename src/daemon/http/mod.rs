@@ -247,6 +247,7 @@ fn router(app: Arc<App>) -> Router {
             post(|s, h, b| machine(s, h, b, "jog-stop")),
         )
         .route("/api/reset", post(|s, h, b| machine(s, h, b, "reset")))
+        .route("/api/discard", post(|s, h, b| machine(s, h, b, "discard")))
         .route(
             "/api/override",
             post(|s, h, b| machine(s, h, b, "override")),

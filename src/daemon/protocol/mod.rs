@@ -125,6 +125,13 @@ pub enum Request {
     },
     /// Clear an E-stop once its input is released.
     Reset {},
+    /// Remove the checkpoint (a stopped job the operator will not resume); `confirm`: the
+    /// operator confirmed it (it cannot be undone). A checkpoint kept aside is the
+    /// checkpoint again.
+    Discard {
+        #[serde(default)]
+        confirm: bool,
+    },
     /// Stop a continuous jog now.
     #[serde(rename = "jog-stop")]
     JogStop {},
@@ -361,6 +368,10 @@ pub struct Status {
     /// The checkpoint on disk: what `resume` would continue.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointStatus>,
+    /// A stopped job's checkpoint kept aside while another program job runs or stopped: the
+    /// checkpoint again once none is (`discard` the current one, or let its job end done).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kept_checkpoint: Option<CheckpointStatus>,
     /// Why the last checkpoint write failed; absent once a write succeeds again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint_write_error: Option<String>,
@@ -430,6 +441,7 @@ impl Status {
             job: None,
             last_job: None,
             checkpoint: None,
+            kept_checkpoint: None,
             checkpoint_write_error: None,
             check: None,
             rt_refused: Vec::new(),

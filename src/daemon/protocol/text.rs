@@ -112,6 +112,14 @@ impl Status {
                 }
             );
         }
+        if let Some(k) = &self.kept_checkpoint {
+            let _ = writeln!(
+                t,
+                "kept aside:   {} line {} ({}); the checkpoint again once no other is \
+                 (`edmd ctl discard --yes` the current one, or let its job end)",
+                k.program, k.line, k.reason
+            );
+        }
         let h = &self.hours;
         if h.jobs > 0 || h.machine_s > 0.0 {
             let _ = writeln!(

@@ -267,6 +267,18 @@ $("abort").onclick = () => {
   $("abort").textContent = "Confirm abort"; $("abort").classList.add("confirm");
   abortArmed = setTimeout(() => { abortArmed = null; $("abort").textContent = "Abort"; $("abort").classList.remove("confirm"); }, 3000);
 };
+// Discarding a checkpoint cannot be undone: pressed again within 3 s, as Abort.
+let discardArmed = null;
+$("discard").onclick = () => {
+  if (discardArmed) {
+    clearTimeout(discardArmed); discardArmed = null;
+    $("discard").textContent = "Discard checkpoint"; $("discard").classList.remove("confirm");
+    control("discard", { confirm: true });
+    return;
+  }
+  $("discard").textContent = "Confirm discard"; $("discard").classList.add("confirm");
+  discardArmed = setTimeout(() => { discardArmed = null; $("discard").textContent = "Discard checkpoint"; $("discard").classList.remove("confirm"); }, 3000);
+};
 $("feed-override").onchange = () => control("override", { kind: "feed", percent: Number($("feed-override").value) });
 $("rapid-override").onchange = () => control("override", { kind: "rapid", percent: Number($("rapid-override").value) });
 $("feed-override").oninput = () => { $("feed-override-value").textContent = `${$("feed-override").value} %`; };

@@ -213,8 +213,11 @@ function showControls(status) {
   $("outcome").textContent = last
     ? `last job: ${last.program}: ${last.outcome}${dry ? " (dry run: nothing was cut)" : ""}${last.error ? ` (${last.error})` : ""}` : "";
   $("outcome").className = last && last.outcome !== "done" && last.outcome !== "stopped" ? "error" : "";
-  $("resumable").textContent = cp && cp.resumable
-    ? `checkpoint: ${cp.program} line ${cp.line} (${cp.reason}): Resume continues it` : "";
+  const kept = status.kept_checkpoint;
+  $("resumable").textContent = (cp && cp.resumable
+    ? `checkpoint: ${cp.program} line ${cp.line} (${cp.reason}): Resume continues it` : "")
+    + (kept ? `${cp && cp.resumable ? "; " : ""}kept aside: ${kept.program} line ${kept.line}, the checkpoint again once no other is` : "");
+  $("discard").hidden = !(cp && cp.resumable);
   const o = status.overrides || { feed_pct: 100, rapid_pct: 100 };
   if (document.activeElement !== $("feed-override")) $("feed-override").value = o.feed_pct;
   if (document.activeElement !== $("rapid-override")) $("rapid-override").value = o.rapid_pct;
