@@ -159,6 +159,12 @@ pub enum Refusal {
     DiscardUnconfirmed { program: String, line: u64 },
     #[error("no checkpoint to discard")]
     NothingToDiscard,
+    #[error(
+        "the wire leans ({at}, the upper guide in machine coordinates) and this program does \
+         not taper: it would cut tilted. Bring the wire vertical first (MDI `G53 G0 U0 V0`), \
+         or run a program that sets its own taper"
+    )]
+    Leaning { at: String },
 }
 
 // The large errors travel boxed: a refusal is returned on every command's path.

@@ -519,6 +519,9 @@ impl Core {
         let kind = launch.kind;
         let from_line = launch.cut.from_line;
         let blocks = check.blocks;
+        if resume.is_none() && matches!(kind, JobKind::Program | JobKind::DryRun) && !check.tapers {
+            self.desk().refuse_if_leaning()?;
+        }
         let ledger = resume
             .as_ref()
             .map_or_else(|| spec.start_steps().to_vec(), |r| r.position.clone());

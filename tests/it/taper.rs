@@ -635,3 +635,45 @@ fn a_tapered_job_stopped_halfway_resumes_to_the_uninterrupted_pulses() {
     );
     common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
 }
+
+/// A wire left leaning by an aborted taper job: a program that does not taper is refused
+/// (it would cut tilted) with the MDI line that brings the wire vertical; after it, the
+/// program runs.
+#[test]
+fn a_straight_job_is_refused_while_the_wire_leans_until_it_is_brought_vertical() {
+    let dir = common::daemon::scratch("taper-leaning");
+    std::fs::write(dir.join("wire.toml"), CONFIG).unwrap();
+    let config = dir.join("wire.toml");
+    let tapered = common::wire::DIE.replace("G41 D1", &format!("G52 A{ANGLE_DEG}\nG41 D1"));
+    let tapered = tapered.replace("G40 G1", "G40 G50 G1");
+    std::fs::write(dir.join("programs/die.ngc"), &tapered).unwrap();
+    std::fs::write(dir.join("programs/straight.ngc"), common::wire::DIE).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let args = ["--config".to_string(), config.display().to_string()];
+    let daemon = common::daemon::Daemon::start_args(
+        &dir,
+        &args,
+        &common::daemon::base_sets(&dir, "pulses.csv"),
+        &[],
+    );
+    daemon.ok(&["run", "die.ngc"]);
+    daemon.wait_for("halfway", |s| {
+        s["state"] == "running" && s["job"]["progress"].as_f64().unwrap_or(0.0) > 0.45
+    });
+    daemon.hold_abort_checkpoint(&dir);
+    let refused = daemon.refused(&["run", "straight.ngc"], "the wire leans (U");
+    assert!(
+        refused.to_string().contains("G53 G0 U0 V0"),
+        "says how to recover: {refused}"
+    );
+    daemon.ok(&["discard", "--yes"]);
+    daemon.ok(&["mdi", "G53 G0 U0 V0"]);
+    let s = daemon.wait_for("vertical", |s| s["state"] == "idle");
+    let at = common::daemon::floats(&s["machine"]["position_machine_mm"]);
+    assert_eq!((at[2], at[3]), (0.0, 0.0), "{s}");
+    daemon.ok(&["run", "straight.ngc"]);
+    let s = daemon.wait_for("the straight job's end", |s| {
+        s["state"] == "idle" && s["last_job"]["outcome"] == "done"
+    });
+    assert_eq!(s["last_job"]["outcome"], "done");
+}

@@ -114,6 +114,27 @@ impl Desk<'_> {
             .map_err(|d| refusal(d, "run"))
     }
 
+    /// A job that does not taper starts with the wire vertical (the upper guide at machine
+    /// U0 V0, where the taper stage puts it for no lean): one left leaning by an aborted
+    /// taper job would cut tilted.
+    pub fn refuse_if_leaning(&self) -> Result<(), Refusal> {
+        let Some([u, v]) = self.config.machine.upper_guide_axes() else {
+            return Ok(());
+        };
+        let position = &self.machine.state.position;
+        if position[u] == 0 && position[v] == 0 {
+            return Ok(());
+        }
+        let step = &self.config.machine.step_mm;
+        Err(Refusal::Leaning {
+            at: format!(
+                "U{:.4} V{:.4}",
+                position[u] as f64 * step[u],
+                position[v] as f64 * step[v]
+            ),
+        })
+    }
+
     /// A resume or a run from a line continues a cut where the machine is believed to stand:
     /// refused while an axis is unhomed under `homing.required`, or while the position is
     /// distrusted after an unclean stop, unless `force` says the operator checked it.

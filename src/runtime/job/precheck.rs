@@ -38,6 +38,8 @@ pub struct Precheck {
     /// M-code): the line of the move it stops before, and the last message (`(MSG, …)` or
     /// the M-code's) given since the move before it. Sorted by line.
     pub pause_messages: Vec<(u64, String)>,
+    /// Some move leans the wire (`G51`/`G52`): the job drives the upper guide itself.
+    pub tapers: bool,
 }
 
 /// A programmed stop the check met: the line of the move it stops before, the line of the
@@ -66,6 +68,8 @@ struct Tally<'a> {
     measure: bool,
     /// A dry run: nothing is cut.
     dry_run: bool,
+    /// Some move leans the wire.
+    tapers: bool,
     /// The line of the last move taken, and the stops met.
     last_line: u64,
     stops: Vec<StopMet>,
@@ -106,6 +110,7 @@ impl Tally<'_> {
             });
         }
         self.last_line = block.line;
+        self.tapers |= block.taper != 0.0;
         crate::machine::travel::hold_to_travel(
             block,
             &machine.axes,
@@ -178,6 +183,7 @@ pub fn precheck(
         max_feed: plan.max_feed_mm_per_s,
         measure: config.gap.kind == GapKind::Sim && config.sim.debris_per_mm > 0.0,
         dry_run: cut.dry_run_feed_mm_per_min.is_some(),
+        tapers: false,
         last_line: 0,
         stops: Vec::new(),
     };
@@ -253,6 +259,7 @@ pub fn precheck(
         path_mm: tally.path_mm,
         pace: tally.pace,
         pause_messages,
+        tapers: tally.tapers,
     })
 }
 
