@@ -894,3 +894,44 @@ fn the_page_in_headless_chromium() {
         );
     }
 }
+
+/// Editing while a job runs: another program is read, checked and saved; the running job's
+/// own program is not written over (409) and stays as it was run.
+#[test]
+fn while_a_job_runs_another_program_is_edited_and_the_running_one_is_kept() {
+    let (d, dir) = start("background-edit", &[]);
+    std::fs::write(dir.join("programs/other.nc"), "G21 G90\nG1 X1 F60\nM2\n").unwrap();
+    let (code, _) = d.post("/api/run", r#"{"program": "runtime-path.nc"}"#);
+    assert_eq!(code, 200);
+    d.wait_for("running", |s| s["state"] == "running");
+    let (code, listing) = d.call("GET", "/api/program?name=other.nc", None, None);
+    assert_eq!(code, 200, "{listing}");
+    let (code, reply) = d.post(
+        "/api/programs?name=other.nc&replace=true&check=true",
+        "G21 G90\nG1 X2 F60\nM2\n",
+    );
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(
+        std::fs::read_to_string(dir.join("programs/other.nc")).unwrap(),
+        "G21 G90\nG1 X2 F60\nM2\n"
+    );
+    let before = std::fs::read_to_string(dir.join("programs/runtime-path.nc")).unwrap();
+    let (code, reply) = d.post(
+        "/api/programs?name=runtime-path.nc&replace=true&check=true",
+        "G21 G90\nG1 X2 F60\nM2\n",
+    );
+    assert_eq!(code, 409, "{reply}");
+    assert!(
+        reply["error"]
+            .as_str()
+            .unwrap()
+            .contains("the running job's program"),
+        "{reply}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("programs/runtime-path.nc")).unwrap(),
+        before
+    );
+    d.post("/api/abort", "{}");
+    d.wait_for("idle", |s| s["state"] == "idle");
+}
