@@ -43,7 +43,9 @@ pub enum PassError {
     Probe { program: String, line: u64 },
     #[error(
         "{program}: passes need a program that ends where it starts (the start hole), so each \
-         pass starts where the last ended: it starts at {start} and ends at {end}"
+         pass starts where the last ended: it starts at {start} and ends at {end}. Start the \
+         job with the wire at the program's start hole (a program that begins elsewhere: jog \
+         or MDI there first), or end the program where it starts"
     )]
     NotClosed {
         program: String,

@@ -91,7 +91,12 @@ fn what_cannot_be_cut_in_passes_is_refused_before_anything_moves() {
         err.contains("passes need a program that ends where it starts"),
         "{err}"
     );
-    assert!(err.contains("ends at X3.0000 Y0.0000"), "{err}");
+    // In the work system the job starts in, and what to do about it.
+    assert!(err.contains("ends at X3.0000 Y0.0000 (G54)"), "{err}");
+    assert!(
+        err.contains("Start the job with the wire at the program's start hole"),
+        "{err}"
+    );
     assert!(
         !dir.join("p.csv").exists() || std::fs::metadata(dir.join("p.csv")).unwrap().len() < 200
     );

@@ -9,6 +9,7 @@ use super::producer::{ProducerError, to_steps};
 use super::spec::start_steps;
 use crate::config::{Config, GapKind, SparkingFeeds};
 use crate::gcode::{self, WorkOffsets, WorkStart, WorkSystem};
+use crate::geometry::Point;
 use crate::path::{CutPlan, JobPath, PathItem, PathSpec, passes};
 use crate::vocab::Steps;
 
@@ -54,6 +55,8 @@ struct StopMet {
 /// What the check adds up block by block, over every pass.
 struct Tally<'a> {
     config: &'a Config,
+    /// Where the job starts: its work system says where the program's coordinates are.
+    work: &'a WorkStart,
     program: &'a str,
     blocks: u64,
     end_steps: Steps,
@@ -76,20 +79,27 @@ struct Tally<'a> {
 }
 
 impl Tally<'_> {
-    /// A run in passes ends where it started (the start hole).
+    /// A run in passes ends where it started (the start hole). Said in the coordinates of
+    /// the work system the job starts in, as the program is written.
     fn ends_at(&self, start: &Steps) -> Result<(), JobError> {
         if self.end_steps == *start {
             return Ok(());
         }
         let machine = &self.config.machine;
         let text = |s: &Steps| {
-            machine
+            let at = Point::from_fn(|i, _| {
+                s.get(i)
+                    .zip(machine.step_mm.get(i))
+                    .map_or(0.0, |(&n, mm)| n as f64 * mm)
+            });
+            let work = self.work.to_work(&at);
+            let axes: Vec<String> = machine
                 .axes
                 .iter()
-                .zip(s.iter().zip(&machine.step_mm))
-                .map(|(a, (&n, mm))| format!("{}{:.4}", a.letter(), n as f64 * mm))
-                .collect::<Vec<_>>()
-                .join(" ")
+                .enumerate()
+                .map(|(i, a)| format!("{}{:.4}", a.letter(), work[i]))
+                .collect();
+            format!("{} ({})", axes.join(" "), self.work.system.name())
         };
         Err(passes::PassError::NotClosed {
             program: self.program.to_string(),
@@ -172,6 +182,7 @@ pub fn precheck(
     let start_at = start_steps(start, &config.machine.step_mm);
     let mut tally = Tally {
         config,
+        work: start,
         program: &program.name,
         blocks: 0,
         end_steps: start_at,
