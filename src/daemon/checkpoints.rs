@@ -5,7 +5,7 @@
 use super::launch::JobKind;
 use std::path::{Path, PathBuf};
 
-use super::refusal::CheckpointWriteError;
+use super::refusal::{CheckpointWriteError, Refusal};
 use super::status::mm;
 use super::{Job, unix_now};
 use crate::checkpoint::{self, Checkpoint, Reason};
@@ -39,27 +39,15 @@ pub(super) fn parked_path(checkpoint: &Path) -> PathBuf {
     checkpoint.with_extension("kept.json")
 }
 
-/// Why a program job cannot start without losing a stopped job's checkpoint.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error(
-    "the checkpoints of {kept} (kept aside) and of {stopped} (stopped at line {line}) are both \
-     resumable: resume {stopped} or discard its checkpoint before another program runs"
-)]
-pub struct BothKept {
-    pub kept: String,
-    pub stopped: String,
-    pub line: u64,
-}
-
 impl CheckpointKeeper {
     /// A new program job starts (not a resume): the stopped job's checkpoint is kept aside
     /// for a later resume, not replaced. Refused while one is kept aside already.
-    pub(super) fn park(&mut self, checkpoint: &Path) -> Result<Option<String>, BothKept> {
+    pub(super) fn park(&mut self, checkpoint: &Path) -> Result<Option<String>, Refusal> {
         let Some(current) = self.current.take() else {
             return Ok(None);
         };
         if let Some(kept) = &self.parked {
-            let error = BothKept {
+            let error = Refusal::BothKept {
                 kept: kept.program.display().to_string(),
                 stopped: current.program.display().to_string(),
                 line: current.line,

@@ -153,8 +153,16 @@ pub enum Refusal {
     },
     #[error("cannot start the job thread: {0}")]
     JobThread(std::io::Error),
-    #[error(transparent)]
-    BothKept(#[from] super::checkpoints::BothKept),
+    /// A program job would lose a stopped job's checkpoint: one is kept aside already.
+    #[error(
+        "the checkpoints of {kept} (kept aside) and of {stopped} (stopped at line {line}) are \
+         both resumable: resume {stopped} or discard its checkpoint before another program runs"
+    )]
+    BothKept {
+        kept: String,
+        stopped: String,
+        line: u64,
+    },
     #[error("discarding the checkpoint of {program} (line {line}) cannot be undone: confirm it")]
     DiscardUnconfirmed { program: String, line: u64 },
     #[error("no checkpoint to discard")]

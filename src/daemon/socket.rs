@@ -34,7 +34,7 @@ use tokio::sync::Notify;
 
 use super::error::DaemonError;
 use super::link::CoreLink;
-use super::protocol::{MAX_REQUEST_BYTES, Reply, Request};
+use super::protocol::{MAX_REQUEST_BYTES, Reply, Request, Status};
 use crate::config::DaemonConfig;
 
 /// A client that sends no request for this long is disconnected (blank lines do not count).
@@ -372,13 +372,7 @@ const VERDICT_POLL: Duration = Duration::from_millis(200);
 pub fn wait_for_verdict(socket: &Path, id: u64, show: bool) -> Result<Reply, ClientError> {
     let mut shown = None;
     loop {
-        let reply = request(socket, &Request::Status {})?;
-        let Some(status) = reply.status else {
-            return Err(ClientError::Reply {
-                path: socket.to_path_buf(),
-                message: "a status reply without a status".to_string(),
-            });
-        };
+        let status = status_of(socket)?;
         let check = status.check.clone().filter(|c| c.id == id);
         let Some(check) = check else {
             return Err(ClientError::Reply {
@@ -412,13 +406,7 @@ pub fn wait_for_verdict(socket: &Path, id: u64, show: bool) -> Result<Reply, Cli
 /// operator resumes it. `program` is the job's, to tell its end from an earlier job's.
 pub fn wait_for_end(socket: &Path, program: &str) -> Result<Reply, ClientError> {
     loop {
-        let reply = request(socket, &Request::Status {})?;
-        let Some(status) = reply.status else {
-            return Err(ClientError::Reply {
-                path: socket.to_path_buf(),
-                message: "a status reply without a status".to_string(),
-            });
-        };
+        let status = status_of(socket)?;
         if status.job.is_none() {
             let Some(last) = status
                 .last_job
@@ -444,6 +432,16 @@ pub fn wait_for_end(socket: &Path, program: &str) -> Result<Reply, ClientError> 
         }
         std::thread::sleep(VERDICT_POLL);
     }
+}
+
+/// The daemon's status, asked for once.
+fn status_of(socket: &Path) -> Result<Status, ClientError> {
+    request(socket, &Request::Status {})?
+        .status
+        .ok_or_else(|| ClientError::Reply {
+            path: socket.to_path_buf(),
+            message: "a status reply without a status".to_string(),
+        })
 }
 
 /// Why `edmd ctl` got no answer.

@@ -184,12 +184,7 @@ fn a_dry_run_moves_the_same_path_with_the_spark_off_at_the_dry_run_feed() {
     daemon.ok(&["run", "long.nc", "--dry-run"]);
     daemon.wait_for("moving", common::daemon::is_moving);
     assert_eq!(daemon.status()["job"]["dry_run"], true);
-    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["ctl", "status", "--socket"])
-        .arg(&daemon.socket)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&text.stdout);
+    let text = daemon.status_text();
     assert!(
         text.contains("DRY RUN: spark off, nothing is cut"),
         "{text}"
@@ -294,12 +289,7 @@ fn a_pause_shows_the_programs_message_for_it() {
             s["state"] == "paused" && s["job"]["paused_before_line"] == line
         });
         assert_eq!(s["job"]["pause_message"].as_str(), message, "{s}");
-        let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-            .args(["ctl", "status", "--socket"])
-            .arg(&daemon.socket)
-            .output()
-            .unwrap();
-        let text = String::from_utf8_lossy(&text.stdout);
+        let text = daemon.status_text();
         match message {
             Some(m) => assert!(text.contains(&format!("message:      {m}")), "{text}"),
             None => assert!(!text.contains("message:"), "{text}"),

@@ -132,12 +132,7 @@ fn run_hold_resume_abort_and_status() {
     // Nothing to hold or abort now; a human-readable status says so.
     let (reply, code) = daemon.ctl(&["hold"]);
     assert_eq!((reply["ok"].as_bool(), code), (Some(false), 1));
-    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["ctl", "status", "--socket"])
-        .arg(&daemon.socket)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&text.stdout);
+    let text = daemon.status_text();
     assert!(text.contains("state:        idle"), "{text}");
     assert!(
         text.contains("checkpoint:") && text.contains("(abort)"),
@@ -723,12 +718,7 @@ fn a_corrupt_checkpoint_is_reported_in_the_reply_and_a_moving_one_asks_for_force
     daemon.child.kill().unwrap();
     daemon.child.wait().unwrap();
     let second = Daemon::start(&dir, &base_sets(&dir, "second.csv"), &[]);
-    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["ctl", "status", "--socket"])
-        .arg(&second.socket)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&text.stdout);
+    let text = second.status_text();
     assert!(
         text.contains("`edmd ctl resume --force` continues it"),
         "{text}"
@@ -852,12 +842,7 @@ fn status_shows_progress_and_eta_and_monitor_prints_a_line_per_interval() {
 
     daemon.ok(&["abort"]);
     daemon.wait_for("idle", |s| s["state"] == "idle");
-    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["ctl", "status", "--socket"])
-        .arg(&daemon.socket)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&text.stdout);
+    let text = daemon.status_text();
     // Idle, the status shows where the machine stands (the DRO), in machine and work
     // coordinates; unhomed axes are marked.
     assert!(
@@ -1092,12 +1077,7 @@ fn a_job_stopped_inside_a_subroutine_resumes_exactly_and_m0_pauses_it() {
         vec![0, 10000],
         "moved while paused"
     );
-    let text = Command::new(env!("CARGO_BIN_EXE_edmd"))
-        .args(["ctl", "status", "--socket"])
-        .arg(&second.socket)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&text.stdout);
+    let text = second.status_text();
     assert!(text.contains("state:        paused"), "{text}");
     assert!(text.contains("before line 19"), "{text}");
     second.ok(&["resume"]);

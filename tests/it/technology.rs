@@ -192,15 +192,11 @@ fn a_header_comment_cuts_the_tables_passes_at_their_offsets_and_is_recorded() {
     let (by, end) = positions_by_condition(&dir.join("pulses.csv"));
     assert_eq!(end, (0, 0));
     assert_eq!(by.keys().copied().collect::<Vec<_>>(), vec![51, 52, 53]);
-    for (condition, offset_um, direction) in [(51, 210, 1.0), (52, 155, -1.0), (53, 125, 1.0)] {
-        common::wire::assert_pass(
-            &format!("E{condition}"),
-            &by[&condition],
-            &inside_die,
-            offset_um,
-            direction,
-        );
-    }
+    common::wire::assert_passes(
+        &by,
+        &[(51, 210, 1.0), (52, 155, -1.0), (53, 125, 1.0)],
+        &inside_die,
+    );
 
     // The history and the report carry the technology and each pass's row and condition.
     let jobs = daemon.ok(&["jobs", "--count", "1"]);
@@ -537,15 +533,7 @@ fn a_run_from_a_line_cuts_in_the_pass_it_is_in_then_the_later_passes_whole() {
         "pass 1 cut the right edge, before its line"
     );
     let (by, _) = positions_by_condition(&dir.join("pulses.csv"));
-    for (condition, offset_um, direction) in [(52, 155, -1.0), (53, 125, 1.0)] {
-        common::wire::assert_pass(
-            &format!("E{condition}"),
-            &by[&condition],
-            &inside_die,
-            offset_um,
-            direction,
-        );
-    }
+    common::wire::assert_passes(&by, &[(52, 155, -1.0), (53, 125, 1.0)], &inside_die);
     let jobs = daemon.ok(&["jobs", "--count", "1"]);
     let record = &jobs["jobs"][0];
     assert_eq!(record["from_line"], 8, "{record}");

@@ -92,17 +92,8 @@ pub(super) async fn upload(
     };
     let dir = app.live.read().program_dir.clone();
     let target = dir.join(&name);
-    // The running job's program stays as it was run while it runs: what the operator reads
-    // beside the cut, and what its history names. Another one is edited meanwhile.
-    let running = app.to_core.status().status().and_then(|s| s.job.clone());
-    if replace && running.is_some_and(|j| std::path::Path::new(&j.program) == target) {
-        return error(
-            StatusCode::CONFLICT,
-            format!(
-                "{name} is the running job's program: it is not replaced while it runs (save \
-                 the edit under another name, or after the job)"
-            ),
-        );
+    if replace && let Some(refused) = running_program(&app, &name, &target) {
+        return refused;
     }
     if !replace && target.exists() {
         return error(
@@ -168,6 +159,21 @@ pub(super) async fn upload(
             )
         }
     }
+}
+
+/// The running job's program stays as it was run while it runs: what the operator reads
+/// beside the cut, and what its history names. Another one is edited meanwhile.
+fn running_program(app: &App, name: &str, target: &Path) -> Option<Response> {
+    let running = app.to_core.status().status().and_then(|s| s.job.clone())?;
+    (Path::new(&running.program) == target).then(|| {
+        error(
+            StatusCode::CONFLICT,
+            format!(
+                "{name} is the running job's program: it is not replaced while it runs (save \
+                 the edit under another name, or after the job)"
+            ),
+        )
+    })
 }
 
 #[derive(Deserialize)]

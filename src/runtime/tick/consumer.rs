@@ -26,6 +26,7 @@ pub use super::controls::RethreadRequest;
 use super::controls::{self, ControlWord, Controls};
 use super::histogram::LatencyHistogram;
 use super::probe::ProbeResult;
+use super::published::ProcessTapper;
 pub use super::published::{EventRecord, LATENCY_BUCKETS_US, PUBLISH_EVERY_TICKS, Published};
 pub use super::snapshot::Snapshot;
 use crate::buffer::BlockSource;
@@ -33,7 +34,6 @@ use crate::fine::{Interpolator, Tick};
 use crate::gap::{GapError, GapSensor, GapState};
 use crate::inputs::{InputError, InputReading, MachineInputs};
 use crate::output::{Activity, OutputError, PulseOutput};
-use crate::record::ProcessPoint;
 use crate::servo::{Excursion, GapReading, LawInput, PathPoint, ServoEvent, ServoState};
 use crate::sys;
 use crate::vocab::{Axis, LimitSet, MAX_AXES, SafetyInputs, Trip};
@@ -201,8 +201,7 @@ where
     let mut latency = (!settings.virtual_time).then(LatencyHistogram::default);
     let mut report = LoopReport::empty();
     let started = sys::monotonic_ns();
-    let period = settings.tick_ns;
-    let mut deadline = started + period;
+    let mut deadline = started + settings.tick_ns;
     let mut tick_no: u64 = 0;
     // What the machine is doing, as the output was last told.
     let mut activity = Activity::default();
@@ -215,8 +214,7 @@ where
     // move away (a jog off a tripped switch); one that closes later stops it.
     let mut limits_at_start: Option<LimitSet> = None;
     let inputs_wired = inputs.wired();
-    let process = published.process.get();
-    let mut next_process_point = 0;
+    let mut process = ProcessTapper::new(published);
     loop {
         wait_for_tick(&mut latency, deadline, tick_no, settings, fine, published);
         take_controls(&mut controls_word, fine, tick_no, published);
@@ -275,12 +273,7 @@ where
             published.publish(tick_no, fine);
             published.ticks.store(tick_no, Ordering::Relaxed);
         }
-        if let Some(tap) = process
-            && tick_no >= next_process_point
-        {
-            tap.queue.push(process_point(tick_no, fine));
-            next_process_point = tick_no + tap.every_ticks;
-        }
+        process.offer(tick_no, fine);
         if let Err(e) = settle_standstill(fine, output, published, &mut deadline) {
             report.output_error = Some(e);
             break;
@@ -298,7 +291,7 @@ where
             break;
         }
         if latency.is_some() {
-            keep_deadline(&mut deadline, period, &mut report, published);
+            keep_deadline(&mut deadline, settings.tick_ns, &mut report, published);
         }
     }
     report.ticks = tick_no;
@@ -309,19 +302,6 @@ where
     published.probe.close();
     published.finished.store(true, Ordering::Release);
     report
-}
-
-/// The process as it stands after `tick` (the report's trace): running totals, so a point
-/// the supervisor thins away loses nothing.
-fn process_point(tick: u64, fine: &Interpolator) -> ProcessPoint {
-    let process = fine.process();
-    ProcessPoint {
-        tick,
-        path_mm: fine.path_mm(),
-        pulses: process.pulse_totals().0,
-        off_time_us: process.generator().off_time_us,
-        height_mm: process.adaptive().map_or(f64::NAN, |a| a.height_mm),
-    }
 }
 
 /// Phase 2: the machine inputs (when something is wired), then the gap (a probing move reads

@@ -15,7 +15,7 @@ use super::probe::ProbeLink;
 use super::snapshot::{SeqLock, Snapshot};
 use crate::fine::Interpolator;
 use crate::gap::GapState;
-use crate::record::ProcessTap;
+use crate::record::{ProcessPoint, ProcessTap};
 use crate::servo::ServoEvent;
 use crate::vocab::Steps;
 
@@ -160,5 +160,38 @@ impl Published {
     #[inline]
     pub fn publish(&self, tick: u64, fine: &Interpolator) {
         self.snapshot.write(&Snapshot::of(tick, fine).encode());
+    }
+}
+
+/// The loop's side of a report's process trace: a point every `every_ticks` of machine time.
+pub(super) struct ProcessTapper<'a> {
+    tap: Option<&'a ProcessTap>,
+    next: u64,
+}
+
+impl<'a> ProcessTapper<'a> {
+    pub(super) fn new(published: &'a Published) -> ProcessTapper<'a> {
+        ProcessTapper {
+            tap: published.process.get(),
+            next: 0,
+        }
+    }
+
+    /// Queues the process as it stands after `tick`, when a point is due: running totals,
+    /// so a point the supervisor thins away loses nothing.
+    #[inline]
+    pub(super) fn offer(&mut self, tick: u64, fine: &Interpolator) {
+        let Some(tap) = self.tap.filter(|_| tick >= self.next) else {
+            return;
+        };
+        let process = fine.process();
+        tap.queue.push(ProcessPoint {
+            tick,
+            path_mm: fine.path_mm(),
+            pulses: process.pulse_totals().0,
+            off_time_us: process.generator().off_time_us,
+            height_mm: process.adaptive().map_or(f64::NAN, |a| a.height_mm),
+        });
+        self.next = tick + tap.every_ticks;
     }
 }

@@ -221,6 +221,16 @@ impl Daemon {
         reply
     }
 
+    /// `edmd ctl status` as the operator reads it (text).
+    pub fn status_text(&self) -> String {
+        let out = Command::new(env!("CARGO_BIN_EXE_edmd"))
+            .args(["ctl", "status", "--socket"])
+            .arg(&self.socket)
+            .output()
+            .expect("edmd ctl runs");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
     pub fn status(&self) -> Value {
         self.ok(&["status"])["status"].clone()
     }

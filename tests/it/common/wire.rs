@@ -71,6 +71,24 @@ pub fn outside_punch(p: &(i64, i64)) -> i64 {
     ((dx * dx + dy * dy) as f64).sqrt().round() as i64
 }
 
+/// Each pass `(condition, offset_um, direction)` of `by` (the walks by condition) as
+/// [`assert_pass`] holds it.
+pub fn assert_passes(
+    by: &BTreeMap<u16, Walk>,
+    passes: &[(u16, i64, f64)],
+    distance: &dyn Fn(&(i64, i64)) -> i64,
+) {
+    for &(condition, offset_um, direction) in passes {
+        assert_pass(
+            &format!("E{condition}"),
+            &by[&condition],
+            distance,
+            offset_um,
+            direction,
+        );
+    }
+}
+
 /// One pass's walk lies `offset_um` from the part's contour (`distance`, on the scrap side)
 /// along the contour (away from the entry and exit line at X0): to the step on the straight
 /// edges, within the chord tolerance (1 µm) and a step's rounding on corner arcs; and it
