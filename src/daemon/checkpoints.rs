@@ -41,11 +41,26 @@ pub(super) fn parked_path(checkpoint: &Path) -> PathBuf {
 
 impl CheckpointKeeper {
     /// A new program job starts (not a resume): the stopped job's checkpoint is kept aside
-    /// for a later resume, not replaced. Refused while one is kept aside already.
-    pub(super) fn park(&mut self, checkpoint: &Path) -> Result<Option<String>, Refusal> {
+    /// for a later resume, not replaced; refused while one is kept aside already. The same
+    /// program (`sha256`) started again from its start replaces it, as a new run of it
+    /// supersedes the old one. The program kept aside, if one was.
+    pub(super) fn park(
+        &mut self,
+        checkpoint: &Path,
+        sha256: &str,
+    ) -> Result<Option<String>, Refusal> {
         let Some(current) = self.current.take() else {
             return Ok(None);
         };
+        if current.program_sha256 == sha256 {
+            tracing::warn!(
+                "checkpoint of {} (line {}) replaced: the same program starts again",
+                current.program.display(),
+                current.line
+            );
+            self.current = Some(current);
+            return Ok(None);
+        }
         if let Some(kept) = &self.parked {
             let error = Refusal::BothKept {
                 kept: kept.program.display().to_string(),
@@ -61,6 +76,7 @@ impl CheckpointKeeper {
             // Not moved aside: it stays the checkpoint, and the new job's write-ahead
             // replaces it, as before keeping existed.
             tracing::error!("{}: cannot keep it aside ({e})", checkpoint.display());
+            self.current = Some(current);
             return Ok(None);
         }
         tracing::info!(

@@ -570,7 +570,7 @@ impl Core {
         self.machine.save(true).map_err(super::desk::unwritten)?;
         let checkpoint_path = self.config.daemon.checkpoint.clone();
         let kept = match !resumed && kind == JobKind::Program {
-            true => self.checkpoints.park(&checkpoint_path)?,
+            true => self.checkpoints.park(&checkpoint_path, &program.sha256)?,
             false => None,
         };
         if let Err(error) = self.checkpoints.write(&job, &at, Reason::Moving, false) {

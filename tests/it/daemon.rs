@@ -1308,14 +1308,19 @@ fn ctl_run_wait_end_returns_at_the_jobs_end_with_its_outcome() {
 }
 
 /// An aborted job's checkpoint outlives another program's job: kept aside while it runs, the
-/// checkpoint again once it is done, resumed then to the aborted job's end. A third job is
-/// refused while two stopped jobs wait; `discard` asks for a confirmation and brings the
-/// kept one back.
+/// checkpoint again once it is done, resumed then to the aborted job's end. A third program
+/// is refused while two stopped jobs wait (the same program started again replaces its own);
+/// `discard` asks for a confirmation and brings the kept one back.
 #[test]
 fn an_aborted_jobs_checkpoint_is_kept_across_another_job_until_discarded() {
     let dir = scratch("kept-checkpoint");
     let _ = std::fs::remove_file(dir.join("machine-state.json"));
     std::fs::write(dir.join("programs/contour.ngc"), CONTOUR).unwrap();
+    std::fs::write(
+        dir.join("programs/other.ngc"),
+        format!("(other)\n{CONTOUR}"),
+    )
+    .unwrap();
     let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
     daemon.ok(&["run", PROGRAM]);
     daemon.wait_for("moving", is_moving);
@@ -1348,7 +1353,7 @@ fn an_aborted_jobs_checkpoint_is_kept_across_another_job_until_discarded() {
     daemon.ok(&["run", "contour.ngc"]);
     daemon.wait_for("moving", is_moving);
     daemon.hold_abort_checkpoint(&dir);
-    daemon.refused(&["run", "contour.ngc"], "are both resumable");
+    daemon.refused(&["run", "other.ngc"], "are both resumable");
     // Discard asks for a confirmation, then brings the kept checkpoint back.
     daemon.refused(&["discard"], "cannot be undone");
     let reply = daemon.ok(&["discard", "--yes"]);
