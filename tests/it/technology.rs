@@ -540,45 +540,26 @@ fn a_run_from_a_line_cuts_in_the_pass_it_is_in_then_the_later_passes_whole() {
     assert_eq!(record["from_pass"], 1, "{record}");
 
     // What cannot be cut so is refused before anything moves.
-    let refused = |args: &[&str], needle: &str| {
-        let (reply, code) = daemon.ctl(args);
+    for (program, pass, needle) in [
+        (
+            "die.ngc",
+            "2",
+            "pass 2 runs the contour the other way round",
+        ),
+        ("die.ngc", "4", "pass 4: the job cuts 3 passes"),
+        ("plain.ngc", "2", "the job is not cut in passes"),
+    ] {
+        let args = [
+            "run",
+            program,
+            "--from-line",
+            "8",
+            "--pass",
+            pass,
+            "--force",
+        ];
+        let (reply, code) = daemon.ctl(&args);
         assert_eq!(code, 1, "{reply}");
         assert!(reply.to_string().contains(needle), "{args:?}: {reply}");
-    };
-    refused(
-        &[
-            "run",
-            "die.ngc",
-            "--from-line",
-            "8",
-            "--pass",
-            "2",
-            "--force",
-        ],
-        "pass 2 runs the contour the other way round",
-    );
-    refused(
-        &[
-            "run",
-            "die.ngc",
-            "--from-line",
-            "8",
-            "--pass",
-            "4",
-            "--force",
-        ],
-        "pass 4: the job cuts 3 passes",
-    );
-    refused(
-        &[
-            "run",
-            "plain.ngc",
-            "--from-line",
-            "8",
-            "--pass",
-            "2",
-            "--force",
-        ],
-        "the job is not cut in passes",
-    );
+    }
 }
