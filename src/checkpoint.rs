@@ -142,10 +142,21 @@ pub struct Checkpoint {
     /// The tab those passes left (mm; 0: none).
     #[serde(default, skip_serializing_if = "no_tab")]
     pub tab_mm: f64,
+    /// A run from a line that recovered a stopped job: where that job stopped (machine mm,
+    /// per axis), so a resume replays the same approach along its kerf. Empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub kerf_end_mm: Vec<f64>,
     /// The technology it was cut with (the request, `material=steel height=32 wire=0.25`):
     /// a resume selects it again, and is refused if the table no longer gives its passes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub technology: Option<String>,
+}
+
+/// [`Checkpoint::kerf_end_mm`] of a job that cuts `cut` on a machine of `axes` axes.
+pub fn kerf_end_record(cut: &crate::path::CutPlan, axes: usize) -> Vec<f64> {
+    cut.kerf_end
+        .map(|p| p.iter().take(axes).copied().collect())
+        .unwrap_or_default()
 }
 
 fn no_tab(tab_mm: &f64) -> bool {
@@ -233,6 +244,18 @@ pub enum CheckpointError {
 }
 
 impl Checkpoint {
+    /// [`Self::kerf_end_mm`] as a point, `None` where the job recovered none.
+    pub fn kerf_end(&self) -> Option<crate::geometry::Point> {
+        (!self.kerf_end_mm.is_empty()).then(|| {
+            crate::geometry::Point::from_fn(|i, _| self.kerf_end_mm.get(i).copied().unwrap_or(0.0))
+        })
+    }
+
+    /// Where the job stopped, as a point (machine mm).
+    pub fn stopped_at(&self) -> crate::geometry::Point {
+        crate::geometry::Point::from_fn(|i, _| self.position_mm.get(i).copied().unwrap_or(0.0))
+    }
+
     /// Writes the checkpoint atomically (temporary file, fsync, rename, directory fsync).
     pub fn write_atomic(&self, path: &Path) -> std::io::Result<()> {
         let mut json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
@@ -422,6 +445,7 @@ mod tests {
             from_line: None,
             passes: Vec::new(),
             tab_mm: 0.0,
+            kerf_end_mm: Vec::new(),
             technology: None,
         }
     }

@@ -51,6 +51,11 @@ pub(super) enum CtlCommand {
         /// [default: direct where machine.safe_z_mm is set, path otherwise]
         #[arg(long, value_parser = parse_approach, requires = "from_line")]
         approach: Option<crate::path::Approach>,
+        /// Where the wire stands, for a run from a line by the path (asked, never assumed):
+        /// start-hole (the program's start hole: the approach runs the kerf forward) or
+        /// stopped (where this program's stopped job stopped: it runs the kerf backwards)
+        #[arg(long, value_parser = parse_wire_at, requires = "from_line")]
+        wire_at: Option<crate::path::WireAt>,
         /// In a job in passes (a technology's, or --passes): the pass the line is cut in,
         /// from 1 [default: 1]; the later passes are cut whole after it
         #[arg(long, value_name = "K", requires = "from_line")]
@@ -338,6 +343,12 @@ pub(super) fn parse_approach(text: &str) -> Result<crate::path::Approach, String
         .ok_or_else(|| format!("{text:?}: the approach is path or direct"))
 }
 
+/// `--wire-at start-hole|stopped`.
+fn parse_wire_at(text: &str) -> Result<crate::path::WireAt, String> {
+    crate::path::WireAt::parse(text)
+        .ok_or_else(|| format!("{text:?}: the wire stands at the start-hole or where it stopped"))
+}
+
 /// The request a `ctl` command sends, and whether `ctl` waits for the check it starts.
 fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) {
     use crate::daemon::protocol::Request;
@@ -348,6 +359,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             dry_run,
             from_line,
             approach,
+            wire_at,
             pass,
             passes,
             technology,
@@ -360,6 +372,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
                 dry_run: *dry_run,
                 from_line: *from_line,
                 approach: *approach,
+                wire_at: *wire_at,
                 passes: *passes,
                 technology: technology.clone(),
                 force: *force,

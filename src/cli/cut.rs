@@ -109,7 +109,7 @@ fn passes_plan(cfg: &Config, passes: Option<usize>) -> Result<crate::path::CutPl
         from_line: None,
         passes,
         tab_mm,
-        dry_run_feed_mm_per_min: None,
+        ..Default::default()
     })
 }
 
@@ -132,6 +132,8 @@ impl RunArgs {
         self.from_line.map(|line| crate::path::FromLine {
             line,
             pass: None,
+            // `edmd run` starts where the program starts: it knows no stopped job.
+            wire_at: crate::path::WireAt::StartHole,
             approach: self
                 .approach
                 .unwrap_or(crate::path::Approach::default_for(cfg.machine.safe_z_mm)),

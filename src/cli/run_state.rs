@@ -129,6 +129,7 @@ pub(super) fn write_run_checkpoint(
         from_line: job.cut.from_line,
         passes: job.cut.passes.clone(),
         tab_mm: job.cut.tab_mm,
+        kerf_end_mm: checkpoint::kerf_end_record(&job.cut, cfg.machine.axes.len()),
         technology: job.technology.as_ref().map(|t| t.request.text()),
     };
     cp.write_atomic(path)

@@ -89,6 +89,14 @@ impl CheckpointKeeper {
         Ok(Some(program))
     }
 
+    /// The stopped job of `program` (as the operator names it), current or kept aside.
+    pub(super) fn of_program(&self, program: &Path) -> Option<&Checkpoint> {
+        [&self.current, &self.parked]
+            .into_iter()
+            .flatten()
+            .find(|cp| cp.program == program)
+    }
+
     /// No checkpoint is current (a job ended done, one was discarded): the one kept aside is
     /// the checkpoint again.
     pub(super) fn unpark(&mut self, checkpoint: &Path) {
@@ -283,6 +291,7 @@ impl CheckpointKeeper {
             from_line: job.cut.from_line,
             passes: job.cut.passes.clone(),
             tab_mm: job.cut.tab_mm,
+            kerf_end_mm: checkpoint::kerf_end_record(&job.cut, axes),
             technology: job.technology.as_ref().map(|t| t.request.text()),
         };
         let path = &job.config.daemon.checkpoint;

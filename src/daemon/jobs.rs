@@ -246,12 +246,14 @@ impl Core {
             }),
             start,
             kind: JobKind::Program,
+            recovers: None,
             cut: crate::path::CutPlan {
                 from_line: cp.from_line,
                 passes: cp.passes.clone(),
                 tab_mm: cp.tab_mm,
                 // A dry run keeps no checkpoint.
                 dry_run_feed_mm_per_min: None,
+                kerf_end: cp.kerf_end(),
             },
         };
         let id = self.begin_check(source, Some(resume), launch);

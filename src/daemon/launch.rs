@@ -75,6 +75,9 @@ pub(super) struct Launch {
     pub cut: crate::path::CutPlan,
     /// The technology it cuts with: asked for, then selected by the check.
     pub technology: JobTechnology,
+    /// A run from a line along a stopped job's kerf: that job's program (SHA-256), which the
+    /// program checked must still be.
+    pub recovers: Option<String>,
 }
 
 /// A job's technology, before and after its check.
@@ -188,6 +191,15 @@ pub(super) fn copy_and_check(
             found: program.sha256,
         }
         .into());
+    }
+    if let Some(expected) = &launch.recovers
+        && program.sha256 != *expected
+    {
+        return Err(CheckRefusal::KerfOfAnother {
+            program: program.name,
+            expected: expected.clone(),
+            found: program.sha256,
+        });
     }
     let mut config = config.clone();
     if let JobTechnology::Ask(ask) = std::mem::take(&mut launch.technology) {

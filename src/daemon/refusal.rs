@@ -55,6 +55,18 @@ pub enum CheckRefusal {
     /// Its passes cannot be cut.
     #[error(transparent)]
     Passes(#[from] crate::path::PassError),
+    /// A run from a line that follows a stopped job's kerf, of a program changed since.
+    #[error(
+        "{program}: the program changed since its job stopped (SHA-256 {found:.12}…, the \
+         stopped job cut {expected:.12}…): the kerf is not this program's path, so a run from \
+         a line cannot follow it. Restore the program, or discard the stopped job and start \
+         with the wire at the start hole"
+    )]
+    KerfOfAnother {
+        program: String,
+        expected: String,
+        found: String,
+    },
 }
 
 impl From<JobError> for CheckRefusal {
@@ -173,6 +185,46 @@ pub enum Refusal {
          or run a program that sets its own taper"
     )]
     Leaning { at: String },
+    #[error(
+        "a run from a line by the path starts from where the wire stands ({at}): say where \
+         that is. --wire-at start-hole: at the program's start hole; --wire-at stopped: where \
+         the stopped job of this program stopped, in its kerf"
+    )]
+    WireAtUnsaid { at: String },
+    #[error(
+        "{program}: the wire stands at {at}, not at the start hole {start_hole} where its \
+         stopped job started. {}",
+        if *stopped_here {
+            "It stands where that job stopped: run with --wire-at stopped (the approach goes \
+             back along the kerf)"
+        } else {
+            "Bring it to the start hole along the kerf (jog), or to where the job stopped and \
+             run with --wire-at stopped"
+        }
+    )]
+    NotAtStartHole {
+        program: String,
+        at: String,
+        start_hole: String,
+        stopped_here: bool,
+    },
+    #[error(
+        "{program}: --wire-at stopped, but no stopped job of it is kept (no checkpoint), so \
+         where its kerf runs is not known: bring the wire to the start hole and run with \
+         --wire-at start-hole"
+    )]
+    NoStoppedJob { program: String },
+    #[error(
+        "{program}: the wire stands at {at}, not where its job stopped ({stopped}, line \
+         {line}): jog it back there along the kerf, or to the start hole and run with \
+         --wire-at start-hole"
+    )]
+    NotWhereItStopped {
+        program: String,
+        at: String,
+        stopped: String,
+        line: u64,
+    },
 }
 
 // The large errors travel boxed: a refusal is returned on every command's path.

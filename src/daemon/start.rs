@@ -124,6 +124,8 @@ pub(super) struct RunAsk<'a> {
     pub dry_run: bool,
     pub from_line: Option<u64>,
     pub approach: Option<crate::path::Approach>,
+    /// Where the wire stands, as the operator says, for a run from a line by the path.
+    pub wire_at: Option<crate::path::WireAt>,
     /// The pass a run from a line cuts its line in.
     pub pass: Option<u8>,
     pub passes: Option<usize>,
@@ -187,6 +189,7 @@ impl Core {
             dry_run,
             from_line,
             approach,
+            wire_at,
             pass,
             passes,
             technology,
@@ -195,9 +198,13 @@ impl Core {
         self.refuse_if_busy()?;
         self.desk().refuse_if_tripped(None)?;
         self.desk().refuse_if_unhomed()?;
-        let from_line = self
-            .run_from_line(dry_run, from_line, approach)?
-            .map(|f| crate::path::FromLine { pass, ..f });
+        let from_line =
+            self.run_from_line(dry_run, from_line, approach)?
+                .map(|f| crate::path::FromLine {
+                    pass,
+                    wire_at: wire_at.unwrap_or_default(),
+                    ..f
+                });
         if pass.is_some() && from_line.is_none() {
             return Err(Refusal::BadArgument(
                 "a pass is for a run from a line: give from_line too (a whole job cuts every \
@@ -246,13 +253,15 @@ impl Core {
             self.config.wire.tab_mm
         };
 
+        let program = confine(&self.config.daemon.program_dir, requested)?;
+        let recovery = self.recovery(&program, from_line.as_ref(), wire_at)?;
         let cut = crate::path::CutPlan {
             from_line,
             passes,
             tab_mm,
             dry_run_feed_mm_per_min: dry_run.then_some(self.config.machine.dry_run_feed_mm_per_min),
+            kerf_end: recovery.kerf_end,
         };
-        let program = confine(&self.config.daemon.program_dir, requested)?;
         let with = asked
             .as_ref()
             .map(|r| format!(" with the technology {}", r.text()))
@@ -264,17 +273,18 @@ impl Core {
                 resume: false,
                 tables: self.technology.clone(),
             }),
-            start: self.machine.state.work_start(),
+            start: recovery.start,
             kind: if dry_run {
                 JobKind::DryRun
             } else {
                 JobKind::Program
             },
             cut: cut.clone(),
+            recovers: recovery.sha256,
         };
         let id = self.begin_check(Source::Original(program.clone()), None, launch);
         let from = match (cut.from_line, cut.passes.len()) {
-            (Some(f), _) => format!(" from {} ({} approach)", f.text(), f.approach.name()),
+            (Some(f), _) => format!(" from {} ({})", f.text(), f.approach_text()),
             (None, 0) => String::new(),
             (None, n) => format!(" in {n} passes"),
         };
@@ -283,6 +293,31 @@ impl Core {
              passes",
             program.display()
         ))
+    }
+
+    /// Where a run from a line starts, as [`Desk::recovery`] holds the operator's word to
+    /// the stopped job of the program, if one is kept; a whole job starts here.
+    fn recovery(
+        &self,
+        program: &std::path::Path,
+        from: Option<&crate::path::FromLine>,
+        wire_at: Option<crate::path::WireAt>,
+    ) -> Result<super::desk::Recovery, Refusal> {
+        let Some(from) = from else {
+            if wire_at.is_some() {
+                return Err(Refusal::BadArgument(
+                    "where the wire stands is for a run from a line: give from_line too".into(),
+                ));
+            }
+            return Ok(super::desk::Recovery {
+                start: self.machine.state.work_start(),
+                kerf_end: None,
+                sha256: None,
+            });
+        };
+        let stopped = self.checkpoints.of_program(program);
+        self.desk()
+            .recovery(&program.display().to_string(), from, wire_at, stopped)
     }
 
     /// The run-from-line of a `run` request: a line from 1, an approach only with a line,
@@ -319,6 +354,7 @@ impl Core {
             line,
             approach,
             pass: None,
+            wire_at: Default::default(),
         }))
     }
 
@@ -610,11 +646,7 @@ impl Core {
             .map_err(Refusal::JobThread)?;
         self.jobs.job = Some(job);
         let message = match from_line {
-            Some(f) => format!(
-                " from {} (the approach: {}){message}",
-                f.text(),
-                f.approach.name()
-            ),
+            Some(f) => format!(" from {} ({}){message}", f.text(), f.approach_text()),
             None => message,
         };
         Ok(started(&program.name, blocks, resumed, kind, &message))

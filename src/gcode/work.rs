@@ -143,6 +143,18 @@ impl WorkStart {
     pub fn to_work(&self, machine: &Point) -> Point {
         machine - self.offsets.get(self.system)
     }
+
+    /// `X1.2000 Y-3.0000 (G54)`: the machine point `machine` as the program reads it in the
+    /// active system, for a machine with `axes`.
+    pub fn text_of(&self, machine: &Point, axes: &[crate::vocab::Axis]) -> String {
+        let work = self.to_work(machine);
+        let axes: Vec<String> = axes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| format!("{}{:.4}", a.letter(), work[i]))
+            .collect();
+        format!("{} ({})", axes.join(" "), self.system.name())
+    }
 }
 
 #[cfg(test)]

@@ -25,8 +25,25 @@
 //! that is the program's first move starts the program itself: CAM posts write `G41 D1` on
 //! the first move, and a line at or before it runs the whole program.
 //!
-//! Both approaches are a pure function of the program, the line and the job's start, so a
-//! checkpoint that records the line and the approach resumes into the very same block
+//! **Recovering a stopped job.** A wire stands in the kerf it cut, and the only way back into
+//! the work is that kerf. The operator says where the wire stands ([`WireAt`]); where a job
+//! of the same program stopped, the daemon knows the kerf ends there ([`ApproachPlan::kerf_end`]):
+//!
+//! ```text
+//!  WireAt::StartHole  start hole ══ kerf, spark off ══► N ─ cut ─►      (N before the stop)
+//!  WireAt::Stopped    N ◄══ kerf run backwards, spark off ══ stop;  N ─ cut ─► stop ─ cut ─►
+//! ```
+//!
+//! From the start hole the path approach runs the kerf forward, so line N must start at or
+//! before where the job stopped: past it the path crosses uncut material, and the run is
+//! refused ([`FromLineError::PastTheStop`]). From where it stopped the wire runs the kerf
+//! backwards: the blocks from N's start to the stop are held until the one the wire stands
+//! on is met, then handed on reversed and spark off (the block in hand only up to where the
+//! wire stands), then forward as the cut. A wire that stands on no block from N on is
+//! refused ([`FromLineError::WireOffPath`]): the way back is not a kerf the program cut.
+//!
+//! Every approach is a pure function of the program, the line, the job's start and where
+//! the kerf ends, so a checkpoint that records them resumes into the very same block
 //! sequence (and an approach it interrupted goes on as an approach, never as a cut).
 
 use serde::{Deserialize, Serialize};
@@ -34,9 +51,14 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 
 use super::{Stage, StageError};
-use crate::gcode::{Block, BlockKind, Travel};
+use crate::gcode::{Block, BlockKind, Travel, WorkStart};
 use crate::geometry::{NurbsCurve, Point};
 use crate::vocab::Axis;
+
+/// How far (mm) where the wire stands may lie from a block and still be on it: the executed
+/// path is the lattice's, within a step and the chord tolerance of the programmed curve,
+/// while passes lie tens of micrometres apart and a kerf is a few hundred wide.
+pub const ON_PATH_MM: f64 = 0.01;
 
 /// Where a job run from a line starts cutting, and how the machine gets there.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -49,9 +71,50 @@ pub struct FromLine {
     /// then every later pass whole. `None` without passes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pass: Option<u8>,
+    /// Where the wire stands as the run starts (the operator confirms it).
+    #[serde(default)]
+    pub wire_at: WireAt,
+}
+
+/// Where the wire stands when a run from a line starts: what the operator confirms.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WireAt {
+    /// At the program's start hole (where the job starts): the approach runs the path
+    /// forward from there.
+    #[default]
+    StartHole,
+    /// Where a stopped job of the same program stopped, in its kerf: the approach runs the
+    /// kerf backwards to the line.
+    Stopped,
+}
+
+impl WireAt {
+    pub const ALL: [WireAt; 2] = [WireAt::StartHole, WireAt::Stopped];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            WireAt::StartHole => "start-hole",
+            WireAt::Stopped => "stopped",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<WireAt> {
+        WireAt::ALL.into_iter().find(|w| w.name() == text)
+    }
 }
 
 impl FromLine {
+    /// How the machine gets there, as the operator is told: "the path approach from the
+    /// start hole", "back along the kerf from where the job stopped", "the direct approach".
+    pub fn approach_text(&self) -> &'static str {
+        match (self.approach, self.wire_at) {
+            (Approach::Direct, _) => "the direct approach",
+            (Approach::Path, WireAt::StartHole) => "the path approach from the start hole",
+            (Approach::Path, WireAt::Stopped) => "back along the kerf from where the job stopped",
+        }
+    }
+
     /// Where the cut starts, as the operator is told: "line 8", "line 8 in pass 2".
     pub fn text(&self) -> String {
         match self.pass {
@@ -121,6 +184,30 @@ pub enum FromLineError {
     },
     #[error("{program}:{line}:1: no move at or after line {line} to start from")]
     NoMove { program: String, line: u64 },
+    #[error(
+        "{program}:{line}:1: line {line} starts past where the job stopped (line \
+         {stopped_line}, {stopped_at}): the material between is uncut and the wire cannot \
+         cross it; run from line {stopped_line} or before, or `resume` the stopped job"
+    )]
+    PastTheStop {
+        program: String,
+        line: u64,
+        stopped_line: u64,
+        /// Where it stopped, in the work system the job starts in.
+        stopped_at: String,
+    },
+    #[error(
+        "{program}:{line}:1: the wire stands at {at}, on no move of the path from line {line} \
+         on (within {ON_PATH_MM} mm): the way back to the line is not a kerf the program cut. \
+         Run from a line the job cut before it stopped, in the pass it stopped in; or bring \
+         the wire to the start hole along the kerf and say so (--wire-at start-hole)"
+    )]
+    WireOffPath {
+        program: String,
+        line: u64,
+        /// Where the wire stands, in the work system the job starts in.
+        at: String,
+    },
 }
 
 /// What to do with a block of a job run from a line.
@@ -134,14 +221,27 @@ pub enum Route {
     Cut,
 }
 
-/// What the approach needs besides the program: where the job starts (machine mm), the
-/// machine's axes, the safe height a direct approach crosses at, and the approach's feed.
+/// What the approach needs besides the program: where the machine stands as the job starts
+/// (machine mm), the machine's axes, the safe height a direct approach crosses at, the
+/// approach's feed, and where a stopped job's kerf ends.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ApproachPlan {
     pub origin: Point,
     pub axes: Vec<Axis>,
     pub safe_z_mm: Option<f64>,
     pub feed_mm_per_min: f64,
+    /// Where a stopped job of this program stopped (machine mm): the kerf it cut ends there.
+    /// `None`: no such job is known (the approach trusts the operator).
+    pub kerf_end: Option<Point>,
+    /// The job's start, to say points in the work system the program is written in.
+    pub work: WorkStart,
+}
+
+impl ApproachPlan {
+    /// `X1.2000 Y-3.0000 (G54)`: a machine point as the program's work system has it.
+    fn work_text(&self, at: &Point) -> String {
+        self.work.text_of(at, &self.axes)
+    }
 }
 
 /// The run-from-line stage: sorts a program's blocks, in execution order, into before and
@@ -161,6 +261,12 @@ pub struct Gate {
     /// Path the approach left out and not yet told (mm; the direct approach's own moves
     /// count against it): progress and placed debris stay where a full run has them.
     skipped_mm: f64,
+    /// The line of a move before the line that the kerf ends inside: the line starts past
+    /// the stop.
+    stopped_before: Option<u64>,
+    /// From where it stopped: the cut's blocks from the line's start, held until the one the
+    /// wire stands on (`None` once met).
+    held: Option<Vec<Block>>,
 }
 
 impl Gate {
@@ -174,6 +280,8 @@ impl Gate {
             entry_refused: None,
             approach,
             skipped_mm: 0.0,
+            stopped_before: None,
+            held: None,
         }
     }
 
@@ -205,6 +313,7 @@ impl Gate {
                 });
             }
             self.skipped_any = true;
+            self.note_stop_before(block);
             return Ok(Route::Before);
         }
         // The program's first move starts the program: from line 1, whatever the entry.
@@ -213,8 +322,30 @@ impl Gate {
             self.entry_refused = Some(block.line);
             return Ok(Route::Before);
         }
+        if let (Some(stopped_line), Some(end)) = (self.stopped_before, &self.approach.kerf_end) {
+            return Err(FromLineError::PastTheStop {
+                program: self.program.clone(),
+                line: self.from.line,
+                stopped_line,
+                stopped_at: self.approach.work_text(end),
+            });
+        }
         self.reached = true;
         Ok(Route::First)
+    }
+
+    /// A move before the line: the kerf ending inside it (short of its end) means the line
+    /// starts where nothing was cut. The first such move counts.
+    fn note_stop_before(&mut self, block: &Block) {
+        let Some(end) = &self.approach.kerf_end else {
+            return;
+        };
+        if self.stopped_before.is_none()
+            && locate(&block.curve, end).is_some()
+            && (block.end() - end).norm() > ON_PATH_MM
+        {
+            self.stopped_before = Some(block.line);
+        }
     }
 
     /// At the program's end: the line was reached.
@@ -226,22 +357,55 @@ impl Gate {
                 next: None,
             });
         }
-        if self.reached {
-            Ok(())
-        } else {
-            Err(FromLineError::NoMove {
+        if !self.reached {
+            return Err(FromLineError::NoMove {
                 program: self.program.clone(),
                 line: self.from.line,
-            })
+            });
         }
+        if self.held.is_some() {
+            return Err(FromLineError::WireOffPath {
+                program: self.program.clone(),
+                line: self.from.line,
+                at: self.approach.work_text(&self.approach.origin),
+            });
+        }
+        Ok(())
+    }
+
+    /// From where it stopped: holds `block`, a block of the cut, until the wire stands on
+    /// one; then hands on the way back (the held blocks reversed, spark off) and the held
+    /// blocks as cut.
+    fn hold(&mut self, block: Block, out: &mut VecDeque<Block>) {
+        let held = self.held.get_or_insert_with(Vec::new);
+        let on = locate(&block.curve, &self.approach.origin);
+        held.push(block);
+        let Some(u) = on else {
+            return;
+        };
+        let held = self.held.take().expect("held");
+        let back = retrace(&held, u, self.approach.feed_mm_per_min);
+        self.skipped_mm -= back.iter().map(|b| b.curve.length()).sum::<f64>();
+        out.extend(back);
+        out.extend(held);
     }
 }
 
 impl Stage for Gate {
     fn push(&mut self, block: Block, out: &mut VecDeque<Block>) -> Result<(), StageError> {
-        let direct = self.from.approach == Approach::Direct;
         let feed = self.approach.feed_mm_per_min;
-        match (self.admit(&block)?, direct) {
+        let route = self.admit(&block)?;
+        if self.from.wire_at == WireAt::Stopped {
+            match route {
+                Route::Before => self.skipped_mm += block.curve.length(),
+                Route::First => self.hold(block, out),
+                Route::Cut if self.held.is_some() => self.hold(block, out),
+                Route::Cut => out.push_back(block),
+            }
+            return Ok(());
+        }
+        let direct = self.from.approach == Approach::Direct;
+        match (route, direct) {
             (Route::Cut, _) | (Route::First, false) => out.push_back(block),
             (Route::Before, true) => self.skipped_mm += block.curve.length(),
             (Route::Before, false) => out.push_back(path_approach(block, feed)),
@@ -259,6 +423,75 @@ impl Stage for Gate {
     fn finish(&mut self, _: &mut VecDeque<Block>) -> Result<(), StageError> {
         Ok(self.finished()?)
     }
+}
+
+/// The parameter of `curve` at the point `at`, if `at` lies on it within [`ON_PATH_MM`].
+/// The curve lies in its control points' hull (the box is cheap and rules most blocks out);
+/// samples find the nearest stretch, a golden-section search the point in it.
+pub fn locate(curve: &NurbsCurve, at: &Point) -> Option<f64> {
+    let n = curve.num_points();
+    let outside = (0..curve.dim()).any(|i| {
+        let (lo, hi) = (0..n)
+            .map(|k| curve.control_point(k)[i])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(c), hi.max(c))
+            });
+        at[i] < lo - ON_PATH_MM || at[i] > hi + ON_PATH_MM
+    });
+    if outside {
+        return None;
+    }
+    let (a, b) = (curve.u_min(), curve.u_max());
+    let distance = |u: f64| (curve.point(u) - at).norm();
+    let samples = 32 * n;
+    let u_of = |k: usize| a + (b - a) * k as f64 / samples as f64;
+    let nearest = (0..=samples)
+        .min_by(|&i, &j| distance(u_of(i)).total_cmp(&distance(u_of(j))))
+        .expect("samples");
+    let (mut lo, mut hi) = (
+        u_of(nearest.saturating_sub(1)),
+        u_of((nearest + 1).min(samples)),
+    );
+    const PHI: f64 = 0.618_033_988_749_895;
+    for _ in 0..60 {
+        let (m1, m2) = (hi - PHI * (hi - lo), lo + PHI * (hi - lo));
+        if distance(m1) < distance(m2) {
+            hi = m2;
+        } else {
+            lo = m1;
+        }
+    }
+    let u = 0.5 * (lo + hi);
+    (distance(u) <= ON_PATH_MM).then_some(u)
+}
+
+/// The way back along `held` (the cut's blocks from the line's start, the wire on the last
+/// at parameter `u`): the last up to `u`, then the others, each reversed, last first, as the
+/// path approach moves them.
+fn retrace(held: &[Block], u: f64, feed_mm_per_min: f64) -> Vec<Block> {
+    let Some((last, before)) = held.split_last() else {
+        return Vec::new();
+    };
+    let mm = last.curve.length_between(last.curve.u_min(), u);
+    // Within the tolerance of either end the wire stands at that end.
+    let cut_of_last = if mm <= ON_PATH_MM {
+        None
+    } else if last.curve.length() - mm <= ON_PATH_MM {
+        Some(last.clone())
+    } else {
+        last.split_at_length(mm).map(|(cut, _)| cut)
+    };
+    cut_of_last
+        .iter()
+        .chain(before.iter().rev())
+        .map(|b| {
+            let mut back = b.reversed();
+            if matches!(back.kind, BlockKind::Probe(_)) {
+                back.kind = BlockKind::Line;
+            }
+            path_approach(back, feed_mm_per_min)
+        })
+        .collect()
 }
 
 /// A block before the line as the path approach moves it: the same geometry, spark off, at
@@ -347,7 +580,132 @@ mod tests {
             axes: vec![Axis::X, Axis::Y, Axis::Z],
             safe_z_mm: None,
             feed_mm_per_min: 60.0,
+            kerf_end: None,
+            work: WorkStart::default(),
         }
+    }
+
+    /// A die from the start hole at the origin: line 3 the entry to (0,-2), then round the
+    /// 4 mm square (lines 4 to 8) and back out (line 9).
+    fn die() -> Vec<Block> {
+        let corners = [
+            [0.0, 0.0],
+            [0.0, -2.0],
+            [2.0, -2.0],
+            [2.0, 2.0],
+            [-2.0, 2.0],
+            [-2.0, -2.0],
+            [0.0, -2.0],
+            [0.0, 0.0],
+        ];
+        corners
+            .windows(2)
+            .zip(3..)
+            .map(|(w, n)| {
+                line(
+                    n,
+                    [w[0][0], w[0][1], 0.0],
+                    [w[1][0], w[1][1], 0.0],
+                    BlockKind::Line,
+                )
+            })
+            .collect()
+    }
+
+    fn at(x: f64, y: f64) -> Point {
+        Point::from_fn(|i, _| [x, y].get(i).copied().unwrap_or(0.0))
+    }
+
+    /// The die through a gate from `line`, the wire at `wire_at`, the kerf ending at `end`.
+    fn through(line: u64, wire_at: WireAt, end: Point) -> Result<(Vec<Block>, f64), String> {
+        let from = FromLine {
+            line,
+            approach: Approach::Path,
+            pass: None,
+            wire_at,
+        };
+        let origin = match wire_at {
+            WireAt::StartHole => Point::zeros(),
+            WireAt::Stopped => end,
+        };
+        let approach = ApproachPlan {
+            origin,
+            kerf_end: Some(end),
+            ..plan()
+        };
+        let mut gate = Gate::new(from, "die.ngc", approach);
+        let mut out = VecDeque::new();
+        let said = |e: StageError| match e {
+            StageError::Job(e) => e.to_string(),
+            other => format!("{other:?}"),
+        };
+        for block in die() {
+            gate.push(block, &mut out).map_err(said)?;
+        }
+        gate.finish(&mut out).map_err(said)?;
+        Ok((out.into(), gate.take_skipped_mm()))
+    }
+
+    fn ends(blocks: &[Block]) -> Vec<[f64; 2]> {
+        blocks.iter().map(|b| [b.end()[0], b.end()[1]]).collect()
+    }
+
+    #[test]
+    fn from_where_it_stopped_the_wire_goes_back_along_the_kerf_then_cuts_on() {
+        // Stopped at (2, 1), part-way up line 5; run from line 4.
+        let (out, skipped) = through(4, WireAt::Stopped, at(2.0, 1.0)).unwrap();
+        let back: Vec<&Block> = out.iter().take_while(|b| b.spark_off.is_some()).collect();
+        assert_eq!(back.len(), 2, "{:?}", ends(&out));
+        assert!(
+            (back[0].start() - at(2.0, 1.0)).norm() < 1e-9,
+            "from where it stands"
+        );
+        assert_eq!(ends(&out[..2]), vec![[2.0, -2.0], [0.0, -2.0]]);
+        assert!(back.iter().all(|b| b.spark_off == Some(Travel::Kerf)));
+        assert_eq!((back[0].line, back[1].line), (5, 4));
+        // Then the cut from line 4's start, all of it, sparking.
+        let cut = &out[2..];
+        assert_eq!(
+            cut.iter().map(|b| b.line).collect::<Vec<_>>(),
+            [4, 5, 6, 7, 8, 9]
+        );
+        assert!(cut.iter().all(|b| b.spark_off.is_none()));
+        // The entry (2 mm) was left out, the way back (3 + 2 mm) added.
+        assert!((skipped - (2.0 - 5.0)).abs() < 1e-6, "{skipped}");
+
+        // Where it stands on line 4's start: no way back at all.
+        let (out, _) = through(4, WireAt::Stopped, at(0.0, -2.0)).unwrap();
+        assert_eq!(out[0].line, 4);
+        assert!(out[0].spark_off.is_none());
+    }
+
+    #[test]
+    fn a_line_past_the_stop_and_a_wire_off_the_path_are_refused() {
+        // From the start hole the kerf runs forward to (2, 1) on line 5: line 5 is fine...
+        let (out, _) = through(5, WireAt::StartHole, at(2.0, 1.0)).unwrap();
+        assert_eq!(ends(&out[..2]), vec![[0.0, -2.0], [2.0, -2.0]]);
+        // ...line 6 starts past the stop, whichever way the wire comes.
+        for wire_at in WireAt::ALL {
+            let e = through(6, wire_at, at(2.0, 1.0)).unwrap_err();
+            assert!(
+                e.starts_with(
+                    "die.ngc:6:1: line 6 starts past where the job stopped (line 5, \
+                               X2.0000 Y1.0000 Z0.0000 (G54))"
+                ),
+                "{e}"
+            );
+        }
+        // A wire that stands on no move from the line on: refused at the end.
+        let e = through(4, WireAt::Stopped, at(1.0, 1.0)).unwrap_err();
+        assert!(
+            e.starts_with(
+                "die.ngc:4:1: the wire stands at X1.0000 Y1.0000 Z0.0000 (G54), on no move"
+            ),
+            "{e}"
+        );
+        // Within the tolerance of the path it is on it; beyond it, not.
+        assert!(locate(&die()[2].curve, &at(2.0 + 0.9 * ON_PATH_MM, 1.0)).is_some());
+        assert!(locate(&die()[2].curve, &at(2.0 + 1.5 * ON_PATH_MM, 1.0)).is_none());
     }
 
     /// A run from line 5 of `p.ngc` by the path.
@@ -356,6 +714,7 @@ mod tests {
             pass: None,
             line: 5,
             approach: Approach::Path,
+            wire_at: WireAt::StartHole,
         };
         Gate::new(from, "p.ngc", plan())
     }

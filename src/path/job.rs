@@ -28,9 +28,20 @@ pub struct CutPlan {
     /// A dry run: every feed move at this feed (mm/min), in place of its programmed one. It
     /// cuts nothing (the spark is off, the servo out of the loop).
     pub dry_run_feed_mm_per_min: Option<f64>,
+    /// A run from a line that recovers a stopped job of the same program: where that job
+    /// stopped (machine mm), the end of the kerf it cut (see [`super::from_line`]).
+    pub kerf_end: Option<Point>,
 }
 
 impl CutPlan {
+    /// Where the wire stands as the job starts, when it is not where the program starts: a
+    /// run from a line from where a stopped job stopped.
+    pub fn wire_stands(&self) -> Option<&Point> {
+        self.from_line
+            .filter(|f| f.wire_at == super::from_line::WireAt::Stopped)
+            .and(self.kerf_end.as_ref())
+    }
+
     /// Passes that leave a tab.
     pub fn tabbed(&self) -> bool {
         self.tab_mm > 0.0 && !self.passes.is_empty()
@@ -61,6 +72,20 @@ pub struct PathSpec {
     pub approach_feed_mm_per_min: f64,
     /// The height a direct approach crosses at.
     pub safe_z_mm: Option<f64>,
+}
+
+impl PathSpec {
+    /// Where the machine stands as the job starts: where the program starts ([`Self::work`]),
+    /// unless the wire stands elsewhere ([`CutPlan::wire_stands`]).
+    pub fn machine_start(&self) -> WorkStart {
+        match self.cut.wire_stands() {
+            Some(at) => WorkStart {
+                position_mm: *at,
+                ..self.work.clone()
+            },
+            None => self.work.clone(),
+        }
+    }
 }
 
 /// What a job's path hands on.
@@ -228,10 +253,12 @@ where
         if let Some(from) = spec.cut.from_line.filter(|_| !self.gated) {
             self.gated = true;
             let approach = ApproachPlan {
-                origin: Point::from_fn(|i, _| spec.work.position_mm[i]),
+                origin: spec.machine_start().position_mm,
                 axes: spec.axes.clone(),
                 safe_z_mm: spec.safe_z_mm,
                 feed_mm_per_min: spec.approach_feed_mm_per_min,
+                kerf_end: spec.cut.kerf_end,
+                work: spec.work.clone(),
             };
             pipeline = pipeline.with_gate(Gate::new(from, &self.name, approach));
         }
@@ -286,7 +313,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::path::Approach;
+    use crate::path::{Approach, WireAt};
     use std::io::Cursor;
 
     /// A die: from the start hole at the origin, `G41` round the 4 mm square, back out.
@@ -424,6 +451,7 @@ mod tests {
                 line: 6,
                 approach: Approach::Path,
                 pass: Some(2),
+                wire_at: WireAt::StartHole,
             }),
             passes: vec![
                 pass(0.2, 3, false),
@@ -482,6 +510,7 @@ mod tests {
                 line: 7,
                 approach,
                 pass: None,
+                wire_at: WireAt::StartHole,
             }),
             ..CutPlan::default()
         };
@@ -505,6 +534,7 @@ mod tests {
                     pass: None,
                     line: 9,
                     approach: Approach::Path,
+                    wire_at: WireAt::StartHole,
                 }),
                 ..CutPlan::default()
             }),

@@ -37,7 +37,7 @@ use std::collections::VecDeque;
 
 use crate::gcode::{Block, GcodeError, GcodeErrorKind};
 
-pub use from_line::{Approach, ApproachPlan, FromLine, FromLineError, Gate};
+pub use from_line::{Approach, ApproachPlan, FromLine, FromLineError, Gate, WireAt};
 pub use job::{CutPlan, JobPath, PathItem, PathSpec};
 pub use passes::{PassError, WirePass};
 pub use pipeline::Pipeline;

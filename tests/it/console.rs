@@ -248,7 +248,14 @@ fn single_block_from_a_line_stops_first_before_that_line() {
     .unwrap();
     let daemon = Daemon::start(&dir, &base_sets(&dir, "pulses.csv"), &[]);
     daemon.ok(&["single-block", "on"]);
-    daemon.ok(&["run", "square.nc", "--from-line", "4"]);
+    daemon.ok(&[
+        "run",
+        "square.nc",
+        "--from-line",
+        "4",
+        "--wire-at",
+        "start-hole",
+    ]);
     let s = daemon.wait_for("the single-block stop", |s| s["state"] == "paused");
     assert_eq!(s["job"]["paused_before_line"], 4, "{s}");
     assert_eq!(common::daemon::position(&s), [500, 500], "{s}");

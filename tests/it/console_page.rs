@@ -71,11 +71,20 @@ fn the_operators_console_in_headless_chromium() {
     // The G41-first die from its third contour line (line 6): accepted, run to its end.
     pick(&browser, "die.ngc");
     browser.eval("document.getElementById('from-line').value = '6'; return true");
+    // Where the wire stands is asked, not assumed: refused until the operator says.
+    click(&browser, "run");
+    wait(
+        &browser,
+        "the question where the wire stands",
+        "return document.getElementById('message').textContent.includes('say where that is')",
+    );
+    browser.eval("document.getElementById('wire-at').value = 'start-hole'; return true");
     click(&browser, "run");
     let s = d.wait_for("the run from line 6", |s| {
         s["job"]["from_line"]["line"] == 6
     });
     assert_eq!(s["job"]["from_line"]["approach"], "path");
+    assert_eq!(s["job"]["from_line"]["wire_at"], "start-hole");
     d.wait_for("its end", |s| {
         s["state"] == "idle" && s["last_job"]["outcome"] == "done"
     });

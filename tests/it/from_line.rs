@@ -8,7 +8,7 @@ use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::daemon::{Daemon, base_sets};
+use common::daemon::{Daemon, base_sets, ints};
 use edmd::output::{PulseLogRow, read_pulse_log};
 
 const DIE: &str = "die-from-line.ngc";
@@ -227,7 +227,7 @@ fn a_checkpoint_taken_during_the_approach_resumes_into_the_approach() {
         &["run", DIE, "--dry-run", "--from-line", "13"],
         "does not start from a line",
     );
-    daemon.ok(&["run", DIE, "--from-line", "13"]);
+    daemon.ok(&["run", DIE, "--from-line", "13", "--wire-at", "start-hole"]);
     daemon.wait_for("moving", |s| {
         // On the way from the start (X0) to the start hole: moved, still approaching.
         s["state"] == "running" && s["job"]["position_steps"][0].as_i64().unwrap_or(0) < -1000
@@ -274,4 +274,123 @@ fn a_checkpoint_taken_during_the_approach_resumes_into_the_approach() {
     assert_eq!(points(&joined), points(&reference));
     let sparks = |w: &[(Vec<i64>, PulseLogRow)]| w.iter().map(|(_, r)| r.spark).collect::<Vec<_>>();
     assert_eq!(sparks(&joined), sparks(&reference));
+}
+
+/// A 10 mm die opening cut inward with `G41 D1` (0.15 mm) from a start hole at its centre:
+/// a point of the executed path lies in the slug, not the kerf, when it is more than the
+/// kerf's half-width (0.15 mm, twice the offset's margin) inside the wire's path (the square
+/// at ±4.85 mm) and off the entry and exit line (offset to X0.15, Y below 0).
+fn in_the_slug(x_mm: f64, y_mm: f64) -> bool {
+    let inside = x_mm.abs() < 4.7 && y_mm.abs() < 4.7;
+    let on_the_entry = (x_mm - 0.15).abs() < 0.2 && y_mm < 0.15;
+    inside && !on_the_entry
+}
+
+/// Recovery after an abort mid-contour: the operator says where the wire stands; from where
+/// the job stopped the wire goes back along its kerf to the line, spark off, then cuts from
+/// there; no executed point crosses the uncut slug. Asking with the wire elsewhere than it
+/// says, or for a line past the stop, is refused with what to do.
+#[test]
+fn after_an_abort_a_run_from_a_line_goes_back_along_the_kerf_never_through_the_slug() {
+    const PROGRAM: &str = "die-recover.ngc";
+    let dir = common::daemon::scratch("recover");
+    std::fs::copy(data(PROGRAM), dir.join("programs").join(PROGRAM)).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("compensation.d_mm=[0.0, 0.15]".into());
+    let daemon = Daemon::start(&dir, &sets, &[]);
+    daemon.ok(&["run", PROGRAM]);
+    // Stopped up the right side (line 8), a millimetre past the middle.
+    daemon.wait_for("the right side", |s| {
+        s["state"] == "running" && s["job"]["position_steps"][1].as_i64().unwrap_or(0) > 1000
+    });
+    let cp = daemon.hold_abort_checkpoint(&dir);
+    assert_eq!(cp["line"], 8, "{cp}");
+    let stopped = ints(&cp["position_steps"]);
+    let first = walk(&dir.join("pulses.csv"));
+    assert!(first.iter().all(|(p, _)| !in_the_slug(mm(p[0]), mm(p[1]))));
+
+    // Where the wire stands is asked, and held to the checkpoint.
+    let args = |wire_at: &'static str, line: &'static str| {
+        let mut a = vec!["run", PROGRAM, "--from-line", line];
+        if !wire_at.is_empty() {
+            a.extend(["--wire-at", wire_at]);
+        }
+        a
+    };
+    daemon.refused(&args("", "7"), "say where that is");
+    // The old way (the program re-based at the wire, the entry across the slug): refused.
+    let e = daemon.refused(
+        &args("start-hole", "7"),
+        "not at the start hole X0.0000 Y0.0000",
+    );
+    assert!(e.to_string().contains("--wire-at stopped"), "{e}");
+    // Line 9 (the top) was never cut: the wire cannot get there.
+    daemon.refused(
+        &args("stopped", "9"),
+        "die-recover.ngc:9:1: line 9 starts past where the job stopped (line 8",
+    );
+    daemon.ok(&args("stopped", "7"));
+    let idle = daemon.wait_for("the job's end", |s| s["state"] == "idle");
+    assert_eq!(idle["last_job"]["outcome"], "done", "{idle}");
+    assert_eq!(
+        ints(&idle["last_job"]["end_steps"]),
+        [0, 0],
+        "back at the start hole"
+    );
+    daemon.signal(libc::SIGTERM);
+    assert_eq!(daemon.wait().0, 0);
+
+    let second: Vec<(f64, f64, bool)> = walk(&dir.join("pulses.csv"))
+        .into_iter()
+        .map(|(p, r)| (mm(p[0] + stopped[0]), mm(p[1] + stopped[1]), r.spark))
+        .collect();
+    let slug: Vec<_> = second
+        .iter()
+        .filter(|(x, y, _)| in_the_slug(*x, *y))
+        .collect();
+    assert!(
+        slug.is_empty(),
+        "{} points in the slug: {:?}",
+        slug.len(),
+        &slug[..slug.len().min(5)]
+    );
+    // Dark down the right side and back along the bottom to line 7's start (X0.15 Y-4.85,
+    // where the entry's offset meets the bottom's), every point on the first run's path...
+    let lit = second.iter().position(|p| p.2).expect("a cut");
+    let (x, y, _) = second[lit];
+    assert!(
+        (x - 0.15).abs() < 0.01 && (y + 4.85).abs() < 0.01,
+        "the cut starts at ({x}, {y})"
+    );
+    let cut: std::collections::HashSet<(i64, i64)> =
+        first.iter().map(|(p, _)| (p[0] / 5, p[1] / 5)).collect();
+    let off_the_kerf = second[..lit].iter().filter(|(x, y, _)| {
+        let (i, j) = (
+            (x * 1000.0).round() as i64 / 5,
+            (y * 1000.0).round() as i64 / 5,
+        );
+        !(-1..=1).any(|di| (-1..=1).any(|dj| cut.contains(&(i + di, j + dj))))
+    });
+    assert_eq!(
+        off_the_kerf.count(),
+        0,
+        "the way back is the first run's path (to 10 µm)"
+    );
+    let (bx, by) = second[..lit]
+        .iter()
+        .fold((f64::MIN, f64::MAX), |(bx, by), p| {
+            (bx.max(p.0), by.min(p.1))
+        });
+    assert!(
+        (bx - 4.85).abs() < 0.01 && (by + 4.85).abs() < 0.01,
+        "by the corner"
+    );
+    // ...then round the whole contour, sparking, and out to the start hole.
+    let top = second[lit..].iter().map(|p| p.1).fold(f64::MIN, f64::max);
+    assert!((top - 4.85).abs() < 0.01, "the top side cut: {top}");
+}
+
+fn mm(steps: i64) -> f64 {
+    steps as f64 * 0.001
 }

@@ -756,7 +756,9 @@ fn the_page_in_headless_chromium() {
     // Run from a line from the page's run dialog.
     browser.eval(
         "document.getElementById('program-list').value = 'runtime-path.nc'; \
-         document.getElementById('from-line').value = '7'; document.getElementById('run').click(); return true",
+         document.getElementById('from-line').value = '7'; \
+         document.getElementById('wire-at').value = 'start-hole'; \
+         document.getElementById('run').click(); return true",
     );
     let s = d.wait_for("the run from line 7", |s| {
         s["job"]["from_line"]["line"] == 7

@@ -494,7 +494,15 @@ fn a_run_from_a_line_cuts_in_the_pass_it_is_in_then_the_later_passes_whole() {
     daemon.ok(&["home", "--here"]);
 
     // Line 8 (G1 X-2 Y2: the top edge) in pass 1 (the default in passes).
-    let reply = daemon.ok(&["run", "die.ngc", "--from-line", "8", "--force"]);
+    let reply = daemon.ok(&[
+        "run",
+        "die.ngc",
+        "--from-line",
+        "8",
+        "--wire-at",
+        "start-hole",
+        "--force",
+    ]);
     assert!(
         reply["message"]
             .as_str()
@@ -554,6 +562,8 @@ fn a_run_from_a_line_cuts_in_the_pass_it_is_in_then_the_later_passes_whole() {
             program,
             "--from-line",
             "8",
+            "--wire-at",
+            "start-hole",
             "--pass",
             pass,
             "--force",

@@ -18,6 +18,8 @@ pub(super) mod homing;
 pub(super) mod manual;
 pub(super) mod offsets;
 pub(super) mod pendant;
+mod recovery;
+pub(super) use recovery::Recovery;
 mod resume;
 pub(super) mod touch;
 pub(super) mod trips;
@@ -58,6 +60,7 @@ impl Order {
                 start: desk.machine.state.work_start(),
                 kind,
                 cut: Default::default(),
+                recovers: None,
             },
             said,
         }

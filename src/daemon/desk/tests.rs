@@ -348,34 +348,124 @@ fn a_job_ended_by_an_estop_trips_and_unhomes_the_machine() {
     assert!(m.state.homed.iter().all(|h| !h));
 }
 
-#[test]
-fn a_resume_starts_only_where_its_checkpoint_stopped() {
-    let c = config(&[]);
-    let mut m = machine(&c);
-    let cp = crate::checkpoint::Checkpoint {
+/// The checkpoint of `part.nc` stopped at `position_steps`, started at `start` (steps).
+fn stopped_job(position_steps: Vec<i64>, start: Option<Vec<i64>>) -> crate::checkpoint::Checkpoint {
+    crate::checkpoint::Checkpoint {
         version: 1,
         program: "part.nc".into(),
-        program_sha256: String::new(),
+        program_sha256: "5ca1ab1e".into(),
         motion_sha256: String::new(),
         motion_settings: Default::default(),
-        reason: crate::checkpoint::Reason::Moving,
+        reason: crate::checkpoint::Reason::Abort,
         still: true,
-        line: 1,
+        line: 7,
         segment: 0,
         step: 0,
         segment_steps: 0,
         parameter: None,
         dwell_s: 0.0,
         axes: vec!["X".into(), "Y".into()],
-        position_steps: vec![100, 0],
-        position_mm: vec![0.01, 0.0],
+        position_mm: position_steps.iter().map(|&s| s as f64 * 0.001).collect(),
+        position_steps,
         written_unix_s: 0,
-        start: None,
+        start: start.map(|position_steps| crate::checkpoint::StartRecord {
+            position_steps,
+            work_system: "G54".into(),
+            offsets_mm: Default::default(),
+        }),
         from_line: None,
         passes: Vec::new(),
         tab_mm: 0.0,
+        kerf_end_mm: Vec::new(),
         technology: None,
+    }
+}
+
+#[test]
+fn a_run_from_a_line_asks_where_the_wire_stands_and_holds_it_to_the_stopped_job() {
+    use crate::path::{Approach, FromLine, WireAt};
+    let c = config(&[]);
+    let mut m = machine(&c);
+    let from = FromLine {
+        line: 5,
+        approach: Approach::Path,
+        pass: None,
+        wire_at: WireAt::StartHole,
     };
+    let e = refused(at(&c, &m).recovery("part.nc", &from, None, None));
+    assert!(e.contains("say where that is. --wire-at start-hole"), "{e}");
+    // No stopped job: the operator's word, and the job starts here.
+    let here = at(&c, &m)
+        .recovery("part.nc", &from, Some(WireAt::StartHole), None)
+        .unwrap();
+    assert_eq!((here.kerf_end, here.sha256), (None, None));
+    let e = refused(at(&c, &m).recovery("part.nc", &from, Some(WireAt::Stopped), None));
+    assert!(e.contains("no stopped job of it is kept"), "{e}");
+
+    // A job started at X1 Y1 and stopped at X4 Y1.5; the wire stands where it stopped.
+    let cp = stopped_job(vec![4000, 1500], Some(vec![1000, 1000]));
+    m.state.position[..2].copy_from_slice(&[4000, 1500]);
+    let e = refused(at(&c, &m).recovery("part.nc", &from, Some(WireAt::StartHole), Some(&cp)));
+    assert!(
+        e.contains("stands at X4.0000 Y1.5000 (G54), not at the start hole X1.0000 Y1.0000")
+            && e.contains("run with --wire-at stopped"),
+        "{e}"
+    );
+    let back = at(&c, &m)
+        .recovery("part.nc", &from, Some(WireAt::Stopped), Some(&cp))
+        .unwrap();
+    assert_eq!(
+        back.start.position_mm.as_slice()[..2],
+        [1.0, 1.0],
+        "read from the start hole"
+    );
+    assert_eq!(
+        back.kerf_end.unwrap().as_slice()[..2],
+        [4.0, 1.5],
+        "the wire is the kerf's end"
+    );
+    assert_eq!(back.sha256.as_deref(), Some("5ca1ab1e"));
+    // Within 0.01 mm of where it stopped is there; 0.02 mm is not.
+    m.state.position[0] = 4009;
+    assert!(
+        at(&c, &m)
+            .recovery("part.nc", &from, Some(WireAt::Stopped), Some(&cp))
+            .is_ok()
+    );
+    m.state.position[0] = 4020;
+    let e = refused(at(&c, &m).recovery("part.nc", &from, Some(WireAt::Stopped), Some(&cp)));
+    assert!(
+        e.contains("not where its job stopped (X4.0000 Y1.5000 (G54), line 7)"),
+        "{e}"
+    );
+    // At the start hole: the kerf ends where the job stopped.
+    m.state.position[..2].copy_from_slice(&[1000, 1000]);
+    let hole = at(&c, &m)
+        .recovery("part.nc", &from, Some(WireAt::StartHole), Some(&cp))
+        .unwrap();
+    assert_eq!(hole.start.position_mm.as_slice()[..2], [1.0, 1.0]);
+    assert_eq!(hole.kerf_end.unwrap().as_slice()[..2], [4.0, 1.5]);
+    // A direct approach lifts out: nothing to say.
+    let direct = FromLine {
+        approach: Approach::Direct,
+        ..from
+    };
+    assert!(
+        at(&c, &m)
+            .recovery("part.nc", &direct, None, Some(&cp))
+            .is_ok()
+    );
+    assert!(
+        refused(at(&c, &m).recovery("part.nc", &direct, Some(WireAt::Stopped), None))
+            .contains("--wire-at is for the path approach")
+    );
+}
+
+#[test]
+fn a_resume_starts_only_where_its_checkpoint_stopped() {
+    let c = config(&[]);
+    let mut m = machine(&c);
+    let cp = stopped_job(vec![100, 0], None);
     let e = refused(at(&c, &m).resume_start(&cp, false));
     assert!(
         e.contains("X0.0000 Y0.0000") && e.contains("X0.1000 Y0.0000"),

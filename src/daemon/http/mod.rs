@@ -492,6 +492,8 @@ struct RunBody {
     #[serde(default)]
     approach: Option<crate::path::Approach>,
     #[serde(default)]
+    wire_at: Option<crate::path::WireAt>,
+    #[serde(default)]
     pass: Option<u8>,
     #[serde(default)]
     passes: Option<usize>,
@@ -513,6 +515,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        wire_at,
         pass,
         passes,
         technology,
@@ -529,6 +532,7 @@ async fn run(
         dry_run,
         from_line,
         approach,
+        wire_at,
         pass,
         passes,
         technology,

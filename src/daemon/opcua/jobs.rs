@@ -148,6 +148,7 @@ impl JobOrder {
             dry_run: false,
             from_line: None,
             approach: None,
+            wire_at: None,
             pass: None,
             passes: self.passes,
             technology: self.technology.clone(),

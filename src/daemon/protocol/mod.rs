@@ -46,6 +46,9 @@ pub enum Request {
         from_line: Option<u64>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         approach: Option<crate::path::Approach>,
+        /// A run from a line by the path: where the wire stands (the operator confirms it).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wire_at: Option<crate::path::WireAt>,
         /// A run from a line in a job in passes: the pass (from 1) the line is cut in.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pass: Option<u8>,
@@ -607,6 +610,7 @@ mod tests {
                 dry_run: false,
                 from_line: None,
                 approach: None,
+                wire_at: None,
                 pass: None,
                 passes: None,
                 technology: None,
@@ -614,12 +618,13 @@ mod tests {
             }
         );
         assert_eq!(
-            Request::parse(r#"{"cmd":"run","program":"a.nc","from_line":12,"approach":"direct","technology":"material=x"}"#).unwrap(),
+            Request::parse(r#"{"cmd":"run","program":"a.nc","from_line":12,"approach":"path","wire_at":"stopped","technology":"material=x"}"#).unwrap(),
             Request::Run {
                 program: "a.nc".into(),
                 dry_run: false,
                 from_line: Some(12),
-                approach: Some(crate::path::Approach::Direct),
+                approach: Some(crate::path::Approach::Path),
+                wire_at: Some(crate::path::WireAt::Stopped),
                 pass: None,
                 passes: None,
                 technology: Some("material=x".into()),

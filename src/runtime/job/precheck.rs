@@ -92,14 +92,7 @@ impl Tally<'_> {
                     .zip(machine.step_mm.get(i))
                     .map_or(0.0, |(&n, mm)| n as f64 * mm)
             });
-            let work = self.work.to_work(&at);
-            let axes: Vec<String> = machine
-                .axes
-                .iter()
-                .enumerate()
-                .map(|(i, a)| format!("{}{:.4}", a.letter(), work[i]))
-                .collect();
-            format!("{} ({})", axes.join(" "), self.work.system.name())
+            self.work.text_of(&at, &machine.axes)
         };
         Err(passes::PassError::NotClosed {
             program: self.program.to_string(),
@@ -179,7 +172,7 @@ pub fn precheck(
     progress.start(Phase::Checking, program.bytes);
     let spec = PathSpec::from_config(config, start, cut);
     let plan = crate::preprocess::PlanSettings::from_config(config);
-    let start_at = start_steps(start, &config.machine.step_mm);
+    let start_at = start_steps(&spec.machine_start(), &config.machine.step_mm);
     let mut tally = Tally {
         config,
         work: start,

@@ -69,7 +69,7 @@ impl JobSpec {
 
     /// The machine position the job starts from, in steps.
     pub fn start_steps(&self) -> Steps {
-        start_steps(&self.path.work, &self.step_mm)
+        start_steps(&self.path.machine_start(), &self.step_mm)
     }
 
     /// The axis names (`X`, `Y`, …).

@@ -202,6 +202,9 @@ $("run").onclick = () => {
   if (from > 0) {
     body.from_line = from;
     if ($("approach").value) body.approach = $("approach").value;
+    // Where the wire stands is the operator's word, never assumed: the daemon asks for it
+    // on a run along the path and holds it to the stopped job's checkpoint.
+    if ($("wire-at").value && $("approach").value !== "direct") body.wire_at = $("wire-at").value;
     // In a job in passes: the pass the line is cut in (the later ones are cut whole).
     const pass = Number($("from-pass").value);
     if (pass > 0) body.pass = pass;
