@@ -9,6 +9,7 @@ use super::DaemonError;
 use super::protocol::{FindStatus, MachineStatus};
 use crate::checkpoint;
 use crate::config::Config;
+use crate::gcode::{WorkOffsets, WorkSystem};
 use crate::machine::{Found, Machine};
 use crate::vocab::Steps;
 
@@ -78,17 +79,20 @@ pub(super) fn distrust_moved_drives(machine: &mut Machine, why: &str) {
     }
 }
 
-/// What the status shows of the machine; `live` is a running job's ledger, `find` the running
-/// or last touch cycle.
+/// What the status shows of the machine; `live` is a running job's ledger with the work
+/// offsets and system its program is in (the DRO's work position is in that system), `find`
+/// the running or last touch cycle.
 pub(super) fn machine_status(
     machine: &Machine,
     config: &Config,
-    live: Option<&Steps>,
+    live: Option<(Steps, &(WorkOffsets, WorkSystem))>,
     find: Option<FindStatus>,
 ) -> MachineStatus {
     let mut state = machine.state.clone();
-    if let Some(p) = live {
-        state.position = *p;
+    if let Some((p, (offsets, system))) = live {
+        state.position = p;
+        state.offsets = offsets.clone();
+        state.system = *system;
     }
     let n = state.axes.len();
     MachineStatus {

@@ -141,6 +141,9 @@ struct Job {
     start: crate::gcode::WorkStart,
     /// The work offsets and system the program leaves when it runs to its end.
     leaves: (crate::gcode::WorkOffsets, crate::gcode::WorkSystem),
+    /// The work offsets and system it cuts in (at its first move): the DRO's and the
+    /// backplot's while it runs.
+    cuts_in: (crate::gcode::WorkOffsets, crate::gcode::WorkSystem),
     /// The units and distance mode it leaves (kept for the next MDI lines).
     modes: crate::gcode::StartModes,
     /// What the program tells the operator at its stops, by the line stopped before.

@@ -393,6 +393,7 @@ impl Core {
             },
             start: launch.start,
             leaves: (check.work_offsets.clone(), check.work_system),
+            cuts_in: check.cuts_in.clone(),
             modes: check.modes,
             pause_messages: check.pause_messages.clone(),
             kind: launch.kind,
@@ -405,7 +406,13 @@ impl Core {
     }
 
     /// A new job's recording, also the page's executed path from now on.
-    fn record(&mut self, program: &str, start: &[i64], kind: JobKind) -> JobRecording {
+    fn record(
+        &mut self,
+        program: &str,
+        start: &[i64],
+        kind: JobKind,
+        (offsets, system): &(crate::gcode::WorkOffsets, crate::gcode::WorkSystem),
+    ) -> JobRecording {
         let recording: JobRecording = Arc::new(parking_lot::Mutex::new(
             Recording::new(&self.config.machine.step_mm, self.config.fine.tick)
                 .with_upper_guide(self.config.machine.upper_guide_axes())
@@ -414,9 +421,13 @@ impl Core {
         // The page's executed path is what was cut: a homing search, a jog or a touch cycle
         // moves the machine but cuts nothing, and the last cut stays on the page.
         if matches!(kind, JobKind::Program | JobKind::DryRun | JobKind::Mdi) {
+            let offset = offsets.get(*system);
             *self.jobs.executed.lock() = Some(super::http::executed::Executed {
                 program: program.to_string(),
                 recording: recording.clone(),
+                work_system: system.name().to_string(),
+                work_offset_mm: [offset[0], offset[1]],
+                dry_run: kind == JobKind::DryRun,
             });
         }
         recording
@@ -568,7 +579,7 @@ impl Core {
         // A homing job's probing moves read its switch, a touch cycle's the part; any other
         // job's the probe (the claimed port's gap input is lent to every job).
         io.probe_reads = launch.probe_reads(&spec.start_steps());
-        let recording = self.record(&program.name, &ledger, kind);
+        let recording = self.record(&program.name, &ledger, kind, &check.cuts_in);
         if report.is_some() {
             draw_programmed(&recording, &program, &spec);
         }

@@ -68,12 +68,16 @@ impl Core {
             .as_ref()
             .zip(snapshot.as_ref())
             .map(|(job, snap)| job_status(job, snap));
-        let live = snapshot.as_ref().map(|s| s.position);
+        // A running job's ledger, in the work system its program is in.
+        let live = snapshot
+            .as_ref()
+            .zip(self.jobs.job.as_ref())
+            .map(|(s, job)| (s.position, &job.cuts_in));
         Status {
             machine: super::machine::machine_status(
                 &self.machine,
                 config,
-                live.as_ref(),
+                live,
                 self.touch.status().cloned(),
             ),
             overrides: OverrideStatus {

@@ -223,6 +223,13 @@ where
         self.warnings.take().unwrap_or_default()
     }
 
+    /// The work offsets and the active system where the program is now read to (`None`
+    /// between runs and in a tabbed job, read whole first).
+    pub fn in_force(&mut self) -> Option<(WorkOffsets, WorkSystem)> {
+        let reader = self.current.as_mut()?.reader();
+        Some((reader.work_offsets(), reader.work_system()))
+    }
+
     /// The work offsets, the active system and the modes the last run left.
     pub fn left(&self) -> Option<&(WorkOffsets, WorkSystem, StartModes)> {
         self.left.as_ref()

@@ -353,6 +353,14 @@ fn the_run_dialog_picks_a_technology_and_explains_it() {
         "the DRY RUN badge",
         "return !document.getElementById('dry-run-badge').hidden",
     );
+    // Its path on the backplot is travel, not a cut.
+    wait(
+        &browser,
+        "the dry run drawn as moved, not cut",
+        "const c = document.getElementById('backplot'); \
+         return c.dataset.executedAs === 'dry-run' && Number(c.dataset.executedPoints) > 1 \
+         && !document.getElementById('legend-dry').hidden",
+    );
     wait(
         &browser,
         "the technology in the header",
@@ -512,4 +520,61 @@ fn discard_on_the_page_asks_twice_and_removes_the_checkpoint() {
         "Discard hidden",
         "return document.getElementById('discard').hidden",
     );
+}
+
+/// A program in G55 (its offset set by the program itself): while it runs the DRO reads in
+/// G55 and the backplot draws the executed path in G55's coordinates, on the program's
+/// drawing; the machine's own system is G54 all the while.
+#[test]
+fn the_dro_and_the_backplot_are_in_the_programs_work_system() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start("console-g55", &[]);
+    std::fs::write(
+        dir.join("programs/g55.nc"),
+        "G21 G90\nG10 L2 P2 X2 Y0\nG55\nG1 X1 Y0 F60\nG1 X1 Y1\nM2\n",
+    )
+    .unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "g55.nc listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'g55.nc')",
+    );
+    pick(&browser, "g55.nc");
+    click(&browser, "run");
+    let s = d.wait_for("the move in G55", |s| {
+        s["state"] == "running"
+            && s["machine"]["position_machine_mm"][0]
+                .as_f64()
+                .unwrap_or(0.0)
+                > 2.5
+    });
+    assert_eq!(s["machine"]["work_system"], "G55", "{s}");
+    let (m, w) = (
+        s["machine"]["position_machine_mm"][0].as_f64().unwrap(),
+        s["machine"]["position_work_mm"][0].as_f64().unwrap(),
+    );
+    assert!(
+        (m - w - 2.0).abs() < 1e-9,
+        "work = machine − G55's X2: {m} {w}"
+    );
+    wait(
+        &browser,
+        "the DRO in G55",
+        "return document.getElementById('position-work').textContent.startsWith('work G55')",
+    );
+    // The executed path, drawn in G55: the cut's X on the drawing is the program's (≤ 1 mm),
+    // not the machine's (up to 3 mm).
+    let x_max = wait(
+        &browser,
+        "the path drawn in G55",
+        "const c = document.getElementById('backplot'); \
+         if (c.dataset.executedSystem !== 'G55' || !executedPath || executedPath.path.length < 2) return false; \
+         const xs = executedPath.path.map((p) => p[0] - executedPath.work_offset_mm[0]); \
+         return Math.max(...xs);",
+    );
+    assert!(x_max.as_f64().unwrap() <= 1.0 + 1e-6, "{x_max}");
+    d.wait_for("its end", |s| s["state"] == "idle");
 }

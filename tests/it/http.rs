@@ -753,18 +753,23 @@ fn the_page_in_headless_chromium() {
         "const t = document.getElementById('events').textContent; return t.includes(' hold') && t.includes(' abort') ? t : false",
     );
     eprintln!("events: {events}");
-    // Run from a line from the page's run dialog.
+    // Run from a line from the page's run dialog: the job stopped on the arc (line 6), where
+    // the wire stands; back along the kerf to line 5, never past the stop.
     browser.eval(
         "document.getElementById('program-list').value = 'runtime-path.nc'; \
-         document.getElementById('from-line').value = '7'; \
-         document.getElementById('wire-at').value = 'start-hole'; \
+         document.getElementById('from-line').value = '5'; \
+         document.getElementById('wire-at').value = 'stopped'; \
          document.getElementById('run').click(); return true",
     );
-    let s = d.wait_for("the run from line 7", |s| {
-        s["job"]["from_line"]["line"] == 7
+    let s = d.wait_for("the run from line 5", |s| {
+        s["job"]["from_line"]["line"] == 5
     });
     assert_eq!(s["job"]["from_line"]["approach"], "path");
-    browser.eval("document.getElementById('from-line').value = ''; return true");
+    assert_eq!(s["job"]["from_line"]["wire_at"], "stopped");
+    browser.eval(
+        "document.getElementById('from-line').value = ''; \
+         document.getElementById('wire-at').value = ''; return true",
+    );
     browser.press("abort");
     browser.press("abort");
     d.wait_for("its abort", |s| s["state"] == "idle");

@@ -36,12 +36,23 @@ pub type ExecutedSlot = Arc<Mutex<Option<Executed>>>;
 pub struct Executed {
     pub program: String,
     pub recording: Arc<Mutex<Recording>>,
+    /// The work system the program cuts in (the one it leaves), and its offset (mm, the
+    /// first two axes): the page draws the path in the program's coordinates with it.
+    pub work_system: String,
+    pub work_offset_mm: [f64; 2],
+    /// A dry run: the path was moved, nothing was cut.
+    pub dry_run: bool,
 }
 
 /// What `GET /api/executed` serves (mm, the machine's first two axes).
 #[derive(Debug, Serialize, PartialEq)]
 pub struct ExecutedPath {
     pub program: String,
+    /// The work system the job's program is in, and its offset: work = machine − offset.
+    pub work_system: String,
+    pub work_offset_mm: [f64; 2],
+    /// A dry run's path: moved with the spark off, nothing cut.
+    pub dry_run: bool,
     pub path: Vec<[f64; 2]>,
     /// The stretches walked while turning back and re-advancing.
     pub turn_backs: Vec<Vec<[f64; 2]>>,
@@ -77,6 +88,9 @@ fn executed_path(executed: &Executed) -> ExecutedPath {
     let shorts_left_out = shorts.len().saturating_sub(MAX_SHORTS);
     ExecutedPath {
         program: executed.program.clone(),
+        work_system: executed.work_system.clone(),
+        work_offset_mm: executed.work_offset_mm,
+        dry_run: executed.dry_run,
         path: recording
             .path
             .points()
@@ -150,9 +164,16 @@ mod tests {
         let executed = Executed {
             program: "p.nc".into(),
             recording: Arc::new(Mutex::new(r)),
+            work_system: "G55".into(),
+            work_offset_mm: [50.0, 0.0],
+            dry_run: false,
         };
         let path = executed_path(&executed);
         assert_eq!(path.path.len(), 6);
+        assert_eq!(
+            (path.work_system.as_str(), path.work_offset_mm),
+            ("G55", [50.0, 0.0])
+        );
         assert_eq!(path.rapids, vec![vec![[0.0, 0.0], [1.0, 0.0]]]);
         assert_eq!(path.turn_backs, vec![vec![[3.0, 0.0], [2.5, 0.0]]]);
         assert_eq!(path.shorts, vec![[3.0, 0.0]]);

@@ -21,6 +21,10 @@ pub struct Precheck {
     /// returns to `G54`), for whoever keeps them after the job.
     pub work_offsets: WorkOffsets,
     pub work_system: WorkSystem,
+    /// The work offsets and system in force at the program's first move: the ones it cuts
+    /// in, in which the operator reads its positions while it runs (without a move: the
+    /// ones it leaves).
+    pub cuts_in: (WorkOffsets, WorkSystem),
     /// The units and distance mode at the end (MDI keeps them for its next lines).
     pub modes: gcode::StartModes,
     pub end_steps: Steps,
@@ -203,6 +207,7 @@ pub fn precheck(
             |f| CountingReader::new(f, progress),
         )
     };
+    let mut cuts_in = None;
     let mut path = JobPath::new(&spec, &program.name, open, Some(progress.cancel_flag()));
     // Where the pass in hand started: a whole pass ends there (the start hole). A pass cut
     // from a line started where the wire stood: it is not held to it.
@@ -236,6 +241,9 @@ pub fn precheck(
                 if progress.cancelled() {
                     return Err(cancelled());
                 }
+                if cuts_in.is_none() {
+                    cuts_in = path.in_force();
+                }
                 tally.take(&block)?;
             }
         }
@@ -254,6 +262,7 @@ pub fn precheck(
     }
     let (work_offsets, work_system, modes) = path.left().cloned().expect("one run at least");
     Ok(Precheck {
+        cuts_in: cuts_in.unwrap_or_else(|| (work_offsets.clone(), work_system)),
         work_offsets,
         work_system,
         modes,

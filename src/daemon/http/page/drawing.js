@@ -43,8 +43,12 @@ function draw() {
   const mine = executedPath && (running || !plannedFor || executedPath.program === plannedFor ||
     executedPath.program.endsWith(`/${plannedFor}`));
   const exec = mine ? executedPath : { path: [], turn_backs: [], rapids: [], shorts: [] };
-  const path = exec.path.map(toWork), turns = exec.turn_backs.map((s) => s.map(toWork));
-  const rapids = exec.rapids.map((s) => s.map(toWork)), shorts = exec.shorts.map(toWork);
+  // The executed path in the work system its program is in (a G55 program's cut lies on
+  // its G55 drawing whatever the machine's system is now).
+  const off = exec.work_offset_mm || workOffset;
+  const toJob = ([x, y]) => [x - off[0], y - off[1]];
+  const path = exec.path.map(toJob), turns = exec.turn_backs.map((s) => s.map(toJob));
+  const rapids = exec.rapids.map((s) => s.map(toJob)), shorts = exec.shorts.map(toJob);
   const box = travel[0] && travel[1]
     ? [travel[0][0] - workOffset[0], travel[1][0] - workOffset[1], travel[0][1] - workOffset[0], travel[1][1] - workOffset[1]]
     : null;
@@ -97,7 +101,8 @@ function draw() {
   let plannedCount = 0, turnBack = 0;
   if (planned) planned.strokes.forEach((s) => { stroke(s.points, "#adb5bd", 1, s.rapid ? [4, 4] : []); plannedCount += s.points.length; });
   rapids.forEach((s) => stroke(s, "#79a8f0", 1.5, [4, 3]));
-  stroke(path, css("--accent"), 2, []);
+  // A dry run moved the path and cut nothing: drawn as travel, never as a cut.
+  stroke(path, exec.dry_run ? "#79a8f0" : css("--accent"), 2, exec.dry_run ? [2, 3] : []);
   turns.forEach((s) => { stroke(s, css("--turn"), 2.5, []); turnBack += s.length; });
   g.setLineDash([]); g.strokeStyle = css("--short"); g.lineWidth = 1.5;
   shorts.forEach(([x, y]) => {
@@ -107,6 +112,9 @@ function draw() {
   if (here) { const [x, y] = toWork(here); g.fillStyle = css("--ink"); g.beginPath(); g.arc(X(x), Y(y), 4, 0, 7); g.fill(); }
   c.dataset.plannedPoints = plannedCount;
   c.dataset.executedPoints = path.length;
+  c.dataset.executedAs = exec.dry_run ? "dry-run" : "cut";
+  c.dataset.executedSystem = exec.work_system || "";
+  $("legend-dry").hidden = !exec.dry_run;
   c.dataset.turnBackPoints = turnBack;
   c.dataset.shortPoints = shorts.length;
   c.dataset.gridMm = step;
