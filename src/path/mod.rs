@@ -23,6 +23,7 @@
 //! Nothing here reads a file other than through the reader, or knows the configuration: the
 //! spec is plain settings.
 
+mod approach;
 pub mod from_line;
 mod job;
 pub mod orbit;

@@ -22,7 +22,7 @@
 //! [`crate::gcode::Block::split_at_length`]). The plan is a pure function of the passes'
 //! blocks, so the check and the producer cut the same blocks and a resume replays them.
 
-use super::from_line::path_approach;
+use super::approach::path_approach;
 use super::passes::WirePass;
 use crate::gcode::{Block, BlockKind, Pause};
 use crate::geometry::{NurbsCurve, Point};

@@ -18,9 +18,8 @@ pub(super) mod homing;
 pub(super) mod manual;
 pub(super) mod offsets;
 pub(super) mod pendant;
-mod recovery;
-pub(super) use recovery::Recovery;
 mod resume;
+pub(super) use resume::Recovery;
 pub(super) mod touch;
 pub(super) mod trips;
 
