@@ -577,4 +577,33 @@ fn the_dro_and_the_backplot_are_in_the_programs_work_system() {
     );
     assert!(x_max.as_f64().unwrap() <= 1.0 + 1e-6, "{x_max}");
     d.wait_for("its end", |s| s["state"] == "idle");
+    // The daemon's words name ctl's commands; the page names its own controls instead.
+    let said = browser.eval(
+        "return forThePage('thread the wire where it broke, then `edmd ctl resume`; home first \
+         (`edmd ctl home --here` …); `edmd ctl resume --force` continues it; run with \
+         --wire-at stopped; `edmd ctl web-link`')",
+    );
+    assert_eq!(
+        said.as_str().unwrap(),
+        "thread the wire where it broke, then Resume; home first (Home here …); Resume \
+         (forced) continues it; run with “wire where the job stopped”; the machine's terminal"
+    );
+    // A refusal on the page, in the page's words: a run from a line without saying where
+    // the wire stands.
+    browser.eval("document.getElementById('from-line').value = '4'; return true");
+    click(&browser, "run");
+    let body = wait(
+        &browser,
+        "the refusal",
+        "return document.getElementById('message').className === 'error' ? document.body.innerText : false",
+    );
+    let body = body.as_str().unwrap();
+    assert!(
+        body.contains("say where that is. “wire at the start hole”"),
+        "{body}"
+    );
+    assert!(
+        !body.contains("edmd ") && !body.contains("--wire-at"),
+        "{body}"
+    );
 }

@@ -753,6 +753,19 @@ fn the_page_in_headless_chromium() {
         "const t = document.getElementById('events').textContent; return t.includes(' hold') && t.includes(' abort') ? t : false",
     );
     eprintln!("events: {events}");
+    // One timeline, newest first: the job's abort above the page's note of the hold pressed
+    // before it.
+    let order = wait(
+        "the job's events among the page's notes",
+        "const rows = Array.from(document.querySelectorAll('#events li')).map((li) => li.textContent); \
+         const abort = rows.findIndex((t) => / line \\d+ +abort/.test(t)); \
+         const asked = rows.findIndex((t) => t.includes('holding: braking to a standstill')); \
+         return abort >= 0 && asked >= 0 ? [abort, asked] : false",
+    );
+    assert!(
+        order[0].as_i64() < order[1].as_i64(),
+        "the abort listed below the hold pressed before it: {order}"
+    );
     // Run from a line from the page's run dialog: the job stopped on the arc (line 6), where
     // the wire stands; back along the kerf to line 5, never past the stop.
     browser.eval(

@@ -105,8 +105,29 @@ async function loadPrograms() {
 }
 
 function say(text, bad) {
+  text = forThePage(text);
   $("message").textContent = text; $("message").className = bad ? "error" : "";
   if (text) note(text, bad);
+}
+
+// The daemon words its replies for `edmd ctl` and the page alike; on the page a command is
+// the control that gives it, never a shell command to type.
+const CONTROLS = {
+  resume: "Resume", rethread: "Rethread", reset: "Reset", discard: "Discard checkpoint",
+  hold: "Hold", abort: "Abort", run: "Run", home: "Home",
+};
+function forThePage(text) {
+  return String(text || "")
+    .replace(/`edmd ctl ([a-z-]+)([^`]*)`/g, (all, command, args) => {
+      if (command === "home" && args.includes("--here")) return "Home here";
+      const control = CONTROLS[command];
+      if (!control) return "the machine's terminal";
+      if (command === "rethread" && args.includes("--here")) return "Rethread with “here” ticked";
+      return args.includes("--force") ? `${control} (forced)` : control;
+    })
+    .replace(/--wire-at start-hole/g, "“wire at the start hole”")
+    .replace(/--wire-at stopped/g, "“wire where the job stopped”")
+    .replace(/--wire-at/g, "“wire stands”");
 }
 
 // The event list: what the page was told (replies, refusals with their file:line:col),
@@ -131,13 +152,22 @@ function eventText(e) {
     default: return `${e.kind.replace(/_/g, " ")} (${v} block${v === 1 ? "" : "s"})`;
   }
 }
+// One timeline, newest first: the page's notes at their time, the job's events at the job's
+// start (as this page saw it) plus their machine time; a job whose start this page did not
+// see lists its events first.
 function showEvents() {
-  const rows = notes.slice().reverse().map((n) => ({ text: `${n.at.toLocaleTimeString()}  ${n.text}`, bad: n.bad }));
+  const rows = notes.map((n) => ({ at: n.at.getTime(), t: 0, text: `${n.at.toLocaleTimeString()}  ${n.text}`, bad: n.bad }));
   if (executedPath) {
-    executedPath.events.slice().reverse().forEach((e) => rows.push({
-      text: `t ${e.t_s.toFixed(3)} s  line ${e.line}  ${eventText(e)}`,
-      bad: BAD_EVENTS.includes(e.kind) }));
+    const start = jobStartedAt && jobStartedAt.program === executedPath.program ? jobStartedAt.ms : null;
+    executedPath.events.forEach((e) => {
+      const at = start == null ? Infinity : start + e.t_s * 1000;
+      rows.push({
+        at, t: e.t_s, bad: BAD_EVENTS.includes(e.kind),
+        text: `${start == null ? "" : `${new Date(at).toLocaleTimeString()}  `}t ${e.t_s.toFixed(3)} s  line ${e.line}  ${eventText(e)}`,
+      });
+    });
   }
+  rows.sort((a, b) => (b.at - a.at) || (b.t - a.t));
   const ol = $("events");
   ol.innerHTML = "";
   rows.forEach((r) => { const li = document.createElement("li"); li.textContent = r.text; if (r.bad) li.className = "bad"; ol.appendChild(li); });

@@ -8,6 +8,8 @@ let planned = null, plannedFor = null, lastGap = null, lastPulses = null, maxFee
 // and what turns machine coordinates into the work coordinates the plot is drawn in.
 let executedPath = null, executedAt = 0, executedBusy = false, wasRunning = false;
 let here = null, workOffset = [0, 0], travel = [null, null];
+// When the running job started, in this browser's clock (its machine time counted back).
+let jobStartedAt = null;
 
 function fmtTime(s) {
   if (s == null) return "–";
@@ -82,6 +84,7 @@ function show(status) {
   travel = [0, 1].map((i) => (m.travel_mm ? m.travel_mm[i] : null));
   here = mm.length > 1 && mm[0] != null ? [mm[0], mm[1]] : null;
   if (j) {
+    jobStartedAt = { program: j.program, ms: Date.now() - j.machine_time_s * 1000 };
     // The list shows the running program (a page opened mid-job picks it too).
     const sel = $("program-list");
     const mine = Array.from(sel.options).find((o) => j.program === o.value || j.program.endsWith(`/${o.value}`));
@@ -191,7 +194,7 @@ function showControls(status) {
   $("reset").disabled = !(st === "estop" || st === "limit");
   document.querySelectorAll("button.select-system").forEach((b) => { b.disabled = !manual; });
   const f = status.machine.find;
-  $("find-result").textContent = f ? `find ${f.id} ${f.state}: ${f.message}` : "";
+  $("find-result").textContent = f ? forThePage(`find ${f.id} ${f.state}: ${f.message}`) : "";
   $("find-result").className = f && f.state === "failed" ? "kv error" : "kv";
   ["jog-hold-minus", "jog-hold-plus"].forEach((id) => { $(id).disabled = !(manual || st === "jogging"); });
   const moving = ["running", "mdi", "jogging", "homing", "finding", "rethreading"].includes(st);
@@ -211,7 +214,7 @@ function showControls(status) {
   const last = status.last_job;
   const dry = last && lastJobs.length && lastJobs[0].program === last.program && lastJobs[0].dry_run;
   $("outcome").textContent = last
-    ? `last job: ${last.program}: ${last.outcome}${dry ? " (dry run: nothing was cut)" : ""}${last.error ? ` (${last.error})` : ""}` : "";
+    ? forThePage(`last job: ${last.program}: ${last.outcome}${dry ? " (dry run: nothing was cut)" : ""}${last.error ? ` (${last.error})` : ""}`) : "";
   $("outcome").className = last && last.outcome !== "done" && last.outcome !== "stopped" ? "error" : "";
   const kept = status.kept_checkpoint;
   $("resumable").textContent = (cp && cp.resumable
@@ -228,7 +231,8 @@ function showControls(status) {
   $("warning").className = overruns > 0 ? "on" : "";
   $("warning").textContent = overruns > 0
     ? `${overruns} overruns: ticks started late, so the pulse timing of this job was not kept ` +
-      `(steps are not lost, but the speed wavered). Check the real-time setup (edmd latency).` : "";
+      `(steps are not lost, but the speed wavered): the machine's real-time setup needs checking ` +
+      `(the operator's guide, "Real-time").` : "";
 }
 
 function decided(check) { return check.phase === "started" || check.phase === "refused"; }
