@@ -607,3 +607,78 @@ fn the_dro_and_the_backplot_are_in_the_programs_work_system() {
         "{body}"
     );
 }
+
+/// While a job runs, another program is opened on the page, edited, checked and saved; the
+/// listing stays on it as the status comes in; the running program's Save is refused and its
+/// file kept.
+#[test]
+fn while_a_job_runs_another_program_is_opened_edited_and_saved_on_the_page() {
+    let Some(chromedriver) = tool("chromedriver") else {
+        return;
+    };
+    let (d, dir) = start("console-background", &[]);
+    std::fs::write(dir.join("programs/long.nc"), "G21 G90\nG1 X6 F60\nM2\n").unwrap();
+    std::fs::write(dir.join("programs/other.nc"), "G21 G90\nG1 X1 F60\nM2\n").unwrap();
+    let browser = open(&d, &chromedriver);
+    wait(
+        &browser,
+        "the programs listed",
+        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'other.nc')",
+    );
+    pick(&browser, "long.nc");
+    click(&browser, "run");
+    d.wait_for("running", |s| s["state"] == "running");
+    wait(
+        &browser,
+        "the job's listing",
+        "return document.getElementById('listing-name').textContent === 'long.nc'",
+    );
+    pick(&browser, "other.nc");
+    wait(
+        &browser,
+        "the other program's listing",
+        "return document.getElementById('listing-name').textContent === 'other.nc' \
+         && document.getElementById('listing').textContent.includes('G1 X1 F60')",
+    );
+    // Several statuses later it is still the one shown and picked.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let shown = browser.eval(
+        "return [document.getElementById('listing-name').textContent, document.getElementById('program-list').value]",
+    );
+    assert_eq!(shown, json!(["other.nc", "other.nc"]));
+    click(&browser, "edit");
+    browser.eval(
+        "const e = document.getElementById('editor'); e.value = e.value.replace('X1', 'X2'); return true",
+    );
+    click(&browser, "save");
+    wait(
+        &browser,
+        "the save",
+        "return document.getElementById('listing').textContent.includes('G1 X2 F60')",
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("programs/other.nc")).unwrap(),
+        "G21 G90\nG1 X2 F60\nM2\n"
+    );
+    assert_eq!(d.status()["state"], "running", "the job ran on");
+    // The running program: its Save is refused, its file kept.
+    pick(&browser, "long.nc");
+    click(&browser, "edit");
+    browser.eval(
+        "const e = document.getElementById('editor'); e.value = e.value.replace('X6', 'X7'); return true",
+    );
+    click(&browser, "save");
+    wait(
+        &browser,
+        "the refusal",
+        "return document.getElementById('message').className === 'error' \
+         && document.getElementById('message').textContent.includes('the running job')",
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("programs/long.nc")).unwrap(),
+        "G21 G90\nG1 X6 F60\nM2\n"
+    );
+    click(&browser, "abort");
+    click(&browser, "abort");
+    d.wait_for("idle", |s| s["state"] == "idle");
+}

@@ -372,7 +372,18 @@ $("save").onclick = saveProgram;
 $("edit-cancel").onclick = closeEditor;
 $("touch-off").onclick = () => control("touch-off", { axis: $("jog-axis").value, value: Number($("touch-value").value), system: $("touch-system").value || undefined });
 $("find").onclick = () => control("find", { target: $("find-target").value, system: $("find-system").value || undefined });
-$("program-list").onchange = () => { showListing($("program-list").value, 0); loadPlanned($("program-list").value); };
+$("program-list").onchange = () => {
+  const picked = $("program-list").value;
+  const running = $("state").dataset.state !== "idle";
+  const job = $("job").dataset.program || "";
+  if (running) {
+    // While a job runs: another program is opened beside it; its drawing stays the job's.
+    browsing = job === picked || job.endsWith(`/${picked}`) ? null : picked;
+    showListing(picked, 0);
+    return;
+  }
+  showListing(picked, 0); loadPlanned(picked);
+};
 $("upload-file").onchange = async () => {
   const f = $("upload-file").files[0];
   if (f) await upload(f.name, await f.text());

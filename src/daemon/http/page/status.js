@@ -10,6 +10,9 @@ let executedPath = null, executedAt = 0, executedBusy = false, wasRunning = fals
 let here = null, workOffset = [0, 0], travel = [null, null];
 // When the running job started, in this browser's clock (its machine time counted back).
 let jobStartedAt = null;
+// Another program the operator opened while a job runs (read, edited, checked, saved: the
+// job's own is the daemon's to refuse); `null`: the listing follows the job.
+let browsing = null;
 
 function fmtTime(s) {
   if (s == null) return "–";
@@ -31,6 +34,7 @@ function show(status) {
   $("pause-message").hidden = !(j && j.pause_message);
   axes = status.axes;
   $("job").textContent = j ? `${j.program} line ${j.line}` : "no job";
+  $("job").dataset.program = j ? j.program : "";
   // What is cutting now: the condition, the pass of the technology table, the wire offset.
   $("technology").textContent = j && j.technology ? j.technology : "";
   $("technology").title = j && j.generator ? Object.entries(j.generator).map(([k, v]) => `${k} ${v}`).join(", ") : "";
@@ -88,7 +92,7 @@ function show(status) {
     // The list shows the running program (a page opened mid-job picks it too).
     const sel = $("program-list");
     const mine = Array.from(sel.options).find((o) => j.program === o.value || j.program.endsWith(`/${o.value}`));
-    if (mine && document.activeElement !== sel) sel.value = mine.value;
+    if (mine && document.activeElement !== sel && !browsing) sel.value = mine.value;
     if (plannedFor !== j.program) loadPlanned(j.program);
     maxFeed = Math.max(maxFeed, j.feed_mm_per_min);
     if (Date.now() - executedAt > 1000) loadExecuted();
@@ -98,6 +102,7 @@ function show(status) {
     const picked = $("program-list").value;
     if (picked && plannedFor !== picked && state === "idle") loadPlanned(picked);
   }
+  if (wasRunning && !j) browsing = null;
   if (wasRunning && !j) {
     // A job ended: its line in the history; a reply about it ("running mdi …") is stale.
     loadJobs();
@@ -123,7 +128,9 @@ function show(status) {
   lastPulses = pulses;
   showProcess(pr);
   showControls(status);
-  showListing(j ? j.program : $("program-list").value, j ? j.line : 0);
+  // The listing follows the job, unless the operator opened another program meanwhile.
+  const followed = j && !browsing;
+  showListing(followed ? j.program : $("program-list").value, followed ? j.line : 0);
   draw();
 }
 
