@@ -64,6 +64,9 @@ pub(super) enum CtlCommand {
         /// --technology selects): the first N, each at its offset and condition
         #[arg(long, value_name = "N")]
         passes: Option<usize>,
+        /// In passes: the tab this job leaves, mm (0: none) [default: wire.tab_mm]
+        #[arg(long, value_name = "MM")]
+        tab: Option<f64>,
         /// Cut with a technology table (technology.dir): material=steel,height=32,wire=0.25
         /// for a wire cut (all its passes unless --passes), or
         /// electrode=copper,material=steel,area=4 for a sinker [default: the program's
@@ -362,6 +365,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
             wire_at,
             pass,
             passes,
+            tab,
             technology,
             force,
             wait_end: _,
@@ -374,6 +378,7 @@ fn request_of(command: &CtlCommand) -> (crate::daemon::protocol::Request, bool) 
                 approach: *approach,
                 wire_at: *wire_at,
                 passes: *passes,
+                tab_mm: *tab,
                 technology: technology.clone(),
                 force: *force,
             },

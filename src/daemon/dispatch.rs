@@ -41,6 +41,7 @@ impl Core {
                 wire_at,
                 pass,
                 passes,
+                tab_mm,
                 technology,
                 force,
             } => self.run_program(start::RunAsk {
@@ -51,6 +52,7 @@ impl Core {
                 wire_at,
                 pass,
                 passes,
+                tab_mm,
                 technology: technology.as_deref(),
                 force,
             }),

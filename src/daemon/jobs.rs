@@ -241,6 +241,7 @@ impl Core {
                     .transpose()
                     .map_err(|e| Refusal::BadArgument(e.to_string()))?,
                 passes: None,
+                tab_mm: None,
                 resume: true,
                 tables: self.technology.clone(),
             }),

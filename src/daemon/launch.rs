@@ -28,6 +28,8 @@ pub(super) struct TechAsk {
     pub asked: Option<crate::technology::Request>,
     /// `--passes N`: the first N of a wire table's passes (`None`: all of them).
     pub passes: Option<usize>,
+    /// `--tab MM`: the tab this job leaves, in place of the configuration's.
+    pub tab_mm: Option<f64>,
     /// A resume: the passes are the checkpoint's, which the table must still give.
     pub resume: bool,
     pub tables: Arc<crate::technology::Tables>,
@@ -263,6 +265,12 @@ fn select_technology(
             launch.cut.passes =
                 crate::path::passes::first(&config.wire.passes, n, &config.condition_numbers())?;
             launch.cut.tab_mm = config.wire.tab_mm;
+        }
+        if let Some(tab_mm) = ask.tab_mm {
+            if launch.cut.passes.is_empty() {
+                return Err(crate::path::PassError::TabWithoutPasses { tab_mm }.into());
+            }
+            launch.cut.tab_mm = tab_mm;
         }
     }
     // A run from a line in passes is in pass 1 unless the operator said which.

@@ -129,6 +129,8 @@ pub(super) struct RunAsk<'a> {
     /// The pass a run from a line cuts its line in.
     pub pass: Option<u8>,
     pub passes: Option<usize>,
+    /// In passes: the tab the job leaves (mm), in place of `wire.tab_mm`.
+    pub tab_mm: Option<f64>,
     /// `material=steel,height=32,wire=0.25`.
     pub technology: Option<&'a str>,
     pub force: bool,
@@ -192,9 +194,17 @@ impl Core {
             wire_at,
             pass,
             passes,
+            tab_mm: tab_asked,
             technology,
             force,
         } = ask;
+        if let Some(tab) = tab_asked
+            && !(tab.is_finite() && tab >= 0.0)
+        {
+            return Err(Refusal::BadArgument(format!(
+                "tab {tab}: a tab is a length along the contour, 0 mm (none) or more"
+            )));
+        }
         self.refuse_if_busy()?;
         self.desk().refuse_if_tripped(None)?;
         self.desk().refuse_if_unhomed()?;
@@ -250,7 +260,7 @@ impl Core {
         let tab_mm = if passes.is_empty() {
             0.0
         } else {
-            self.config.wire.tab_mm
+            tab_asked.unwrap_or(self.config.wire.tab_mm)
         };
 
         let program = confine(&self.config.daemon.program_dir, requested)?;
@@ -270,6 +280,7 @@ impl Core {
             technology: super::launch::JobTechnology::Ask(super::launch::TechAsk {
                 asked,
                 passes: passes_asked,
+                tab_mm: tab_asked,
                 resume: false,
                 tables: self.technology.clone(),
             }),

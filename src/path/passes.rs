@@ -74,6 +74,11 @@ pub enum PassError {
     )]
     TabbedFromLine { tab_mm: f64 },
     #[error(
+        "--tab {tab_mm}: a tab is left by a job in passes (a technology table's, or \
+         --passes N); this job cuts the program once, as written"
+    )]
+    TabWithoutPasses { tab_mm: f64 },
+    #[error(
         "--passes: wire.pass: pass {pass}: condition = {condition} is not one of [generator] \
          condition: give the pass one that is, or define E{condition}"
     )]

@@ -260,8 +260,10 @@ fn split(
     let contour = blocks.split_off(contour_from);
     let before = blocks;
     let (start, end) = (contour[0].start(), contour.last().expect("a move").end());
-    // The offset contour of a closed program closes up to the corner at its closing point.
-    let gap = (end - start).norm();
+    // The offset contour of a closed program closes up to the corner at its closing point,
+    // in the program's plane (X Y): a tapered contour's upper guide (U V) meets its start at
+    // another corner offset, and the tab is cut where the lower one closes.
+    let gap = (end - start).fixed_rows::<2>(0).norm();
     if gap > 2.0 * offset_mm + 1e-3 {
         let at = |p: &Point| format!("X{:.4} Y{:.4}", p[0], p[1]);
         return Err(TabError::NotClosed {
@@ -395,6 +397,34 @@ mod tests {
                 "reverse_last {reverse_last}"
             );
         }
+    }
+
+    /// A tapered contour: the upper guide (U V) leans another way at the closing point than
+    /// at the start (its corner offsets differ by 0.6 mm), the program plane (X Y)
+    /// closes: the tab is planned.
+    #[test]
+    fn a_tapered_contour_closes_in_the_program_plane() {
+        let line4 = |n: u64, a: [f64; 4], b: [f64; 4]| {
+            let curve = NurbsCurve::line(4, &point(&a), &point(&b)).unwrap();
+            Block::new(n, BlockKind::Line, curve, Some(60.0))
+        };
+        let tapered = PassProgram {
+            blocks: vec![
+                line4(2, [5.0, 5.0, 0.0, 0.0], [10.0, 5.0, 0.4, 0.0]),
+                line4(3, [10.0, 5.0, 0.4, 0.0], [10.0, 10.0, 0.4, 0.4]),
+                line4(4, [10.0, 10.0, 0.4, 0.4], [0.0, 10.0, -0.4, 0.4]),
+                line4(5, [0.0, 10.0, -0.4, 0.4], [0.0, 0.0, -0.4, -0.4]),
+                line4(6, [0.0, 0.0, -0.4, -0.4], [10.0, 0.0, 0.4, -0.4]),
+                line4(7, [10.0, 0.0, 0.4, -0.4], [10.0, 5.0, 0.4, 0.6]),
+                line4(8, [10.0, 5.0, 0.4, 0.6], [5.0, 5.0, 0.0, 0.0]),
+            ],
+            entry_line: Some(2),
+            exit_line: Some(8),
+        };
+        // The contour ends 0.6 mm from its start in U V, 0 in X Y.
+        let blocks = plan(vec![tapered], &[pass(false)], 2.0, 60.0, "p").unwrap();
+        let paused = blocks.iter().filter(|b| b.block.pause.is_some()).count();
+        assert_eq!(paused, 1, "the slug pause before the tab");
     }
 
     #[test]

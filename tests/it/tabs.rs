@@ -206,3 +206,33 @@ fn a_sigterm_in_pass_2_resumes_and_the_slug_pause_holds_at_the_tab_with_the_same
     );
     common::daemon::assert_joined_is(&dir, &common::daemon::moves(&reference));
 }
+
+/// The tab per job: a machine with no tab configured (`wire.tab_mm = 0`) cuts one because the
+/// job asks (`--tab 1.5`), pausing for the slug where the configured tab would; a tab
+/// without passes, or a negative one, is refused.
+#[test]
+fn a_job_asks_for_its_own_tab() {
+    let dir = common::daemon::scratch("tab-per-job");
+    let config = dir.join("wire.toml");
+    std::fs::write(&config, table([true, false])).unwrap();
+    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let args = ["--config".to_string(), config.display().to_string()];
+    let mut sets = base_sets(&dir, "pulses.csv");
+    sets.push("wire.tab_mm=0.0".into());
+    let daemon = Daemon::start_args(&dir, &args, &sets, &[]);
+    daemon.refused(&["run", "die.ngc", "--tab=-1"], "0 mm (none) or more");
+    daemon.refused(
+        &["run", "die.ngc", "--tab", "1.5"],
+        "--tab 1.5: a tab is left by a job in passes",
+    );
+    daemon.ok(&["run", "die.ngc", "--passes", "3", "--tab", "1.5"]);
+    let paused = daemon.wait_for("the slug's pause", |s| s["state"] == "paused");
+    assert_eq!(paused["job"]["pause"], "secure the slug", "{paused}");
+    let at = common::daemon::position(&paused);
+    assert!(
+        (at[0] + 1500).abs() <= 2 && (at[1] + 1880).abs() <= 2,
+        "paused at {at:?}"
+    );
+    daemon.resume_to_the_end(&[0, 0]);
+}

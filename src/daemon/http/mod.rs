@@ -497,6 +497,8 @@ struct RunBody {
     pass: Option<u8>,
     #[serde(default)]
     passes: Option<usize>,
+    #[serde(default)]
+    tab_mm: Option<f64>,
     technology: Option<String>,
     #[serde(default)]
     force: bool,
@@ -518,6 +520,7 @@ async fn run(
         wire_at,
         pass,
         passes,
+        tab_mm,
         technology,
         force,
     } = match body(raw) {
@@ -535,6 +538,7 @@ async fn run(
         wire_at,
         pass,
         passes,
+        tab_mm,
         technology,
         force,
     };

@@ -151,6 +151,7 @@ impl JobOrder {
             wire_at: None,
             pass: None,
             passes: self.passes,
+            tab_mm: None,
             technology: self.technology.clone(),
             force: false,
         }

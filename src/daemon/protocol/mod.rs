@@ -55,6 +55,9 @@ pub enum Request {
         /// Cut the program once per pass of `[wire] pass`, the first `passes` of them.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         passes: Option<usize>,
+        /// In passes: the tab this job leaves (mm; 0: none), in place of `wire.tab_mm`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tab_mm: Option<f64>,
         /// Cut with a technology table: `material=steel,height=32,wire=0.25`.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         technology: Option<String>,
@@ -613,6 +616,7 @@ mod tests {
                 wire_at: None,
                 pass: None,
                 passes: None,
+                tab_mm: None,
                 technology: None,
                 force: false,
             }
@@ -627,6 +631,7 @@ mod tests {
                 wire_at: Some(crate::path::WireAt::Stopped),
                 pass: None,
                 passes: None,
+                tab_mm: None,
                 technology: Some("material=x".into()),
                 force: false,
             }

@@ -241,6 +241,8 @@ $("run").onclick = () => {
   }
   const passes = Number($("passes").value);
   if (passes > 0) body.passes = passes;
+  // The tab this job leaves (in passes), in place of the machine's wire.tab_mm.
+  if ($("tab").value !== "") body.tab_mm = Number($("tab").value);
   const technology = techRequest();
   if (technology) body.technology = technology;
   control("run", body);
