@@ -210,3 +210,92 @@ fn readme_samples_are_what_the_binary_prints() {
         );
     }
 }
+
+/// The README's tour, run in the order it is written, as a reader on a fresh machine would
+/// type it: every `edmd` command of its shell blocks (and the `mkdir`/`cp` that set up the
+/// daemon's directory) succeeds, the daemon's jobs end done. `/tmp/edmd`, `/tmp/jin` and
+/// `/tmp/die` become this test's scratch directory; `cargo build` is the build that ran the
+/// test; the HAL machine (it needs root and LinuxCNC) is `tests/it/hal.rs`'s.
+#[test]
+fn the_readme_tour_runs_in_the_order_it_is_written() {
+    let scratch = common::scratch("readme", "tour");
+    let readme = std::fs::read_to_string(common::repo().join("README.md")).unwrap();
+    let tour = &readme[readme.find("## A tour").expect("a tour")..];
+    let tour = &tour[..tour[3..].find("\n## ").map_or(tour.len(), |i| i + 3)];
+    let bin = std::path::Path::new(env!("CARGO_BIN_EXE_edmd"))
+        .parent()
+        .unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let here = |line: &str| {
+        line.replace("/tmp/edmd", &scratch.join("edmd").display().to_string())
+            .replace("/tmp/jin", &scratch.join("jin").display().to_string())
+            .replace("/tmp/die", &scratch.join("die").display().to_string())
+    };
+    let mut daemon: Option<std::process::Child> = None;
+    let mut ran = Vec::new();
+    for block in tour.split("```sh\n").skip(1) {
+        let block = &block[..block.find("```").expect("the block ends")];
+        if block.contains("halrun") {
+            continue;
+        }
+        for command in block.replace("\\\n", " ").lines() {
+            let command = command.trim();
+            if !(command.starts_with("edmd ") || command.starts_with("mkdir ")) {
+                continue;
+            }
+            let command = here(command);
+            if let Some(serve) = command.strip_suffix('&') {
+                let log = std::fs::File::create(scratch.join("serve.log")).unwrap();
+                daemon = Some(
+                    Command::new("sh")
+                        .args(["-c", &format!("exec {serve}")])
+                        .current_dir(common::repo())
+                        .env("PATH", &path)
+                        .env_remove("RUST_LOG")
+                        .stdout(std::process::Stdio::null())
+                        .stderr(log)
+                        .spawn()
+                        .unwrap(),
+                );
+                let socket = scratch.join("edmd/edmd.sock");
+                let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+                while std::os::unix::net::UnixStream::connect(&socket).is_err() {
+                    assert!(std::time::Instant::now() < deadline, "the tour's daemon");
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                }
+                ran.push(command);
+                continue;
+            }
+            let out = Command::new("sh")
+                .args(["-c", &command])
+                .current_dir(common::repo())
+                .env("PATH", &path)
+                .env_remove("RUST_LOG")
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "the tour stops at `{command}` (after {ran:?}):\n{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            ran.push(command);
+        }
+    }
+    let mut daemon = daemon.expect("the tour serves");
+    let _ = Command::new("kill")
+        .args(["-TERM", &daemon.id().to_string()])
+        .status();
+    assert!(
+        daemon.wait().unwrap().success(),
+        "the tour's daemon stops cleanly"
+    );
+    assert!(
+        ran.iter().filter(|c| c.contains(" ctl ")).count() >= 5,
+        "the tour's commands: {ran:?}"
+    );
+}
