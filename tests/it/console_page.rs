@@ -47,6 +47,17 @@ fn open(d: &Daemon, chromedriver: &Path) -> Browser {
     browser
 }
 
+/// Waits until the program list offers `program`.
+fn listed(browser: &Browser, program: &str) {
+    wait(
+        browser,
+        &format!("{program} listed"),
+        &format!(
+            "return Array.from(document.getElementById('program-list').options).some(o => o.value === '{program}')"
+        ),
+    );
+}
+
 fn pick(browser: &Browser, program: &str) {
     browser.eval(&format!(
         "const s = document.getElementById('program-list'); s.value = '{program}'; \
@@ -63,11 +74,7 @@ fn the_operators_console_in_headless_chromium() {
     std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
     std::fs::write(dir.join("programs/far.nc"), "G21 G90\nG1 X900 F100\nM2\n").unwrap();
     let browser = open(&d, &chromedriver);
-    wait(
-        &browser,
-        "the program list",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'die.ngc')",
-    );
+    listed(&browser, "die.ngc");
     // The G41-first die from its third contour line (line 6): accepted, run to its end.
     pick(&browser, "die.ngc");
     browser.eval("document.getElementById('from-line').value = '6'; return true");
@@ -246,11 +253,7 @@ fn reset_after_an_estop_on_the_page() {
     let browser = open(&d, &chromedriver);
     let grey =
         browser.eval("return getComputedStyle(document.getElementById('state')).backgroundColor");
-    wait(
-        &browser,
-        "line.nc listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'line.nc')",
-    );
+    listed(&browser, "line.nc");
     assert!(
         browser
             .eval("return document.getElementById('reset').disabled")
@@ -331,11 +334,7 @@ fn the_run_dialog_picks_a_technology_and_explains_it() {
     );
     // A dry run of the die with it: the job cuts the table's four passes with it.
     browser.eval("document.getElementById('tech-size').value = '32'; return true");
-    wait(
-        &browser,
-        "die.ngc listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'die.ngc')",
-    );
+    listed(&browser, "die.ngc");
     pick(&browser, "die.ngc");
     browser.eval("document.getElementById('dry-run').checked = true; return true");
     click(&browser, "run");
@@ -398,11 +397,7 @@ fn the_page_shows_the_process_as_the_pulses_tell_it() {
     )
     .unwrap();
     let browser = open(&d, &chromedriver);
-    wait(
-        &browser,
-        "slot.ngc listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'slot.ngc')",
-    );
+    listed(&browser, "slot.ngc");
     pick(&browser, "slot.ngc");
     click(&browser, "run");
     let row = wait(
@@ -454,11 +449,7 @@ fn a_pause_shows_its_message_on_the_page() {
     )
     .unwrap();
     let browser = open(&d, &chromedriver);
-    wait(
-        &browser,
-        "thread.ngc listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'thread.ngc')",
-    );
+    listed(&browser, "thread.ngc");
     pick(&browser, "thread.ngc");
     click(&browser, "run");
     let said = wait(
@@ -537,11 +528,7 @@ fn the_dro_and_the_backplot_are_in_the_programs_work_system() {
     )
     .unwrap();
     let browser = open(&d, &chromedriver);
-    wait(
-        &browser,
-        "g55.nc listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'g55.nc')",
-    );
+    listed(&browser, "g55.nc");
     pick(&browser, "g55.nc");
     click(&browser, "run");
     let s = d.wait_for("the move in G55", |s| {
@@ -620,11 +607,7 @@ fn while_a_job_runs_another_program_is_opened_edited_and_saved_on_the_page() {
     std::fs::write(dir.join("programs/long.nc"), "G21 G90\nG1 X6 F60\nM2\n").unwrap();
     std::fs::write(dir.join("programs/other.nc"), "G21 G90\nG1 X1 F60\nM2\n").unwrap();
     let browser = open(&d, &chromedriver);
-    wait(
-        &browser,
-        "the programs listed",
-        "return Array.from(document.getElementById('program-list').options).some(o => o.value === 'other.nc')",
-    );
+    listed(&browser, "other.nc");
     pick(&browser, "long.nc");
     click(&browser, "run");
     d.wait_for("running", |s| s["state"] == "running");

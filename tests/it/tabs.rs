@@ -24,6 +24,18 @@ fn table(reverse: [bool; 2]) -> String {
     format!("{head}{passes}")
 }
 
+/// A daemon's scratch directory `name` with the die and the tabbed table (pass 2 reversed):
+/// the directory, the table's file and the `--config` arguments that read it.
+fn die_daemon_dir(name: &str) -> (std::path::PathBuf, std::path::PathBuf, [String; 2]) {
+    let dir = common::daemon::scratch(name);
+    let config = dir.join("wire.toml");
+    std::fs::write(&config, table([true, false])).unwrap();
+    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
+    let _ = std::fs::remove_file(dir.join("machine-state.json"));
+    let args = ["--config".to_string(), config.display().to_string()];
+    (dir, config, args)
+}
+
 type Distance = dyn Fn(&(i64, i64)) -> i64;
 
 struct Part {
@@ -161,12 +173,7 @@ fn a_die_and_a_punch_in_three_passes_leave_the_tab_to_the_end() {
 
 #[test]
 fn a_sigterm_in_pass_2_resumes_and_the_slug_pause_holds_at_the_tab_with_the_same_pulses() {
-    let dir = common::daemon::scratch("tabs");
-    let config = dir.join("wire.toml");
-    std::fs::write(&config, table([true, false])).unwrap();
-    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
-    let _ = std::fs::remove_file(dir.join("machine-state.json"));
-    let args = ["--config".to_string(), config.display().to_string()];
+    let (dir, config, args) = die_daemon_dir("tabs");
     let daemon = Daemon::start_args(&dir, &args, &base_sets(&dir, "first.csv"), &[]);
     daemon.ok(&["run", "die.ngc", "--passes", "3"]);
     daemon.wait_for("the second pass", |s| {
@@ -212,12 +219,7 @@ fn a_sigterm_in_pass_2_resumes_and_the_slug_pause_holds_at_the_tab_with_the_same
 /// without passes, or a negative one, is refused.
 #[test]
 fn a_job_asks_for_its_own_tab() {
-    let dir = common::daemon::scratch("tab-per-job");
-    let config = dir.join("wire.toml");
-    std::fs::write(&config, table([true, false])).unwrap();
-    std::fs::write(dir.join("programs/die.ngc"), DIE).unwrap();
-    let _ = std::fs::remove_file(dir.join("machine-state.json"));
-    let args = ["--config".to_string(), config.display().to_string()];
+    let (dir, _, args) = die_daemon_dir("tab-per-job");
     let mut sets = base_sets(&dir, "pulses.csv");
     sets.push("wire.tab_mm=0.0".into());
     let daemon = Daemon::start_args(&dir, &args, &sets, &[]);

@@ -118,7 +118,7 @@ const CONTROLS = {
 };
 function forThePage(text) {
   return String(text || "")
-    .replace(/`edmd ctl ([a-z-]+)([^`]*)`/g, (all, command, args) => {
+    .replace(new RegExp("\u0060edmd ctl ([a-z-]+)([^\u0060]*)\u0060", "g"), (all, command, args) => {
       if (command === "home" && args.includes("--here")) return "Home here";
       const control = CONTROLS[command];
       if (!control) return "the machine's terminal";
