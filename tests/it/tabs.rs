@@ -36,6 +36,18 @@ fn die_daemon_dir(name: &str) -> (std::path::PathBuf, std::path::PathBuf, [Strin
     (dir, config, args)
 }
 
+/// Waits for the job's pause for the slug, at the tab's start on the last pass's path
+/// on the die's bottom edge at 0.12 mm.
+fn paused_at_the_tab(daemon: &Daemon) {
+    let paused = daemon.wait_for("the slug's pause", |s| s["state"] == "paused");
+    assert_eq!(paused["job"]["pause"], "secure the slug", "{paused}");
+    let at = common::daemon::position(&paused);
+    assert!(
+        (at[0] + 1500).abs() <= 2 && (at[1] + 1880).abs() <= 2,
+        "paused at {at:?}"
+    );
+}
+
 type Distance = dyn Fn(&(i64, i64)) -> i64;
 
 struct Part {
@@ -189,14 +201,7 @@ fn a_sigterm_in_pass_2_resumes_and_the_slug_pause_holds_at_the_tab_with_the_same
 
     let daemon = Daemon::start_args(&dir, &args, &base_sets(&dir, "second.csv"), &[]);
     daemon.ok(&["resume"]);
-    let paused = daemon.wait_for("the slug's pause", |s| s["state"] == "paused");
-    assert_eq!(paused["job"]["pause"], "secure the slug", "{paused}");
-    // At the tab's start on the last pass's path: on the bottom edge at 0.12 mm.
-    let at = common::daemon::position(&paused);
-    assert!(
-        (at[0] + 1500).abs() <= 2 && (at[1] + 1880).abs() <= 2,
-        "paused at {at:?}"
-    );
+    paused_at_the_tab(&daemon);
     daemon.wait_for_log("secure the slug");
     daemon.resume_to_the_end(&[0, 0]);
 
@@ -229,12 +234,6 @@ fn a_job_asks_for_its_own_tab() {
         "--tab 1.5: a tab is left by a job in passes",
     );
     daemon.ok(&["run", "die.ngc", "--passes", "3", "--tab", "1.5"]);
-    let paused = daemon.wait_for("the slug's pause", |s| s["state"] == "paused");
-    assert_eq!(paused["job"]["pause"], "secure the slug", "{paused}");
-    let at = common::daemon::position(&paused);
-    assert!(
-        (at[0] + 1500).abs() <= 2 && (at[1] + 1880).abs() <= 2,
-        "paused at {at:?}"
-    );
+    paused_at_the_tab(&daemon);
     daemon.resume_to_the_end(&[0, 0]);
 }
